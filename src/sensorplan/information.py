@@ -1,0 +1,347 @@
+r"""Mutual-information potential of a plan (SPEC 4) and the batched kernels behind it.
+
+Everything here is covariance-only: the means are predicted without updates,
+``xbar_j(t) = F^t x_j(0)``, and measurements enter through their information in the
+target's ground position,
+
+.. math:: W = p\, H'^T R^{-1} H' \quad (2\times 2),
+
+where ``H'`` is the position block of the Jacobian and ``p`` is ``p_vis`` (``probabilistic``
+visibility; the look counts with ``R / p_vis``) or the 0/1 visibility of the predicted mean
+(``mean``). Several measurements of one target at one step add their ``W``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._types import BoolArray, FloatArray, IntArray
+from .angles import heading_rule
+from .dynamics import cv_matrices, predict_covariance, predict_covariances, predict_means
+from .problem import Lattice, Plan, PlanningProblem, build_lattice, move_vectors
+from .sensors import (P_VIS_MIN, SensorParams, cos_boresight, detection_probability,
+                      noise_std, stack_params, take_params, visible_offset)
+
+
+@dataclass(frozen=True)
+class Context:
+    """Per-decision precomputation shared by :func:`potential` and the planners.
+
+    Attributes
+    ----------
+    F, Q : (4, 4)
+    xbar : (M, T + 1, 4)       predicted means
+    Pbar : (M, T + 1, 4, 4)    covariances predicted without measurements
+    ld_bar : (M, T + 1)        their log-determinants
+    aim : (M, K, 2)            ground position each target is predicted at on the first
+                               step of each epoch (the heading rule aims there)
+    params : SensorParams      stacked, fields shaped (N,)
+    lattices : list of Lattice one per sensor
+    """
+
+    problem: PlanningProblem
+    F: FloatArray
+    Q: FloatArray
+    xbar: FloatArray
+    Pbar: FloatArray
+    ld_bar: FloatArray
+    aim: FloatArray
+    params: SensorParams
+    lattices: list[Lattice]
+
+    @property
+    def K(self) -> int:
+        return self.problem.horizon
+
+    @property
+    def e(self) -> int:
+        return self.problem.steps_per_epoch
+
+    @property
+    def T(self) -> int:
+        return self.problem.n_steps
+
+    @property
+    def M(self) -> int:
+        return self.problem.n_targets
+
+    @property
+    def N(self) -> int:
+        return self.problem.n_sensors
+
+    def sensor(self, i: int) -> SensorParams:
+        """Parameters of sensor ``i`` as scalars (0-d arrays)."""
+        return take_params(self.params, i)
+
+    def steps(self, k: int) -> IntArray:
+        """Simulation steps ``(k-1)e+1 .. ke`` of epoch ``k`` (1-based)."""
+        return np.arange((k - 1) * self.e + 1, k * self.e + 1)
+
+
+def prepare(problem: PlanningProblem) -> Context:
+    """Precompute predictions, aim points and reachable sets for one decision."""
+    F, Q = cv_matrices(problem.dt, problem.process_noise)
+    T, e, K = problem.n_steps, problem.steps_per_epoch, problem.horizon
+    xbar = predict_means(problem.means, F, T)
+    Pbar = predict_covariances(problem.covs, F, Q, T)
+    ld_bar = np.linalg.slogdet(Pbar)[1]
+    aim = xbar[:, (np.arange(1, K + 1) - 1) * e + 1, :2]
+    lattices = [build_lattice(problem.positions[i], move_vectors(s.moves), K, problem.world)
+                for i, s in enumerate(problem.sensors)]
+    return Context(problem, F, Q, xbar, Pbar, ld_bar, aim, stack_params(problem.sensors),
+                   lattices)
+
+
+def chain_headings(ctx: Context, i: int, k_first: int, positions: FloatArray,
+                   targets: IntArray, prev_heading: FloatArray | float,
+                   prev_assigned: bool) -> FloatArray:
+    """Headings along a run of consecutive assigned epochs ``k_first ..`` of sensor ``i``.
+
+    Parameters
+    ----------
+    positions : (B, L, 2)
+    targets : (B, L) int
+    prev_heading : (B,) or float
+        Heading in epoch ``k_first - 1`` (``theta_0`` when ``k_first = 1``).
+    prev_assigned : bool
+        Whether epoch ``k_first - 1`` is assigned (True when ``k_first = 1``). If not,
+        the first epoch turns from ``theta_0`` by at most ``k_first * max_turn`` (SPEC 4).
+
+    Returns
+    -------
+    (B, L) headings.
+    """
+    max_turn = ctx.params.max_turn[i]
+    theta0 = ctx.problem.headings[i]
+    out = np.empty(targets.shape)
+    prev = np.asarray(prev_heading, dtype=float)
+    for l in range(targets.shape[1]):
+        k = k_first + l
+        aim = ctx.aim[targets[:, l], k - 1]
+        bearing = np.arctan2(aim[:, 1] - positions[:, l, 1], aim[:, 0] - positions[:, l, 0])
+        if l == 0 and not prev_assigned:
+            prev = heading_rule(theta0, bearing, k * max_turn)
+        else:
+            prev = heading_rule(prev, bearing, max_turn)
+        out[:, l] = prev
+    return out
+
+
+def epoch_information(ctx: Context, i: int, k: int, positions: FloatArray,
+                      headings: FloatArray, targets: IntArray) -> tuple[FloatArray, BoolArray]:
+    """Information ``W`` of sensor ``i``'s looks in epoch ``k`` from a batch of poses.
+
+    Parameters
+    ----------
+    positions : (B, 2)
+    headings : (B,)
+    targets : (B,) int
+
+    Returns
+    -------
+    W : (B, e, 2, 2)
+        Position information of the look at each step of the epoch (zero if it does not
+        count).
+    counted : (B, e) bool
+        Whether each look counts in Phi (SPEC 4 visibility mode).
+    """
+    steps = ctx.steps(k)
+    params = ctx.sensor(i)
+    tpos = ctx.xbar[targets[:, None], steps[None, :], :2]                 # (B, e, 2)
+    dx = tpos[..., 0] - positions[:, None, 0]
+    dy = tpos[..., 1] - positions[:, None, 1]
+    th = headings[:, None]
+    if ctx.problem.visibility == "mean":
+        weight = visible_offset(dx, dy, th, params).astype(float)
+    else:
+        C = ctx.Pbar[targets[:, None], steps[None, :], :2, :2]
+        weight = detection_probability(tpos, C, positions[:, None, :], th, params)
+        weight = np.where(weight >= P_VIS_MIN, weight, 0.0)
+    counted = weight > 0
+    return information_matrix(dx, dy, th, params, weight), counted
+
+
+def information_matrix(dx: FloatArray, dy: FloatArray, heading: FloatArray,
+                       params: SensorParams, weight: FloatArray) -> FloatArray:
+    r"""``weight * H'^T R^{-1} H'`` for ground offsets ``dx, dy`` (..., zero where weight = 0).
+
+    With :math:`a = (dx, dy)/r` and :math:`b = (-dy, dx)/g^2` (the rows of ``H'``),
+    :math:`H'^T R^{-1} H' = a a^T/\sigma_r^2 + b b^T/\sigma_\phi^2`.
+    """
+    g2 = dx * dx + dy * dy
+    r = np.sqrt(g2 + params.altitude**2)
+    sr, sp = noise_std(r, cos_boresight(dx, dy, heading, params), params)
+    ok = weight > 0
+    safe_g2 = np.where(ok, g2, 1.0)
+    wr = np.where(ok, weight / (sr * sr * r * r), 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        wp = np.where(ok, weight / (sp * sp * safe_g2 * safe_g2), 0.0)
+    W = np.empty(dx.shape + (2, 2))
+    W[..., 0, 0] = wr * dx * dx + wp * dy * dy
+    W[..., 1, 1] = wr * dy * dy + wp * dx * dx
+    W[..., 0, 1] = W[..., 1, 0] = (wr - wp) * dx * dy
+    return W
+
+
+def information_update(P: FloatArray, W: FloatArray) -> tuple[FloatArray, FloatArray]:
+    r"""Covariance after adding position information ``W``, and ``log det(I + W C)``.
+
+    .. math::
+        P^+ = P - P G^T (I + W C)^{-1} W G P,\quad C = G P G^T,\quad G = [I_2\ 0]
+
+    equals :math:`(P^{-1} + G^T W G)^{-1}` (Woodbury) without inverting ``P``; ``W = 0``
+    leaves ``P`` unchanged. By the determinant lemma
+    :math:`\log\det P^+ = \log\det P - \log\det(I + W C)`.
+
+    Parameters
+    ----------
+    P : (..., 4, 4)
+    W : (..., 2, 2) symmetric positive semidefinite
+
+    Returns
+    -------
+    P_post : (..., 4, 4)
+    logdet_gain : (...,)
+    """
+    C = P[..., :2, :2]
+    A = np.eye(2) + W @ C
+    det = A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0]
+    # S = A^{-1} W via the 2x2 adjugate; det(A) = det(I + C^1/2 W C^1/2) >= 1.
+    adj = np.empty_like(A)
+    adj[..., 0, 0] = A[..., 1, 1]
+    adj[..., 1, 1] = A[..., 0, 0]
+    adj[..., 0, 1] = -A[..., 0, 1]
+    adj[..., 1, 0] = -A[..., 1, 0]
+    S = (adj @ W) / det[..., None, None]
+    S = 0.5 * (S + np.swapaxes(S, -1, -2))
+    Pc = P[..., :, :2]                                                     # (..., 4, 2)
+    Pn = P - Pc @ S @ np.swapaxes(Pc, -1, -2)
+    return 0.5 * (Pn + np.swapaxes(Pn, -1, -2)), np.log(det)
+
+
+def covariance_recursion(P: FloatArray, W: FloatArray, F: FloatArray,
+                         Q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Run predict + information update over ``n`` steps, batched.
+
+    Parameters
+    ----------
+    P : (B, 4, 4)   covariance at the step before the first of the n steps
+    W : (B, n, 2, 2) position information at each step
+
+    Returns
+    -------
+    P_end : (B, 4, 4)
+    logdet_end : (B,)       log det of the covariance after the last step
+    logdet_sum : (B,)       sum of log det over the n updated covariances
+    """
+    total = np.zeros(P.shape[0])
+    for t in range(W.shape[1]):
+        P = predict_covariance(P, F, Q)
+        P, _ = information_update(P, W[:, t])
+        total += np.linalg.slogdet(P)[1]
+    return P, np.linalg.slogdet(P)[1], total
+
+
+@dataclass(frozen=True)
+class PlanEvaluation:
+    """Phi of a plan with its parts.
+
+    Attributes
+    ----------
+    potential : float          Phi (nats)
+    information : (M,)         per-target terms of Phi
+    headings : (N, K)          planned headings (NaN where unassigned)
+    measurements : (N, K) int  looks that count in Phi, per player
+    """
+
+    potential: float
+    information: FloatArray
+    headings: FloatArray
+    measurements: IntArray
+
+
+def plan_information(ctx: Context, plan: Plan) -> tuple[FloatArray, FloatArray, IntArray]:
+    """Every player's information contributions.
+
+    Returns
+    -------
+    W : (N, K, e, 2, 2)   information of each player's looks (zero if unassigned)
+    headings : (N, K)     NaN where unassigned
+    counts : (N, K)       looks that count
+    """
+    N, K, e = ctx.N, ctx.K, ctx.e
+    W = np.zeros((N, K, e, 2, 2))
+    headings = np.full((N, K), np.nan)
+    counts = np.zeros((N, K), dtype=np.int64)
+    for i in range(N):
+        for k0, k1 in assigned_runs(plan.targets[i] >= 0):
+            pos = plan.positions[i, k0:k1][None]
+            tgt = plan.targets[i, k0:k1][None]
+            prev_ok = k0 == 0
+            th = chain_headings(ctx, i, k0 + 1, pos, tgt, ctx.problem.headings[i], prev_ok)
+            headings[i, k0:k1] = th[0]
+            for k in range(k0, k1):
+                w, c = epoch_information(ctx, i, k + 1, pos[:, k - k0], th[:, k - k0], tgt[:, k - k0])
+                W[i, k] = w[0]
+                counts[i, k] = c[0].sum()
+    return W, headings, counts
+
+
+def assigned_runs(assigned: np.ndarray) -> list[tuple[int, int]]:
+    """Maximal runs ``[k0, k1)`` (0-based) of consecutive assigned epochs."""
+    runs, k, K = [], 0, len(assigned)
+    while k < K:
+        if assigned[k]:
+            k1 = k
+            while k1 < K and assigned[k1]:
+                k1 += 1
+            runs.append((k, k1))
+            k = k1
+        else:
+            k += 1
+    return runs
+
+
+def target_information(ctx: Context, W_target: FloatArray) -> FloatArray:
+    """Per-target terms of Phi from the summed information ``W_target (M, T, 2, 2)``."""
+    P0 = np.asarray(ctx.problem.covs)
+    _, ld_end, ld_sum = covariance_recursion(P0, W_target, ctx.F, ctx.Q)
+    if ctx.problem.objective == "cumulative":
+        return 0.5 * (ctx.ld_bar[:, 1:].sum(axis=1) - ld_sum)
+    return 0.5 * (ctx.ld_bar[:, -1] - ld_end)
+
+
+def sum_by_target(ctx: Context, W: FloatArray, targets: IntArray) -> FloatArray:
+    """Scatter player contributions ``W (N, K, e, 2, 2)`` into ``(M, T, 2, 2)`` by target."""
+    out = np.zeros((ctx.M, ctx.T, 2, 2))
+    n, k = np.nonzero(targets >= 0)
+    for s in range(ctx.e):
+        np.add.at(out, (targets[n, k], k * ctx.e + s), W[n, k, s])
+    return out
+
+
+def evaluate(ctx: Context, plan: Plan) -> PlanEvaluation:
+    """Phi, its per-target terms, headings and counted looks of ``plan``."""
+    W, headings, counts = plan_information(ctx, plan)
+    info = target_information(ctx, sum_by_target(ctx, W, plan.targets))
+    return PlanEvaluation(float(info.sum()), info, headings, counts)
+
+
+def potential(problem: PlanningProblem, plan: Plan) -> tuple[float, FloatArray]:
+    r"""The potential Phi of a plan, in nats (SPEC 4): the definition planners are held to.
+
+    .. math::
+        \Phi(a) = \sum_j \tfrac12 \log\det \bar P_j(T) - \tfrac12 \log\det P_j(T \mid Z_j(a))
+
+    (``terminal``), or the same summed over t = 1..T (``cumulative``). Unassigned players
+    make no measurement.
+
+    Returns
+    -------
+    phi : float
+    information : (M,) per-target terms, summing to phi
+    """
+    ev = evaluate(prepare(problem), plan)
+    return ev.potential, ev.information

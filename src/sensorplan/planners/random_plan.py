@@ -1,0 +1,39 @@
+"""The ``random`` baseline: a uniformly random feasible move and target, epoch by epoch."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from ..information import prepare
+from ..problem import Plan, PlanningProblem
+from .base import PlanResult, RngLike, finish, make_rng, register
+
+
+@register
+@dataclass(frozen=True)
+class RandomPlanner:
+    """Uniform random feasible plan (SPEC 4 baselines), seeded."""
+
+    name: ClassVar[str] = "random"
+    seed: int | None = 0
+
+    def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
+        start = time.perf_counter()
+        gen = make_rng(rng, self.seed)
+        ctx = prepare(problem)
+        N, K = problem.n_sensors, problem.horizon
+        positions = np.empty((N, K, 2))
+        targets = np.empty((N, K), dtype=np.int64)
+        for i in range(N):
+            lat = ctx.lattices[i]
+            q = 0
+            for k in range(1, K + 1):
+                options = np.flatnonzero(lat.child[k][q] >= 0)
+                q = int(lat.child[k][q, options[gen.integers(len(options))]])
+                positions[i, k - 1] = lat.positions[k][q]
+                targets[i, k - 1] = gen.integers(problem.n_targets)
+        return finish(self.name, ctx, Plan(positions, targets), start)

@@ -1,0 +1,307 @@
+"""One planning decision (SPEC 4): the problem value, plans, moves and reachable sets.
+
+A :class:`PlanningProblem` holds everything a planner receives; a :class:`Plan` holds every
+player's action as arrays ``positions (N, K, 2)`` and ``targets (N, K)`` (``-1`` and NaN for
+an unassigned player).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from ._types import FloatArray, IntArray
+from .errors import ConfigError
+from .sensors import SensorParams
+
+#: The 8 lattice directions in SPEC order.
+DIRECTIONS = np.array([(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)],
+                      dtype=float)
+#: Positions closer than this (m) are the same position.
+POSITION_TOL = 1e-6
+
+Visibility = Literal["probabilistic", "mean"]
+Objective = Literal["terminal", "cumulative"]
+VISIBILITY_MODES = ("probabilistic", "mean")
+OBJECTIVES = ("terminal", "cumulative")
+
+
+def move_vectors(distances: tuple[float, ...] | list[float]) -> FloatArray:
+    """The moves in SPEC order: stay, then ``s * d`` for each distance s and direction d.
+
+    Returns
+    -------
+    (1 + 8 * len(distances), 2) float64; diagonal moves are ``s * sqrt(2)`` long.
+    """
+    out = [np.zeros((1, 2))] + [s * DIRECTIONS for s in distances]
+    return np.concatenate(out, axis=0)
+
+
+@dataclass(frozen=True)
+class MapRect:
+    """The ground rectangle ``[0, width] x [0, height]`` (m); its edge is inside."""
+
+    width: float = 600.0
+    height: float = 600.0
+
+    def contains(self, xy: FloatArray, tol: float = POSITION_TOL) -> np.ndarray:
+        """Boolean mask of ground positions ``(..., 2)`` inside the closed map."""
+        xy = np.asarray(xy, dtype=float)
+        return ((xy[..., 0] >= -tol) & (xy[..., 0] <= self.width + tol)
+                & (xy[..., 1] >= -tol) & (xy[..., 1] <= self.height + tol))
+
+
+def _keys(offsets: FloatArray) -> list[tuple[int, int]]:
+    q = np.rint(offsets / POSITION_TOL).astype(np.int64)
+    return [(int(a), int(b)) for a, b in q]
+
+
+@dataclass(frozen=True)
+class Lattice:
+    """Reachable sets of one platform: ``R_0 .. R_K`` and the moves between them.
+
+    Attributes
+    ----------
+    positions : list of (n_k, 2) arrays
+        ``R_k`` in breadth-first order (parents in order, moves in SPEC order).
+    parent_move : list of (n_k, n_moves) int arrays
+        ``parent_move[k][p, m]``: index in ``R_{k-1}`` of ``R_k[p] - move_m``, or -1.
+    child : list of (n_{k-1}, n_moves) int arrays
+        ``child[k][q, m]``: index in ``R_k`` of ``R_{k-1}[q] + move_m``, or -1 if outside.
+    """
+
+    positions: list[FloatArray]
+    parent_move: list[IntArray]
+    child: list[IntArray]
+    moves: FloatArray
+
+    def index_of(self, k: int, xy: FloatArray) -> int:
+        """Index of ground position ``xy`` in ``R_k`` (-1 if not reachable)."""
+        d = np.abs(self.positions[k] - np.asarray(xy, dtype=float)).max(axis=1)
+        hits = np.flatnonzero(d <= POSITION_TOL * 10)
+        return int(hits[0]) if hits.size else -1
+
+
+def build_lattice(p0: FloatArray, moves: FloatArray, K: int, world: MapRect) -> Lattice:
+    """Reachable sets ``R_k = {p + m : p in R_{k-1}, m a move, inside the map}``, k = 0..K."""
+    p0 = np.asarray(p0, dtype=float)
+    positions = [p0[None, :].copy()]
+    parent_move = [np.full((1, len(moves)), -1, dtype=np.int64)]
+    child: list[IntArray] = [np.zeros((0, len(moves)), dtype=np.int64)]
+    for _ in range(1, K + 1):
+        prev = positions[-1]
+        cand = prev[:, None, :] + moves[None, :, :]                # (n_prev, n_moves, 2)
+        inside = world.contains(cand)
+        index: dict[tuple[int, int], int] = {}
+        new_pos: list[FloatArray] = []
+        ch = np.full((len(prev), len(moves)), -1, dtype=np.int64)
+        keys = _keys((cand - p0).reshape(-1, 2))
+        for flat, key in enumerate(keys):
+            q, m = divmod(flat, len(moves))
+            if not inside[q, m]:
+                continue
+            if key not in index:
+                index[key] = len(new_pos)
+                new_pos.append(cand[q, m])
+            ch[q, m] = index[key]
+        pos = np.array(new_pos).reshape(-1, 2)
+        pm = np.full((len(pos), len(moves)), -1, dtype=np.int64)
+        qs, ms = np.nonzero(ch >= 0)
+        pm[ch[qs, ms], ms] = qs
+        positions.append(pos)
+        parent_move.append(pm)
+        child.append(ch)
+    return Lattice(positions, parent_move, child, moves)
+
+
+def _readonly(a: object, dtype: type = float) -> np.ndarray:
+    arr = np.array(a, dtype=dtype)
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True)
+class PlanningProblem:
+    """Everything one planning decision needs (SPEC 4 inputs).
+
+    Attributes
+    ----------
+    means : (M, 4)
+        Target means ``[x, y, vx, vy]`` now (time 0).
+    covs : (M, 4, 4)
+        Target covariances now.
+    positions : (N, 2)
+        Platform ground positions (m).
+    headings : (N,)
+        Platform headings (rad).
+    sensors : tuple of SensorParams, length N
+    horizon : int
+        K, in epochs.
+    steps_per_epoch : int
+        e; the horizon ends at T = K e steps.
+    dt : float
+        Simulation step (s).
+    process_noise : float
+        q of the filter model (m^2/s^3).
+    world : MapRect
+    visibility : {"probabilistic", "mean"}
+    objective : {"terminal", "cumulative"}
+    """
+
+    means: FloatArray
+    covs: FloatArray
+    positions: FloatArray
+    headings: FloatArray
+    sensors: tuple[SensorParams, ...]
+    horizon: int
+    steps_per_epoch: int = 1
+    dt: float = 1.0
+    process_noise: float = 0.05
+    world: MapRect = field(default_factory=MapRect)
+    visibility: str = "probabilistic"
+    objective: str = "terminal"
+
+    def __post_init__(self) -> None:
+        # Read-only copies: planners cannot mutate the caller's arrays (or each other's).
+        for name in ("means", "covs", "positions", "headings"):
+            object.__setattr__(self, name, _readonly(getattr(self, name)))
+        object.__setattr__(self, "sensors", tuple(self.sensors))
+        self.validate()
+
+    @property
+    def n_sensors(self) -> int:
+        return len(self.sensors)
+
+    @property
+    def n_targets(self) -> int:
+        return len(self.means)
+
+    @property
+    def n_steps(self) -> int:
+        """T = K e, the last step of the horizon."""
+        return self.horizon * self.steps_per_epoch
+
+    def validate(self) -> None:
+        """Check SPEC 7's semantic rules; raise :class:`ConfigError` naming the field."""
+        M = len(self.means)
+        if M < 1:
+            raise ConfigError("targets", "at least one target is required")
+        if self.means.shape != (M, 4):
+            raise ConfigError("targets.mean", f"expected shape ({M}, 4), got {self.means.shape}")
+        if self.covs.shape != (M, 4, 4):
+            raise ConfigError("targets.cov", f"expected shape ({M}, 4, 4), got {self.covs.shape}")
+        N = len(self.sensors)
+        if N < 1:
+            raise ConfigError("sensors", "at least one sensor is required")
+        if self.positions.shape != (N, 2):
+            raise ConfigError("sensors.position", f"expected shape ({N}, 2)")
+        if self.headings.shape != (N,):
+            raise ConfigError("sensors.heading", f"expected shape ({N},)")
+        for name, value in (("dt", self.dt), ("process_noise", self.process_noise),
+                            ("map.width", self.world.width), ("map.height", self.world.height)):
+            if not math.isfinite(value):
+                raise ConfigError(name, "must be a finite number")
+        if self.dt <= 0:
+            raise ConfigError("dt", "must be > 0")
+        if self.process_noise < 0:
+            raise ConfigError("process_noise", "must be >= 0")
+        if self.world.width <= 0 or self.world.height <= 0:
+            raise ConfigError("map", "width and height must be > 0")
+        if int(self.horizon) != self.horizon or self.horizon < 1:
+            raise ConfigError("horizon", "must be an integer >= 1")
+        if int(self.steps_per_epoch) != self.steps_per_epoch or self.steps_per_epoch < 1:
+            raise ConfigError("steps_per_epoch", "must be an integer >= 1")
+        if self.visibility not in VISIBILITY_MODES:
+            raise ConfigError("visibility", f"must be one of {VISIBILITY_MODES}, got {self.visibility!r}")
+        if self.objective not in OBJECTIVES:
+            raise ConfigError("objective", f"must be one of {OBJECTIVES}, got {self.objective!r}")
+        for j in range(M):
+            if not np.all(np.isfinite(self.means[j])):
+                raise ConfigError(f"targets[{j}].mean", "must be finite")
+            check_covariance(self.covs[j], f"targets[{j}].cov")
+        for i, s in enumerate(self.sensors):
+            s.validate(f"sensors[{i}]")
+            if not np.all(np.isfinite(self.positions[i])):
+                raise ConfigError(f"sensors[{i}].position", "must be finite")
+            if not np.isfinite(self.headings[i]):
+                raise ConfigError(f"sensors[{i}].heading", "must be finite")
+            if not self.world.contains(self.positions[i]):
+                raise ConfigError(f"sensors[{i}].position", "is outside the map")
+
+
+def check_covariance(P: FloatArray, field_name: str) -> None:
+    """Raise :class:`ConfigError` unless ``P`` is finite, symmetric (1e-9 rel.) and PD."""
+    P = np.asarray(P, dtype=float)
+    if not np.all(np.isfinite(P)):
+        raise ConfigError(field_name, "must be finite")
+    scale = max(1.0, float(np.abs(P).max()))
+    if np.abs(P - P.T).max() > 1e-9 * scale:
+        raise ConfigError(field_name, "must be symmetric")
+    try:
+        np.linalg.cholesky(0.5 * (P + P.T))
+    except np.linalg.LinAlgError:
+        raise ConfigError(field_name, "must be positive definite") from None
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Every player's action: ``plan[i][k-1]`` is sensor i's action in epoch k.
+
+    Attributes
+    ----------
+    positions : (N, K, 2)
+        Ground positions; NaN where the player is unassigned.
+    targets : (N, K) int
+        Target looked at; -1 where unassigned.
+    """
+
+    positions: FloatArray
+    targets: IntArray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "positions", _readonly(self.positions))
+        object.__setattr__(self, "targets", _readonly(self.targets, np.int64))
+
+    @property
+    def assigned(self) -> np.ndarray:
+        return self.targets >= 0
+
+    @classmethod
+    def empty(cls, n_sensors: int, horizon: int) -> "Plan":
+        return cls(np.full((n_sensors, horizon, 2), np.nan),
+                   np.full((n_sensors, horizon), -1, dtype=np.int64))
+
+
+def check_plan(problem: PlanningProblem, plan: Plan, complete: bool = True) -> None:
+    """Raise ``ValueError`` unless ``plan`` is feasible for ``problem`` (SPEC 4).
+
+    Checks shapes, that targets exist, that every position lies in the map and in ``R_k``
+    and differs from the previous assigned position by a move (from ``p_0`` at k = 1).
+    With ``complete`` every player must be assigned.
+    """
+    N, K = problem.n_sensors, problem.horizon
+    if plan.positions.shape != (N, K, 2) or plan.targets.shape != (N, K):
+        raise ValueError(f"plan must have shapes ({N}, {K}, 2) and ({N}, {K})")
+    if complete and not plan.assigned.all():
+        raise ValueError("plan has unassigned players")
+    if np.any(plan.targets >= problem.n_targets) or np.any(plan.targets < -1):
+        raise ValueError("plan refers to a target that does not exist")
+    for i, s in enumerate(problem.sensors):
+        moves = move_vectors(s.moves)
+        lat = build_lattice(problem.positions[i], moves, K, problem.world)
+        prev = problem.positions[i]
+        prev_assigned = True
+        for k in range(K):
+            if not plan.assigned[i, k]:
+                prev_assigned = False
+                continue
+            p = plan.positions[i, k]
+            if lat.index_of(k + 1, p) < 0:
+                raise ValueError(f"sensor {i} epoch {k + 1}: position {p} not reachable")
+            if prev_assigned and np.min(np.abs(p - prev - moves).max(axis=1)) > POSITION_TOL * 10:
+                raise ValueError(f"sensor {i} epoch {k + 1}: position {p} is not one move "
+                                 f"from {prev}")
+            prev, prev_assigned = p, True

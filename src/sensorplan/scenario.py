@@ -1,0 +1,191 @@
+"""Scenario values: the world, the targets' truth models, the sensors, the tracker options.
+
+A scenario may fix initial target states and sensor poses or leave them to be drawn from a
+run's seed (the paper draws them anew in every run, SPEC 1): a field left ``None`` is drawn.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from ._types import FloatArray
+from .errors import ConfigError
+from .problem import MapRect, check_covariance
+from .sensors import SensorParams
+
+TargetKind = Literal["cv", "dubins"]
+MissUpdate = Literal["negative", "none"]
+TARGET_KINDS = ("cv", "dubins")
+MISS_UPDATES = ("negative", "none")
+
+
+@dataclass(frozen=True)
+class TargetSpec:
+    """One target's truth model and (optionally) its initial state.
+
+    Attributes
+    ----------
+    kind : {"cv", "dubins"}
+        ``cv``: the filter's CWNA model with wall mirroring; ``dubins``: constant speed,
+        piecewise-constant turn rate redrawn every ``turn_hold`` s from
+        ``[-max_turn_rate, max_turn_rate]``, exact arcs, reflection at walls.
+    position : (x, y) or None      drawn uniformly in the scenario's ``target_box`` if None
+    speed : float or None          drawn uniformly in ``speed_range`` if None (m/s)
+    heading : float or None        drawn uniformly in (-pi, pi] if None (rad)
+    turn_hold : float              s, dubins only
+    max_turn_rate : float          rad/s, dubins only
+    """
+
+    kind: str = "cv"
+    position: tuple[float, float] | None = None
+    speed: float | None = None
+    heading: float | None = None
+    turn_hold: float = 10.0
+    max_turn_rate: float = 0.1
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    """One platform: its radar parameters and (optionally) its initial pose."""
+
+    params: SensorParams = field(default_factory=SensorParams)
+    position: tuple[float, float] | None = None   # drawn uniformly in sensor_box if None
+    heading: float | None = None                  # drawn uniformly in (-pi, pi] if None
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """World, targets, sensors and tracker options (SPEC 1-3).
+
+    Attributes
+    ----------
+    world : MapRect
+    dt : float                       simulation step (s)
+    process_noise : float            q (m^2/s^3), filter model and ``cv`` truth
+    targets, sensors : tuples of TargetSpec / SensorSpec
+    target_box : (lo, hi)            initial target positions uniform in [lo, hi]^2
+    speed_range : (lo, hi)           initial target speeds (m/s)
+    sensor_box : (lo, hi)            initial sensor positions uniform in [lo, hi]^2
+    initial_cov : (4, 4)             P0: initial estimate = truth + N(0, P0)
+    miss_update : {"negative", "none"}  tracker option (SPEC 3)
+    """
+
+    world: MapRect = field(default_factory=MapRect)
+    dt: float = 1.0
+    process_noise: float = 0.05
+    targets: tuple[TargetSpec, ...] = ()
+    sensors: tuple[SensorSpec, ...] = ()
+    target_box: tuple[float, float] = (100.0, 500.0)
+    speed_range: tuple[float, float] = (3.0, 6.0)
+    sensor_box: tuple[float, float] = (50.0, 550.0)
+    initial_cov: tuple[tuple[float, ...], ...] = (
+        (400.0, 0.0, 0.0, 0.0), (0.0, 400.0, 0.0, 0.0), (0.0, 0.0, 4.0, 0.0), (0.0, 0.0, 0.0, 4.0))
+    miss_update: str = "negative"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "targets", tuple(self.targets))
+        object.__setattr__(self, "sensors", tuple(self.sensors))
+        self.validate()
+
+    @property
+    def target_kinds(self) -> tuple[str, ...]:
+        return tuple(t.kind for t in self.targets)
+
+    def validate(self) -> None:
+        """SPEC 7's rules that apply to scenarios; raise ConfigError naming the field."""
+        if not (math.isfinite(self.dt) and self.dt > 0):
+            raise ConfigError("dt", "must be a finite number > 0")
+        if not (math.isfinite(self.process_noise) and self.process_noise >= 0):
+            raise ConfigError("process_noise", "must be a finite number >= 0")
+        for name in ("width", "height"):
+            v = getattr(self.world, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ConfigError(f"map.{name}", "must be a finite number > 0")
+        if not self.targets:
+            raise ConfigError("targets", "at least one target is required")
+        if not self.sensors:
+            raise ConfigError("sensors", "at least one sensor is required")
+        if self.miss_update not in MISS_UPDATES:
+            raise ConfigError("tracker.miss_update", f"must be one of {MISS_UPDATES}")
+        for name in ("target_box", "speed_range", "sensor_box"):
+            lo, hi = getattr(self, name)
+            if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
+                raise ConfigError(f"initial.{name}", "must be finite with lo <= hi")
+        if self.speed_range[0] < 0:
+            raise ConfigError("initial.speed_range", "speeds must be >= 0")
+        check_covariance(np.array(self.initial_cov), "initial.cov")
+        for j, t in enumerate(self.targets):
+            if t.kind not in TARGET_KINDS:
+                raise ConfigError(f"targets[{j}].kind", f"must be one of {TARGET_KINDS}")
+            if t.position is not None and not self.world.contains(np.array(t.position)):
+                raise ConfigError(f"targets[{j}].position", "is outside the map")
+            if t.turn_hold <= 0 or not math.isfinite(t.turn_hold):
+                raise ConfigError(f"targets[{j}].turn_hold", "must be a finite number > 0")
+            if t.max_turn_rate < 0 or not math.isfinite(t.max_turn_rate):
+                raise ConfigError(f"targets[{j}].max_turn_rate", "must be a finite number >= 0")
+        for i, s in enumerate(self.sensors):
+            s.params.validate(f"sensors[{i}]")
+            if s.position is not None and not self.world.contains(np.array(s.position)):
+                raise ConfigError(f"sensors[{i}].position", "is outside the map")
+
+
+def paper_scenario(miss_update: str = "negative") -> Scenario:
+    """SPEC 1 paper scenario: M = 5 (3 ``cv``, 2 ``dubins``), N = 3 sensors at 490/500/510 m.
+
+    Initial target states and sensor poses are left to each run's seed.
+    """
+    targets = tuple(TargetSpec(kind=k) for k in ("cv", "cv", "cv", "dubins", "dubins"))
+    sensors = tuple(SensorSpec(SensorParams(altitude=a)) for a in (490.0, 500.0, 510.0))
+    return Scenario(targets=targets, sensors=sensors, miss_update=miss_update)
+
+
+@dataclass(frozen=True)
+class InitialConditions:
+    """One run's drawn initial conditions.
+
+    Attributes
+    ----------
+    truth : (M, 4)         true target states [x, y, vx, vy]
+    estimate : (M, 4)      initial filter means (truth + N(0, P0))
+    positions : (N, 2)     sensor ground positions
+    headings : (N,)        sensor headings
+    """
+
+    truth: FloatArray
+    estimate: FloatArray
+    positions: FloatArray
+    headings: FloatArray
+
+
+def draw_initial(scenario: Scenario, truth_rng: np.random.Generator,
+                 init_rng: np.random.Generator) -> InitialConditions:
+    """Draw what the scenario leaves open.
+
+    ``truth_rng`` draws target states and sensor poses (what every method of a paired run
+    shares); ``init_rng`` draws the initial estimation error.
+    """
+    M = len(scenario.targets)
+    truth = np.empty((M, 4))
+    for j, t in enumerate(scenario.targets):
+        pos = truth_rng.uniform(*scenario.target_box, size=2)
+        speed = truth_rng.uniform(*scenario.speed_range)
+        heading = np.pi - truth_rng.uniform(0.0, 2 * np.pi)
+        pos = np.array(t.position, dtype=float) if t.position is not None else pos
+        speed = t.speed if t.speed is not None else speed
+        heading = t.heading if t.heading is not None else heading
+        truth[j] = [pos[0], pos[1], speed * np.cos(heading), speed * np.sin(heading)]
+    N = len(scenario.sensors)
+    positions = np.empty((N, 2))
+    headings = np.empty(N)
+    for i, s in enumerate(scenario.sensors):
+        pos = truth_rng.uniform(*scenario.sensor_box, size=2)
+        heading = np.pi - truth_rng.uniform(0.0, 2 * np.pi)
+        positions[i] = s.position if s.position is not None else pos
+        headings[i] = s.heading if s.heading is not None else heading
+    L = np.linalg.cholesky(np.array(scenario.initial_cov))
+    estimate = truth + init_rng.standard_normal((M, 4)) @ L.T
+    return InitialConditions(truth, estimate, positions, headings)
