@@ -13,16 +13,22 @@ visibility; the look counts with ``R / p_vis``) or the 0/1 visibility of the pre
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
 
+from ._kernels import covariance_recursion_nb, look_information_nb
 from ._types import BoolArray, FloatArray, IntArray
 from .angles import heading_rule
 from .dynamics import cv_matrices, predict_covariance, predict_covariances, predict_means
 from .problem import Lattice, Plan, PlanningProblem, build_lattice, move_vectors
-from .sensors import (P_VIS_MIN, SensorParams, cos_boresight, detection_probability,
+from .sensors import (ANGLE_TOL, P_VIS_MIN, RANGE_TOL, SensorParams, cos_boresight, detection_probability,
                       noise_std, stack_params, take_params, visible_offset)
+
+#: ``"numba"`` (default) or ``"numpy"``: which implementation of the covariance recursion
+#: runs; set ``SENSORPLAN_BACKEND=numpy`` to measure or debug without the compiled kernel.
+BACKEND = os.environ.get("SENSORPLAN_BACKEND", "numba")
 
 
 @dataclass(frozen=True)
@@ -35,6 +41,7 @@ class Context:
     xbar : (M, T + 1, 4)       predicted means
     Pbar : (M, T + 1, 4, 4)    covariances predicted without measurements
     ld_bar : (M, T + 1)        their log-determinants
+    Cbar : (M, T + 1, 3)       their position blocks (c00, c01, c11), for p_vis
     aim : (M, K, 2)            ground position each target is predicted at on the first
                                step of each epoch (the heading rule aims there)
     params : SensorParams      stacked, fields shaped (N,)
@@ -47,6 +54,7 @@ class Context:
     xbar: FloatArray
     Pbar: FloatArray
     ld_bar: FloatArray
+    Cbar: FloatArray
     aim: FloatArray
     params: SensorParams
     lattices: list[Lattice]
@@ -90,7 +98,8 @@ def prepare(problem: PlanningProblem) -> Context:
     aim = xbar[:, (np.arange(1, K + 1) - 1) * e + 1, :2]
     lattices = [build_lattice(problem.positions[i], move_vectors(s.moves), K, problem.world)
                 for i, s in enumerate(problem.sensors)]
-    return Context(problem, F, Q, xbar, Pbar, ld_bar, aim, stack_params(problem.sensors),
+    Cbar = np.stack([Pbar[..., 0, 0], Pbar[..., 0, 1], Pbar[..., 1, 1]], axis=-1)
+    return Context(problem, F, Q, xbar, Pbar, ld_bar, Cbar, aim, stack_params(problem.sensors),
                    lattices)
 
 
@@ -147,20 +156,79 @@ def epoch_information(ctx: Context, i: int, k: int, positions: FloatArray,
     counted : (B, e) bool
         Whether each look counts in Phi (SPEC 4 visibility mode).
     """
-    steps = ctx.steps(k)
-    params = ctx.sensor(i)
-    tpos = ctx.xbar[targets[:, None], steps[None, :], :2]                 # (B, e, 2)
-    dx = tpos[..., 0] - positions[:, None, 0]
-    dy = tpos[..., 1] - positions[:, None, 1]
-    th = headings[:, None]
-    if ctx.problem.visibility == "mean":
+    W, counted = chain_information(ctx, i, k, positions[:, None], headings[:, None],
+                                   targets[:, None])
+    return W[:, 0], counted[:, 0]
+
+
+def chain_information(ctx: Context, i: int, k0: int, positions: FloatArray,
+                      headings: FloatArray, targets: IntArray) -> tuple[FloatArray, BoolArray]:
+    """Information of sensor ``i``'s looks in epochs ``k0 .. k0 + L - 1``, in one batch.
+
+    Parameters
+    ----------
+    positions : (B, L, 2)
+    headings : (B, L)
+    targets : (B, L) int
+
+    Returns
+    -------
+    W : (B, L, e, 2, 2)    zero where a look does not count
+    counted : (B, L, e) bool
+    """
+    L = targets.shape[1]
+    steps = (k0 - 1) * ctx.e + 1 + np.arange(L * ctx.e).reshape(L, ctx.e)   # (L, e)
+    tj = targets[:, :, None]
+    tpos = ctx.xbar[tj, steps, :2]                                        # (B, L, e, 2)
+    dx = tpos[..., 0] - positions[:, :, None, 0]
+    dy = tpos[..., 1] - positions[:, :, None, 1]
+    th = np.broadcast_to(headings[:, :, None], dx.shape)
+    C = ctx.Cbar[tj, steps]                                               # (B, L, e, 3)
+    W, weight = look_information(ctx, i, dx, dy, th, C)
+    return W, weight > 0
+
+
+def look_information(ctx: Context, i: int, dx: FloatArray, dy: FloatArray, th: FloatArray,
+                     C: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Information of looks by sensor ``i`` at ground offsets ``dx, dy`` with heading ``th``.
+
+    Parameters
+    ----------
+    dx, dy, th : (...)
+    C : (..., 3)    predicted position covariance entries (c00, c01, c11) of the target
+
+    Returns
+    -------
+    W : (..., 2, 2)   ``w H'^T R^{-1} H'``
+    weight : (...)    w: p_vis (``probabilistic``, 0 below 1e-6) or 0/1 (``mean``)
+    """
+    if BACKEND == "numpy":
+        return look_information_numpy(ctx.sensor(i), ctx.problem.visibility, dx, dy, th, C)
+    p = ctx.sensor(i)
+    shape = dx.shape
+    W, weight = look_information_nb(
+        np.ascontiguousarray(dx).ravel(), np.ascontiguousarray(dy).ravel(),
+        np.ascontiguousarray(th).ravel(), np.ascontiguousarray(C).reshape(-1, 3),
+        ctx.problem.visibility == "probabilistic", float(p.altitude), float(p.depression),
+        float(p.fov_half_angle), float(p.min_ground_range), float(p.max_ground_range),
+        float(p.snr_ref_db), float(p.range_ref), float(p.beamwidth),
+        float(p.monopulse_slope), float(p.range_resolution), RANGE_TOL, ANGLE_TOL, P_VIS_MIN)
+    return W.reshape(shape + (2, 2)), weight.reshape(shape)
+
+
+def look_information_numpy(params: SensorParams, visibility: str, dx: FloatArray,
+                           dy: FloatArray, th: FloatArray,
+                           C: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Pure-numpy reference of :func:`look_information`, built on :mod:`sensorplan.sensors`."""
+    if visibility == "mean":
         weight = visible_offset(dx, dy, th, params).astype(float)
     else:
-        C = ctx.Pbar[targets[:, None], steps[None, :], :2, :2]
-        weight = detection_probability(tpos, C, positions[:, None, :], th, params)
+        Cm = np.stack([C[..., 0], C[..., 1], C[..., 1], C[..., 2]], axis=-1)
+        Cm = Cm.reshape(C.shape[:-1] + (2, 2))
+        zero = np.zeros(2)
+        weight = detection_probability(np.stack([dx, dy], axis=-1), Cm, zero, th, params)
         weight = np.where(weight >= P_VIS_MIN, weight, 0.0)
-    counted = weight > 0
-    return information_matrix(dx, dy, th, params, weight), counted
+    return information_matrix(dx, dy, th, params, weight), weight
 
 
 def information_matrix(dx: FloatArray, dy: FloatArray, heading: FloatArray,
@@ -221,21 +289,31 @@ def information_update(P: FloatArray, W: FloatArray) -> tuple[FloatArray, FloatA
     return 0.5 * (Pn + np.swapaxes(Pn, -1, -2)), np.log(det)
 
 
-def covariance_recursion(P: FloatArray, W: FloatArray, F: FloatArray,
-                         Q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Run predict + information update over ``n`` steps, batched.
+def covariance_recursion(P: FloatArray, W: FloatArray, F: FloatArray, Q: FloatArray,
+                         need_sum: bool = True) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Run predict + information update over ``n`` steps, batched (compiled kernel).
 
     Parameters
     ----------
-    P : (B, 4, 4)   covariance at the step before the first of the n steps
+    P : (B, 4, 4)    covariance at the step before the first of the n steps
     W : (B, n, 2, 2) position information at each step
+    need_sum : bool  compute ``logdet_sum`` (the ``cumulative`` objective needs it)
 
     Returns
     -------
     P_end : (B, 4, 4)
     logdet_end : (B,)       log det of the covariance after the last step
-    logdet_sum : (B,)       sum of log det over the n updated covariances
+    logdet_sum : (B,)       sum of log det over the n updated covariances (0 if not needed)
     """
+    if BACKEND == "numpy":
+        return covariance_recursion_numpy(P, W, F, Q)
+    return covariance_recursion_nb(np.ascontiguousarray(P, dtype=float),
+                                   np.ascontiguousarray(W, dtype=float), F, Q, need_sum)
+
+
+def covariance_recursion_numpy(P: FloatArray, W: FloatArray, F: FloatArray,
+                               Q: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Pure-numpy reference of :func:`covariance_recursion` (tests, benchmarks)."""
     total = np.zeros(P.shape[0])
     for t in range(W.shape[1]):
         P = predict_covariance(P, F, Q)
@@ -307,8 +385,9 @@ def assigned_runs(assigned: np.ndarray) -> list[tuple[int, int]]:
 def target_information(ctx: Context, W_target: FloatArray) -> FloatArray:
     """Per-target terms of Phi from the summed information ``W_target (M, T, 2, 2)``."""
     P0 = np.asarray(ctx.problem.covs)
-    _, ld_end, ld_sum = covariance_recursion(P0, W_target, ctx.F, ctx.Q)
-    if ctx.problem.objective == "cumulative":
+    cumulative = ctx.problem.objective == "cumulative"
+    _, ld_end, ld_sum = covariance_recursion(P0, W_target, ctx.F, ctx.Q, cumulative)
+    if cumulative:
         return 0.5 * (ctx.ld_bar[:, 1:].sum(axis=1) - ld_sum)
     return 0.5 * (ctx.ld_bar[:, -1] - ld_end)
 

@@ -54,11 +54,6 @@ class MapRect:
                 & (xy[..., 1] >= -tol) & (xy[..., 1] <= self.height + tol))
 
 
-def _keys(offsets: FloatArray) -> list[tuple[int, int]]:
-    q = np.rint(offsets / POSITION_TOL).astype(np.int64)
-    return [(int(a), int(b)) for a, b in q]
-
-
 @dataclass(frozen=True)
 class Lattice:
     """Reachable sets of one platform: ``R_0 .. R_K`` and the moves between them.
@@ -91,24 +86,22 @@ def build_lattice(p0: FloatArray, moves: FloatArray, K: int, world: MapRect) -> 
     positions = [p0[None, :].copy()]
     parent_move = [np.full((1, len(moves)), -1, dtype=np.int64)]
     child: list[IntArray] = [np.zeros((0, len(moves)), dtype=np.int64)]
+    n_moves = len(moves)
     for _ in range(1, K + 1):
         prev = positions[-1]
-        cand = prev[:, None, :] + moves[None, :, :]                # (n_prev, n_moves, 2)
-        inside = world.contains(cand)
-        index: dict[tuple[int, int], int] = {}
-        new_pos: list[FloatArray] = []
-        ch = np.full((len(prev), len(moves)), -1, dtype=np.int64)
-        keys = _keys((cand - p0).reshape(-1, 2))
-        for flat, key in enumerate(keys):
-            q, m = divmod(flat, len(moves))
-            if not inside[q, m]:
-                continue
-            if key not in index:
-                index[key] = len(new_pos)
-                new_pos.append(cand[q, m])
-            ch[q, m] = index[key]
-        pos = np.array(new_pos).reshape(-1, 2)
-        pm = np.full((len(pos), len(moves)), -1, dtype=np.int64)
+        cand = (prev[:, None, :] + moves[None, :, :]).reshape(-1, 2)    # (n_prev * n_moves, 2)
+        inside = np.flatnonzero(world.contains(cand))
+        # Same position <=> same offset from p0 on a 1e-6 m grid; keep first-seen order.
+        keys = np.rint((cand[inside] - p0) / POSITION_TOL).astype(np.int64)
+        _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+        order = np.argsort(first, kind="stable")
+        rank = np.empty_like(order)
+        rank[order] = np.arange(len(order))
+        pos = cand[inside[first[order]]]
+        ch = np.full(len(prev) * n_moves, -1, dtype=np.int64)
+        ch[inside] = rank[inverse.ravel()]
+        ch = ch.reshape(len(prev), n_moves)
+        pm = np.full((len(pos), n_moves), -1, dtype=np.int64)
         qs, ms = np.nonzero(ch >= 0)
         pm[ch[qs, ms], ms] = qs
         positions.append(pos)

@@ -1,0 +1,170 @@
+"""The paper's planner (Algorithm 1, SPEC 4): JSFP with inertia over (sensor, epoch) players.
+
+Sweeps run over epochs k = K, K-1, ..., 1. The first sweep is the initialisation (the paper's
+dynamic-programming-like pass): every player starts unassigned, so player (i, K) chooses within
+the K-step reachable region, then (i, K-1) given the choices at K, and so on. Each epoch's
+players then play joint strategy fictitious play with inertia, everyone else fixed.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import ClassVar, Iterator
+
+import numpy as np
+
+from .._types import FloatArray, IntArray
+from ..errors import ConfigError
+from ..information import prepare
+from ..problem import PlanningProblem
+from .base import PlanResult, RngLike, finish, make_rng, register
+from .engine import GameState, choose
+
+
+@dataclass
+class EpochState:
+    """One JSFP iteration of an epoch game (yielded by :func:`jsfp_epoch` for inspection).
+
+    Attributes
+    ----------
+    iteration : int                     t, from 1
+    utilities : list of (A_i,) arrays   each player's utility of every action now
+    averages : list of (A_i,) arrays    running averages ubar after this iteration
+    equilibrium : bool                  current actions are a pure Nash equilibrium
+    """
+
+    iteration: int
+    utilities: list[FloatArray]
+    averages: list[FloatArray]
+    equilibrium: bool
+
+
+def player_utilities(state: GameState, i: int, k: int) -> tuple[IntArray, IntArray, FloatArray]:
+    """All feasible actions of player (i, k) and Phi for each (others fixed), one batch."""
+    pos, tgt = state.player_actions(i, k)
+    return pos, tgt, state.evaluate_chains(i, k, pos[:, None], tgt[:, None])
+
+
+def current_index(state: GameState, i: int, k: int, pos: IntArray, tgt: IntArray) -> int:
+    """Index of player (i, k)'s current action among ``pos, tgt`` (-1 if unassigned)."""
+    if state.tgt[i, k - 1] < 0:
+        return -1
+    hit = np.flatnonzero((pos == state.pos[i, k - 1]) & (tgt == state.tgt[i, k - 1]))
+    return int(hit[0]) if hit.size else -1
+
+
+def is_best(values: FloatArray, current: int) -> bool:
+    """No action raises the utility by more than ``1e-9 max(1, |u_current|)`` (SPEC 4)."""
+    if current < 0:
+        return False
+    u = float(values[current])
+    return bool(values.max() <= u + 1e-9 * max(1.0, abs(u)))
+
+
+def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float, beta: float,
+               max_inner: int) -> Iterator[EpochState]:
+    """JSFP with inertia among players (i, k), i = 0..N-1 (mutates ``state``).
+
+    Each iteration every player computes its utility of every feasible action against the
+    others' current actions; if the current actions are a pure Nash equilibrium of the epoch
+    game the loop ends. Otherwise ``ubar = (t-1)/t ubar + u/t``, the best response is
+    ``argmax ubar`` (SPEC tie rule) and each player switches to it with probability
+    ``1 - alpha`` (an unassigned player always does); then the loop ends with probability
+    ``1 - beta``, or after ``max_inner`` iterations.
+    """
+    N = state.ctx.N
+    actions = [state.player_actions(i, k) for i in range(N)]   # fixed within the epoch game
+    ubar = [np.zeros(len(a[0])) for a in actions]
+    for t in range(1, max_inner + 1):
+        u = [state.evaluate_chains(i, k, actions[i][0][:, None], actions[i][1][:, None])
+             for i in range(N)]
+        cur = [current_index(state, i, k, *actions[i]) for i in range(N)]
+        eq = all(is_best(u[i], cur[i]) for i in range(N))
+        if not eq:
+            ubar = [(t - 1) / t * ubar[i] + u[i] / t for i in range(N)]
+        yield EpochState(t, u, ubar, eq)
+        if eq:
+            return
+        switch = rng.random(N) >= alpha                 # switch w.p. 1 - alpha (inertia)
+        for i in range(N):
+            best = choose(ubar[i], cur[i])
+            if best != cur[i] and (cur[i] < 0 or switch[i]):
+                state.set_action(i, k, int(actions[i][0][best]), int(actions[i][1][best]))
+        if rng.random() >= beta:                        # stop w.p. 1 - beta
+            return
+
+
+def run_sweeps(state: GameState, rng: np.random.Generator, alpha: float, beta: float,
+               max_inner: int, max_outer: int) -> tuple[bool, int, list[float]]:
+    """Outer sweeps k = K..1 until a sweep changes nothing and ends at equilibria.
+
+    Returns
+    -------
+    converged : bool   the final plan is a pure Nash equilibrium of the full game
+    sweeps : int
+    trace : Phi after each sweep
+    """
+    K = state.ctx.K
+    trace: list[float] = []
+    for sweep in range(1, max_outer + 1):
+        changed, all_eq = False, True
+        for k in range(K, 0, -1):
+            before = (state.pos[:, k - 1].copy(), state.tgt[:, k - 1].copy())
+            last = None
+            for last in jsfp_epoch(state, k, rng, alpha, beta, max_inner):
+                pass
+            # A loop that ended by chance or by max_inner may still sit at an equilibrium
+            # reached by its last switch; only a verified equilibrium counts.
+            all_eq &= last is not None and last.equilibrium
+            changed |= bool(np.any(before[0] != state.pos[:, k - 1])
+                            or np.any(before[1] != state.tgt[:, k - 1]))
+        trace.append(state.potential())
+        if not changed and all_eq:
+            return True, sweep, trace
+    return False, max_outer, trace
+
+
+def check_learning_params(alpha: float, beta: float, max_inner: int, max_outer: int) -> None:
+    """Raise ConfigError naming the planner setting that is out of range."""
+    if not 0.0 < alpha < 1.0:
+        raise ConfigError("planner.alpha", f"must be in (0, 1), got {alpha}")
+    if not 0.0 < beta < 1.0:
+        raise ConfigError("planner.beta", f"must be in (0, 1), got {beta}")
+    if int(max_inner) != max_inner or max_inner < 1:
+        raise ConfigError("planner.max_inner", f"must be an integer >= 1, got {max_inner}")
+    if int(max_outer) != max_outer or max_outer < 1:
+        raise ConfigError("planner.max_outer", f"must be an integer >= 1, got {max_outer}")
+
+
+@register
+@dataclass(frozen=True)
+class PotentialGamePlanner:
+    """``pg``: the paper's Algorithm 1 (SPEC 4). Myopic planning is ``pg`` with K = 1.
+
+    Attributes
+    ----------
+    alpha : float      inertia: probability of keeping the current action
+    beta : float       probability that an inner loop continues after an iteration
+    max_inner, max_outer : int
+    seed : int or None used when ``plan`` gets no ``rng``
+    """
+
+    name: ClassVar[str] = "pg"
+    alpha: float = 0.3
+    beta: float = 0.95
+    max_inner: int = 50
+    max_outer: int = 10
+    seed: int | None = 0
+
+    def __post_init__(self) -> None:
+        check_learning_params(self.alpha, self.beta, self.max_inner, self.max_outer)
+
+    def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
+        start = time.perf_counter()
+        gen = make_rng(rng, self.seed)
+        ctx = prepare(problem)
+        state = GameState(ctx)
+        converged, sweeps, trace = run_sweeps(state, gen, self.alpha, self.beta,
+                                              self.max_inner, self.max_outer)
+        return finish(self.name, ctx, state.to_plan(), start, converged, sweeps, tuple(trace))
