@@ -138,24 +138,32 @@ def look_information_nb(dx: np.ndarray, dy: np.ndarray, th: np.ndarray, C: np.nd
         x, y, h = dx[b], dy[b], th[b]
         g2 = x * x + y * y
         g = math.sqrt(g2)
-        r2 = g2 + altitude * altitude
-        r = math.sqrt(r2)
-        cpsi = (cd * (x * math.cos(h) + y * math.sin(h)) + sdp * altitude) / r
-        if g == 0.0 or cpsi <= 0.0:
+        if g == 0.0:
             continue
-        d = _wrap(math.atan2(y, x) - h)
+        # Cheapest test first: most looks of a large candidate set fail the range band.
         if probabilistic:
             ux, uy = x / g, y / g
             c00, c01, c11 = C[b, 0], C[b, 1], C[b, 2]
             var_g = ux * ux * c00 + 2.0 * ux * uy * c01 + uy * uy * c11
+            p_range = _interval(gmin - g, gmax - g, math.sqrt(max(var_g, 0.0)))
+            if p_range < p_min:
+                continue
+        elif g < gmin - range_tol or g > gmax + range_tol:
+            continue
+        r2 = g2 + altitude * altitude
+        r = math.sqrt(r2)
+        cpsi = (cd * (x * math.cos(h) + y * math.sin(h)) + sdp * altitude) / r
+        if cpsi <= 0.0:
+            continue
+        d = _wrap(math.atan2(y, x) - h)
+        if probabilistic:
             var_v = uy * uy * c00 - 2.0 * ux * uy * c01 + ux * ux * c11
-            sd_g = math.sqrt(max(var_g, 0.0))
             sd_phi = math.sqrt(max(var_v, 0.0)) / g
-            p = _interval(gmin - g, gmax - g, sd_g) * _interval(-fov - d, fov - d, sd_phi)
+            p = p_range * _interval(-fov - d, fov - d, sd_phi)
             if p < p_min:
                 continue
         else:
-            if g < gmin - range_tol or g > gmax + range_tol or abs(d) > fov + angle_tol:
+            if abs(d) > fov + angle_tol:
                 continue
             p = 1.0
         snr = snr0 * (range_ref / r) ** 4

@@ -18,8 +18,10 @@ def wrap_angle(a: ArrayLike) -> FloatArray:
     >>> float(wrap_angle(-np.pi)), float(wrap_angle(3 * np.pi / 2))
     (3.141592653589793, -1.5707963267948966)
     """
-    # pi - mod(pi - a, 2 pi) lands in (-pi, pi]: the mod is in [0, 2 pi).
-    return np.pi - np.mod(np.pi - np.asarray(a, dtype=float), TWO_PI)
+    # pi - mod(pi - a, 2 pi) lands in (-pi, pi] in exact arithmetic; in floating point the
+    # mod can round up to exactly 2 pi (a just above pi), giving -pi: fold that back.
+    w = np.pi - np.mod(np.pi - np.asarray(a, dtype=float), TWO_PI)
+    return np.where(w <= -np.pi, w + TWO_PI, w)
 
 
 def heading_rule(theta: ArrayLike, bearing: ArrayLike, max_turn: ArrayLike) -> FloatArray:

@@ -80,6 +80,19 @@ class Lattice:
         return int(hits[0]) if hits.size else -1
 
 
+def _position_keys(offsets: FloatArray) -> np.ndarray:
+    """One integer per offset, equal iff the offsets agree on a 1e-6 m grid."""
+    q = np.rint(offsets / POSITION_TOL).astype(np.int64)
+    if len(q) == 0:
+        return np.zeros(0, dtype=np.int64)
+    lo = q.min(axis=0)
+    span = q.max(axis=0) - lo + 1
+    if float(span[0]) * float(span[1]) < 2.0**62:
+        return (q[:, 0] - lo[0]) * span[1] + (q[:, 1] - lo[1])
+    # Huge maps: fall back to one 16-byte key per row (still exact).
+    return np.ascontiguousarray(q).view(np.dtype((np.void, 16))).ravel()
+
+
 def build_lattice(p0: FloatArray, moves: FloatArray, K: int, world: MapRect) -> Lattice:
     """Reachable sets ``R_k = {p + m : p in R_{k-1}, m a move, inside the map}``, k = 0..K."""
     p0 = np.asarray(p0, dtype=float)
@@ -92,8 +105,8 @@ def build_lattice(p0: FloatArray, moves: FloatArray, K: int, world: MapRect) -> 
         cand = (prev[:, None, :] + moves[None, :, :]).reshape(-1, 2)    # (n_prev * n_moves, 2)
         inside = np.flatnonzero(world.contains(cand))
         # Same position <=> same offset from p0 on a 1e-6 m grid; keep first-seen order.
-        keys = np.rint((cand[inside] - p0) / POSITION_TOL).astype(np.int64)
-        _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+        _, first, inverse = np.unique(_position_keys(cand[inside] - p0), return_index=True,
+                                      return_inverse=True)
         order = np.argsort(first, kind="stable")
         rank = np.empty_like(order)
         rank[order] = np.arange(len(order))

@@ -19,12 +19,26 @@ and is tested equal to :func:`sensorplan.information.potential` to round-off.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .._types import FloatArray, IntArray
 from ..information import (Context, chain_headings, chain_information, covariance_recursion,
                            sum_by_target)
 from ..problem import Plan
+
+
+@dataclass
+class _ChainCache:
+    """What :meth:`GameState.chain_gains` keeps between calls for one player."""
+
+    key: tuple
+    c_pair: IntArray
+    j_pair: IntArray
+    W_add: FloatArray
+    W_rows: FloatArray         # the other players' looks each delta was computed with
+    delta: FloatArray
 
 
 class GameState:
@@ -46,6 +60,8 @@ class GameState:
         self.tgt = np.full((N, K), -1, dtype=np.int64)
         self.heading = np.full((N, K), np.nan)
         self.W = np.zeros((N, K, e, 2, 2))
+        self._cache: dict = {}
+        self._actions: dict = {}
 
     # ----------------------------------------------------------------- plan access
     def copy(self) -> "GameState":
@@ -54,6 +70,8 @@ class GameState:
         other.cumulative = self.cumulative
         other.pos, other.tgt = self.pos.copy(), self.tgt.copy()
         other.heading, other.W = self.heading.copy(), self.W.copy()
+        other._cache = {}
+        other._actions = self._actions          # depends only on the lattices: share it
         return other
 
     def xy(self, i: int, k: int, idx: IntArray | int) -> FloatArray:
@@ -158,53 +176,111 @@ class GameState:
         -------
         (C,) Phi of each candidate joint plan (every other action as in the state).
         """
+        gains, base = self.chain_gains(i, k0, cand_pos, cand_tgt, with_base=True)
+        return base + gains
+
+    def chain_gains(self, i: int, k0: int, cand_pos: IntArray, cand_tgt: IntArray,
+                    with_base: bool = False) -> tuple[FloatArray, float]:
+        """Marginal contribution of each candidate chain: Phi(chain) - Phi(no chain).
+
+        "No chain" leaves sensor i's epochs ``k0 ..`` up to the end of the assigned run that
+        follows unassigned. The gain differs from Phi by a term that does not depend on the
+        candidate, so it is a valid utility for every player whose action the chain holds
+        (SPEC 4) and the game's decisions are the same with either.
+
+        Returns
+        -------
+        gains : (C,)
+        base : float    Phi(no chain) if ``with_base``, else NaN
+        """
         ctx = self.ctx
         C, L = cand_tgt.shape
-        e, T, M = ctx.e, ctx.T, ctx.M
         # The chain continues through the following assigned epochs: their headings change.
         k_last = k0 + L - 1
         k_end = self._run_end(i, k_last + 1) if self.assigned(i, k_last + 1) and k_last < ctx.K \
             else k_last
-        tail = np.arange(k_last + 1, k_end + 1)
-        Lf = L + len(tail)
+        prev_ok = self.assigned(i, k0 - 1)
+        prev = self.heading[i, k0 - 2] if k0 > 1 and prev_ok else ctx.problem.headings[i]
+
+        mask_tgt = self.tgt.copy()
+        mask_tgt[i, k0 - 1:k_end] = -1
+        W_fixed = sum_by_target(ctx, self.W, mask_tgt)                    # (M, T, 2, 2)
+        s0 = (k0 - 1) * ctx.e
+        # The chain's own looks depend only on the chain; a (candidate, target) term depends
+        # on them and on the other players' looks at that target. Both are cached, so a call
+        # recomputes only the terms of targets whose other looks changed since the last call
+        # for this player (in JSFP: the targets the neighbours switched to or from).
+        key = (k0, L, prev_ok, float(prev), cand_pos.tobytes(), cand_tgt.tobytes(),
+               self.pos[i, k_last:k_end].tobytes(), self.tgt[i, k_last:k_end].tobytes())
+        entry = self._cache.get((i, k0, L))
+        if entry is None or entry.key != key:
+            c_pair, j_pair, W_add = self._chain_looks(i, k0, cand_pos, cand_tgt, k_end, prev,
+                                                      prev_ok)
+            entry = _ChainCache(key, c_pair, j_pair, W_add, np.full_like(W_fixed, np.nan),
+                                np.zeros(len(c_pair)))
+            self._cache[(i, k0, L)] = entry
+        stale = np.any(entry.W_rows != W_fixed, axis=(1, 2, 3))           # (M,) NaN != all
+        base = np.nan
+        redo = np.flatnonzero(stale)
+        if with_base:
+            redo = np.arange(ctx.M)
+        if redo.size:
+            covs = np.asarray(ctx.problem.covs)[redo]
+            cum = self.cumulative
+            P_pre, _, ld_pre = covariance_recursion(covs, W_fixed[redo, :s0], ctx.F, ctx.Q, cum)
+            _, ld_end_b, ld_sum_b = covariance_recursion(P_pre, W_fixed[redo, s0:], ctx.F,
+                                                         ctx.Q, cum)
+            if with_base:
+                base = float(self._phi_terms(ld_end_b, ld_pre + ld_sum_b).sum())
+            where = np.full(ctx.M, -1)
+            where[redo] = np.arange(redo.size)
+            sel = np.flatnonzero(stale[entry.j_pair])
+            if sel.size:
+                r = where[entry.j_pair[sel]]
+                W_pair = W_fixed[entry.j_pair[sel], s0:] + entry.W_add[sel]
+                _, ld_end, ld_sum = covariance_recursion(P_pre[r], W_pair, ctx.F, ctx.Q, cum)
+                if cum:
+                    entry.delta[sel] = 0.5 * (ld_sum_b[r] - ld_sum)
+                else:
+                    entry.delta[sel] = 0.5 * (ld_end_b[r] - ld_end)
+            entry.W_rows[stale] = W_fixed[stale]
+        return np.bincount(entry.c_pair, weights=entry.delta, minlength=C), base
+
+    def _chain_looks(self, i: int, k0: int, cand_pos: IntArray, cand_tgt: IntArray,
+                     k_end: int, prev: float,
+                     prev_ok: bool) -> tuple[IntArray, IntArray, FloatArray]:
+        """The information every candidate chain adds to each target it looks at.
+
+        Returns
+        -------
+        c_pair, j_pair : (n,) int   every (candidate, target) pair with a look that counts
+        W_add : (n, T - s0, 2, 2)   that pair's information from step ``s0 + 1`` on
+        """
+        ctx = self.ctx
+        C, L = cand_tgt.shape
+        e, M = ctx.e, ctx.M
+        Lf = k_end - k0 + 1
         pos_xy = np.empty((C, Lf, 2))
         tgt = np.empty((C, Lf), dtype=np.int64)
         for l in range(L):
             pos_xy[:, l] = self.xy(i, k0 + l, cand_pos[:, l])
         tgt[:, :L] = cand_tgt
-        for l, kk in enumerate(tail, start=L):
+        for l in range(L, Lf):
+            kk = k0 + l
             pos_xy[:, l] = self.xy(i, kk, self.pos[i, kk - 1])
             tgt[:, l] = self.tgt[i, kk - 1]
-        prev_ok = self.assigned(i, k0 - 1)
-        prev = self.heading[i, k0 - 2] if k0 > 1 and prev_ok else ctx.problem.headings[i]
         th = chain_headings(ctx, i, k0, pos_xy, tgt, prev, prev_ok)
         W_chain = chain_information(ctx, i, k0, pos_xy, th, tgt)[0]        # (C, Lf, e, 2, 2)
-
-        # Everything but the changed chain.
-        mask_tgt = self.tgt.copy()
-        mask_tgt[i, k0 - 1:k_end] = -1
-        W_fixed = sum_by_target(ctx, self.W, mask_tgt)                    # (M, T, 2, 2)
-        s0 = (k0 - 1) * e
-        covs = np.asarray(ctx.problem.covs)
-        cum = self.cumulative
-        P_pre, _, ld_pre = covariance_recursion(covs, W_fixed[:, :s0], ctx.F, ctx.Q, cum)
-        _, ld_end_b, ld_sum_b = covariance_recursion(P_pre, W_fixed[:, s0:], ctx.F, ctx.Q, cum)
-        phi_base = float(self._phi_terms(ld_end_b, ld_pre + ld_sum_b).sum())
-
-        # (candidate, target) pairs the chain looks at.
-        looks = np.zeros((C, M), dtype=bool)
-        np.put_along_axis(looks, tgt, True, axis=1)
-        c_pair, j_pair = np.nonzero(looks)
-        W_pair = W_fixed[j_pair, s0:].copy()                              # (n, T - s0, 2, 2)
+        # A look that does not count adds nothing: its target keeps its baseline term.
+        counts = np.any(W_chain != 0.0, axis=(2, 3, 4))                  # (C, Lf)
+        c_idx, l_idx = np.nonzero(counts)
+        keys = np.unique(c_idx * M + tgt[c_idx, l_idx])
+        c_pair, j_pair = np.divmod(keys, M)
+        W_add = np.zeros((len(c_pair), ctx.T - (k0 - 1) * e, 2, 2))
         for l in range(Lf):
             hit = (tgt[c_pair, l] == j_pair)[:, None, None, None]
-            W_pair[:, l * e:(l + 1) * e] += np.where(hit, W_chain[c_pair, l], 0.0)
-        _, ld_end, ld_sum = covariance_recursion(P_pre[j_pair], W_pair, ctx.F, ctx.Q, cum)
-        if ctx.problem.objective == "cumulative":
-            delta = 0.5 * (ld_sum_b[j_pair] - ld_sum)
-        else:
-            delta = 0.5 * (ld_end_b[j_pair] - ld_end)
-        return phi_base + np.bincount(c_pair, weights=delta, minlength=C)
+            W_add[:, l * e:(l + 1) * e] = np.where(hit, W_chain[c_pair, l], 0.0)
+        return c_pair, j_pair, W_add
 
     # ----------------------------------------------------------------- player actions
     def player_actions(self, i: int, k: int) -> tuple[IntArray, IntArray]:
@@ -220,6 +296,14 @@ class GameState:
         -------
         pos : (P * M,) int lattice indices in R_k;  tgt : (P * M,) int
         """
+        pred = (0 if k == 1 else int(self.pos[i, k - 2])) if self.assigned(i, k - 1) else -1
+        succ = int(self.pos[i, k]) if k < self.ctx.K and self.assigned(i, k + 1) else -1
+        key = (i, k, pred, succ)
+        if key not in self._actions:
+            self._actions[key] = self._player_actions(i, k)
+        return self._actions[key]
+
+    def _player_actions(self, i: int, k: int) -> tuple[IntArray, IntArray]:
         lat = self.ctx.lattices[i]
         if self.assigned(i, k - 1):
             q = 0 if k == 1 else self.pos[i, k - 2]
@@ -238,14 +322,16 @@ class GameState:
         return np.repeat(cand, M), np.tile(np.arange(M), len(cand))
 
 
-def choose(values: FloatArray, current: int = -1) -> int:
+def choose(values: FloatArray, current: int = -1, scale: float | None = None) -> int:
     """Index of the best value under SPEC 4's tie rule.
 
-    Values within ``1e-9 max(1, |max|)`` of the maximum tie; the current action wins a tie,
-    then the earliest index (callers order actions by distance, move, target).
+    Values within ``1e-9 max(1, scale)`` of the maximum tie (``scale`` = |Phi|, by default
+    the largest value); the current action wins a tie, then the earliest index (callers
+    order actions by distance, move, target).
     """
     vmax = float(values.max())
-    near = values >= vmax - 1e-9 * max(1.0, abs(vmax))
+    scale = abs(vmax) if scale is None else scale
+    near = values >= vmax - 1e-9 * max(1.0, scale)
     if current >= 0 and near[current]:
         return current
     return int(np.argmax(near))

@@ -29,7 +29,8 @@ class EpochState:
     Attributes
     ----------
     iteration : int                     t, from 1
-    utilities : list of (A_i,) arrays   each player's utility of every action now
+    utilities : list of (A_i,) arrays   each player's utility of every action now (its
+                                        marginal contribution: Phi up to a constant)
     averages : list of (A_i,) arrays    running averages ubar after this iteration
     equilibrium : bool                  current actions are a pure Nash equilibrium
     """
@@ -54,12 +55,11 @@ def current_index(state: GameState, i: int, k: int, pos: IntArray, tgt: IntArray
     return int(hit[0]) if hit.size else -1
 
 
-def is_best(values: FloatArray, current: int) -> bool:
-    """No action raises the utility by more than ``1e-9 max(1, |u_current|)`` (SPEC 4)."""
+def is_best(values: FloatArray, current: int, scale: float) -> bool:
+    """No action raises the utility by more than ``1e-9 max(1, scale)``, scale = |Phi|."""
     if current < 0:
         return False
-    u = float(values[current])
-    return bool(values.max() <= u + 1e-9 * max(1.0, abs(u)))
+    return bool(values.max() <= float(values[current]) + 1e-9 * max(1.0, scale))
 
 
 def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float, beta: float,
@@ -77,10 +77,12 @@ def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float,
     actions = [state.player_actions(i, k) for i in range(N)]   # fixed within the epoch game
     ubar = [np.zeros(len(a[0])) for a in actions]
     for t in range(1, max_inner + 1):
-        u = [state.evaluate_chains(i, k, actions[i][0][:, None], actions[i][1][:, None])
+        # Utilities are marginal contributions: Phi up to a term the player cannot change.
+        u = [state.chain_gains(i, k, actions[i][0][:, None], actions[i][1][:, None])[0]
              for i in range(N)]
+        scale = abs(state.potential())
         cur = [current_index(state, i, k, *actions[i]) for i in range(N)]
-        eq = all(is_best(u[i], cur[i]) for i in range(N))
+        eq = all(is_best(u[i], cur[i], scale) for i in range(N))
         if not eq:
             ubar = [(t - 1) / t * ubar[i] + u[i] / t for i in range(N)]
         yield EpochState(t, u, ubar, eq)
@@ -88,7 +90,7 @@ def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float,
             return
         switch = rng.random(N) >= alpha                 # switch w.p. 1 - alpha (inertia)
         for i in range(N):
-            best = choose(ubar[i], cur[i])
+            best = choose(ubar[i], cur[i], scale)
             if best != cur[i] and (cur[i] < 0 or switch[i]):
                 state.set_action(i, k, int(actions[i][0][best]), int(actions[i][1][best]))
         if rng.random() >= beta:                        # stop w.p. 1 - beta

@@ -1,0 +1,115 @@
+"""Simulation speed: the paper preset, ``random`` planner, e = 2, K = 1 (issue 3 target).
+
+Prints the median over repetitions of the time per simulation step (total run time /
+steps, planning included) and its split into planning (building the planning problem and
+the planner's call) and everything else, both in wall-clock time and in this process's CPU
+time (``time.process_time``; robust when other jobs share the machine).
+
+    .venv/bin/python benchmarks/bench_simulation.py [--steps 100] [--repeats 20]
+        [--miss-update negative|none] [--profile]
+
+Target: <= 1 ms per step, so that studies are bound by planning, not by simulation.
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import platform
+import pstats
+import statistics
+import time
+
+import numpy as np
+
+from sensorplan.scenario import paper_scenario
+from sensorplan import simulation
+from sensorplan.simulation import RunSettings, run_episode
+
+
+class _DecisionClock:
+    """Accumulates wall and CPU time spent building planning problems and planning."""
+
+    def __init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        self.wall = 0.0
+        self.cpu = 0.0
+
+    def timed(self, fn):  # noqa: ANN001, ANN201
+        def wrapper(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+            w, c = time.perf_counter(), time.process_time()
+            try:
+                return fn(*args, **kwargs)
+            finally:
+                self.wall += time.perf_counter() - w
+                self.cpu += time.process_time() - c
+        return wrapper
+
+    def install(self) -> None:
+        """Wrap the simulator's problem constructor and planner factory."""
+        simulation.PlanningProblem = self.timed(simulation.PlanningProblem)
+        make = simulation.make_planner
+
+        def make_timed(name, **params):  # noqa: ANN001, ANN003, ANN202
+            planner = make(name, **params)
+            return _Timed(planner, self)
+        simulation.make_planner = make_timed
+
+
+class _Timed:
+    def __init__(self, planner, clock: _DecisionClock) -> None:  # noqa: ANN001
+        self.plan = clock.timed(planner.plan)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--steps", type=int, default=100)
+    ap.add_argument("--repeats", type=int, default=20)
+    ap.add_argument("--planner", default="random")
+    ap.add_argument("--horizon", type=int, default=1)
+    ap.add_argument("--steps-per-epoch", type=int, default=2)
+    ap.add_argument("--miss-update", choices=("negative", "none"), default=None,
+                    help="default: the preset's (negative)")
+    ap.add_argument("--seed", type=int, default=0, help="seed of the first repetition")
+    ap.add_argument("--profile", action="store_true", help="print a cProfile of all runs")
+    args = ap.parse_args()
+
+    scenario = paper_scenario()
+    settings = RunSettings(planner=args.planner, horizon=args.horizon,
+                           steps_per_epoch=args.steps_per_epoch, steps=args.steps,
+                           miss_update=args.miss_update)
+    clock = _DecisionClock()
+    clock.install()
+    run_episode(scenario, settings, args.seed)  # warm-up: imports, caches
+    wall, cpu, plan_wall, plan_cpu = [], [], [], []
+    profiler = cProfile.Profile() if args.profile else None
+    for r in range(args.repeats):
+        clock.reset()
+        if profiler:
+            profiler.enable()
+        w0, c0 = time.perf_counter(), time.process_time()
+        run_episode(scenario, settings, args.seed + r)
+        w1, c1 = time.perf_counter(), time.process_time()
+        if profiler:
+            profiler.disable()
+        wall.append(1e3 * (w1 - w0) / args.steps)
+        cpu.append(1e3 * (c1 - c0) / args.steps)
+        plan_wall.append(1e3 * clock.wall / args.steps)
+        plan_cpu.append(1e3 * clock.cpu / args.steps)
+    med = statistics.median
+    print(f"paper preset, planner={args.planner}, K={args.horizon}, "
+          f"e={args.steps_per_epoch}, miss_update={settings.miss_update or scenario.miss_update}, "
+          f"{args.steps} steps x {args.repeats} runs "
+          f"(python {platform.python_version()}, numpy {np.__version__})")
+    for name, tot, pl in (("wall", wall, plan_wall), ("cpu ", cpu, plan_cpu)):
+        sim = [a - b for a, b in zip(tot, pl)]
+        print(f"{name} median ms per step: {med(tot):.3f}  (planning {med(pl):.3f}, "
+              f"simulation {med(sim):.3f}; min {min(tot):.3f}, max {max(tot):.3f})")
+    if profiler:
+        pstats.Stats(profiler).sort_stats("tottime").print_stats(25)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,354 @@
+"""The ``sensorplan`` command line (typer).
+
+Every command is a thin shell over library functions. Bad input of any kind (a file, an
+option) ends with exit status 2, one line ``error: <field>: <message>`` on stderr and nothing
+on stdout. Heavy modules (the simulator, rich tables, matplotlib) are imported inside the
+commands that need them so that ``sensorplan plan`` starts fast.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+from .errors import ConfigError
+from .planners import PLANNERS
+
+#: For help texts; validation always asks the registry itself.
+_PLANNER_NAMES = ", ".join(sorted(PLANNERS))
+#: RunSettings' defaults, for help texts only (importing the simulator here would slow every
+#: command down); a test checks that they agree with sensorplan.simulation.RunSettings.
+RUN_DEFAULTS = {"planner": "random", "horizon": 1, "steps_per_epoch": 1, "execution": "olf",
+                "steps": 100, "visibility": "probabilistic", "objective": "terminal"}
+
+app = typer.Typer(
+    name="sensorplan",
+    help="Non-myopic planning of mobile sensor networks for multi-target tracking "
+         "(potential games, Lee, Park & Choi).",
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    rich_markup_mode="markdown",
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+
+#: Exit status for bad input (SPEC 7).
+EXIT_BAD_INPUT = 2
+#: Set this environment variable to see the traceback of an unexpected error.
+DEBUG_ENV = "SENSORPLAN_DEBUG"
+
+
+def _fail(field: str, message: str, code: int = EXIT_BAD_INPUT) -> typer.Exit:
+    """Write the one-line error and return the exit to raise."""
+    line = f"error: {field}: {message}".replace("\r", " ").replace("\n", " ")
+    sys.stdout.flush()
+    sys.stderr.write(line + "\n")
+    sys.stderr.flush()
+    return typer.Exit(code)
+
+
+@contextmanager
+def _bad_input() -> Iterator[None]:
+    """Turn a :class:`ConfigError` raised inside a command into the one-line exit 2."""
+    try:
+        yield
+    except ConfigError as exc:
+        raise _fail(exc.field, exc.message) from None
+
+
+# ------------------------------------------------------------------------------- plan
+
+
+@app.command()
+def plan(
+    problem: Annotated[Path, typer.Argument(
+        metavar="PROBLEM.json", show_default=False,
+        help="Single-decision file (SPEC 7): horizon, targets (mean, cov), sensors "
+             "(position, heading, radar parameters), optional planner settings.")],
+    planner: Annotated[str | None, typer.Option(
+        "--planner", metavar="NAME", show_default=False,
+        help=f"Planner to use instead of the file's planner.name ({_PLANNER_NAMES}). "
+             "File settings it does not take are ignored.")] = None,
+) -> None:
+    """Plan one decision and print the plan as JSON on stdout.
+
+    The output has the keys planner, plan (plan[i][k-1] is sensor i's action in epoch k:
+    epoch, position, heading, target, measurements), potential (Phi, nats), information
+    (Phi's term per target), converged and sweeps (pg and pg-refine only) and seconds (the
+    planner's own time). Bad input exits with status 2 and one line on stderr.
+
+    Example: sensorplan plan problem.json --planner pg
+    """
+    from .config import load_decision
+    from .io import dumps_result
+
+    with _bad_input():
+        decision = load_decision(problem, planner)
+        chosen = decision.make_planner()
+        result = chosen.plan(decision.problem)
+    sys.stdout.write(dumps_result(result) + "\n")
+
+
+# --------------------------------------------------------------------------- simulate
+
+
+@app.command()
+def simulate(
+    config: Annotated[Path | None, typer.Argument(
+        metavar="CONFIG.toml", show_default=False,
+        help="Scenario file (see configs/paper.toml for every key). Without it, --preset "
+             "is used.")] = None,
+    preset: Annotated[str | None, typer.Option(
+        "--preset", metavar="NAME", show_default=False,
+        help="Built-in scenario instead of a file: 'paper' (SPEC 1: 5 targets, 3 sensors, "
+             "random start each run). The default when no file is given.")] = None,
+    planner: Annotated[str | None, typer.Option(
+        "--planner", metavar="NAME", show_default=False,
+        help=f"Planner ({_PLANNER_NAMES}). "
+             f"[default: file's planning.planner, else {RUN_DEFAULTS['planner']}]")] = None,
+    horizon: Annotated[int | None, typer.Option(
+        "--horizon", "-K", metavar="K", show_default=False,
+        help=f"Planning horizon in epochs (1 = myopic). [default: {RUN_DEFAULTS['horizon']}]"
+    )] = None,
+    steps_per_epoch: Annotated[int | None, typer.Option(
+        "--steps-per-epoch", "-e", metavar="E", show_default=False,
+        help="Simulation steps per epoch: a decision every E steps. "
+             f"[default: {RUN_DEFAULTS['steps_per_epoch']}]")] = None,
+    execution: Annotated[str | None, typer.Option(
+        "--execution", metavar="MODE", show_default=False,
+        help="ol: execute all K epochs of a plan, then replan; olf: execute the first "
+             f"epoch, then replan (rolling horizon). [default: {RUN_DEFAULTS['execution']}]"
+    )] = None,
+    steps: Annotated[int | None, typer.Option(
+        "--steps", "-n", metavar="N", show_default=False,
+        help=f"Simulation steps. [default: {RUN_DEFAULTS['steps']}]")] = None,
+    seed: Annotated[int | None, typer.Option(
+        "--seed", metavar="S", show_default=False,
+        help="Seed of the run (truth, initial estimates, noise and planner streams). "
+             "[default: file's run.seed, else 0]")] = None,
+    visibility: Annotated[str | None, typer.Option(
+        "--visibility", metavar="MODE", show_default=False,
+        help="Which planned looks count in the planning objective (SPEC 4): probabilistic "
+             "(weighted by the chance the target is in view) or mean (the paper's: iff the "
+             f"predicted mean is in view). [default: {RUN_DEFAULTS['visibility']}]")] = None,
+    objective: Annotated[str | None, typer.Option(
+        "--objective", metavar="NAME", show_default=False,
+        help="terminal (information at the end of the horizon, the paper's) or cumulative "
+             f"(summed over its steps). [default: {RUN_DEFAULTS['objective']}]")] = None,
+    miss_update: Annotated[str | None, typer.Option(
+        "--miss-update", metavar="MODE", show_default=False,
+        help="Tracker's reaction to a look that misses its target (SPEC 3): negative "
+             "(update with the negative information) or none (the paper's). "
+             "[default: file's tracker.miss_update, else negative]")] = None,
+    out: Annotated[Path, typer.Option(
+        "--out", "-o", metavar="DIR",
+        help="Directory for episode.npz (every array of the run) and episode.png.")
+    ] = Path("out/simulate"),
+) -> None:
+    """Simulate one closed-loop run and summarize it.
+
+    Runs the planner in closed loop (SPEC 5) on a scenario file or preset, prints tables
+    (RMSE per target and per target kind, measurements and missed looks per sensor,
+    planning time per decision) and writes the run's arrays (DIR/episode.npz, readable with
+    sensorplan.simulation.Episode.load) and a figure (DIR/episode.png).
+
+    Options override the scenario file; a [default] applies when neither sets a value.
+    Bad input exits with status 2 and one line on stderr.
+
+    Example: sensorplan simulate --preset paper --planner pg --horizon 3 --steps-per-epoch 2
+    """
+    from .config import load_simulation
+
+    overrides = dict(planner=planner, horizon=horizon, steps_per_epoch=steps_per_epoch,
+                     execution=execution, steps=steps, seed=seed, visibility=visibility,
+                     objective=objective, miss_update=miss_update)
+    with _bad_input():
+        cfg = load_simulation(config, preset, overrides)
+        if out.exists() and not out.is_dir():
+            raise ConfigError("--out", f"{out} exists and is not a directory")
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ConfigError("--out", f"cannot create {out} ({exc.strerror or exc})") from None
+
+    from .simulation import run_episode
+
+    try:
+        episode = _run_with_progress(run_episode, cfg)
+    except ConfigError as exc:
+        # A planner refusing mid-run (brute force above max_plans) names its own setting;
+        # in a scenario file that lives under [planning.planner_params].
+        field = exc.field
+        if field.startswith("planner."):
+            field = "planning.planner_params." + field.removeprefix("planner.")
+        raise _fail(field, exc.message) from None
+    npz = out / "episode.npz"
+    png = out / "episode.png"
+    episode.save(npz)
+    from .plotting import plot_episode
+
+    plot_episode(episode, cfg.scenario, png)
+    _print_summary(episode, cfg, [npz, png])
+
+
+def _run_with_progress(run_episode: Any, cfg: Any) -> Any:
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, \
+        TimeElapsedColumn, TimeRemainingColumn
+
+    console = Console(stderr=True)
+    columns = (TextColumn("simulating"), BarColumn(), MofNCompleteColumn(),
+               TextColumn("steps"), TimeElapsedColumn(), TimeRemainingColumn())
+    # A bar in a log file is noise: show it only on a terminal.
+    with Progress(*columns, console=console, transient=True,
+                  disable=not console.is_terminal) as progress:
+        task = progress.add_task("simulate", total=cfg.settings.steps)
+
+        def report(done: int, total: int) -> None:
+            progress.update(task, completed=done, total=total)
+
+        return run_episode(cfg.scenario, cfg.settings, cfg.seed, progress=report)
+
+
+def _print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
+    import numpy as np
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    s = cfg.settings
+    console.print(f"[bold]{s.planner}[/], K = {s.horizon}, e = {s.steps_per_epoch}, "
+                  f"{s.execution.upper()}, {s.steps} steps, seed {cfg.seed}", highlight=False)
+    console.print(f"visibility {s.visibility}, objective {s.objective}, miss update "
+                  f"{s.miss_update or cfg.scenario.miss_update}", highlight=False)
+
+    err = np.asarray(episode.error)[1:]                        # (S, M) steps 1..S
+    kinds = list(episode.target_kinds)
+    measured = np.asarray(episode.measured)[1:]                # (S, M, N)
+    lost = 50.0                                                # m; SPEC 6 "lost" threshold
+    rmse = np.asarray(episode.rmse())
+
+    tracks = Table(title="Position error over steps 1..S (m)",
+                   caption=f"lost: share of steps with error > {lost:g} m; measured: steps "
+                           "with at least one measurement")
+    for name in ("target", "kind", "RMSE", "mean", "final", "lost", "measured"):
+        tracks.add_column(name, justify="left" if name in ("target", "kind") else "right")
+    for j, kind in enumerate(kinds):
+        tracks.add_row(str(j), kind, f"{rmse[j]:.1f}", f"{err[:, j].mean():.1f}",
+                       f"{err[-1, j]:.1f}", f"{(err[:, j] > lost).mean():.0%}",
+                       str(int(measured[:, j].any(axis=1).sum())))
+    tracks.add_section()
+    groups = [(k, [j for j, kk in enumerate(kinds) if kk == k]) for k in dict.fromkeys(kinds)]
+    if len(groups) > 1:
+        groups.append(("all", list(range(len(kinds)))))
+    for kind, idx in groups:
+        e = err[:, idx]
+        tracks.add_row("all", kind, f"{np.sqrt(np.mean(e ** 2)):.1f}", f"{e.mean():.1f}",
+                       f"{e[-1].mean():.1f}", f"{(e > lost).mean():.0%}",
+                       str(int(measured[:, idx].any(axis=2).sum())), style="bold")
+    console.print(tracks)
+
+    looked = np.asarray(episode.looked)[1:]                    # (S, N)
+    missed = np.asarray(episode.missed)[1:]                    # (S, N)
+    sensors = Table(title="Sensors (steps 1..S)")
+    for name in ("sensor", "altitude (m)", "looks", "measurements", "missed looks"):
+        sensors.add_column(name, justify="left" if name == "sensor" else "right")
+    for i, spec in enumerate(cfg.scenario.sensors):
+        sensors.add_row(str(i), f"{float(spec.params.altitude):g}",
+                        str(int((looked[:, i] >= 0).sum())),
+                        str(int(measured[:, :, i].sum())), str(int(missed[:, i].sum())))
+    console.print(sensors)
+
+    secs = 1e3 * np.asarray(episode.planning_seconds)
+    conv = np.asarray(episode.converged, dtype=float)
+    sweeps = np.asarray(episode.sweeps, dtype=float)
+    plans = Table(title="Planning per decision",
+                  caption="time: wall time of the planner call (ms)")
+    for name in ("decisions", "mean ms", "median ms", "max ms", "mean Phi", "converged",
+                 "sweeps"):
+        plans.add_column(name, justify="right")
+
+    def stat(values: Any, fmt: str, fn: Any = np.mean) -> str:
+        ok = values[~np.isnan(values)] if values.size else values
+        return format(float(fn(ok)), fmt) if ok.size else "-"
+
+    plans.add_row(str(secs.size), stat(secs, ".2f"), stat(secs, ".2f", np.median),
+                  stat(secs, ".2f", np.max), stat(np.asarray(episode.potential), ".3f"),
+                  stat(conv, ".0%"), stat(sweeps, ".1f"))
+    console.print(plans)
+    console.print("wrote " + ", ".join(str(p) for p in written), highlight=False)
+
+
+# ------------------------------------------------------------------------------- main
+
+
+def _usage_error_class() -> type[BaseException]:
+    # typer raises click's UsageError (vendored in recent typer, the click package in
+    # older ones); reach it through the public BadParameter instead of a private import.
+    return next(c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError")
+
+
+def _usage_line(exc: Any) -> tuple[str, str]:
+    """(field, message) of a command-line usage error."""
+    param = getattr(exc, "param", None)
+    if param is not None:
+        opts = [o for o in getattr(param, "opts", []) if o.startswith("--")]
+        name = getattr(param, "metavar", None) or (param.name or "argument").upper()
+        field = opts[0] if opts else name
+        # A missing argument or option carries no message of its own.
+        return field, getattr(exc, "message", "") or "is required"
+    option = getattr(exc, "option_name", None)
+    if option:
+        message = exc.format_message()
+        prefix = f"No such option: {option}"
+        if message.startswith(prefix):
+            message = "no such option" + message[len(prefix):]
+        return option, message
+    return "usage", exc.format_message()
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    """Console entry point: run the app, map every failure to an exit status and one line.
+
+    Exit status: 0 success, 2 bad input (file or options), 1 an unexpected error (set
+    ``SENSORPLAN_DEBUG=1`` for its traceback), 130 interrupted.
+    """
+    args = list(sys.argv[1:] if argv is None else argv)
+    if not args:
+        args = ["--help"]
+    command = typer.main.get_command(app)
+    try:
+        code = command.main(args=args, prog_name="sensorplan", standalone_mode=False)
+    except _usage_error_class() as exc:
+        try:
+            field, message = _usage_line(exc)
+        except Exception:  # noqa: BLE001 - never a traceback for a usage error
+            field, message = "usage", str(exc)
+        _fail(field, message)
+        code = EXIT_BAD_INPUT
+    except ConfigError as exc:
+        _fail(exc.field, exc.message)
+        code = EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        sys.stderr.write("error: interrupted\n")
+        code = 130
+    except typer.Abort:
+        sys.stderr.write("error: aborted\n")
+        code = 1
+    except Exception as exc:  # noqa: BLE001 - one line instead of a traceback
+        if os.environ.get(DEBUG_ENV):
+            raise
+        _fail("internal error", f"{type(exc).__name__}: {exc} (set {DEBUG_ENV}=1 for the "
+              "traceback)", code=1)
+        code = 1
+    sys.exit(code if isinstance(code, int) else 0)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

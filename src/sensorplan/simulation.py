@@ -1,0 +1,456 @@
+"""Closed-loop simulation (SPEC 5): truth, sensors, trackers and a planner in the loop.
+
+One run (:func:`run_episode`) alternates decisions and execution:
+
+- At each decision time the trackers' means and covariances and the platforms' poses form a
+  :class:`~sensorplan.problem.PlanningProblem`; the planner named in :class:`RunSettings`
+  returns a plan of K epochs. ``olf`` (open-loop feedback, rolling horizon) executes its
+  first epoch and plans again, so decisions fall every ``e`` steps; ``ol`` (open loop)
+  executes all K epochs, so decisions fall every ``K e`` steps.
+- At the start of an epoch each platform moves to its planned position and turns (heading
+  rule, at most ``max_turn``) toward its planned target's current estimate predicted to the
+  epoch's first step; it keeps position, heading and target for the epoch's ``e`` steps.
+- Every step: the targets move; the filters predict; every sensor whose target is truly in
+  its field of view measures it (true position plus noise with ``R`` at the true position);
+  a look that misses feeds the ``negative`` miss update (SPEC 3) when enabled, for all
+  missed looks in sensor order before the measurement updates, which are also applied in
+  sensor order. Looks at distinct tracks are independent, so they are batched into one
+  call (``ekf.update_rounds``); a track looked at by several sensors is updated once per
+  look, in sensor order.
+
+Randomness: the run's ``SeedSequence`` has four independent children, in this order:
+``truth`` (initial target states and sensor poses, then the target motion), ``init`` (the
+initial estimation errors), ``noise`` (one child per sensor; every sensor draws its two
+standard normals at every step whether it measures or not) and ``planner`` (one generator
+passed to every planning call). The truth, initial estimates and noise of a run are
+therefore the same for every planner and setting (common random numbers: comparisons
+between methods are paired).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import io
+import json
+import math
+import time
+import zipfile
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ._types import BoolArray, FloatArray, IntArray
+from .angles import heading_rule, wrap_angle
+from .ekf import Tracker, nees, update_rounds
+from .errors import ConfigError
+from .planners import make_planner
+from .problem import OBJECTIVES, VISIBILITY_MODES, PlanningProblem
+from .scenario import MISS_UPDATES, Scenario, draw_initial
+from .sensors import ANGLE_TOL, RANGE_TOL, _SCALAR_FIELDS, SensorParams, stack_params
+from .truth import TruthModel
+
+EXECUTIONS = ("ol", "olf")
+#: Names of the run's independent random streams, in spawn order.
+STREAMS = ("truth", "init", "noise", "planner")
+
+
+def _is_int(v: Any) -> bool:
+    return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """How one closed-loop run plans and executes.
+
+    Attributes
+    ----------
+    planner : str
+        Registry name (:func:`sensorplan.planners.make_planner`).
+    planner_params : Mapping
+        Keyword arguments of the planner, e.g. ``{"alpha": 0.3}``.
+    horizon : int
+        K, epochs per plan (>= 1).
+    steps_per_epoch : int
+        e, simulation steps per epoch (>= 1).
+    execution : {"ol", "olf"}
+        ``ol`` executes all K epochs before replanning, ``olf`` only the first.
+    steps : int
+        Simulation steps S (>= 1).
+    visibility : {"probabilistic", "mean"}
+        Planning objective setting (SPEC 4).
+    objective : {"terminal", "cumulative"}
+        Planning objective (SPEC 4).
+    miss_update : {"negative", "none"} or None
+        Tracker option (SPEC 3); None uses the scenario's.
+    """
+
+    planner: str = "random"
+    planner_params: Mapping[str, Any] = field(default_factory=dict)
+    horizon: int = 1
+    steps_per_epoch: int = 1
+    execution: str = "olf"
+    steps: int = 100
+    visibility: str = "probabilistic"
+    objective: str = "terminal"
+    miss_update: str | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "planner_params", dict(self.planner_params))
+        for name in ("horizon", "steps_per_epoch", "steps"):
+            v = getattr(self, name)
+            if not _is_int(v) or v < 1:
+                raise ConfigError(name, f"must be an integer >= 1, got {v!r}")
+            object.__setattr__(self, name, int(v))
+        if self.execution not in EXECUTIONS:
+            raise ConfigError("execution", f"must be one of {EXECUTIONS}, got "
+                              f"{self.execution!r}")
+        if self.visibility not in VISIBILITY_MODES:
+            raise ConfigError("visibility", f"must be one of {VISIBILITY_MODES}, got "
+                              f"{self.visibility!r}")
+        if self.objective not in OBJECTIVES:
+            raise ConfigError("objective", f"must be one of {OBJECTIVES}, got "
+                              f"{self.objective!r}")
+        if self.miss_update is not None and self.miss_update not in MISS_UPDATES:
+            raise ConfigError("miss_update", f"must be one of {MISS_UPDATES} or None, got "
+                              f"{self.miss_update!r}")
+        if not isinstance(self.planner, str):
+            raise ConfigError("planner", f"must be a planner name, got {self.planner!r}")
+        # Instantiating once reports an unknown name or bad parameters now, not mid-study.
+        try:
+            make_planner(self.planner, **self.planner_params)
+        except ConfigError:
+            raise
+        except (TypeError, ValueError) as exc:
+            raise ConfigError("planner_params", str(exc)) from None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary of every field."""
+        d = dataclasses.asdict(self)
+        d["planner_params"] = dict(self.planner_params)
+        return d
+
+
+@dataclass(frozen=True)
+class Episode:
+    """Everything recorded in one closed-loop run.
+
+    Index 0 of the step axis is the initial state, ``1..S`` the state after each step; step
+    ``t`` is the move from time ``t - 1`` to ``t`` and its looks measure the truth at ``t``.
+
+    Attributes
+    ----------
+    target_kinds : (M,) tuple of str
+    truth : (S+1, M, 4)               true states
+    estimate : (S+1, M, 4)            filter means after the step's updates
+    cov : (S+1, M, 4, 4)              filter covariances
+    error : (S+1, M)                  position error ``|p_true - p_est|`` (m)
+    nees : (S+1, M)                   full-state NEES
+    measured : (S+1, M, N) bool       ``measured[t, j, i]``: sensor i measured target j at t
+    looked : (S+1, N) int             target sensor i pointed at during step t (-1: none,
+                                      always at t = 0)
+    missed : (S+1, N) bool            sensor i's look at step t missed (target truly
+                                      outside its field of view)
+    negative_update : (S+1, M) bool   track j got a negative (missed-look) update at t
+    inflated : (S+1, M) bool          track j got the f >= 0.95 inflation at t
+    sensor_positions : (S+1, N, 2)    pose during step t (initial pose at t = 0)
+    sensor_headings : (S+1, N)
+    decision_steps : (D,) int         time index at which each decision was taken
+    planning_seconds : (D,)           wall time of each planning call
+    potential : (D,)                  Phi of each decision's plan (nats)
+    converged : (D,)                  1.0/0.0, NaN for planners without the notion
+    sweeps : (D,)                     NaN for planners without the notion
+    settings : RunSettings
+    seed_entropy : int                entropy of the run's SeedSequence
+    seed_spawn_key : tuple of int     its spawn key (the run's seed is
+                                      ``SeedSequence(seed_entropy, spawn_key=seed_spawn_key)``)
+    """
+
+    target_kinds: tuple[str, ...]
+    truth: FloatArray
+    estimate: FloatArray
+    cov: FloatArray
+    error: FloatArray
+    nees: FloatArray
+    measured: BoolArray
+    looked: IntArray
+    missed: BoolArray
+    negative_update: BoolArray
+    inflated: BoolArray
+    sensor_positions: FloatArray
+    sensor_headings: FloatArray
+    decision_steps: IntArray
+    planning_seconds: FloatArray
+    potential: FloatArray
+    converged: FloatArray
+    sweeps: FloatArray
+    settings: RunSettings
+    seed_entropy: int
+    seed_spawn_key: tuple[int, ...] = ()
+
+    def rmse(self) -> FloatArray:
+        """Position RMSE ``(M,)`` of each target over steps ``1..S`` (m)."""
+        return np.sqrt(np.mean(self.error[1:] ** 2, axis=0))
+
+    def save(self, path: str | Path) -> None:
+        """Write every array and a JSON metadata entry to an ``.npz`` file.
+
+        The archive is byte-for-byte reproducible: its entries are written in a fixed order
+        with a fixed timestamp, so equal episodes give identical files.
+        """
+        meta = {"target_kinds": list(self.target_kinds), "settings": self.settings.to_dict(),
+                "seed_entropy": self.seed_entropy,
+                "seed_spawn_key": [int(k) for k in self.seed_spawn_key]}
+        entries = [(name, np.ascontiguousarray(getattr(self, name))) for name in _ARRAYS]
+        entries.append(("meta", np.array(json.dumps(meta, sort_keys=True, default=_json))))
+        with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+            for name, arr in entries:
+                buf = io.BytesIO()
+                np.lib.format.write_array(buf, arr, allow_pickle=False)
+                info = zipfile.ZipInfo(name + ".npy", date_time=(1980, 1, 1, 0, 0, 0))
+                info.compress_type = zipfile.ZIP_DEFLATED
+                zf.writestr(info, buf.getvalue())
+
+    @classmethod
+    def load(cls, path: str | Path) -> "Episode":
+        """Read an episode written by :meth:`save`."""
+        with np.load(path, allow_pickle=False) as data:
+            arrays = {name: data[name] for name in _ARRAYS}
+            meta = json.loads(str(data["meta"]))
+        return cls(target_kinds=tuple(meta["target_kinds"]),
+                   settings=RunSettings(**meta["settings"]),
+                   seed_entropy=meta["seed_entropy"],
+                   seed_spawn_key=tuple(int(k) for k in meta.get("seed_spawn_key", ())),
+                   **arrays)
+
+
+_ARRAYS = ("truth", "estimate", "cov", "error", "nees", "measured", "looked", "missed",
+           "negative_update", "inflated", "sensor_positions", "sensor_headings",
+           "decision_steps", "planning_seconds", "potential", "converged", "sweeps")
+
+
+def _json(v: Any) -> Any:
+    """JSON fallback for planner parameters (numpy scalars, arrays, tuples)."""
+    if isinstance(v, np.generic):
+        return v.item()
+    if isinstance(v, np.ndarray):
+        return v.tolist()
+    raise TypeError(f"cannot store {type(v).__name__} in episode metadata")
+
+
+def run_streams(seed: int | np.random.SeedSequence) -> dict[str, np.random.SeedSequence]:
+    """The run's independent seed sequences, named as in :data:`STREAMS`.
+
+    Equal to ``SeedSequence(seed).spawn(4)`` but without mutating a given sequence, so the
+    same ``SeedSequence`` passed to several runs (e.g. one per method) gives every run the
+    same streams.
+    """
+    if isinstance(seed, np.random.SeedSequence):
+        ss = seed
+    else:
+        if not _is_int(seed) or seed < 0:
+            raise ConfigError("seed", f"must be an integer >= 0, got {seed!r}")
+        ss = np.random.SeedSequence(int(seed))
+    return {name: np.random.SeedSequence(ss.entropy, spawn_key=tuple(ss.spawn_key) + (k,),
+                                         pool_size=ss.pool_size)
+            for k, name in enumerate(STREAMS)}
+
+
+def _miss_update_kernel() -> Callable[..., tuple[FloatArray, FloatArray, BoolArray]]:
+    from .missed import miss_update  # lazy: only runs with ``negative`` need it
+
+    return miss_update
+
+
+class _Rows:
+    """Per-look parameters: rows of stacked ``(N,)`` parameter fields, cached by rows."""
+
+    def __init__(self, params: SensorParams) -> None:
+        self.params = params
+        self.cache: dict[tuple[int, ...], SensorParams] = {}
+
+    def __call__(self, idx: IntArray) -> SensorParams:
+        key = tuple(idx.tolist())
+        p = self.cache.get(key)
+        if p is None:
+            p = SensorParams(moves=(), **{name: getattr(self.params, name)[idx]
+                                          for name in _SCALAR_FIELDS})
+            self.cache[key] = p
+        return p
+
+
+def run_episode(scenario: Scenario, settings: RunSettings,
+                seed: int | np.random.SeedSequence,
+                progress: Callable[[int, int], None] | None = None) -> Episode:
+    """Simulate one closed-loop run (SPEC 5).
+
+    Parameters
+    ----------
+    scenario : Scenario
+    settings : RunSettings
+    seed : int >= 0 or numpy.random.SeedSequence
+        The run's seed; see the module docstring for the streams spawned from it.
+    progress : callable(done, total), optional
+        Called after every step with the number of steps done and S.
+
+    Returns
+    -------
+    Episode
+    """
+    streams = run_streams(seed)
+    seed_ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(
+        int(seed))
+    truth_rng = np.random.default_rng(streams["truth"])
+    init_rng = np.random.default_rng(streams["init"])
+    planner_rng = np.random.default_rng(streams["planner"])
+    miss_mode = settings.miss_update or scenario.miss_update
+    miss_update = _miss_update_kernel() if miss_mode == "negative" else None
+    planner = make_planner(settings.planner, **settings.planner_params)
+
+    S, K, e = settings.steps, settings.horizon, settings.steps_per_epoch
+    M, N = len(scenario.targets), len(scenario.sensors)
+    sensor_list = tuple(s.params for s in scenario.sensors)
+    params = stack_params(sensor_list)
+    rows = _Rows(params)
+    max_turn = params.max_turn
+
+    init = draw_initial(scenario, truth_rng, init_rng)
+    truth_model = TruthModel(scenario, init.truth, truth_rng)
+    tracker = Tracker(init.estimate, np.array(scenario.initial_cov), scenario.dt,
+                      scenario.process_noise, params)
+    alt, alt2, cos_dep, sin_dep, var_r, var_phi = tracker.radar.T
+    # Inclusive field-of-view edges with the tolerances of sensors.visible_offset.
+    g_lo = params.min_ground_range - RANGE_TOL
+    g_hi = params.max_ground_range + RANGE_TOL
+    fov = params.fov_half_angle + ANGLE_TOL
+    # All noise up front: each sensor's stream yields 2 normals per step in order, so this
+    # equals drawing them step by step, and a sensor draws whether it measures or not.
+    noise = np.stack([np.random.default_rng(c).standard_normal((S, 2))
+                      for c in streams["noise"].spawn(N)], axis=1)           # (S, N, 2)
+
+    truth = np.empty((S + 1, M, 4))
+    estimate = np.empty((S + 1, M, 4))
+    cov = np.empty((S + 1, M, 4, 4))
+    measured = np.zeros((S + 1, M, N), dtype=bool)
+    looked = np.full((S + 1, N), -1, dtype=np.int64)
+    missed = np.zeros((S + 1, N), dtype=bool)
+    negative = np.zeros((S + 1, M), dtype=bool)
+    inflated = np.zeros((S + 1, M), dtype=bool)
+    positions = np.empty((S + 1, N, 2))
+    headings = np.empty((S + 1, N))
+    decisions: list[tuple[int, float, float, float, float]] = []
+
+    truth[0] = init.truth
+    estimate[0] = tracker.means
+    cov[0] = tracker.covs
+    positions[0] = init.positions
+    headings[0] = init.headings
+    pos = init.positions.copy()
+    head = init.headings.copy()
+    sensor_index = np.arange(N)
+    epochs_per_plan = K if settings.execution == "ol" else 1
+    plan_targets = plan_positions = None
+    epoch = epochs_per_plan
+    target = np.full(N, -1, dtype=np.int64)
+    F = tracker.F
+
+    for t in range(1, S + 1):
+        if (t - 1) % e == 0:
+            if epoch == epochs_per_plan:
+                problem = PlanningProblem(
+                    means=tracker.means, covs=tracker.covs, positions=pos, headings=head,
+                    sensors=sensor_list, horizon=K, steps_per_epoch=e, dt=scenario.dt,
+                    process_noise=scenario.process_noise, world=scenario.world,
+                    visibility=settings.visibility, objective=settings.objective)
+                start = time.perf_counter()
+                result = planner.plan(problem, rng=planner_rng)
+                seconds = time.perf_counter() - start
+                decisions.append((t - 1, seconds, float(result.potential),
+                                  _nan_if_none(result.converged), _nan_if_none(result.sweeps)))
+                plan_targets = np.asarray(result.plan.targets)
+                plan_positions = np.asarray(result.plan.positions)
+                epoch = 0
+            target = plan_targets[:, epoch]
+            assigned = target >= 0
+            pos = np.where(assigned[:, None], plan_positions[:, epoch], pos)
+            aim = tracker.means[np.maximum(target, 0)] @ F[:2].T           # (N, 2)
+            bearing = np.arctan2(aim[:, 1] - pos[:, 1], aim[:, 0] - pos[:, 0])
+            head = np.where(assigned, heading_rule(head, bearing, max_turn), head)
+            epoch += 1
+
+        x_true = truth_model.step()
+        tracker.predict()
+
+        # Looks at the truth: visibility and the sampled noise use the true position. This
+        # is sensors.visible_offset / noise_std inlined on precomputed per-sensor constants
+        # (the tests check it against them).
+        tj = np.maximum(target, 0)
+        dx = x_true[tj, 0] - pos[:, 0]
+        dy = x_true[tj, 1] - pos[:, 1]
+        g2 = dx * dx + dy * dy
+        g = np.sqrt(g2)
+        phi = np.arctan2(dy, dx)
+        r2 = g2 + alt2
+        r = np.sqrt(r2)
+        cos_psi = (cos_dep * (dx * np.cos(head) + dy * np.sin(head)) + sin_dep * alt) / r
+        seen = ((g >= g_lo) & (g <= g_hi) & (np.abs(wrap_angle(phi - head)) <= fov)
+                & (cos_psi > 0.0))
+        assigned = target >= 0
+        miss = assigned & ~seen
+        seen &= assigned
+
+        if miss_update is not None and miss.any():
+            idx = sensor_index[miss]
+            for rnd in update_rounds(target[idx]):
+                i = idx[rnd]
+                j = target[i]
+                m, P, infl = miss_update(tracker.means[j], tracker.covs[j], pos[i], head[i],
+                                         rows(i))
+                tracker.means[j] = m
+                tracker.covs[j] = P
+                negative[t, j] = True
+                inflated[t, j] |= infl
+
+        if seen.any():
+            i = sensor_index[seen]
+            r4 = r2[i] * r2[i]
+            z = np.empty((len(i), 2))
+            z[:, 0] = r[i] + np.sqrt(var_r[i] * r4) * noise[t - 1, i, 0]
+            z[:, 1] = wrap_angle(phi[i] + np.sqrt(var_phi[i] * r4) / cos_psi[i]
+                                 * noise[t - 1, i, 1])
+            tracker.update(i, target[i], z, pos[i], head[i])
+            measured[t, target[i], i] = True
+
+        truth[t] = x_true
+        estimate[t] = tracker.means
+        cov[t] = tracker.covs
+        looked[t] = target
+        missed[t] = miss
+        positions[t] = pos
+        headings[t] = head
+        if progress is not None:
+            progress(t, S)
+
+    error = np.hypot(truth[..., 0] - estimate[..., 0], truth[..., 1] - estimate[..., 1])
+    d = np.array(decisions, dtype=float).reshape(-1, 5)
+    return Episode(
+        target_kinds=scenario.target_kinds, truth=truth, estimate=estimate, cov=cov,
+        error=error, nees=nees(truth, estimate, cov), measured=measured, looked=looked,
+        missed=missed, negative_update=negative, inflated=inflated,
+        sensor_positions=positions, sensor_headings=headings,
+        decision_steps=d[:, 0].astype(np.int64), planning_seconds=d[:, 1], potential=d[:, 2],
+        converged=d[:, 3], sweeps=d[:, 4], settings=settings,
+        seed_entropy=_entropy(seed_ss), seed_spawn_key=tuple(seed_ss.spawn_key))
+
+
+def _entropy(ss: np.random.SeedSequence) -> Any:
+    """The sequence's entropy: an int (a list of ints if it was built from one)."""
+    e = ss.entropy
+    return int(e) if _is_int(e) or isinstance(e, int) else [int(v) for v in e]
+
+
+def _nan_if_none(v: Any) -> float:
+    return math.nan if v is None else float(v)
+

@@ -1,0 +1,235 @@
+r"""Ground-truth target motion (SPEC 1), batched over targets.
+
+Two kinds of truth, both mirrored at the walls of the map ``[0, W] x [0, H]``:
+
+``cv``
+    The filter's own model, :math:`x_{t+1} = F x_t + w_t`, :math:`w_t \sim N(0, Q)`, drawn as
+    :math:`w = L \epsilon` with :math:`L L^T = Q` and :math:`\epsilon` standard normal. A
+    position that leaves the map is mirrored back inside and that velocity component flips
+    sign (:func:`mirror`, any number of reflections).
+``dubins``
+    Constant speed :math:`v`, heading :math:`h`, turn rate :math:`\omega` held for
+    ``turn_hold`` seconds and then redrawn uniformly from
+    :math:`[-\omega_{max}, \omega_{max}]`. Motion along an arc is integrated exactly
+    (:func:`dubins_arc`); a redraw inside a step splits the step. At the walls the position
+    is mirrored and the heading reflected (:math:`h \to \pi - h` across a vertical wall,
+    :math:`h \to -h` across a horizontal one). The vehicle keeps its turn rate across a
+    reflection (its steering does not change); only the part of the step after the wall is
+    mirrored, so within that step the turn is mirrored too.
+
+Randomness: :class:`TruthModel` spawns one child generator per target from the truth
+generator it is given (``Generator.spawn``), so a target's motion depends on nothing but the
+truth generator and its own index - not on the other targets, the filter, the sensors or
+the planner. ``cv`` targets draw their normals in fixed blocks (the stream is consumed in
+order, so the values do not depend on when a block is drawn); ``dubins`` targets draw one
+uniform per redraw, the first at the start.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._types import BoolArray, FloatArray
+from .angles import wrap_angle
+from .dynamics import cv_matrices
+from .scenario import Scenario
+
+#: Steps of ``cv`` process noise drawn per block.
+NOISE_BLOCK = 256
+#: Relative tolerance (of ``turn_hold``) under which a redraw is due within a step.
+REDRAW_TOL = 1e-9
+
+
+def mirror(p: FloatArray, length: float | FloatArray) -> tuple[FloatArray, BoolArray]:
+    """Fold coordinates into ``[0, length]`` as a reflecting pair of walls would.
+
+    Handles any number of reflections: with ``u = p mod 2L`` the folded coordinate is ``u``
+    if ``u <= L`` else ``2L - u``; the direction of motion is reversed iff the fold used the
+    mirrored branch. Coordinates already inside are returned unchanged (bit for bit).
+
+    Parameters
+    ----------
+    p : (...) float64      coordinates (m)
+    length : float or (...) float64
+        Wall distance ``L > 0`` (m).
+
+    Returns
+    -------
+    folded : (...) float64 in [0, L]
+    flipped : (...) bool   whether the velocity component changes sign
+
+    Examples
+    --------
+    >>> mirror(np.array([-1.0, 5.0, 11.0, 23.0]), 10.0)
+    (array([1., 5., 9., 3.]), array([ True, False,  True, False]))
+    """
+    two_l = 2.0 * np.asarray(length, dtype=float)
+    u = np.mod(p, two_l)
+    flipped = u > length
+    return np.where(flipped, two_l - u, u), flipped
+
+
+def dubins_arc(xy: FloatArray, speed: FloatArray, heading: FloatArray, turn_rate: FloatArray,
+               tau: FloatArray) -> tuple[FloatArray, FloatArray]:
+    r"""Exact constant-speed, constant-turn-rate motion for a time ``tau``.
+
+    With :math:`a = \omega \tau / 2`,
+
+    .. math::
+        \Delta x = v \tau \cos(h + a) \frac{\sin a}{a},\quad
+        \Delta y = v \tau \sin(h + a) \frac{\sin a}{a},\quad h' = h + 2a,
+
+    which equals :math:`(v/\omega)(\sin(h+\omega\tau) - \sin h, \cos h - \cos(h+\omega\tau))`
+    and tends to the straight line as :math:`\omega \to 0` without cancellation
+    (the ratio is taken as 1 at :math:`a = 0`).
+
+    Parameters
+    ----------
+    xy : (..., 2)   ground positions (m)
+    speed, heading, turn_rate, tau : (...)   m/s, rad, rad/s, s
+
+    Returns
+    -------
+    xy : (..., 2)
+    heading : (...) wrapped to (-pi, pi]
+    """
+    a = 0.5 * turn_rate * tau
+    # sin(a)/a, exactly 1 at a = 0 (np.sinc does the same with more overhead).
+    nonzero = a != 0.0
+    ratio = np.where(nonzero, np.sin(a) / np.where(nonzero, a, 1.0), 1.0)
+    s = speed * tau * ratio
+    mid = heading + a
+    out = np.empty_like(xy)
+    out[..., 0] = xy[..., 0] + s * np.cos(mid)
+    out[..., 1] = xy[..., 1] + s * np.sin(mid)
+    return out, wrap_angle(heading + 2.0 * a)
+
+
+class TruthModel:
+    """Batched true motion of a scenario's targets.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        Supplies ``dt``, ``process_noise``, the map and each target's kind, ``turn_hold``
+        and ``max_turn_rate``.
+    initial_states : (M, 4)
+        True ``[x, y, vx, vy]`` at time 0 (inside the map). A ``dubins`` target's speed and
+        heading are those of its initial velocity.
+    rng : numpy.random.Generator
+        The truth generator; one child per target is spawned from it.
+
+    Attributes
+    ----------
+    states : (M, 4)
+        Current true states; :meth:`step` replaces (does not mutate) this array.
+    """
+
+    def __init__(self, scenario: Scenario, initial_states: FloatArray,
+                 rng: np.random.Generator) -> None:
+        states = np.array(initial_states, dtype=float)
+        M = len(scenario.targets)
+        if states.shape != (M, 4):
+            raise ValueError(f"initial_states must have shape ({M}, 4), got {states.shape}")
+        kinds = np.array(scenario.target_kinds)
+        self.width = float(scenario.world.width)
+        self.height = float(scenario.world.height)
+        self.dt = float(scenario.dt)
+        self.F, Q = cv_matrices(self.dt, scenario.process_noise)
+        # Cholesky of Q(dt, q) = q Q(dt, 1): Q(dt, 1) is positive definite for dt > 0,
+        # and q = 0 (allowed) gives no noise instead of a failed factorisation.
+        _, Q1 = cv_matrices(self.dt, 1.0)
+        self.L = np.sqrt(scenario.process_noise) * np.linalg.cholesky(Q1)
+        self._rngs = rng.spawn(M)
+        self.cv = np.flatnonzero(kinds == "cv")
+        self.dub = np.flatnonzero(kinds == "dubins")
+        self._noise = np.empty((len(self.cv), NOISE_BLOCK, 4))
+        self._noise_at = NOISE_BLOCK
+        d = self.dub
+        self.turn_hold = np.array([scenario.targets[j].turn_hold for j in d], dtype=float)
+        self.max_turn_rate = np.array([scenario.targets[j].max_turn_rate for j in d],
+                                      dtype=float)
+        self.xy = states[d, :2].copy()
+        self.speed = np.hypot(states[d, 2], states[d, 3])
+        self.heading = np.arctan2(states[d, 3], states[d, 2])
+        self.turn_rate = np.array([self._draw_turn_rate(n) for n in range(len(d))])
+        self.time_left = self.turn_hold.copy()
+        self._redraw_tol = REDRAW_TOL * self.turn_hold
+        self._size = np.array([self.width, self.height])
+        self.states = states
+        self.time = 0.0
+
+    def _draw_turn_rate(self, n: int) -> float:
+        """A fresh turn rate for the n-th dubins target, from that target's own stream."""
+        w = self.max_turn_rate[n]
+        return float(self._rngs[self.dub[n]].uniform(-w, w))
+
+    def _cv_noise(self) -> FloatArray:
+        """Process noise ``(M_cv, 4)`` for one step, drawn per target in blocks."""
+        if self._noise_at == NOISE_BLOCK:
+            for n, j in enumerate(self.cv):
+                self._noise[n] = self._rngs[j].standard_normal((NOISE_BLOCK, 4))
+            self._noise = self._noise @ self.L.T
+            self._noise_at = 0
+        w = self._noise[:, self._noise_at]
+        self._noise_at += 1
+        return w
+
+    def _advance_dubins(self) -> None:
+        """Move the dubins targets along their arcs for ``dt``, redrawing turn rates."""
+        dt = self.dt
+        tol = self._redraw_tol
+        if not np.any(self.time_left <= dt + tol):
+            # The usual step: no redraw falls inside it.
+            self.xy, self.heading = dubins_arc(self.xy, self.speed, self.heading,
+                                               self.turn_rate, dt)
+            self.time_left = self.time_left - dt
+            return
+        remaining = np.full(len(self.dub), dt)
+        while True:
+            # A redraw is due inside this (sub)step where the hold runs out before it ends.
+            due = self.time_left <= remaining + tol
+            tau = np.where(due, np.minimum(self.time_left, remaining), remaining)
+            self.xy, self.heading = dubins_arc(self.xy, self.speed, self.heading,
+                                               self.turn_rate, tau)
+            self.time_left = np.where(due, self.turn_hold, self.time_left - tau)
+            for n in np.flatnonzero(due):
+                self.turn_rate[n] = self._draw_turn_rate(n)
+            remaining = np.where(due, remaining - tau, 0.0)
+            remaining[remaining <= tol] = 0.0
+            if not remaining.any():
+                return
+
+    def step(self) -> FloatArray:
+        """Advance every target by ``dt``; return the new true states ``(M, 4)``."""
+        new = np.empty_like(self.states)
+        if len(self.cv):
+            new[self.cv] = self.states[self.cv] @ self.F.T + self._cv_noise()
+        if len(self.dub):
+            self._advance_dubins()
+            new[self.dub, :2] = self.xy
+            new[self.dub, 2] = self.speed * np.cos(self.heading)
+            new[self.dub, 3] = self.speed * np.sin(self.heading)
+        folded, flipped = mirror(new[:, :2], self._size)
+        new[:, :2] = folded
+        new[:, 2:] = np.where(flipped, -new[:, 2:], new[:, 2:])
+        if len(self.dub):
+            self.xy = folded[self.dub]
+            fd = flipped[self.dub]
+            if fd.any():
+                h = np.where(fd[:, 0], np.pi - self.heading, self.heading)
+                self.heading = wrap_angle(np.where(fd[:, 1], -h, h))
+        self.states = new
+        self.time += self.dt
+        return new
+
+
+def init_truth(scenario: Scenario, initial_states: FloatArray,
+               rng: np.random.Generator) -> TruthModel:
+    """A :class:`TruthModel` starting at ``initial_states`` ``(M, 4)``."""
+    return TruthModel(scenario, initial_states, rng)
+
+
+def step_truth(model: TruthModel) -> FloatArray:
+    """Advance ``model`` by one step (in place); return the true states ``(M, 4)``."""
+    return model.step()

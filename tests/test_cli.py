@@ -1,0 +1,516 @@
+"""The command line: SPEC 7's `plan`, `simulate`, exit codes and the one-line errors."""
+
+from __future__ import annotations
+
+import copy
+import importlib.util
+import json
+import math
+import subprocess
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from sensorplan.cli import main
+from sensorplan.io import dumps_result, result_to_dict
+from sensorplan.planners import PLANNERS, PlanResult
+from sensorplan.problem import Plan, move_vectors
+
+ROOT = Path(__file__).resolve().parents[1]
+QUICK = ROOT / "configs" / "quick.toml"
+HAVE_SIMULATION = importlib.util.find_spec("sensorplan.simulation") is not None
+needs_simulation = pytest.mark.skipif(
+    not HAVE_SIMULATION, reason="sensorplan.simulation is not written yet")
+
+#: The example of SPEC 7, verbatim.
+SPEC7_TEXT = """
+{
+  "dt": 1.0, "steps_per_epoch": 1, "horizon": 3,
+  "map": {"width": 600, "height": 600},
+  "process_noise": 0.05, "visibility": "probabilistic", "objective": "terminal",
+  "targets": [{"mean": [300, 200, 4, 1], "cov": [[400,0,0,0],[0,400,0,0],[0,0,4,0],[0,0,0,4]]}],
+  "sensors": [{"position": [100, 100], "altitude": 500, "heading": 0.0,
+               "moves": [20, 40], "max_turn": 0.785398,
+               "fov_half_angle": 0.523599, "min_ground_range": 250, "max_ground_range": 450,
+               "depression": 0.698132, "snr_ref_db": 15, "range_ref": 600,
+               "beamwidth": 0.0523599, "monopulse_slope": 1.6, "range_resolution": 30}],
+  "planner": {"name": "pg", "alpha": 0.3, "beta": 0.95, "max_inner": 50,
+              "max_outer": 10, "seed": 0}
+}
+"""
+SPEC7 = json.loads(SPEC7_TEXT)
+BASE_KEYS = {"planner", "plan", "potential", "information", "seconds"}
+ACTION_KEYS = {"epoch", "position", "heading", "target", "measurements"}
+
+
+def run(capsys: pytest.CaptureFixture[str], *args: Any) -> tuple[int, str, str]:
+    """Run the console entry point; return (exit status, stdout, stderr)."""
+    with pytest.raises(SystemExit) as info:
+        main([str(a) for a in args])
+    out = capsys.readouterr()
+    return int(info.value.code or 0), out.out, out.err
+
+
+def assert_bad_input(result: tuple[int, str, str], field: str) -> None:
+    code, out, err = result
+    assert code == 2, err
+    assert out == ""
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith(f"error: {field}: "), lines[0]
+    assert "Traceback" not in err
+
+
+def write_json(tmp_path: Path, data: Any, name: str = "problem.json") -> Path:
+    path = tmp_path / name
+    path.write_text(json.dumps(data))
+    return path
+
+
+# --------------------------------------------------------------------------- plan
+
+
+def test_plan_spec7_example_with_random(tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                        ) -> None:
+    path = tmp_path / "p.json"
+    path.write_text(SPEC7_TEXT)
+    code, out, err = run(capsys, "plan", path, "--planner", "random")
+    assert (code, err) == (0, "")
+    res = json.loads(out)
+    assert set(res) == BASE_KEYS                        # no converged/sweeps for random
+    assert res["planner"] == "random"
+    assert len(res["plan"]) == 1 and len(res["plan"][0]) == 3
+    moves = move_vectors((20.0, 40.0))
+    prev = np.array([100.0, 100.0])
+    for k, action in enumerate(res["plan"][0], start=1):
+        assert set(action) == ACTION_KEYS
+        assert action["epoch"] == k
+        assert action["target"] == 0
+        assert isinstance(action["measurements"], int) and 0 <= action["measurements"] <= 1
+        pos = np.array(action["position"])
+        assert np.min(np.abs(pos - prev - moves).max(axis=1)) < 1e-6   # one move per epoch
+        assert -math.pi < action["heading"] <= math.pi
+        prev = pos
+    assert res["potential"] >= 0
+    assert res["potential"] == pytest.approx(sum(res["information"]), rel=1e-9)
+    assert len(res["information"]) == 1
+    assert res["seconds"] >= 0
+
+
+def test_plan_is_deterministic(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_json(tmp_path, {**SPEC7, "planner": {"name": "random", "seed": 5}})
+    first = json.loads(run(capsys, "plan", path)[1])
+    second = json.loads(run(capsys, "plan", path)[1])
+    first.pop("seconds"), second.pop("seconds")
+    assert first == second
+
+
+def test_planner_option_overrides_the_file(tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_json(tmp_path, {**SPEC7, "planner": {"name": "random", "seed": 0}})
+    other = "pg" if "pg" in PLANNERS else "random"
+    code, out, _ = run(capsys, "plan", path, "--planner", other)
+    assert code == 0
+    res = json.loads(out)
+    assert res["planner"] == other
+    if other == "pg":
+        assert set(res) == BASE_KEYS | {"converged", "sweeps"}
+        assert isinstance(res["converged"], bool) and isinstance(res["sweeps"], int)
+
+
+@pytest.mark.parametrize("name", sorted(PLANNERS))
+def test_every_registered_planner_gives_the_spec_keys(
+        name: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_json(tmp_path, {**SPEC7, "horizon": 2, "planner": {"name": name}})
+    code, out, err = run(capsys, "plan", path)
+    assert code == 0, err
+    res = json.loads(out)
+    extra = {"converged", "sweeps"} if name in ("pg", "pg-refine") else set()
+    assert set(res) == BASE_KEYS | extra
+    assert res["planner"] == name
+
+
+def test_result_to_dict_layout() -> None:
+    plan = Plan(np.array([[[120.0, 100.0], [140.0, 120.0]]]), np.array([[0, 1]]))
+    result = PlanResult("pg", plan, 3.25, np.array([1.0, 2.25]), np.array([[0.5, -0.25]]),
+                        np.array([[1, 0]]), converged=True, sweeps=2, seconds=0.004)
+    expected = {
+        "planner": "pg",
+        "plan": [[{"epoch": 1, "position": [120.0, 100.0], "heading": 0.5, "target": 0,
+                   "measurements": 1},
+                  {"epoch": 2, "position": [140.0, 120.0], "heading": -0.25, "target": 1,
+                   "measurements": 0}]],
+        "potential": 3.25, "information": [1.0, 2.25], "converged": True, "sweeps": 2,
+        "seconds": 0.004}
+    assert result_to_dict(result) == expected
+    assert list(result_to_dict(result)) == list(expected)       # SPEC 7 key order
+    assert json.loads(dumps_result(result)) == expected
+    random_result = PlanResult("random", plan, 3.25, np.array([1.0, 2.25]),
+                               np.array([[0.5, -0.25]]), np.array([[1, 0]]))
+    assert set(result_to_dict(random_result)) == BASE_KEYS
+
+
+def _set(path: str, value: Any) -> Callable[[dict[str, Any]], None]:
+    """A mutation setting a dotted/indexed path like ``sensors.0.altitude``."""
+    def mutate(d: dict[str, Any]) -> None:
+        keys = [int(k) if k.isdigit() else k for k in path.split(".")]
+        for k in keys[:-1]:
+            d = d[k]
+        d[keys[-1]] = value
+    return mutate
+
+
+def _delete(key: str) -> Callable[[dict[str, Any]], None]:
+    return lambda d: d.pop(key)
+
+
+ASYM = [[400, 1, 0, 0], [0, 400, 0, 0], [0, 0, 4, 0], [0, 0, 0, 4]]
+NOT_PD = [[400, 0, 0, 0], [0, -400, 0, 0], [0, 0, 4, 0], [0, 0, 0, 4]]
+
+#: (id, mutation of the SPEC 7 example, field named in the error)
+BAD_JSON = [
+    ("unknown key", _set("foo", 1), "foo"),
+    ("unknown nested key", _set("sensors.0.altitud", 500), "sensors[0].altitud"),
+    ("unknown planner key", _set("planner.gamma", 0.1), "planner.gamma"),
+    ("missing horizon", _delete("horizon"), "horizon"),
+    ("missing targets", _delete("targets"), "targets"),
+    ("missing sensor heading", lambda d: d["sensors"][0].pop("heading"), "sensors[0].heading"),
+    ("float for int", _set("horizon", 2.0), "horizon"),
+    ("bool for int", _set("steps_per_epoch", True), "steps_per_epoch"),
+    ("string for float", _set("dt", "1.0"), "dt"),
+    ("bool for float", _set("sensors.0.altitude", False), "sensors[0].altitude"),
+    ("null for float", _set("process_noise", None), "process_noise"),
+    ("object for list", _set("targets", {"mean": [1, 2, 3, 4]}), "targets"),
+    ("short mean", _set("targets.0.mean", [1, 2, 3]), "targets[0].mean"),
+    ("cov rows", _set("targets.0.cov", [[1, 0, 0, 0]] * 3), "targets[0].cov"),
+    ("cov row length", _set("targets.0.cov.1", [0, 1, 0]), "targets[0].cov[1]"),
+    ("position length", _set("sensors.0.position", [1, 2, 3]), "sensors[0].position"),
+    ("map not object", _set("map", 600), "map"),
+    ("nan mean", _set("targets.0.mean.0", float("nan")), "targets[0].mean[0]"),
+    ("inf cov", _set("targets.0.cov.0.0", float("inf")), "targets[0].cov[0][0]"),
+    ("inf heading", _set("sensors.0.heading", float("-inf")), "sensors[0].heading"),
+    ("cov not symmetric", _set("targets.0.cov", ASYM), "targets[0].cov"),
+    ("cov not PD", _set("targets.0.cov", NOT_PD), "targets[0].cov"),
+    ("sensor outside map", _set("sensors.0.position", [100, 601]), "sensors[0].position"),
+    ("sensor below map", _set("sensors.0.position", [-1, 100]), "sensors[0].position"),
+    ("dt zero", _set("dt", 0), "dt"),
+    ("dt negative", _set("dt", -1.0), "dt"),
+    ("steps_per_epoch zero", _set("steps_per_epoch", 0), "steps_per_epoch"),
+    ("horizon zero", _set("horizon", 0), "horizon"),
+    ("move zero", _set("sensors.0.moves", [20, 0]), "sensors[0].moves"),
+    ("move negative", _set("sensors.0.moves", [-20]), "sensors[0].moves"),
+    ("no moves", _set("sensors.0.moves", []), "sensors[0].moves"),
+    ("altitude zero", _set("sensors.0.altitude", 0), "sensors[0].altitude"),
+    ("min range", _set("sensors.0.min_ground_range", -1), "sensors[0].min_ground_range"),
+    ("max range", _set("sensors.0.max_ground_range", 0), "sensors[0].max_ground_range"),
+    ("range ref", _set("sensors.0.range_ref", 0), "sensors[0].range_ref"),
+    ("resolution", _set("sensors.0.range_resolution", -30), "sensors[0].range_resolution"),
+    ("beamwidth", _set("sensors.0.beamwidth", 0), "sensors[0].beamwidth"),
+    ("slope", _set("sensors.0.monopulse_slope", 0), "sensors[0].monopulse_slope"),
+    ("fov", _set("sensors.0.fov_half_angle", 0), "sensors[0].fov_half_angle"),
+    ("min > max range", _set("sensors.0.min_ground_range", 460), "sensors[0].min_ground_range"),
+    ("alpha zero", _set("planner.alpha", 0), "planner.alpha"),
+    ("alpha one", _set("planner.alpha", 1.0), "planner.alpha"),
+    ("beta above", _set("planner.beta", 1.5), "planner.beta"),
+    ("beta negative", _set("planner.beta", -0.1), "planner.beta"),
+    ("unknown planner", _set("planner.name", "simulated-annealing"), "planner.name"),
+    ("unknown visibility", _set("visibility", "optimistic"), "visibility"),
+    ("unknown objective", _set("objective", "average"), "objective"),
+    ("max_plans for pg", _set("planner.max_plans", 10), "planner.max_plans"),
+    ("no targets", _set("targets", []), "targets"),
+    ("no sensors", _set("sensors", []), "sensors"),
+]
+
+
+@pytest.mark.parametrize("mutate,field", [c[1:] for c in BAD_JSON],
+                         ids=[c[0] for c in BAD_JSON])
+def test_plan_bad_input(mutate: Callable[[dict[str, Any]], None], field: str, tmp_path: Path,
+                        capsys: pytest.CaptureFixture[str]) -> None:
+    data = copy.deepcopy(SPEC7)
+    data["planner"]["name"] = "random" if field != "planner.max_plans" else "pg"
+    mutate(data)
+    assert_bad_input(run(capsys, "plan", write_json(tmp_path, data)), field)
+
+
+@pytest.mark.skipif("brute-force" not in PLANNERS, reason="brute-force is not registered")
+def test_plan_brute_force_above_max_plans(tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    data = {**SPEC7, "planner": {"name": "brute-force", "max_plans": 5}}
+    assert_bad_input(run(capsys, "plan", write_json(tmp_path, data)), "planner.max_plans")
+
+
+def test_plan_bad_files_and_options(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    missing = tmp_path / "missing.json"
+    assert_bad_input(run(capsys, "plan", missing), str(missing))
+    broken = tmp_path / "broken.json"
+    broken.write_text('{"horizon": 3,')
+    assert_bad_input(run(capsys, "plan", broken), str(broken))
+    top = write_json(tmp_path, [SPEC7], "list.json")
+    assert_bad_input(run(capsys, "plan", top), "(top level)")
+    dup = tmp_path / "dup.json"
+    dup.write_text('{"horizon": 3, "horizon": 4}')
+    assert_bad_input(run(capsys, "plan", dup), "horizon")
+    assert_bad_input(run(capsys, "plan", tmp_path), str(tmp_path))          # a directory
+    good = write_json(tmp_path, SPEC7)
+    assert_bad_input(run(capsys, "plan", good, "--planner", "nope"), "--planner")
+    assert_bad_input(run(capsys, "plan", good, "--planner"), "--planner")
+    assert_bad_input(run(capsys, "plan", good, "--bogus"), "--bogus")
+    assert_bad_input(run(capsys, "plan"), "PROBLEM.json")
+    assert_bad_input(run(capsys, "frobnicate"), "usage")
+
+
+def test_help_is_useful(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "--help")
+    assert code == 0 and "plan" in out and "simulate" in out
+    code, out, _ = run(capsys, "plan", "--help")
+    assert code == 0
+    for word in ("PROBLEM.json", "--planner", "converged", "stderr"):
+        assert word in out
+    code, out, _ = run(capsys, "simulate", "--help")
+    assert code == 0
+    for word in ("--preset", "--planner", "--horizon", "--steps-per-epoch", "--execution",
+                 "--steps", "--seed", "--visibility", "--objective", "--miss-update", "--out",
+                 "RMSE"):
+        assert word in out, word
+    code, out, _ = run(capsys)                         # no arguments: the help
+    assert code == 0 and "simulate" in out
+
+
+def test_unexpected_errors_are_one_line_with_status_1(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import sensorplan.config
+
+    def broken(*args: Any, **kwargs: Any) -> None:
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(sensorplan.config, "load_decision", broken)
+    code, out, err = run(capsys, "plan", write_json(tmp_path, SPEC7))
+    assert (code, out) == (1, "")
+    assert err.splitlines() == [
+        "error: internal error: RuntimeError: boom (set SENSORPLAN_DEBUG=1 for the traceback)"]
+    monkeypatch.setenv("SENSORPLAN_DEBUG", "1")
+    with pytest.raises(RuntimeError, match="boom"):
+        main(["plan", str(tmp_path / "problem.json")])
+
+
+def test_console_script_in_a_subprocess(tmp_path: Path) -> None:
+    script = Path(sys.executable).parent / "sensorplan"
+    if not script.exists():
+        pytest.skip(f"console script not installed next to {sys.executable}")
+    bad = write_json(tmp_path, {**SPEC7, "dt": -1.0}, "bad.json")
+    proc = subprocess.run([str(script), "plan", str(bad)], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 2
+    assert proc.stdout == ""
+    assert proc.stderr.splitlines() == ["error: dt: must be > 0"]
+    good = write_json(tmp_path, SPEC7, "good.json")
+    proc = subprocess.run([sys.executable, "-m", "sensorplan", "plan", str(good), "--planner",
+                           "random"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert set(json.loads(proc.stdout)) == BASE_KEYS
+
+
+# ----------------------------------------------------------------------- simulate
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float):
+        return "nan" if math.isnan(v) else ("inf" if v == math.inf else
+                                            "-inf" if v == -math.inf else repr(v))
+    if isinstance(v, (int, str)):
+        return json.dumps(v)
+    return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+
+
+def to_toml(d: dict[str, Any], prefix: str = "") -> str:
+    """Tiny TOML writer for the tests (scalars, lists, tables, arrays of tables)."""
+    lines, tables, arrays = [], [], []
+    for k, v in d.items():
+        if isinstance(v, dict):
+            tables.append((k, v))
+        elif isinstance(v, list) and v and all(isinstance(x, dict) for x in v):
+            arrays.append((k, v))
+        else:
+            lines.append(f"{k} = {_toml_value(v)}")
+    for k, v in tables:
+        lines += [f"[{prefix}{k}]", to_toml(v, f"{prefix}{k}.")]
+    for k, items in arrays:
+        for item in items:
+            lines += [f"[[{prefix}{k}]]", to_toml(item, f"{prefix}{k}.")]
+    return "\n".join(lines)
+
+
+BASE_TOML: dict[str, Any] = {
+    "dt": 1.0,
+    "map": {"width": 600.0, "height": 600.0},
+    "initial": {"cov": [[400.0, 0, 0, 0], [0, 400.0, 0, 0], [0, 0, 4.0, 0], [0, 0, 0, 4.0]]},
+    "tracker": {"miss_update": "negative"},
+    "planning": {"planner": "random", "horizon": 1, "planner_params": {"alpha": 0.3}},
+    "run": {"steps": 3, "seed": 0},
+    "targets": [{"kind": "cv", "position": [300.0, 200.0]}],
+    "sensors": [{"altitude": 500.0, "position": [100.0, 100.0], "heading": 0.0}],
+}
+
+#: (id, mutation of BASE_TOML, field named in the error)
+BAD_TOML = [
+    ("unknown key", _set("foo", 1), "foo"),
+    ("unknown table key", _set("map.depth", 1.0), "map.depth"),
+    ("unknown sensor key", _set("sensors.0.altitud", 1.0), "sensors[0].altitud"),
+    ("planner seed", _set("planning.planner_params.seed", 1), "planning.planner_params.seed"),
+    ("missing targets", _delete("targets"), "targets"),
+    ("missing sensors", _delete("sensors"), "sensors"),
+    ("string for float", _set("dt", "fast"), "dt"),
+    ("float for int", _set("planning.horizon", 1.5), "planning.horizon"),
+    ("bool for int", _set("run.steps", True), "run.steps"),
+    ("table for list", _set("targets", {"kind": "cv"}), "targets"),
+    ("cov rows", _set("initial.cov", [[1.0, 0, 0, 0]] * 3), "initial.cov"),
+    ("box length", _set("initial.target_box", [1.0]), "initial.target_box"),
+    ("position length", _set("sensors.0.position", [1.0, 2.0, 3.0]), "sensors[0].position"),
+    ("nan", _set("process_noise", float("nan")), "process_noise"),
+    ("inf", _set("sensors.0.altitude", float("inf")), "sensors[0].altitude"),
+    ("cov not symmetric", _set("initial.cov", ASYM), "initial.cov"),
+    ("cov not PD", _set("initial.cov", NOT_PD), "initial.cov"),
+    ("sensor outside map", _set("sensors.0.position", [700.0, 100.0]), "sensors[0].position"),
+    ("target outside map", _set("targets.0.position", [300.0, -5.0]), "targets[0].position"),
+    ("dt zero", _set("dt", 0.0), "dt"),
+    ("steps_per_epoch zero", _set("planning.steps_per_epoch", 0), "planning.steps_per_epoch"),
+    ("horizon zero", _set("planning.horizon", 0), "planning.horizon"),
+    ("steps zero", _set("run.steps", 0), "run.steps"),
+    ("seed negative", _set("run.seed", -1), "run.seed"),
+    ("move zero", _set("sensors.0.moves", [0.0]), "sensors[0].moves"),
+    ("altitude", _set("sensors.0.altitude", -500.0), "sensors[0].altitude"),
+    ("range ref", _set("sensors.0.range_ref", 0.0), "sensors[0].range_ref"),
+    ("resolution", _set("sensors.0.range_resolution", 0.0), "sensors[0].range_resolution"),
+    ("beamwidth", _set("sensors.0.beamwidth", 0.0), "sensors[0].beamwidth"),
+    ("slope", _set("sensors.0.monopulse_slope", 0.0), "sensors[0].monopulse_slope"),
+    ("fov", _set("sensors.0.fov_half_angle", 0.0), "sensors[0].fov_half_angle"),
+    ("min > max range", _set("sensors.0.max_ground_range", 200.0),
+     "sensors[0].min_ground_range"),
+    ("alpha", _set("planning.planner_params.alpha", 1.0), "planning.planner_params.alpha"),
+    ("beta", _set("planning.planner_params.beta", 0.0), "planning.planner_params.beta"),
+    ("max_plans for random", _set("planning.planner_params.max_plans", 10),
+     "planning.planner_params.max_plans"),
+    ("unknown planner", _set("planning.planner", "nope"), "planning.planner"),
+    ("unknown visibility", _set("planning.visibility", "x"), "planning.visibility"),
+    ("unknown objective", _set("planning.objective", "x"), "planning.objective"),
+    ("unknown execution", _set("planning.execution", "closed"), "planning.execution"),
+    ("unknown miss update", _set("tracker.miss_update", "x"), "tracker.miss_update"),
+    ("unknown kind", _set("targets.0.kind", "ballistic"), "targets[0].kind"),
+    ("negative speed", _set("targets.0.speed", -1.0), "targets[0].speed"),
+    ("speed range", _set("initial.speed_range", [5.0, 1.0]), "initial.speed_range"),
+]
+
+
+@needs_simulation
+@pytest.mark.parametrize("mutate,field", [c[1:] for c in BAD_TOML],
+                         ids=[c[0] for c in BAD_TOML])
+def test_simulate_bad_scenario(mutate: Callable[[dict[str, Any]], None], field: str,
+                               tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    data = copy.deepcopy(BASE_TOML)
+    mutate(data)
+    path = tmp_path / "scenario.toml"
+    path.write_text(to_toml(data))
+    out = tmp_path / "out"
+    assert_bad_input(run(capsys, "simulate", path, "--out", out), field)
+    assert not out.exists()
+
+
+BAD_OPTIONS = [
+    (["--horizon", "0"], "--horizon"), (["--horizon", "x"], "--horizon"),
+    (["--steps-per-epoch", "0"], "--steps-per-epoch"), (["--steps", "0"], "--steps"),
+    (["--seed", "-1"], "--seed"), (["--execution", "closed"], "--execution"),
+    (["--planner", "nope"], "--planner"), (["--visibility", "x"], "--visibility"),
+    (["--objective", "x"], "--objective"), (["--miss-update", "x"], "--miss-update"),
+    (["--preset", "nope"], "--preset"), (["--frobnicate"], "--frobnicate"),
+]
+
+
+@needs_simulation
+@pytest.mark.parametrize("args,field", BAD_OPTIONS, ids=[a[0] for a, _ in BAD_OPTIONS])
+def test_simulate_bad_options(args: list[str], field: str, tmp_path: Path,
+                              capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "out"
+    assert_bad_input(run(capsys, "simulate", *args, "--out", out), field)
+    assert not out.exists()
+
+
+@needs_simulation
+def test_help_defaults_are_run_settings_defaults() -> None:
+    from sensorplan.cli import RUN_DEFAULTS
+    from sensorplan.simulation import RunSettings
+
+    defaults = RunSettings()
+    assert RUN_DEFAULTS == {k: getattr(defaults, k) for k in RUN_DEFAULTS}
+
+
+@needs_simulation
+def test_simulate_file_and_preset_conflict(tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    assert_bad_input(run(capsys, "simulate", QUICK, "--preset", "paper", "--out", tmp_path),
+                     "--preset")
+    broken = tmp_path / "broken.toml"
+    broken.write_text("dt = = 1\n")
+    assert_bad_input(run(capsys, "simulate", broken, "--out", tmp_path), str(broken))
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    assert_bad_input(run(capsys, "simulate", QUICK, "--out", blocker), "--out")
+
+
+@needs_simulation
+@pytest.mark.skipif("brute-force" not in PLANNERS, reason="brute-force is not registered")
+def test_simulate_planner_refusing_mid_run(tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    result = run(capsys, "simulate", QUICK, "--planner", "brute-force", "--horizon", "3",
+                 "--out", tmp_path / "out")
+    assert_bad_input(result, "planning.planner_params.max_plans")
+
+
+def _arrays(path: Path) -> dict[str, np.ndarray]:
+    with np.load(path, allow_pickle=False) as data:
+        return {k: data[k] for k in data.files}
+
+
+@needs_simulation
+def test_simulate_writes_reproducible_outputs(tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    runs = {}
+    for name, seed in (("a", "3"), ("b", "3"), ("c", "4")):
+        code, out, err = run(capsys, "simulate", QUICK, "--steps", "8", "--seed", seed,
+                             "--out", tmp_path / name)
+        assert code == 0, err
+        assert "RMSE" in out and "missed looks" in out and "decisions" in out
+        assert (tmp_path / name / "episode.png").stat().st_size > 0
+        runs[name] = _arrays(tmp_path / name / "episode.npz")
+    a, b, c = runs["a"], runs["b"], runs["c"]
+    assert set(a) == set(b)
+    assert a["truth"].shape[0] == 9
+    for key in a:
+        if key == "planning_seconds":                   # wall time, the only nondeterminism
+            continue
+        np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+    assert not np.array_equal(a["truth"], c["truth"])
+
+
+@needs_simulation
+def test_simulate_options_reach_the_run(tmp_path: Path,
+                                        capsys: pytest.CaptureFixture[str]) -> None:
+    from sensorplan.simulation import Episode
+
+    code, _, err = run(capsys, "simulate", "--preset", "paper", "--steps", "4", "-K", "2",
+                       "-e", "2", "--execution", "ol", "--visibility", "mean",
+                       "--objective", "cumulative", "--miss-update", "none",
+                       "--planner", "random", "--out", tmp_path)
+    assert code == 0, err
+    ep = Episode.load(tmp_path / "episode.npz")
+    s = ep.settings
+    assert (s.planner, s.horizon, s.steps_per_epoch, s.execution, s.steps, s.visibility,
+            s.objective, s.miss_update) == ("random", 2, 2, "ol", 4, "mean", "cumulative",
+                                            "none")
+    assert len(ep.target_kinds) == 5 and ep.sensor_positions.shape[1] == 3

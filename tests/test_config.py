@@ -1,0 +1,356 @@
+"""Input files: the single-decision JSON (SPEC 7) and the scenario TOML, with their errors."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import importlib.util
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from sensorplan.config import (PRESETS, decision_from_dict, load_decision, load_simulation,
+                               planner_settings)
+from sensorplan.errors import ConfigError
+from sensorplan.planners import PLANNERS
+from sensorplan.scenario import Scenario, SensorSpec, TargetSpec, paper_scenario
+from sensorplan.sensors import SensorParams
+
+ROOT = Path(__file__).resolve().parents[1]
+CONFIGS = ROOT / "configs"
+
+HAVE_SIMULATION = importlib.util.find_spec("sensorplan.simulation") is not None
+needs_simulation = pytest.mark.skipif(
+    not HAVE_SIMULATION, reason="sensorplan.simulation (RunSettings) is not written yet")
+
+#: The example of SPEC 7, verbatim.
+SPEC7 = json.loads("""
+{
+  "dt": 1.0, "steps_per_epoch": 1, "horizon": 3,
+  "map": {"width": 600, "height": 600},
+  "process_noise": 0.05, "visibility": "probabilistic", "objective": "terminal",
+  "targets": [{"mean": [300, 200, 4, 1], "cov": [[400,0,0,0],[0,400,0,0],[0,0,4,0],[0,0,0,4]]}],
+  "sensors": [{"position": [100, 100], "altitude": 500, "heading": 0.0,
+               "moves": [20, 40], "max_turn": 0.785398,
+               "fov_half_angle": 0.523599, "min_ground_range": 250, "max_ground_range": 450,
+               "depression": 0.698132, "snr_ref_db": 15, "range_ref": 600,
+               "beamwidth": 0.0523599, "monopulse_slope": 1.6, "range_resolution": 30}],
+  "planner": {"name": "pg", "alpha": 0.3, "beta": 0.95, "max_inner": 50,
+              "max_outer": 10, "seed": 0}
+}
+""")
+
+MINIMAL = {"horizon": 2,
+           "targets": [{"mean": [300, 200, 4, 1],
+                        "cov": [[400, 0, 0, 0], [0, 400, 0, 0], [0, 0, 4, 0], [0, 0, 0, 4]]}],
+           "sensors": [{"position": [100, 100], "heading": 0.5}]}
+
+
+def spec7(**changes: Any) -> dict[str, Any]:
+    d = copy.deepcopy(SPEC7)
+    d.update(changes)
+    return d
+
+
+def error_of(fn: Any, *args: Any, **kwargs: Any) -> ConfigError:
+    with pytest.raises(ConfigError) as info:
+        fn(*args, **kwargs)
+    return info.value
+
+
+# ------------------------------------------------------------------ single decision
+
+
+def test_spec7_example_builds_the_problem() -> None:
+    d = decision_from_dict(SPEC7, planner="random")
+    p = d.problem
+    np.testing.assert_array_equal(p.means, [[300, 200, 4, 1]])
+    np.testing.assert_array_equal(p.covs[0], np.diag([400.0, 400.0, 4.0, 4.0]))
+    np.testing.assert_array_equal(p.positions, [[100, 100]])
+    np.testing.assert_array_equal(p.headings, [0.0])
+    assert (p.horizon, p.steps_per_epoch, p.dt, p.process_noise) == (3, 1, 1.0, 0.05)
+    assert (p.world.width, p.world.height) == (600.0, 600.0)
+    s = p.sensors[0]
+    assert s.moves == (20.0, 40.0)
+    assert (s.max_turn, s.fov_half_angle, s.depression, s.beamwidth) == (
+        0.785398, 0.523599, 0.698132, 0.0523599)
+    assert (s.altitude, s.range_ref, s.range_resolution, s.monopulse_slope) == (
+        500.0, 600.0, 30.0, 1.6)
+
+
+def test_defaults_are_spec_values() -> None:
+    """Omitted keys take SPEC 1, 2, 4 and 7 defaults (checked against literal values)."""
+    d = decision_from_dict(MINIMAL, planner="random")
+    p = d.problem
+    assert (p.dt, p.steps_per_epoch, p.process_noise) == (1.0, 1, 0.05)
+    assert (p.world.width, p.world.height) == (600.0, 600.0)
+    assert (p.visibility, p.objective) == ("probabilistic", "terminal")
+    s = p.sensors[0]
+    assert s.altitude == 500.0
+    assert s.moves == (20.0, 40.0)
+    assert s.max_turn == math.pi / 4
+    assert s.fov_half_angle == math.pi / 6
+    assert (s.min_ground_range, s.max_ground_range) == (250.0, 450.0)
+    assert s.depression == pytest.approx(40 * math.pi / 180, rel=1e-15)
+    assert (s.snr_ref_db, s.range_ref) == (15.0, 600.0)
+    assert s.beamwidth == pytest.approx(3 * math.pi / 180, rel=1e-15)
+    assert (s.monopulse_slope, s.range_resolution) == (1.6, 30.0)
+
+
+def test_default_planner_is_pg() -> None:
+    if "pg" not in PLANNERS:
+        err = error_of(decision_from_dict, MINIMAL)
+        assert err.field == "planner.name"
+    else:
+        assert decision_from_dict(MINIMAL).planner == "pg"
+
+
+def test_ints_accepted_for_floats_but_not_bools_or_strings() -> None:
+    assert decision_from_dict(spec7(dt=2), planner="random").problem.dt == 2.0
+    for bad in (True, "1.0", None, [1.0]):
+        err = error_of(decision_from_dict, spec7(dt=bad), planner="random")
+        assert err.field == "dt"
+    err = error_of(decision_from_dict, spec7(horizon=3.0), planner="random")
+    assert (err.field, err.message) == ("horizon", "must be an integer, got 3.0")
+    err = error_of(decision_from_dict, spec7(horizon=True), planner="random")
+    assert err.field == "horizon"
+
+
+def test_error_paths_are_dotted_with_indices() -> None:
+    d = spec7()
+    d["sensors"] = [copy.deepcopy(d["sensors"][0]) for _ in range(2)]
+    d["sensors"][1]["altitude"] = "high"
+    err = error_of(decision_from_dict, d, planner="random")
+    assert err.field == "sensors[1].altitude"
+    d = spec7()
+    d["targets"][0]["cov"][2] = [0, 0, 4]
+    assert error_of(decision_from_dict, d, planner="random").field == "targets[0].cov[2]"
+    d = spec7()
+    d["targets"][0]["mean"][3] = float("inf")
+    err = error_of(decision_from_dict, d, planner="random")
+    assert (err.field, err.message) == ("targets[0].mean[3]", "must be a finite number")
+
+
+def test_unknown_key_names_it_and_suggests() -> None:
+    d = spec7()
+    d["sensors"][0]["altitud"] = 500
+    err = error_of(decision_from_dict, d, planner="random")
+    assert err.field == "sensors[0].altitud"
+    assert "unknown key" in err.message and "'altitude'" in err.message
+
+
+def test_only_the_first_error_is_reported() -> None:
+    d = spec7(dt="x", horizon="y")
+    assert error_of(decision_from_dict, d, planner="random").field == "dt"
+
+
+def test_semantic_errors_come_from_the_dataclasses() -> None:
+    d = spec7()
+    d["targets"][0]["cov"][0][1] = 1e-3              # asymmetric beyond 1e-9 relative
+    err = error_of(decision_from_dict, d, planner="random")
+    assert (err.field, err.message) == ("targets[0].cov", "must be symmetric")
+    d = spec7()
+    d["targets"][0]["cov"][0][1] = 2e-7              # within 1e-9 * max|P| = 4e-7
+    decision_from_dict(d, planner="random")
+    d = spec7()
+    d["sensors"][0]["position"] = [600.0000001, 0]   # closed map edge (1e-6 tolerance)
+    decision_from_dict(d, planner="random")
+    d["sensors"][0]["position"] = [600.01, 0]
+    assert error_of(decision_from_dict, d, planner="random").field == "sensors[0].position"
+
+
+@pytest.mark.parametrize("name", sorted(PLANNERS))
+def test_planner_gets_only_its_own_settings(name: str) -> None:
+    cls = PLANNERS[name]
+    fields = {f.name for f in dataclasses.fields(cls)}
+    params = {"seed": 3, "alpha": 0.2, "beta": 0.9, "max_inner": 7, "max_outer": 4}
+    if name == "brute-force":
+        params["max_plans"] = 1000
+    settings = planner_settings(name, params)
+    assert settings == {k: v for k, v in params.items() if k in fields}
+    d = spec7(planner={"name": name, **params})
+    decision = decision_from_dict(d)
+    assert decision.planner == name
+    assert dict(decision.settings) == settings
+    planner = decision.make_planner()
+    for k, v in settings.items():
+        assert getattr(planner, k) == v
+
+
+@pytest.mark.parametrize("name", sorted(set(PLANNERS) - {"brute-force"}))
+def test_max_plans_only_for_brute_force(name: str) -> None:
+    err = error_of(decision_from_dict, spec7(planner={"name": name, "max_plans": 10}))
+    assert err.field == "planner.max_plans"
+
+
+def test_override_drops_settings_the_new_planner_lacks() -> None:
+    d = spec7(planner={"name": "brute-force", "max_plans": 10, "seed": 4})
+    decision = decision_from_dict(d, planner="random")
+    assert decision.planner == "random"
+    assert dict(decision.settings) == {"seed": 4}
+
+
+def test_unknown_planner_lists_the_registry() -> None:
+    err = error_of(decision_from_dict, spec7(planner={"name": "nope"}))
+    assert err.field == "planner.name"
+    for name in PLANNERS:
+        assert name in err.message
+    err = error_of(decision_from_dict, spec7(), planner="nope")
+    assert err.field == "--planner"
+
+
+@pytest.mark.parametrize("key,value", [("alpha", 0.0), ("alpha", 1.0), ("beta", 0),
+                                       ("beta", 1.5), ("max_inner", 0), ("max_outer", 0),
+                                       ("seed", -1)])
+def test_planner_setting_ranges(key: str, value: float) -> None:
+    err = error_of(decision_from_dict, spec7(planner={"name": "random", key: value}))
+    assert err.field == f"planner.{key}"
+
+
+def test_load_decision_reads_files(tmp_path: Path) -> None:
+    path = tmp_path / "p.json"
+    path.write_text(json.dumps(SPEC7))
+    assert load_decision(path, "random").problem.horizon == 3
+    missing = tmp_path / "missing.json"
+    assert error_of(load_decision, missing).field == str(missing)
+    path.write_text('{"horizon": 1, "horizon": 2}')
+    assert error_of(load_decision, path).field == "horizon"     # duplicate key
+    path.write_text('{"horizon": ')
+    err = error_of(load_decision, path)
+    assert err.field == str(path) and "invalid JSON" in err.message
+
+
+# ------------------------------------------------------------------------ scenarios
+
+
+@needs_simulation
+def test_paper_toml_is_the_preset() -> None:
+    from sensorplan.simulation import RunSettings
+
+    cfg = load_simulation(CONFIGS / "paper.toml")
+    assert cfg.scenario == paper_scenario()
+    assert cfg.settings == RunSettings()
+    preset = load_simulation(preset="paper")
+    assert preset.scenario == cfg.scenario
+    assert preset.settings == cfg.settings
+    assert preset.seed == cfg.seed == 0
+    assert PRESETS == ("paper",)
+
+
+@needs_simulation
+def test_quick_toml_is_tiny() -> None:
+    cfg = load_simulation(CONFIGS / "quick.toml")
+    assert len(cfg.scenario.sensors) == 2
+    assert len(cfg.scenario.targets) == 2
+    assert cfg.settings.steps == 20
+
+
+@needs_simulation
+def test_minimal_toml_takes_the_defaults(tmp_path: Path) -> None:
+    from sensorplan.simulation import RunSettings
+
+    path = tmp_path / "s.toml"
+    path.write_text("[[targets]]\n[[sensors]]\n")
+    cfg = load_simulation(path)
+    assert cfg.scenario == Scenario(targets=(TargetSpec(),), sensors=(SensorSpec(),))
+    assert cfg.settings == RunSettings()
+    assert cfg.seed == 0
+
+
+@needs_simulation
+def test_toml_fields_reach_the_dataclasses(tmp_path: Path) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text("""
+dt = 0.5
+process_noise = 0.1
+[map]
+width = 800
+height = 700
+[initial]
+target_box = [10, 20]
+speed_range = [1, 2]
+sensor_box = [30, 40]
+cov = [[1, 0, 0, 0], [0, 2, 0, 0], [0, 0, 3, 0], [0, 0, 0, 4]]
+[tracker]
+miss_update = "none"
+[planning]
+planner = "random"
+horizon = 2
+steps_per_epoch = 3
+execution = "ol"
+visibility = "mean"
+objective = "cumulative"
+[planning.planner_params]
+alpha = 0.5
+[run]
+steps = 7
+seed = 11
+[[targets]]
+kind = "dubins"
+position = [100, 200]
+speed = 5
+heading = -1.0
+turn_hold = 4
+max_turn_rate = 0.2
+[[sensors]]
+altitude = 450
+moves = [10]
+position = [50, 60]
+heading = 1.5
+""")
+    cfg = load_simulation(path)
+    sc = cfg.scenario
+    assert (sc.dt, sc.process_noise, sc.world.width, sc.world.height) == (0.5, 0.1, 800, 700)
+    assert (sc.target_box, sc.speed_range, sc.sensor_box) == ((10, 20), (1, 2), (30, 40))
+    np.testing.assert_array_equal(sc.initial_cov, np.diag([1.0, 2.0, 3.0, 4.0]))
+    assert sc.miss_update == "none"
+    assert sc.targets == (TargetSpec("dubins", (100.0, 200.0), 5.0, -1.0, 4.0, 0.2),)
+    assert sc.sensors == (SensorSpec(SensorParams(altitude=450.0, moves=(10.0,)),
+                                     (50.0, 60.0), 1.5),)
+    s = cfg.settings
+    assert (s.planner, s.horizon, s.steps_per_epoch, s.execution, s.visibility, s.objective,
+            s.steps) == ("random", 2, 3, "ol", "mean", "cumulative", 7)
+    assert dict(s.planner_params) == {}          # random has no alpha: dropped
+    assert cfg.seed == 11
+
+
+@needs_simulation
+def test_overrides_win_and_errors_name_the_option() -> None:
+    cfg = load_simulation(CONFIGS / "quick.toml", overrides={
+        "horizon": 3, "steps": 5, "seed": 9, "execution": "ol", "miss_update": "none",
+        "visibility": "mean", "objective": "cumulative", "planner": "random",
+        "steps_per_epoch": 1})
+    s = cfg.settings
+    assert (s.horizon, s.steps, s.execution, s.miss_update, s.visibility, s.objective,
+            s.steps_per_epoch) == (3, 5, "ol", "none", "mean", "cumulative", 1)
+    assert cfg.seed == 9
+    for key, value, field in [("horizon", 0, "--horizon"), ("steps", 0, "--steps"),
+                              ("seed", -2, "--seed"), ("execution", "x", "--execution"),
+                              ("planner", "x", "--planner"), ("miss_update", "x", "--miss-update"),
+                              ("steps_per_epoch", 0, "--steps-per-epoch"),
+                              ("visibility", "x", "--visibility"),
+                              ("objective", "x", "--objective")]:
+        for source in ({"path": CONFIGS / "quick.toml"}, {"preset": "paper"}):
+            err = error_of(load_simulation, overrides={key: value}, **source)
+            assert err.field == field, (key, source)
+    assert error_of(load_simulation, preset="nope").field == "--preset"
+    assert error_of(load_simulation, CONFIGS / "quick.toml", "paper").field == "--preset"
+
+
+@needs_simulation
+def test_planner_override_drops_max_plans(tmp_path: Path) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text('[planning]\nplanner = "brute-force"\n[planning.planner_params]\n'
+                    'max_plans = 100\n[[targets]]\n[[sensors]]\n')
+    if "brute-force" in PLANNERS:
+        assert dict(load_simulation(path).settings.planner_params) == {"max_plans": 100}
+    cfg = load_simulation(path, overrides={"planner": "random"})
+    assert cfg.settings.planner == "random"
+    assert dict(cfg.settings.planner_params) == {}
+    path.write_text('[planning]\nplanner = "random"\n[planning.planner_params]\n'
+                    'max_plans = 100\n[[targets]]\n[[sensors]]\n')
+    assert error_of(load_simulation, path).field == "planning.planner_params.max_plans"

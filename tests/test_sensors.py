@@ -1,0 +1,345 @@
+"""The radar-like sensor (SPEC 2) and the detection probability p_vis (SPEC 4)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sensorplan.sensors import (ANGLE_TOL, RANGE_TOL, SensorParams, cos_boresight,
+                                detection_probability, jacobian, measure, noise_cov, noise_std,
+                                position_jacobian, stack_params, take_params, visible,
+                                visible_offset)
+
+DEF = SensorParams()
+# Steps past an edge: well above the tolerances and the rounding of the test geometry.
+RANGE_STEP = 1e-6
+ANGLE_STEP = 1e-9
+assert RANGE_STEP > 100 * RANGE_TOL and ANGLE_STEP > 100 * ANGLE_TOL
+
+
+def wrap(a: float) -> float:
+    """(-pi, pi] without the library."""
+    w = math.remainder(a, 2 * math.pi)
+    return math.pi if w <= -math.pi else w
+
+
+def ncdf(x: float) -> float:
+    return 0.5 * math.erfc(-x / math.sqrt(2.0))
+
+
+# --------------------------------------------------------------------------- geometry
+
+def test_measure_closed_form():
+    z = measure(np.array([300.0, 400.0, 7.0, -2.0]), np.array([0.0, 0.0]), 500.0)
+    np.testing.assert_allclose(z, [math.sqrt(500000.0), math.atan2(400, 300)], rtol=1e-15)
+    z = measure(np.array([[10.0, 20.0], [10.0, -30.0]]), np.array([40.0, 20.0]), 100.0)
+    np.testing.assert_allclose(z, [[math.sqrt(900 + 10000), math.pi],
+                                   [math.sqrt(900 + 2500 + 10000), math.atan2(-50, -30)]],
+                               rtol=1e-15)
+
+
+def test_jacobian_matches_central_differences(rng):
+    n = 400
+    sensor = rng.uniform(0, 600, size=(n, 2))
+    g = rng.uniform(20.0, 1000.0, size=n)               # not too close to the nadir
+    a = rng.uniform(-math.pi, math.pi, size=n)
+    x = np.column_stack([sensor + g[:, None] * np.column_stack([np.cos(a), np.sin(a)]),
+                         rng.normal(0, 5, size=(n, 2))])
+    alt = rng.uniform(100.0, 1000.0, size=n)
+    H = jacobian(x, sensor, alt)
+    assert H.shape == (n, 2, 4)
+    h = 1e-3
+    fd = np.empty((n, 2, 4))
+    for c in range(4):
+        dxp = x.copy()
+        dxm = x.copy()
+        dxp[:, c] += h
+        dxm[:, c] -= h
+        zp, zm = measure(dxp, sensor, alt), measure(dxm, sensor, alt)
+        diff = zp - zm
+        diff[:, 1] = [wrap(v) for v in diff[:, 1]]       # azimuth may cross +-pi
+        fd[:, :, c] = diff / (2 * h)
+    for row in range(2):
+        scale = np.linalg.norm(H[:, row, :], axis=1, keepdims=True)
+        assert np.all(np.abs(H[:, row, :] - fd[:, row, :]) <= 1e-6 * np.abs(fd[:, row, :])
+                      + 1e-9 * scale)
+    # Velocity columns are exactly zero; the position block is position_jacobian.
+    assert np.all(H[:, :, 2:] == 0.0)
+    np.testing.assert_allclose(
+        H[:, :, :2], position_jacobian(x[:, 0] - sensor[:, 0], x[:, 1] - sensor[:, 1], alt),
+        rtol=0, atol=0)
+    # SPEC closed form
+    dx, dy = x[:, 0] - sensor[:, 0], x[:, 1] - sensor[:, 1]
+    r = np.sqrt(dx**2 + dy**2 + alt**2)
+    np.testing.assert_allclose(H[:, 0, 0], dx / r, rtol=1e-14)
+    np.testing.assert_allclose(H[:, 1, 1], dx / (dx**2 + dy**2), rtol=1e-14)
+
+
+def test_jacobian_broadcasts_targets_against_sensors(rng):
+    x = rng.uniform(0, 600, size=(5, 1, 4))
+    s = rng.uniform(0, 600, size=(1, 3, 2))
+    H = jacobian(x, s, 500.0)
+    assert H.shape == (5, 3, 2, 4)
+    for a in range(5):
+        for b in range(3):
+            np.testing.assert_allclose(H[a, b], jacobian(x[a, 0], s[0, b], 500.0), rtol=1e-15)
+
+
+# --------------------------------------------------------------------------- field of view
+
+def _point(sensor, g, a):
+    return np.array([sensor[0] + g * math.cos(a), sensor[1] + g * math.sin(a)])
+
+
+@pytest.mark.parametrize("heading", [0.0, 0.7, math.pi, -math.pi + 0.1, math.pi - 0.2, -2.5])
+def test_fov_edges_are_inclusive_and_just_beyond_is_outside(heading):
+    sensor = np.array([123.4, 56.7])
+    p = DEF
+    fov, gmin, gmax = p.fov_half_angle, p.min_ground_range, p.max_ground_range
+    inside = [(gmin, heading), (gmax, heading), (350.0, heading + fov), (350.0, heading - fov),
+              (gmin, heading + fov), (gmax, heading - fov), (gmin + RANGE_STEP, heading)]
+    outside = [(gmin - RANGE_STEP, heading), (gmax + RANGE_STEP, heading),
+               (350.0, heading + fov + ANGLE_STEP), (350.0, heading - fov - ANGLE_STEP),
+               (gmin - RANGE_STEP, heading + fov), (350.0, heading + math.pi),
+               (100.0, heading), (0.0, heading)]
+    for g, a in inside:
+        assert visible(_point(sensor, g, a), sensor, heading, p), (g, a)
+    for g, a in outside:
+        assert not visible(_point(sensor, g, a), sensor, heading, p), (g, a)
+    # batched call agrees with the scalar ones
+    pts = np.array([_point(sensor, g, a) for g, a in inside + outside])
+    np.testing.assert_array_equal(visible(pts, sensor, heading, p),
+                                  [True] * len(inside) + [False] * len(outside))
+
+
+def test_fov_edges_with_other_parameters():
+    p = SensorParams(fov_half_angle=0.3, min_ground_range=100.0, max_ground_range=180.0,
+                     altitude=200.0)
+    s = np.zeros(2)
+    for g, a, want in [(100.0, 0.3, True), (180.0, -0.3, True), (180.0 + RANGE_STEP, 0, False),
+                       (100.0 - RANGE_STEP, 0, False), (150.0, 0.3 + ANGLE_STEP, False),
+                       (150.0, -0.3 - ANGLE_STEP, False)]:
+        assert bool(visible(_point(s, g, a), s, 0.0, p)) is want, (g, a)
+
+
+def test_not_visible_when_cos_psi_is_not_positive():
+    # A wedge all around (fov = pi) and a boresight tilted 0.2 rad *up*: a point abeam is in
+    # the range band and the wedge, but below the boresight plane by more than 90 degrees.
+    p = SensorParams(fov_half_angle=math.pi, depression=-0.2)
+    s = np.array([300.0, 300.0])
+    abeam = _point(s, 300.0, math.pi / 2)
+    ahead = _point(s, 300.0, 0.0)
+    dx, dy = abeam - s
+    assert cos_boresight(dx, dy, 0.0, p) < 0
+    assert not visible(abeam, s, 0.0, p)
+    assert visible(ahead, s, 0.0, p)
+    # Behind the sensor with a shallow depression: cos psi < 0 as well.
+    q = SensorParams(fov_half_angle=math.pi, depression=0.1)
+    behind = _point(s, 300.0, math.pi)
+    assert cos_boresight(*(behind - s), 0.0, q) < 0
+    assert not visible(behind, s, 0.0, q)
+    # and p_vis is zero there even when the target is certainly at the point
+    C = np.eye(2) * 1e-6
+    assert detection_probability(abeam, C, s, 0.0, p) == 0.0
+    assert detection_probability(behind, C, s, 0.0, q) == 0.0
+    assert detection_probability(ahead, C, s, 0.0, p) == pytest.approx(1.0)
+
+
+def test_cos_boresight_equals_explicit_3d_angle(rng):
+    n = 300
+    dx, dy = rng.uniform(-800, 800, size=(2, n))
+    theta = rng.uniform(-math.pi, math.pi, size=n)
+    alt = rng.uniform(100, 900, size=n)
+    dep = rng.uniform(-0.5, 1.5, size=n)
+    p = SensorParams(altitude=alt, depression=dep)
+    got = cos_boresight(dx, dy, theta, p)
+    for m in range(n):
+        # The boresight as a rotation of the x axis: about -y by dep (nose down), then about z.
+        cz, sz = math.cos(theta[m]), math.sin(theta[m])
+        Rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+        cd, sd = math.cos(dep[m]), math.sin(dep[m])
+        Ry = np.array([[cd, 0, sd], [0, 1, 0], [-sd, 0, cd]])
+        b = Rz @ Ry @ np.array([1.0, 0.0, 0.0])
+        los = np.array([dx[m], dy[m], 0.0]) - np.array([0.0, 0.0, alt[m]])
+        psi = math.atan2(np.linalg.norm(np.cross(b, los)), float(b @ los))
+        assert got[m] == pytest.approx(math.cos(psi), abs=1e-12)
+
+
+# --------------------------------------------------------------------------- noise
+
+def test_noise_closed_forms_at_reference_range():
+    snr = 10**1.5
+    sr, sp = noise_std(np.array(600.0), np.array(1.0), DEF)
+    assert float(sr) == pytest.approx(30 / math.sqrt(2 * snr), rel=1e-14)
+    assert float(sp) == pytest.approx(math.radians(3) / (1.6 * math.sqrt(2 * snr)), rel=1e-14)
+    # sigma ~ r^2 (SNR ~ r^-4); sigma_phi ~ 1 / cos psi
+    sr2, sp2 = noise_std(np.array(300.0), np.array(0.5), DEF)
+    assert float(sr2) == pytest.approx(float(sr) / 4, rel=1e-14)
+    assert float(sp2) == pytest.approx(float(sp) / 4 * 2, rel=1e-14)
+
+
+@pytest.mark.parametrize("heading", [0.0, 2.0, -math.pi / 2])
+def test_noise_cov_on_the_boresight_at_600_m(heading):
+    # A target on the boresight at slant range 600 m: psi = 0, r = 600.
+    dep = DEF.depression
+    p = SensorParams(altitude=600 * math.sin(dep))
+    s = np.array([50.0, 80.0])
+    x = np.concatenate([_point(s, 600 * math.cos(dep), heading), [1.0, 2.0]])
+    dx, dy = x[:2] - s
+    assert float(cos_boresight(dx, dy, heading, p)) == pytest.approx(1.0, abs=1e-14)
+    R = noise_cov(x, s, heading, p)
+    snr = 10**1.5
+    np.testing.assert_allclose(
+        R, np.diag([(30 / math.sqrt(2 * snr))**2,
+                    (math.radians(3) / (1.6 * math.sqrt(2 * snr)))**2]), rtol=1e-12, atol=0)
+
+
+def test_noise_cov_general_geometry_matches_spec(rng):
+    p = SensorParams(altitude=480.0, snr_ref_db=12.0, range_ref=550.0, beamwidth=0.04,
+                     monopulse_slope=1.4, range_resolution=20.0, depression=0.6)
+    s = rng.uniform(0, 600, size=(50, 2))
+    x = s + rng.uniform(-400, 400, size=(50, 2))
+    th = rng.uniform(-3, 3, size=50)
+    R = noise_cov(x, s, th, p)
+    for m in range(50):
+        dx, dy = x[m] - s[m]
+        r = math.sqrt(dx * dx + dy * dy + 480.0**2)
+        b = np.array([math.cos(0.6) * math.cos(th[m]), math.cos(0.6) * math.sin(th[m]),
+                      -math.sin(0.6)])
+        cpsi = float(b @ np.array([dx, dy, -480.0])) / r
+        snr = 10**1.2 * (550.0 / r)**4
+        want = np.diag([(20 / math.sqrt(2 * snr))**2,
+                        (0.04 / cpsi / (1.4 * math.sqrt(2 * snr)))**2])
+        np.testing.assert_allclose(R[m], want, rtol=1e-12, atol=0)
+
+
+# --------------------------------------------------------------------------- stacked params
+
+def test_stacked_params_equal_per_sensor_calls(rng):
+    ps = [SensorParams(), SensorParams(altitude=490.0, fov_half_angle=0.4, max_ground_range=420.0),
+          SensorParams(altitude=510.0, min_ground_range=200.0, depression=0.5)]
+    st = stack_params(ps)
+    assert float(take_params(st, 1).altitude) == 490.0
+    s = rng.uniform(100, 500, size=(3, 2))
+    th = rng.uniform(-3, 3, size=3)
+    x = rng.uniform(-200, 800, size=(200, 1, 2))
+    vis = visible(x, s, th, st)
+    R = noise_cov(x, s, th, st)
+    for i, p in enumerate(ps):
+        np.testing.assert_array_equal(vis[:, i], visible(x[:, 0], s[i], th[i], p))
+        np.testing.assert_allclose(R[:, i], noise_cov(x[:, 0], s[i], th[i], p), rtol=1e-15)
+    assert vis.any() and not vis.all()
+
+
+# --------------------------------------------------------------------------- p_vis
+
+def _linearised(mean, C, s, heading, p):
+    """gbar, sd_g, d, sd_phi per SPEC 4, written out independently."""
+    dx, dy = float(mean[0] - s[0]), float(mean[1] - s[1])
+    g = math.hypot(dx, dy)
+    u = np.array([dx, dy]) / g
+    v = np.array([-dy, dx]) / g
+    return (g, math.sqrt(float(u @ C @ u)), wrap(math.atan2(dy, dx) - heading),
+            math.sqrt(float(v @ C @ v)) / g)
+
+
+def test_p_vis_matches_monte_carlo_of_the_linearised_gaussian(rng):
+    p = DEF
+    n = 200_000
+    checked = 0
+    for case in range(12):
+        s = rng.uniform(100, 500, size=2)
+        heading = rng.uniform(-math.pi, math.pi)
+        # means near an edge of the band and of the wedge so that p is strictly inside (0, 1)
+        g0 = rng.choice([p.min_ground_range, p.max_ground_range]) + rng.normal(0, 15)
+        a0 = heading + rng.choice([-1, 1]) * p.fov_half_angle + rng.normal(0, 0.05)
+        if case % 3 == 0:
+            g0, a0 = rng.uniform(260, 440), heading + rng.uniform(-0.3, 0.3)
+        mean = _point(s, g0, a0)
+        A = rng.normal(size=(2, 2))
+        C = A @ A.T * rng.uniform(20, 400) + 5 * np.eye(2)
+        got = float(detection_probability(mean, C, s, heading, p))
+        gbar, sd_g, d, sd_phi = _linearised(mean, C, s, heading, p)
+        g = rng.normal(gbar, sd_g, size=n)
+        off = d + rng.normal(0.0, sd_phi, size=n)
+        hit = ((g >= p.min_ground_range) & (g <= p.max_ground_range)
+               & (np.abs(off) <= p.fov_half_angle))
+        est = hit.mean()
+        sigma = math.sqrt(max(got * (1 - got), 1e-12) / n)
+        assert abs(est - got) <= 4 * sigma + 1e-12, (case, est, got)
+        checked += 0.02 < got < 0.98
+    assert checked >= 6           # the comparison is not only at 0 and 1
+
+
+def test_p_vis_closed_form_against_independent_formula(rng):
+    p = SensorParams(fov_half_angle=0.4, min_ground_range=220.0, max_ground_range=430.0)
+    for _ in range(50):
+        s = rng.uniform(0, 600, size=2)
+        heading = rng.uniform(-math.pi, math.pi)
+        mean = _point(s, rng.uniform(150, 500), heading + rng.uniform(-0.7, 0.7))
+        A = rng.normal(size=(2, 2))
+        C = A @ A.T * rng.uniform(1, 900) + np.eye(2)
+        gbar, sd_g, d, sd_phi = _linearised(mean, C, s, heading, p)
+        want = ((ncdf((430 - gbar) / sd_g) - ncdf((220 - gbar) / sd_g))
+                * (ncdf((0.4 - d) / sd_phi) - ncdf((-0.4 - d) / sd_phi)))
+        got = float(detection_probability(mean, C, s, heading, p))
+        assert got == pytest.approx(want, rel=1e-9, abs=1e-15)
+
+
+def test_p_vis_tiny_covariance_is_the_visibility_indicator(rng):
+    n = 2000
+    s = np.array([300.0, 300.0])
+    heading = 0.8
+    g = rng.uniform(0.5, 600, size=n)
+    a = rng.uniform(-math.pi, math.pi, size=n)
+    mean = s + g[:, None] * np.column_stack([np.cos(a), np.sin(a)])
+    vis = visible(mean, s, heading, DEF)
+    for C in (np.eye(2) * 1e-10, np.zeros((2, 2))):
+        pv = detection_probability(mean, np.broadcast_to(C, (n, 2, 2)), s, heading, DEF)
+        np.testing.assert_array_equal(pv, vis.astype(float))
+    assert 50 < vis.sum() < n - 50
+
+
+def test_p_vis_at_a_range_edge_is_half_the_azimuth_factor():
+    s = np.array([100.0, 200.0])
+    heading = -2.9
+    sd = 5.0
+    C = sd**2 * np.eye(2)
+    for edge, sign in [(DEF.max_ground_range, +1), (DEF.min_ground_range, -1)]:
+        for off in (0.0, 0.3, -0.5, 0.52):
+            mean = _point(s, edge, heading + off)
+            g = math.hypot(*(mean - s))
+            sphi = sd / g
+            fov = DEF.fov_half_angle
+            az = ncdf((fov - off) / sphi) - ncdf((-fov - off) / sphi)
+            got = float(detection_probability(mean, C, s, heading, DEF))
+            assert got == pytest.approx(0.5 * az, rel=1e-12, abs=1e-300), (edge, off)
+    # and exactly on an azimuth edge, deep inside the band: one half
+    mean = _point(s, 350.0, heading + DEF.fov_half_angle)
+    assert float(detection_probability(mean, C, s, heading, DEF)) == pytest.approx(0.5, rel=1e-12)
+
+
+def test_p_vis_zero_at_the_nadir_and_batched_shapes(rng):
+    s = np.array([10.0, 20.0])
+    assert detection_probability(s.copy(), np.eye(2) * 100, s, 0.0, DEF) == 0.0
+    mean = rng.uniform(0, 600, size=(4, 3, 2))
+    C = np.broadcast_to(np.eye(2) * 50, (4, 3, 2, 2))
+    sensors = rng.uniform(0, 600, size=(4, 1, 2))
+    th = rng.uniform(-3, 3, size=(4, 1))
+    pv = detection_probability(mean, C, sensors, th, DEF)
+    assert pv.shape == (4, 3)
+    assert np.all((pv >= 0) & (pv <= 1))
+    for a in range(4):
+        for b in range(3):
+            assert pv[a, b] == float(detection_probability(mean[a, b], C[a, b], sensors[a, 0],
+                                                           th[a, 0], DEF))
+
+
+def test_visible_offset_equals_visible(rng):
+    s = rng.uniform(0, 600, size=(100, 2))
+    x = rng.uniform(-200, 800, size=(100, 4))
+    th = rng.uniform(-4, 4, size=100)
+    np.testing.assert_array_equal(visible(x, s, th, DEF),
+                                  visible_offset(x[:, 0] - s[:, 0], x[:, 1] - s[:, 1], th, DEF))

@@ -1,0 +1,259 @@
+"""Ground-truth motion: wall mirror, exact Dubins arcs, cv statistics, determinism."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sensorplan.dynamics import cv_matrices
+from sensorplan.problem import MapRect
+from sensorplan.scenario import Scenario, SensorSpec, TargetSpec
+from sensorplan.truth import NOISE_BLOCK, TruthModel, dubins_arc, init_truth, mirror, step_truth
+
+
+def make_scenario(kinds, width=600.0, height=600.0, dt=1.0, q=0.05, turn_hold=10.0,
+                  max_turn_rate=0.1) -> Scenario:
+    targets = tuple(TargetSpec(kind=k, turn_hold=turn_hold, max_turn_rate=max_turn_rate)
+                    for k in kinds)
+    return Scenario(world=MapRect(width, height), dt=dt, process_noise=q, targets=targets,
+                    sensors=(SensorSpec(),))
+
+
+def reflect_by_hand(p: float, length: float) -> tuple[float, int]:
+    """Unfold one coordinate by walking it back across the walls one reflection at a time."""
+    flips = 0
+    while p < 0 or p > length:
+        p = -p if p < 0 else 2 * length - p
+        flips += 1
+    return p, flips
+
+
+def euler_dubins(xy, speed, heading, rates, switch_times, t_end, n_sub_per_s=4000):
+    """Fine explicit Euler integration of piecewise-constant turn rates (one target)."""
+    h = 1.0 / n_sub_per_s
+    n = int(round(t_end * n_sub_per_s))
+    x, y, th = float(xy[0]), float(xy[1]), float(heading)
+    out = {}
+    for k in range(n):
+        t = k * h
+        w = rates[int(np.searchsorted(switch_times, t + 0.5 * h, side="right"))]
+        x += speed * math.cos(th) * h
+        y += speed * math.sin(th) * h
+        th += w * h
+        out[k + 1] = (x, y)
+    return out
+
+
+class TestMirror:
+    def test_inside_points_are_unchanged_bit_for_bit(self, rng):
+        p = rng.uniform(0.0, 600.0, size=1000)
+        p = np.concatenate([p, [0.0, 600.0]])
+        folded, flipped = mirror(p, 600.0)
+        np.testing.assert_array_equal(folded, p)
+        assert not flipped.any()
+
+    def test_matches_reflection_walk_for_many_reflections(self, rng):
+        p = rng.uniform(-5000.0, 5000.0, size=2000)
+        folded, flipped = mirror(p, 70.0)
+        expected = [reflect_by_hand(float(v), 70.0) for v in p]
+        np.testing.assert_allclose(folded, [e[0] for e in expected], atol=1e-9)
+        np.testing.assert_array_equal(flipped, [e[1] % 2 == 1 for e in expected])
+        assert folded.min() >= 0.0 and folded.max() <= 70.0
+
+    def test_per_axis_lengths_broadcast(self):
+        folded, flipped = mirror(np.array([[-1.0, 12.0], [11.0, 3.0]]), np.array([10.0, 5.0]))
+        np.testing.assert_allclose(folded, [[1.0, 2.0], [9.0, 3.0]])
+        np.testing.assert_array_equal(flipped, [[True, False], [True, False]])
+
+
+class TestDubinsArc:
+    def test_matches_fine_euler_integration(self, rng):
+        B = 8
+        xy = rng.uniform(0.0, 100.0, size=(B, 2))
+        speed = rng.uniform(3.0, 6.0, size=B)
+        heading = rng.uniform(-np.pi, np.pi, size=B)
+        w = np.concatenate([rng.uniform(-0.1, 0.1, size=B - 2), [0.0, 1e-13]])
+        tau = rng.uniform(0.5, 10.0, size=B)
+        got, got_h = dubins_arc(xy, speed, heading, w, tau)
+        n = 20000
+        p = xy.copy()
+        th = heading.copy()
+        h = tau / n
+        for _ in range(n):
+            p[:, 0] += speed * np.cos(th) * h
+            p[:, 1] += speed * np.sin(th) * h
+            th += w * h
+        # Euler's global error here is at most v |w| tau^2 / (2 n) < 2e-3 m.
+        np.testing.assert_allclose(got, p, atol=3e-3, rtol=0)
+        np.testing.assert_allclose(np.cos(got_h - th), 1.0, atol=1e-12)
+
+    def test_straight_line_limit(self):
+        xy = np.array([[10.0, 20.0]])
+        for w in (0.0, 1e-15, -1e-12):
+            got, h = dubins_arc(xy, np.array([5.0]), np.array([0.3]), np.array([w]),
+                                np.array([4.0]))
+            np.testing.assert_allclose(got, xy + 20.0 * np.array([[math.cos(0.3),
+                                                                   math.sin(0.3)]]),
+                                       atol=1e-9, rtol=0)
+            np.testing.assert_allclose(h, 0.3 + w * 4.0, atol=1e-15)
+
+    def test_closed_form_circle(self):
+        # A quarter circle of radius v / w = 50 m from the origin heading +x, turning left.
+        got, h = dubins_arc(np.zeros((1, 2)), np.array([5.0]), np.array([0.0]),
+                            np.array([0.1]), np.array([5 * np.pi]))
+        np.testing.assert_allclose(got, [[50.0, 50.0]], atol=1e-9)
+        np.testing.assert_allclose(h, [np.pi / 2], atol=1e-12)
+
+    def test_two_arcs_compose(self, rng):
+        xy = rng.uniform(0.0, 100.0, size=(5, 2))
+        v, th, w = rng.uniform(1, 6, 5), rng.uniform(-3, 3, 5), rng.uniform(-0.2, 0.2, 5)
+        a, ha = dubins_arc(xy, v, th, w, 1.3)
+        b, hb = dubins_arc(a, v, ha, w, 2.1)
+        c, hc = dubins_arc(xy, v, th, w, 3.4)
+        np.testing.assert_allclose(b, c, atol=1e-9)
+        np.testing.assert_allclose(np.cos(hb - hc), 1.0, atol=1e-12)
+
+
+class TestTruthModel:
+    def test_dubins_with_redraws_inside_steps_matches_euler(self):
+        # dt = 0.7 does not divide turn_hold = 10: redraws at 10, 20 s fall inside steps and
+        # must split them. No walls within reach (huge map).
+        sc = make_scenario(["dubins"], width=1e6, height=1e6, dt=0.7)
+        x0 = np.array([[5e5, 5e5, 4.0, 3.0]])
+        model = TruthModel(sc, x0, np.random.default_rng(7))
+        # The target's own stream: initial rate, then one uniform per redraw.
+        child = np.random.default_rng(7).spawn(1)[0]
+        rates = [child.uniform(-0.1, 0.1) for _ in range(4)]
+        steps = 40  # 28 s
+        traj = np.array([model.step()[0] for _ in range(steps)])
+        ref = euler_dubins(x0[0, :2], 5.0, math.atan2(3.0, 4.0), rates, [10.0, 20.0, 30.0],
+                           steps * 0.7)
+        sub = 4000 * 0.7
+        ref_xy = np.array([ref[int(round((t + 1) * sub))] for t in range(steps)])
+        np.testing.assert_allclose(traj[:, :2], ref_xy, atol=5e-3, rtol=0)
+        np.testing.assert_allclose(np.hypot(traj[:, 2], traj[:, 3]), 5.0, rtol=1e-12)
+
+    def test_redraw_at_exact_step_boundary(self):
+        # dt = 1 and turn_hold = 10: the rate in steps 11..20 is the second draw.
+        sc = make_scenario(["dubins"], width=1e6, height=1e6, dt=1.0)
+        x0 = np.array([[5e5, 5e5, 5.0, 0.0]])
+        model = TruthModel(sc, x0, np.random.default_rng(3))
+        child = np.random.default_rng(3).spawn(1)[0]
+        r0, r1 = child.uniform(-0.1, 0.1), child.uniform(-0.1, 0.1)
+        traj = np.array([model.step()[0] for _ in range(15)])
+        headings = np.arctan2(traj[:, 3], traj[:, 2])
+        np.testing.assert_allclose(np.diff(headings[:10]), r0, atol=1e-12)
+        np.testing.assert_allclose(np.diff(headings[10:]), r1, atol=1e-12)
+
+    def test_cv_without_noise_is_the_folded_straight_line(self, rng):
+        M = 20
+        sc = make_scenario(["cv"] * M, width=100.0, height=80.0, q=0.0)
+        x0 = np.column_stack([rng.uniform(0, 100, M), rng.uniform(0, 80, M),
+                              rng.uniform(-250, 250, M), rng.uniform(-250, 250, M)])
+        model = TruthModel(sc, x0, rng)
+        for t in range(1, 60):
+            x = model.step()
+            fx, flip_x = mirror(x0[:, 0] + t * x0[:, 2], 100.0)
+            fy, flip_y = mirror(x0[:, 1] + t * x0[:, 3], 80.0)
+            np.testing.assert_allclose(x[:, 0], fx, atol=1e-6)
+            np.testing.assert_allclose(x[:, 1], fy, atol=1e-6)
+            np.testing.assert_array_equal(x[:, 2], np.where(flip_x, -x0[:, 2], x0[:, 2]))
+            np.testing.assert_array_equal(x[:, 3], np.where(flip_y, -x0[:, 3], x0[:, 3]))
+
+    def test_straight_dubins_is_the_folded_straight_line(self, rng):
+        M = 10
+        sc = make_scenario(["dubins"] * M, width=90.0, height=120.0, max_turn_rate=0.0)
+        x0 = np.column_stack([rng.uniform(0, 90, M), rng.uniform(0, 120, M),
+                              rng.uniform(-200, 200, M), rng.uniform(-200, 200, M)])
+        model = TruthModel(sc, x0, rng)
+        for t in range(1, 40):
+            x = model.step()
+            fx, flip_x = mirror(x0[:, 0] + t * x0[:, 2], 90.0)
+            fy, flip_y = mirror(x0[:, 1] + t * x0[:, 3], 120.0)
+            np.testing.assert_allclose(x[:, :2], np.column_stack([fx, fy]), atol=1e-6)
+            np.testing.assert_allclose(x[:, 2], np.where(flip_x, -x0[:, 2], x0[:, 2]),
+                                       atol=1e-9)
+            np.testing.assert_allclose(x[:, 3], np.where(flip_y, -x0[:, 3], x0[:, 3]),
+                                       atol=1e-9)
+
+    def test_mirrored_tracks_stay_in_the_map(self, rng):
+        M = 60
+        kinds = ["cv", "dubins"] * (M // 2)
+        sc = make_scenario(kinds, width=200.0, height=150.0, q=5.0, turn_hold=3.0,
+                           max_turn_rate=0.5)
+        speed = rng.uniform(1.0, 400.0, M)      # up to several reflections per step
+        h = rng.uniform(-np.pi, np.pi, M)
+        x0 = np.column_stack([rng.uniform(0, 200, M), rng.uniform(0, 150, M),
+                              speed * np.cos(h), speed * np.sin(h)])
+        model = TruthModel(sc, x0, rng)
+        dub = np.array([k == "dubins" for k in kinds])
+        for _ in range(2000):
+            x = model.step()
+            assert np.all((x[:, 0] >= 0) & (x[:, 0] <= 200) & (x[:, 1] >= 0) & (x[:, 1] <= 150))
+        np.testing.assert_allclose(np.hypot(x[dub, 2], x[dub, 3]), speed[dub], rtol=1e-9)
+
+    def test_cv_one_step_statistics_without_walls(self):
+        dt, q = 1.0, 0.05
+        M, steps = 100, 200                    # 20000 increments
+        sc = make_scenario(["cv"] * M, width=1e7, height=1e7, dt=dt, q=q)
+        x0 = np.tile([5e6, 5e6, 4.0, -3.0], (M, 1))
+        model = TruthModel(sc, x0, np.random.default_rng(2024))
+        F, Q = cv_matrices(dt, q)
+        prev = x0
+        w = []
+        for _ in range(steps):
+            x = model.step()
+            w.append(x - prev @ F.T)
+            prev = x
+        w = np.concatenate(w)
+        n = len(w)
+        # Mean within 4.5 standard errors; covariance entries within 4.5 standard errors
+        # of the sample covariance of Gaussian data, (Q_ii Q_jj + Q_ij^2) / n.
+        se_mean = np.sqrt(np.diag(Q) / n)
+        assert np.all(np.abs(w.mean(axis=0)) <= 4.5 * se_mean)
+        C = np.cov(w.T)
+        se_cov = np.sqrt((np.outer(np.diag(Q), np.diag(Q)) + Q**2) / n)
+        assert np.all(np.abs(C - Q) <= 4.5 * se_cov)
+        # Increments of one target at consecutive steps are uncorrelated.
+        wt = w.reshape(steps, M, 4)
+        lag = np.mean(wt[1:, :, 0] * wt[:-1, :, 0]) / Q[0, 0]
+        assert abs(lag) <= 4.5 / math.sqrt((steps - 1) * M)
+
+    def test_zero_process_noise_is_allowed(self):
+        sc = make_scenario(["cv"], q=0.0)
+        model = TruthModel(sc, np.array([[100.0, 100.0, 1.0, 2.0]]), np.random.default_rng(0))
+        np.testing.assert_allclose(model.step(), [[101.0, 102.0, 1.0, 2.0]], atol=1e-12)
+
+
+class TestDeterminism:
+    def run(self, kinds, x0, seed, steps=300):
+        sc = make_scenario(kinds, width=300.0, height=250.0, q=0.5, turn_hold=4.0)
+        model = init_truth(sc, x0, np.random.default_rng(seed))
+        return np.array([step_truth(model) for _ in range(steps)])
+
+    def x0(self, rng, M):
+        return np.column_stack([rng.uniform(0, 300, M), rng.uniform(0, 250, M),
+                                rng.uniform(-6, 6, M), rng.uniform(-6, 6, M)])
+
+    def test_same_seed_same_truth_different_seed_differs(self, rng):
+        kinds = ["cv", "dubins", "cv"]
+        x0 = self.x0(rng, 3)
+        a = self.run(kinds, x0, 5)
+        np.testing.assert_array_equal(a, self.run(kinds, x0, 5))
+        b = self.run(kinds, x0, 6)
+        assert np.all(np.abs(a[-1] - b[-1]).max(axis=1) > 1e-3)
+
+    def test_a_target_depends_only_on_its_own_stream(self, rng):
+        # Adding a target after the others does not change their trajectories, across
+        # several noise blocks.
+        x0 = self.x0(rng, 3)
+        steps = 2 * NOISE_BLOCK + 10
+        a = self.run(["cv", "dubins"], x0[:2], 9, steps)
+        b = self.run(["cv", "dubins", "cv"], x0, 9, steps)
+        np.testing.assert_array_equal(a, b[:, :2])
+
+    def test_bad_initial_shape(self):
+        with pytest.raises(ValueError, match="shape"):
+            TruthModel(make_scenario(["cv", "cv"]), np.zeros((3, 4)), np.random.default_rng(0))
