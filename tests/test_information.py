@@ -359,9 +359,11 @@ def test_covariances_stay_positive_definite_over_long_recursions(rng):
         assert np.all(np.linalg.eigvalsh(P) > 0)
 
 
-def _edge_problem(offset_g: float, heading0: float, visibility: str = "mean"):
-    """One sensor at (300, 300), one still target at ground range offset_g due east."""
-    x0 = np.array([300.0 + offset_g, 300.0, 0.0, 0.0])
+def _edge_problem(offset_g: float, heading0: float, visibility: str = "mean",
+                  angle: float = 0.0):
+    """One sensor at (300, 300), one still target at ground range offset_g, bearing angle."""
+    x0 = np.array([300.0 + offset_g * math.cos(angle), 300.0 + offset_g * math.sin(angle),
+                   0.0, 0.0])
     return PlanningProblem(means=x0[None], covs=np.diag([100.0, 100, 1, 1])[None],
                            positions=np.array([[300.0, 300.0]]),
                            headings=np.array([heading0]), sensors=(SensorParams(),),
@@ -388,6 +390,33 @@ def test_mean_visibility_edges_in_the_potential(backend):
         assert (ev.potential > 0) == bool(counted[name])
     assert counted == {"min": 1, "max": 1, "below_min": 0, "above_max": 0, "az_edge": 1,
                        "az_beyond": 0}
+
+
+# Bearings where the computed ground range lands a rounding error outside the band (found
+# by search): the inclusive bounds need their tolerance there.
+@pytest.mark.parametrize("edge,angle", [("min_ground_range", 1.966),
+                                        ("min_ground_range", -0.545),
+                                        ("max_ground_range", -2.75), ("max_ground_range", 1.4)])
+def test_mean_visibility_range_edge_is_inclusive_off_axis(backend, edge, angle):
+    g = getattr(SensorParams(), edge)
+    step = 1e-6 if edge == "max_ground_range" else -1e-6
+    on = evaluate(prepare(_edge_problem(g, angle, angle=angle)), STAY)
+    off = evaluate(prepare(_edge_problem(g + step, angle, angle=angle)), STAY)
+    assert on.measurements[0, 0] == 1 and off.measurements[0, 0] == 0
+
+
+# Bearings where the heading rule stops a rounding error *beyond* the wedge edge (found by
+# search): the inclusive bound needs its tolerance there.
+@pytest.mark.parametrize("angle", [0.27410390540137985, -1.4464727375963786, 2.0, -3.0])
+def test_mean_visibility_azimuth_edge_is_inclusive_after_the_heading_rule(backend, angle):
+    d = SensorParams()
+    b = angle
+    for sign in (1, -1):
+        h0 = b - sign * (d.max_turn + d.fov_half_angle)
+        on = evaluate(prepare(_edge_problem(350.0, h0, angle=angle)), STAY)
+        h0 = b - sign * (d.max_turn + d.fov_half_angle + 1e-9)
+        off = evaluate(prepare(_edge_problem(350.0, h0, angle=angle)), STAY)
+        assert on.measurements[0, 0] == 1 and off.measurements[0, 0] == 0
 
 
 def test_probabilistic_look_on_a_range_edge_counts_with_p_vis(backend):

@@ -118,7 +118,8 @@ def _interval(lo: float, hi: float, sd: float) -> float:
 @njit(cache=True)
 def _wrap(a: float) -> float:
     two_pi = 2.0 * math.pi
-    return math.pi - ((math.pi - a) % two_pi)
+    w = math.pi - ((math.pi - a) % two_pi)
+    return w + two_pi if w <= -math.pi else w     # as angles.wrap_angle: (-pi, pi]
 
 
 @njit(cache=True)
@@ -178,3 +179,25 @@ def look_information_nb(dx: np.ndarray, dy: np.ndarray, th: np.ndarray, C: np.nd
         W[b, 1, 0] = W[b, 0, 1]
         weight[b] = p
     return W, weight
+
+
+_WARM = False
+
+
+def warm_up() -> None:
+    """Compile (or load from the on-disk cache) every kernel once, on tiny inputs.
+
+    Planners call this before starting their clock, so ``PlanResult.seconds`` is the
+    planner's own time, not numba's one-off start-up (~0.1-2 s per process).
+    """
+    global _WARM
+    if _WARM:
+        return
+    P = np.eye(4)[None].copy()
+    W = np.zeros((1, 1, 2, 2))
+    covariance_recursion_nb(P, W, np.eye(4), np.zeros((4, 4)), True)
+    z = np.zeros(1)
+    for probabilistic in (True, False):
+        look_information_nb(z + 300.0, z, z, np.ones((1, 3)), probabilistic, 500.0, 0.7, 0.5,
+                            250.0, 450.0, 15.0, 600.0, 0.05, 1.6, 30.0, 1e-9, 1e-12, 1e-6)
+    _WARM = True

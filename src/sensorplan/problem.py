@@ -224,18 +224,50 @@ class PlanningProblem:
             raise ConfigError("visibility", f"must be one of {VISIBILITY_MODES}, got {self.visibility!r}")
         if self.objective not in OBJECTIVES:
             raise ConfigError("objective", f"must be one of {OBJECTIVES}, got {self.objective!r}")
-        for j in range(M):
-            if not np.all(np.isfinite(self.means[j])):
-                raise ConfigError(f"targets[{j}].mean", "must be finite")
-            check_covariance(self.covs[j], f"targets[{j}].cov")
+        if not np.all(np.isfinite(self.means)):
+            j = int(np.flatnonzero(~np.all(np.isfinite(self.means), axis=1))[0])
+            raise ConfigError(f"targets[{j}].mean", "must be finite")
+        if not _covariances_ok(self.covs):           # one batched check; locate on failure
+            for j in range(M):
+                check_covariance(self.covs[j], f"targets[{j}].cov")
         for i, s in enumerate(self.sensors):
-            s.validate(f"sensors[{i}]")
+            _validate_sensor(s, f"sensors[{i}]")
             if not np.all(np.isfinite(self.positions[i])):
                 raise ConfigError(f"sensors[{i}].position", "must be finite")
             if not np.isfinite(self.headings[i]):
                 raise ConfigError(f"sensors[{i}].heading", "must be finite")
             if not self.world.contains(self.positions[i]):
                 raise ConfigError(f"sensors[{i}].position", "is outside the map")
+
+
+_VALID_SENSORS: set[SensorParams] = set()
+
+
+def _validate_sensor(params: SensorParams, prefix: str) -> None:
+    # Sensors are frozen values reused at every decision of a run: validate each once.
+    try:
+        if params in _VALID_SENSORS:
+            return
+    except TypeError:                      # unhashable (array-valued) parameters
+        params.validate(prefix)
+        return
+    params.validate(prefix)
+    if len(_VALID_SENSORS) < 10_000:
+        _VALID_SENSORS.add(params)
+
+
+def _covariances_ok(P: FloatArray) -> bool:
+    """Batched version of :func:`check_covariance` for ``(M, 4, 4)``: True if all pass."""
+    if not np.all(np.isfinite(P)):
+        return False
+    scale = np.maximum(1.0, np.abs(P).max(axis=(1, 2)))
+    if np.any(np.abs(P - np.swapaxes(P, 1, 2)).max(axis=(1, 2)) > 1e-9 * scale):
+        return False
+    try:
+        np.linalg.cholesky(0.5 * (P + np.swapaxes(P, 1, 2)))
+    except np.linalg.LinAlgError:
+        return False
+    return True
 
 
 def check_covariance(P: FloatArray, field_name: str) -> None:

@@ -8,6 +8,7 @@ from typing import Any, Callable, ClassVar, Protocol
 
 import numpy as np
 
+from .._kernels import warm_up
 from .._types import FloatArray
 from ..errors import ConfigError
 from ..information import Context, evaluate, prepare
@@ -53,6 +54,12 @@ class Planner(Protocol):
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult: ...
 
 
+def start_clock() -> float:
+    """Warm the compiled kernels, then read the clock: ``seconds`` is the planner's own time."""
+    warm_up()
+    return time.perf_counter()
+
+
 def make_rng(rng: RngLike, seed: int | None) -> np.random.Generator:
     """The planner's generator: ``rng`` when given, else one seeded with ``seed``."""
     if isinstance(rng, np.random.Generator):
@@ -89,4 +96,4 @@ def make_planner(name: str, **params: Any) -> Planner:
 
 
 __all__ = ["PLANNERS", "PlanResult", "Planner", "finish", "make_planner", "make_rng",
-           "prepare", "register"]
+           "prepare", "register", "start_clock"]

@@ -33,7 +33,6 @@ tolerance), so rounding differences between equal-valued plans cannot change the
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -44,7 +43,7 @@ from ..errors import ConfigError
 from ..information import (Context, chain_headings, covariance_recursion, epoch_information,
                            prepare)
 from ..problem import Lattice, Plan, PlanningProblem
-from .base import PlanResult, RngLike, finish, register
+from .base import PlanResult, RngLike, finish, register, start_clock
 
 #: Relative tolerance under which two values of Phi are a tie (SPEC 4).
 TIE_RTOL = 1e-9
@@ -339,7 +338,7 @@ class BruteForcePlanner:
                 raise ConfigError(f"planner.{name}", f"must be an integer >= 1, got {value!r}")
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
-        start = time.perf_counter()
+        start = start_clock()
         ctx = prepare(problem)
         n_joint = count_joint_plans(problem, ctx)
         if n_joint > self.max_plans:

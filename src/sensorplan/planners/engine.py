@@ -246,6 +246,13 @@ class GameState:
             entry.W_rows[stale] = W_fixed[stale]
         return np.bincount(entry.c_pair, weights=entry.delta, minlength=C), base
 
+    def contributing(self, i: int, k0: int, L: int = 1) -> IntArray:
+        """Candidates of the last :meth:`chain_gains` call for (i, k0, L) with a look that counts.
+
+        The others have gain exactly 0 against any other players' actions.
+        """
+        return np.unique(self._cache[(i, k0, L)].c_pair)
+
     def _chain_looks(self, i: int, k0: int, cand_pos: IntArray, cand_tgt: IntArray,
                      k_end: int, prev: float,
                      prev_ok: bool) -> tuple[IntArray, IntArray, FloatArray]:
@@ -274,8 +281,10 @@ class GameState:
         # A look that does not count adds nothing: its target keeps its baseline term.
         counts = np.any(W_chain != 0.0, axis=(2, 3, 4))                  # (C, Lf)
         c_idx, l_idx = np.nonzero(counts)
-        keys = np.unique(c_idx * M + tgt[c_idx, l_idx])
-        c_pair, j_pair = np.divmod(keys, M)
+        if Lf == 1:                     # one look per candidate: pairs are already unique
+            c_pair, j_pair = c_idx, tgt[c_idx, 0]
+        else:
+            c_pair, j_pair = np.divmod(np.unique(c_idx * M + tgt[c_idx, l_idx]), M)
         W_add = np.zeros((len(c_pair), ctx.T - (k0 - 1) * e, 2, 2))
         for l in range(Lf):
             hit = (tgt[c_pair, l] == j_pair)[:, None, None, None]

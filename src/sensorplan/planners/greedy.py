@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import ClassVar
 
 from ..information import Context, prepare
 from ..problem import PlanningProblem
-from .base import PlanResult, RngLike, finish, register
+from .base import PlanResult, RngLike, finish, register, start_clock
 from .engine import GameState, choose
 
 
@@ -36,6 +35,6 @@ class SequentialGreedyPlanner:
     seed: int | None = 0
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
-        start = time.perf_counter()
+        start = start_clock()
         ctx = prepare(problem)
         return finish(self.name, ctx, sequential_greedy(ctx).to_plan(), start)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -10,7 +9,7 @@ import numpy as np
 
 from ..information import prepare
 from ..problem import Plan, PlanningProblem
-from .base import PlanResult, RngLike, finish, make_rng, register
+from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
 
 
 @register
@@ -22,7 +21,7 @@ class RandomPlanner:
     seed: int | None = 0
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
-        start = time.perf_counter()
+        start = start_clock()
         gen = make_rng(rng, self.seed)
         ctx = prepare(problem)
         N, K = problem.n_sensors, problem.horizon
