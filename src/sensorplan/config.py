@@ -623,3 +623,256 @@ def _run_settings(planning: PlanningModel, run: RunModel, miss_update: str | Non
         return RunSettings(**kwargs)
     except ConfigError as exc:
         raise _rename(exc, _SETTINGS_FIELDS) from None
+
+
+# ----------------------------------------------------------------------------- studies
+#
+# A study file (TOML) names a scenario, the number of paired runs, their length, the root
+# seed and a list of methods; ``sensorplan study`` runs every method on every run
+# (see :mod:`sensorplan.experiments` and docs/studies.md)::
+#
+#     description = "what this study is for"      # optional, free text
+#     runs = 100                                  # paired Monte Carlo runs
+#     steps = 100                                 # simulation steps per run
+#     seed = 2024                                 # root SeedSequence of the study
+#
+#     [scenario]                                  # optional; default: preset = "paper"
+#     preset = "paper"                            # or: file = "../configs/paper.toml"
+#                                                 # (relative to this file; its [planning]
+#                                                 # and [run] tables are not used)
+#
+#     [defaults]                                  # optional: settings every method inherits
+#     steps_per_epoch = 2
+#
+#     [[methods]]
+#     name = "paper/olf"                          # unique; used in tables and figures
+#     planner = "pg"                              # a registered planner
+#     horizon = 3                                 # K
+#     steps_per_epoch = 2                         # e
+#     execution = "olf"                           # or "ol"
+#     visibility = "mean"                         # or "probabilistic" (default)
+#     objective = "terminal"                      # or "cumulative"
+#     miss_update = "none"                        # or "negative"; default: the scenario's
+#     [methods.planner_params]                    # alpha, beta, max_inner, max_outer,
+#     alpha = 0.3                                 # max_plans (brute-force)
+
+
+def _method_name(value: str) -> str:
+    if not value.strip():
+        raise ValueError("must be a non-empty name")
+    if len(value) > 80:
+        raise ValueError(f"must be at most 80 characters, got {len(value)}")
+    if any(not ch.isprintable() for ch in value):
+        raise ValueError("must not contain control characters")
+    return value
+
+
+def _non_empty(value: list[Any]) -> list[Any]:
+    if not value:
+        raise ValueError("at least one method is required")
+    return value
+
+
+MethodName = Annotated[str, AfterValidator(_method_name)]
+
+
+class StudyScenarioModel(_Strict):
+    preset: str | None = None
+    file: str | None = None
+
+
+class MethodSettingsModel(_Strict):
+    """A method's settings; ``None`` inherits ``[defaults]``, then RunSettings' default."""
+
+    planner: str | None = None
+    planner_params: PlannerParamsModel | None = None
+    horizon: PositiveInt | None = None
+    steps_per_epoch: PositiveInt | None = None
+    execution: Execution | None = None
+    visibility: Visibility | None = None
+    objective: ObjectiveName | None = None
+    miss_update: MissUpdate | None = None
+
+
+class MethodModel(MethodSettingsModel):
+    name: MethodName
+
+
+class StudyFile(_Strict):
+    description: str = ""
+    runs: PositiveInt
+    steps: PositiveInt
+    seed: Seed = 0
+    scenario: StudyScenarioModel = StudyScenarioModel()
+    defaults: MethodSettingsModel = MethodSettingsModel()
+    methods: Annotated[list[MethodModel], AfterValidator(_non_empty)]
+
+
+#: Method settings in the order they are resolved and written.
+_METHOD_KEYS = ("planner", "horizon", "steps_per_epoch", "execution", "visibility",
+                "objective", "miss_update")
+
+
+def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
+    """A scenario as the content of a scenario file, every default filled in.
+
+    Fields left to each run's seed (``None`` positions, speeds, headings) are omitted, as
+    they would be in the file. :func:`scenario_from_dict` inverts it exactly (floats
+    round-trip through JSON unchanged).
+    """
+    def sensor(spec: SensorSpec) -> dict[str, Any]:
+        d: dict[str, Any] = {}
+        for f in dataclasses.fields(SensorParams):
+            v = getattr(spec.params, f.name)
+            d[f.name] = [float(m) for m in v] if f.name == "moves" else float(v)
+        if spec.position is not None:
+            d["position"] = [float(spec.position[0]), float(spec.position[1])]
+        if spec.heading is not None:
+            d["heading"] = float(spec.heading)
+        return d
+
+    def target(spec: TargetSpec) -> dict[str, Any]:
+        d: dict[str, Any] = {"kind": spec.kind}
+        if spec.position is not None:
+            d["position"] = [float(spec.position[0]), float(spec.position[1])]
+        for name in ("speed", "heading"):
+            if getattr(spec, name) is not None:
+                d[name] = float(getattr(spec, name))
+        d["turn_hold"] = float(spec.turn_hold)
+        d["max_turn_rate"] = float(spec.max_turn_rate)
+        return d
+
+    return {
+        "dt": float(scenario.dt), "process_noise": float(scenario.process_noise),
+        "map": {"width": float(scenario.world.width), "height": float(scenario.world.height)},
+        "initial": {"target_box": [float(v) for v in scenario.target_box],
+                    "speed_range": [float(v) for v in scenario.speed_range],
+                    "sensor_box": [float(v) for v in scenario.sensor_box],
+                    "cov": [[float(v) for v in row] for row in scenario.initial_cov]},
+        "tracker": {"miss_update": scenario.miss_update},
+        "targets": [target(t) for t in scenario.targets],
+        "sensors": [sensor(s) for s in scenario.sensors],
+    }
+
+
+def scenario_from_dict(data: Any, source: str = "scenario") -> Scenario:
+    """Validate scenario-file content (a parsed TOML table) and build the scenario.
+
+    ``[planning]`` and ``[run]`` are validated but not part of the scenario.
+
+    Raises
+    ------
+    ConfigError
+        Naming the field as in a scenario file (``targets[0].kind``).
+    """
+    model: ScenarioFile = _validate(ScenarioFile, data, "a table")
+    return model.scenario()
+
+
+def _study_scenario(model: StudyScenarioModel, base_dir: Path | None) -> tuple[Scenario, str]:
+    if model.preset is not None and model.file is not None:
+        raise ConfigError("scenario", "give preset or file, not both")
+    if model.file is None:
+        preset = model.preset or "paper"
+        if preset not in PRESETS:
+            raise ConfigError("scenario.preset", f"unknown preset {preset!r}; choose from "
+                              f"{', '.join(PRESETS)}")
+        return paper_scenario(), f"preset {preset}"
+    path = Path(model.file)
+    if not path.is_absolute() and base_dir is not None:
+        path = base_dir / path
+    try:
+        data = io.read_toml(path)
+        return scenario_from_dict(data), f"file {path}"
+    except ConfigError as exc:
+        where = exc.field if exc.field == str(path) else f"{path}: {exc.field}"
+        raise ConfigError("scenario.file", f"{where}: {exc.message}") from None
+
+
+def study_from_dict(data: Any, base_dir: str | Path | None = None) -> Any:
+    """Validate a study table and build the :class:`~sensorplan.experiments.Study`.
+
+    Parameters
+    ----------
+    data : object
+        The parsed TOML (see the block comment above for the keys).
+    base_dir : path, optional
+        Directory that a relative ``scenario.file`` is relative to (the study file's).
+
+    Raises
+    ------
+    ConfigError
+        Naming the field with a dotted path such as ``methods[2].horizon`` (or
+        ``defaults.horizon`` when the value came from ``[defaults]``).
+    """
+    from .experiments import Method, Study
+    from .planners import PLANNERS
+    from .simulation import RunSettings
+
+    model: StudyFile = _validate(StudyFile, data, "a table")
+    scenario, source = _study_scenario(model.scenario, None if base_dir is None
+                                       else Path(base_dir))
+    defaults = model.defaults
+    seen: dict[str, int] = {}
+    methods = []
+    for i, m in enumerate(model.methods):
+        if m.name in seen:
+            raise ConfigError(f"methods[{i}].name", f"duplicate method name {m.name!r} "
+                              f"(also methods[{seen[m.name]}])")
+        seen[m.name] = i
+        kwargs: dict[str, Any] = {}
+        origin: dict[str, str] = {}
+        for key in _METHOD_KEYS:
+            own, inherited = getattr(m, key), getattr(defaults, key)
+            if own is not None:
+                kwargs[key], origin[key] = own, f"methods[{i}].{key}"
+            elif inherited is not None:
+                kwargs[key], origin[key] = inherited, f"defaults.{key}"
+        if "planner" not in kwargs:
+            raise ConfigError(f"methods[{i}].planner", "is required (in the method or in "
+                              "[defaults])")
+        kwargs.setdefault("miss_update", scenario.miss_update)
+        params = {} if defaults.planner_params is None else defaults.planner_params.given()
+        params_field = ("defaults.planner_params" if m.planner_params is None
+                        else f"methods[{i}].planner_params")
+        if m.planner_params is not None:
+            params.update(m.planner_params.given())
+        name = kwargs["planner"]
+        settings = planner_settings(name, params, name_field=origin["planner"],
+                                    params_field=params_field)
+        planner = build_planner(name, settings, params_field)
+        # Every setting the study file can give, filled with the planner's own default so
+        # that config.resolved.json shows what ran.
+        cls = PLANNERS[name]
+        settable = set(PlannerParamsModel.model_fields)
+        if dataclasses.is_dataclass(cls):
+            filled = {f.name: getattr(planner, f.name) for f in dataclasses.fields(cls)
+                      if f.name in settable}
+        else:
+            filled = dict(settings)
+        try:
+            run_settings = RunSettings(planner_params=filled, steps=model.steps, **kwargs)
+        except ConfigError as exc:
+            field = origin.get(exc.field, f"methods[{i}].{exc.field}")
+            raise ConfigError(field, exc.message) from None
+        methods.append(Method(m.name, run_settings))
+    return Study(scenario=scenario, runs=model.runs, steps=model.steps, seed=model.seed,
+                 methods=tuple(methods), description=model.description,
+                 scenario_source=source)
+
+
+def load_study(path: str | Path) -> Any:
+    """:func:`study_from_dict` on a TOML file (a relative scenario file is relative to it)."""
+    path = Path(path)
+    return study_from_dict(io.read_toml(path), base_dir=path.parent)
+
+
+def parse_study(text: str, source: str = "<study>", base_dir: str | Path | None = None) -> Any:
+    """:func:`study_from_dict` on TOML text (the built-in demo study)."""
+    import tomllib
+
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(source, f"invalid TOML: {exc}") from None
+    return study_from_dict(data, base_dir=base_dir)
