@@ -123,6 +123,52 @@ def _wrap(a: float) -> float:
 
 
 @njit(cache=True)
+def _look(x: float, y: float, h: float, c00: float, c01: float, c11: float,
+          probabilistic: bool, altitude: float, cd: float, sdp: float, fov: float,
+          gmin: float, gmax: float, snr0: float, range_ref: float, beamwidth: float,
+          slope: float, resolution: float, range_tol: float, angle_tol: float,
+          p_min: float) -> tuple[float, float, float, float]:
+    """Weight and information (w00, w01, w11) of one look at ground offset (x, y)."""
+    g2 = x * x + y * y
+    g = math.sqrt(g2)
+    if g == 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    # Cheapest test first: most looks of a large candidate set fail the range band.
+    ux, uy = x / g, y / g
+    p_range = 1.0
+    if probabilistic:
+        var_g = ux * ux * c00 + 2.0 * ux * uy * c01 + uy * uy * c11
+        p_range = _interval(gmin - g, gmax - g, math.sqrt(max(var_g, 0.0)))
+        if p_range < p_min:
+            return 0.0, 0.0, 0.0, 0.0
+    elif g < gmin - range_tol or g > gmax + range_tol:
+        return 0.0, 0.0, 0.0, 0.0
+    r2 = g2 + altitude * altitude
+    r = math.sqrt(r2)
+    cpsi = (cd * (x * math.cos(h) + y * math.sin(h)) + sdp * altitude) / r
+    if cpsi <= 0.0:
+        return 0.0, 0.0, 0.0, 0.0
+    d = _wrap(math.atan2(y, x) - h)
+    if probabilistic:
+        var_v = uy * uy * c00 - 2.0 * ux * uy * c01 + ux * ux * c11
+        sd_phi = math.sqrt(max(var_v, 0.0)) / g
+        p = p_range * _interval(-fov - d, fov - d, sd_phi)
+        if p < p_min:
+            return 0.0, 0.0, 0.0, 0.0
+    else:
+        if abs(d) > fov + angle_tol:
+            return 0.0, 0.0, 0.0, 0.0
+        p = 1.0
+    snr = snr0 * (range_ref / r) ** 4
+    root = math.sqrt(2.0 * snr)
+    sr = resolution / root
+    sp = (beamwidth / cpsi) / (slope * root)
+    wr = p / (sr * sr * r2)
+    wp = p / (sp * sp * g2 * g2)
+    return p, wr * x * x + wp * y * y, (wr - wp) * x * y, wr * y * y + wp * x * x
+
+
+@njit(cache=True)
 def look_information_nb(dx: np.ndarray, dy: np.ndarray, th: np.ndarray, C: np.ndarray,
                         probabilistic: bool, altitude: float, depression: float,
                         fov: float, gmin: float, gmax: float, snr_ref_db: float,
@@ -136,49 +182,68 @@ def look_information_nb(dx: np.ndarray, dy: np.ndarray, th: np.ndarray, C: np.nd
     cd, sdp = math.cos(depression), math.sin(depression)
     snr0 = 10.0 ** (snr_ref_db / 10.0)
     for b in range(n):
-        x, y, h = dx[b], dy[b], th[b]
-        g2 = x * x + y * y
-        g = math.sqrt(g2)
-        if g == 0.0:
-            continue
-        # Cheapest test first: most looks of a large candidate set fail the range band.
-        if probabilistic:
-            ux, uy = x / g, y / g
-            c00, c01, c11 = C[b, 0], C[b, 1], C[b, 2]
-            var_g = ux * ux * c00 + 2.0 * ux * uy * c01 + uy * uy * c11
-            p_range = _interval(gmin - g, gmax - g, math.sqrt(max(var_g, 0.0)))
-            if p_range < p_min:
-                continue
-        elif g < gmin - range_tol or g > gmax + range_tol:
-            continue
-        r2 = g2 + altitude * altitude
-        r = math.sqrt(r2)
-        cpsi = (cd * (x * math.cos(h) + y * math.sin(h)) + sdp * altitude) / r
-        if cpsi <= 0.0:
-            continue
-        d = _wrap(math.atan2(y, x) - h)
-        if probabilistic:
-            var_v = uy * uy * c00 - 2.0 * ux * uy * c01 + ux * ux * c11
-            sd_phi = math.sqrt(max(var_v, 0.0)) / g
-            p = p_range * _interval(-fov - d, fov - d, sd_phi)
-            if p < p_min:
-                continue
-        else:
-            if abs(d) > fov + angle_tol:
-                continue
-            p = 1.0
-        snr = snr0 * (range_ref / r) ** 4
-        root = math.sqrt(2.0 * snr)
-        sr = resolution / root
-        sp = (beamwidth / cpsi) / (slope * root)
-        wr = p / (sr * sr * r2)
-        wp = p / (sp * sp * g2 * g2)
-        W[b, 0, 0] = wr * x * x + wp * y * y
-        W[b, 1, 1] = wr * y * y + wp * x * x
-        W[b, 0, 1] = (wr - wp) * x * y
-        W[b, 1, 0] = W[b, 0, 1]
+        p, w00, w01, w11 = _look(dx[b], dy[b], th[b], C[b, 0], C[b, 1], C[b, 2],
+                                 probabilistic, altitude, cd, sdp, fov, gmin, gmax, snr0,
+                                 range_ref, beamwidth, slope, resolution, range_tol,
+                                 angle_tol, p_min)
         weight[b] = p
+        W[b, 0, 0] = w00
+        W[b, 0, 1] = w01
+        W[b, 1, 0] = w01
+        W[b, 1, 1] = w11
     return W, weight
+
+
+@njit(cache=True)
+def _heading_rule(theta: float, bearing: float, max_turn: float) -> float:
+    turn = _wrap(bearing - theta)
+    if turn > max_turn:
+        turn = max_turn
+    elif turn < -max_turn:
+        turn = -max_turn
+    return _wrap(theta + turn)
+
+
+@njit(cache=True)
+def chain_looks_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: float,
+                   prev_ok: bool, theta0: float, max_turn: float, aim: np.ndarray,
+                   xbar: np.ndarray, Cbar: np.ndarray, probabilistic: bool, altitude: float,
+                   depression: float, fov: float, gmin: float, gmax: float,
+                   snr_ref_db: float, range_ref: float, beamwidth: float, slope: float,
+                   resolution: float, range_tol: float, angle_tol: float, p_min: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Headings and look information of candidate chains (see information.chain_looks)."""
+    C, L = tgt.shape
+    th = np.empty((C, L))
+    W = np.zeros((C, L, e, 2, 2))
+    weight = np.zeros((C, L, e))
+    cd, sdp = math.cos(depression), math.sin(depression)
+    snr0 = 10.0 ** (snr_ref_db / 10.0)
+    for c in range(C):
+        h = prev
+        for l in range(L):
+            k = k0 + l
+            j = tgt[c, l]
+            px, py = pos[c, l, 0], pos[c, l, 1]
+            bearing = math.atan2(aim[j, k - 1, 1] - py, aim[j, k - 1, 0] - px)
+            if l == 0 and not prev_ok:
+                h = _heading_rule(theta0, bearing, k * max_turn)
+            else:
+                h = _heading_rule(h, bearing, max_turn)
+            th[c, l] = h
+            for s in range(e):
+                t = (k - 1) * e + 1 + s
+                p, w00, w01, w11 = _look(xbar[j, t, 0] - px, xbar[j, t, 1] - py, h,
+                                         Cbar[j, t, 0], Cbar[j, t, 1], Cbar[j, t, 2],
+                                         probabilistic, altitude, cd, sdp, fov, gmin, gmax,
+                                         snr0, range_ref, beamwidth, slope, resolution,
+                                         range_tol, angle_tol, p_min)
+                weight[c, l, s] = p
+                W[c, l, s, 0, 0] = w00
+                W[c, l, s, 0, 1] = w01
+                W[c, l, s, 1, 0] = w01
+                W[c, l, s, 1, 1] = w11
+    return th, W, weight
 
 
 _WARM = False
@@ -197,7 +262,10 @@ def warm_up() -> None:
     W = np.zeros((1, 1, 2, 2))
     covariance_recursion_nb(P, W, np.eye(4), np.zeros((4, 4)), True)
     z = np.zeros(1)
+    args = (500.0, 0.7, 0.5, 250.0, 450.0, 15.0, 600.0, 0.05, 1.6, 30.0, 1e-9, 1e-12, 1e-6)
     for probabilistic in (True, False):
-        look_information_nb(z + 300.0, z, z, np.ones((1, 3)), probabilistic, 500.0, 0.7, 0.5,
-                            250.0, 450.0, 15.0, 600.0, 0.05, 1.6, 30.0, 1e-9, 1e-12, 1e-6)
+        look_information_nb(z + 300.0, z, z, np.ones((1, 3)), probabilistic, *args)
+        chain_looks_nb(np.zeros((1, 1, 2)), np.zeros((1, 1), dtype=np.int64), 1, 1, 0.0, True,
+                       0.0, 0.5, np.ones((1, 1, 2)), np.ones((1, 2, 2)), np.ones((1, 2, 3)),
+                       probabilistic, *args)
     _WARM = True

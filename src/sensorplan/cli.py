@@ -285,6 +285,204 @@ def _print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
     console.print("wrote " + ", ".join(str(p) for p in written), highlight=False)
 
 
+# ------------------------------------------------------------------------------ study
+
+
+def _study_progress(label: str) -> Any:
+    """Context manager yielding a ``progress(done, total, already)`` callback for
+    :func:`sensorplan.experiments.run_study`: a rich bar with ETA on a terminal, a plain
+    line about every 10 % (and at the end) otherwise."""
+    import time
+
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, \
+        TimeElapsedColumn, TimeRemainingColumn
+
+    console = Console(stderr=True)
+
+    @contextmanager
+    def bar() -> Iterator[Any]:
+        columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                   TextColumn("(run, method) pairs"), TimeElapsedColumn(),
+                   TextColumn("ETA"), TimeRemainingColumn())
+        progress = Progress(*columns, console=console, transient=False)
+        task = progress.add_task(label, total=None)
+        started = False
+
+        def report(done: int, total: int, already: int) -> None:
+            nonlocal started
+            if not started:
+                # Started on the first report only, so that an error found before any
+                # work (a changed study) prints its one line and nothing else.
+                progress.start()
+                started = True
+            progress.update(task, completed=done, total=total,
+                            description=label + (f" ({already} already done)"
+                                                 if already else ""))
+        try:
+            yield report
+        finally:
+            if started:
+                progress.stop()
+
+    @contextmanager
+    def lines() -> Iterator[Any]:
+        state = {"start": time.perf_counter(), "next": 0.0}
+
+        def report(done: int, total: int, already: int) -> None:
+            if done == 0:
+                state["start"] = time.perf_counter()
+                console.print(f"{label}: {total} (run, method) pairs to run"
+                              + (f", {already} already done" if already else ""),
+                              highlight=False)
+                return
+            if done / total + 1e-12 < state["next"] and done != total:
+                return
+            state["next"] = done / total + 0.1
+            elapsed = time.perf_counter() - state["start"]
+            eta = elapsed / done * (total - done)
+            console.print(f"{label}: {done}/{total} done, {elapsed:.0f} s elapsed, "
+                          f"ETA {eta:.0f} s", highlight=False)
+        yield report
+
+    return bar() if console.is_terminal else lines()
+
+
+def _run_study_command(study_obj: Any, out: Path, workers: int | None,
+                       scheduler: str | None, label: str) -> Any:
+    from .experiments import StudyInterrupted, run_study
+
+    try:
+        with _bad_input(), _study_progress(label) as progress:
+            return run_study(study_obj, out, workers=workers, scheduler=scheduler,
+                             progress=progress)
+    except StudyInterrupted as exc:
+        sys.stdout.flush()
+        sys.stderr.write(f"interrupted: {exc.done} of {exc.total} (run, method) pairs are "
+                         f"saved in {out}; run the same command again to resume\n")
+        raise typer.Exit(130) from None
+
+
+_WORKERS_HELP = ("Worker processes of the local pool (1 runs in this process). With "
+                 "--scheduler local: the LocalCluster's workers. [default: the number of "
+                 "cores]")
+_SCHEDULER_HELP = ("Run on Dask distributed: a scheduler address (tcp://host:8786; its "
+                   "workers need sensorplan installed) or 'local' for a LocalCluster "
+                   "started here.")
+
+
+@app.command()
+def study(
+    study_file: Annotated[Path, typer.Argument(
+        metavar="STUDY.toml", show_default=False,
+        help="Study file: scenario (preset or file), runs, steps, seed and [[methods]] "
+             "(see studies/paper.toml and docs/studies.md).")],
+    out: Annotated[Path | None, typer.Option(
+        "--out", "-o", metavar="DIR", show_default=False,
+        help="Study directory (created; an existing one of the same study is resumed). "
+             "[default: runs/<name of the study file>]")] = None,
+    workers: Annotated[int | None, typer.Option(
+        "--workers", "-j", metavar="N", show_default=False, help=_WORKERS_HELP)] = None,
+    scheduler: Annotated[str | None, typer.Option(
+        "--scheduler", metavar="ADDRESS", show_default=False, help=_SCHEDULER_HELP)] = None,
+) -> None:
+    """Run a Monte Carlo study: every method on the same paired runs.
+
+    Writes DIR/config.resolved.json (the study with every default filled in), one small
+    file per finished (run, method) under DIR/parts/, then the tidy tables
+    DIR/steps.parquet, DIR/decisions.parquet and DIR/sensors.parquet, and DIR/meta.json
+    (versions, seed, wall time). Interrupted (Ctrl-C, a killed process)? Run the same
+    command again: only the missing pairs run. A finished study is not recomputed; a DIR
+    holding a different study is an error. Results do not depend on --workers or
+    --scheduler (except the planners' wall times).
+
+    Example: sensorplan study studies/paper.toml --out runs/paper --workers 2
+    """
+    from .config import load_study
+
+    with _bad_input():
+        study_obj = load_study(study_file)
+        if workers is not None and workers < 1:
+            raise ConfigError("--workers", f"must be an integer >= 1, got {workers}")
+    out = out if out is not None else Path("runs") / study_file.stem
+    res = _run_study_command(study_obj, out, workers, scheduler, f"study {study_file.stem}")
+    if res.ran == 0:
+        print(f"{out}: study already complete ({res.total} (run, method) pairs); nothing to "
+              "run")
+    else:
+        print(f"{out}: ran {res.ran} of {res.total} (run, method) pairs in "
+              f"{res.wall:.1f} s; tables: steps.parquet, decisions.parquet, sensors.parquet")
+    print(f"next: sensorplan report {out}")
+
+
+# ----------------------------------------------------------------------------- report
+
+
+@app.command()
+def report(
+    study_dir: Annotated[Path, typer.Argument(
+        metavar="DIR", show_default=False, help="A study directory (sensorplan study --out).")],
+    out: Annotated[Path | None, typer.Option(
+        "--out", "-o", metavar="REPORT_DIR", show_default=False,
+        help="Where to write the report. [default: DIR/report]")] = None,
+) -> None:
+    """Write figures, a self-contained HTML page and a markdown summary of a study.
+
+    Reads only the study directory's files. DIR/report/ gets report.html (figures
+    embedded, opens from disk with no network), summary.md (the tables, with links to the
+    figures) and the PNG figures. An unfinished study is reported on the runs that every
+    method has finished, and says so.
+
+    Example: sensorplan report runs/paper
+    """
+    from .report import write_report
+
+    with _bad_input():
+        written = write_report(study_dir, out)
+    if not written.complete:
+        sys.stderr.write(f"warning: {study_dir} is not finished; the report covers "
+                         f"{written.runs} run(s)\n")
+    print(f"report: {written.html}")
+    print(f"summary: {written.markdown}")
+    print(f"figures: {len(written.figures)} PNG files in {written.html.parent}")
+
+
+# ------------------------------------------------------------------------------- demo
+
+
+@app.command()
+def demo(
+    out: Annotated[Path, typer.Option(
+        "--out", "-o", metavar="DIR", help="Study directory of the demo.")] = Path("out/demo"),
+    workers: Annotated[int | None, typer.Option(
+        "--workers", "-j", metavar="N", show_default=False, help=_WORKERS_HELP)] = None,
+) -> None:
+    """Run a small study (the paper scenario, a few short paired runs, our defaults) and
+    write its report; print where the report is.
+
+    The study is studies/demo.toml (built in). Takes well under two minutes on 2 cores;
+    a second call reuses the finished study and only rewrites the report.
+
+    Example: sensorplan demo --out out/demo
+    """
+    from .experiments import demo_study
+    from .report import write_report
+
+    with _bad_input():
+        if workers is not None and workers < 1:
+            raise ConfigError("--workers", f"must be an integer >= 1, got {workers}")
+        study_obj = demo_study()
+    res = _run_study_command(study_obj, out, workers, None, "demo study")
+    with _bad_input():
+        written = write_report(out, None)
+    what = "already complete" if res.ran == 0 else f"{res.ran} (run, method) pairs in " \
+                                                   f"{res.wall:.1f} s"
+    print(f"demo study: {len(study_obj.methods)} methods x {study_obj.runs} runs x "
+          f"{study_obj.steps} steps ({what})")
+    print(f"report: {written.html}")
+    print(f"open it in a browser, e.g. file://{written.html.resolve()}")
+
+
 # ------------------------------------------------------------------------------- main
 
 

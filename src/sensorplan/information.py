@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._kernels import covariance_recursion_nb, look_information_nb
+from ._kernels import chain_looks_nb, covariance_recursion_nb, look_information_nb
 from ._types import BoolArray, FloatArray, IntArray
 from .angles import heading_rule
 from .dynamics import cv_matrices, predict_covariance, predict_covariances, predict_means
@@ -46,6 +46,7 @@ class Context:
                                step of each epoch (the heading rule aims there)
     params : SensorParams      stacked, fields shaped (N,)
     lattices : list of Lattice one per sensor
+    xbar_xy : (M, T + 1, 2)    predicted ground positions (contiguous, for the kernels)
     """
 
     problem: PlanningProblem
@@ -58,6 +59,7 @@ class Context:
     aim: FloatArray
     params: SensorParams
     lattices: list[Lattice]
+    xbar_xy: FloatArray
 
     @property
     def K(self) -> int:
@@ -99,8 +101,9 @@ def prepare(problem: PlanningProblem) -> Context:
     lattices = [build_lattice(problem.positions[i], move_vectors(s.moves), K, problem.world)
                 for i, s in enumerate(problem.sensors)]
     Cbar = np.stack([Pbar[..., 0, 0], Pbar[..., 0, 1], Pbar[..., 1, 1]], axis=-1)
+    xbar_xy = np.ascontiguousarray(xbar[..., :2])
     return Context(problem, F, Q, xbar, Pbar, ld_bar, Cbar, aim, stack_params(problem.sensors),
-                   lattices)
+                   lattices, xbar_xy)
 
 
 def chain_headings(ctx: Context, i: int, k_first: int, positions: FloatArray,
@@ -159,6 +162,34 @@ def epoch_information(ctx: Context, i: int, k: int, positions: FloatArray,
     W, counted = chain_information(ctx, i, k, positions[:, None], headings[:, None],
                                    targets[:, None])
     return W[:, 0], counted[:, 0]
+
+
+def chain_looks(ctx: Context, i: int, k_first: int, positions: FloatArray, targets: IntArray,
+                prev_heading: float, prev_assigned: bool
+                ) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """Headings and look information along runs of assigned epochs, in one call.
+
+    :func:`chain_headings` followed by :func:`chain_information` (the numpy reference), or
+    one compiled loop over candidates, epochs and steps.
+
+    Returns
+    -------
+    headings : (B, L);  W : (B, L, e, 2, 2);  counted : (B, L, e) bool
+    """
+    if BACKEND == "numpy":
+        th = chain_headings(ctx, i, k_first, positions, targets, prev_heading, prev_assigned)
+        W, counted = chain_information(ctx, i, k_first, positions, th, targets)
+        return th, W, counted
+    p = ctx.sensor(i)
+    th, W, weight = chain_looks_nb(
+        np.ascontiguousarray(positions, dtype=float), np.ascontiguousarray(targets),
+        k_first, ctx.e, float(prev_heading), bool(prev_assigned),
+        float(ctx.problem.headings[i]), float(p.max_turn), ctx.aim, ctx.xbar_xy, ctx.Cbar,
+        ctx.problem.visibility == "probabilistic", float(p.altitude), float(p.depression),
+        float(p.fov_half_angle), float(p.min_ground_range), float(p.max_ground_range),
+        float(p.snr_ref_db), float(p.range_ref), float(p.beamwidth), float(p.monopulse_slope),
+        float(p.range_resolution), RANGE_TOL, ANGLE_TOL, P_VIS_MIN)
+    return th, W, weight > 0
 
 
 def chain_information(ctx: Context, i: int, k0: int, positions: FloatArray,
@@ -358,12 +389,10 @@ def plan_information(ctx: Context, plan: Plan) -> tuple[FloatArray, FloatArray, 
             pos = plan.positions[i, k0:k1][None]
             tgt = plan.targets[i, k0:k1][None]
             prev_ok = k0 == 0
-            th = chain_headings(ctx, i, k0 + 1, pos, tgt, ctx.problem.headings[i], prev_ok)
+            th, w, c = chain_looks(ctx, i, k0 + 1, pos, tgt, ctx.problem.headings[i], prev_ok)
             headings[i, k0:k1] = th[0]
-            for k in range(k0, k1):
-                w, c = epoch_information(ctx, i, k + 1, pos[:, k - k0], th[:, k - k0], tgt[:, k - k0])
-                W[i, k] = w[0]
-                counts[i, k] = c[0].sum()
+            W[i, k0:k1] = w[0]
+            counts[i, k0:k1] = c[0].sum(axis=-1)
     return W, headings, counts
 
 

@@ -24,8 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._types import FloatArray, IntArray
-from ..information import (Context, chain_headings, chain_information, covariance_recursion,
-                           sum_by_target)
+from ..information import Context, chain_looks, covariance_recursion, sum_by_target
 from ..problem import Plan
 
 
@@ -133,10 +132,9 @@ class GameState:
             ks = np.arange(k, k_end + 1)
             pos = np.stack([self.xy(i, kk, self.pos[i, kk - 1]) for kk in ks])[None]
             tgt = self.tgt[i, k - 1:k_end][None]
-            prev_ok = k == 1
-            th = chain_headings(ctx, i, k, pos, tgt, ctx.problem.headings[i], prev_ok)
+            th, W, _ = chain_looks(ctx, i, k, pos, tgt, ctx.problem.headings[i], k == 1)
             self.heading[i, k - 1:k_end] = th[0]
-            self.W[i, k - 1:k_end] = chain_information(ctx, i, k, pos, th, tgt)[0][0]
+            self.W[i, k - 1:k_end] = W[0]
             k = k_end + 1
 
     def _run_end(self, i: int, k: int) -> int:
@@ -251,7 +249,26 @@ class GameState:
 
         The others have gain exactly 0 against any other players' actions.
         """
-        return np.unique(self._cache[(i, k0, L)].c_pair)
+        c = self._cache[(i, k0, L)].c_pair                # sorted by candidate
+        return c[np.r_[True, c[1:] != c[:-1]]] if c.size else c
+
+    def restrict(self, i: int, k0: int, keep: IntArray, cand_pos: IntArray,
+                 cand_tgt: IntArray) -> None:
+        """Carry the cache of player (i, k0) over to the candidate subset ``keep``.
+
+        ``cand_pos, cand_tgt`` are the kept candidates, ``(len(keep), 1)``; the next
+        :meth:`chain_gains` call with them then reuses the looks already computed.
+        """
+        entry = self._cache[(i, k0, 1)]
+        remap = np.full(int(keep.max()) + 1 if keep.size else 0, -1, dtype=np.int64)
+        remap[keep] = np.arange(keep.size)
+        inside = entry.c_pair < remap.size
+        inside[inside] = remap[entry.c_pair[inside]] >= 0
+        entry.key = entry.key[:4] + (cand_pos.tobytes(), cand_tgt.tobytes()) + entry.key[6:]
+        entry.c_pair = remap[entry.c_pair[inside]]
+        entry.j_pair = entry.j_pair[inside]
+        entry.W_add = entry.W_add[inside]
+        entry.delta = entry.delta[inside]
 
     def _chain_looks(self, i: int, k0: int, cand_pos: IntArray, cand_tgt: IntArray,
                      k_end: int, prev: float,
@@ -276,8 +293,7 @@ class GameState:
             kk = k0 + l
             pos_xy[:, l] = self.xy(i, kk, self.pos[i, kk - 1])
             tgt[:, l] = self.tgt[i, kk - 1]
-        th = chain_headings(ctx, i, k0, pos_xy, tgt, prev, prev_ok)
-        W_chain = chain_information(ctx, i, k0, pos_xy, th, tgt)[0]        # (C, Lf, e, 2, 2)
+        W_chain = chain_looks(ctx, i, k0, pos_xy, tgt, prev, prev_ok)[1]  # (C, Lf, e, 2, 2)
         # A look that does not count adds nothing: its target keeps its baseline term.
         counts = np.any(W_chain != 0.0, axis=(2, 3, 4))                  # (C, Lf)
         c_idx, l_idx = np.nonzero(counts)

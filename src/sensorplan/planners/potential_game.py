@@ -98,6 +98,7 @@ def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float,
             for i in range(N):
                 keep = _relevant(state.contributing(i, k), u[i], cur[i])
                 actions[i] = (actions[i][0][keep], actions[i][1][keep])
+                state.restrict(i, k, keep, actions[i][0][:, None], actions[i][1][:, None])
                 u[i] = u[i][keep]
                 ubar[i] = ubar[i][keep]
                 cur[i] = current_index(state, i, k, *actions[i])
