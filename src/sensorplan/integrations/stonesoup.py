@@ -373,6 +373,11 @@ class LatticeMoveActionGenerator(ActionGenerator):
         return self.action_from_value(item) is not None
 
 
+def _float_vector(v: Any) -> StateVector:
+    """A float64 copy of a state vector."""
+    return StateVector(np.array(v, dtype=float))
+
+
 class LatticeMovable(FixedMovable):
     """A platform movement controller whose actions are the SPEC 2 moves inside the map.
 
@@ -387,6 +392,8 @@ class LatticeMovable(FixedMovable):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
+        # Integer positions (State([[300], [300], [490]])) would truncate planned moves.
+        self.state.state_vector = _float_vector(self.state.state_vector)
         self._next_action: Action | None = None
 
     @property
@@ -411,7 +418,7 @@ class LatticeMovable(FixedMovable):
 
     def move(self, timestamp: datetime.datetime, **kwargs: Any) -> None:
         new_state = State.from_state(self.state, timestamp=timestamp)
-        new_state.state_vector = new_state.state_vector.copy()
+        new_state.state_vector = _float_vector(new_state.state_vector)
         self.states.append(new_state)
         if self._next_action is not None:
             self.position = self._next_action.target_value

@@ -159,10 +159,9 @@ def check_learning_params(alpha: float, beta: float, max_inner: int, max_outer: 
         raise ConfigError("planner.max_outer", f"must be an integer >= 1, got {max_outer}")
 
 
-@register
 @dataclass(frozen=True)
-class PotentialGamePlanner:
-    """``pg``: the paper's Algorithm 1 (SPEC 4). Myopic planning is ``pg`` with K = 1.
+class LearningSettings:
+    """Settings of the paper's learning algorithm, shared by ``pg`` and ``pg-refine``.
 
     Attributes
     ----------
@@ -172,7 +171,6 @@ class PotentialGamePlanner:
     seed : int or None used when ``plan`` gets no ``rng``
     """
 
-    name: ClassVar[str] = "pg"
     alpha: float = 0.3
     beta: float = 0.95
     max_inner: int = 50
@@ -182,11 +180,22 @@ class PotentialGamePlanner:
     def __post_init__(self) -> None:
         check_learning_params(self.alpha, self.beta, self.max_inner, self.max_outer)
 
+    @property
+    def learning(self) -> tuple[float, float, int, int]:
+        return self.alpha, self.beta, self.max_inner, self.max_outer
+
+
+@register
+@dataclass(frozen=True)
+class PotentialGamePlanner(LearningSettings):
+    """``pg``: the paper's Algorithm 1 (SPEC 4). Myopic planning is ``pg`` with K = 1."""
+
+    name: ClassVar[str] = "pg"
+
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
         start = start_clock()
         gen = make_rng(rng, self.seed)
         ctx = prepare(problem)
         state = GameState(ctx)
-        converged, sweeps, trace = run_sweeps(state, gen, self.alpha, self.beta,
-                                              self.max_inner, self.max_outer)
+        converged, sweeps, trace = run_sweeps(state, gen, *self.learning)
         return finish(self.name, ctx, state.to_plan(), start, converged, sweeps, tuple(trace))

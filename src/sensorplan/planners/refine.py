@@ -28,7 +28,7 @@ from ..problem import PlanningProblem
 from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
 from .engine import GameState, choose
 from .greedy import sequential_greedy
-from .potential_game import check_learning_params, current_index, run_sweeps
+from .potential_game import LearningSettings, current_index, run_sweeps
 
 
 def _improves(new: float, old: float, scale: float) -> bool:
@@ -105,25 +105,17 @@ def local_search(state: GameState, max_candidates: int = 2500) -> int:
 
 @register
 @dataclass(frozen=True)
-class RefinedPlanner:
+class RefinedPlanner(LearningSettings):
     """``pg-refine`` (SPEC 4, beyond the paper); same settings as ``pg``."""
 
     name: ClassVar[str] = "pg-refine"
-    alpha: float = 0.3
-    beta: float = 0.95
-    max_inner: int = 50
-    max_outer: int = 10
-    seed: int | None = 0
-
-    def __post_init__(self) -> None:
-        check_learning_params(self.alpha, self.beta, self.max_inner, self.max_outer)
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
         start = start_clock()
         gen = make_rng(rng, self.seed)
         gen_pg = copy.deepcopy(gen)       # pg's own stream: start 1 is exactly `pg`'s plan
         ctx = prepare(problem)
-        settings = (self.alpha, self.beta, self.max_inner, self.max_outer)
+        settings = self.learning
         pg_state = GameState(ctx)
         _, sweeps_pg, trace = run_sweeps(pg_state, gen_pg, *settings)
         greedy_state = sequential_greedy(ctx)
