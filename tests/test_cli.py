@@ -492,10 +492,14 @@ def test_simulate_writes_reproducible_outputs(tmp_path: Path,
     assert set(a) == set(b)
     assert a["truth"].shape[0] == 9
     for key in a:
-        if key == "planning_seconds":                   # wall time, the only nondeterminism
-            continue
         np.testing.assert_array_equal(a[key], b[key], err_msg=key)
     assert not np.array_equal(a["truth"], c["truth"])
+    # The data files are byte-identical; wall-clock timings live in their own sidecar.
+    for name in ("episode.npz", "episode.png"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
+    assert (tmp_path / "a" / "episode.npz").read_bytes() != \
+        (tmp_path / "c" / "episode.npz").read_bytes()
+    assert (tmp_path / "a" / "episode.timing.json").exists()
 
 
 @needs_simulation

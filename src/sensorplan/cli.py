@@ -190,11 +190,11 @@ def simulate(
         raise _fail(field, exc.message) from None
     npz = out / "episode.npz"
     png = out / "episode.png"
-    episode.save(npz)
+    timing = episode.save(npz)
     from .plotting import plot_episode
 
     plot_episode(episode, cfg.scenario, png)
-    _print_summary(episode, cfg, [npz, png])
+    _print_summary(episode, cfg, [npz, png, timing])
 
 
 def _run_with_progress(run_episode: Any, cfg: Any) -> Any:

@@ -194,12 +194,16 @@ class Episode:
         """Position RMSE ``(M,)`` of each target over steps ``1..S`` (m)."""
         return np.sqrt(np.mean(self.error[1:] ** 2, axis=0))
 
-    def save(self, path: str | Path) -> None:
+    def save(self, path: str | Path) -> Path:
         """Write every array and a JSON metadata entry to an ``.npz`` file.
 
         The archive is byte-for-byte reproducible: its entries are written in a fixed order
-        with a fixed timestamp, so equal episodes give identical files.
+        with a fixed timestamp, and the one wall-clock quantity, ``planning_seconds``, goes
+        to a sidecar ``<name>.timing.json``, so the same seed gives identical ``.npz`` files.
+
+        Returns the path of the sidecar.
         """
+        path = Path(path)
         meta = {"target_kinds": list(self.target_kinds), "settings": self.settings.to_dict(),
                 "seed_entropy": self.seed_entropy,
                 "seed_spawn_key": [int(k) for k in self.seed_spawn_key]}
@@ -212,23 +216,36 @@ class Episode:
                 info = zipfile.ZipInfo(name + ".npy", date_time=(1980, 1, 1, 0, 0, 0))
                 info.compress_type = zipfile.ZIP_DEFLATED
                 zf.writestr(info, buf.getvalue())
+        sidecar = _timing_path(path)
+        sidecar.write_text(json.dumps({"planning_seconds": self.planning_seconds.tolist()}))
+        return sidecar
 
     @classmethod
     def load(cls, path: str | Path) -> "Episode":
-        """Read an episode written by :meth:`save`."""
+        """Read an episode written by :meth:`save` (timings NaN if the sidecar is missing)."""
+        path = Path(path)
         with np.load(path, allow_pickle=False) as data:
             arrays = {name: data[name] for name in _ARRAYS}
             meta = json.loads(str(data["meta"]))
+        sidecar = _timing_path(path)
+        if sidecar.exists():
+            seconds = np.array(json.loads(sidecar.read_text())["planning_seconds"], dtype=float)
+        else:
+            seconds = np.full(len(arrays["decision_steps"]), np.nan)
         return cls(target_kinds=tuple(meta["target_kinds"]),
                    settings=RunSettings(**meta["settings"]),
                    seed_entropy=meta["seed_entropy"],
                    seed_spawn_key=tuple(int(k) for k in meta.get("seed_spawn_key", ())),
-                   **arrays)
+                   planning_seconds=seconds, **arrays)
+
+
+def _timing_path(path: Path) -> Path:
+    return path.with_name(path.stem + ".timing.json")
 
 
 _ARRAYS = ("truth", "estimate", "cov", "error", "nees", "measured", "looked", "missed",
            "negative_update", "inflated", "sensor_positions", "sensor_headings",
-           "decision_steps", "planning_seconds", "potential", "converged", "sweeps")
+           "decision_steps", "potential", "converged", "sweeps")
 
 
 def _json(v: Any) -> Any:
