@@ -4,18 +4,23 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: demo test test-slow bench clean
+.PHONY: demo test test-slow bench bench-study paper horizon browser clean
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[test]"
+	$(BIN)/python -m pip install --quiet -e ".[test,stonesoup]"
 	touch $(STAMP)
 
 demo: $(STAMP)
 	$(BIN)/sensorplan demo
 
-test: $(STAMP)
+# Best effort: a headless Chromium for the report's browser test (installs the Debian
+# package when root with apt-get; never fails the build, the test then skips with a reason).
+browser:
+	-@bash scripts/ensure_chromium.sh
+
+test: $(STAMP) browser
 	$(BIN)/python -m pytest
 
 test-slow: $(STAMP)
@@ -25,6 +30,18 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_planning.py
 	$(BIN)/python benchmarks/bench_brute_force.py
 	$(BIN)/python benchmarks/bench_simulation.py
+
+# The studies of docs/results.md (resumable: rerun after an interruption).
+paper: $(STAMP)
+	$(BIN)/sensorplan study studies/paper.toml --out runs/paper
+	$(BIN)/sensorplan report runs/paper
+
+horizon: $(STAMP)
+	$(BIN)/sensorplan study studies/horizon.toml --out runs/horizon
+	$(BIN)/sensorplan report runs/horizon
+
+bench-study: $(STAMP)
+	$(BIN)/python benchmarks/bench_study.py
 
 clean:
 	rm -rf $(VENV) out

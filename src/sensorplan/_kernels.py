@@ -195,6 +195,45 @@ def look_information_nb(dx: np.ndarray, dy: np.ndarray, th: np.ndarray, C: np.nd
 
 
 @njit(cache=True)
+def _any_in_band(xbar: np.ndarray, Cbar: np.ndarray, j: int, t0: int, e: int, px: float,
+                 py: float, probabilistic: bool, gmin: float, gmax: float, range_tol: float,
+                 p_min: float) -> bool:
+    """Whether any look at target j in steps t0 .. t0+e-1 passes the range test of _look."""
+    for s in range(e):
+        x = xbar[j, t0 + s, 0] - px
+        y = xbar[j, t0 + s, 1] - py
+        g = math.sqrt(x * x + y * y)
+        if g == 0.0:
+            continue
+        if probabilistic:
+            ux, uy = x / g, y / g
+            c00, c01, c11 = Cbar[j, t0 + s, 0], Cbar[j, t0 + s, 1], Cbar[j, t0 + s, 2]
+            var_g = ux * ux * c00 + 2.0 * ux * uy * c01 + uy * uy * c11
+            if _interval(gmin - g, gmax - g, math.sqrt(max(var_g, 0.0))) >= p_min:
+                return True
+        elif gmin - range_tol <= g <= gmax + range_tol:
+            return True
+    return False
+
+
+@njit(cache=True)
+def sum_by_target_nb(W: np.ndarray, targets: np.ndarray, M: int) -> np.ndarray:
+    """Scatter player information ``W (N, K, e, 2, 2)`` into ``(M, K e, 2, 2)`` by target."""
+    N, K, e = targets.shape[0], targets.shape[1], W.shape[2]
+    out = np.zeros((M, K * e, 2, 2))
+    for i in range(N):
+        for k in range(K):
+            j = targets[i, k]
+            if j < 0:
+                continue
+            for s in range(e):
+                for a in range(2):
+                    for b in range(2):
+                        out[j, k * e + s, a, b] += W[i, k, s, a, b]
+    return out
+
+
+@njit(cache=True)
 def _heading_rule(theta: float, bearing: float, max_turn: float) -> float:
     turn = _wrap(bearing - theta)
     if turn > max_turn:
@@ -210,9 +249,14 @@ def chain_looks_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
                    xbar: np.ndarray, Cbar: np.ndarray, probabilistic: bool, altitude: float,
                    depression: float, fov: float, gmin: float, gmax: float,
                    snr_ref_db: float, range_ref: float, beamwidth: float, slope: float,
-                   resolution: float, range_tol: float, angle_tol: float, p_min: float
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Headings and look information of candidate chains (see information.chain_looks)."""
+                   resolution: float, range_tol: float, angle_tol: float, p_min: float,
+                   all_headings: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Headings and look information of candidate chains (see information.chain_looks).
+
+    Without ``all_headings`` the heading of a chain's last epoch is left NaN when none of
+    its looks can pass the range band (it has no other use): most candidates of a large
+    initialisation set are out of range.
+    """
     C, L = tgt.shape
     th = np.empty((C, L))
     W = np.zeros((C, L, e, 2, 2))
@@ -225,6 +269,11 @@ def chain_looks_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
             k = k0 + l
             j = tgt[c, l]
             px, py = pos[c, l, 0], pos[c, l, 1]
+            if l == L - 1 and not all_headings and not _any_in_band(
+                    xbar, Cbar, j, (k - 1) * e + 1, e, px, py, probabilistic, gmin, gmax,
+                    range_tol, p_min):
+                th[c, l] = np.nan     # no look of the chain's last epoch can count
+                continue
             bearing = math.atan2(aim[j, k - 1, 1] - py, aim[j, k - 1, 0] - px)
             if l == 0 and not prev_ok:
                 h = _heading_rule(theta0, bearing, k * max_turn)
@@ -265,7 +314,9 @@ def warm_up() -> None:
     args = (500.0, 0.7, 0.5, 250.0, 450.0, 15.0, 600.0, 0.05, 1.6, 30.0, 1e-9, 1e-12, 1e-6)
     for probabilistic in (True, False):
         look_information_nb(z + 300.0, z, z, np.ones((1, 3)), probabilistic, *args)
-        chain_looks_nb(np.zeros((1, 1, 2)), np.zeros((1, 1), dtype=np.int64), 1, 1, 0.0, True,
-                       0.0, 0.5, np.ones((1, 1, 2)), np.ones((1, 2, 2)), np.ones((1, 2, 3)),
-                       probabilistic, *args)
+        for all_headings in (True, False):
+            chain_looks_nb(np.zeros((1, 1, 2)), np.zeros((1, 1), dtype=np.int64), 1, 1, 0.0,
+                           True, 0.0, 0.5, np.ones((1, 1, 2)), np.ones((1, 2, 2)),
+                           np.ones((1, 2, 3)), probabilistic, *args, all_headings)
+    sum_by_target_nb(np.zeros((1, 1, 1, 2, 2)), np.zeros((1, 1), dtype=np.int64), 1)
     _WARM = True

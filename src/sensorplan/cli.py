@@ -291,7 +291,7 @@ def _print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
 def _study_progress(label: str) -> Any:
     """Context manager yielding a ``progress(done, total, already)`` callback for
     :func:`sensorplan.experiments.run_study`: a rich bar with ETA on a terminal, a plain
-    line about every 10 % (and at the end) otherwise."""
+    line about every 10 % or every minute (and at the end) otherwise."""
     import time
 
     from rich.console import Console
@@ -327,19 +327,23 @@ def _study_progress(label: str) -> Any:
 
     @contextmanager
     def lines() -> Iterator[Any]:
-        state = {"start": time.perf_counter(), "next": 0.0}
+        state = {"start": time.perf_counter(), "next": 0.0, "last": time.perf_counter()}
 
         def report(done: int, total: int, already: int) -> None:
+            now = time.perf_counter()
             if done == 0:
-                state["start"] = time.perf_counter()
+                state["start"] = state["last"] = now
                 console.print(f"{label}: {total} (run, method) pairs to run"
                               + (f", {already} already done" if already else ""),
                               highlight=False)
                 return
-            if done / total + 1e-12 < state["next"] and done != total:
+            # A line about every 10 % or every minute, and at the end.
+            if (done / total + 1e-12 < state["next"] and now - state["last"] < 60
+                    and done != total):
                 return
             state["next"] = done / total + 0.1
-            elapsed = time.perf_counter() - state["start"]
+            state["last"] = now
+            elapsed = now - state["start"]
             eta = elapsed / done * (total - done)
             console.print(f"{label}: {done}/{total} done, {elapsed:.0f} s elapsed, "
                           f"ETA {eta:.0f} s", highlight=False)
@@ -380,7 +384,7 @@ def study(
     out: Annotated[Path | None, typer.Option(
         "--out", "-o", metavar="DIR", show_default=False,
         help="Study directory (created; an existing one of the same study is resumed). "
-             "[default: runs/<name of the study file>]")] = None,
+             "[default: runs/NAME for NAME.toml]")] = None,
     workers: Annotated[int | None, typer.Option(
         "--workers", "-j", metavar="N", show_default=False, help=_WORKERS_HELP)] = None,
     scheduler: Annotated[str | None, typer.Option(

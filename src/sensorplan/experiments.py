@@ -416,7 +416,11 @@ def _dask(study: Study, tasks: Sequence[tuple[int, int]], scheduler: str, worker
                                    silence_logs=logging.ERROR)
             client = Client(cluster)
         else:
-            client = Client(scheduler, timeout="30s")
+            try:
+                client = Client(scheduler, timeout="30s")
+            except (OSError, TimeoutError) as exc:
+                raise ConfigError("--scheduler", f"cannot connect to {scheduler} "
+                                  f"({exc})") from None
     futures = []
     try:
         # Ship the study once to every worker instead of once per task.
@@ -708,6 +712,8 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
     except OSError as exc:
         raise ConfigError("--out", f"cannot create {out} ({exc.strerror or exc})") from None
 
+    import pyarrow.parquet  # noqa: F401  (imported now, not inside the first write's timing)
+
     start_wall, start_cpu = time.perf_counter(), time.process_time()
     with _locked(out):
         _prepare(out, study)
@@ -724,7 +730,9 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
         session: dict[str, Any] = {
             "id": f"{_now()}-{os.getpid()}", "started": _now(), "finished": None,
             "executor": executor if todo else "none (complete)", "tasks_run": 0,
-            "tasks_before": len(done), "interrupted": False}
+            "tasks_before": len(done), "interrupted": False,
+            # Per session: a resumed study may have been continued with other code.
+            "sensorplan": _versions().get("sensorplan"), "git": _git_describe()}
         timing = {"compute_wall_seconds": 0.0, "compute_cpu_seconds": 0.0,
                   "planning_seconds": 0.0, "write_seconds": 0.0, "consolidate_seconds": 0.0}
         complete = not todo and all((out / f"{t}.parquet").exists() for t in TABLES)
@@ -949,8 +957,8 @@ def references(study: Study) -> dict[str, dict[str, str | None]]:
     - ``myopic``: the first method with planner ``pg``, ``horizon = 1`` and the same
       ``visibility``, ``objective``, ``miss_update`` and ``steps_per_epoch``.
 
-    A method is not compared with itself (its entry is None then), nor when no method
-    matches.
+    A method is not compared with itself, a ``random`` method with nothing (myopic against
+    random already shows that difference), and an entry is None when no method matches.
     """
     out: dict[str, dict[str, str | None]] = {}
     for m in study.methods:
@@ -971,7 +979,8 @@ def references(study: Study) -> dict[str, dict[str, str | None]]:
                     and o.miss_update == s.miss_update
                     and o.steps_per_epoch == s.steps_per_epoch)
         if s.planner == "random":
-            rnd = None
+            # random vs myopic is myopic vs random with the sign flipped.
+            rnd = myo = None
         if s.planner == "pg" and s.horizon == 1:
             myo = None
         out[m.name] = {"myopic": myo, "random": rnd}
@@ -1144,3 +1153,31 @@ def demo_study() -> Study:
     from .config import parse_study
 
     return parse_study(DEMO_STUDY, source="demo study")
+
+
+def horizon_groups(study: Study, minimum: int = 3) -> list[list[Method]]:
+    """Groups of methods that differ only in the horizon K (at least ``minimum`` distinct K),
+    each sorted by K: the report plots RMSE and planning time against K for them.
+
+    A K = 1 method joins the groups of either execution (OL and OLF are the same policy
+    when K = 1).
+    """
+    groups: dict[str, list[Method]] = {}
+    for m in study.methods:
+        d = m.to_dict()
+        for k in ("name", "horizon", "execution"):
+            d.pop(k)
+        groups.setdefault(json.dumps(d, sort_keys=True, default=str), []).append(m)
+    out = []
+    for members in groups.values():
+        myopic = [m for m in members if m.settings.horizon == 1]
+        executions = dict.fromkeys(m.settings.execution for m in members
+                                   if m.settings.horizon > 1)
+        for execution in executions:
+            by_k: dict[int, Method] = {}
+            for m in myopic + [m for m in members if m.settings.horizon > 1
+                               and m.settings.execution == execution]:
+                by_k.setdefault(m.settings.horizon, m)
+            if len(by_k) >= minimum:
+                out.append([by_k[k] for k in sorted(by_k)])
+    return out

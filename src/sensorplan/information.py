@@ -18,7 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._kernels import chain_looks_nb, covariance_recursion_nb, look_information_nb
+from ._kernels import (chain_looks_nb, covariance_recursion_nb, look_information_nb,
+                       sum_by_target_nb)
 from ._types import BoolArray, FloatArray, IntArray
 from .angles import heading_rule
 from .dynamics import cv_matrices, predict_covariance, predict_covariances, predict_means
@@ -165,12 +166,15 @@ def epoch_information(ctx: Context, i: int, k: int, positions: FloatArray,
 
 
 def chain_looks(ctx: Context, i: int, k_first: int, positions: FloatArray, targets: IntArray,
-                prev_heading: float, prev_assigned: bool
+                prev_heading: float, prev_assigned: bool, all_headings: bool = True
                 ) -> tuple[FloatArray, FloatArray, BoolArray]:
     """Headings and look information along runs of assigned epochs, in one call.
 
     :func:`chain_headings` followed by :func:`chain_information` (the numpy reference), or
     one compiled loop over candidates, epochs and steps.
+
+    With ``all_headings=False`` the compiled path may leave the last epoch's heading NaN
+    where none of its looks can count (the caller only wants ``W``).
 
     Returns
     -------
@@ -188,7 +192,7 @@ def chain_looks(ctx: Context, i: int, k_first: int, positions: FloatArray, targe
         ctx.problem.visibility == "probabilistic", float(p.altitude), float(p.depression),
         float(p.fov_half_angle), float(p.min_ground_range), float(p.max_ground_range),
         float(p.snr_ref_db), float(p.range_ref), float(p.beamwidth), float(p.monopulse_slope),
-        float(p.range_resolution), RANGE_TOL, ANGLE_TOL, P_VIS_MIN)
+        float(p.range_resolution), RANGE_TOL, ANGLE_TOL, P_VIS_MIN, all_headings)
     return th, W, weight > 0
 
 
@@ -426,11 +430,13 @@ def target_information(ctx: Context, W_target: FloatArray) -> FloatArray:
 
 def sum_by_target(ctx: Context, W: FloatArray, targets: IntArray) -> FloatArray:
     """Scatter player contributions ``W (N, K, e, 2, 2)`` into ``(M, T, 2, 2)`` by target."""
-    out = np.zeros((ctx.M, ctx.T, 2, 2))
-    n, k = np.nonzero(targets >= 0)
-    for s in range(ctx.e):
-        np.add.at(out, (targets[n, k], k * ctx.e + s), W[n, k, s])
-    return out
+    if BACKEND == "numpy":
+        out = np.zeros((ctx.M, ctx.T, 2, 2))
+        n, k = np.nonzero(targets >= 0)
+        for s in range(ctx.e):
+            np.add.at(out, (targets[n, k], k * ctx.e + s), W[n, k, s])
+        return out
+    return sum_by_target_nb(W, np.ascontiguousarray(targets, dtype=np.int64), ctx.M)
 
 
 def evaluate(ctx: Context, plan: Plan) -> PlanEvaluation:

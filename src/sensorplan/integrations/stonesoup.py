@@ -492,7 +492,8 @@ class SensorplanRadar(Sensor):
     params: SensorParams = Property(default_factory=SensorParams, doc="Radar parameters.")
     heading: float = Property(default=0.0, doc="Heading theta (rad).")
     aim: Any = ActionableProperty(
-        generator_cls=AimActionGenerator, generator_kwargs_mapping={"candidates": "aim_candidates"},
+        generator_cls=AimActionGenerator,
+        generator_kwargs_mapping={"candidates": "aim_candidates"},
         default=None, doc="Ground point ``(x, y)`` the radar looks toward, or None.")
     aim_candidates: Sequence[Any] = Property(
         default=(), doc="``(target, (x, y))`` pairs offered to Stone Soup's sensor managers as "
@@ -558,7 +559,8 @@ class SensorplanRadar(Sensor):
 
     def measure(self, ground_truths: Iterable[Any], noise: Any = True,
                 rng: np.random.Generator | None = None, **kwargs: Any) -> set[TrueDetection]:
-        """Detections of the ground truths in the field of view, in iteration order.
+        """Detections of the ground truths in the field of view (noise drawn in the
+        iteration order of ``ground_truths``).
 
         ``noise``: True draws from ``N(0, R)`` with ``R`` at the true state (SPEC 2) using
         ``rng`` or the radar's own generator; False adds none; an array is added as is (see
@@ -583,7 +585,7 @@ class SensorplanRadar(Sensor):
         return detections
 
 
-def set_aim_candidates(radars: Iterable[SensorplanRadar], tracks: Sequence[Track],
+def set_aim_candidates(radars: Iterable[SensorplanRadar], tracks: Iterable[Track],
                        dt: float) -> None:
     """Offer every track as an aim to each radar, for Stone Soup's own sensor managers.
 
@@ -591,6 +593,7 @@ def set_aim_candidates(radars: Iterable[SensorplanRadar], tracks: Sequence[Track
     planners aim at in the first step of an epoch, SPEC 4). The candidate's target is the
     Track itself.
     """
+    tracks = ordered_tracks(tracks)
     F, _ = cv_matrices(dt, 0.0)
     means, _ = from_tracks(tracks)
     aims = (means @ F.T)[:, :2]
@@ -619,9 +622,10 @@ class SensorplanManager(SensorManager):
       planner's heading.
 
     Supported actionables: Stone Soup platforms whose movement controller is a
-    :class:`LatticeMovable`, each carrying exactly one :class:`SensorplanRadar` (the radar is
-    the player's sensor; sensors is then taken from the platforms). Anything else raises
-    ``TypeError``. All platforms must share one map.
+    :class:`LatticeMovable`, each carrying exactly one :class:`SensorplanRadar` (a platform
+    and its radar form one sensor of the plan; the radars are taken from the platforms).
+    Anything else raises ``TypeError``. All platforms must share one map. Track covariances
+    are symmetrised (``(P + P^T) / 2``) before planning.
 
     Order: the platforms in the order given when ``platforms`` is a list or tuple, otherwise
     sorted by position; the tracks likewise (a set is sorted by ``track.id``, see
@@ -678,8 +682,9 @@ class SensorplanManager(SensorManager):
             radars = [s for s in platform.sensors if isinstance(s, SensorplanRadar)]
             others = [s for s in platform.sensors if not isinstance(s, SensorplanRadar)]
             if others or len(radars) != 1:
+                names = [type(s).__name__ for s in platform.sensors]
                 raise TypeError("each managed platform must carry exactly one SensorplanRadar "
-                                f"and no other sensor; got {[type(s).__name__ for s in platform.sensors]}")
+                                f"and no other sensor; got {names}")
             pairs.append((platform, radars[0]))
         mounted = {id(r) for _, r in pairs}
         loose = [s for s in self._property_sensors if id(s) not in mounted]
@@ -764,6 +769,15 @@ def execute(config: Mapping[Any, Sequence[Action]], timestamp: datetime.datetime
 # --------------------------------------------------------------------------------------------
 
 
+def _radars_of(actionable: Any) -> list[SensorplanRadar]:
+    """The radar itself, or the radars mounted on a platform."""
+    if isinstance(actionable, SensorplanRadar):
+        return [actionable]
+    if isinstance(actionable, Platform):
+        return [s for s in actionable.sensors if isinstance(s, SensorplanRadar)]
+    return []
+
+
 class MutualInformationReward(RewardFunction):
     r"""Mutual information of a configuration's looks, for Stone Soup's sensor managers.
 
@@ -787,19 +801,20 @@ class MutualInformationReward(RewardFunction):
     def __call__(self, config: Mapping[Any, Sequence[Action]], tracks: Iterable[Track],
                  metric_time: datetime.datetime, *args: Any, **kwargs: Any) -> Any:
         tracks = ordered_tracks(tracks)
-        # Seeding the memo keeps the tracks themselves (aim targets) out of the deep copy.
+        # Seeding the memo keeps tracks (the ones given, and those the radars aim at or are
+        # offered) out of the deep copies of the actionables: copying track histories would
+        # cost more than the reward itself.
         memo: dict[int, Any] = {id(t): t for t in tracks}
+        for actionable in config:
+            for radar in _radars_of(actionable):
+                memo[id(radar.aim_target)] = radar.aim_target
+                memo.update((id(t), t) for t, _ in radar.aim_candidates)
         radars: dict[int, SensorplanRadar] = {}
         for actionable, actions in config.items():
             acted = copy.deepcopy(actionable, memo)
             acted.add_actions(list(actions))
             acted.act(metric_time)
-            if isinstance(acted, SensorplanRadar):
-                radars[id(acted)] = acted
-            elif isinstance(acted, Platform):
-                for s in acted.sensors:
-                    if isinstance(s, SensorplanRadar):
-                        radars[id(s)] = s
+            radars.update((id(r), r) for r in _radars_of(acted))
         by_id = {str(t.id): k for k, t in enumerate(tracks)}
         prior = [self.predictor.predict(t.state, timestamp=metric_time) for t in tracks]
         post = list(prior)

@@ -1,0 +1,482 @@
+"""Monte Carlo studies: pairing, determinism across executors, resume after SIGKILL,
+statistics against scipy, the study files shipped in studies/."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats
+
+from sensorplan import experiments as ex
+from sensorplan.config import (load_study, parse_study, scenario_from_dict, scenario_to_dict,
+                               study_from_dict)
+from sensorplan.errors import ConfigError
+
+ROOT = Path(__file__).resolve().parents[1]
+STUDIES = ROOT / "studies"
+
+#: Cheap planners, a few short runs, both tracker configurations.
+TINY = """
+runs = 3
+steps = 14
+seed = 11
+[defaults]
+steps_per_epoch = 2
+[[methods]]
+name = "ours/random"
+planner = "random"
+[[methods]]
+name = "ours/myopic"
+planner = "pg"
+[[methods]]
+name = "paper/olf"
+planner = "pg"
+horizon = 2
+visibility = "mean"
+miss_update = "none"
+"""
+
+
+def tiny_study(text: str = TINY) -> ex.Study:
+    return parse_study(text)
+
+
+def frames(out: Path) -> dict[str, pd.DataFrame]:
+    t = ex.load_study_dir(out)
+    assert t.complete
+    return {"steps": t.steps, "decisions": t.decisions.drop(columns="planning_seconds"),
+            "sensors": t.sensors}
+
+
+def assert_same_tables(a: Path, b: Path) -> None:
+    fa, fb = frames(a), frames(b)
+    for name in ex.TABLES:
+        pd.testing.assert_frame_equal(fa[name], fb[name], check_exact=True, obj=name)
+
+
+# ------------------------------------------------------------------------------ seeds
+
+
+def test_run_seed_is_the_spawned_child() -> None:
+    study = tiny_study()
+    children = np.random.SeedSequence(study.seed).spawn(study.runs)
+    for r, child in enumerate(children):
+        np.testing.assert_array_equal(study.run_seed(r).generate_state(8),
+                                      child.generate_state(8))
+    assert not np.array_equal(study.run_seed(0).generate_state(4),
+                              study.run_seed(1).generate_state(4))
+
+
+class _Recorder:
+    """A Generator proxy that logs every draw: (stream spawn key, method, copy of output)."""
+
+    def __init__(self, gen: np.random.Generator, key: tuple[Any, ...],
+                 log: list[tuple[tuple[int, ...], str, np.ndarray]]) -> None:
+        self._gen, self._key, self._log = gen, key, log
+
+    def __getattr__(self, name: str) -> Any:
+        attr = getattr(self._gen, name)
+        if not callable(attr):
+            return attr
+
+        def call(*args: Any, **kwargs: Any) -> Any:
+            out = attr(*args, **kwargs)
+            if name == "spawn":                 # child generators: record their draws too
+                self._log.append((self._key, name, np.array(len(out))))
+                return [_Recorder(g, self._key + ("child", i), self._log)
+                        for i, g in enumerate(out)]
+            self._log.append((self._key, name, np.array(out, copy=True)))
+            return out
+        return call
+
+
+def _recorded_task(monkeypatch: pytest.MonkeyPatch, study: ex.Study, run: int,
+                   method: int) -> tuple[ex.TaskResult, list[Any]]:
+    log: list[Any] = []
+    real = np.random.default_rng
+
+    def default_rng(seed: Any = None) -> Any:
+        if isinstance(seed, _Recorder):
+            return seed
+        gen = real(seed)
+        if isinstance(seed, np.random.SeedSequence):
+            return _Recorder(gen, tuple(seed.spawn_key), log)
+        return gen
+
+    with monkeypatch.context() as m:
+        m.setattr(np.random, "default_rng", default_rng)
+        res = ex.run_task(study, run, method)
+    return res, log
+
+
+def test_pairing_same_truth_estimates_and_noise_draws(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two methods in one run see identical truths, initial estimates and noise draws."""
+    study = tiny_study()
+    a, log_a = _recorded_task(monkeypatch, study, 1, 0)        # random, negative updates
+    b, log_b = _recorded_task(monkeypatch, study, 1, 2)        # pg K=2, paper configuration
+    c, log_c = _recorded_task(monkeypatch, study, 2, 0)        # another run
+
+    sa, sb, sc = (pd.DataFrame(r.tables["steps"]) for r in (a, b, c))
+    truth = ["x", "y"]
+    np.testing.assert_array_equal(sa[truth].to_numpy(), sb[truth].to_numpy())
+    assert not np.allclose(sa[truth].to_numpy(), sc[truth].to_numpy())
+    init_a, init_b = sa[sa["step"] == 0], sb[sb["step"] == 0]
+    np.testing.assert_array_equal(init_a[["x_est", "y_est"]].to_numpy(),
+                                  init_b[["x_est", "y_est"]].to_numpy())
+    # The methods then track differently (otherwise the test would prove nothing).
+    assert not np.array_equal(sa["x_est"].to_numpy(), sb["x_est"].to_numpy())
+    pa, pb = (pd.DataFrame(r.tables["sensors"]) for r in (a, b))
+    np.testing.assert_array_equal(pa.loc[pa["step"] == 0, ["x", "y", "heading"]].to_numpy(),
+                                  pb.loc[pb["step"] == 0, ["x", "y", "heading"]].to_numpy())
+
+    def draws(log: list[Any], prefix: tuple[int, ...]) -> list[tuple[Any, str, np.ndarray]]:
+        return [e for e in log if e[0][:len(prefix)] == prefix]
+
+    run = (1,)
+    for stream in (0, 1, 2):                           # truth, init, noise (simulation.STREAMS)
+        da, db = draws(log_a, run + (stream,)), draws(log_b, run + (stream,))
+        assert da, f"no draws recorded from stream {stream}"
+        assert [(k, n) for k, n, _ in da] == [(k, n) for k, n, _ in db]
+        for (_, _, xa), (_, _, xb) in zip(da, db):
+            np.testing.assert_array_equal(xa, xb)
+    noise = draws(log_a, run + (2,))
+    assert len({k for k, _, _ in noise}) == len(study.scenario.sensors)   # one per sensor
+    assert all(x.shape == (study.steps, 2) for _, _, x in noise)         # every step drawn
+    other = draws(log_c, (2, 2))
+    assert not np.array_equal(noise[0][2], other[0][2])
+
+
+# ---------------------------------------------------------------------- determinism
+
+
+@pytest.fixture(scope="module")
+def serial_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("serial") / "study"
+    res = ex.run_study(tiny_study(), out, workers=1)
+    assert res.ran == res.total == 9
+    return out
+
+
+def test_same_tables_with_2_workers_and_dask(serial_dir: Path, tmp_path: Path) -> None:
+    study = tiny_study()
+    ex.run_study(study, tmp_path / "pool", workers=2)
+    assert_same_tables(serial_dir, tmp_path / "pool")
+    ex.run_study(study, tmp_path / "dask", workers=2, scheduler="local", processes=False)
+    assert_same_tables(serial_dir, tmp_path / "dask")
+    meta = json.loads((tmp_path / "dask" / "meta.json").read_text())
+    assert meta["complete"] and meta["sessions"][-1]["executor"].startswith("dask local")
+
+
+def test_tables_have_every_row_once(serial_dir: Path) -> None:
+    t = ex.load_study_dir(serial_dir)
+    study = t.study
+    M, N = len(study.scenario.targets), len(study.scenario.sensors)
+    n_methods = len(study.methods)
+    assert len(t.steps) == study.runs * n_methods * (study.steps + 1) * M
+    assert not t.steps.duplicated(["run", "method", "step", "target"]).any()
+    assert len(t.sensors) == study.runs * n_methods * (study.steps + 1) * N
+    # e = 2: OLF decides every 2 steps.
+    assert len(t.decisions) == study.runs * n_methods * study.steps // 2
+    kinds = t.steps.drop_duplicates("target").sort_values("target")["kind"].astype(str)
+    assert list(kinds) == list(study.scenario.target_kinds)
+    # Columns are what the episode recorded: error is |p_true - p_est|.
+    np.testing.assert_allclose(np.hypot(t.steps["x"] - t.steps["x_est"],
+                                        t.steps["y"] - t.steps["y_est"]), t.steps["error"])
+    conv = t.decisions.groupby("method", observed=True)["converged"].apply(
+        lambda s: s.isna().all())
+    assert conv["ours/random"] and not conv["ours/myopic"]
+
+
+def test_finished_study_is_not_recomputed(serial_dir: Path) -> None:
+    parts = sorted((serial_dir / "parts").rglob("*.parquet"))
+    before = {p: p.stat().st_mtime_ns for p in parts}
+    table = (serial_dir / "steps.parquet").stat().st_mtime_ns
+    res = ex.run_study(tiny_study(), serial_dir, workers=2)
+    assert res.ran == 0
+    assert {p: p.stat().st_mtime_ns for p in parts} == before
+    assert (serial_dir / "steps.parquet").stat().st_mtime_ns == table
+
+
+def test_changed_study_in_existing_dir_is_an_error(serial_dir: Path) -> None:
+    changed = tiny_study(TINY.replace("runs = 3", "runs = 4").replace("horizon = 2",
+                                                                      "horizon = 3"))
+    with pytest.raises(ConfigError) as info:
+        ex.run_study(changed, serial_dir, workers=1)
+    assert info.value.field == "--out"
+    assert "different study" in info.value.message
+    assert "runs (3 -> 4)" in info.value.message
+    assert "methods[2].horizon (2 -> 3)" in info.value.message
+    # A new description alone does not change the results: allowed.
+    same = tiny_study('description = "renamed"\n' + TINY)
+    assert ex.run_study(same, serial_dir, workers=1).ran == 0
+
+
+def test_non_study_directory_is_refused(tmp_path: Path) -> None:
+    (tmp_path / "something.txt").write_text("x")
+    with pytest.raises(ConfigError, match="not a study directory"):
+        ex.run_study(tiny_study(), tmp_path, workers=1)
+
+
+# --------------------------------------------------------------------------- resume
+
+
+def _study_cmd(study_file: Path, out: Path, workers: int) -> list[str]:
+    return [sys.executable, "-m", "sensorplan", "study", str(study_file), "--out", str(out),
+            "--workers", str(workers)]
+
+
+def test_resume_after_sigkill_gives_the_uninterrupted_tables(tmp_path: Path) -> None:
+    text = TINY.replace("runs = 3", "runs = 4").replace("steps = 14", "steps = 20")
+    study_file = tmp_path / "study.toml"
+    study_file.write_text(text)
+    study = load_study(study_file)
+    out = tmp_path / "killed"
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen(_study_cmd(study_file, out, 2), stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True, env=env)
+    try:
+        deadline = time.monotonic() + 120
+        while not (out.exists() and ex.done_tasks(out, study)):
+            assert proc.poll() is None, "the study ended before it could be killed"
+            assert time.monotonic() < deadline, "no (run, method) finished in 120 s"
+            time.sleep(0.01)
+    finally:
+        # The whole process group: the study and its pool workers.
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
+    done = ex.done_tasks(out, study)
+    total = len(study.tasks())
+    assert 0 < len(done) < total, "killed too late to test resuming"
+    assert not (out / "steps.parquet").exists()
+    assert not json.loads((out / "meta.json").read_text())["complete"]
+
+    res = subprocess.run(_study_cmd(study_file, out, 2), capture_output=True, text=True,
+                         timeout=300)
+    assert res.returncode == 0, res.stderr
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["complete"]
+    last = meta["sessions"][-1]
+    assert last["tasks_before"] == len(done)
+    assert last["tasks_run"] == total - len(done)         # only what was missing
+
+    ref = tmp_path / "uninterrupted"
+    ex.run_study(study, ref, workers=1)
+    assert_same_tables(ref, out)
+    t = ex.load_study_dir(out)
+    assert not t.steps.duplicated(["run", "method", "step", "target"]).any()
+    assert sorted(t.steps["run"].unique()) == list(range(study.runs))
+    assert not list(out.rglob(".*.tmp*"))
+
+
+# ----------------------------------------------------------------------- statistics
+
+
+@pytest.mark.parametrize("n", [2, 3, 7, 30, 101])
+def test_t_interval_matches_scipy(n: int) -> None:
+    x = np.random.default_rng(n).gamma(2.0, 10.0, size=n)
+    mean, lo, hi = ex.t_interval(x)
+    ref = stats.t.interval(0.95, n - 1, loc=np.mean(x), scale=stats.sem(x))
+    np.testing.assert_allclose([lo, hi], ref, rtol=1e-12)
+    np.testing.assert_allclose(mean, np.mean(x), rtol=1e-14)
+    lo90, hi90 = ex.t_interval(x, level=0.9)[1:]
+    np.testing.assert_allclose([lo90, hi90], stats.t.interval(0.9, n - 1, loc=np.mean(x),
+                                                              scale=stats.sem(x)), rtol=1e-12)
+
+
+def test_t_interval_along_an_axis_with_nans() -> None:
+    a = np.random.default_rng(0).normal(size=(12, 5))
+    a[3, 1] = np.nan
+    mean, lo, hi = ex.t_interval(a, axis=0)
+    for j in range(5):
+        col = a[:, j][~np.isnan(a[:, j])]
+        ref = stats.t.interval(0.95, col.size - 1, loc=col.mean(), scale=stats.sem(col))
+        np.testing.assert_allclose([mean[j], lo[j], hi[j]], [col.mean(), *ref], rtol=1e-12)
+    m1, lo1, hi1 = ex.t_interval([4.0])
+    assert m1 == 4.0 and np.isnan(lo1) and np.isnan(hi1)
+
+
+@pytest.mark.parametrize("n", [6, 10, 25, 100])
+def test_median_interval_is_the_binomial_order_statistic_interval(n: int) -> None:
+    x = np.random.default_rng(n).normal(size=n)
+    med, lo, hi = ex.median_interval(x)
+    xs = np.sort(x)
+    assert med == np.median(x)
+    # l is the largest rank whose interval [x_(l), x_(n-l+1)] still has coverage >= 95 %.
+    cover = [1 - 2 * stats.binom.cdf(k - 1, n, 0.5) for k in range(1, n // 2 + 1)]
+    ell = max(k for k, c in enumerate(cover, start=1) if c >= 0.95)
+    assert (lo, hi) == (xs[ell - 1], xs[n - ell])
+    assert np.isnan(ex.median_interval(x[:5])[1])            # n = 5 cannot reach 95 %
+
+
+def test_run_metrics_and_paired_differences_match_direct_computations(serial_dir: Path) -> None:
+    t = ex.load_study_dir(serial_dir)
+    metrics = ex.run_metrics(t)
+    st = t.steps
+    for (method, run, kind) in [("ours/myopic", 1, "cv"), ("paper/olf", 2, "dubins"),
+                                ("ours/random", 0, "all")]:
+        sel = (st["method"] == method) & (st["run"] == run) & (st["step"] >= 1)
+        if kind != "all":
+            sel &= st["kind"] == kind
+        err = st.loc[sel, "error"].to_numpy()
+        row = metrics[(metrics["method"] == method) & (metrics["run"] == run)
+                      & (metrics["kind"] == kind)]
+        np.testing.assert_allclose(row["rmse"], np.sqrt(np.mean(err ** 2)), rtol=1e-12)
+        np.testing.assert_allclose(row["lost_share"], np.mean(err > ex.LOST_THRESHOLD))
+
+    diffs = ex.paired_differences(metrics, t.study)
+    row = diffs[(diffs["method"] == "ours/myopic") & (diffs["against"] == "random")
+                & (diffs["kind"] == "cv")].iloc[0]
+    assert row["reference"] == "ours/random"
+    a = metrics[(metrics["method"] == "ours/myopic") & (metrics["kind"] == "cv")]
+    b = metrics[(metrics["method"] == "ours/random") & (metrics["kind"] == "cv")]
+    a, b = a.sort_values("run")["rmse"].to_numpy(), b.sort_values("run")["rmse"].to_numpy()
+    ci = stats.ttest_rel(a, b).confidence_interval(0.95)
+    np.testing.assert_allclose([row["mean"], row["mean_lo"], row["mean_hi"]],
+                               [np.mean(a - b), ci.low, ci.high], rtol=1e-10)
+
+    summ = ex.summary(metrics)
+    s = summ[(summ["method"] == "ours/myopic") & (summ["kind"] == "cv")].iloc[0]
+    ref = stats.t.interval(0.95, a.size - 1, loc=a.mean(), scale=stats.sem(a))
+    np.testing.assert_allclose([s["mean_lo"], s["mean_hi"]], ref, rtol=1e-12)
+
+
+def test_rmse_over_time_matches_a_direct_computation(serial_dir: Path) -> None:
+    t = ex.load_study_dir(serial_dir)
+    curves = ex.rmse_over_time(t)
+    st = t.steps
+    step = 9
+    sel = (st["method"] == "paper/olf") & (st["kind"] == "dubins") & (st["step"] == step)
+    per_run = st[sel].groupby("run")["error"].apply(lambda e: np.mean(e ** 2)).to_numpy()
+    row = curves[(curves["method"] == "paper/olf") & (curves["kind"] == "dubins")
+                 & (curves["step"] == step)].iloc[0]
+    lo, hi = stats.t.interval(0.95, per_run.size - 1, loc=per_run.mean(),
+                              scale=stats.sem(per_run))
+    np.testing.assert_allclose([row["rmse"], row["lo"], row["hi"]],
+                               [np.sqrt(per_run.mean()), np.sqrt(max(lo, 0)), np.sqrt(hi)],
+                               rtol=1e-12)
+
+
+def test_references_pair_random_by_tracker_and_myopic_by_objective() -> None:
+    refs = ex.references(load_study(STUDIES / "paper.toml"))
+    assert refs["paper/olf"] == {"myopic": "paper/myopic", "random": "paper/random"}
+    assert refs["paper/ol"] == {"myopic": "paper/myopic", "random": "paper/random"}
+    assert refs["ours/olf-pg-refine"] == {"myopic": "ours/myopic", "random": "ours/random"}
+    assert refs["ours/myopic"] == {"myopic": None, "random": "ours/random"}
+    assert refs["ours/random"] == {"myopic": None, "random": None}
+
+
+# ---------------------------------------------------------------------- study files
+
+
+def _settings(study: ex.Study) -> dict[str, tuple[Any, ...]]:
+    return {m.name: (m.settings.planner, m.settings.horizon, m.settings.steps_per_epoch,
+                     m.settings.execution, m.settings.visibility, m.settings.miss_update,
+                     m.settings.objective) for m in study.methods}
+
+
+def test_paper_study_is_the_issue_6_list() -> None:
+    study = load_study(STUDIES / "paper.toml")
+    assert (study.runs, study.steps) == (100, 100)
+    assert study.scenario == load_study(STUDIES / "demo.toml").scenario
+    t = "terminal"
+    assert _settings(study) == {
+        "paper/myopic": ("pg", 1, 2, "olf", "mean", "none", t),
+        "paper/ol": ("pg", 3, 2, "ol", "mean", "none", t),
+        "paper/olf": ("pg", 3, 2, "olf", "mean", "none", t),
+        "paper/random": ("random", 1, 2, "olf", "mean", "none", t),
+        "ours/myopic": ("pg", 1, 2, "olf", "probabilistic", "negative", t),
+        "ours/olf-pg": ("pg", 3, 2, "olf", "probabilistic", "negative", t),
+        "ours/olf-pg-refine": ("pg-refine", 3, 2, "olf", "probabilistic", "negative", t),
+        "ours/olf-sequential-greedy": ("sequential-greedy", 3, 2, "olf", "probabilistic",
+                                       "negative", t),
+        "ours/random": ("random", 1, 2, "olf", "probabilistic", "negative", t),
+    }
+
+
+def test_horizon_study_runs_k_1_to_6_on_the_paper_runs() -> None:
+    horizon = load_study(STUDIES / "horizon.toml")
+    paper = load_study(STUDIES / "paper.toml")
+    assert (horizon.seed, horizon.runs, horizon.steps) == (paper.seed, paper.runs, paper.steps)
+    ks = [m.settings.horizon for m in horizon.methods if m.settings.planner == "pg"]
+    assert ks == [1, 2, 3, 4, 5, 6]
+    assert {(m.settings.execution, m.settings.visibility, m.settings.miss_update)
+            for m in horizon.methods} == {("olf", "probabilistic", "negative")}
+    assert [[m.settings.horizon for m in g] for g in ex.horizon_groups(horizon)] == \
+        [[1, 2, 3, 4, 5, 6]]
+
+
+def test_demo_file_is_the_built_in_demo() -> None:
+    assert (STUDIES / "demo.toml").read_text() == ex.DEMO_STUDY
+    demo = ex.demo_study()
+    assert demo.resolved() == load_study(STUDIES / "demo.toml").resolved()
+    assert {m.settings.miss_update for m in demo.methods} == {"negative"}
+    assert {m.settings.visibility for m in demo.methods} == {"probabilistic"}
+
+
+def test_resolved_config_round_trips(tmp_path: Path) -> None:
+    study = load_study(STUDIES / "paper.toml")
+    data = json.loads(json.dumps(study.resolved()))
+    again = ex.Study.from_resolved(data)
+    assert again.resolved() == study.resolved()
+    assert again.scenario == study.scenario
+    assert scenario_from_dict(scenario_to_dict(study.scenario)) == study.scenario
+    # Every planner setting is filled with the planner's default.
+    assert data["methods"][0]["planner_params"] == {"alpha": 0.3, "beta": 0.95,
+                                                    "max_inner": 50, "max_outer": 10}
+
+
+def test_defaults_table_and_scenario_file(tmp_path: Path) -> None:
+    (tmp_path / "sc.toml").write_text(
+        '[[targets]]\nkind = "dubins"\n[[sensors]]\naltitude = 400.0\n'
+        '[tracker]\nmiss_update = "none"\n')
+    study = study_from_dict({
+        "runs": 2, "steps": 5, "scenario": {"file": "sc.toml"},
+        "defaults": {"planner": "pg", "horizon": 2, "planner_params": {"alpha": 0.5}},
+        "methods": [{"name": "a"}, {"name": "b", "horizon": 1,
+                                    "planner_params": {"max_outer": 3}}]},
+        base_dir=tmp_path)
+    a, b = study.methods
+    assert (a.settings.planner, a.settings.horizon, b.settings.horizon) == ("pg", 2, 1)
+    assert a.settings.planner_params["alpha"] == 0.5
+    assert (b.settings.planner_params["alpha"], b.settings.planner_params["max_outer"]) == \
+        (0.5, 3)
+    assert a.settings.miss_update == "none"              # the scenario file's tracker
+    assert study.scenario.target_kinds == ("dubins",)
+
+
+def test_a_planner_refusing_in_a_worker_names_the_method_field(tmp_path: Path) -> None:
+    study = tiny_study("""
+runs = 2
+steps = 4
+[[methods]]
+name = "exhaustive"
+planner = "brute-force"
+horizon = 2
+planner_params = { max_plans = 10 }
+""")
+    with pytest.raises(ConfigError) as info:
+        ex.run_study(study, tmp_path / "bf", workers=2)
+    assert info.value.field == "methods[0].planner_params.max_plans"
+    assert "exhaustive" in info.value.message
+
+
+@pytest.mark.xfail(strict=True, reason="bug in errors.py: ConfigError(field, message) does "
+                   "not survive pickling (its args hold one string), so it cannot cross a "
+                   "process boundary; experiments wraps it meanwhile")
+def test_config_error_pickles() -> None:
+    # In a fresh interpreter: importing distributed (tblib) changes how exceptions pickle.
+    code = ("import pickle; from sensorplan.errors import ConfigError; "
+            "e = pickle.loads(pickle.dumps(ConfigError('a.b', 'bad'))); "
+            "assert (e.field, e.message) == ('a.b', 'bad')")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
