@@ -470,9 +470,6 @@ planner_params = { max_plans = 10 }
     assert "exhaustive" in info.value.message
 
 
-@pytest.mark.xfail(strict=True, reason="bug in errors.py: ConfigError(field, message) does "
-                   "not survive pickling (its args hold one string), so it cannot cross a "
-                   "process boundary; experiments wraps it meanwhile")
 def test_config_error_pickles() -> None:
     # In a fresh interpreter: importing distributed (tblib) changes how exceptions pickle.
     code = ("import pickle; from sensorplan.errors import ConfigError; "

@@ -18,3 +18,7 @@ class ConfigError(ValueError):
         self.field = field
         self.message = message
         super().__init__(f"{field}: {message}")
+
+    def __reduce__(self) -> tuple[type, tuple[str, str]]:
+        # Rebuild from (field, message) so the error crosses process boundaries intact.
+        return (type(self), (self.field, self.message))
