@@ -8,7 +8,8 @@
    in K (least squares of log time on log K over K >= 2), and ``pg-refine`` / ``pg``.
 2. The same K = 3 decisions with the pure-numpy backend (does numba pay off?).
 3. Scale: N = 20, M = 50, K = 10 on a 2,000 m map, one ``pg`` decision, time and memory.
-4. Quality on 200 random tiny problems against the exact optimum (``brute-force``).
+4. Exhaustive search against the game as K grows (SPEC 6 claim 3).
+5. Quality on 200 random tiny problems against the exact optimum (``brute-force``).
 
 CPU time (``time.process_time``) is reported beside wall time because the machines are
 shared: the medians of both are printed, ratios are computed in the same run.
@@ -145,6 +146,38 @@ def scale() -> None:
           f"CPU {time.process_time() - c0:.2f} s")
 
 
+def exhaustive_growth(kmax: int = 4) -> None:
+    """SPEC 6 claim 3: exhaustive search grows exponentially in K, the game polynomially."""
+    from factories import joint_plan_count
+    states = paper_states(3)
+    print("\n## Exhaustive search vs the game in K (one sensor, M = 3, e = 2; "
+          "median of 3 paper-scenario states)")
+    print("| K | joint plans | brute-force CPU s | pg CPU s | pg Phi / optimum "
+          "| pg-refine Phi / optimum |")
+    print("|---|---|---|---|---|---|")
+    for K in range(1, kmax + 1):
+        problems = [PlanningProblem(means=s["means"][:3], covs=s["covs"][:3],
+                                    positions=s["positions"][:1], headings=s["headings"][:1],
+                                    sensors=s["sensors"][:1], horizon=K, steps_per_epoch=2)
+                    for s in states]
+        bf, pg, ratio, ratio_rf = [], [], [], []
+        for p in problems:
+            c0 = time.process_time()
+            best = make_planner("brute-force", max_plans=10**8).plan(p)
+            bf.append(time.process_time() - c0)
+            c0 = time.process_time()
+            r = make_planner("pg").plan(p)
+            pg.append(time.process_time() - c0)
+            ratio.append(r.potential / best.potential if best.potential > 0 else 1.0)
+            rf = make_planner("pg-refine").plan(p)
+            ratio_rf.append(rf.potential / best.potential if best.potential > 0 else 1.0)
+        print(f"| {K} | {joint_plan_count(problems[0]):,} | {np.median(bf):.3f} | "
+              f"{np.median(pg):.4f} | {np.mean(ratio):.3f} | {np.mean(ratio_rf):.3f} |")
+    full = [PlanningProblem(horizon=K, steps_per_epoch=2, **states[0]) for K in range(1, 9)]
+    print("Joint plans of the paper problem (N = 3, M = 5): " + ", ".join(
+        f"K={p.horizon}: {float(joint_plan_count(p)):.2e}" for p in full))
+
+
 def quality(n: int) -> None:
     from factories import tiny_problem
     rng = np.random.default_rng(2024)
@@ -181,6 +214,7 @@ def main() -> None:
     backend_comparison(args)
     if not args.quick:
         scale()
+        exhaustive_growth()
     quality(args.quality)
 
 
