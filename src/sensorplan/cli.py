@@ -24,7 +24,7 @@ from .planners import PLANNERS
 _PLANNER_NAMES = ", ".join(sorted(PLANNERS))
 #: RunSettings' defaults, for help texts only (importing the simulator here would slow every
 #: command down); a test checks that they agree with sensorplan.simulation.RunSettings.
-RUN_DEFAULTS = {"planner": "random", "horizon": 1, "steps_per_epoch": 1, "execution": "olf",
+RUN_DEFAULTS = {"planner": "pg", "horizon": 1, "steps_per_epoch": 1, "execution": "olf",
                 "steps": 100, "visibility": "probabilistic", "objective": "terminal"}
 
 app = typer.Typer(

@@ -87,7 +87,7 @@ class RunSettings:
         Tracker option (SPEC 3); None uses the scenario's.
     """
 
-    planner: str = "random"
+    planner: str = "pg"
     planner_params: Mapping[str, Any] = field(default_factory=dict)
     horizon: int = 1
     steps_per_epoch: int = 1
