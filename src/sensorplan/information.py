@@ -32,6 +32,15 @@ from .sensors import (ANGLE_TOL, P_VIS_MIN, RANGE_TOL, SensorParams, cos_boresig
 BACKEND = os.environ.get("SENSORPLAN_BACKEND", "numba")
 
 
+def _c(a: np.ndarray, dtype: type = np.float64) -> np.ndarray:
+    """A writable C-contiguous array: one compiled specialisation per kernel, not one per
+    memory layout or read-only flag (each new one costs a compilation at first use)."""
+    a = np.asarray(a, dtype=dtype)
+    if a.flags.c_contiguous and a.flags.writeable:
+        return a
+    return np.array(a, dtype=dtype, order="C")
+
+
 @dataclass(frozen=True)
 class Context:
     """Per-decision precomputation shared by :func:`potential` and the planners.
@@ -98,7 +107,7 @@ def prepare(problem: PlanningProblem) -> Context:
     xbar = predict_means(problem.means, F, T)
     Pbar = predict_covariances(problem.covs, F, Q, T)
     ld_bar = np.linalg.slogdet(Pbar)[1]
-    aim = xbar[:, (np.arange(1, K + 1) - 1) * e + 1, :2]
+    aim = np.ascontiguousarray(xbar[:, (np.arange(1, K + 1) - 1) * e + 1, :2])
     lattices = [build_lattice(problem.positions[i], move_vectors(s.moves), K, problem.world)
                 for i, s in enumerate(problem.sensors)]
     Cbar = np.stack([Pbar[..., 0, 0], Pbar[..., 0, 1], Pbar[..., 1, 1]], axis=-1)
@@ -186,7 +195,7 @@ def chain_looks(ctx: Context, i: int, k_first: int, positions: FloatArray, targe
         return th, W, counted
     p = ctx.sensor(i)
     th, W, weight = chain_looks_nb(
-        np.ascontiguousarray(positions, dtype=float), np.ascontiguousarray(targets),
+        _c(positions), _c(targets, np.int64),
         k_first, ctx.e, float(prev_heading), bool(prev_assigned),
         float(ctx.problem.headings[i]), float(p.max_turn), ctx.aim, ctx.xbar_xy, ctx.Cbar,
         ctx.problem.visibility == "probabilistic", float(p.altitude), float(p.depression),
@@ -342,8 +351,7 @@ def covariance_recursion(P: FloatArray, W: FloatArray, F: FloatArray, Q: FloatAr
     """
     if BACKEND == "numpy":
         return covariance_recursion_numpy(P, W, F, Q)
-    return covariance_recursion_nb(np.ascontiguousarray(P, dtype=float),
-                                   np.ascontiguousarray(W, dtype=float), F, Q, need_sum)
+    return covariance_recursion_nb(_c(P), _c(W), F, Q, need_sum)
 
 
 def covariance_recursion_numpy(P: FloatArray, W: FloatArray, F: FloatArray,
@@ -436,7 +444,7 @@ def sum_by_target(ctx: Context, W: FloatArray, targets: IntArray) -> FloatArray:
         for s in range(ctx.e):
             np.add.at(out, (targets[n, k], k * ctx.e + s), W[n, k, s])
         return out
-    return sum_by_target_nb(W, np.ascontiguousarray(targets, dtype=np.int64), ctx.M)
+    return sum_by_target_nb(_c(W), _c(targets, np.int64), ctx.M)
 
 
 def evaluate(ctx: Context, plan: Plan) -> PlanEvaluation:
