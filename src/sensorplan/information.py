@@ -351,7 +351,16 @@ def covariance_recursion(P: FloatArray, W: FloatArray, F: FloatArray, Q: FloatAr
     """
     if BACKEND == "numpy":
         return covariance_recursion_numpy(P, W, F, Q)
-    return covariance_recursion_nb(_c(P), _c(W), F, Q, need_sum)
+    key = F.tobytes()
+    if key not in _CV_FORM:
+        dt = float(F[0, 2])
+        _CV_FORM[key] = (bool(np.array_equal(F, cv_matrices(dt, 0.0)[0])), dt)
+    cv, dt = _CV_FORM[key]
+    return covariance_recursion_nb(_c(P), _c(W), F, Q, need_sum, cv, dt)
+
+
+#: Whether a transition matrix (by its bytes) is the CWNA ``F(dt)``, and its ``dt``.
+_CV_FORM: dict[bytes, tuple[bool, float]] = {}
 
 
 def covariance_recursion_numpy(P: FloatArray, W: FloatArray, F: FloatArray,

@@ -93,6 +93,37 @@ def _position_keys(offsets: FloatArray) -> np.ndarray:
     return np.ascontiguousarray(q).view(np.dtype((np.void, 16))).ravel()
 
 
+def _common_step(moves: FloatArray) -> int:
+    """Largest step (in 1e-6 m units) of which every move component is a multiple; 0 if none."""
+    q = np.rint(np.abs(moves) / POSITION_TOL).astype(np.int64).ravel()
+    if not np.allclose(q * POSITION_TOL, np.abs(moves).ravel(), rtol=0, atol=1e-9):
+        return 0
+    return int(np.gcd.reduce(q[q > 0])) if np.any(q > 0) else 0
+
+
+def _first_occurrences(offsets: FloatArray, grid: int) -> tuple[IntArray, IntArray]:
+    """Index of each distinct offset's first occurrence, and each offset's distinct index.
+
+    With a common move step the offsets are points of a small integer grid and a dense
+    table finds duplicates in linear time; otherwise a sort (``np.unique``) does.
+    """
+    if grid > 0 and len(offsets):
+        g = np.rint(offsets / (grid * POSITION_TOL)).astype(np.int64)
+        lo = g.min(axis=0)
+        span = g.max(axis=0) - lo + 1
+        if int(span[0]) * int(span[1]) <= 4 * len(offsets) + 1_000_000:
+            cell = (g[:, 0] - lo[0]) * span[1] + (g[:, 1] - lo[1])
+            first_at = np.full(int(span[0]) * int(span[1]), len(offsets), dtype=np.int64)
+            np.minimum.at(first_at, cell, np.arange(len(offsets)))
+            cells = np.flatnonzero(first_at < len(offsets))
+            index = np.full(first_at.size, -1, dtype=np.int64)
+            index[cells] = np.arange(cells.size)
+            return first_at[cells], index[cell]
+    _, first, inverse = np.unique(_position_keys(offsets), return_index=True,
+                                  return_inverse=True)
+    return first, inverse.ravel()
+
+
 def build_lattice(p0: FloatArray, moves: FloatArray, K: int, world: MapRect) -> Lattice:
     """Reachable sets ``R_k = {p + m : p in R_{k-1}, m a move, inside the map}``, k = 0..K."""
     p0 = np.asarray(p0, dtype=float)
@@ -100,19 +131,19 @@ def build_lattice(p0: FloatArray, moves: FloatArray, K: int, world: MapRect) -> 
     parent_move = [np.full((1, len(moves)), -1, dtype=np.int64)]
     child: list[IntArray] = [np.zeros((0, len(moves)), dtype=np.int64)]
     n_moves = len(moves)
+    grid = _common_step(moves)
     for _ in range(1, K + 1):
         prev = positions[-1]
         cand = (prev[:, None, :] + moves[None, :, :]).reshape(-1, 2)    # (n_prev * n_moves, 2)
         inside = np.flatnonzero(world.contains(cand))
         # Same position <=> same offset from p0 on a 1e-6 m grid; keep first-seen order.
-        _, first, inverse = np.unique(_position_keys(cand[inside] - p0), return_index=True,
-                                      return_inverse=True)
+        first, inverse = _first_occurrences(cand[inside] - p0, grid)
         order = np.argsort(first, kind="stable")
         rank = np.empty_like(order)
         rank[order] = np.arange(len(order))
         pos = cand[inside[first[order]]]
         ch = np.full(len(prev) * n_moves, -1, dtype=np.int64)
-        ch[inside] = rank[inverse.ravel()]
+        ch[inside] = rank[inverse]
         ch = ch.reshape(len(prev), n_moves)
         pm = np.full((len(pos), n_moves), -1, dtype=np.int64)
         qs, ms = np.nonzero(ch >= 0)

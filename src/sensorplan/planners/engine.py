@@ -293,10 +293,10 @@ class GameState:
             kk = k0 + l
             pos_xy[:, l] = self.xy(i, kk, self.pos[i, kk - 1])
             tgt[:, l] = self.tgt[i, kk - 1]
-        W_chain = chain_looks(ctx, i, k0, pos_xy, tgt, prev, prev_ok,
-                              all_headings=False)[1]                     # (C, Lf, e, 2, 2)
+        _, W_chain, counted = chain_looks(ctx, i, k0, pos_xy, tgt, prev, prev_ok,
+                                          all_headings=False)            # (C, Lf, e, 2, 2)
         # A look that does not count adds nothing: its target keeps its baseline term.
-        counts = np.any(W_chain != 0.0, axis=(2, 3, 4))                  # (C, Lf)
+        counts = counted.any(axis=2)                                      # (C, Lf)
         c_idx, l_idx = np.nonzero(counts)
         if Lf == 1:                     # one look per candidate: pairs are already unique
             c_pair, j_pair = c_idx, tgt[c_idx, 0]

@@ -54,14 +54,15 @@ def current_index(state: GameState, i: int, k: int, pos: IntArray, tgt: IntArray
     return int(hit[0]) if hit.size else -1
 
 
-def _relevant(contributing: IntArray, u: FloatArray, current: int) -> IntArray:
+def _relevant(contributing: IntArray, n: int, current: int) -> IntArray:
     """Indices to keep: every action with a counting look, the first without, the current."""
-    zero = np.ones(len(u), dtype=bool)
-    zero[contributing] = False
-    extra = [int(np.argmax(zero))] if zero.any() else []
+    keep = np.zeros(n, dtype=bool)
+    keep[contributing] = True
+    if not keep.all():
+        keep[int(np.argmin(keep))] = True
     if current >= 0:
-        extra.append(current)
-    return np.union1d(contributing, np.array(extra, dtype=np.int64))
+        keep[current] = True
+    return np.flatnonzero(keep)
 
 
 def is_best(values: FloatArray, current: int, scale: float) -> bool:
@@ -90,13 +91,13 @@ def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float,
         u = [state.chain_gains(i, k, actions[i][0][:, None], actions[i][1][:, None])[0]
              for i in range(N)]
         scale = abs(state.potential())
-        cur = [current_index(state, i, k, *actions[i]) for i in range(N)]
         if t == 1:
+            cur = [current_index(state, i, k, *actions[i]) for i in range(N)]
             # Actions whose looks never count have utility 0 whatever the others do; only
             # the first of them in tie order (and the current action) can ever be chosen,
             # so the game is played on the rest: same decisions, far fewer candidates.
             for i in range(N):
-                keep = _relevant(state.contributing(i, k), u[i], cur[i])
+                keep = _relevant(state.contributing(i, k), len(u[i]), cur[i])
                 actions[i] = (actions[i][0][keep], actions[i][1][keep])
                 state.restrict(i, k, keep, actions[i][0][:, None], actions[i][1][:, None])
                 u[i] = u[i][keep]
@@ -113,6 +114,7 @@ def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float,
             best = choose(ubar[i], cur[i], scale)
             if best != cur[i] and (cur[i] < 0 or switch[i]):
                 state.set_action(i, k, int(actions[i][0][best]), int(actions[i][1][best]))
+                cur[i] = best                  # only this loop changes epoch k's actions
         if rng.random() >= beta:                        # stop w.p. 1 - beta
             return
 
