@@ -369,3 +369,24 @@ class TestTracking:
         # Every call touches distinct tracks.
         for m, *_ in calls:
             assert len({tuple(r) for r in m}) == len(m)
+
+
+def test_none_reproduces_a_tracker_without_the_feature(monkeypatch):
+    """``miss_update = "none"`` never touches the missed-look code and gives exactly the
+    tracks of a tracker whose miss update is a no-op (the feature removed)."""
+    import sensorplan.simulation as sim
+
+    def forbidden():
+        raise AssertionError("the miss-update kernel was requested with miss_update='none'")
+
+    monkeypatch.setattr(sim, "_miss_update_kernel", forbidden)
+    off = run_episode(paper("none"), settings(steps=40), 21)
+    assert off.missed.any()                       # there were misses to learn from
+
+    def identity(means, covs, sensor_xy, heading, params):
+        return np.array(means), np.array(covs), np.zeros(len(means), dtype=bool)
+
+    monkeypatch.setattr(sim, "_miss_update_kernel", lambda: identity)
+    noop = run_episode(paper("negative"), settings(steps=40), 21)
+    for name in ("truth", "estimate", "cov", "error", "measured", "looked", "missed"):
+        np.testing.assert_array_equal(getattr(off, name), getattr(noop, name), err_msg=name)

@@ -37,6 +37,64 @@ def _logdet4(P: np.ndarray) -> float:
     return 2.0 * total
 
 
+@njit(cache=True)
+def _joseph_update(P: np.ndarray, w00: float, w01: float, w11: float, det_w: float,
+                   K: np.ndarray, AP: np.ndarray) -> None:
+    """In place: update P with position information W in Joseph form.
+
+    With R = W^-1 (the equivalent measurement noise), K = P G^T (G P G^T + R)^-1 and
+    P+ = (I - K G) P (I - K G)^T + K R K^T: a sum of PSD terms, accurate also when W C is
+    large (the subtractive form loses digits there and the log-det with them).
+    """
+    r00, r01, r11 = w11 / det_w, -w01 / det_w, w00 / det_w
+    s00, s01, s11 = P[0, 0] + r00, P[0, 1] + r01, P[1, 1] + r11
+    det_s = s00 * s11 - s01 * s01
+    i00, i01, i11 = s11 / det_s, -s01 / det_s, s00 / det_s
+    for r in range(4):
+        K[r, 0] = P[r, 0] * i00 + P[r, 1] * i01
+        K[r, 1] = P[r, 0] * i01 + P[r, 1] * i11
+    for r in range(4):
+        for c in range(4):
+            AP[r, c] = P[r, c] - K[r, 0] * P[0, c] - K[r, 1] * P[1, c]
+    for r in range(4):
+        for c in range(r, 4):
+            v = AP[r, c] - AP[r, 0] * K[c, 0] - AP[r, 1] * K[c, 1]
+            v += (K[r, 0] * (r00 * K[c, 0] + r01 * K[c, 1])
+                  + K[r, 1] * (r01 * K[c, 0] + r11 * K[c, 1]))
+            P[r, c] = v
+    for r in range(4):
+        for c in range(r):
+            P[r, c] = P[c, r]
+
+
+@njit(cache=True)
+def _woodbury_update(P: np.ndarray, w00: float, w01: float, w11: float,
+                     Pc: np.ndarray) -> None:
+    """In place: P - P G^T (I + W C)^-1 W G P, for a singular W (no R = W^-1 exists)."""
+    c00, c01, c11 = P[0, 0], P[0, 1], P[1, 1]
+    # A = I + W C ; S = A^{-1} W (2x2 adjugate), det(A) >= 1
+    a00 = 1.0 + w00 * c00 + w01 * c01
+    a01 = w00 * c01 + w01 * c11
+    a10 = w01 * c00 + w11 * c01
+    a11 = 1.0 + w01 * c01 + w11 * c11
+    det = a00 * a11 - a01 * a10
+    s00 = (a11 * w00 - a01 * w01) / det
+    s01 = (a11 * w01 - a01 * w11) / det
+    s10 = (-a10 * w00 + a00 * w01) / det
+    s11 = (-a10 * w01 + a00 * w11) / det
+    s01 = 0.5 * (s01 + s10)
+    for r in range(4):
+        Pc[r, 0] = P[r, 0]
+        Pc[r, 1] = P[r, 1]
+    for r in range(4):
+        x0 = Pc[r, 0] * s00 + Pc[r, 1] * s01
+        x1 = Pc[r, 0] * s01 + Pc[r, 1] * s11
+        for c in range(r, 4):
+            v = P[r, c] - (x0 * Pc[c, 0] + x1 * Pc[c, 1])
+            P[r, c] = v
+            P[c, r] = v
+
+
 @njit(cache=True, fastmath=False)
 def covariance_recursion_nb(P0: np.ndarray, W: np.ndarray, F: np.ndarray, Q: np.ndarray,
                             need_sum: bool, cv: bool,
@@ -93,28 +151,11 @@ def covariance_recursion_nb(P0: np.ndarray, W: np.ndarray, F: np.ndarray, Q: np.
             w01 = W[b, t, 0, 1]
             w11 = W[b, t, 1, 1]
             if w00 != 0.0 or w01 != 0.0 or w11 != 0.0:
-                c00, c01, c11 = P[0, 0], P[0, 1], P[1, 1]
-                # A = I + W C ; S = A^{-1} W (2x2 adjugate), det(A) >= 1
-                a00 = 1.0 + w00 * c00 + w01 * c01
-                a01 = w00 * c01 + w01 * c11
-                a10 = w01 * c00 + w11 * c01
-                a11 = 1.0 + w01 * c01 + w11 * c11
-                det = a00 * a11 - a01 * a10
-                s00 = (a11 * w00 - a01 * w01) / det
-                s01 = (a11 * w01 - a01 * w11) / det
-                s10 = (-a10 * w00 + a00 * w01) / det
-                s11 = (-a10 * w01 + a00 * w11) / det
-                s01 = 0.5 * (s01 + s10)
-                for r in range(4):
-                    Pc[r, 0] = P[r, 0]
-                    Pc[r, 1] = P[r, 1]
-                for r in range(4):
-                    x0 = Pc[r, 0] * s00 + Pc[r, 1] * s01
-                    x1 = Pc[r, 0] * s01 + Pc[r, 1] * s11
-                    for c in range(r, 4):
-                        v = P[r, c] - (x0 * Pc[c, 0] + x1 * Pc[c, 1])
-                        P[r, c] = v
-                        P[c, r] = v
+                det_w = w00 * w11 - w01 * w01
+                if det_w > 1e-12 * (w00 + w11) ** 2:     # information.JOSEPH_MIN_DET
+                    _joseph_update(P, w00, w01, w11, det_w, Pc, FP)
+                else:
+                    _woodbury_update(P, w00, w01, w11, Pc)
             if need_sum:
                 ld_sum[b] += _logdet4(P)
         for r in range(4):
@@ -134,6 +175,17 @@ def _interval(lo: float, hi: float, sd: float) -> float:
     if sd > 0.0:
         return _ncdf(hi / sd) - _ncdf(lo / sd)
     return 1.0 if (lo <= 0.0 and hi >= 0.0) else 0.0
+
+
+@njit(cache=True)
+def _range_mass(g: float, sd: float, gmin: float, gmax: float) -> float:
+    """Probability that the ground range N(g, sd^2) lies in [gmin, gmax]."""
+    # More than 6 sd outside the band the mass is below Ncdf(-6) ~ 1e-9, far below the 1e-6
+    # threshold of a look that counts: skip the two erfc calls (most looks of a large
+    # candidate set are far out of range).
+    if sd > 0.0 and (g > gmax + 6.0 * sd or g < gmin - 6.0 * sd):
+        return 0.0
+    return _interval(gmin - g, gmax - g, sd)
 
 
 @njit(cache=True)
@@ -159,7 +211,7 @@ def _look(x: float, y: float, h: float, c00: float, c01: float, c11: float,
     p_range = 1.0
     if probabilistic:
         var_g = ux * ux * c00 + 2.0 * ux * uy * c01 + uy * uy * c11
-        p_range = _interval(gmin - g, gmax - g, math.sqrt(max(var_g, 0.0)))
+        p_range = _range_mass(g, math.sqrt(max(var_g, 0.0)), gmin, gmax)
         if p_range < p_min:
             return 0.0, 0.0, 0.0, 0.0
     elif g < gmin - range_tol or g > gmax + range_tol:
@@ -230,7 +282,7 @@ def _any_in_band(xbar: np.ndarray, Cbar: np.ndarray, j: int, t0: int, e: int, px
             ux, uy = x / g, y / g
             c00, c01, c11 = Cbar[j, t0 + s, 0], Cbar[j, t0 + s, 1], Cbar[j, t0 + s, 2]
             var_g = ux * ux * c00 + 2.0 * ux * uy * c01 + uy * uy * c11
-            if _interval(gmin - g, gmax - g, math.sqrt(max(var_g, 0.0))) >= p_min:
+            if _range_mass(g, math.sqrt(max(var_g, 0.0)), gmin, gmax) >= p_min:
                 return True
         elif gmin - range_tol <= g <= gmax + range_tol:
             return True
@@ -284,6 +336,22 @@ def chain_looks_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
     weight = np.zeros((C, L, e))
     cd, sdp = math.cos(depression), math.sin(depression)
     snr0 = 10.0 ** (snr_ref_db / 10.0)
+    # Epochs whose position and target are the same for every candidate (the fixed tail of
+    # a chain) share their bearing: compute it once.
+    shared = np.zeros(L, dtype=np.bool_)
+    shared_bearing = np.zeros(L)
+    for l in range(L):
+        same = True
+        for c in range(1, C):
+            if (tgt[c, l] != tgt[0, l] or pos[c, l, 0] != pos[0, l, 0]
+                    or pos[c, l, 1] != pos[0, l, 1]):
+                same = False
+                break
+        if same and C > 0:
+            j = tgt[0, l]
+            shared[l] = True
+            shared_bearing[l] = math.atan2(aim[j, k0 + l - 1, 1] - pos[0, l, 1],
+                                           aim[j, k0 + l - 1, 0] - pos[0, l, 0])
     for c in range(C):
         h = prev
         for l in range(L):
@@ -295,7 +363,10 @@ def chain_looks_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
                     range_tol, p_min):
                 th[c, l] = np.nan     # no look of the chain's last epoch can count
                 continue
-            bearing = math.atan2(aim[j, k - 1, 1] - py, aim[j, k - 1, 0] - px)
+            if shared[l]:
+                bearing = shared_bearing[l]
+            else:
+                bearing = math.atan2(aim[j, k - 1, 1] - py, aim[j, k - 1, 0] - px)
             if l == 0 and not prev_ok:
                 h = _heading_rule(theta0, bearing, k * max_turn)
             else:

@@ -297,14 +297,24 @@ def information_matrix(dx: FloatArray, dy: FloatArray, heading: FloatArray,
     return W
 
 
+#: W is inverted (Joseph form) only when det W > this * trace(W)^2, i.e. its condition number
+#: is below ~4e12; nearly singular information (one-dimensional) uses the subtractive form.
+JOSEPH_MIN_DET = 1e-12
+
+
 def information_update(P: FloatArray, W: FloatArray) -> tuple[FloatArray, FloatArray]:
     r"""Covariance after adding position information ``W``, and ``log det(I + W C)``.
 
-    .. math::
-        P^+ = P - P G^T (I + W C)^{-1} W G P,\quad C = G P G^T,\quad G = [I_2\ 0]
+    The result is :math:`(P^{-1} + G^T W G)^{-1}`, :math:`G = [I_2\ 0]`, computed without
+    inverting ``P``. For ``W`` positive definite it is the Kalman update with the equivalent
+    noise :math:`R = W^{-1}` in Joseph form,
 
-    equals :math:`(P^{-1} + G^T W G)^{-1}` (Woodbury) without inverting ``P``; ``W = 0``
-    leaves ``P`` unchanged. By the determinant lemma
+    .. math::
+        K = P G^T (C + R)^{-1},\quad P^+ = (I - K G) P (I - K G)^T + K R K^T,\quad C = G P G^T,
+
+    a sum of PSD terms that stays accurate when ``W C`` is large (the subtractive form
+    :math:`P - P G^T (I + W C)^{-1} W G P`, used for a singular ``W``, loses digits there).
+    ``W = 0`` leaves ``P`` unchanged. By the determinant lemma
     :math:`\log\det P^+ = \log\det P - \log\det(I + W C)`.
 
     Parameters
@@ -320,7 +330,7 @@ def information_update(P: FloatArray, W: FloatArray) -> tuple[FloatArray, FloatA
     C = P[..., :2, :2]
     A = np.eye(2) + W @ C
     det = A[..., 0, 0] * A[..., 1, 1] - A[..., 0, 1] * A[..., 1, 0]
-    # S = A^{-1} W via the 2x2 adjugate; det(A) = det(I + C^1/2 W C^1/2) >= 1.
+    # Subtractive form (any W): S = A^{-1} W via the 2x2 adjugate; det(A) >= 1.
     adj = np.empty_like(A)
     adj[..., 0, 0] = A[..., 1, 1]
     adj[..., 1, 1] = A[..., 0, 0]
@@ -330,6 +340,18 @@ def information_update(P: FloatArray, W: FloatArray) -> tuple[FloatArray, FloatA
     S = 0.5 * (S + np.swapaxes(S, -1, -2))
     Pc = P[..., :, :2]                                                     # (..., 4, 2)
     Pn = P - Pc @ S @ np.swapaxes(Pc, -1, -2)
+    # Joseph form where W is invertible.
+    det_w = W[..., 0, 0] * W[..., 1, 1] - W[..., 0, 1] * W[..., 1, 0]
+    ok = det_w > JOSEPH_MIN_DET * (W[..., 0, 0] + W[..., 1, 1]) ** 2
+    if np.any(ok):
+        safe = np.where(ok, det_w, 1.0)[..., None, None]
+        R = np.stack([np.stack([W[..., 1, 1], -W[..., 0, 1]], -1),
+                      np.stack([-W[..., 1, 0], W[..., 0, 0]], -1)], -2) / safe
+        K = np.swapaxes(np.linalg.solve(C + R, np.swapaxes(Pc, -1, -2)), -1, -2)
+        IKG = np.broadcast_to(np.eye(4), P.shape).copy()
+        IKG[..., :, :2] -= K
+        Pj = IKG @ P @ np.swapaxes(IKG, -1, -2) + K @ R @ np.swapaxes(K, -1, -2)
+        Pn = np.where(ok[..., None, None], Pj, Pn)
     return 0.5 * (Pn + np.swapaxes(Pn, -1, -2)), np.log(det)
 
 

@@ -7,6 +7,7 @@ an unassigned player).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Literal
@@ -127,6 +128,24 @@ def _first_occurrences(offsets: FloatArray, grid: int) -> tuple[IntArray, IntArr
 def build_lattice(p0: FloatArray, moves: FloatArray, K: int, world: MapRect) -> Lattice:
     """Reachable sets ``R_k = {p + m : p in R_{k-1}, m a move, inside the map}``, k = 0..K."""
     p0 = np.asarray(p0, dtype=float)
+    moves = np.asarray(moves, dtype=float)
+    reach = K * float(np.abs(moves).max(initial=0.0))
+    corners = p0 + reach * np.array([[-1.0, -1.0], [1.0, 1.0]])
+    if world.contains(corners).all():
+        # No K-step path can leave the map: the sets are the unbounded lattice's, shifted.
+        base = _unbounded_lattice(moves.tobytes(), K)
+        return Lattice([p0 + x for x in base.positions], base.parent_move, base.child, moves)
+    return _build_lattice(p0, moves, K, world)
+
+
+@functools.lru_cache(maxsize=64)
+def _unbounded_lattice(moves_bytes: bytes, K: int) -> Lattice:
+    moves = np.frombuffer(moves_bytes, dtype=float).reshape(-1, 2)
+    return _build_lattice(np.zeros(2), moves, K, None)
+
+
+def _build_lattice(p0: FloatArray, moves: FloatArray, K: int,
+                   world: MapRect | None) -> Lattice:
     positions = [p0[None, :].copy()]
     parent_move = [np.full((1, len(moves)), -1, dtype=np.int64)]
     child: list[IntArray] = [np.zeros((0, len(moves)), dtype=np.int64)]
@@ -135,7 +154,8 @@ def build_lattice(p0: FloatArray, moves: FloatArray, K: int, world: MapRect) -> 
     for _ in range(1, K + 1):
         prev = positions[-1]
         cand = (prev[:, None, :] + moves[None, :, :]).reshape(-1, 2)    # (n_prev * n_moves, 2)
-        inside = np.flatnonzero(world.contains(cand))
+        inside = (np.arange(len(cand)) if world is None
+                  else np.flatnonzero(world.contains(cand)))
         # Same position <=> same offset from p0 on a 1e-6 m grid; keep first-seen order.
         first, inverse = _first_occurrences(cand[inside] - p0, grid)
         order = np.argsort(first, kind="stable")
