@@ -164,18 +164,14 @@ def simulate(
     Example: sensorplan simulate --preset paper --planner pg --horizon 3 --steps-per-epoch 2
     """
     from .config import load_simulation
+    from .io import ensure_out_dir
 
     overrides = dict(planner=planner, horizon=horizon, steps_per_epoch=steps_per_epoch,
                      execution=execution, steps=steps, seed=seed, visibility=visibility,
                      objective=objective, miss_update=miss_update)
     with _bad_input():
         cfg = load_simulation(config, preset, overrides)
-        if out.exists() and not out.is_dir():
-            raise ConfigError("--out", f"{out} exists and is not a directory")
-        try:
-            out.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise ConfigError("--out", f"cannot create {out} ({exc.strerror or exc})") from None
+        ensure_out_dir(out)
 
     from .simulation import run_episode
 

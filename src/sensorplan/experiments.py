@@ -41,6 +41,7 @@ import numpy as np
 
 from ._types import FloatArray
 from .errors import ConfigError
+from .io import ensure_out_dir
 from .scenario import Scenario
 from .simulation import Episode, RunSettings, run_episode
 
@@ -705,12 +706,7 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
     if scheduler is not None and scheduler != "local" and "://" not in scheduler:
         raise ConfigError("--scheduler", f"must be 'local' or an address such as "
                           f"tcp://host:8786, got {scheduler!r}")
-    if out.exists() and not out.is_dir():
-        raise ConfigError("--out", f"{out} exists and is not a directory")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ConfigError("--out", f"cannot create {out} ({exc.strerror or exc})") from None
+    ensure_out_dir(out)
 
     import pyarrow.parquet  # noqa: F401  (imported now, not inside the first write's timing)
 

@@ -135,3 +135,13 @@ def dumps_result(result: "PlanResult") -> str:
             text = json.dumps(value, allow_nan=False)
         items.append(f"  {json.dumps(key)}: {text}")
     return "{\n" + ",\n".join(items) + "\n}"
+
+
+def ensure_out_dir(out: Path) -> None:
+    """Create the output directory ``out``; a ConfigError naming ``--out`` if impossible."""
+    if out.exists() and not out.is_dir():
+        raise ConfigError("--out", f"{out} exists and is not a directory")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError("--out", f"cannot create {out} ({exc.strerror or exc})") from None
