@@ -37,8 +37,8 @@ def _ellipse(ax: "Axes", mean: np.ndarray, C: np.ndarray, color: str, **kw: obje
                          edgecolor=color, **kw))
 
 
-def _field_of_view(ax: "Axes", xy: np.ndarray, heading: float, params: object,
-                   color: str) -> "Wedge":
+def field_of_view(ax: "Axes", xy: np.ndarray, heading: float, params: object,
+                  color: str, alpha: float = 0.15) -> "Wedge":
     """Ground sensing region: the range-band annulus sector of the azimuth wedge."""
     from matplotlib.patches import Wedge
 
@@ -47,9 +47,20 @@ def _field_of_view(ax: "Axes", xy: np.ndarray, heading: float, params: object,
     half = math.degrees(float(params.fov_half_angle))  # type: ignore[attr-defined]
     centre = math.degrees(heading)
     wedge = Wedge(tuple(xy), g_max, centre - half, centre + half, width=g_max - g_min,
-                  facecolor=color, alpha=0.15, edgecolor=color, linewidth=1.0, linestyle="--")
+                  facecolor=color, alpha=alpha, edgecolor=color, linewidth=1.0, linestyle="--")
     ax.add_patch(wedge)
     return wedge
+
+
+def frame_map(ax: "Axes", width: float, height: float, margin: float) -> None:
+    """Equal-aspect map axes in metres, with ``margin`` (a fraction of the map) around it."""
+    pad = margin * max(width, height)
+    ax.set_xlim(-pad, width + pad)
+    ax.set_ylim(-pad, height + pad)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.grid(True, linewidth=0.4, alpha=0.4)
 
 
 def plot_episode(episode: "Episode", scenario: "Scenario", path: str | Path) -> Path:
@@ -108,7 +119,7 @@ def plot_episode(episode: "Episode", scenario: "Scenario", path: str | Path) -> 
     for i in range(N):
         c = sensor_colors[i]
         params = scenario.sensors[i].params
-        fov = _field_of_view(ax, spos[-1, i], float(shead[-1, i]), params, c)
+        fov = field_of_view(ax, spos[-1, i], float(shead[-1, i]), params, c)
         fov.set_clip_path(border)           # the sensing region that matters is on the map
         ax.plot(spos[:, i, 0], spos[:, i, 1], "-", color=c, linewidth=1.2, alpha=0.75)
         ax.plot(*spos[0, i], "o", color=c, markersize=6, markerfacecolor="white")
@@ -148,13 +159,7 @@ def plot_episode(episode: "Episode", scenario: "Scenario", path: str | Path) -> 
     ]
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9,
               frameon=False)
-    margin = 0.03 * max(W, H)
-    ax.set_xlim(-margin, W + margin)
-    ax.set_ylim(-margin, H + margin)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.grid(True, linewidth=0.4, alpha=0.4)
+    frame_map(ax, W, H, 0.03)
     s = episode.settings
     rmse = np.asarray(episode.rmse())
     ax.set_title(f"{s.planner}, K = {s.horizon}, e = {s.steps_per_epoch}, "

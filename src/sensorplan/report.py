@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from . import experiments as ex
+from .plotting import field_of_view, frame_map
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -153,22 +154,12 @@ def _fig_scenario(t: ex.StudyTables, path: Path) -> Path:
         first = g.iloc[min(1, len(g) - 1)]
         x1, y1, h0 = first["x"], first["y"], first["heading"]
         p = spec.params
-        half = math.degrees(float(p.fov_half_angle))
-        ax.add_patch(Wedge((x1, y1), float(p.max_ground_range), math.degrees(h0) - half,
-                           math.degrees(h0) + half,
-                           width=float(p.max_ground_range) - float(p.min_ground_range),
-                           facecolor=color, alpha=0.12, edgecolor=color, linestyle="--"))
+        field_of_view(ax, np.array([x1, y1]), float(h0), p, color, alpha=0.12)
         handles.append(Line2D([], [], color=color, marker="^",
                               label=f"sensor {i} ({float(p.altitude):g} m): \u25b2 start, path"))
     handles.append(Wedge((0, 0), 1, 0, 1, facecolor="0.5", alpha=0.2, edgecolor="0.4",
                          linestyle="--", label="field of view in step 1"))
-    margin = 0.05 * max(W, H)
-    ax.set_xlim(-margin, W + margin)
-    ax.set_ylim(-margin, H + margin)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.grid(True, linewidth=0.4, alpha=0.4)
+    frame_map(ax, W, H, 0.05)
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8.5,
               frameon=False)
     ax.set_title(f"Run {run}: {study.steps} steps; sensor paths of method \u201c{shown}\u201d",
