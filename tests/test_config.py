@@ -20,6 +20,8 @@ from sensorplan.planners import PLANNERS
 from sensorplan.scenario import Scenario, SensorSpec, TargetSpec, paper_scenario
 from sensorplan.sensors import SensorParams
 
+from cli_helpers import SPEC7
+
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
 
@@ -27,22 +29,6 @@ HAVE_SIMULATION = importlib.util.find_spec("sensorplan.simulation") is not None
 needs_simulation = pytest.mark.skipif(
     not HAVE_SIMULATION, reason="sensorplan.simulation (RunSettings) is not written yet")
 
-#: The example of SPEC 7, verbatim.
-SPEC7 = json.loads("""
-{
-  "dt": 1.0, "steps_per_epoch": 1, "horizon": 3,
-  "map": {"width": 600, "height": 600},
-  "process_noise": 0.05, "visibility": "probabilistic", "objective": "terminal",
-  "targets": [{"mean": [300, 200, 4, 1], "cov": [[400,0,0,0],[0,400,0,0],[0,0,4,0],[0,0,0,4]]}],
-  "sensors": [{"position": [100, 100], "altitude": 500, "heading": 0.0,
-               "moves": [20, 40], "max_turn": 0.785398,
-               "fov_half_angle": 0.523599, "min_ground_range": 250, "max_ground_range": 450,
-               "depression": 0.698132, "snr_ref_db": 15, "range_ref": 600,
-               "beamwidth": 0.0523599, "monopulse_slope": 1.6, "range_resolution": 30}],
-  "planner": {"name": "pg", "alpha": 0.3, "beta": 0.95, "max_inner": 50,
-              "max_outer": 10, "seed": 0}
-}
-""")
 
 MINIMAL = {"horizon": 2,
            "targets": [{"mean": [300, 200, 4, 1],

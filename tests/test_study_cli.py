@@ -9,8 +9,9 @@ from typing import Any
 import pytest
 
 from sensorplan import experiments as ex
-from sensorplan.cli import main
 from sensorplan.config import parse_study
+
+from cli_helpers import assert_bad_input, run
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -33,21 +34,6 @@ horizon = 2
 """
 
 
-def run(capsys: pytest.CaptureFixture[str], *args: Any) -> tuple[int, str, str]:
-    with pytest.raises(SystemExit) as info:
-        main([str(a) for a in args])
-    out = capsys.readouterr()
-    return int(info.value.code or 0), out.out, out.err
-
-
-def assert_bad_input(result: tuple[int, str, str], field: str) -> str:
-    code, out, err = result
-    assert code == 2, err
-    assert out == ""
-    lines = err.splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith(f"error: {field}: "), lines[0]
-    return lines[0]
 
 
 BAD = [
