@@ -2,20 +2,30 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 from scipy.stats import chi2
 
+from radar_reference import jacobian, measure, noise_cov, stack_params, take_params
 from sensorplan.dynamics import cv_matrices, predict_covariance
-from sensorplan.ekf import (Tracker, joseph_update, linearize, nees, position_update, predict,
-                            radar_constants, standard_update, update, update_rounds)
+from sensorplan.ekf import (Tracker, joseph_update, nees, position_update, predict,
+                            standard_update, update, update_rounds)
 from sensorplan.problem import MapRect
 from sensorplan.scenario import Scenario, SensorSpec, TargetSpec
-from sensorplan.sensors import (SensorParams, jacobian, measure, noise_cov, stack_params,
-                                take_params)
+from sensorplan.sensors import SensorParams, radar_table
 from sensorplan.truth import TruthModel
+
+
+def table_of(params: SensorParams) -> np.ndarray:
+    """Radar table with one row per entry of stacked (or scalar) parameters."""
+    names = [f.name for f in dataclasses.fields(SensorParams) if f.name != "moves"]
+    cols = [np.atleast_1d(np.asarray(getattr(params, n), dtype=float)) for n in names]
+    n = max(len(c) for c in cols)
+    return radar_table([SensorParams(**{k: float(np.broadcast_to(c, (n,))[i])
+                                        for k, c in zip(names, cols)}) for i in range(n)])
 
 
 def random_covariance(rng: np.random.Generator, pos_sd=(5.0, 30.0), vel_sd=(0.5, 3.0)):
@@ -47,22 +57,29 @@ def geometry(rng: np.random.Generator, B: int):
     return x, sensor_xy, heading
 
 
-class TestLinearize:
-    def test_matches_sensor_kernels(self, rng):
+class TestLinearization:
+    def test_update_linearises_with_the_reference_model(self, rng):
+        """One update with a zero innovation's gain equals the reference H and R."""
         B = 300
         x, sxy, th = geometry(rng, B)
         params = varied_params(rng, B)
-        h, Hp, var = linearize(x, sxy, th, radar_constants(params))
-        np.testing.assert_allclose(h, measure(x, sxy, params.altitude), rtol=1e-13)
-        np.testing.assert_allclose(Hp, jacobian(x, sxy, params.altitude)[:, :, :2], rtol=1e-12)
+        P = np.array([random_covariance(rng) for _ in range(B)])
+        z = measure(x, sxy, params.altitude) + rng.normal(size=(B, 2)) * [2.0, 0.003]
+        got = update(x, P, z, sxy, th, table_of(params), np.arange(B))
+        H = jacobian(x, sxy, params.altitude)
         R = noise_cov(x, sxy, th, params)
-        np.testing.assert_allclose(var, np.stack([R[:, 0, 0], R[:, 1, 1]], axis=-1),
-                                   rtol=1e-12)
+        inn = z - measure(x, sxy, params.altitude)
+        inn[:, 1] = (inn[:, 1] + np.pi) % (2 * np.pi) - np.pi
+        want = joseph_update(x, P, inn, H, R)
+        np.testing.assert_allclose(got[0], want[0], rtol=1e-11, atol=1e-9)
+        np.testing.assert_allclose(got[1], want[1], rtol=1e-11, atol=1e-9)
 
-    def test_constants_broadcast_from_scalar_params(self, rng):
+    def test_rows_default_to_the_first(self, rng):
         x, sxy, th = geometry(rng, 5)
-        a = linearize(x, sxy, th, radar_constants(SensorParams()))
-        b = linearize(x, sxy, th, np.tile(radar_constants(SensorParams()), (5, 1)))
+        P = np.tile(np.diag([100.0, 100.0, 1.0, 1.0]), (5, 1, 1))
+        z = measure(x, sxy, 500.0)
+        a = update(x, P, z, sxy, th, radar_table(SensorParams()))
+        b = update(x, P, z, sxy, th, np.tile(radar_table(SensorParams()), (5, 1)), np.arange(5))
         for u, v in zip(a, b):
             np.testing.assert_array_equal(u, v)
 
@@ -114,7 +131,7 @@ class TestUpdateForms:
         params = varied_params(rng, B)
         P = np.array([random_covariance(rng) for _ in range(B)])
         z = measure(x, sxy, params.altitude) + rng.normal(size=(B, 2)) * [2.0, 0.003]
-        xa, Pa = update(x, P, z, sxy, th, params)
+        xa, Pa = update(x, P, z, sxy, th, table_of(params), np.arange(B))
         H = jacobian(x, sxy, params.altitude)
         R = noise_cov(x, sxy, th, params)
         for b in range(B):
@@ -135,7 +152,7 @@ class TestUpdateForms:
         params = SensorParams()
         z = measure(np.array([[-400.0, -1.0]]), sxy, params.altitude)
         assert z[0, 1] < -3.1 and measure(x, sxy, params.altitude)[0, 1] > 3.1
-        xa, _ = update(x, P, z, sxy, np.array([np.pi]), params)
+        xa, _ = update(x, P, z, sxy, np.array([np.pi]), radar_table(params))
         assert -1.0 - 1e-6 < xa[0, 1] < 1.0 and abs(xa[0, 0] + 400.0) < 1.0
 
     def test_predict_matches_dynamics(self, rng):
@@ -172,12 +189,12 @@ class TestTracker:
         sensors = np.array([0, 1, 2, 3, 4])
         targets = np.array([1, 3, 1, 0, 1])           # target 1 measured three times
         z = measure(x[:, :2][np.array([0, 1, 0, 3, 0])] + 3.0, sxy, params.altitude)
-        tr = Tracker(means, covs, 1.0, 0.05, params)
+        tr = Tracker(means, covs, 1.0, 0.05, table_of(params))
         tr.update(sensors, targets, z, sxy, th)
         m, P = means.copy(), covs.copy()
         for s, j in zip(sensors, targets):  # sensor order, one measurement at a time
             m[[j]], P[[j]] = update(m[[j]], P[[j]], z[[s]], sxy[[s]], th[[s]],
-                                    take_params(params, [s]))
+                                    table_of(take_params(params, [s])))
         np.testing.assert_allclose(tr.means, m, rtol=1e-13, atol=1e-12)
         np.testing.assert_allclose(tr.covs, P, rtol=1e-13, atol=1e-12)
         np.testing.assert_array_equal(tr.covs[2], covs[2])    # an unmeasured track is untouched
@@ -185,7 +202,7 @@ class TestTracker:
 
     def test_predict_all_tracks(self, rng):
         *_, params, means, covs = self.setup(rng)
-        tr = Tracker(means, covs, 2.0, 0.1, params)
+        tr = Tracker(means, covs, 2.0, 0.1, table_of(params))
         tr.predict()
         F, Q = cv_matrices(2.0, 0.1)
         np.testing.assert_allclose(tr.means, means @ F.T)
@@ -212,8 +229,7 @@ class TestConsistency:
         n_runs, steps = 200, 60
         sc, rng, truth0, est0, P0 = consistency_setup(n_runs, 11)
         truth = TruthModel(sc, truth0, rng)
-        params = stack_params([SensorParams()])
-        tracker = Tracker(est0, P0, sc.dt, sc.process_noise, params)
+        tracker = Tracker(est0, P0, sc.dt, sc.process_noise, radar_table(SensorParams()))
         # The sensor flies with each target, 350 m behind it in x (constant geometry).
         offset = np.array([350.0, 0.0])
         heading = np.zeros(n_runs)
@@ -245,8 +261,8 @@ class TestConsistency:
         n_runs = 200
         sc, rng, truth0, est0, P0 = consistency_setup(n_runs, 11)
         truth = TruthModel(sc, truth0, rng)
-        params = stack_params([SensorParams(range_resolution=3.0, beamwidth=math.radians(0.3))])
-        tracker = Tracker(est0, P0, sc.dt, sc.process_noise, params)
+        params = SensorParams(range_resolution=3.0, beamwidth=math.radians(0.3))
+        tracker = Tracker(est0, P0, sc.dt, sc.process_noise, radar_table(params))
         offset = np.array([350.0, 0.0])
         heading = np.zeros(n_runs)
         for _ in range(30):
@@ -270,7 +286,7 @@ class TestConsistency:
         truth = TruthModel(sc, truth0, rng)
         params = varied_params(rng, N)
         tracker = Tracker(truth0 + rng.normal(0, 10, (M, 4)) * [1, 1, 0.1, 0.1],
-                          np.diag([400.0, 400.0, 4.0, 4.0]), 1.0, 0.05, params)
+                          np.diag([400.0, 400.0, 4.0, 4.0]), 1.0, 0.05, table_of(params))
         for step in range(10_000):
             x = truth.step()
             tracker.predict()
@@ -299,5 +315,5 @@ class TestConsistency:
         params = SensorParams(range_resolution=0.5)
         z = measure(x, sxy, params.altitude)
         for _ in range(20):
-            x, P = update(x, P, z, sxy, th, params)
+            x, P = update(x, P, z, sxy, th, radar_table(params))
             np.linalg.cholesky(P)

@@ -2,7 +2,7 @@
 
 The sensing region is re-implemented here from SPEC 2 in polar form (ground range band and
 azimuth wedge; ``cos psi > 0`` never binds for a wedge narrower than 90 degrees), so that
-the counts and the Monte Carlo do not go through :func:`sensorplan.sensors.visible_offset`.
+the counts and the Monte Carlo do not go through the library's radar model.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from sensorplan import missed
 from sensorplan.dynamics import cv_matrices, predict_covariance
 from sensorplan.missed import (INFLATE_FRACTION, MIN_OUTSIDE, N_POINTS, SOBOL_SEED,
                                inside_fraction, miss_update, standard_points)
-from sensorplan.sensors import SensorParams, stack_params
+from sensorplan.sensors import SensorParams, radar_table
 
 PARAMS = SensorParams()
 ORIGIN = np.zeros(2)
@@ -259,16 +259,15 @@ def test_inflation_triggers_exactly_at_the_threshold(how):
 
 
 def test_inflation_uses_each_tracks_own_range_band():
-    """Stacked parameters: each track grows by its own sensor's (g_max - g_min)^2 / 4, and an
+    """Per-track sensors: each track grows by its own sensor's (g_max - g_min)^2 / 4, and an
     inflation never makes a covariance smaller."""
     sensors = [SensorParams(min_ground_range=250.0, max_ground_range=450.0),
                SensorParams(min_ground_range=100.0, max_ground_range=700.0),
                SensorParams(min_ground_range=300.0, max_ground_range=320.0)]
-    params = stack_params(sensors)
     means = np.array([[350.0, 0.0, 0.0, 0.0], [400.0, 0.0, 1.0, 0.0], [310.0, 0.0, 0.0, 0.0]])
     covs = np.array([track_cov(0.02, 0.0), track_cov(0.5, 1.0), np.diag([1.0, 4.0, 1.0, 1.0])])
     new_means, new_covs, inflated = miss_update(means, covs, np.zeros((3, 2)), np.zeros(3),
-                                                params)
+                                                radar_table(sensors), np.arange(3))
     assert inflated.all()
     for j, s in enumerate(sensors):
         span2 = (s.max_ground_range - s.min_ground_range) ** 2 / 4
@@ -297,7 +296,7 @@ def test_too_few_points_left_fall_back_to_inflation():
 
 
 def test_batched_equals_one_track_at_a_time(rng):
-    """One batched call with per-track sensors (stacked params) equals separate calls."""
+    """One batched call with per-track sensors (rows of a table) equals separate calls."""
     B = 7
     sensors = [SensorParams(altitude=490.0 + 10 * (j % 3), fov_half_angle=0.3 + 0.05 * j,
                             min_ground_range=200.0 + 10 * j) for j in range(B)]
@@ -308,7 +307,7 @@ def test_batched_equals_one_track_at_a_time(rng):
         [np.cos(bearing), np.sin(bearing)])
     headings = bearing + rng.uniform(-0.5, 0.5, B)
     new_means, new_covs, inflated = miss_update(means, covs, sxy, headings,
-                                                stack_params(sensors))
+                                                radar_table(sensors), np.arange(len(sensors)))
     for j in range(B):
         m, P, f = miss_update(means[j], covs[j], sxy[j], headings[j], sensors[j])
         np.testing.assert_allclose(new_means[j], m, rtol=1e-12, atol=1e-9)

@@ -18,7 +18,8 @@ from sensorplan.errors import ConfigError
 from sensorplan.planners import PLANNERS, PlanResult
 from sensorplan.problem import MapRect, Plan, PlanningProblem, move_vectors
 from sensorplan.scenario import Scenario, SensorSpec, TargetSpec, paper_scenario
-from sensorplan.sensors import SensorParams, noise_std, cos_boresight, visible
+from radar_reference import cos_boresight, noise_std, visible
+from sensorplan.sensors import SensorParams
 from sensorplan.simulation import Episode, RunSettings, run_episode, run_streams
 
 HAVE_MISSED = importlib.util.find_spec("sensorplan.missed") is not None
@@ -358,10 +359,10 @@ class TestTracking:
         calls = []
         kernel = missed.miss_update
 
-        def spy(means, covs, sensor_xy, heading, params):
+        def spy(means, covs, sensor_xy, heading, table, sensor):
             calls.append((np.array(means), np.array(covs), np.array(sensor_xy),
                           np.array(heading)))
-            return kernel(means, covs, sensor_xy, heading, params)
+            return kernel(means, covs, sensor_xy, heading, table, sensor)
 
         monkeypatch.setattr(missed, "miss_update", spy)
         ep = run_episode(paper("negative"), settings(steps=20), 13)
@@ -383,7 +384,7 @@ def test_none_reproduces_a_tracker_without_the_feature(monkeypatch):
     off = run_episode(paper("none"), settings(steps=40), 21)
     assert off.missed.any()                       # there were misses to learn from
 
-    def identity(means, covs, sensor_xy, heading, params):
+    def identity(means, covs, sensor_xy, heading, table, sensor):
         return np.array(means), np.array(covs), np.zeros(len(means), dtype=bool)
 
     monkeypatch.setattr(sim, "_miss_update_kernel", lambda: identity)

@@ -14,6 +14,9 @@ import math
 import numpy as np
 from numba import njit
 
+from . import radar
+from .radar import P_VIS_MIN, look, range_weight, wrap
+
 
 @njit(cache=True, fastmath=False)
 def _logdet4(P: np.ndarray) -> float:
@@ -166,125 +169,17 @@ def covariance_recursion_nb(P0: np.ndarray, W: np.ndarray, F: np.ndarray, Q: np.
 
 
 @njit(cache=True)
-def _ncdf(x: float) -> float:
-    return 0.5 * math.erfc(-x / math.sqrt(2.0))
-
-
-@njit(cache=True)
-def _interval(lo: float, hi: float, sd: float) -> float:
-    if sd > 0.0:
-        return _ncdf(hi / sd) - _ncdf(lo / sd)
-    return 1.0 if (lo <= 0.0 and hi >= 0.0) else 0.0
-
-
-@njit(cache=True)
-def _range_mass(g: float, sd: float, gmin: float, gmax: float) -> float:
-    """Probability that the ground range N(g, sd^2) lies in [gmin, gmax]."""
-    # More than 6 sd outside the band the mass is below Ncdf(-6) ~ 1e-9, far below the 1e-6
-    # threshold of a look that counts: skip the two erfc calls (most looks of a large
-    # candidate set are far out of range).
-    if sd > 0.0 and (g > gmax + 6.0 * sd or g < gmin - 6.0 * sd):
-        return 0.0
-    return _interval(gmin - g, gmax - g, sd)
-
-
-@njit(cache=True)
-def _wrap(a: float) -> float:
-    two_pi = 2.0 * math.pi
-    w = math.pi - ((math.pi - a) % two_pi)
-    return w + two_pi if w <= -math.pi else w     # as angles.wrap_angle: (-pi, pi]
-
-
-@njit(cache=True)
-def _look(x: float, y: float, h: float, c00: float, c01: float, c11: float,
-          probabilistic: bool, altitude: float, cd: float, sdp: float, fov: float,
-          gmin: float, gmax: float, snr0: float, range_ref: float, beamwidth: float,
-          slope: float, resolution: float, range_tol: float, angle_tol: float,
-          p_min: float) -> tuple[float, float, float, float]:
-    """Weight and information (w00, w01, w11) of one look at ground offset (x, y)."""
-    g2 = x * x + y * y
-    g = math.sqrt(g2)
-    if g == 0.0:
-        return 0.0, 0.0, 0.0, 0.0
-    # Cheapest test first: most looks of a large candidate set fail the range band.
-    ux, uy = x / g, y / g
-    p_range = 1.0
-    if probabilistic:
-        var_g = ux * ux * c00 + 2.0 * ux * uy * c01 + uy * uy * c11
-        p_range = _range_mass(g, math.sqrt(max(var_g, 0.0)), gmin, gmax)
-        if p_range < p_min:
-            return 0.0, 0.0, 0.0, 0.0
-    elif g < gmin - range_tol or g > gmax + range_tol:
-        return 0.0, 0.0, 0.0, 0.0
-    r2 = g2 + altitude * altitude
-    r = math.sqrt(r2)
-    cpsi = (cd * (x * math.cos(h) + y * math.sin(h)) + sdp * altitude) / r
-    if cpsi <= 0.0:
-        return 0.0, 0.0, 0.0, 0.0
-    d = _wrap(math.atan2(y, x) - h)
-    if probabilistic:
-        var_v = uy * uy * c00 - 2.0 * ux * uy * c01 + ux * ux * c11
-        sd_phi = math.sqrt(max(var_v, 0.0)) / g
-        p = p_range * _interval(-fov - d, fov - d, sd_phi)
-        if p < p_min:
-            return 0.0, 0.0, 0.0, 0.0
-    else:
-        if abs(d) > fov + angle_tol:
-            return 0.0, 0.0, 0.0, 0.0
-        p = 1.0
-    snr = snr0 * (range_ref / r) ** 4
-    root = math.sqrt(2.0 * snr)
-    sr = resolution / root
-    sp = (beamwidth / cpsi) / (slope * root)
-    wr = p / (sr * sr * r2)
-    wp = p / (sp * sp * g2 * g2)
-    return p, wr * x * x + wp * y * y, (wr - wp) * x * y, wr * y * y + wp * x * x
-
-
-@njit(cache=True)
-def look_information_nb(dx: np.ndarray, dy: np.ndarray, th: np.ndarray, C: np.ndarray,
-                        probabilistic: bool, altitude: float, depression: float,
-                        fov: float, gmin: float, gmax: float, snr_ref_db: float,
-                        range_ref: float, beamwidth: float, slope: float, resolution: float,
-                        range_tol: float, angle_tol: float, p_min: float
-                        ) -> tuple[np.ndarray, np.ndarray]:
-    """Same contract as :func:`sensorplan.information.look_information_numpy` (flat inputs)."""
-    n = dx.shape[0]
-    W = np.zeros((n, 2, 2))
-    weight = np.zeros(n)
-    cd, sdp = math.cos(depression), math.sin(depression)
-    snr0 = 10.0 ** (snr_ref_db / 10.0)
-    for b in range(n):
-        p, w00, w01, w11 = _look(dx[b], dy[b], th[b], C[b, 0], C[b, 1], C[b, 2],
-                                 probabilistic, altitude, cd, sdp, fov, gmin, gmax, snr0,
-                                 range_ref, beamwidth, slope, resolution, range_tol,
-                                 angle_tol, p_min)
-        weight[b] = p
-        W[b, 0, 0] = w00
-        W[b, 0, 1] = w01
-        W[b, 1, 0] = w01
-        W[b, 1, 1] = w11
-    return W, weight
-
-
-@njit(cache=True)
-def _any_in_band(xbar: np.ndarray, Cbar: np.ndarray, j: int, t0: int, e: int, px: float,
-                 py: float, probabilistic: bool, gmin: float, gmax: float, range_tol: float,
-                 p_min: float) -> bool:
-    """Whether any look at target j in steps t0 .. t0+e-1 passes the range test of _look."""
+def _any_in_band(row: np.ndarray, xbar: np.ndarray, Cbar: np.ndarray, j: int, t0: int,
+                 e: int, px: float, py: float, probabilistic: bool) -> bool:
+    """Whether any look at target j in steps t0 .. t0+e-1 passes the radar's range test."""
     for s in range(e):
         x = xbar[j, t0 + s, 0] - px
         y = xbar[j, t0 + s, 1] - py
         g = math.sqrt(x * x + y * y)
         if g == 0.0:
             continue
-        if probabilistic:
-            ux, uy = x / g, y / g
-            c00, c01, c11 = Cbar[j, t0 + s, 0], Cbar[j, t0 + s, 1], Cbar[j, t0 + s, 2]
-            var_g = ux * ux * c00 + 2.0 * ux * uy * c01 + uy * uy * c11
-            if _range_mass(g, math.sqrt(max(var_g, 0.0)), gmin, gmax) >= p_min:
-                return True
-        elif gmin - range_tol <= g <= gmax + range_tol:
+        if range_weight(row, x / g, y / g, g, Cbar[j, t0 + s, 0], Cbar[j, t0 + s, 1],
+                        Cbar[j, t0 + s, 2], probabilistic) >= P_VIS_MIN:
             return True
     return False
 
@@ -308,34 +203,29 @@ def sum_by_target_nb(W: np.ndarray, targets: np.ndarray, M: int) -> np.ndarray:
 
 @njit(cache=True)
 def _heading_rule(theta: float, bearing: float, max_turn: float) -> float:
-    turn = _wrap(bearing - theta)
+    turn = wrap(bearing - theta)
     if turn > max_turn:
         turn = max_turn
     elif turn < -max_turn:
         turn = -max_turn
-    return _wrap(theta + turn)
+    return wrap(theta + turn)
 
 
 @njit(cache=True)
 def chain_looks_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: float,
                    prev_ok: bool, theta0: float, max_turn: float, aim: np.ndarray,
-                   xbar: np.ndarray, Cbar: np.ndarray, probabilistic: bool, altitude: float,
-                   depression: float, fov: float, gmin: float, gmax: float,
-                   snr_ref_db: float, range_ref: float, beamwidth: float, slope: float,
-                   resolution: float, range_tol: float, angle_tol: float, p_min: float,
+                   xbar: np.ndarray, Cbar: np.ndarray, probabilistic: bool, row: np.ndarray,
                    all_headings: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Headings and look information of candidate chains (see information.chain_looks).
 
-    Without ``all_headings`` the heading of a chain's last epoch is left NaN when none of
-    its looks can pass the range band (it has no other use): most candidates of a large
-    initialisation set are out of range.
+    ``row`` is the sensor's radar table row. Without ``all_headings`` the heading of a
+    chain's last epoch is left NaN when none of its looks can pass the range band (it has no
+    other use): most candidates of a large initialisation set are out of range.
     """
     C, L = tgt.shape
     th = np.empty((C, L))
     W = np.zeros((C, L, e, 2, 2))
     weight = np.zeros((C, L, e))
-    cd, sdp = math.cos(depression), math.sin(depression)
-    snr0 = 10.0 ** (snr_ref_db / 10.0)
     # Epochs whose position and target are the same for every candidate (the fixed tail of
     # a chain) share their bearing: compute it once.
     shared = np.zeros(L, dtype=np.bool_)
@@ -359,8 +249,7 @@ def chain_looks_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
             j = tgt[c, l]
             px, py = pos[c, l, 0], pos[c, l, 1]
             if l == L - 1 and not all_headings and not _any_in_band(
-                    xbar, Cbar, j, (k - 1) * e + 1, e, px, py, probabilistic, gmin, gmax,
-                    range_tol, p_min):
+                    row, xbar, Cbar, j, (k - 1) * e + 1, e, px, py, probabilistic):
                 th[c, l] = np.nan     # no look of the chain's last epoch can count
                 continue
             if shared[l]:
@@ -374,11 +263,9 @@ def chain_looks_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
             th[c, l] = h
             for s in range(e):
                 t = (k - 1) * e + 1 + s
-                p, w00, w01, w11 = _look(xbar[j, t, 0] - px, xbar[j, t, 1] - py, h,
-                                         Cbar[j, t, 0], Cbar[j, t, 1], Cbar[j, t, 2],
-                                         probabilistic, altitude, cd, sdp, fov, gmin, gmax,
-                                         snr0, range_ref, beamwidth, slope, resolution,
-                                         range_tol, angle_tol, p_min)
+                p, w00, w01, w11 = look(row, xbar[j, t, 0] - px, xbar[j, t, 1] - py, h,
+                                        Cbar[j, t, 0], Cbar[j, t, 1], Cbar[j, t, 2],
+                                        probabilistic)
                 weight[c, l, s] = p
                 W[c, l, s, 0, 0] = w00
                 W[c, l, s, 0, 1] = w01
@@ -403,13 +290,13 @@ def warm_up() -> None:
     W = np.zeros((1, 1, 2, 2))
     for cv in (True, False):
         covariance_recursion_nb(P, W, np.eye(4), np.zeros((4, 4)), True, cv, 1.0)
-    z = np.zeros(1)
-    args = (500.0, 0.7, 0.5, 250.0, 450.0, 15.0, 600.0, 0.05, 1.6, 30.0, 1e-9, 1e-12, 1e-6)
+    row = np.zeros(11)
+    row[0] = row[1] = 1.0
     for probabilistic in (True, False):
-        look_information_nb(z + 300.0, z, z, np.ones((1, 3)), probabilistic, *args)
         for all_headings in (True, False):
             chain_looks_nb(np.zeros((1, 1, 2)), np.zeros((1, 1), dtype=np.int64), 1, 1, 0.0,
                            True, 0.0, 0.5, np.ones((1, 1, 2)), np.ones((1, 2, 2)),
-                           np.ones((1, 2, 3)), probabilistic, *args, all_headings)
+                           np.ones((1, 2, 3)), probabilistic, row, all_headings)
     sum_by_target_nb(np.zeros((1, 1, 1, 2, 2)), np.zeros((1, 1), dtype=np.int64), 1)
+    radar.warm_up()
     _WARM = True

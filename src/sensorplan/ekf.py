@@ -11,18 +11,19 @@ Update (per measurement, Joseph form):
     x^+ = x + K\,[z - h(x)]_{\phi\ \mathrm{wrapped}},\quad
     P^+ = (I - K H) P (I - K H)^T + K R K^T
 
-with ``H`` and ``R`` evaluated at the current estimate (the predicted state for the first
-measurement of a step; SPEC 2: the filter's ``R`` uses its own state, never the truth).
+with ``H`` and ``R`` from the one radar model (:mod:`sensorplan.radar`) evaluated at the
+current estimate (the predicted state for the first measurement of a step: the filter's
+``R`` uses its own state, never the truth).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from . import radar
 from ._types import FloatArray, IntArray
 from .angles import wrap_angle
 from .dynamics import cv_matrices
-from .sensors import SensorParams
 
 _EYE4 = np.eye(4)
 
@@ -43,84 +44,6 @@ def predict(x: FloatArray, P: FloatArray, F: FloatArray,
     """
     Pp = F @ P @ F.T + Q
     return x @ F.T, 0.5 * (Pp + np.swapaxes(Pp, -1, -2))
-
-
-#: Columns of :func:`radar_constants`.
-RADAR_COLUMNS = ("altitude", "altitude2", "cos_depression", "sin_depression", "var_r",
-                 "var_phi")
-
-
-def radar_constants(params: SensorParams) -> FloatArray:
-    r"""Per-sensor constants of the measurement model, for the filter's inner loop.
-
-    With :math:`s_0 = 10^{\mathrm{snr_{ref}}/10}` the SNR model of SPEC 2 gives
-    :math:`2\,\mathrm{SNR} = 2 s_0 r_{ref}^4 / r^4`, so
-
-    .. math::
-        \sigma_r^2 = c_r\, r^4,\quad c_r = \frac{\Delta r^2}{2 s_0 r_{ref}^4},\qquad
-        \sigma_\phi^2 = c_\phi\, \frac{r^4}{\cos^2\psi},\quad
-        c_\phi = \frac{\beta^2}{k_m^2\, 2 s_0 r_{ref}^4},
-
-    equal to :func:`sensorplan.sensors.noise_std` to rounding (tested).
-
-    Parameters
-    ----------
-    params : SensorParams with scalar or ``(...)`` fields
-
-    Returns
-    -------
-    (..., 6) float64; columns :data:`RADAR_COLUMNS`: altitude (m), altitude^2,
-    cos and sin of the depression, ``c_r`` (1/m^2), ``c_phi`` (rad^2/m^4).
-    """
-    alt = np.asarray(params.altitude, dtype=float)
-    dep = np.asarray(params.depression, dtype=float)
-    two_s0_r4 = 2.0 * 10.0 ** (np.asarray(params.snr_ref_db, dtype=float) / 10.0) * np.asarray(
-        params.range_ref, dtype=float) ** 4
-    var_r = np.asarray(params.range_resolution, dtype=float) ** 2 / two_s0_r4
-    var_phi = (np.asarray(params.beamwidth, dtype=float)
-               / np.asarray(params.monopulse_slope, dtype=float)) ** 2 / two_s0_r4
-    return np.stack(np.broadcast_arrays(alt, alt * alt, np.cos(dep), np.sin(dep), var_r,
-                                        var_phi), axis=-1)
-
-
-def linearize(x: FloatArray, sensor_xy: FloatArray, heading: FloatArray,
-              radar: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Predicted measurement, position Jacobian and noise variances at states ``x``.
-
-    Parameters
-    ----------
-    x : (B, 4)
-    sensor_xy : (B, 2)
-    heading : (B,)
-    radar : (B, 6) or (6,)    :func:`radar_constants` of the measuring sensors (row b
-                              for measurement b, or one row for all)
-
-    Returns
-    -------
-    h : (B, 2)        ``[r, phi]`` (m, rad)
-    Hp : (B, 2, 2)    Jacobian w.r.t. the ground position (velocity columns are zero)
-    var : (B, 2)      diagonal of the SNR-dependent noise covariance ``R`` (SPEC 2)
-    """
-    alt, alt2, cdep, sdep, var_r, var_phi = radar.T
-    dx = x[:, 0] - sensor_xy[:, 0]
-    dy = x[:, 1] - sensor_xy[:, 1]
-    g2 = dx * dx + dy * dy
-    r2 = g2 + alt2
-    r = np.sqrt(r2)
-    h = np.empty((len(dx), 2))
-    h[:, 0] = r
-    h[:, 1] = np.arctan2(dy, dx)
-    Hp = np.empty((len(dx), 2, 2))
-    Hp[:, 0, 0] = dx / r
-    Hp[:, 0, 1] = dy / r
-    Hp[:, 1, 0] = -dy / g2
-    Hp[:, 1, 1] = dx / g2
-    cos_psi = (cdep * (dx * np.cos(heading) + dy * np.sin(heading)) + sdep * alt) / r
-    r4 = r2 * r2
-    var = np.empty((len(dx), 2))
-    var[:, 0] = var_r * r4
-    var[:, 1] = var_phi * r4 / (cos_psi * cos_psi)
-    return h, Hp, var
 
 
 def joseph_update(x: FloatArray, P: FloatArray, innovation: FloatArray, H: FloatArray,
@@ -180,11 +103,12 @@ def position_update(x: FloatArray, P: FloatArray, innovation: FloatArray, Hp: Fl
 
 
 def update(x: FloatArray, P: FloatArray, z: FloatArray, sensor_xy: FloatArray,
-           heading: FloatArray, params: SensorParams | None = None, *,
-           radar: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
+           heading: FloatArray, table: FloatArray,
+           sensor: IntArray | None = None) -> tuple[FloatArray, FloatArray]:
     """EKF update of B independent tracks, each with one range/azimuth measurement.
 
-    ``H`` and ``R`` are evaluated at the given means (the predicted state, SPEC 2), the
+    ``H`` and ``R`` come from the radar model (:func:`sensorplan.radar.measure_looks`)
+    evaluated at the given means (the predicted state: the filter never uses the truth), the
     bearing innovation is wrapped, the covariance is updated in Joseph form.
 
     Parameters
@@ -194,19 +118,17 @@ def update(x: FloatArray, P: FloatArray, z: FloatArray, sensor_xy: FloatArray,
     z : (B, 2)        measurements ``[r, phi]`` (m, rad)
     sensor_xy : (B, 2)
     heading : (B,)
-    params : SensorParams with fields broadcastable to (B,)
-    radar : (B, 6) or (6,), optional
-        Precomputed :func:`radar_constants`; replaces ``params``.
+    table : (N, C)    radar table (:func:`sensorplan.sensors.radar_table`)
+    sensor : (B,) int, optional
+        Row of ``table`` of each measuring sensor (default: row 0 for all).
 
     Returns
     -------
     x+ : (B, 4), P+ : (B, 4, 4)
     """
-    if radar is None:
-        if params is None:
-            raise TypeError("update needs params or radar")
-        radar = radar_constants(params)
-    h, Hp, var = linearize(x, sensor_xy, heading, radar)
+    if sensor is None:
+        sensor = np.zeros(len(x), dtype=np.int64)
+    h, Hp, var, _ = radar.measure_looks(table, sensor, x[:, :2], sensor_xy, heading)
     innovation = z - h
     innovation[:, 1] = wrap_angle(innovation[:, 1])
     return position_update(x, P, innovation, Hp, var)
@@ -261,16 +183,16 @@ class Tracker:
     covs : (M, 4, 4) or (4, 4) (broadcast to every target)
     dt : float              step (s)
     process_noise : float   q (m^2/s^3)
-    sensors : SensorParams, stacked ``(N,)`` fields (:func:`~sensorplan.sensors.stack_params`)
-        The sensors whose measurements :meth:`update` receives, by index.
+    table : (N, C)          radar table of the sensors whose measurements :meth:`update`
+                            receives, by row (:func:`~sensorplan.sensors.radar_table`)
     """
 
     def __init__(self, means: FloatArray, covs: FloatArray, dt: float,
-                 process_noise: float, sensors: SensorParams) -> None:
+                 process_noise: float, table: FloatArray) -> None:
         self.means = np.array(means, dtype=float)
         self.covs = np.array(np.broadcast_to(covs, self.means.shape + (4,)), dtype=float)
         self.F, self.Q = cv_matrices(dt, process_noise)
-        self.radar = np.atleast_2d(radar_constants(sensors))                # (N, 6)
+        self.table = np.ascontiguousarray(table, dtype=float)
 
     def predict(self) -> None:
         """Predict every track one step."""
@@ -286,7 +208,7 @@ class Tracker:
 
         Parameters
         ----------
-        sensors : (L,) int   index of the measuring sensor (row of ``radar``)
+        sensors : (L,) int   index of the measuring sensor (row of ``table``)
         targets : (L,) int   track each measurement belongs to
         z : (L, 2)
         sensor_xy : (L, 2)
@@ -297,8 +219,8 @@ class Tracker:
         for idx in update_rounds(targets):
             j = targets[idx]
             self.means[j], self.covs[j] = update(
-                self.means[j], self.covs[j], z[idx], sensor_xy[idx], heading[idx],
-                radar=self.radar[sensors[idx]])
+                self.means[j], self.covs[j], z[idx], sensor_xy[idx], heading[idx], self.table,
+                sensors[idx])
 
 
 def standard_update(x: FloatArray, P: FloatArray, innovation: FloatArray, H: FloatArray,
@@ -310,6 +232,5 @@ def standard_update(x: FloatArray, P: FloatArray, innovation: FloatArray, H: Flo
     return x + (K @ innovation[..., None])[..., 0], P - K @ H @ P
 
 
-__all__ = ["RADAR_COLUMNS", "Tracker", "joseph_update", "linearize", "nees",
-           "position_update", "predict", "radar_constants", "standard_update", "update",
-           "update_rounds"]
+__all__ = ["Tracker", "joseph_update", "nees", "position_update", "predict",
+           "standard_update", "update", "update_rounds"]

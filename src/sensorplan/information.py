@@ -18,17 +18,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._kernels import (chain_looks_nb, covariance_recursion_nb, look_information_nb,
-                       sum_by_target_nb)
+from . import radar
+from ._kernels import chain_looks_nb, covariance_recursion_nb, sum_by_target_nb
 from ._types import BoolArray, FloatArray, IntArray
 from .angles import heading_rule
 from .dynamics import cv_matrices, predict_covariance, predict_covariances, predict_means
 from .problem import Lattice, Plan, PlanningProblem, build_lattice, move_vectors
-from .sensors import (ANGLE_TOL, P_VIS_MIN, RANGE_TOL, SensorParams, cos_boresight, detection_probability,
-                      noise_std, stack_params, take_params, visible_offset)
+from .sensors import radar_table
 
 #: ``"numba"`` (default) or ``"numpy"``: which implementation of the covariance recursion
-#: runs; set ``SENSORPLAN_BACKEND=numpy`` to measure or debug without the compiled kernel.
+#: and of the chains' headings runs; set ``SENSORPLAN_BACKEND=numpy`` to measure or debug
+#: without those compiled kernels (the radar model itself is always the compiled one).
 BACKEND = os.environ.get("SENSORPLAN_BACKEND", "numba")
 
 
@@ -54,7 +54,8 @@ class Context:
     Cbar : (M, T + 1, 3)       their position blocks (c00, c01, c11), for p_vis
     aim : (M, K, 2)            ground position each target is predicted at on the first
                                step of each epoch (the heading rule aims there)
-    params : SensorParams      stacked, fields shaped (N,)
+    radar : (N, C)             radar table, one row per sensor
+    max_turn : (N,)            turn limit per epoch of each sensor (rad)
     lattices : list of Lattice one per sensor
     xbar_xy : (M, T + 1, 2)    predicted ground positions (contiguous, for the kernels)
     """
@@ -67,7 +68,8 @@ class Context:
     ld_bar: FloatArray
     Cbar: FloatArray
     aim: FloatArray
-    params: SensorParams
+    radar: FloatArray
+    max_turn: FloatArray
     lattices: list[Lattice]
     xbar_xy: FloatArray
 
@@ -91,9 +93,10 @@ class Context:
     def N(self) -> int:
         return self.problem.n_sensors
 
-    def sensor(self, i: int) -> SensorParams:
-        """Parameters of sensor ``i`` as scalars (0-d arrays)."""
-        return take_params(self.params, i)
+    @property
+    def probabilistic(self) -> bool:
+        """Whether planned looks count with their probability of seeing the target."""
+        return self.problem.visibility == "probabilistic"
 
     def steps(self, k: int) -> IntArray:
         """Simulation steps ``(k-1)e+1 .. ke`` of epoch ``k`` (1-based)."""
@@ -112,8 +115,9 @@ def prepare(problem: PlanningProblem) -> Context:
                 for i, s in enumerate(problem.sensors)]
     Cbar = np.stack([Pbar[..., 0, 0], Pbar[..., 0, 1], Pbar[..., 1, 1]], axis=-1)
     xbar_xy = np.ascontiguousarray(xbar[..., :2])
-    return Context(problem, F, Q, xbar, Pbar, ld_bar, Cbar, aim, stack_params(problem.sensors),
-                   lattices, xbar_xy)
+    max_turn = np.array([float(s.max_turn) for s in problem.sensors])
+    return Context(problem, F, Q, xbar, Pbar, ld_bar, Cbar, aim, radar_table(problem.sensors),
+                   max_turn, lattices, xbar_xy)
 
 
 def chain_headings(ctx: Context, i: int, k_first: int, positions: FloatArray,
@@ -135,7 +139,7 @@ def chain_headings(ctx: Context, i: int, k_first: int, positions: FloatArray,
     -------
     (B, L) headings.
     """
-    max_turn = ctx.params.max_turn[i]
+    max_turn = ctx.max_turn[i]
     theta0 = ctx.problem.headings[i]
     out = np.empty(targets.shape)
     prev = np.asarray(prev_heading, dtype=float)
@@ -193,15 +197,11 @@ def chain_looks(ctx: Context, i: int, k_first: int, positions: FloatArray, targe
         th = chain_headings(ctx, i, k_first, positions, targets, prev_heading, prev_assigned)
         W, counted = chain_information(ctx, i, k_first, positions, th, targets)
         return th, W, counted
-    p = ctx.sensor(i)
     th, W, weight = chain_looks_nb(
         _c(positions), _c(targets, np.int64),
         k_first, ctx.e, float(prev_heading), bool(prev_assigned),
-        float(ctx.problem.headings[i]), float(p.max_turn), ctx.aim, ctx.xbar_xy, ctx.Cbar,
-        ctx.problem.visibility == "probabilistic", float(p.altitude), float(p.depression),
-        float(p.fov_half_angle), float(p.min_ground_range), float(p.max_ground_range),
-        float(p.snr_ref_db), float(p.range_ref), float(p.beamwidth), float(p.monopulse_slope),
-        float(p.range_resolution), RANGE_TOL, ANGLE_TOL, P_VIS_MIN, all_headings)
+        float(ctx.problem.headings[i]), float(ctx.max_turn[i]), ctx.aim, ctx.xbar_xy, ctx.Cbar,
+        ctx.probabilistic, ctx.radar[i], all_headings)
     return th, W, weight > 0
 
 
@@ -243,58 +243,10 @@ def look_information(ctx: Context, i: int, dx: FloatArray, dy: FloatArray, th: F
 
     Returns
     -------
-    W : (..., 2, 2)   ``w H'^T R^{-1} H'``
+    W : (..., 2, 2)   ``w H'^T R^{-1} H'`` (:func:`sensorplan.radar.look`)
     weight : (...)    w: p_vis (``probabilistic``, 0 below 1e-6) or 0/1 (``mean``)
     """
-    if BACKEND == "numpy":
-        return look_information_numpy(ctx.sensor(i), ctx.problem.visibility, dx, dy, th, C)
-    p = ctx.sensor(i)
-    shape = dx.shape
-    W, weight = look_information_nb(
-        np.ascontiguousarray(dx).ravel(), np.ascontiguousarray(dy).ravel(),
-        np.ascontiguousarray(th).ravel(), np.ascontiguousarray(C).reshape(-1, 3),
-        ctx.problem.visibility == "probabilistic", float(p.altitude), float(p.depression),
-        float(p.fov_half_angle), float(p.min_ground_range), float(p.max_ground_range),
-        float(p.snr_ref_db), float(p.range_ref), float(p.beamwidth),
-        float(p.monopulse_slope), float(p.range_resolution), RANGE_TOL, ANGLE_TOL, P_VIS_MIN)
-    return W.reshape(shape + (2, 2)), weight.reshape(shape)
-
-
-def look_information_numpy(params: SensorParams, visibility: str, dx: FloatArray,
-                           dy: FloatArray, th: FloatArray,
-                           C: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Pure-numpy reference of :func:`look_information`, built on :mod:`sensorplan.sensors`."""
-    if visibility == "mean":
-        weight = visible_offset(dx, dy, th, params).astype(float)
-    else:
-        Cm = np.stack([C[..., 0], C[..., 1], C[..., 1], C[..., 2]], axis=-1)
-        Cm = Cm.reshape(C.shape[:-1] + (2, 2))
-        zero = np.zeros(2)
-        weight = detection_probability(np.stack([dx, dy], axis=-1), Cm, zero, th, params)
-        weight = np.where(weight >= P_VIS_MIN, weight, 0.0)
-    return information_matrix(dx, dy, th, params, weight), weight
-
-
-def information_matrix(dx: FloatArray, dy: FloatArray, heading: FloatArray,
-                       params: SensorParams, weight: FloatArray) -> FloatArray:
-    r"""``weight * H'^T R^{-1} H'`` for ground offsets ``dx, dy`` (..., zero where weight = 0).
-
-    With :math:`a = (dx, dy)/r` and :math:`b = (-dy, dx)/g^2` (the rows of ``H'``),
-    :math:`H'^T R^{-1} H' = a a^T/\sigma_r^2 + b b^T/\sigma_\phi^2`.
-    """
-    g2 = dx * dx + dy * dy
-    r = np.sqrt(g2 + params.altitude**2)
-    sr, sp = noise_std(r, cos_boresight(dx, dy, heading, params), params)
-    ok = weight > 0
-    safe_g2 = np.where(ok, g2, 1.0)
-    wr = np.where(ok, weight / (sr * sr * r * r), 0.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        wp = np.where(ok, weight / (sp * sp * safe_g2 * safe_g2), 0.0)
-    W = np.empty(dx.shape + (2, 2))
-    W[..., 0, 0] = wr * dx * dx + wp * dy * dy
-    W[..., 1, 1] = wr * dy * dy + wp * dx * dx
-    W[..., 0, 1] = W[..., 1, 0] = (wr - wp) * dx * dy
-    return W
+    return radar.look_information(ctx.radar[i], dx, dy, th, C, ctx.probabilistic)
 
 
 #: W is inverted (Joseph form) only when det W > this * trace(W)^2, i.e. its condition number

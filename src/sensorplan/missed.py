@@ -33,8 +33,9 @@ from scipy.linalg import solve_triangular
 from scipy.special import ndtri
 from scipy.stats import qmc
 
-from ._types import BoolArray, FloatArray
-from .sensors import SensorParams, take_params, visible_offset
+from . import radar
+from ._types import BoolArray, FloatArray, IntArray
+from .sensors import G_MAX, G_MIN, SensorParams, radar_table
 
 #: Number of quadrature points (SPEC 3).
 N_POINTS = 512
@@ -120,7 +121,7 @@ def _point_set(points: FloatArray | None) -> tuple[FloatArray, FloatArray]:
 
 
 def _inside(means: FloatArray, chol: FloatArray, x: FloatArray, sensor_xy: FloatArray,
-            heading: FloatArray, params: SensorParams) -> BoolArray:
+            heading: FloatArray, table: FloatArray, sensor: IntArray) -> BoolArray:
     """Which mapped points ``m + L x_s`` lie in the sensing region, ``(..., S)``."""
     # L is lower triangular, so the ground position of a point depends on its first two
     # whitened coordinates and the 2x2 position block of L only.
@@ -129,12 +130,26 @@ def _inside(means: FloatArray, chol: FloatArray, x: FloatArray, sensor_xy: Float
     l00, l10, l11 = (chol[..., i, j, None] for i, j in ((0, 0), (1, 0), (1, 1)))
     dx = base[..., 0, None] + l00 * x[:, 0]
     dy = base[..., 1, None] + l10 * x[:, 0] + l11 * x[:, 1]
-    sub = take_params(params, (Ellipsis, None))
-    return visible_offset(dx, dy, heading[..., None], sub)
+    batch = dx.shape[:-1]
+    S = x.shape[0]
+    inside = radar.visible_points(table, np.broadcast_to(sensor, batch).reshape(-1),
+                                  dx.reshape(-1, S), dy.reshape(-1, S),
+                                  np.broadcast_to(heading, batch).reshape(-1))
+    return inside.reshape(batch + (S,))
+
+
+def _rows(table: FloatArray | SensorParams, sensor: IntArray | int | None,
+          ) -> tuple[FloatArray, IntArray]:
+    """A radar table and each look's row in it; a SensorParams is a one-row table."""
+    if isinstance(table, SensorParams):
+        return radar_table(table), np.zeros((), dtype=np.int64)
+    return (np.ascontiguousarray(table, dtype=float),
+            np.asarray(0 if sensor is None else sensor, dtype=np.int64))
 
 
 def inside_fraction(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
-                    heading: FloatArray, params: SensorParams, *,
+                    heading: FloatArray, table: FloatArray | SensorParams,
+                    sensor: IntArray | int | None = None, *,
                     points: FloatArray | None = None) -> FloatArray:
     """Fraction ``f`` of the quadrature points of each track inside the sensing region.
 
@@ -147,15 +162,17 @@ def inside_fraction(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
     (...,) float64 in [0, 1], a multiple of ``1/S``.
     """
     x, _ = _point_set(points)
+    table, sensor = _rows(table, sensor)
     means = np.asarray(means, dtype=float)
     chol = np.linalg.cholesky(np.asarray(covs, dtype=float))
     inside = _inside(means, chol, x, np.asarray(sensor_xy, dtype=float),
-                     np.asarray(heading, dtype=float), params)
+                     np.asarray(heading, dtype=float), table, sensor)
     return np.count_nonzero(inside, axis=-1) / x.shape[0]
 
 
 def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
-                heading: FloatArray, params: SensorParams, *,
+                heading: FloatArray, table: FloatArray | SensorParams,
+                sensor: IntArray | int | None = None, *,
                 points: FloatArray | None = None
                 ) -> tuple[FloatArray, FloatArray, BoolArray]:
     r"""Update tracks with a missed look (SPEC 3, ``negative``), batched over tracks.
@@ -176,9 +193,12 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
         Ground position of the sensor that missed (m).
     heading : (...) float64
         Its heading (rad).
-    params : SensorParams
-        Its parameters: scalar fields, or arrays broadcastable to the batch shape ``(...)``
-        (see :func:`sensorplan.sensors.stack_params` / :func:`~sensorplan.sensors.take_params`).
+    table : (N, C) float64 or SensorParams
+        Radar table of the sensors (:func:`sensorplan.sensors.radar_table`); one
+        SensorParams stands for a one-row table.
+    sensor : (...) int, optional
+        Row of ``table`` of the sensor that missed, broadcastable to the batch shape
+        (default row 0).
     points : (S, 4) float64, optional
         Whitened standard-normal points (mean 0 and covariance ``I`` with weights ``1/S``);
         default the cached 512 Sobol points of :func:`standard_points`.
@@ -204,12 +224,14 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
     (False, True, True)
     """
     x, xx = _point_set(points)
+    table, sensor = _rows(table, sensor)
     S = x.shape[0]
     means = np.asarray(means, dtype=float)
     covs = np.asarray(covs, dtype=float)
     heading = np.asarray(heading, dtype=float)
     chol = np.linalg.cholesky(covs)
-    inside = _inside(means, chol, x, np.asarray(sensor_xy, dtype=float), heading, params)
+    inside = _inside(means, chol, x, np.asarray(sensor_xy, dtype=float), heading, table,
+                     sensor)
 
     outside = ~inside
     n_out = np.count_nonzero(outside, axis=-1)
@@ -224,8 +246,7 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
     new_means = means + (chol @ mu[..., :, None])[..., 0]
     new_covs = chol @ C @ np.swapaxes(chol, -1, -2)
 
-    span = np.asarray(params.max_ground_range, dtype=float) - np.asarray(
-        params.min_ground_range, dtype=float)
+    span = table[sensor, G_MAX] - table[sensor, G_MIN]
     grow = np.zeros(np.shape(span) + (4, 4))
     grow[..., 0, 0] = grow[..., 1, 1] = 0.25 * span * span
     new_means = np.where(inflated[..., None], means, new_means)

@@ -1,31 +1,22 @@
-r"""The radar-like sensor (SPEC 2): geometry, Jacobian, field of view, SNR noise.
+r"""Sensor parameters, validated at the boundary, and the per-sensor table the radar reads.
 
-Every kernel broadcasts over leading batch axes: target positions ``(..., 2)`` (or states
-``(..., 4)``), sensor ground positions ``(..., 2)``, headings ``(...)``. Sensor parameters
-come from a :class:`SensorParams` whose fields may be floats or arrays broadcastable to the
-batch (see :func:`stack_params`), so many sensors are evaluated in one call.
+:class:`SensorParams` is what users write (one frozen value per sensor, with the defaults of
+the paper's radar). :func:`radar_table` turns a sequence of them into one float64 row per
+sensor, computed once, with the columns of :data:`COLUMNS`; the compiled radar model
+(:mod:`sensorplan.radar`) and every kernel take such rows.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
-from scipy.special import ndtr
 
-from ._types import BoolArray, FloatArray
-from .angles import wrap_angle
+from ._types import FloatArray
 from .errors import ConfigError
-
-#: Tolerances for the inclusive field-of-view bounds: a point computed to lie exactly on an
-#: edge can land a rounding error outside it.
-RANGE_TOL = 1e-9
-ANGLE_TOL = 1e-12
-#: Looks with a smaller detection probability do not count (SPEC 4).
-P_VIS_MIN = 1e-6
-
 
 @dataclass(frozen=True)
 class SensorParams:
@@ -91,168 +82,44 @@ class SensorParams:
             raise ConfigError(f"{prefix}.min_ground_range", "must be <= max_ground_range")
 
 
-_SCALAR_FIELDS = tuple(f.name for f in fields(SensorParams) if f.name != "moves")
+#: Columns of a radar table row (:func:`radar_table`), in order. ``snr0`` is the linear SNR
+#: at ``range_ref``; ``var_r`` and ``var_phi`` are the noise constants with
+#: :math:`\sigma_r^2 = c_r r^4` and :math:`\sigma_\phi^2 = c_\phi r^4 / \cos^2\psi`.
+COLUMNS = ("altitude", "altitude2", "cos_depression", "sin_depression", "fov_half_angle",
+           "min_ground_range", "max_ground_range", "snr0", "range_ref", "var_r", "var_phi")
+ALTITUDE, ALTITUDE2, COS_DEP, SIN_DEP, FOV, G_MIN, G_MAX, SNR0, RANGE_REF, VAR_R, VAR_PHI = \
+    range(len(COLUMNS))
 
 
-def stack_params(params: "list[SensorParams] | tuple[SensorParams, ...]") -> SensorParams:
-    """One :class:`SensorParams` whose scalar fields are ``(N,)`` arrays, one per sensor."""
-    kwargs = {name: np.array([getattr(p, name) for p in params], dtype=float)
-              for name in _SCALAR_FIELDS}
-    return SensorParams(moves=(), **kwargs)
+def radar_table(sensors: Sequence[SensorParams] | SensorParams) -> FloatArray:
+    r"""One row of radar constants per sensor, shaped ``(N, len(COLUMNS))``.
 
+    With :math:`s_0 = 10^{\mathrm{snr_{ref}}/10}` the SNR model
+    :math:`\mathrm{SNR} = s_0 (r_{ref}/r)^4` gives
+    :math:`\sigma_r^2 = \Delta r^2 / (2\,\mathrm{SNR}) = c_r r^4` and
+    :math:`\sigma_\phi^2 = (\beta/\cos\psi)^2 / (k_m^2\, 2\,\mathrm{SNR})
+    = c_\phi r^4/\cos^2\psi` with
 
-def take_params(params: SensorParams, index: Any) -> SensorParams:
-    """Index every array field of stacked parameters (e.g. ``[:, None]`` to add an axis)."""
-    kwargs = {name: np.asarray(getattr(params, name))[index] for name in _SCALAR_FIELDS}
-    return SensorParams(moves=params.moves, **kwargs)
-
-
-def ground_offset(target_xy: FloatArray, sensor_xy: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Ground offset ``(dx, dy)`` of targets ``(..., 2)`` from sensors ``(..., 2)``."""
-    target_xy = np.asarray(target_xy, dtype=float)
-    sensor_xy = np.asarray(sensor_xy, dtype=float)
-    return target_xy[..., 0] - sensor_xy[..., 0], target_xy[..., 1] - sensor_xy[..., 1]
-
-
-def measure(x: FloatArray, sensor_xy: FloatArray, altitude: Any) -> FloatArray:
-    """Noise-free measurement ``[r, phi]`` of states ``(..., 4)`` (or positions ``(..., 2)``).
-
-    ``r`` is the slant range (m) including the altitude, ``phi = atan2(dy, dx)`` the azimuth.
-    """
-    dx, dy = ground_offset(np.asarray(x)[..., :2], sensor_xy)
-    r = np.sqrt(dx * dx + dy * dy + np.asarray(altitude, dtype=float) ** 2)
-    return np.stack([r, np.arctan2(dy, dx)], axis=-1)
-
-
-def position_jacobian(dx: FloatArray, dy: FloatArray, altitude: Any) -> FloatArray:
-    r"""Jacobian of ``[r, phi]`` with respect to the target's ground position.
-
-    .. math:: H' = \begin{bmatrix} dx/r & dy/r \\ -dy/g^2 & dx/g^2 \end{bmatrix}
-
-    Returns
-    -------
-    (..., 2, 2); the velocity columns of the full Jacobian are zero.
-    """
-    g2 = dx * dx + dy * dy
-    r = np.sqrt(g2 + np.asarray(altitude, dtype=float) ** 2)
-    H = np.empty(np.broadcast(dx, dy, r).shape + (2, 2))
-    H[..., 0, 0] = dx / r
-    H[..., 0, 1] = dy / r
-    with np.errstate(divide="ignore", invalid="ignore"):
-        H[..., 1, 0] = -dy / g2
-        H[..., 1, 1] = dx / g2
-    return H
-
-
-def jacobian(x: FloatArray, sensor_xy: FloatArray, altitude: Any) -> FloatArray:
-    """Full analytic Jacobian ``(..., 2, 4)`` of ``[r, phi]`` w.r.t. ``[x, y, vx, vy]``."""
-    dx, dy = ground_offset(np.asarray(x)[..., :2], sensor_xy)
-    Hp = position_jacobian(dx, dy, altitude)
-    H = np.zeros(Hp.shape[:-1] + (4,))
-    H[..., :2] = Hp
-    return H
-
-
-def cos_boresight(dx: FloatArray, dy: FloatArray, heading: Any, params: SensorParams) -> FloatArray:
-    r"""Cosine of the angle psi between line of sight and boresight.
-
-    .. math:: \cos\psi = b\cdot u,\ b = (\cos\delta\cos\theta, \cos\delta\sin\theta,
-              -\sin\delta),\ u = (dx, dy, -z)/r
-    """
-    z = np.asarray(params.altitude, dtype=float)
-    dep = np.asarray(params.depression, dtype=float)
-    r = np.sqrt(dx * dx + dy * dy + z * z)
-    horiz = dx * np.cos(heading) + dy * np.sin(heading)
-    return (np.cos(dep) * horiz + np.sin(dep) * z) / r
-
-
-def noise_std(r: FloatArray, cos_psi: FloatArray,
-              params: SensorParams) -> tuple[FloatArray, FloatArray]:
-    r"""Range (m) and azimuth (rad) noise standard deviations (SPEC 2, SNR model).
-
-    .. math::
-        \mathrm{SNR} = 10^{\mathrm{snr_{ref}}/10} (r_{ref}/r)^4,\quad
-        \sigma_r = \frac{\Delta r}{\sqrt{2\,\mathrm{SNR}}},\quad
-        \sigma_\phi = \frac{\beta / \cos\psi}{k_m \sqrt{2\,\mathrm{SNR}}}
-    """
-    snr = 10.0 ** (np.asarray(params.snr_ref_db) / 10.0) * (np.asarray(params.range_ref) / r) ** 4
-    root = np.sqrt(2.0 * snr)
-    sigma_r = np.asarray(params.range_resolution) / root
-    with np.errstate(divide="ignore"):
-        sigma_phi = (np.asarray(params.beamwidth) / cos_psi) / (np.asarray(params.monopulse_slope) * root)
-    return sigma_r, sigma_phi
-
-
-def noise_cov(x: FloatArray, sensor_xy: FloatArray, heading: Any, params: SensorParams) -> FloatArray:
-    """Measurement noise covariance ``R`` ``(..., 2, 2)`` at target states or positions."""
-    dx, dy = ground_offset(np.asarray(x)[..., :2], sensor_xy)
-    r = np.sqrt(dx * dx + dy * dy + np.asarray(params.altitude, dtype=float) ** 2)
-    sr, sp = noise_std(r, cos_boresight(dx, dy, heading, params), params)
-    R = np.zeros(np.broadcast(sr, sp).shape + (2, 2))
-    R[..., 0, 0] = sr * sr
-    R[..., 1, 1] = sp * sp
-    return R
-
-
-def visible_offset(dx: FloatArray, dy: FloatArray, heading: Any, params: SensorParams) -> BoolArray:
-    """Field-of-view test on ground offsets (bounds inclusive; SPEC 2)."""
-    g = np.hypot(dx, dy)
-    in_band = (g >= np.asarray(params.min_ground_range) - RANGE_TOL) & (
-        g <= np.asarray(params.max_ground_range) + RANGE_TOL)
-    off = np.abs(wrap_angle(np.arctan2(dy, dx) - heading))
-    in_wedge = off <= np.asarray(params.fov_half_angle) + ANGLE_TOL
-    return in_band & in_wedge & (cos_boresight(dx, dy, heading, params) > 0.0)
-
-
-def visible(x: FloatArray, sensor_xy: FloatArray, heading: Any, params: SensorParams) -> BoolArray:
-    """Whether targets ``(..., 2|4)`` lie in the field of view of sensors at ``sensor_xy``."""
-    dx, dy = ground_offset(np.asarray(x)[..., :2], sensor_xy)
-    return visible_offset(dx, dy, heading, params)
-
-
-def detection_probability(mean_xy: FloatArray, C: FloatArray, sensor_xy: FloatArray,
-                          heading: Any, params: SensorParams) -> FloatArray:
-    r"""Probability ``p_vis`` that a target with ground position ``N(mean, C)`` is visible.
-
-    Linearised at the mean, with ground range and azimuth treated as independent (SPEC 4):
-
-    .. math::
-        p = [\Phi(\tfrac{g_{max}-\bar g}{s_g}) - \Phi(\tfrac{g_{min}-\bar g}{s_g})]
-            [\Phi(\tfrac{f-d}{s_\phi}) - \Phi(\tfrac{-f-d}{s_\phi})],\quad
-        s_g^2 = u^T C u,\ s_\phi^2 = v^T C v / \bar g^2
+    .. math:: c_r = \frac{\Delta r^2}{2 s_0 r_{ref}^4},\qquad
+              c_\phi = \frac{\beta^2}{k_m^2\, 2 s_0 r_{ref}^4}.
 
     Parameters
     ----------
-    mean_xy : (..., 2)
-    C : (..., 2, 2)   position covariance
-    sensor_xy : (..., 2)
-    heading : (...)
+    sensors : SensorParams or sequence of SensorParams (scalar fields)
 
     Returns
     -------
-    (...,) float64 in [0, 1]; 0 when ``gbar = 0`` or ``cos psi <= 0`` at the mean.
+    (N, 11) float64, C-contiguous; a single SensorParams gives N = 1.
     """
-    dx, dy = ground_offset(mean_xy, sensor_xy)
-    g = np.hypot(dx, dy)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ux, uy = dx / g, dy / g
-        var_g = ux * ux * C[..., 0, 0] + 2 * ux * uy * C[..., 0, 1] + uy * uy * C[..., 1, 1]
-        var_v = uy * uy * C[..., 0, 0] - 2 * ux * uy * C[..., 0, 1] + ux * ux * C[..., 1, 1]
-        sd_g = np.sqrt(np.maximum(var_g, 0.0))
-        sd_phi = np.sqrt(np.maximum(var_v, 0.0)) / g
-        d = wrap_angle(np.arctan2(dy, dx) - heading)
-        fov = np.asarray(params.fov_half_angle)
-        p_range = _interval_mass(np.asarray(params.min_ground_range) - g,
-                                 np.asarray(params.max_ground_range) - g, sd_g)
-        p_az = _interval_mass(-fov - d, fov - d, sd_phi)
-    p = p_range * p_az
-    ok = (g > 0) & (cos_boresight(dx, dy, heading, params) > 0.0)
-    return np.where(ok, p, 0.0)
-
-
-def _interval_mass(lo: FloatArray, hi: FloatArray, sd: FloatArray) -> FloatArray:
-    """``Ncdf(hi/sd) - Ncdf(lo/sd)``; a zero ``sd`` gives the indicator of ``lo <= 0 <= hi``."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        a = ndtr(hi / sd) - ndtr(lo / sd)
-    point = ((lo <= 0) & (hi >= 0)).astype(float)
-    return np.where(sd > 0, a, point)
+    seq = (sensors,) if isinstance(sensors, SensorParams) else tuple(sensors)
+    out = np.empty((len(seq), len(COLUMNS)))
+    for n, p in enumerate(seq):
+        snr0 = 10.0 ** (float(p.snr_ref_db) / 10.0)
+        two_s0_r4 = 2.0 * snr0 * float(p.range_ref) ** 4
+        alt = float(p.altitude)
+        dep = float(p.depression)
+        out[n] = (alt, alt * alt, math.cos(dep), math.sin(dep), float(p.fov_half_angle),
+                  float(p.min_ground_range), float(p.max_ground_range), snr0,
+                  float(p.range_ref), float(p.range_resolution) ** 2 / two_s0_r4,
+                  (float(p.beamwidth) / float(p.monopulse_slope)) ** 2 / two_s0_r4)
+    return out

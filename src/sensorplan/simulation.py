@@ -11,7 +11,8 @@ One run (:func:`run_episode`) alternates decisions and execution:
   rule, at most ``max_turn``) toward its planned target's current estimate predicted to the
   epoch's first step; it keeps position, heading and target for the epoch's ``e`` steps.
 - Every step: the targets move; the filters predict; every sensor whose target is truly in
-  its field of view measures it (true position plus noise with ``R`` at the true position);
+  its field of view measures it (the radar model of :mod:`sensorplan.radar` at the true
+  position: its noise-free measurement plus noise with ``R`` at the true position);
   a look that misses feeds the ``negative`` miss update (SPEC 3) when enabled, for all
   missed looks in sensor order before the measurement updates, which are also applied in
   sensor order. Looks at distinct tracks are independent, so they are batched into one
@@ -49,7 +50,8 @@ from .errors import ConfigError
 from .planners import make_planner
 from .problem import OBJECTIVES, VISIBILITY_MODES, PlanningProblem
 from .scenario import MISS_UPDATES, Scenario, draw_initial
-from .sensors import ANGLE_TOL, RANGE_TOL, _SCALAR_FIELDS, SensorParams, stack_params
+from . import radar
+from .sensors import radar_table
 from .truth import TruthModel
 
 EXECUTIONS = ("ol", "olf")
@@ -281,23 +283,6 @@ def _miss_update_kernel() -> Callable[..., tuple[FloatArray, FloatArray, BoolArr
     return miss_update
 
 
-class _Rows:
-    """Per-look parameters: rows of stacked ``(N,)`` parameter fields, cached by rows."""
-
-    def __init__(self, params: SensorParams) -> None:
-        self.params = params
-        self.cache: dict[tuple[int, ...], SensorParams] = {}
-
-    def __call__(self, idx: IntArray) -> SensorParams:
-        key = tuple(idx.tolist())
-        p = self.cache.get(key)
-        if p is None:
-            p = SensorParams(moves=(), **{name: getattr(self.params, name)[idx]
-                                          for name in _SCALAR_FIELDS})
-            self.cache[key] = p
-        return p
-
-
 def run_episode(scenario: Scenario, settings: RunSettings,
                 seed: int | np.random.SeedSequence,
                 progress: Callable[[int, int], None] | None = None) -> Episode:
@@ -329,19 +314,13 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     S, K, e = settings.steps, settings.horizon, settings.steps_per_epoch
     M, N = len(scenario.targets), len(scenario.sensors)
     sensor_list = tuple(s.params for s in scenario.sensors)
-    params = stack_params(sensor_list)
-    rows = _Rows(params)
-    max_turn = params.max_turn
+    table = radar_table(sensor_list)
+    max_turn = np.array([float(p.max_turn) for p in sensor_list])
 
     init = draw_initial(scenario, truth_rng, init_rng)
     truth_model = TruthModel(scenario, init.truth, truth_rng)
     tracker = Tracker(init.estimate, np.array(scenario.initial_cov), scenario.dt,
-                      scenario.process_noise, params)
-    alt, alt2, cos_dep, sin_dep, var_r, var_phi = tracker.radar.T
-    # Inclusive field-of-view edges with the tolerances of sensors.visible_offset.
-    g_lo = params.min_ground_range - RANGE_TOL
-    g_hi = params.max_ground_range + RANGE_TOL
-    fov = params.fov_half_angle + ANGLE_TOL
+                      scenario.process_noise, table)
     # All noise up front: each sensor's stream yields 2 normals per step in order, so this
     # equals drawing them step by step, and a sensor draws whether it measures or not.
     noise = np.stack([np.random.default_rng(c).standard_normal((S, 2))
@@ -400,20 +379,10 @@ def run_episode(scenario: Scenario, settings: RunSettings,
         x_true = truth_model.step()
         tracker.predict()
 
-        # Looks at the truth: visibility and the sampled noise use the true position. This
-        # is sensors.visible_offset / noise_std inlined on precomputed per-sensor constants
-        # (the tests check it against them).
+        # Looks at the truth: visibility and the sampled noise use the true position.
         tj = np.maximum(target, 0)
-        dx = x_true[tj, 0] - pos[:, 0]
-        dy = x_true[tj, 1] - pos[:, 1]
-        g2 = dx * dx + dy * dy
-        g = np.sqrt(g2)
-        phi = np.arctan2(dy, dx)
-        r2 = g2 + alt2
-        r = np.sqrt(r2)
-        cos_psi = (cos_dep * (dx * np.cos(head) + dy * np.sin(head)) + sin_dep * alt) / r
-        seen = ((g >= g_lo) & (g <= g_hi) & (np.abs(wrap_angle(phi - head)) <= fov)
-                & (cos_psi > 0.0))
+        h_true, _, var_true, seen = radar.measure_looks(table, sensor_index, x_true[tj, :2],
+                                                        pos, head)
         assigned = target >= 0
         miss = assigned & ~seen
         seen &= assigned
@@ -424,7 +393,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
                 i = idx[rnd]
                 j = target[i]
                 m, P, infl = miss_update(tracker.means[j], tracker.covs[j], pos[i], head[i],
-                                         rows(i))
+                                         table, i)
                 tracker.means[j] = m
                 tracker.covs[j] = P
                 negative[t, j] = True
@@ -432,11 +401,8 @@ def run_episode(scenario: Scenario, settings: RunSettings,
 
         if seen.any():
             i = sensor_index[seen]
-            r4 = r2[i] * r2[i]
-            z = np.empty((len(i), 2))
-            z[:, 0] = r[i] + np.sqrt(var_r[i] * r4) * noise[t - 1, i, 0]
-            z[:, 1] = wrap_angle(phi[i] + np.sqrt(var_phi[i] * r4) / cos_psi[i]
-                                 * noise[t - 1, i, 1])
+            z = h_true[i] + np.sqrt(var_true[i]) * noise[t - 1, i]
+            z[:, 1] = wrap_angle(z[:, 1])
             tracker.update(i, target[i], z, pos[i], head[i])
             measured[t, target[i], i] = True
 

@@ -1,18 +1,99 @@
-"""The radar-like sensor (SPEC 2) and the detection probability p_vis (SPEC 4)."""
+"""The one radar model (:mod:`sensorplan.radar`): closed forms, edge cases, and agreement
+with the independent numpy computation of ``radar_reference`` to 1e-12.
+
+The helpers below call the library's compiled radar with the shapes the tests want; they
+build a radar table per call, one row per parameter set.
+"""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 
-from sensorplan.sensors import (ANGLE_TOL, RANGE_TOL, SensorParams, cos_boresight,
-                                detection_probability, jacobian, measure, noise_cov, noise_std,
-                                position_jacobian, stack_params, take_params, visible,
-                                visible_offset)
+import radar_reference as ref
+from sensorplan import radar
+from sensorplan.radar import ANGLE_TOL, RANGE_TOL
+from sensorplan.sensors import COLUMNS, SensorParams, radar_table
 
 DEF = SensorParams()
+
+
+def _table(p: SensorParams, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Radar table of ``p`` (fields scalars or arrays broadcast to ``shape``) and row indices."""
+    names = [f.name for f in dataclasses.fields(SensorParams) if f.name != "moves"]
+    arrays = np.broadcast_arrays(*[np.asarray(getattr(p, n), dtype=float) for n in names],
+                                 np.empty(shape))[:-1]
+    flat = [a.ravel() for a in arrays]
+    rows = [SensorParams(**{n: float(v[k]) for n, v in zip(names, flat)})
+            for k in range(flat[0].size)]
+    return radar_table(rows), np.arange(len(rows)).reshape(shape)
+
+
+def _looks(x, s, heading, p=DEF):
+    x, s = np.asarray(x, dtype=float), np.asarray(s, dtype=float)
+    shape = np.broadcast_shapes(x.shape[:-1], s.shape[:-1], np.shape(heading))
+    table, idx = _table(p, shape)
+    return radar.measure_looks(table, idx, np.broadcast_to(x[..., :2], shape + (2,)),
+                               np.broadcast_to(s, shape + (2,)),
+                               np.broadcast_to(heading, shape))
+
+
+def measure(x, s, altitude):
+    return _looks(x, s, 0.0, SensorParams(altitude=altitude))[0]
+
+
+def jacobian(x, s, altitude):
+    Hp = _looks(x, s, 0.0, SensorParams(altitude=altitude))[1]
+    return np.concatenate([Hp, np.zeros(Hp.shape)], axis=-1)
+
+
+def position_jacobian(dx, dy, altitude):
+    return ref.position_jacobian(dx, dy, altitude)
+
+
+def noise_cov(x, s, heading, p):
+    var = _looks(x, s, heading, p)[2]
+    R = np.zeros(var.shape + (2,))
+    R[..., 0, 0], R[..., 1, 1] = var[..., 0], var[..., 1]
+    return R
+
+
+def visible(x, s, heading, p):
+    return _looks(x, s, heading, p)[3]
+
+
+def cos_boresight(dx, dy, heading, p):
+    shape = np.broadcast_shapes(np.shape(dx), np.shape(dy), np.shape(heading))
+    table, idx = _table(p, shape)
+    out = np.empty(shape)
+    for k in np.ndindex(shape):
+        row = table[idx[k]]
+        ddx, ddy = float(np.broadcast_to(dx, shape)[k]), float(np.broadcast_to(dy, shape)[k])
+        h = float(np.broadcast_to(heading, shape)[k])
+        r = math.sqrt(ddx * ddx + ddy * ddy + row[1])
+        out[k] = radar.cos_psi(row, ddx, ddy, math.cos(h), math.sin(h), r)
+    return out
+
+
+def noise_std(r, cos_psi, p):
+    row = radar_table(p)[0]
+    var_r, var_phi = radar.noise_variances(row, float(r) ** 2, float(cos_psi))
+    return math.sqrt(var_r), math.sqrt(var_phi)
+
+
+def detection_probability(mean, C, s, heading, p):
+    """p_vis through the planner's look kernel (0 below the 1e-6 threshold)."""
+    mean, s = np.asarray(mean, dtype=float), np.asarray(s, dtype=float)
+    C = np.asarray(C, dtype=float)
+    shape = np.broadcast_shapes(mean.shape[:-1], s.shape[:-1], np.shape(heading), C.shape[:-2])
+    d = np.broadcast_to(mean - s, shape + (2,))
+    C3 = np.stack([C[..., 0, 0], C[..., 0, 1], C[..., 1, 1]], axis=-1)
+    row = radar_table(p)[0]
+    return radar.look_information(row, d[..., 0], d[..., 1], np.broadcast_to(heading, shape),
+                                  np.broadcast_to(C3, shape + (3,)), True)[1]
 # Steps past an edge: well above the tolerances and the rounding of the test geometry.
 RANGE_STEP = 1e-6
 ANGLE_STEP = 1e-9
@@ -171,11 +252,11 @@ def test_cos_boresight_equals_explicit_3d_angle(rng):
 
 def test_noise_closed_forms_at_reference_range():
     snr = 10**1.5
-    sr, sp = noise_std(np.array(600.0), np.array(1.0), DEF)
+    sr, sp = noise_std(600.0, 1.0, DEF)
     assert float(sr) == pytest.approx(30 / math.sqrt(2 * snr), rel=1e-14)
     assert float(sp) == pytest.approx(math.radians(3) / (1.6 * math.sqrt(2 * snr)), rel=1e-14)
     # sigma ~ r^2 (SNR ~ r^-4); sigma_phi ~ 1 / cos psi
-    sr2, sp2 = noise_std(np.array(300.0), np.array(0.5), DEF)
+    sr2, sp2 = noise_std(300.0, 0.5, DEF)
     assert float(sr2) == pytest.approx(float(sr) / 4, rel=1e-14)
     assert float(sp2) == pytest.approx(float(sp) / 4 * 2, rel=1e-14)
 
@@ -215,21 +296,24 @@ def test_noise_cov_general_geometry_matches_spec(rng):
         np.testing.assert_allclose(R[m], want, rtol=1e-12, atol=0)
 
 
-# --------------------------------------------------------------------------- stacked params
+# --------------------------------------------------------------------------- the table
 
-def test_stacked_params_equal_per_sensor_calls(rng):
+
+def test_table_rows_equal_per_sensor_calls(rng):
     ps = [SensorParams(), SensorParams(altitude=490.0, fov_half_angle=0.4, max_ground_range=420.0),
           SensorParams(altitude=510.0, min_ground_range=200.0, depression=0.5)]
-    st = stack_params(ps)
-    assert float(take_params(st, 1).altitude) == 490.0
+    table = radar_table(ps)
+    assert table.shape == (3, len(COLUMNS)) and table.flags.c_contiguous
+    assert table[1, COLUMNS.index("altitude")] == 490.0
     s = rng.uniform(100, 500, size=(3, 2))
     th = rng.uniform(-3, 3, size=3)
     x = rng.uniform(-200, 800, size=(200, 1, 2))
-    vis = visible(x, s, th, st)
-    R = noise_cov(x, s, th, st)
+    h, H, var, vis = radar.measure_looks(table, np.arange(3), x, s, th)
+    assert vis.shape == (200, 3)
     for i, p in enumerate(ps):
-        np.testing.assert_array_equal(vis[:, i], visible(x[:, 0], s[i], th[i], p))
-        np.testing.assert_allclose(R[:, i], noise_cov(x[:, 0], s[i], th[i], p), rtol=1e-15)
+        one = radar.measure_looks(radar_table(p), 0, x[:, 0], s[i], th[i])
+        for a, b in zip((h, H, var, vis), one):
+            np.testing.assert_array_equal(a[:, i], b)
     assert vis.any() and not vis.all()
 
 
@@ -285,7 +369,10 @@ def test_p_vis_closed_form_against_independent_formula(rng):
         want = ((ncdf((430 - gbar) / sd_g) - ncdf((220 - gbar) / sd_g))
                 * (ncdf((0.4 - d) / sd_phi) - ncdf((-0.4 - d) / sd_phi)))
         got = float(detection_probability(mean, C, s, heading, p))
-        assert got == pytest.approx(want, rel=1e-9, abs=1e-15)
+        if want < radar.P_VIS_MIN:          # such looks do not count: weight exactly 0
+            assert got == 0.0
+        else:
+            assert got == pytest.approx(want, rel=1e-9, abs=1e-15)
 
 
 def test_p_vis_tiny_covariance_is_the_visibility_indicator(rng):
@@ -323,7 +410,7 @@ def test_p_vis_at_a_range_edge_is_half_the_azimuth_factor():
 
 def test_p_vis_zero_at_the_nadir_and_batched_shapes(rng):
     s = np.array([10.0, 20.0])
-    assert detection_probability(s.copy(), np.eye(2) * 100, s, 0.0, DEF) == 0.0
+    assert float(detection_probability(s.copy(), np.eye(2) * 100, s, 0.0, DEF)) == 0.0
     mean = rng.uniform(0, 600, size=(4, 3, 2))
     C = np.broadcast_to(np.eye(2) * 50, (4, 3, 2, 2))
     sensors = rng.uniform(0, 600, size=(4, 1, 2))
@@ -337,9 +424,78 @@ def test_p_vis_zero_at_the_nadir_and_batched_shapes(rng):
                                                            th[a, 0], DEF))
 
 
-def test_visible_offset_equals_visible(rng):
-    s = rng.uniform(0, 600, size=(100, 2))
-    x = rng.uniform(-200, 800, size=(100, 4))
-    th = rng.uniform(-4, 4, size=100)
-    np.testing.assert_array_equal(visible(x, s, th, DEF),
-                                  visible_offset(x[:, 0] - s[:, 0], x[:, 1] - s[:, 1], th, DEF))
+# --------------------------------------------------------------------------- reference
+
+
+def _varied(rng, n):
+    return [SensorParams(altitude=float(rng.uniform(60, 900)),
+                         fov_half_angle=float(rng.uniform(0.1, math.pi)),
+                         min_ground_range=float(rng.uniform(1, 250)),
+                         max_ground_range=float(rng.uniform(260, 700)),
+                         depression=float(rng.uniform(-0.3, 1.4)),
+                         snr_ref_db=float(rng.uniform(0, 25)),
+                         range_ref=float(rng.uniform(300, 900)),
+                         beamwidth=float(rng.uniform(0.01, 0.1)),
+                         monopulse_slope=float(rng.uniform(1.0, 2.0)),
+                         range_resolution=float(rng.uniform(5, 50)))
+            for _ in range(n)]
+
+
+def test_measurement_model_equals_the_reference(rng):
+    """Range, azimuth, Jacobian, noise and field of view: compiled vs plain numpy."""
+    n = 4000
+    ps = _varied(rng, 7)
+    table = radar_table(ps)
+    idx = rng.integers(0, 7, size=n)
+    s = rng.uniform(0, 600, size=(n, 2))
+    x = s + rng.uniform(-800, 800, size=(n, 2))
+    th = rng.uniform(-4, 4, size=n)
+    h, H, var, vis = radar.measure_looks(table, idx, x, s, th)
+    st = ref.stack_params([ps[i] for i in idx])
+    np.testing.assert_allclose(h, ref.measure(x, s, st.altitude), rtol=1e-12, atol=0)
+    np.testing.assert_allclose(H, ref.jacobian(x, s, st.altitude)[..., :2], rtol=1e-12, atol=0)
+    R = ref.noise_cov(x, s, th, st)
+    np.testing.assert_allclose(var, np.stack([R[:, 0, 0], R[:, 1, 1]], -1), rtol=1e-12, atol=0)
+    want = ref.visible(x, s, th, st)
+    np.testing.assert_array_equal(vis, want)
+    assert 0.05 < want.mean() < 0.95           # both outcomes are exercised
+
+
+@pytest.mark.parametrize("visibility", ["probabilistic", "mean"])
+def test_look_information_equals_the_reference(rng, visibility):
+    """p_vis (or the mean's visibility) and p H'^T R^-1 H': compiled vs plain numpy."""
+    for p in _varied(rng, 6):
+        n = 3000
+        dx, dy = rng.uniform(-800, 800, size=(2, n))
+        th = rng.uniform(-4, 4, size=n)
+        A = rng.normal(size=(n, 2, 2))
+        Cm = A @ np.swapaxes(A, 1, 2) * rng.uniform(1, 2000, size=(n, 1, 1))
+        C = np.stack([Cm[:, 0, 0], Cm[:, 0, 1], Cm[:, 1, 1]], axis=-1)
+        W, w = radar.look_information(radar_table(p)[0], dx, dy, th, C,
+                                      visibility == "probabilistic")
+        W_ref, w_ref = ref.look_information(p, visibility, dx, dy, th, C)
+        # Where the reference sits within round-off of the 1e-6 threshold the two may
+        # differ in which side they land; nowhere else.
+        edge = np.abs(w_ref - radar.P_VIS_MIN) < 1e-12
+        # p is a probability: absolute agreement (a difference of two normal CDFs near 1
+        # loses relative digits when p is small, in either computation).
+        np.testing.assert_allclose(w[~edge], w_ref[~edge], rtol=0, atol=1e-12)
+        # The information per unit weight, H'^T R^-1 H', to 1e-12 relative.
+        ok = (w > 0) & (w_ref > 0)
+        unit, unit_ref = W[ok] / w[ok, None, None], W_ref[ok] / w_ref[ok, None, None]
+        scale = np.abs(unit_ref).max(axis=(1, 2), keepdims=True)
+        assert np.all(np.abs(unit - unit_ref) <= 1e-12 * scale)
+        np.testing.assert_array_equal(W[(w == 0)], 0.0)
+        assert ok.sum() > 10 and (w == 0).any()
+
+
+def test_visible_points_equals_the_per_look_test(rng):
+    table = radar_table(_varied(rng, 3))
+    sensor = np.array([2, 0, 1, 1])
+    dx, dy = rng.uniform(-700, 700, size=(2, 4, 300))
+    th = rng.uniform(-4, 4, size=4)
+    got = radar.visible_points(table, sensor, dx, dy, th)
+    s = np.zeros((4, 300, 2))
+    want = radar.measure_looks(table, sensor[:, None], np.stack([dx, dy], -1), s,
+                               th[:, None])[3]
+    np.testing.assert_array_equal(got, want)

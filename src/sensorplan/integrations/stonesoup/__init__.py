@@ -1,0 +1,47 @@
+r"""Stone Soup interop: our radar, platforms and planners inside a Stone Soup tracking loop.
+
+Install with the extra ``sensorplan[stonesoup]``. Only this module imports Stone Soup.
+
+What is here (``docs/stonesoup.md`` has the full mapping and its limits):
+
+- **Converters**, exact both ways: Stone Soup orders a target state ``[x, vx, y, vy]``,
+  sensorplan ``[x, y, vx, vy]``; :func:`to_stonesoup_mean`, :func:`to_stonesoup_cov`,
+  :func:`to_gaussian_state`, :func:`to_tracks` and their inverses permute entries, nothing
+  else.
+- :class:`RadarMeasurementModel`: the radar of SPEC 2 as a Stone Soup measurement model
+  (slant range with altitude, azimuth, SNR-dependent noise): ``function``, an analytic
+  ``jacobian`` and ``covar`` evaluated at a state, so Stone Soup's ``ExtendedKalmanUpdater``
+  runs on it.
+- Actionables: :class:`LatticeMovable` (a platform movement controller whose actions are
+  the SPEC 2 moves inside the map) and :class:`SensorplanRadar` (the radar, mounted on such a
+  platform, whose action is *where to look*: an :class:`AimAction` with a ground point; the
+  heading then follows the SPEC 2 heading rule from the platform's position).
+- :class:`SensorplanManager`: a Stone Soup ``SensorManager`` that turns the tracks and the
+  actionables into a :class:`~sensorplan.problem.PlanningProblem`, runs any registered
+  planner (rolling horizon: every call plans K epochs and returns the first) and returns
+  Stone Soup actions.
+- :class:`MutualInformationReward`: a reward for Stone Soup's own sensor managers
+  (brute force, greedy, MCTS) that is our one-step objective with ``visibility = "mean"``:
+  the sum over tracks of ``0.5 log det P_prior / det P_post`` after Stone Soup's predictor
+  and updater apply every look whose target's predicted mean is in the field of view.
+
+Timing convention (Stone Soup's): ``choose_actions(tracks, timestamp)`` receives tracks at
+time ``t0`` and returns actions that end at ``timestamp``; the actionables ``act`` at the
+start of the epoch, then measure. The planning problem's time 0 is ``t0`` and its step is
+the manager's ``dt``.
+"""
+
+from ._actionables import (AimAction, AimActionGenerator, LatticeMovable, LatticeMoveAction,
+                           LatticeMoveActionGenerator, SensorplanRadar, set_aim_candidates)
+from ._convert import (STONESOUP_ORDER, from_gaussian_state, from_stonesoup_cov,
+                       from_stonesoup_mean, from_tracks, ordered_tracks, to_gaussian_state,
+                       to_ground_truth_state, to_stonesoup_cov, to_stonesoup_mean, to_tracks)
+from ._manager import MutualInformationReward, SensorplanManager, execute
+from ._measurement import RadarMeasurementModel
+
+__all__ = ["STONESOUP_ORDER", "AimAction", "AimActionGenerator", "LatticeMovable",
+           "LatticeMoveAction", "LatticeMoveActionGenerator", "MutualInformationReward",
+           "RadarMeasurementModel", "SensorplanManager", "SensorplanRadar", "execute",
+           "from_gaussian_state", "from_stonesoup_cov", "from_stonesoup_mean", "from_tracks",
+           "ordered_tracks", "set_aim_candidates", "to_gaussian_state", "to_ground_truth_state",
+           "to_stonesoup_cov", "to_stonesoup_mean", "to_tracks"]

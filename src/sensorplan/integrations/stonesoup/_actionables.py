@@ -1,0 +1,324 @@
+"""Actionable Stone Soup types: lattice-moving platforms and the aimable radar."""
+
+from __future__ import annotations
+
+import datetime
+import math
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+from stonesoup.base import Property
+from stonesoup.movable import FixedMovable
+from stonesoup.movable.action.move_position_action import MovePositionAction
+from stonesoup.sensor.sensor import Sensor
+from stonesoup.sensormanager.action import Action, ActionableProperty, ActionGenerator
+from stonesoup.types.array import StateVector
+from stonesoup.types.detection import TrueDetection
+from stonesoup.types.state import State
+from stonesoup.types.track import Track
+
+from ..._types import FloatArray
+from ...angles import heading_rule
+from ...dynamics import cv_matrices
+from ...problem import POSITION_TOL, MapRect, move_vectors
+from ... import radar
+from ...sensors import SensorParams, radar_table
+
+from ._convert import _ground_xy, from_tracks, ordered_tracks
+from ._measurement import RadarMeasurementModel
+
+# --------------------------------------------------------------------------------------------
+# Platform movement: the SPEC 2 moves
+# --------------------------------------------------------------------------------------------
+
+
+class LatticeMoveAction(MovePositionAction):
+    """Move the platform to ``target_value``: move ``move_index`` of SPEC 2's move order."""
+
+    move_index: int = Property(default=0, doc="Index of the move (0 = stay).")
+
+
+class LatticeMoveActionGenerator(ActionGenerator):
+    """The SPEC 2 moves (stay, then 8 directions per distance) that end inside the map."""
+
+    move_distances: Sequence[float] = Property(default=(20.0, 40.0),
+                                               doc="Move distances s (m).")
+    world: MapRect = Property(default_factory=MapRect, doc="The map; its edge is inside.")
+    ground_mapping: Sequence[int] = Property(
+        default=(0, 1), doc="Indices of ground x and y in the platform position.")
+
+    def _targets(self) -> tuple[FloatArray, FloatArray]:
+        """Every move's end position (in position order) and whether it is inside the map."""
+        cur = np.asarray(self.current_value, dtype=float).ravel()
+        moves = move_vectors(tuple(self.move_distances))
+        ends = np.tile(cur, (len(moves), 1))
+        ends[:, self.ground_mapping[0]] += moves[:, 0]
+        ends[:, self.ground_mapping[1]] += moves[:, 1]
+        ground = ends[:, list(self.ground_mapping)]
+        return ends, self.world.contains(ground)
+
+    def action_for_move(self, move_index: int) -> LatticeMoveAction:
+        """The action of one move (raises ``ValueError`` if it leaves the map)."""
+        ends, inside = self._targets()
+        if not inside[move_index]:
+            raise ValueError(f"move {move_index} leaves the map")
+        return LatticeMoveAction(generator=self, end_time=self.end_time,
+                                 target_value=StateVector(ends[move_index]),
+                                 move_index=int(move_index))
+
+    def action_from_value(self, value: Any) -> LatticeMoveAction | None:
+        """The action reaching ground position ``value`` (``(2,)``, or a full position), or
+        None when no move inside the map reaches it within 1e-6 m."""
+        v = np.asarray(value, dtype=float).ravel()
+        ground = v[list(self.ground_mapping)] if v.size > 2 else v[:2]
+        ends, inside = self._targets()
+        d = np.abs(ends[:, list(self.ground_mapping)] - ground).max(axis=1)
+        hits = np.flatnonzero(inside & (d <= 10 * POSITION_TOL))
+        return self.action_for_move(int(hits[0])) if hits.size else None
+
+    @property
+    def default_action(self) -> LatticeMoveAction:
+        return self.action_for_move(0)
+
+    def __iter__(self) -> Any:
+        ends, inside = self._targets()
+        for m in np.flatnonzero(inside):
+            yield LatticeMoveAction(generator=self, end_time=self.end_time,
+                                    target_value=StateVector(ends[m]), move_index=int(m))
+
+    def __contains__(self, item: Any) -> bool:
+        if isinstance(item, MovePositionAction):
+            item = item.target_value
+        return self.action_from_value(item) is not None
+
+
+def _float_vector(v: Any) -> StateVector:
+    """A float64 copy of a state vector."""
+    return StateVector(np.array(v, dtype=float))
+
+
+class LatticeMovable(FixedMovable):
+    """A platform movement controller whose actions are the SPEC 2 moves inside the map.
+
+    Use it as the ``movement_controller`` of a Stone Soup ``FixedPlatform``. The position is
+    3-D ``[x, y, z]`` by default (``position_mapping=(0, 1, 2)``); moves change x and y. A
+    move takes effect at the platform's next ``act``; with no action the platform stays.
+    """
+
+    move_distances: Sequence[float] = Property(default=(20.0, 40.0),
+                                               doc="Move distances s (m), SPEC 2.")
+    world: MapRect = Property(default_factory=MapRect, doc="The map [0, W] x [0, H].")
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        # Integer positions (State([[300], [300], [490]])) would truncate planned moves.
+        self.state.state_vector = _float_vector(self.state.state_vector)
+        self._next_action: Action | None = None
+
+    @property
+    def ground_position(self) -> FloatArray:
+        """Ground position ``(2,)`` (m)."""
+        return np.asarray(self.position, dtype=float).ravel()[:2]
+
+    def actions(self, timestamp: datetime.datetime,
+                start_timestamp: datetime.datetime | None = None) -> set[ActionGenerator]:
+        start = start_timestamp if start_timestamp is not None else self.state.timestamp
+        return {LatticeMoveActionGenerator(owner=self, attribute="position", start_time=start,
+                                           end_time=timestamp,
+                                           move_distances=tuple(self.move_distances),
+                                           world=self.world)}
+
+    def add_actions(self, actions: Sequence[Action]) -> bool:
+        self._next_action = actions[0] if len(actions) else None
+        return True
+
+    def act(self, timestamp: datetime.datetime, *args: Any, **kwargs: Any) -> None:
+        self.move(timestamp)
+
+    def move(self, timestamp: datetime.datetime, **kwargs: Any) -> None:
+        new_state = State.from_state(self.state, timestamp=timestamp)
+        new_state.state_vector = _float_vector(new_state.state_vector)
+        self.states.append(new_state)
+        if self._next_action is not None:
+            self.position = self._next_action.target_value
+        self._next_action = None
+
+
+# --------------------------------------------------------------------------------------------
+# The radar as an actionable Stone Soup sensor
+# --------------------------------------------------------------------------------------------
+
+
+class AimAction(Action):
+    """Look at ground point ``target_value`` ``(x, y)``; ``target`` names what is there
+    (a track, or any key)."""
+
+    target: Any = Property(default=None, doc="The target looked at (e.g. its Track).")
+
+    def act(self, current_time: Any, timestamp: Any, init_value: Any, **kwargs: Any) -> Any:
+        return self.target_value
+
+
+class AimActionGenerator(ActionGenerator):
+    """One :class:`AimAction` per candidate ``(target, (x, y))`` of the radar."""
+
+    candidates: Sequence[Any] = Property(default=(), doc="``(target, (x, y))`` pairs.")
+
+    def action(self, point: Any, target: Any = None) -> AimAction:
+        """An aim action at ``point`` ``(x, y)`` for ``target``."""
+        p = np.asarray(point, dtype=float).ravel()
+        return AimAction(generator=self, end_time=self.end_time,
+                         target_value=(float(p[0]), float(p[1])), target=target)
+
+    @property
+    def default_action(self) -> AimAction:
+        owner = self.owner
+        return AimAction(generator=self, end_time=self.end_time,
+                         target_value=self.current_value, target=owner.aim_target)
+
+    def __iter__(self) -> Any:
+        for target, point in self.candidates:
+            yield self.action(point, target)
+
+    def __contains__(self, item: Any) -> bool:
+        if isinstance(item, AimAction):
+            item = item.target_value
+        p = np.asarray(item, dtype=float).ravel()
+        return any(np.allclose(p, np.asarray(q, dtype=float), rtol=0, atol=10 * POSITION_TOL)
+                   for _, q in self.candidates)
+
+
+class SensorplanRadar(Sensor):
+    r"""The SPEC 2 radar as an actionable Stone Soup sensor.
+
+    Mount it on a Stone Soup platform (a ``FixedPlatform`` with a :class:`LatticeMovable` to
+    let :class:`SensorplanManager` move it); its ground position is the platform's x, y and
+    its altitude is ``params.altitude``.
+
+    Pointing. The actionable property is :attr:`aim`, a ground point. When the radar acts on
+    a new :class:`AimAction` it turns toward that point by at most ``params.max_turn``
+    (SPEC 2 heading rule), from the heading it had, *seen from the platform's position at the
+    time of the first use after the act* (a measurement, or reading :attr:`heading`). The turn
+    is resolved lazily because Stone Soup acts platforms and sensors in no fixed order: in a
+    loop that acts every actionable before measuring, the turn is seen from the new position,
+    as SPEC 5 executes it. The heading then stays fixed until the next aim action.
+
+    Field of view: ground range in ``[min_ground_range, max_ground_range]``, azimuth within
+    ``fov_half_angle`` of the heading, ``cos psi > 0`` (SPEC 2), via
+    :func:`sensorplan.sensors.visible`.
+    """
+
+    params: SensorParams = Property(default_factory=SensorParams, doc="Radar parameters.")
+    heading: float = Property(default=0.0, doc="Heading theta (rad).")
+    aim: Any = ActionableProperty(
+        generator_cls=AimActionGenerator,
+        generator_kwargs_mapping={"candidates": "aim_candidates"},
+        default=None, doc="Ground point ``(x, y)`` the radar looks toward, or None.")
+    aim_candidates: Sequence[Any] = Property(
+        default=(), doc="``(target, (x, y))`` pairs offered to Stone Soup's sensor managers as "
+                        "aim actions (see :func:`set_aim_candidates`).")
+    ndim_state: int = Property(default=4, doc="Target state dimension.")
+    position_mapping: Sequence[int] = Property(
+        default=(0, 2), doc="Indices of a target's ground x and y in its state vector.")
+    seed: int | None = Property(default=None, doc="Seed of the radar's noise generator.")
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._pending = False
+        self.aim_target: Any = None
+        self.rng = np.random.default_rng(self.seed)
+
+    @heading.getter
+    def heading(self) -> float:
+        self._resolve()
+        return self._property_heading
+
+    def _resolve(self) -> None:
+        """Apply the pending turn toward :attr:`aim` from the current position."""
+        if not self._pending:
+            return
+        self._pending = False
+        aim = self._property_aim
+        if aim is None:
+            return
+        xy = self.ground_position
+        bearing = math.atan2(aim[1] - xy[1], aim[0] - xy[0])
+        self._property_heading = float(heading_rule(self._property_heading, bearing,
+                                                    self.params.max_turn))
+
+    @property
+    def ground_position(self) -> FloatArray:
+        """Ground position ``(2,)`` of the radar (its platform's x, y plus mounting offset)."""
+        return np.asarray(self.position, dtype=float).ravel()[:2]
+
+    def act(self, timestamp: datetime.datetime, **kwargs: Any) -> None:
+        if not self.validate_timestamp():
+            self.timestamp = timestamp
+            return
+        action = self.scheduled_actions.pop("aim", None)
+        if action is not None:
+            self._resolve()          # the previous aim's turn, if never used, happens first
+            self._property_aim = tuple(float(v) for v in action.target_value)
+            self.aim_target = action.target
+            self._pending = True
+        self.timestamp = timestamp
+
+    @property
+    def measurement_model(self) -> RadarMeasurementModel:
+        """The measurement model at the radar's current pose."""
+        return RadarMeasurementModel(ndim_state=self.ndim_state,
+                                     mapping=tuple(self.position_mapping),
+                                     sensor_xy=tuple(self.ground_position),
+                                     heading=self.heading, params=self.params)
+
+    def is_detectable(self, state: Any, measurement_model: Any = None) -> bool:
+        """Whether the state's ground position is in the field of view (SPEC 2)."""
+        xy = _ground_xy(state, self.position_mapping)
+        seen = radar.measure_looks(radar_table(self.params), 0, xy, self.ground_position,
+                                   self.heading)[3]
+        return bool(np.all(seen))
+
+    def measure(self, ground_truths: Iterable[Any], noise: Any = True,
+                rng: np.random.Generator | None = None, **kwargs: Any) -> set[TrueDetection]:
+        """Detections of the ground truths in the field of view (noise drawn in the
+        iteration order of ``ground_truths``).
+
+        ``noise``: True draws from ``N(0, R)`` with ``R`` at the true state (SPEC 2) using
+        ``rng`` or the radar's own generator; False adds none; an array is added as is (see
+        :meth:`RadarMeasurementModel.scaled_noise`). For reproducible noise pass a list (or a
+        single truth, a dwell on one target) rather than a set.
+        """
+        model = self.measurement_model
+        gen = rng if rng is not None else self.rng
+        detections: set[TrueDetection] = set()
+        for truth in ground_truths:
+            if not self.is_detectable(truth):
+                continue
+            if noise is True:
+                e = model.rvs(state=truth, random_state=gen)
+            elif noise is False or noise is None:
+                e = 0.0
+            else:
+                e = noise
+            z = model.function(truth, noise=False) + e
+            detections.add(TrueDetection(z, measurement_model=model, timestamp=truth.timestamp,
+                                         groundtruth_path=truth))
+        return detections
+
+
+def set_aim_candidates(radars: Iterable[SensorplanRadar], tracks: Iterable[Track],
+                       dt: float) -> None:
+    """Offer every track as an aim to each radar, for Stone Soup's own sensor managers.
+
+    The aim point is the track's mean predicted one step ``dt`` ahead (the point our
+    planners aim at in the first step of an epoch, SPEC 4). The candidate's target is the
+    Track itself.
+    """
+    tracks = ordered_tracks(tracks)
+    F, _ = cv_matrices(dt, 0.0)
+    means, _ = from_tracks(tracks)
+    aims = (means @ F.T)[:, :2]
+    cands = tuple((t, (float(a[0]), float(a[1]))) for t, a in zip(tracks, aims))
+    for rad in radars:
+        rad.aim_candidates = cands
