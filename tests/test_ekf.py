@@ -11,11 +11,12 @@ from scipy.stats import chi2
 
 from radar_reference import jacobian, measure, noise_cov, stack_params, take_params
 from sensorplan.dynamics import cv_matrices, predict_covariance
-from sensorplan.ekf import (Tracker, joseph_update, nees, position_update, predict,
+from sensorplan.ekf import (joseph_update, nees, position_update, predict,
                             standard_update, update, update_rounds)
 from sensorplan.problem import MapRect
 from sensorplan.scenario import Scenario, SensorSpec, TargetSpec
 from sensorplan.sensors import SensorParams, radar_table
+from sensorplan.tracker import Tracker
 from sensorplan.truth import TruthModel
 
 
@@ -189,7 +190,7 @@ class TestTracker:
         sensors = np.array([0, 1, 2, 3, 4])
         targets = np.array([1, 3, 1, 0, 1])           # target 1 measured three times
         z = measure(x[:, :2][np.array([0, 1, 0, 3, 0])] + 3.0, sxy, params.altitude)
-        tr = Tracker(means, covs, 1.0, 0.05, table_of(params))
+        tr = Tracker(means, covs, 1.0, table_of(params), process_noise=0.05)
         tr.update(sensors, targets, z, sxy, th)
         m, P = means.copy(), covs.copy()
         for s, j in zip(sensors, targets):  # sensor order, one measurement at a time
@@ -202,7 +203,7 @@ class TestTracker:
 
     def test_predict_all_tracks(self, rng):
         *_, params, means, covs = self.setup(rng)
-        tr = Tracker(means, covs, 2.0, 0.1, table_of(params))
+        tr = Tracker(means, covs, 2.0, table_of(params), process_noise=0.1)
         tr.predict()
         F, Q = cv_matrices(2.0, 0.1)
         np.testing.assert_allclose(tr.means, means @ F.T)
@@ -229,7 +230,8 @@ class TestConsistency:
         n_runs, steps = 200, 60
         sc, rng, truth0, est0, P0 = consistency_setup(n_runs, 11)
         truth = TruthModel(sc, truth0, rng)
-        tracker = Tracker(est0, P0, sc.dt, sc.process_noise, radar_table(SensorParams()))
+        tracker = Tracker(est0, P0, sc.dt, radar_table(SensorParams()),
+                          process_noise=sc.process_noise)
         # The sensor flies with each target, 350 m behind it in x (constant geometry).
         offset = np.array([350.0, 0.0])
         heading = np.zeros(n_runs)
@@ -262,7 +264,8 @@ class TestConsistency:
         sc, rng, truth0, est0, P0 = consistency_setup(n_runs, 11)
         truth = TruthModel(sc, truth0, rng)
         params = SensorParams(range_resolution=3.0, beamwidth=math.radians(0.3))
-        tracker = Tracker(est0, P0, sc.dt, sc.process_noise, radar_table(params))
+        tracker = Tracker(est0, P0, sc.dt, radar_table(params),
+                          process_noise=sc.process_noise)
         offset = np.array([350.0, 0.0])
         heading = np.zeros(n_runs)
         for _ in range(30):
@@ -286,7 +289,8 @@ class TestConsistency:
         truth = TruthModel(sc, truth0, rng)
         params = varied_params(rng, N)
         tracker = Tracker(truth0 + rng.normal(0, 10, (M, 4)) * [1, 1, 0.1, 0.1],
-                          np.diag([400.0, 400.0, 4.0, 4.0]), 1.0, 0.05, table_of(params))
+                          np.diag([400.0, 400.0, 4.0, 4.0]), 1.0, table_of(params),
+                          process_noise=0.05)
         for step in range(10_000):
             x = truth.step()
             tracker.predict()

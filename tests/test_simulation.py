@@ -13,7 +13,7 @@ import pytest
 from sensorplan import simulation
 from sensorplan.angles import heading_rule, wrap_angle
 from sensorplan.dynamics import cv_matrices
-from sensorplan.ekf import Tracker
+from sensorplan.tracker import Tracker
 from sensorplan.errors import ConfigError
 from sensorplan.planners import PLANNERS, PlanResult
 from sensorplan.problem import MapRect, Plan, PlanningProblem, move_vectors
@@ -144,7 +144,7 @@ class _RecordingTracker(Tracker):
 
     def update(self, sensors, targets, z, sensor_xy, heading):
         self.calls.append((np.array(sensors), np.array(z)))
-        super().update(sensors, targets, z, sensor_xy, heading)
+        return super().update(sensors, targets, z, sensor_xy, heading)
 
 
 def recovered_noise(ep: Episode, calls, scenario: Scenario) -> dict[tuple[int, int], np.ndarray]:

@@ -104,8 +104,9 @@ def covariance_recursion_nb(P0: np.ndarray, W: np.ndarray, F: np.ndarray, Q: np.
                             dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Same contract as :func:`sensorplan.information.covariance_recursion_numpy`.
 
-    ``cv`` says that ``F`` is the CWNA transition with step ``dt``, whose product is then
-    computed in closed form (a quarter of the multiplications).
+    ``Q`` is ``(1, 4, 4)`` (shared by every row) or ``(B, 4, 4)`` (one per row). ``cv`` says
+    that ``F`` is the CWNA transition with step ``dt``, whose product is then computed in
+    closed form (a quarter of the multiplications).
     """
     n = P0.shape[0]
     S = W.shape[1]
@@ -115,7 +116,9 @@ def covariance_recursion_nb(P0: np.ndarray, W: np.ndarray, F: np.ndarray, Q: np.
     P = np.empty((4, 4))
     FP = np.empty((4, 4))
     Pc = np.empty((4, 2))
+    shared_q = Q.shape[0] == 1
     for b in range(n):
+        qb = 0 if shared_q else b
         for r in range(4):
             for c in range(4):
                 P[r, c] = P0[b, r, c]
@@ -133,7 +136,7 @@ def covariance_recursion_nb(P0: np.ndarray, W: np.ndarray, F: np.ndarray, Q: np.
                         FP[r + 2, c + 2] = P[r + 2, c + 2]
                 for r in range(4):
                     for c in range(r, 4):
-                        v = 0.5 * (FP[r, c] + FP[c, r]) + Q[r, c]
+                        v = 0.5 * (FP[r, c] + FP[c, r]) + Q[qb, r, c]
                         P[r, c] = v
                         P[c, r] = v
             else:
@@ -145,7 +148,7 @@ def covariance_recursion_nb(P0: np.ndarray, W: np.ndarray, F: np.ndarray, Q: np.
                         FP[r, c] = s
                 for r in range(4):
                     for c in range(r, 4):
-                        s = Q[r, c]
+                        s = Q[qb, r, c]
                         for m in range(4):
                             s += FP[r, m] * F[c, m]
                         P[r, c] = s
@@ -289,7 +292,7 @@ def warm_up() -> None:
     P = np.eye(4)[None].copy()
     W = np.zeros((1, 1, 2, 2))
     for cv in (True, False):
-        covariance_recursion_nb(P, W, np.eye(4), np.zeros((4, 4)), True, cv, 1.0)
+        covariance_recursion_nb(P, W, np.eye(4), np.zeros((1, 4, 4)), True, cv, 1.0)
     row = np.zeros(11)
     row[0] = row[1] = 1.0
     for probabilistic in (True, False):

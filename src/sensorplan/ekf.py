@@ -1,8 +1,8 @@
 r"""Extended Kalman filtering of the targets (SPEC 3), batched over targets.
 
 One EKF per target with the filter model of SPEC 1 (CWNA, no walls) and the range/azimuth
-measurement of SPEC 2. Functions take leading batch axes; :class:`Tracker` is a thin
-stateful wrapper holding every target's mean ``(M, 4)`` and covariance ``(M, 4, 4)``.
+measurement of SPEC 2. Functions take leading batch axes; :class:`sensorplan.tracker.Tracker` is the stateful
+wrapper holding every target's track.
 
 Update (per measurement, Joseph form):
 
@@ -102,6 +102,34 @@ def position_update(x: FloatArray, P: FloatArray, innovation: FloatArray, Hp: Fl
     return x_new, 0.5 * (P_new + np.swapaxes(P_new, -1, -2))
 
 
+def innovations(x: FloatArray, P: FloatArray, z: FloatArray, sensor_xy: FloatArray,
+                heading: FloatArray, table: FloatArray, sensor: IntArray
+                ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """Innovations, their covariances and the linearisation of B tracks' measurements.
+
+    Parameters as in :func:`update`.
+
+    Returns
+    -------
+    nu : (B, 2)       ``z - h(x)``, azimuth wrapped
+    S : (B, 2, 2)     innovation covariance ``H' C H'^T + R`` (C the position block of P)
+    Hp : (B, 2, 2)    ground-position Jacobian at x
+    var : (B, 2)      diagonal of R at x
+    """
+    h, Hp, var, _ = radar.measure_looks(table, sensor, x[:, :2], sensor_xy, heading)
+    nu = z - h
+    nu[:, 1] = wrap_angle(nu[:, 1])
+    S = Hp @ P[:, :2, :2] @ np.swapaxes(Hp, -1, -2)
+    S[:, 0, 0] += var[:, 0]
+    S[:, 1, 1] += var[:, 1]
+    return nu, S, Hp, var
+
+
+def mahalanobis2(nu: FloatArray, S: FloatArray) -> FloatArray:
+    """Squared Mahalanobis distances ``nu^T S^-1 nu`` of innovations ``(B, m)``."""
+    return np.einsum("bi,bi->b", nu, np.linalg.solve(S, nu[..., None])[..., 0])
+
+
 def update(x: FloatArray, P: FloatArray, z: FloatArray, sensor_xy: FloatArray,
            heading: FloatArray, table: FloatArray,
            sensor: IntArray | None = None) -> tuple[FloatArray, FloatArray]:
@@ -174,55 +202,6 @@ def update_rounds(targets: IntArray) -> list[IntArray]:
     return [np.flatnonzero(rank == r) for r in range(int(rank.max()) + 1)]
 
 
-class Tracker:
-    """Every target's EKF: means ``(M, 4)`` and covariances ``(M, 4, 4)``.
-
-    Parameters
-    ----------
-    means : (M, 4)
-    covs : (M, 4, 4) or (4, 4) (broadcast to every target)
-    dt : float              step (s)
-    process_noise : float   q (m^2/s^3)
-    table : (N, C)          radar table of the sensors whose measurements :meth:`update`
-                            receives, by row (:func:`~sensorplan.sensors.radar_table`)
-    """
-
-    def __init__(self, means: FloatArray, covs: FloatArray, dt: float,
-                 process_noise: float, table: FloatArray) -> None:
-        self.means = np.array(means, dtype=float)
-        self.covs = np.array(np.broadcast_to(covs, self.means.shape + (4,)), dtype=float)
-        self.F, self.Q = cv_matrices(dt, process_noise)
-        self.table = np.ascontiguousarray(table, dtype=float)
-
-    def predict(self) -> None:
-        """Predict every track one step."""
-        self.means, self.covs = predict(self.means, self.covs, self.F, self.Q)
-
-    def update(self, sensors: IntArray, targets: IntArray, z: FloatArray,
-               sensor_xy: FloatArray, heading: FloatArray) -> None:
-        """Apply L measurements, in the given (sensor) order per target.
-
-        Measurements of distinct targets are independent and applied as one batch; a
-        target measured by several sensors is updated once per measurement, in order, each
-        linearised at the estimate the previous one left (the sequential EKF).
-
-        Parameters
-        ----------
-        sensors : (L,) int   index of the measuring sensor (row of ``table``)
-        targets : (L,) int   track each measurement belongs to
-        z : (L, 2)
-        sensor_xy : (L, 2)
-        heading : (L,)
-        """
-        if len(targets) == 0:
-            return
-        for idx in update_rounds(targets):
-            j = targets[idx]
-            self.means[j], self.covs[j] = update(
-                self.means[j], self.covs[j], z[idx], sensor_xy[idx], heading[idx], self.table,
-                sensors[idx])
-
-
 def standard_update(x: FloatArray, P: FloatArray, innovation: FloatArray, H: FloatArray,
                     R: FloatArray) -> tuple[FloatArray, FloatArray]:
     """The short-form update ``P - K H P`` (reference for tests; not used by the tracker)."""
@@ -232,5 +211,5 @@ def standard_update(x: FloatArray, P: FloatArray, innovation: FloatArray, H: Flo
     return x + (K @ innovation[..., None])[..., 0], P - K @ H @ P
 
 
-__all__ = ["Tracker", "joseph_update", "nees", "position_update", "predict",
-           "standard_update", "update", "update_rounds"]
+__all__ = ["innovations", "joseph_update", "mahalanobis2", "nees",
+           "position_update", "predict", "standard_update", "update", "update_rounds"]

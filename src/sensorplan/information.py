@@ -47,7 +47,8 @@ class Context:
 
     Attributes
     ----------
-    F, Q : (4, 4)
+    F : (4, 4)
+    Q : (1, 4, 4) or (M, 4, 4)  process noise, shared by every target or one per target
     xbar : (M, T + 1, 4)       predicted means
     Pbar : (M, T + 1, 4, 4)    covariances predicted without measurements
     ld_bar : (M, T + 1)        their log-determinants
@@ -98,6 +99,12 @@ class Context:
         """Whether planned looks count with their probability of seeing the target."""
         return self.problem.visibility == "probabilistic"
 
+    def Q_rows(self, targets: IntArray | int | slice) -> FloatArray:
+        """Process noise for the rows of a recursion over ``targets``: shared or per row."""
+        if self.Q.shape[0] == 1:
+            return self.Q
+        return self.Q[np.atleast_1d(np.arange(self.M)[targets])]
+
     def steps(self, k: int) -> IntArray:
         """Simulation steps ``(k-1)e+1 .. ke`` of epoch ``k`` (1-based)."""
         return np.arange((k - 1) * self.e + 1, k * self.e + 1)
@@ -105,7 +112,13 @@ class Context:
 
 def prepare(problem: PlanningProblem) -> Context:
     """Precompute predictions, aim points and reachable sets for one decision."""
-    F, Q = cv_matrices(problem.dt, problem.process_noise)
+    q = np.asarray(problem.process_noise, dtype=float)
+    F, Q1 = cv_matrices(problem.dt, 1.0)
+    if q.ndim == 0:
+        F, Q = cv_matrices(problem.dt, float(q))
+        Q = Q[None]
+    else:
+        Q = q[:, None, None] * Q1                                        # (M, 4, 4)
     T, e, K = problem.n_steps, problem.steps_per_epoch, problem.horizon
     xbar = predict_means(problem.means, F, T)
     Pbar = predict_covariances(problem.covs, F, Q, T)
@@ -315,6 +328,8 @@ def covariance_recursion(P: FloatArray, W: FloatArray, F: FloatArray, Q: FloatAr
     ----------
     P : (B, 4, 4)    covariance at the step before the first of the n steps
     W : (B, n, 2, 2) position information at each step
+    F : (4, 4)
+    Q : (4, 4), (1, 4, 4) or (B, 4, 4)   process noise, shared or one per row
     need_sum : bool  compute ``logdet_sum`` (the ``cumulative`` objective needs it)
 
     Returns
@@ -323,6 +338,9 @@ def covariance_recursion(P: FloatArray, W: FloatArray, F: FloatArray, Q: FloatAr
     logdet_end : (B,)       log det of the covariance after the last step
     logdet_sum : (B,)       sum of log det over the n updated covariances (0 if not needed)
     """
+    Q = np.asarray(Q, dtype=float)
+    if Q.ndim == 2:
+        Q = Q[None]
     if BACKEND == "numpy":
         return covariance_recursion_numpy(P, W, F, Q)
     key = F.tobytes()
@@ -330,7 +348,7 @@ def covariance_recursion(P: FloatArray, W: FloatArray, F: FloatArray, Q: FloatAr
         dt = float(F[0, 2])
         _CV_FORM[key] = (bool(np.array_equal(F, cv_matrices(dt, 0.0)[0])), dt)
     cv, dt = _CV_FORM[key]
-    return covariance_recursion_nb(_c(P), _c(W), F, Q, need_sum, cv, dt)
+    return covariance_recursion_nb(_c(P), _c(W), F, _c(Q), need_sum, cv, dt)
 
 
 #: Whether a transition matrix (by its bytes) is the CWNA ``F(dt)``, and its ``dt``.

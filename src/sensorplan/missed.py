@@ -173,8 +173,8 @@ def inside_fraction(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
 def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
                 heading: FloatArray, table: FloatArray | SensorParams,
                 sensor: IntArray | int | None = None, *,
-                points: FloatArray | None = None
-                ) -> tuple[FloatArray, FloatArray, BoolArray]:
+                points: FloatArray | None = None, return_fraction: bool = False
+                ) -> tuple[FloatArray, ...]:
     r"""Update tracks with a missed look (SPEC 3, ``negative``), batched over tracks.
 
     Each track :math:`N(m, P)` is replaced by the moments of its restriction to the outside
@@ -202,6 +202,9 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
     points : (S, 4) float64, optional
         Whitened standard-normal points (mean 0 and covariance ``I`` with weights ``1/S``);
         default the cached 512 Sobol points of :func:`standard_points`.
+    return_fraction : bool
+        Also return the fraction of points inside the sensing region (the probability,
+        under the track, that the look should have seen the target).
 
     Returns
     -------
@@ -210,6 +213,8 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
         Symmetric positive definite.
     inflated : (...,) bool
         Whether the inflation rule was applied instead of the truncation.
+    fraction : (...,) float64
+        Only with ``return_fraction``: the fraction ``f`` of points inside.
 
     Raises
     ------
@@ -251,4 +256,7 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
     grow[..., 0, 0] = grow[..., 1, 1] = 0.25 * span * span
     new_means = np.where(inflated[..., None], means, new_means)
     new_covs = np.where(inflated[..., None, None], covs + grow, new_covs)
-    return new_means, 0.5 * (new_covs + np.swapaxes(new_covs, -1, -2)), inflated
+    new_covs = 0.5 * (new_covs + np.swapaxes(new_covs, -1, -2))
+    if return_fraction:
+        return new_means, new_covs, inflated, (S - n_out) / S
+    return new_means, new_covs, inflated

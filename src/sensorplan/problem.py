@@ -201,8 +201,9 @@ class PlanningProblem:
         e; the horizon ends at T = K e steps.
     dt : float
         Simulation step (s).
-    process_noise : float
-        q of the filter model (m^2/s^3).
+    process_noise : float or (M,)
+        q of the filter model (m^2/s^3): one for every target, or one per target (an IMM
+        tracker's effective q).
     world : MapRect
     visibility : {"probabilistic", "mean"}
     objective : {"terminal", "cumulative"}
@@ -216,7 +217,7 @@ class PlanningProblem:
     horizon: int
     steps_per_epoch: int = 1
     dt: float = 1.0
-    process_noise: float = 0.05
+    process_noise: float | FloatArray = 0.05
     world: MapRect = field(default_factory=MapRect)
     visibility: str = "probabilistic"
     objective: str = "terminal"
@@ -226,6 +227,10 @@ class PlanningProblem:
         for name in ("means", "covs", "positions", "headings"):
             object.__setattr__(self, name, _readonly(getattr(self, name)))
         object.__setattr__(self, "sensors", tuple(self.sensors))
+        if np.ndim(self.process_noise) > 0:
+            object.__setattr__(self, "process_noise", _readonly(self.process_noise))
+        else:
+            object.__setattr__(self, "process_noise", float(self.process_noise))
         self.validate()
 
     @property
@@ -257,13 +262,19 @@ class PlanningProblem:
             raise ConfigError("sensors.position", f"expected shape ({N}, 2)")
         if self.headings.shape != (N,):
             raise ConfigError("sensors.heading", f"expected shape ({N},)")
-        for name, value in (("dt", self.dt), ("process_noise", self.process_noise),
-                            ("map.width", self.world.width), ("map.height", self.world.height)):
+        for name, value in (("dt", self.dt), ("map.width", self.world.width),
+                            ("map.height", self.world.height)):
             if not math.isfinite(value):
                 raise ConfigError(name, "must be a finite number")
+        q = np.asarray(self.process_noise)
+        if q.ndim > 0 and q.shape != (M,):
+            raise ConfigError("process_noise", f"must be a number or one per target ({M}), "
+                              f"got shape {q.shape}")
+        if not np.all(np.isfinite(q)):
+            raise ConfigError("process_noise", "must be a finite number")
         if self.dt <= 0:
             raise ConfigError("dt", "must be > 0")
-        if self.process_noise < 0:
+        if np.any(q < 0):
             raise ConfigError("process_noise", "must be >= 0")
         if self.world.width <= 0 or self.world.height <= 0:
             raise ConfigError("map", "width and height must be > 0")

@@ -140,6 +140,33 @@ def measure(row: np.ndarray, dx: float, dy: float, heading: float
 
 
 @njit(cache=True, error_model="numpy")
+def inverse(row: np.ndarray, r: float, phi: float, heading: float
+            ) -> tuple[float, float, float, float, float]:
+    r"""Ground offset of a measurement ``[r, phi]`` and its linearised covariance.
+
+    The inverse of the measurement model: :math:`g = \sqrt{r^2 - z^2}` (0 if the slant range
+    is below the altitude), :math:`(dx, dy) = g (\cos\phi, \sin\phi)`, and with the noise
+    ``R`` of the model evaluated at that point and :math:`J = \partial(dx, dy) /
+    \partial(r, \phi) = [[r/g \cos\phi, -g \sin\phi], [r/g \sin\phi, g \cos\phi]]`, the
+    covariance :math:`J R J^T`.
+
+    Returns
+    -------
+    dx, dy : ground offset from the sensor (m)
+    c00, c01, c11 : its covariance (m^2)
+    """
+    g = math.sqrt(max(r * r - row[ALTITUDE2], 0.0))
+    c, s = math.cos(phi), math.sin(phi)
+    dx, dy = g * c, g * s
+    cpsi = cos_psi(row, dx, dy, math.cos(heading), math.sin(heading), r)
+    var_r, var_phi = noise_variances(row, r * r, cpsi)
+    rg = r / max(g, 1e-9)
+    j00, j01, j10, j11 = rg * c, -g * s, rg * s, g * c
+    return (dx, dy, j00 * j00 * var_r + j01 * j01 * var_phi,
+            j00 * j10 * var_r + j01 * j11 * var_phi, j10 * j10 * var_r + j11 * j11 * var_phi)
+
+
+@njit(cache=True, error_model="numpy")
 def _ncdf(x: float) -> float:
     return 0.5 * math.erfc(-x / math.sqrt(2.0))
 
@@ -238,6 +265,22 @@ def _measure_batch(table: np.ndarray, idx: np.ndarray, dx: np.ndarray, dy: np.nd
 
 
 @njit(cache=True, error_model="numpy")
+def _inverse_batch(table: np.ndarray, idx: np.ndarray, z: np.ndarray,
+                   heading: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    n = z.shape[0]
+    d = np.empty((n, 2))
+    C = np.empty((n, 2, 2))
+    for b in range(n):
+        dx, dy, c00, c01, c11 = inverse(table[idx[b]], z[b, 0], z[b, 1], heading[b])
+        d[b, 0] = dx
+        d[b, 1] = dy
+        C[b, 0, 0] = c00
+        C[b, 0, 1] = C[b, 1, 0] = c01
+        C[b, 1, 1] = c11
+    return d, C
+
+
+@njit(cache=True, error_model="numpy")
 def _visible_grid(table: np.ndarray, idx: np.ndarray, dx: np.ndarray, dy: np.ndarray,
                   heading: np.ndarray) -> np.ndarray:
     B, S = dx.shape
@@ -306,6 +349,26 @@ def measure_looks(table: FloatArray, sensor: IntArray, target_xy: FloatArray,
             seen.reshape(shape))
 
 
+def inverse_looks(table: FloatArray, sensor: IntArray, z: FloatArray, sensor_xy: FloatArray,
+                  heading: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Ground positions of measurements and their linearised covariances (:func:`inverse`).
+
+    Parameters
+    ----------
+    table : (N, C); sensor : (B,) int; z : (B, 2) ``[r, phi]``; sensor_xy : (B, 2);
+    heading : (B,)
+
+    Returns
+    -------
+    xy : (B, 2) ground positions (m), C : (B, 2, 2) their covariances (m^2)
+    """
+    d, C = _inverse_batch(np.ascontiguousarray(table, dtype=float),
+                          np.ascontiguousarray(sensor, dtype=np.int64),
+                          np.ascontiguousarray(z, dtype=float),
+                          np.ascontiguousarray(heading, dtype=float))
+    return np.asarray(sensor_xy, dtype=float) + d, C
+
+
 def visible_points(table: FloatArray, sensor: IntArray, dx: FloatArray, dy: FloatArray,
                    heading: FloatArray) -> BoolArray:
     """Field-of-view test of S ground offsets per look.
@@ -360,6 +423,7 @@ def warm_up() -> None:
     z = np.zeros(1)
     i = np.zeros(1, dtype=np.int64)
     _measure_batch(table, i, z + 1.0, z, z)
+    _inverse_batch(table, i, np.ones((1, 2)), z)
     _visible_grid(table, i, np.ones((1, 1)), np.zeros((1, 1)), z)
     for probabilistic in (True, False):
         _look_batch(table[0], z + 1.0, z, z, np.ones((1, 3)), probabilistic)

@@ -45,7 +45,8 @@ import numpy as np
 
 from ._types import BoolArray, FloatArray, IntArray
 from .angles import heading_rule, wrap_angle
-from .ekf import Tracker, nees, update_rounds
+from .ekf import nees
+from .tracker import Tracker
 from .errors import ConfigError
 from .planners import make_planner
 from .problem import OBJECTIVES, VISIBILITY_MODES, PlanningProblem
@@ -157,6 +158,10 @@ class Episode:
                                       outside its field of view)
     negative_update : (S+1, M) bool   track j got a negative (missed-look) update at t
     inflated : (S+1, M) bool          track j got the f >= 0.95 inflation at t
+    gated_out : (S+1, M, N) bool      sensor i's detection of target j at t fell outside the
+                                      validation gate (discarded, or used to restart)
+    restarted : (S+1, M) bool         track j was restarted from a detection at t
+    map_corrected : (S+1, M) bool     the known map corrected track j at t
     sensor_positions : (S+1, N, 2)    pose during step t (initial pose at t = 0)
     sensor_headings : (S+1, N)
     decision_steps : (D,) int         time index at which each decision was taken
@@ -181,6 +186,9 @@ class Episode:
     missed: BoolArray
     negative_update: BoolArray
     inflated: BoolArray
+    gated_out: BoolArray
+    restarted: BoolArray
+    map_corrected: BoolArray
     sensor_positions: FloatArray
     sensor_headings: FloatArray
     decision_steps: IntArray
@@ -246,7 +254,8 @@ def _timing_path(path: Path) -> Path:
 
 
 _ARRAYS = ("truth", "estimate", "cov", "error", "nees", "measured", "looked", "missed",
-           "negative_update", "inflated", "sensor_positions", "sensor_headings",
+           "negative_update", "inflated", "gated_out", "restarted", "map_corrected",
+           "sensor_positions", "sensor_headings",
            "decision_steps", "potential", "converged", "sweeps")
 
 
@@ -319,8 +328,8 @@ def run_episode(scenario: Scenario, settings: RunSettings,
 
     init = draw_initial(scenario, truth_rng, init_rng)
     truth_model = TruthModel(scenario, init.truth, truth_rng)
-    tracker = Tracker(init.estimate, np.array(scenario.initial_cov), scenario.dt,
-                      scenario.process_noise, table)
+    tracker = Tracker(init.estimate, np.array(scenario.initial_cov), scenario.dt, table,
+                      process_noise=scenario.process_noise)
     # All noise up front: each sensor's stream yields 2 normals per step in order, so this
     # equals drawing them step by step, and a sensor draws whether it measures or not.
     noise = np.stack([np.random.default_rng(c).standard_normal((S, 2))
@@ -334,6 +343,9 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     missed = np.zeros((S + 1, N), dtype=bool)
     negative = np.zeros((S + 1, M), dtype=bool)
     inflated = np.zeros((S + 1, M), dtype=bool)
+    gated_out = np.zeros((S + 1, M, N), dtype=bool)
+    restarted = np.zeros((S + 1, M), dtype=bool)
+    map_corrected = np.zeros((S + 1, M), dtype=bool)
     positions = np.empty((S + 1, N, 2))
     headings = np.empty((S + 1, N))
     decisions: list[tuple[int, float, float, float, float]] = []
@@ -358,7 +370,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
                 problem = PlanningProblem(
                     means=tracker.means, covs=tracker.covs, positions=pos, headings=head,
                     sensors=sensor_list, horizon=K, steps_per_epoch=e, dt=scenario.dt,
-                    process_noise=scenario.process_noise, world=scenario.world,
+                    process_noise=tracker.planning_process_noise(), world=scenario.world,
                     visibility=settings.visibility, objective=settings.objective)
                 start = time.perf_counter()
                 result = planner.plan(problem, rng=planner_rng)
@@ -377,7 +389,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
             epoch += 1
 
         x_true = truth_model.step()
-        tracker.predict()
+        map_corrected[t] = tracker.predict()
 
         # Looks at the truth: visibility and the sampled noise use the true position.
         tj = np.maximum(target, 0)
@@ -388,23 +400,19 @@ def run_episode(scenario: Scenario, settings: RunSettings,
         seen &= assigned
 
         if miss_update is not None and miss.any():
-            idx = sensor_index[miss]
-            for rnd in update_rounds(target[idx]):
-                i = idx[rnd]
-                j = target[i]
-                m, P, infl = miss_update(tracker.means[j], tracker.covs[j], pos[i], head[i],
-                                         table, i)
-                tracker.means[j] = m
-                tracker.covs[j] = P
-                negative[t, j] = True
-                inflated[t, j] |= infl
+            i = sensor_index[miss]
+            negative[t], inflated[t] = tracker.miss(i, target[i], pos[i], head[i],
+                                                    kernel=miss_update)
 
         if seen.any():
             i = sensor_index[seen]
             z = h_true[i] + np.sqrt(var_true[i]) * noise[t - 1, i]
             z[:, 1] = wrap_angle(z[:, 1])
-            tracker.update(i, target[i], z, pos[i], head[i])
+            looks = tracker.update(i, target[i], z, pos[i], head[i])
             measured[t, target[i], i] = True
+            gated_out[t, target[i], i] = looks.gated_out
+            restarted[t, target[i][looks.restarted]] = True
+            map_corrected[t] |= looks.map_corrected
 
         truth[t] = x_true
         estimate[t] = tracker.means
@@ -421,8 +429,8 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     return Episode(
         target_kinds=scenario.target_kinds, truth=truth, estimate=estimate, cov=cov,
         error=error, nees=nees(truth, estimate, cov), measured=measured, looked=looked,
-        missed=missed, negative_update=negative, inflated=inflated,
-        sensor_positions=positions, sensor_headings=headings,
+        missed=missed, negative_update=negative, inflated=inflated, gated_out=gated_out,
+        restarted=restarted, map_corrected=map_corrected, sensor_positions=positions, sensor_headings=headings,
         decision_steps=d[:, 0].astype(np.int64), planning_seconds=d[:, 1], potential=d[:, 2],
         converged=d[:, 3], sweeps=d[:, 4], settings=settings,
         seed_entropy=_entropy(seed_ss), seed_spawn_key=tuple(seed_ss.spawn_key))

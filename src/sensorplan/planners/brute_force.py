@@ -266,6 +266,7 @@ class _TargetTerm:
         self.n_keys = n_keys
         self.table: FloatArray | None = None
         self.P0 = np.asarray(ctx.problem.covs[j], dtype=float)
+        self.Q = ctx.Q_rows(j)
         self.cumulative = ctx.problem.objective == "cumulative"
         if self.cumulative:
             self.ld_ref = float(ctx.ld_bar[j, 1:].sum())
@@ -286,7 +287,7 @@ class _TargetTerm:
                 W = W + rep[c]
             P = np.broadcast_to(self.P0, (len(W), 4, 4))
             # Same recursion and reference terms as information.target_information.
-            _, ld_end, ld_sum = covariance_recursion(P, W, self.ctx.F, self.ctx.Q,
+            _, ld_end, ld_sum = covariance_recursion(P, W, self.ctx.F, self.Q,
                                                      need_sum=self.cumulative)
             ld = ld_sum if self.cumulative else ld_end
             out[s:s + _F_BATCH] = 0.5 * (self.ld_ref - ld)

@@ -225,9 +225,10 @@ class GameState:
         if redo.size:
             covs = np.asarray(ctx.problem.covs)[redo]
             cum = self.cumulative
-            P_pre, _, ld_pre = covariance_recursion(covs, W_fixed[redo, :s0], ctx.F, ctx.Q, cum)
-            _, ld_end_b, ld_sum_b = covariance_recursion(P_pre, W_fixed[redo, s0:], ctx.F,
-                                                         ctx.Q, cum)
+            Q = ctx.Q_rows(redo)
+            P_pre, _, ld_pre = covariance_recursion(covs, W_fixed[redo, :s0], ctx.F, Q, cum)
+            _, ld_end_b, ld_sum_b = covariance_recursion(P_pre, W_fixed[redo, s0:], ctx.F, Q,
+                                                         cum)
             if with_base:
                 base = float(self._phi_terms(ld_end_b, ld_pre + ld_sum_b).sum())
             where = np.full(ctx.M, -1)
@@ -236,7 +237,8 @@ class GameState:
             if sel.size:
                 r = where[entry.j_pair[sel]]
                 W_pair = W_fixed[entry.j_pair[sel], s0:] + entry.W_add[sel]
-                _, ld_end, ld_sum = covariance_recursion(P_pre[r], W_pair, ctx.F, ctx.Q, cum)
+                _, ld_end, ld_sum = covariance_recursion(P_pre[r], W_pair, ctx.F,
+                                                         ctx.Q_rows(entry.j_pair[sel]), cum)
                 if cum:
                     entry.delta[sel] = 0.5 * (ld_sum_b[r] - ld_sum)
                 else:

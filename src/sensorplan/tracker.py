@@ -1,0 +1,338 @@
+r"""The tracker: one filter per target, and the options that keep its tracks honest.
+
+Each target has a Gaussian track, the moment-matched state of its filter: a single extended
+Kalman filter with a CWNA motion model (``model = "cv"``) or an interacting multiple model
+filter over R CWNA modes that differ in their process noise (``model = "imm"``, Blom and
+Bar-Shalom 1988). The options, each switchable:
+
+- **IMM** (R modes, Markov switching matrix :math:`\Pi`, :math:`\Pi_{ij} = P(j \mid i)`).
+  Every step: mixing :math:`\bar c_j = \sum_i \Pi_{ij}\mu_i`,
+  :math:`\mu_{i|j} = \Pi_{ij}\mu_i/\bar c_j`, mixed initial conditions per mode, the
+  mode-matched CWNA predictions, :math:`\mu \leftarrow \bar c`; every piece of evidence
+  (a measurement, a missed look, the map) then updates each mode and multiplies its
+  probability by the mode's likelihood of that evidence. The combined (moment-matched)
+  Gaussian is the track: what the NEES, the gate and the planner see.
+- **Validation gate.** A detection is used only if the squared Mahalanobis distance of its
+  innovation under the combined track, :math:`\nu^T S^{-1} \nu` with
+  :math:`S = H' C H'^T + R`, is below the chi-square(2) quantile of ``gate_probability``,
+  :math:`\gamma = -2\ln(1 - P_G)` (13.82 for 0.999).
+- **Re-acquisition.** With the gate on and no false alarms, a detection from a look at
+  target j is target j: if it falls outside the gate the track is wrong, and is restarted
+  from the detection: position at the inverse measurement with its linearised covariance
+  :math:`J R J^T` (:func:`sensorplan.radar.inverse`), velocity mean zero with the initial
+  velocity variances, no cross-covariance, IMM mode probabilities at their initial values.
+- **The known map** (:mod:`sensorplan.known_map`): after the predict and after the updates,
+  every mode whose mean or 3-sigma box leaves the map is truncated to the map.
+- **Missed looks** (:mod:`sensorplan.missed`): a look that missed applies its negative
+  information to every mode; an IMM mode's likelihood of the miss is the probability mass it
+  puts outside the sensing region.
+
+With every option off (one mode, no gate, no map) the tracker is the plain EKF.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._types import BoolArray, FloatArray, IntArray
+from .dynamics import cv_matrices
+from .ekf import innovations, mahalanobis2, position_update, predict, update, update_rounds
+from .known_map import map_constraint
+from .radar import inverse_looks
+
+#: Degrees of freedom of a range/azimuth innovation.
+GATE_DOF = 2
+
+
+def gate_threshold(probability: float) -> float:
+    """The chi-square(2) quantile of ``probability``: ``-2 ln(1 - p)`` in closed form."""
+    if not 0.0 < probability < 1.0:
+        raise ValueError(f"gate probability must be in (0, 1), got {probability!r}")
+    return -2.0 * math.log1p(-probability)
+
+
+def stationary(switching: FloatArray) -> FloatArray:
+    """The stationary distribution ``pi = pi Pi`` of a Markov switching matrix ``(R, R)``."""
+    R = switching.shape[0]
+    # Solve (Pi^T - I) pi = 0 with sum(pi) = 1 (least squares on the stacked system).
+    A = np.vstack([switching.T - np.eye(R), np.ones((1, R))])
+    b = np.zeros(R + 1)
+    b[-1] = 1.0
+    pi = np.linalg.lstsq(A, b, rcond=None)[0]
+    pi = np.clip(pi, 0.0, None)
+    return pi / pi.sum()
+
+
+@dataclass(frozen=True)
+class LookResults:
+    """What :meth:`Tracker.update` did with each of L detections.
+
+    Attributes
+    ----------
+    used : (L,) bool         applied to its track
+    gated_out : (L,) bool    outside the gate (discarded, or used to restart)
+    restarted : (L,) bool    its track was restarted from it
+    map_corrected : (M,) bool  tracks the map constraint corrected after the updates
+    """
+
+    used: BoolArray
+    gated_out: BoolArray
+    restarted: BoolArray
+    map_corrected: BoolArray
+
+
+class Tracker:
+    """Every target's track, with the honest-tracking options (see the module docstring).
+
+    Parameters
+    ----------
+    means : (M, 4)
+    covs : (M, 4, 4) or (4, 4) (broadcast to every target)
+    dt : float                   step (s)
+    table : (N, C)               radar table of the sensors, by row
+    process_noise : float        q of the single-model filter (m^2/s^3)
+    mode_process_noise : sequence of float, optional
+        The IMM modes' q (m^2/s^3); None: the single-model filter.
+    switching : (R, R), optional
+        Markov switching matrix of the modes (rows sum to 1).
+    gate_probability : float in (0, 1), optional
+        Validation gate; None: every detection is used.
+    reacquire : bool
+        Restart a track from a detection outside the gate (needs the gate).
+    world : (width, height), optional
+        The map ``[0, W] x [0, H]`` the targets never leave; None: not used.
+    restart_velocity_var : (2,)
+        Velocity variances (m^2/s^2) of a restarted track.
+    """
+
+    def __init__(self, means: FloatArray, covs: FloatArray, dt: float, table: FloatArray, *,
+                 process_noise: float, mode_process_noise: tuple[float, ...] | None = None,
+                 switching: FloatArray | None = None, gate_probability: float | None = None,
+                 reacquire: bool = False, world: tuple[float, float] | None = None,
+                 restart_velocity_var: tuple[float, float] = (4.0, 4.0)) -> None:
+        means = np.array(means, dtype=float)
+        covs = np.array(np.broadcast_to(covs, means.shape + (4,)), dtype=float)
+        self.table = np.ascontiguousarray(table, dtype=float)
+        self.F, self.Q = cv_matrices(dt, process_noise)
+        if mode_process_noise is None:
+            self.q_modes = np.array([float(process_noise)])
+            self.switching = np.ones((1, 1))
+        else:
+            self.q_modes = np.asarray(mode_process_noise, dtype=float)
+            self.switching = np.asarray(switching, dtype=float)
+        self.Q_modes = np.stack([cv_matrices(dt, q)[1] for q in self.q_modes])
+        self.initial_probs = stationary(self.switching)
+        R = len(self.q_modes)
+        M = len(means)
+        self.mode_means = np.repeat(means[:, None], R, axis=1)
+        self.mode_covs = np.repeat(covs[:, None], R, axis=1)
+        self.mode_probs = np.tile(self.initial_probs, (M, 1))
+        self.gate = None if gate_probability is None else gate_threshold(gate_probability)
+        if reacquire and self.gate is None:
+            raise ValueError("re-acquisition needs the validation gate")
+        self.reacquire = reacquire
+        self.world = world
+        self.restart_velocity_var = np.asarray(restart_velocity_var, dtype=float)
+        self.means, self.covs = means, covs
+
+    @property
+    def n_modes(self) -> int:
+        return len(self.q_modes)
+
+    # ---------------------------------------------------------------- combination
+    def _combine(self, targets: IntArray | slice = slice(None)) -> None:
+        """Moment-match the modes of ``targets`` into their tracks."""
+        if self.n_modes == 1:
+            self.means[targets] = self.mode_means[targets, 0]
+            self.covs[targets] = self.mode_covs[targets, 0]
+            return
+        mu = self.mode_probs[targets]
+        x = self.mode_means[targets]
+        m = np.einsum("br,brd->bd", mu, x)
+        d = x - m[:, None]
+        P = np.einsum("br,brde->bde", mu, self.mode_covs[targets]
+                      + d[..., :, None] * d[..., None, :])
+        self.means[targets] = m
+        self.covs[targets] = 0.5 * (P + np.swapaxes(P, -1, -2))
+
+    def _reweight(self, targets: IntArray, log_likelihood: FloatArray) -> None:
+        """Multiply mode probabilities by likelihoods ``(B, R)`` (log), renormalised."""
+        if self.n_modes == 1:
+            return
+        logw = np.log(np.maximum(self.mode_probs[targets], 1e-300)) + log_likelihood
+        logw -= logw.max(axis=1, keepdims=True)
+        w = np.exp(logw)
+        self.mode_probs[targets] = w / w.sum(axis=1, keepdims=True)
+
+    def planning_process_noise(self) -> float | FloatArray:
+        """q the planner should predict with: the filter's q, or per target ``(M,)`` the
+        IMM's effective q under the mode probabilities predicted one step ahead."""
+        if self.n_modes == 1:
+            return float(self.q_modes[0])
+        return (self.mode_probs @ self.switching) @ self.q_modes
+
+    # ---------------------------------------------------------------- predict
+    def predict(self) -> BoolArray:
+        """Predict every track one step (mixing first for an IMM), then apply the map.
+
+        Returns
+        -------
+        (M,) bool: tracks the map constraint corrected.
+        """
+        if self.n_modes == 1:
+            self.mode_means[:, 0], self.mode_covs[:, 0] = predict(
+                self.mode_means[:, 0], self.mode_covs[:, 0], self.F, self.Q)
+        else:
+            mu, Pi = self.mode_probs, self.switching
+            c = np.maximum(mu @ Pi, 1e-300)                                  # (M, R)
+            w = mu[:, :, None] * Pi[None] / c[:, None, :]                    # (M, i, j)
+            x, P = self.mode_means, self.mode_covs
+            x0 = np.einsum("mij,mid->mjd", w, x)
+            d = x[:, :, None, :] - x0[:, None, :, :]                         # (M, i, j, 4)
+            P0 = np.einsum("mij,mijde->mjde", w,
+                           P[:, :, None] + d[..., :, None] * d[..., None, :])
+            Fm = self.F
+            xp = x0 @ Fm.T
+            Pp = Fm @ P0 @ Fm.T + self.Q_modes[None]
+            self.mode_means, self.mode_covs = xp, 0.5 * (Pp + np.swapaxes(Pp, -1, -2))
+            self.mode_probs = c / c.sum(axis=1, keepdims=True)
+        self._combine()
+        return self.apply_map()
+
+    def apply_map(self) -> BoolArray:
+        """Truncate the modes that leave the map to it (no-op without a map)."""
+        M = len(self.means)
+        if self.world is None:
+            return np.zeros(M, dtype=bool)
+        m, P, applied, log_mass = map_constraint(self.mode_means, self.mode_covs, *self.world)
+        hit = applied.any(axis=1)
+        if hit.any():
+            self.mode_means, self.mode_covs = m, P
+            idx = np.flatnonzero(hit)
+            self._reweight(idx, log_mass[idx])
+            self._combine(idx)
+        return hit
+
+    # ---------------------------------------------------------------- missed looks
+    def miss(self, sensors: IntArray, targets: IntArray, sensor_xy: FloatArray,
+             heading: FloatArray, kernel: object = None) -> tuple[BoolArray, BoolArray]:
+        """Negative information of L missed looks, applied in the given (sensor) order.
+
+        Parameters
+        ----------
+        sensors, targets : (L,) int;  sensor_xy : (L, 2);  heading : (L,)
+        kernel : callable, optional
+            The missed-look update (default :func:`sensorplan.missed.miss_update`).
+
+        Returns
+        -------
+        negative : (M,) bool    tracks that got a negative update
+        inflated : (M,) bool    tracks that got the inflation instead (any mode)
+        """
+        if kernel is None:
+            from .missed import miss_update as kernel          # only runs that miss need it
+        M = len(self.means)
+        negative = np.zeros(M, dtype=bool)
+        inflated = np.zeros(M, dtype=bool)
+        for rnd in update_rounds(targets):
+            i, j = sensors[rnd], targets[rnd]
+            if self.n_modes == 1:
+                m, P, infl = kernel(self.mode_means[j, 0], self.mode_covs[j, 0], sensor_xy[rnd],
+                                    heading[rnd], self.table, i)
+                self.mode_means[j, 0], self.mode_covs[j, 0] = m, P
+            else:
+                R = self.n_modes
+                m, P, infl, f = kernel(self.mode_means[j], self.mode_covs[j],
+                                       sensor_xy[rnd][:, None], heading[rnd][:, None],
+                                       self.table, np.repeat(i[:, None], R, axis=1),
+                                       return_fraction=True)
+                self.mode_means[j], self.mode_covs[j] = m, P
+                # The mode's probability of having missed: the mass it puts outside.
+                self._reweight(j, np.log(np.maximum(1.0 - f, 1.0 / 512)))
+                infl = infl.any(axis=1)
+            self._combine(j)
+            negative[j] = True
+            inflated[j] |= infl
+        return negative, inflated
+
+    # ---------------------------------------------------------------- detections
+    def update(self, sensors: IntArray, targets: IntArray, z: FloatArray,
+               sensor_xy: FloatArray, heading: FloatArray) -> LookResults:
+        """Apply L detections, in the given (sensor) order per target, then the map.
+
+        Detections of distinct targets are independent and applied as one batch; a target
+        detected by several sensors is updated once per detection, in order, each gated and
+        linearised at the track the previous one left (the sequential EKF).
+
+        Parameters
+        ----------
+        sensors : (L,) int   row of ``table`` of the detecting sensor
+        targets : (L,) int   track each detection belongs to
+        z : (L, 2)           ``[r, phi]`` (m, rad)
+        sensor_xy : (L, 2)
+        heading : (L,)
+        """
+        L = len(targets)
+        used = np.zeros(L, dtype=bool)
+        gated_out = np.zeros(L, dtype=bool)
+        restarted = np.zeros(L, dtype=bool)
+        if L == 0:
+            return LookResults(used, gated_out, restarted, np.zeros(len(self.means), dtype=bool))
+        for idx in update_rounds(targets):
+            ok = np.ones(len(idx), dtype=bool)
+            if self.gate is not None:
+                j = targets[idx]
+                nu, S, _, _ = innovations(self.means[j], self.covs[j], z[idx], sensor_xy[idx],
+                                          heading[idx], self.table, sensors[idx])
+                ok = mahalanobis2(nu, S) < self.gate
+                gated_out[idx[~ok]] = True
+                if self.reacquire and not ok.all():
+                    self._restart(idx[~ok], sensors, targets, z, sensor_xy, heading)
+                    restarted[idx[~ok]] = True
+            keep = idx[ok]
+            if keep.size:
+                self._update_modes(keep, sensors, targets, z, sensor_xy, heading)
+                used[keep] = True
+        return LookResults(used, gated_out, restarted, self.apply_map())
+
+    def _update_modes(self, idx: IntArray, sensors: IntArray, targets: IntArray, z: FloatArray,
+                      sensor_xy: FloatArray, heading: FloatArray) -> None:
+        j = targets[idx]
+        if self.n_modes == 1:
+            self.mode_means[j, 0], self.mode_covs[j, 0] = update(
+                self.mode_means[j, 0], self.mode_covs[j, 0], z[idx], sensor_xy[idx],
+                heading[idx], self.table, sensors[idx])
+        else:
+            R = self.n_modes
+            x = self.mode_means[j].reshape(-1, 4)
+            P = self.mode_covs[j].reshape(-1, 4, 4)
+            rep = (np.repeat(a, R, axis=0) for a in (z[idx], sensor_xy[idx], heading[idx],
+                                                     sensors[idx]))
+            zr, sxy, hd, sr = rep
+            nu, S, Hp, var = innovations(x, P, zr, sxy, hd, self.table, sr)
+            # Mode likelihoods N(nu; 0, S), in logs.
+            logl = -0.5 * mahalanobis2(nu, S) - 0.5 * np.linalg.slogdet(S)[1] \
+                - GATE_DOF * 0.5 * math.log(2.0 * math.pi)
+            xn, Pn = position_update(x, P, nu, Hp, var)
+            self.mode_means[j] = xn.reshape(-1, R, 4)
+            self.mode_covs[j] = Pn.reshape(-1, R, 4, 4)
+            self._reweight(j, logl.reshape(-1, R))
+        self._combine(j)
+
+    def _restart(self, idx: IntArray, sensors: IntArray, targets: IntArray, z: FloatArray,
+                 sensor_xy: FloatArray, heading: FloatArray) -> None:
+        """Restart the tracks of detections ``idx`` at their inverse measurements."""
+        j = targets[idx]
+        xy, C = inverse_looks(self.table, sensors[idx], z[idx], sensor_xy[idx], heading[idx])
+        P = np.zeros((len(idx), 4, 4))
+        P[:, :2, :2] = C
+        P[:, 2, 2], P[:, 3, 3] = self.restart_velocity_var
+        x = np.zeros((len(idx), 4))
+        x[:, :2] = xy
+        self.mode_means[j] = x[:, None]
+        self.mode_covs[j] = P[:, None]
+        self.mode_probs[j] = self.initial_probs
+        self._combine(j)
