@@ -16,6 +16,7 @@ from ._types import FloatArray
 from .errors import ConfigError
 from .problem import MapRect, check_covariance
 from .sensors import SensorParams
+from .truth import TruthModel
 
 TargetKind = Literal["cv", "dubins"]
 MissUpdate = Literal["negative", "none"]
@@ -189,3 +190,14 @@ def draw_initial(scenario: Scenario, truth_rng: np.random.Generator,
     L = np.linalg.cholesky(np.array(scenario.initial_cov))
     estimate = truth + init_rng.standard_normal((M, 4)) @ L.T
     return InitialConditions(truth, estimate, positions, headings)
+
+
+def make_truth(scenario: Scenario, initial_states: FloatArray,
+               rng: np.random.Generator) -> TruthModel:
+    """The scenario's :class:`~sensorplan.truth.TruthModel` starting at ``initial_states``
+    ``(M, 4)``, drawing from the truth generator ``rng``."""
+    return TruthModel(scenario.target_kinds, initial_states, rng,
+                      turn_hold=[t.turn_hold for t in scenario.targets],
+                      max_turn_rate=[t.max_turn_rate for t in scenario.targets],
+                      world_size=(scenario.world.width, scenario.world.height),
+                      dt=scenario.dt, process_noise=scenario.process_noise)

@@ -48,9 +48,8 @@ from .ekf import Tracker, nees, update_rounds
 from .errors import ConfigError
 from .planners import make_planner
 from .problem import OBJECTIVES, VISIBILITY_MODES, PlanningProblem
-from .scenario import MISS_UPDATES, Scenario, draw_initial
+from .scenario import MISS_UPDATES, Scenario, draw_initial, make_truth
 from .sensors import ANGLE_TOL, RANGE_TOL, _SCALAR_FIELDS, SensorParams, stack_params
-from .truth import TruthModel
 
 EXECUTIONS = ("ol", "olf")
 #: Names of the run's independent random streams, in spawn order.
@@ -334,7 +333,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     max_turn = params.max_turn
 
     init = draw_initial(scenario, truth_rng, init_rng)
-    truth_model = TruthModel(scenario, init.truth, truth_rng)
+    truth_model = make_truth(scenario, init.truth, truth_rng)
     tracker = Tracker(init.estimate, np.array(scenario.initial_cov), scenario.dt,
                       scenario.process_noise, params)
     alt, alt2, cos_dep, sin_dep, var_r, var_phi = tracker.radar.T
