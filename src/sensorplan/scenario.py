@@ -1,14 +1,18 @@
-"""Scenario values: the world, the targets' truth models, the sensors, the tracker options.
+"""Scenario values: the world, the targets' truth models and the sensors.
 
 A scenario may fix initial target states and sensor poses or leave them to be drawn from a
 run's seed (the paper draws them anew in every run, SPEC 1): a field left ``None`` is drawn.
+How a run plans and tracks is not part of the scenario: see :mod:`sensorplan.settings`.
+Scenario files are read and written by :mod:`sensorplan.scenario_file`.
 """
 
 from __future__ import annotations
 
+import functools
 import math
+import warnings
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -19,9 +23,7 @@ from .sensors import SensorParams
 from .truth import TruthModel
 
 TargetKind = Literal["cv", "dubins"]
-MissUpdate = Literal["negative", "none"]
 TARGET_KINDS = ("cv", "dubins")
-MISS_UPDATES = ("negative", "none")
 
 
 @dataclass(frozen=True)
@@ -60,7 +62,7 @@ class SensorSpec:
 
 @dataclass(frozen=True)
 class Scenario:
-    """World, targets, sensors and tracker options (SPEC 1-3).
+    """World, targets and sensors (SPEC 1-2).
 
     Attributes
     ----------
@@ -72,7 +74,6 @@ class Scenario:
     speed_range : (lo, hi)           initial target speeds (m/s)
     sensor_box : (lo, hi)            initial sensor positions uniform in [lo, hi]^2
     initial_cov : (4, 4)             P0: initial estimate = truth + N(0, P0)
-    miss_update : {"negative", "none"}  tracker option (SPEC 3)
     """
 
     world: MapRect = field(default_factory=MapRect)
@@ -85,7 +86,6 @@ class Scenario:
     sensor_box: tuple[float, float] = (50.0, 550.0)
     initial_cov: tuple[tuple[float, ...], ...] = (
         (400.0, 0.0, 0.0, 0.0), (0.0, 400.0, 0.0, 0.0), (0.0, 0.0, 4.0, 0.0), (0.0, 0.0, 0.0, 4.0))
-    miss_update: str = "negative"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "targets", tuple(self.targets))
@@ -110,8 +110,6 @@ class Scenario:
             raise ConfigError("targets", "at least one target is required")
         if not self.sensors:
             raise ConfigError("sensors", "at least one sensor is required")
-        if self.miss_update not in MISS_UPDATES:
-            raise ConfigError("tracker.miss_update", f"must be one of {MISS_UPDATES}")
         for name in ("target_box", "speed_range", "sensor_box"):
             lo, hi = getattr(self, name)
             if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
@@ -134,14 +132,14 @@ class Scenario:
                 raise ConfigError(f"sensors[{i}].position", "is outside the map")
 
 
-def paper_scenario(miss_update: str = "negative") -> Scenario:
+def paper_scenario() -> Scenario:
     """SPEC 1 paper scenario: M = 5 (3 ``cv``, 2 ``dubins``), N = 3 sensors at 490/500/510 m.
 
     Initial target states and sensor poses are left to each run's seed.
     """
     targets = tuple(TargetSpec(kind=k) for k in ("cv", "cv", "cv", "dubins", "dubins"))
     sensors = tuple(SensorSpec(SensorParams(altitude=a)) for a in (490.0, 500.0, 510.0))
-    return Scenario(targets=targets, sensors=sensors, miss_update=miss_update)
+    return Scenario(targets=targets, sensors=sensors)
 
 
 @dataclass(frozen=True)
@@ -201,3 +199,22 @@ def make_truth(scenario: Scenario, initial_states: FloatArray,
                       max_turn_rate=[t.max_turn_rate for t in scenario.targets],
                       world_size=(scenario.world.width, scenario.world.height),
                       dt=scenario.dt, process_noise=scenario.process_noise)
+
+
+# ------------------------------------------------------------------------ transitional
+# Until tests/test_stonesoup.py (owned by the radar rewrite) stops passing it,
+# ``paper_scenario(miss_update=...)`` is accepted with a DeprecationWarning and ignored: the
+# tracker option is ``RunSettings.tracker.miss_update``. Delete this block then.
+
+_paper_scenario = paper_scenario
+
+
+@functools.wraps(_paper_scenario)
+def paper_scenario(**legacy: Any) -> Scenario:  # noqa: F811
+    if set(legacy) - {"miss_update"}:
+        raise TypeError(f"paper_scenario() got unexpected arguments {sorted(legacy)}")
+    if legacy:
+        warnings.warn("paper_scenario(miss_update=...) is deprecated and ignored: the tracker "
+                      "option is RunSettings.tracker.miss_update", DeprecationWarning,
+                      stacklevel=2)
+    return _paper_scenario()
