@@ -24,6 +24,7 @@ import numpy as np
 
 from sensorplan.scenario import paper_scenario
 from sensorplan import simulation
+from sensorplan.settings import TrackerSettings
 from sensorplan.simulation import RunSettings, run_episode
 
 
@@ -70,8 +71,7 @@ def main() -> None:
     ap.add_argument("--planner", default="random")
     ap.add_argument("--horizon", type=int, default=1)
     ap.add_argument("--steps-per-epoch", type=int, default=2)
-    ap.add_argument("--miss-update", choices=("negative", "none"), default=None,
-                    help="default: the preset's (negative)")
+    ap.add_argument("--miss-update", choices=("negative", "none"), default="negative")
     ap.add_argument("--seed", type=int, default=0, help="seed of the first repetition")
     ap.add_argument("--profile", action="store_true", help="print a cProfile of all runs")
     args = ap.parse_args()
@@ -79,7 +79,7 @@ def main() -> None:
     scenario = paper_scenario()
     settings = RunSettings(planner=args.planner, horizon=args.horizon,
                            steps_per_epoch=args.steps_per_epoch, steps=args.steps,
-                           miss_update=args.miss_update)
+                           tracker=TrackerSettings(miss_update=args.miss_update))
     clock = _DecisionClock()
     clock.install()
     run_episode(scenario, settings, args.seed)  # warm-up: imports, caches
@@ -100,7 +100,7 @@ def main() -> None:
         plan_cpu.append(1e3 * clock.cpu / args.steps)
     med = statistics.median
     print(f"paper preset, planner={args.planner}, K={args.horizon}, "
-          f"e={args.steps_per_epoch}, miss_update={settings.miss_update or scenario.miss_update}, "
+          f"e={args.steps_per_epoch}, miss_update={settings.tracker.miss_update}, "
           f"{args.steps} steps x {args.repeats} runs "
           f"(python {platform.python_version()}, numpy {np.__version__})")
     for name, tot, pl in (("wall", wall, plan_wall), ("cpu ", cpu, plan_cpu)):

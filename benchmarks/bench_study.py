@@ -32,8 +32,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from sensorplan.config import load_study
-from sensorplan.experiments import Study, run_study
+from sensorplan.study import Study, load_study, run_study
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "studies" / "paper.toml"

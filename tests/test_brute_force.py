@@ -18,48 +18,12 @@ from sensorplan.information import potential
 from sensorplan.planners import PLANNERS, make_planner
 from sensorplan.planners import brute_force as bf
 from sensorplan.planners.brute_force import BruteForcePlanner, count_joint_plans
-from sensorplan.problem import MapRect, Plan, PlanningProblem, check_plan, move_vectors
+from sensorplan.problem import Plan, PlanningProblem, check_plan, move_vectors
+
+from factories import lattice_problem
 from sensorplan.sensors import SensorParams
 
 RTOL = 1e-9
-
-
-def tiny_problem(seed: int, *, n_sensors: int, n_targets: int, horizon: int,
-                 steps_per_epoch: int = 1, visibility: str = "probabilistic",
-                 objective: str = "terminal", size: float = 60.0,
-                 starts: list[tuple[float, float]] | None = None,
-                 target_box: tuple[float, float] = (-80.0, 140.0)) -> PlanningProblem:
-    """A small problem: one move distance (9 moves) of 30 m on a ``size`` x ``size`` map.
-
-    Sensors fly low (100-120 m) with a 30-150 m ground-range band, so targets scattered
-    around the small map are visible from some positions and headings and not from others.
-    """
-    rng = np.random.default_rng(seed)
-    M, N = n_targets, n_sensors
-    xy = rng.uniform(*target_box, size=(M, 2))
-    vel = rng.normal(0.0, 3.0, size=(M, 2))
-    means = np.column_stack([xy, vel])
-    covs = []
-    for _ in range(M):
-        A = rng.normal(size=(4, 4))
-        sd = np.array([rng.uniform(5, 30), rng.uniform(5, 30), rng.uniform(0.5, 3),
-                       rng.uniform(0.5, 3)])
-        C = A @ A.T + 4.0 * np.eye(4)
-        d = np.sqrt(np.diag(C))
-        covs.append(C / np.outer(d, d) * np.outer(sd, sd))
-    if starts is None:
-        grid = np.arange(0.0, size + 1e-9, 30.0)
-        starts = [(float(rng.choice(grid)), float(rng.choice(grid))) for _ in range(N)]
-    sensors = tuple(SensorParams(altitude=100.0 + 10.0 * i, moves=(30.0,),
-                                 max_turn=math.pi / 6, fov_half_angle=math.pi / 4,
-                                 min_ground_range=30.0, max_ground_range=150.0,
-                                 depression=math.radians(30.0), range_ref=200.0)
-                    for i in range(N))
-    return PlanningProblem(means=means, covs=np.array(covs), positions=np.array(starts),
-                           headings=rng.uniform(-math.pi, math.pi, size=N), sensors=sensors,
-                           horizon=horizon, steps_per_epoch=steps_per_epoch,
-                           world=MapRect(size, size), visibility=visibility,
-                           objective=objective)
 
 
 def explicit_chains(problem: PlanningProblem, i: int) -> list[np.ndarray]:
@@ -112,7 +76,7 @@ PARAMS = [pytest.param(c, v, o, marks=[pytest.mark.slow] if c == 5 and m else []
 @pytest.mark.parametrize(("case", "visibility", "objective"), PARAMS)
 def test_matches_explicit_enumeration(case: int, visibility: str, objective: str) -> None:
     N, M, K, e, size, starts = CASES[case]
-    problem = tiny_problem(100 + case, n_sensors=N, n_targets=M, horizon=K,
+    problem = lattice_problem(100 + case, n_sensors=N, n_targets=M, horizon=K,
                            steps_per_epoch=e, visibility=visibility, objective=objective,
                            size=size, starts=starts)
     best, first, count = explicit_optimum(problem)
@@ -135,7 +99,7 @@ def test_matches_explicit_enumeration(case: int, visibility: str, objective: str
 def test_chunking_does_not_change_the_result(chunk: int, visibility: str) -> None:
     """Small chunks force many chunks, a split inside the sensors (64 options each) and
     per-chunk ``np.unique`` instead of tables; the plan must be the same."""
-    problem = tiny_problem(7, n_sensors=2, n_targets=2, horizon=2, visibility=visibility,
+    problem = lattice_problem(7, n_sensors=2, n_targets=2, horizon=2, visibility=visibility,
                            size=30.0, starts=[(0.0, 0.0), (30.0, 0.0)])
     ref = BruteForcePlanner().plan(problem)
     res = BruteForcePlanner(chunk=chunk).plan(problem)
@@ -147,7 +111,7 @@ def test_chunking_does_not_change_the_result(chunk: int, visibility: str) -> Non
 def test_chunking_keeps_the_first_of_tied_maxima_across_chunks() -> None:
     """Two identical targets make every optimum come in tied pairs; with one-plan chunks
     the first of them must still win (equals the explicit first maximum)."""
-    problem = tiny_problem(3, n_sensors=1, n_targets=2, horizon=1, size=60.0,
+    problem = lattice_problem(3, n_sensors=1, n_targets=2, horizon=1, size=60.0,
                            starts=[(30.0, 30.0)])
     twin = PlanningProblem(means=np.repeat(problem.means[:1], 2, axis=0),
                            covs=np.repeat(problem.covs[:1], 2, axis=0),
@@ -166,7 +130,7 @@ def test_near_ties_within_tolerance_keep_the_first(shift: float) -> None:
     """Target 1 is target 0 moved by ``shift`` metres, so the two best plans differ by far
     less than the tie tolerance but not bit for bit, the later one higher for one of the
     signs; the first (target 0) must win, with one chunk or with one plan per chunk."""
-    problem = tiny_problem(3, n_sensors=1, n_targets=1, horizon=1, size=60.0,
+    problem = lattice_problem(3, n_sensors=1, n_targets=1, horizon=1, size=60.0,
                            starts=[(30.0, 30.0)])
     means = np.repeat(problem.means, 2, axis=0)
     means[1, :2] += shift
@@ -186,7 +150,7 @@ def test_near_ties_within_tolerance_keep_the_first(shift: float) -> None:
 def test_all_ties_give_the_first_plan() -> None:
     """Nothing visible anywhere (``mean``): Phi = 0 everywhere and the plan is the first
     one, every sensor staying and looking at target 0."""
-    problem = tiny_problem(5, n_sensors=2, n_targets=2, horizon=2, visibility="mean",
+    problem = lattice_problem(5, n_sensors=2, n_targets=2, horizon=2, visibility="mean",
                            target_box=(5000.0, 6000.0))
     result = BruteForcePlanner().plan(problem)
     assert result.potential == pytest.approx(0.0, abs=1e-12)
@@ -198,7 +162,7 @@ def test_all_ties_give_the_first_plan() -> None:
 @pytest.mark.parametrize("horizon", [1, 2, 3])
 @pytest.mark.parametrize("start", [(0.0, 0.0), (60.0, 30.0), (30.0, 30.0)])
 def test_count_matches_explicit_enumeration(horizon: int, start: tuple[float, float]) -> None:
-    problem = tiny_problem(11, n_sensors=2, n_targets=3, horizon=horizon, size=60.0,
+    problem = lattice_problem(11, n_sensors=2, n_targets=3, horizon=horizon, size=60.0,
                            starts=[start, (30.0, 60.0)])
     chains = [len(explicit_chains(problem, i)) for i in range(2)]
     assert count_joint_plans(problem) == math.prod(c * 3**horizon for c in chains)
@@ -217,7 +181,7 @@ def test_count_with_two_move_distances() -> None:
 
 
 def test_refuses_above_max_plans(monkeypatch: pytest.MonkeyPatch) -> None:
-    problem = tiny_problem(2, n_sensors=2, n_targets=3, horizon=1, size=60.0,
+    problem = lattice_problem(2, n_sensors=2, n_targets=3, horizon=1, size=60.0,
                            starts=[(30.0, 30.0), (0.0, 0.0)])
     n = count_joint_plans(problem)
     assert n == (9 * 3) * (4 * 3)
@@ -261,7 +225,7 @@ def test_registered_and_validated() -> None:
 
 
 def test_deterministic_and_does_not_mutate_the_problem() -> None:
-    problem = tiny_problem(9, n_sensors=2, n_targets=2, horizon=1, size=60.0)
+    problem = lattice_problem(9, n_sensors=2, n_targets=2, horizon=1, size=60.0)
     before = {name: np.array(getattr(problem, name), copy=True)
               for name in ("means", "covs", "positions", "headings")}
     a = BruteForcePlanner(seed=1).plan(problem, rng=123)
@@ -281,7 +245,7 @@ def test_contribution_classes_carry_each_options_information(visibility: str,
     class plus one per position whose look at j counts."""
     from sensorplan.information import plan_information, prepare
 
-    problem = tiny_problem(21, n_sensors=1, n_targets=3, horizon=horizon, steps_per_epoch=2,
+    problem = lattice_problem(21, n_sensors=1, n_targets=3, horizon=horizon, steps_per_epoch=2,
                            visibility=visibility, size=60.0, starts=[(30.0, 30.0)])
     ctx = prepare(problem)
     opts = bf._sensor_options(ctx, 0)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import copy
-import importlib.util
 import json
 import math
 import subprocess
@@ -24,14 +23,9 @@ from cli_helpers import SPEC7, SPEC7_TEXT, assert_bad_input, run
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "configs" / "quick.toml"
-HAVE_SIMULATION = importlib.util.find_spec("sensorplan.simulation") is not None
-needs_simulation = pytest.mark.skipif(
-    not HAVE_SIMULATION, reason="sensorplan.simulation is not written yet")
 
 BASE_KEYS = {"planner", "plan", "potential", "information", "seconds"}
 ACTION_KEYS = {"epoch", "position", "heading", "target", "measurements"}
-
-
 
 
 def write_json(tmp_path: Path, data: Any, name: str = "problem.json") -> Path:
@@ -205,7 +199,6 @@ def test_plan_bad_input(mutate: Callable[[dict[str, Any]], None], field: str, tm
     assert_bad_input(run(capsys, "plan", write_json(tmp_path, data)), field)
 
 
-@pytest.mark.skipif("brute-force" not in PLANNERS, reason="brute-force is not registered")
 def test_plan_brute_force_above_max_plans(tmp_path: Path,
                                           capsys: pytest.CaptureFixture[str]) -> None:
     data = {**SPEC7, "planner": {"name": "brute-force", "max_plans": 5}}
@@ -377,7 +370,6 @@ BAD_TOML = [
 ]
 
 
-@needs_simulation
 @pytest.mark.parametrize("mutate,field", [c[1:] for c in BAD_TOML],
                          ids=[c[0] for c in BAD_TOML])
 def test_simulate_bad_scenario(mutate: Callable[[dict[str, Any]], None], field: str,
@@ -401,7 +393,6 @@ BAD_OPTIONS = [
 ]
 
 
-@needs_simulation
 @pytest.mark.parametrize("args,field", BAD_OPTIONS, ids=[a[0] for a, _ in BAD_OPTIONS])
 def test_simulate_bad_options(args: list[str], field: str, tmp_path: Path,
                               capsys: pytest.CaptureFixture[str]) -> None:
@@ -410,16 +401,34 @@ def test_simulate_bad_options(args: list[str], field: str, tmp_path: Path,
     assert not out.exists()
 
 
-@needs_simulation
-def test_help_defaults_are_run_settings_defaults() -> None:
-    from sensorplan.cli import RUN_DEFAULTS
-    from sensorplan.simulation import RunSettings
+def test_simulate_has_an_option_per_declared_setting_with_its_default() -> None:
+    """The options come from the settings' declarations: names, placeholder, help text and
+    the default of a RunSettings() (an independent source of the defaults)."""
+    import typer
 
+    from sensorplan.cli import app
+    from sensorplan.settings import RunSettings, all_settings
+
+    command = typer.main.get_command(app).commands["simulate"]   # type: ignore[attr-defined]
+    options = {p.name: p for p in command.params}
     defaults = RunSettings()
-    assert RUN_DEFAULTS == {k: getattr(defaults, k) for k in RUN_DEFAULTS}
+    declared = [(path, f, s) for _, path, f, s in all_settings() if s.cli]
+    assert {"planner", "horizon", "steps_per_epoch", "execution", "visibility", "objective",
+            "steps", "miss_update"} <= {f.name for _, f, _ in declared}
+    for path, f, s in declared:
+        option = options[f.name]
+        assert tuple(option.opts + option.secondary_opts) == s.cli
+        assert option.metavar == s.metavar and option.default is None
+        value: Any = defaults
+        for part in path.split("."):
+            value = getattr(value, part)
+        assert option.help.startswith(s.help.removesuffix("."))
+        assert option.help.endswith(f"[default: {value}]"), option.help
+    assert "brute-force" in options["planner"].help            # registered names listed
+    assert set(options) == {f.name for _, f, _ in declared} | {"config", "preset", "seed",
+                                                                "out"}
 
 
-@needs_simulation
 def test_simulate_file_and_preset_conflict(tmp_path: Path,
                                            capsys: pytest.CaptureFixture[str]) -> None:
     assert_bad_input(run(capsys, "simulate", QUICK, "--preset", "paper", "--out", tmp_path),
@@ -432,8 +441,6 @@ def test_simulate_file_and_preset_conflict(tmp_path: Path,
     assert_bad_input(run(capsys, "simulate", QUICK, "--out", blocker), "--out")
 
 
-@needs_simulation
-@pytest.mark.skipif("brute-force" not in PLANNERS, reason="brute-force is not registered")
 def test_simulate_planner_refusing_mid_run(tmp_path: Path,
                                            capsys: pytest.CaptureFixture[str]) -> None:
     result = run(capsys, "simulate", QUICK, "--planner", "brute-force", "--horizon", "3",
@@ -446,7 +453,6 @@ def _arrays(path: Path) -> dict[str, np.ndarray]:
         return {k: data[k] for k in data.files}
 
 
-@needs_simulation
 def test_simulate_writes_reproducible_outputs(tmp_path: Path,
                                               capsys: pytest.CaptureFixture[str]) -> None:
     runs = {}
@@ -471,7 +477,6 @@ def test_simulate_writes_reproducible_outputs(tmp_path: Path,
     assert (tmp_path / "a" / "episode.timing.json").exists()
 
 
-@needs_simulation
 def test_simulate_options_reach_the_run(tmp_path: Path,
                                         capsys: pytest.CaptureFixture[str]) -> None:
     from sensorplan.simulation import Episode
@@ -484,6 +489,6 @@ def test_simulate_options_reach_the_run(tmp_path: Path,
     ep = Episode.load(tmp_path / "episode.npz")
     s = ep.settings
     assert (s.planner, s.horizon, s.steps_per_epoch, s.execution, s.steps, s.visibility,
-            s.objective, s.miss_update) == ("random", 2, 2, "ol", 4, "mean", "cumulative",
-                                            "none")
+            s.objective, s.tracker.miss_update) == ("random", 2, 2, "ol", 4, "mean",
+                                                    "cumulative", "none")
     assert len(ep.target_kinds) == 5 and ep.sensor_positions.shape[1] == 3

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import importlib.util
 import json
 import math
 from pathlib import Path
@@ -24,10 +23,6 @@ from cli_helpers import SPEC7
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIGS = ROOT / "configs"
-
-HAVE_SIMULATION = importlib.util.find_spec("sensorplan.simulation") is not None
-needs_simulation = pytest.mark.skipif(
-    not HAVE_SIMULATION, reason="sensorplan.simulation (RunSettings) is not written yet")
 
 
 MINIMAL = {"horizon": 2,
@@ -88,11 +83,7 @@ def test_defaults_are_spec_values() -> None:
 
 
 def test_default_planner_is_pg() -> None:
-    if "pg" not in PLANNERS:
-        err = error_of(decision_from_dict, MINIMAL)
-        assert err.field == "planner.name"
-    else:
-        assert decision_from_dict(MINIMAL).planner == "pg"
+    assert decision_from_dict(MINIMAL).planner == "pg"
 
 
 def test_ints_accepted_for_floats_but_not_bools_or_strings() -> None:
@@ -213,7 +204,6 @@ def test_load_decision_reads_files(tmp_path: Path) -> None:
 # ------------------------------------------------------------------------ scenarios
 
 
-@needs_simulation
 def test_paper_toml_is_the_preset() -> None:
     from sensorplan.simulation import RunSettings
 
@@ -227,7 +217,6 @@ def test_paper_toml_is_the_preset() -> None:
     assert PRESETS == ("paper",)
 
 
-@needs_simulation
 def test_quick_toml_is_tiny() -> None:
     cfg = load_simulation(CONFIGS / "quick.toml")
     assert len(cfg.scenario.sensors) == 2
@@ -235,7 +224,6 @@ def test_quick_toml_is_tiny() -> None:
     assert cfg.settings.steps == 20
 
 
-@needs_simulation
 def test_minimal_toml_takes_the_defaults(tmp_path: Path) -> None:
     from sensorplan.simulation import RunSettings
 
@@ -247,7 +235,6 @@ def test_minimal_toml_takes_the_defaults(tmp_path: Path) -> None:
     assert cfg.seed == 0
 
 
-@needs_simulation
 def test_toml_fields_reach_the_dataclasses(tmp_path: Path) -> None:
     path = tmp_path / "s.toml"
     path.write_text("""
@@ -293,7 +280,7 @@ heading = 1.5
     assert (sc.dt, sc.process_noise, sc.world.width, sc.world.height) == (0.5, 0.1, 800, 700)
     assert (sc.target_box, sc.speed_range, sc.sensor_box) == ((10, 20), (1, 2), (30, 40))
     np.testing.assert_array_equal(sc.initial_cov, np.diag([1.0, 2.0, 3.0, 4.0]))
-    assert sc.miss_update == "none"
+    assert cfg.settings.tracker.miss_update == "none"
     assert sc.targets == (TargetSpec("dubins", (100.0, 200.0), 5.0, -1.0, 4.0, 0.2),)
     assert sc.sensors == (SensorSpec(SensorParams(altitude=450.0, moves=(10.0,)),
                                      (50.0, 60.0), 1.5),)
@@ -304,14 +291,13 @@ heading = 1.5
     assert cfg.seed == 11
 
 
-@needs_simulation
 def test_overrides_win_and_errors_name_the_option() -> None:
     cfg = load_simulation(CONFIGS / "quick.toml", overrides={
         "horizon": 3, "steps": 5, "seed": 9, "execution": "ol", "miss_update": "none",
         "visibility": "mean", "objective": "cumulative", "planner": "random",
         "steps_per_epoch": 1})
     s = cfg.settings
-    assert (s.horizon, s.steps, s.execution, s.miss_update, s.visibility, s.objective,
+    assert (s.horizon, s.steps, s.execution, s.tracker.miss_update, s.visibility, s.objective,
             s.steps_per_epoch) == (3, 5, "ol", "none", "mean", "cumulative", 1)
     assert cfg.seed == 9
     for key, value, field in [("horizon", 0, "--horizon"), ("steps", 0, "--steps"),
@@ -327,13 +313,11 @@ def test_overrides_win_and_errors_name_the_option() -> None:
     assert error_of(load_simulation, CONFIGS / "quick.toml", "paper").field == "--preset"
 
 
-@needs_simulation
 def test_planner_override_drops_max_plans(tmp_path: Path) -> None:
     path = tmp_path / "s.toml"
     path.write_text('[planning]\nplanner = "brute-force"\n[planning.planner_params]\n'
                     'max_plans = 100\n[[targets]]\n[[sensors]]\n')
-    if "brute-force" in PLANNERS:
-        assert dict(load_simulation(path).settings.planner_params) == {"max_plans": 100}
+    assert dict(load_simulation(path).settings.planner_params) == {"max_plans": 100}
     cfg = load_simulation(path, overrides={"planner": "random"})
     assert cfg.settings.planner == "random"
     assert dict(cfg.settings.planner_params) == {}

@@ -14,10 +14,9 @@ from sensorplan.dynamics import cv_matrices, predict_covariance
 from sensorplan.ekf import (joseph_update, nees, position_update, predict,
                             standard_update, update, update_rounds)
 from sensorplan.problem import MapRect
-from sensorplan.scenario import Scenario, SensorSpec, TargetSpec
+from sensorplan.scenario import Scenario, SensorSpec, TargetSpec, make_truth
 from sensorplan.sensors import SensorParams, radar_table
 from sensorplan.tracker import Tracker
-from sensorplan.truth import TruthModel
 
 
 def table_of(params: SensorParams) -> np.ndarray:
@@ -229,7 +228,7 @@ class TestConsistency:
     def test_mean_nees_inside_chi_square_bounds(self):
         n_runs, steps = 200, 60
         sc, rng, truth0, est0, P0 = consistency_setup(n_runs, 11)
-        truth = TruthModel(sc, truth0, rng)
+        truth = make_truth(sc, truth0, rng)
         tracker = Tracker(est0, P0, sc.dt, radar_table(SensorParams()),
                           process_noise=sc.process_noise)
         # The sensor flies with each target, 350 m behind it in x (constant geometry).
@@ -262,7 +261,7 @@ class TestConsistency:
         # outside the band.
         n_runs = 200
         sc, rng, truth0, est0, P0 = consistency_setup(n_runs, 11)
-        truth = TruthModel(sc, truth0, rng)
+        truth = make_truth(sc, truth0, rng)
         params = SensorParams(range_resolution=3.0, beamwidth=math.radians(0.3))
         tracker = Tracker(est0, P0, sc.dt, radar_table(params),
                           process_noise=sc.process_noise)
@@ -286,7 +285,7 @@ class TestConsistency:
         sc = Scenario(world=MapRect(1e8, 1e8), targets=tuple(TargetSpec("cv") for _ in range(M)),
                       sensors=(SensorSpec(),))
         truth0 = np.column_stack([np.full((M, 2), 5e7), rng.uniform(-5, 5, (M, 2))])
-        truth = TruthModel(sc, truth0, rng)
+        truth = make_truth(sc, truth0, rng)
         params = varied_params(rng, N)
         tracker = Tracker(truth0 + rng.normal(0, 10, (M, 4)) * [1, 1, 0.1, 0.1],
                           np.diag([400.0, 400.0, 4.0, 4.0]), 1.0, table_of(params),

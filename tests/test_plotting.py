@@ -2,16 +2,11 @@
 
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-
-pytestmark = pytest.mark.skipif(importlib.util.find_spec("sensorplan.simulation") is None,
-                                reason="sensorplan.simulation is not written yet")
 
 
 def test_plot_episode_writes_a_png(tmp_path: Path) -> None:

@@ -22,7 +22,7 @@ ROUND = 1e-12
 
 @st.composite
 def problems(draw, min_sensors=1):
-    """(problem kwargs, seed) for conftest.make_problem."""
+    """(problem kwargs, seed) for factories.make_problem."""
     kw = dict(n_sensors=draw(st.integers(min_sensors, 3)), n_targets=draw(st.integers(1, 3)),
               horizon=draw(st.integers(1, 3)), steps_per_epoch=draw(st.integers(1, 2)),
               visibility=draw(st.sampled_from(["probabilistic", "mean"])),

@@ -13,8 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from sensorplan import experiments as ex
-from sensorplan.config import parse_study
+from sensorplan import study as studies
+from sensorplan.errors import ConfigError
+from sensorplan.study import parse_study
 from sensorplan.report import FIGURES, OPTIONAL_FIGURES, write_report
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -46,10 +47,12 @@ planner = "random"
 name = "paper/myopic"
 planner = "pg"
 visibility = "mean"
+[methods.tracker]
 miss_update = "none"
 [[methods]]
 name = "paper/random"
 planner = "random"
+[methods.tracker]
 miss_update = "none"
 """
 
@@ -57,7 +60,7 @@ miss_update = "none"
 @pytest.fixture(scope="module")
 def study_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("report") / "study"
-    ex.run_study(parse_study(STUDY), out, workers=1)
+    studies.run_study(parse_study(STUDY), out, workers=1)
     return out
 
 
@@ -105,6 +108,10 @@ def test_markdown_summary_has_the_tables(report: object) -> None:
         assert heading in md
     for png in FIGURES:
         assert f"]({png}.png)" in md
+    # The methods table has a column per method setting, from the settings' declarations.
+    assert "| method | planner | K | e | execution | visibility | objective | miss update |" in md
+    assert ("| paper/myopic | pg | 1 | 2 | olf | mean | terminal | none | – | paper/random |"
+            in md)
     # The RMSE table row of a method: mean [lo, hi] and median [lo, hi] (n = 3: no median
     # interval at 95 %, so the median is shown alone).
     assert re.search(r"\| ours/myopic \| \d+\.\d \[-?\d+\.\d, \d+\.\d\] \| \d+\.\d \|", md)
@@ -113,16 +120,16 @@ def test_markdown_summary_has_the_tables(report: object) -> None:
 def test_report_of_an_unfinished_study(study_dir: Path, tmp_path: Path) -> None:
     partial = tmp_path / "partial"
     shutil.copytree(study_dir, partial)
-    for table in ex.TABLES:
+    for table in studies.TABLES:
         (partial / f"{table}.parquet").unlink()
-    ex.part_path(partial, 2, 1, "steps").unlink()                  # run 2 unfinished
+    studies.part_path(partial, 2, 1, "steps").unlink()                  # run 2 unfinished
     files = write_report(partial)
     assert not files.complete and files.runs == 2
     assert "study unfinished" in files.markdown.read_text()
 
 
 def test_report_of_a_non_study_directory_is_a_config_error(tmp_path: Path) -> None:
-    with pytest.raises(ex.ConfigError) as info:
+    with pytest.raises(ConfigError) as info:
         write_report(tmp_path)
     assert info.value.field == "DIR"
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
 import math
 from dataclasses import dataclass, replace
 from typing import ClassVar
@@ -20,17 +19,13 @@ from sensorplan.problem import MapRect, Plan, PlanningProblem, move_vectors
 from sensorplan.scenario import Scenario, SensorSpec, TargetSpec, paper_scenario
 from radar_reference import cos_boresight, noise_std, visible
 from sensorplan.sensors import SensorParams
+from sensorplan.settings import TrackerSettings
 from sensorplan.simulation import Episode, RunSettings, run_episode, run_streams
 
-HAVE_MISSED = importlib.util.find_spec("sensorplan.missed") is not None
 
-
-def paper(miss_update: str = "none") -> Scenario:
-    return paper_scenario(miss_update=miss_update)
-
-
-def settings(**kw) -> RunSettings:
-    base = dict(planner="random", steps=30, steps_per_epoch=2, horizon=1)
+def settings(miss_update: str = "none", **kw) -> RunSettings:
+    base = dict(planner="random", steps=30, steps_per_epoch=2, horizon=1,
+                tracker=TrackerSettings(miss_update=miss_update))
     base.update(kw)
     return RunSettings(**base)
 
@@ -79,14 +74,17 @@ def scripted(monkeypatch):
 
 
 class TestSettings:
-    @pytest.mark.parametrize("field,value", [
-        ("horizon", 0), ("steps_per_epoch", 0), ("steps", 0), ("horizon", 1.5),
-        ("steps", True), ("execution", "closed"), ("visibility", "maybe"),
-        ("objective", "sum"), ("miss_update", "positive")])
-    def test_bad_values_name_the_field(self, field, value):
+    @pytest.mark.parametrize("field,value,path", [
+        ("horizon", 0, "horizon"), ("steps_per_epoch", 0, "steps_per_epoch"),
+        ("steps", 0, "steps"), ("horizon", 1.5, "horizon"), ("steps", True, "steps"),
+        ("execution", "closed", "execution"), ("visibility", "maybe", "visibility"),
+        ("objective", "sum", "objective"), ("planner_params", 3, "planner_params"),
+        ("tracker", {"miss_update": "positive"}, "tracker.miss_update"),
+        ("tracker", {"miss_updat": "none"}, "tracker.miss_updat"), ("tracker", 1, "tracker")])
+    def test_bad_values_name_the_field(self, field, value, path):
         with pytest.raises(ConfigError) as err:
             RunSettings(**{field: value})
-        assert err.value.field == field
+        assert err.value.field == path
 
     def test_unknown_planner_and_bad_params(self):
         with pytest.raises(ConfigError) as err:
@@ -98,14 +96,14 @@ class TestSettings:
 
     def test_bad_seed(self):
         with pytest.raises(ConfigError) as err:
-            run_episode(paper(), settings(steps=2), -1)
+            run_episode(paper_scenario(), settings(steps=2), -1)
         assert err.value.field == "seed"
 
 
 class TestDeterminism:
     def test_same_seed_same_episode_and_identical_file(self, tmp_path):
-        a = run_episode(paper(), settings(), 42)
-        b = run_episode(paper(), settings(), 42)
+        a = run_episode(paper_scenario(), settings(), 42)
+        b = run_episode(paper_scenario(), settings(), 42)
         assert_episodes_equal(a, b)
         # Saved files: identical bytes apart from the wall-clock planning times.
         b2 = replace(b, planning_seconds=a.planning_seconds)
@@ -114,21 +112,21 @@ class TestDeterminism:
         assert (tmp_path / "a.npz").read_bytes() == (tmp_path / "b.npz").read_bytes()
 
     def test_different_seeds_differ(self):
-        a = run_episode(paper(), settings(), 1)
-        b = run_episode(paper(), settings(), 2)
+        a = run_episode(paper_scenario(), settings(), 1)
+        b = run_episode(paper_scenario(), settings(), 2)
         assert not np.allclose(a.truth[0], b.truth[0])
         assert not np.allclose(a.sensor_positions[0], b.sensor_positions[0])
         assert not np.array_equal(a.looked[1:], b.looked[1:])
 
     def test_seed_sequence_is_not_consumed(self):
         ss = np.random.SeedSequence(7, spawn_key=(3,))
-        a = run_episode(paper(), settings(steps=10), ss)
-        b = run_episode(paper(), settings(steps=10), ss)
+        a = run_episode(paper_scenario(), settings(steps=10), ss)
+        b = run_episode(paper_scenario(), settings(steps=10), ss)
         assert_episodes_equal(a, b)
         assert ss.n_children_spawned == 0
         assert a.seed_entropy == 7 and a.seed_spawn_key == (3,)
-        assert_episodes_equal(run_episode(paper(), settings(steps=10), 7),
-                              run_episode(paper(), settings(steps=10),
+        assert_episodes_equal(run_episode(paper_scenario(), settings(steps=10), 7),
+                              run_episode(paper_scenario(), settings(steps=10),
                                           np.random.SeedSequence(7)))
 
     def test_streams_are_the_spawned_children(self):
@@ -167,7 +165,7 @@ def recovered_noise(ep: Episode, calls, scenario: Scenario) -> dict[tuple[int, i
 class TestPairing:
     def test_two_planners_share_truth_initial_estimates_and_noise(self, monkeypatch):
         monkeypatch.setattr(simulation, "Tracker", _RecordingTracker)
-        sc = paper()
+        sc = paper_scenario()
         S, seed = 40, 3
         streams = run_streams(seed)
         reference = [np.random.default_rng(c).standard_normal((S, 2))
@@ -189,16 +187,19 @@ class TestPairing:
         assert not np.array_equal(a.looked, b.looked)        # the methods did differ
 
     def test_miss_option_does_not_change_truth_or_noise_streams(self):
-        a = run_episode(paper("none"), settings(), 8)
-        b = run_episode(paper("none"), settings(miss_update="none", planner_params={}), 8)
-        assert_episodes_equal(a, b)
+        a = run_episode(paper_scenario(), settings(miss_update="none"), 8)
+        b = run_episode(paper_scenario(), settings(miss_update="negative"), 8)
+        np.testing.assert_array_equal(a.truth, b.truth)
+        np.testing.assert_array_equal(a.estimate[0], b.estimate[0])
+        np.testing.assert_array_equal(a.sensor_positions[0], b.sensor_positions[0])
+        assert b.negative_update.any() and not np.array_equal(a.estimate, b.estimate)
 
 
 class TestSchedule:
     @pytest.mark.parametrize("execution,expected", [("olf", [0, 2, 4, 6, 8, 10]),
                                                     ("ol", [0, 6])])
     def test_decision_steps(self, execution, expected):
-        ep = run_episode(paper(), settings(horizon=3, steps_per_epoch=2, steps=12,
+        ep = run_episode(paper_scenario(), settings(horizon=3, steps_per_epoch=2, steps=12,
                                            execution=execution), 0)
         np.testing.assert_array_equal(ep.decision_steps, expected)
         assert len(ep.planning_seconds) == len(ep.potential) == len(expected)
@@ -206,7 +207,7 @@ class TestSchedule:
 
     @pytest.mark.parametrize("execution", ["ol", "olf"])
     def test_plans_are_executed_as_planned(self, scripted, execution):
-        sc = paper()
+        sc = paper_scenario()
         K, e, S = 3, 2, 14
         ep = run_episode(sc, settings(planner="scripted", horizon=K, steps_per_epoch=e,
                                       steps=S, execution=execution), 4)
@@ -232,7 +233,7 @@ class TestSchedule:
         np.testing.assert_array_equal(ep.sweeps, np.arange(len(ep.potential)))
 
     def test_poses_change_only_at_epoch_starts_by_moves_and_the_heading_rule(self):
-        sc = paper()
+        sc = paper_scenario()
         e = 3
         ep = run_episode(sc, settings(steps=30, steps_per_epoch=e, horizon=2,
                                       execution="ol"), 9)
@@ -257,13 +258,14 @@ class TestSchedule:
 
     def test_progress_callback(self):
         seen = []
-        run_episode(paper(), settings(steps=7), 0, progress=lambda d, n: seen.append((d, n)))
+        run_episode(paper_scenario(), settings(steps=7), 0,
+                    progress=lambda d, n: seen.append((d, n)))
         assert seen == [(t, 7) for t in range(1, 8)]
 
 
 class TestRecording:
     def test_missed_exactly_when_target_truly_outside_fov(self):
-        sc = paper()
+        sc = paper_scenario()
         ep = run_episode(sc, settings(steps=60), 12)
         S = 60
         assert np.all(ep.looked[0] == -1) and not ep.missed[0].any()
@@ -284,7 +286,7 @@ class TestRecording:
         assert not ep.negative_update.any() and not ep.inflated.any()
 
     def test_metrics_are_consistent(self):
-        ep = run_episode(paper(), settings(), 5)
+        ep = run_episode(paper_scenario(), settings(), 5)
         d = ep.truth[..., :2] - ep.estimate[..., :2]
         np.testing.assert_allclose(ep.error, np.sqrt((d**2).sum(-1)), rtol=1e-12)
         e = ep.truth - ep.estimate
@@ -300,7 +302,7 @@ class TestRecording:
         np.linalg.cholesky(P)
 
     def test_save_load_round_trip(self, tmp_path):
-        ep = run_episode(paper(), settings(planner_params={"seed": 3}, horizon=2,
+        ep = run_episode(paper_scenario(), settings(planner_params={"seed": 3}, horizon=2,
                                            execution="ol"), 6)
         ep.save(tmp_path / "ep.npz")
         back = Episode.load(tmp_path / "ep.npz")
@@ -318,8 +320,7 @@ def always_visible_scenario() -> Scenario:
     params = SensorParams(depression=math.pi / 2, fov_half_angle=math.pi,
                           min_ground_range=1e-6, max_ground_range=1e5)
     return Scenario(world=MapRect(), targets=(TargetSpec("cv", position=(300.0, 300.0)),),
-                    sensors=(SensorSpec(params, position=(150.0, 150.0), heading=0.0),),
-                    miss_update="none")
+                    sensors=(SensorSpec(params, position=(150.0, 150.0), heading=0.0),))
 
 
 class TestTracking:
@@ -332,10 +333,9 @@ class TestTracking:
         # 20^2 + q T^3 / 3 ~ 1.3e5 m^2; measured every step it stays small.
         assert ep.cov[-1, 0, 0, 0] < 100.0
 
-    @pytest.mark.skipif(not HAVE_MISSED, reason="sensorplan.missed not available yet")
     def test_negative_miss_updates_follow_the_misses(self):
-        sc = paper("negative")
-        ep = run_episode(sc, settings(steps=60), 12)
+        sc = paper_scenario()
+        ep = run_episode(sc, settings(steps=60, miss_update="negative"), 12)
         S = 60
         expected = np.zeros_like(ep.negative_update)
         for i in range(len(sc.sensors)):
@@ -344,15 +344,14 @@ class TestTracking:
         np.testing.assert_array_equal(ep.negative_update, expected)
         assert not (ep.inflated & ~ep.negative_update).any()
         assert ep.negative_update.any()
-        assert_episodes_equal(ep, run_episode(sc, settings(steps=60), 12))
-        # Overriding the scenario's option with "none" turns the updates off, and the
-        # truth is unchanged.
+        assert_episodes_equal(ep, run_episode(sc, settings(steps=60, miss_update="negative"),
+                                              12))
+        # "none" turns the updates off, and the truth is unchanged.
         off = run_episode(sc, settings(steps=60, miss_update="none"), 12)
         assert not off.negative_update.any()
         np.testing.assert_array_equal(off.truth, ep.truth)
         assert S == len(ep.truth) - 1
 
-    @pytest.mark.skipif(not HAVE_MISSED, reason="sensorplan.missed not available yet")
     def test_negative_update_is_the_kernel_applied_in_sensor_order(self, monkeypatch):
         from sensorplan import missed
 
@@ -365,7 +364,7 @@ class TestTracking:
             return kernel(means, covs, sensor_xy, heading, table, sensor)
 
         monkeypatch.setattr(missed, "miss_update", spy)
-        ep = run_episode(paper("negative"), settings(steps=20), 13)
+        ep = run_episode(paper_scenario(), settings(steps=20, miss_update="negative"), 13)
         assert sum(len(c[0]) for c in calls) == ep.missed.sum()
         # Every call touches distinct tracks.
         for m, *_ in calls:
@@ -381,13 +380,13 @@ def test_none_reproduces_a_tracker_without_the_feature(monkeypatch):
         raise AssertionError("the miss-update kernel was requested with miss_update='none'")
 
     monkeypatch.setattr(sim, "_miss_update_kernel", forbidden)
-    off = run_episode(paper("none"), settings(steps=40), 21)
+    off = run_episode(paper_scenario(), settings(steps=40), 21)
     assert off.missed.any()                       # there were misses to learn from
 
     def identity(means, covs, sensor_xy, heading, table, sensor):
         return np.array(means), np.array(covs), np.zeros(len(means), dtype=bool)
 
     monkeypatch.setattr(sim, "_miss_update_kernel", lambda: identity)
-    noop = run_episode(paper("negative"), settings(steps=40), 21)
+    noop = run_episode(paper_scenario(), settings(steps=40, miss_update="negative"), 21)
     for name in ("truth", "estimate", "cov", "error", "measured", "looked", "missed"):
         np.testing.assert_array_equal(getattr(off, name), getattr(noop, name), err_msg=name)

@@ -37,11 +37,11 @@ from sensorplan.information import potential  # noqa: E402
 from sensorplan.integrations import stonesoup as ss  # noqa: E402
 from sensorplan.planners import make_planner  # noqa: E402
 from sensorplan.problem import MapRect, Plan, PlanningProblem, move_vectors  # noqa: E402
-from sensorplan.scenario import draw_initial, paper_scenario  # noqa: E402
+from sensorplan.scenario import draw_initial, make_truth, paper_scenario  # noqa: E402
+from sensorplan.settings import TrackerSettings  # noqa: E402
 from radar_reference import jacobian, measure, noise_cov, visible  # noqa: E402
 from sensorplan.sensors import SensorParams, radar_table  # noqa: E402
 from sensorplan.simulation import RunSettings, run_episode, run_streams  # noqa: E402
-from sensorplan.truth import TruthModel  # noqa: E402
 
 T0 = datetime.datetime(2024, 1, 1)
 ROOT = Path(__file__).resolve().parents[1]
@@ -465,12 +465,12 @@ def test_stonesoup_brute_force_with_the_mi_reward_finds_our_optimum(rng):
 
 def _stonesoup_episode(seed: int, steps: int, settings: RunSettings):
     """run_episode's loop written with Stone Soup types (miss_update 'none')."""
-    scenario = paper_scenario(miss_update="none")
+    scenario = paper_scenario()
     streams = run_streams(seed)
     truth_rng = np.random.default_rng(streams["truth"])
     init_rng = np.random.default_rng(streams["init"])
     init = draw_initial(scenario, truth_rng, init_rng)
-    truth = TruthModel(scenario, init.truth, truth_rng)
+    truth = make_truth(scenario, init.truth, truth_rng)
     N = len(scenario.sensors)
     noise = np.stack([np.random.default_rng(c).standard_normal((steps, 2))
                       for c in streams["noise"].spawn(N)], axis=1)
@@ -509,8 +509,8 @@ def _stonesoup_episode(seed: int, steps: int, settings: RunSettings):
 def test_stonesoup_loop_with_our_manager_reproduces_run_episode(horizon, e):
     steps = 8
     settings = RunSettings(planner="pg", horizon=horizon, steps_per_epoch=e, steps=steps,
-                           miss_update="none")
-    episode = run_episode(paper_scenario(miss_update="none"), settings, seed=11)
+                           tracker=TrackerSettings(miss_update="none"))
+    episode = run_episode(paper_scenario(), settings, seed=11)
     got = _stonesoup_episode(11, steps, settings)
     assert episode.measured[1:].any()
     np.testing.assert_allclose(got, episode.estimate[1:], rtol=1e-6, atol=1e-6)

@@ -4,12 +4,11 @@ errors naming the field, resume messages."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 import pytest
 
-from sensorplan import experiments as ex
-from sensorplan.config import parse_study
+from sensorplan import study as studies
+from sensorplan.study import parse_study
 
 from cli_helpers import assert_bad_input, run
 
@@ -34,8 +33,6 @@ horizon = 2
 """
 
 
-
-
 BAD = [
     # (replace this, with this, field named)
     ('runs = 2', 'runs = 0', "runs"),
@@ -50,7 +47,11 @@ BAD = [
     ('horizon = 2', 'horizon = 2\nexecution = "closed"', "methods[2].execution"),
     ('horizon = 2', 'horizon = 2\nvisibility = "always"', "methods[2].visibility"),
     ('horizon = 2', 'horizon = 2\nobjective = "sum"', "methods[2].objective"),
-    ('horizon = 2', 'horizon = 2\nmiss_update = "yes"', "methods[2].miss_update"),
+    ('horizon = 2', 'horizon = 2\n[methods.tracker]\nmiss_update = "yes"',
+     "methods[2].tracker.miss_update"),
+    ('horizon = 2', 'horizon = 2\nmiss_update = "none"', "methods[2].miss_update"),
+    ('horizon = 2', 'horizon = 2\n[methods.tracker]\nmis_update = "none"',
+     "methods[2].tracker.mis_update"),
     ('horizon = 2', 'horizon = 2\nplanner_params = { alpha = 1.5 }',
      "methods[2].planner_params.alpha"),
     ('horizon = 2', 'horizon = 2\nplanner_params = { max_plans = 5 }',
@@ -60,6 +61,8 @@ BAD = [
     ('name = "random"\nplanner = "random"\n', 'name = "random"\n', "methods[0].planner"),
     ('steps_per_epoch = 2', 'steps_per_epoch = 0', "defaults.steps_per_epoch"),
     ('steps_per_epoch = 2', 'steps_per_epoch = 2\nname = "x"', "defaults.name"),
+    ('steps_per_epoch = 2', 'steps_per_epoch = 2\n[defaults.tracker]\nmiss_update = 1',
+     "defaults.tracker.miss_update"),
     ('seed = 3', 'seed = 3\n[scenario]\npreset = "tiny"', "scenario.preset"),
     ('seed = 3', 'seed = 3\n[scenario]\npreset = "paper"\nfile = "x.toml"', "scenario"),
     ('seed = 3', 'seed = 3\n[scenario]\nfile = "missing.toml"', "scenario.file"),
@@ -153,7 +156,7 @@ def test_demo_writes_its_report_and_says_where(capsys: pytest.CaptureFixture[str
                                                monkeypatch: pytest.MonkeyPatch) -> None:
     # The real demo takes ~15 s (tests/test_study_cli.py::test_real_demo, marked slow); the
     # command's logic is the same with a smaller study.
-    monkeypatch.setattr(ex, "demo_study", lambda: parse_study(GOOD))
+    monkeypatch.setattr(studies, "demo_study", lambda: parse_study(GOOD))
     out = tmp_path / "demo"
     code, stdout, err = run(capsys, "demo", "--out", out, "--workers", "1")
     assert code == 0, err

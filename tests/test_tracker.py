@@ -250,11 +250,12 @@ def test_the_paper_configuration_reproduces_the_tracks_bit_for_bit(seed):
     from pathlib import Path
 
     from sensorplan.scenario import paper_scenario
+    from sensorplan.settings import TrackerSettings
     from sensorplan.simulation import RunSettings, run_episode
 
     golden = np.load(Path(__file__).parent / "data" / "paper_rows_golden.npz")
     s = RunSettings(planner="pg", horizon=3, steps_per_epoch=2, execution="olf", steps=40,
-                    visibility="mean", miss_update="none")
+                    visibility="mean", tracker=TrackerSettings(miss_update="none"))
     ep = run_episode(paper_scenario(), s, seed)
     np.testing.assert_array_equal(ep.estimate, golden[f"estimate_{seed}"])
     np.testing.assert_array_equal(ep.cov, golden[f"cov_{seed}"])

@@ -9,16 +9,17 @@ import pytest
 
 from sensorplan.dynamics import cv_matrices
 from sensorplan.problem import MapRect
-from sensorplan.scenario import Scenario, SensorSpec, TargetSpec
-from sensorplan.truth import NOISE_BLOCK, TruthModel, dubins_arc, init_truth, mirror, step_truth
+from sensorplan.scenario import Scenario, SensorSpec, TargetSpec, make_truth
+from sensorplan.truth import NOISE_BLOCK, TruthModel, dubins_arc, mirror
 
 
-def make_scenario(kinds, width=600.0, height=600.0, dt=1.0, q=0.05, turn_hold=10.0,
-                  max_turn_rate=0.1) -> Scenario:
-    targets = tuple(TargetSpec(kind=k, turn_hold=turn_hold, max_turn_rate=max_turn_rate)
-                    for k in kinds)
-    return Scenario(world=MapRect(width, height), dt=dt, process_noise=q, targets=targets,
-                    sensors=(SensorSpec(),))
+def make_model(kinds, x0, rng, width=600.0, height=600.0, dt=1.0, q=0.05, turn_hold=10.0,
+               max_turn_rate=0.1) -> TruthModel:
+    """A truth model from arrays; every target shares ``turn_hold`` and ``max_turn_rate``."""
+    M = len(kinds)
+    return TruthModel(kinds, x0, rng, turn_hold=np.full(M, turn_hold),
+                      max_turn_rate=np.full(M, max_turn_rate), world_size=(width, height),
+                      dt=dt, process_noise=q)
 
 
 def reflect_by_hand(p: float, length: float) -> tuple[float, int]:
@@ -120,9 +121,9 @@ class TestTruthModel:
     def test_dubins_with_redraws_inside_steps_matches_euler(self):
         # dt = 0.7 does not divide turn_hold = 10: redraws at 10, 20 s fall inside steps and
         # must split them. No walls within reach (huge map).
-        sc = make_scenario(["dubins"], width=1e6, height=1e6, dt=0.7)
         x0 = np.array([[5e5, 5e5, 4.0, 3.0]])
-        model = TruthModel(sc, x0, np.random.default_rng(7))
+        model = make_model(["dubins"], x0, np.random.default_rng(7), width=1e6, height=1e6,
+                           dt=0.7)
         # The target's own stream: initial rate, then one uniform per redraw.
         child = np.random.default_rng(7).spawn(1)[0]
         rates = [child.uniform(-0.1, 0.1) for _ in range(4)]
@@ -137,9 +138,9 @@ class TestTruthModel:
 
     def test_redraw_at_exact_step_boundary(self):
         # dt = 1 and turn_hold = 10: the rate in steps 11..20 is the second draw.
-        sc = make_scenario(["dubins"], width=1e6, height=1e6, dt=1.0)
         x0 = np.array([[5e5, 5e5, 5.0, 0.0]])
-        model = TruthModel(sc, x0, np.random.default_rng(3))
+        model = make_model(["dubins"], x0, np.random.default_rng(3), width=1e6, height=1e6,
+                           dt=1.0)
         child = np.random.default_rng(3).spawn(1)[0]
         r0, r1 = child.uniform(-0.1, 0.1), child.uniform(-0.1, 0.1)
         traj = np.array([model.step()[0] for _ in range(15)])
@@ -149,10 +150,9 @@ class TestTruthModel:
 
     def test_cv_without_noise_is_the_folded_straight_line(self, rng):
         M = 20
-        sc = make_scenario(["cv"] * M, width=100.0, height=80.0, q=0.0)
         x0 = np.column_stack([rng.uniform(0, 100, M), rng.uniform(0, 80, M),
                               rng.uniform(-250, 250, M), rng.uniform(-250, 250, M)])
-        model = TruthModel(sc, x0, rng)
+        model = make_model(["cv"] * M, x0, rng, width=100.0, height=80.0, q=0.0)
         for t in range(1, 60):
             x = model.step()
             fx, flip_x = mirror(x0[:, 0] + t * x0[:, 2], 100.0)
@@ -164,10 +164,10 @@ class TestTruthModel:
 
     def test_straight_dubins_is_the_folded_straight_line(self, rng):
         M = 10
-        sc = make_scenario(["dubins"] * M, width=90.0, height=120.0, max_turn_rate=0.0)
         x0 = np.column_stack([rng.uniform(0, 90, M), rng.uniform(0, 120, M),
                               rng.uniform(-200, 200, M), rng.uniform(-200, 200, M)])
-        model = TruthModel(sc, x0, rng)
+        model = make_model(["dubins"] * M, x0, rng, width=90.0, height=120.0,
+                           max_turn_rate=0.0)
         for t in range(1, 40):
             x = model.step()
             fx, flip_x = mirror(x0[:, 0] + t * x0[:, 2], 90.0)
@@ -181,13 +181,12 @@ class TestTruthModel:
     def test_mirrored_tracks_stay_in_the_map(self, rng):
         M = 60
         kinds = ["cv", "dubins"] * (M // 2)
-        sc = make_scenario(kinds, width=200.0, height=150.0, q=5.0, turn_hold=3.0,
-                           max_turn_rate=0.5)
         speed = rng.uniform(1.0, 400.0, M)      # up to several reflections per step
         h = rng.uniform(-np.pi, np.pi, M)
         x0 = np.column_stack([rng.uniform(0, 200, M), rng.uniform(0, 150, M),
                               speed * np.cos(h), speed * np.sin(h)])
-        model = TruthModel(sc, x0, rng)
+        model = make_model(kinds, x0, rng, width=200.0, height=150.0, q=5.0, turn_hold=3.0,
+                           max_turn_rate=0.5)
         dub = np.array([k == "dubins" for k in kinds])
         for _ in range(2000):
             x = model.step()
@@ -197,9 +196,9 @@ class TestTruthModel:
     def test_cv_one_step_statistics_without_walls(self):
         dt, q = 1.0, 0.05
         M, steps = 100, 200                    # 20000 increments
-        sc = make_scenario(["cv"] * M, width=1e7, height=1e7, dt=dt, q=q)
         x0 = np.tile([5e6, 5e6, 4.0, -3.0], (M, 1))
-        model = TruthModel(sc, x0, np.random.default_rng(2024))
+        model = make_model(["cv"] * M, x0, np.random.default_rng(2024), width=1e7, height=1e7,
+                           dt=dt, q=q)
         F, Q = cv_matrices(dt, q)
         prev = x0
         w = []
@@ -222,16 +221,16 @@ class TestTruthModel:
         assert abs(lag) <= 4.5 / math.sqrt((steps - 1) * M)
 
     def test_zero_process_noise_is_allowed(self):
-        sc = make_scenario(["cv"], q=0.0)
-        model = TruthModel(sc, np.array([[100.0, 100.0, 1.0, 2.0]]), np.random.default_rng(0))
+        model = make_model(["cv"], np.array([[100.0, 100.0, 1.0, 2.0]]),
+                           np.random.default_rng(0), q=0.0)
         np.testing.assert_allclose(model.step(), [[101.0, 102.0, 1.0, 2.0]], atol=1e-12)
 
 
 class TestDeterminism:
     def run(self, kinds, x0, seed, steps=300):
-        sc = make_scenario(kinds, width=300.0, height=250.0, q=0.5, turn_hold=4.0)
-        model = init_truth(sc, x0, np.random.default_rng(seed))
-        return np.array([step_truth(model) for _ in range(steps)])
+        model = make_model(kinds, x0, np.random.default_rng(seed), width=300.0, height=250.0,
+                           q=0.5, turn_hold=4.0)
+        return np.array([model.step() for _ in range(steps)])
 
     def x0(self, rng, M):
         return np.column_stack([rng.uniform(0, 300, M), rng.uniform(0, 250, M),
@@ -256,4 +255,40 @@ class TestDeterminism:
 
     def test_bad_initial_shape(self):
         with pytest.raises(ValueError, match="shape"):
-            TruthModel(make_scenario(["cv", "cv"]), np.zeros((3, 4)), np.random.default_rng(0))
+            make_model(["cv", "cv"], np.zeros((3, 4)), np.random.default_rng(0))
+        with pytest.raises(ValueError, match="shape"):
+            TruthModel(["cv", "dubins"], np.zeros((2, 4)), np.random.default_rng(0),
+                       turn_hold=[10.0], max_turn_rate=[0.1, 0.1], world_size=(600.0, 600.0),
+                       dt=1.0, process_noise=0.05)
+
+
+def _scenario() -> Scenario:
+    targets = (TargetSpec("cv"), TargetSpec("dubins", turn_hold=3.0, max_turn_rate=0.3),
+               TargetSpec("dubins", turn_hold=7.0, max_turn_rate=0.05))
+    return Scenario(world=MapRect(250.0, 180.0), dt=0.5, process_noise=0.3, targets=targets,
+                    sensors=(SensorSpec(),))
+
+
+def _start(rng: np.random.Generator) -> np.ndarray:
+    return np.column_stack([rng.uniform(0, 180, 3), rng.uniform(0, 180, 3),
+                            rng.uniform(-6, 6, 3), rng.uniform(-6, 6, 3)])
+
+
+def test_make_truth_passes_every_target_and_map_field(rng):
+    """make_truth equals the model built from the scenario's arrays by hand, and the
+    per-target turn settings matter (the scenario's targets differ in them)."""
+    sc, x0 = _scenario(), _start(rng)
+    got = make_truth(sc, x0, np.random.default_rng(4))
+    ref = TruthModel(["cv", "dubins", "dubins"], x0, np.random.default_rng(4),
+                     turn_hold=[10.0, 3.0, 7.0], max_turn_rate=[0.1, 0.3, 0.05],
+                     world_size=(250.0, 180.0), dt=0.5, process_noise=0.3)
+    a = np.array([got.step() for _ in range(80)])
+    b = np.array([ref.step() for _ in range(80)])
+    np.testing.assert_array_equal(a, b)
+    same = TruthModel(["cv", "dubins", "dubins"], x0, np.random.default_rng(4),
+                      turn_hold=[10.0, 7.0, 3.0], max_turn_rate=[0.1, 0.05, 0.3],
+                      world_size=(250.0, 180.0), dt=0.5, process_noise=0.3)
+    c = np.array([same.step() for _ in range(80)])
+    assert not np.allclose(a[:, 1:], c[:, 1:])
+
+

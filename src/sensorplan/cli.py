@@ -8,6 +8,7 @@ commands that need them so that ``sensorplan plan`` starts fast.
 
 from __future__ import annotations
 
+import inspect
 import os
 import sys
 from collections.abc import Iterator, Sequence
@@ -19,13 +20,10 @@ import typer
 
 from .errors import ConfigError
 from .planners import PLANNERS
+from .settings import all_settings, default_of, field_type
 
 #: For help texts; validation always asks the registry itself.
 _PLANNER_NAMES = ", ".join(sorted(PLANNERS))
-#: RunSettings' defaults, for help texts only (importing the simulator here would slow every
-#: command down); a test checks that they agree with sensorplan.simulation.RunSettings.
-RUN_DEFAULTS = {"planner": "pg", "horizon": 1, "steps_per_epoch": 1, "execution": "olf",
-                "steps": 100, "visibility": "probabilistic", "objective": "terminal"}
 
 app = typer.Typer(
     name="sensorplan",
@@ -98,7 +96,6 @@ def plan(
 # --------------------------------------------------------------------------- simulate
 
 
-@app.command()
 def simulate(
     config: Annotated[Path | None, typer.Argument(
         metavar="CONFIG.toml", show_default=False,
@@ -108,48 +105,15 @@ def simulate(
         "--preset", metavar="NAME", show_default=False,
         help="Built-in scenario instead of a file: 'paper' (SPEC 1: 5 targets, 3 sensors, "
              "random start each run). The default when no file is given.")] = None,
-    planner: Annotated[str | None, typer.Option(
-        "--planner", metavar="NAME", show_default=False,
-        help=f"Planner ({_PLANNER_NAMES}). "
-             f"[default: file's planning.planner, else {RUN_DEFAULTS['planner']}]")] = None,
-    horizon: Annotated[int | None, typer.Option(
-        "--horizon", "-K", metavar="K", show_default=False,
-        help=f"Planning horizon in epochs (1 = myopic). [default: {RUN_DEFAULTS['horizon']}]"
-    )] = None,
-    steps_per_epoch: Annotated[int | None, typer.Option(
-        "--steps-per-epoch", "-e", metavar="E", show_default=False,
-        help="Simulation steps per epoch: a decision every E steps. "
-             f"[default: {RUN_DEFAULTS['steps_per_epoch']}]")] = None,
-    execution: Annotated[str | None, typer.Option(
-        "--execution", metavar="MODE", show_default=False,
-        help="ol: execute all K epochs of a plan, then replan; olf: execute the first "
-             f"epoch, then replan (rolling horizon). [default: {RUN_DEFAULTS['execution']}]"
-    )] = None,
-    steps: Annotated[int | None, typer.Option(
-        "--steps", "-n", metavar="N", show_default=False,
-        help=f"Simulation steps. [default: {RUN_DEFAULTS['steps']}]")] = None,
     seed: Annotated[int | None, typer.Option(
         "--seed", metavar="S", show_default=False,
         help="Seed of the run (truth, initial estimates, noise and planner streams). "
              "[default: file's run.seed, else 0]")] = None,
-    visibility: Annotated[str | None, typer.Option(
-        "--visibility", metavar="MODE", show_default=False,
-        help="Which planned looks count in the planning objective (SPEC 4): probabilistic "
-             "(weighted by the chance the target is in view) or mean (the paper's: iff the "
-             f"predicted mean is in view). [default: {RUN_DEFAULTS['visibility']}]")] = None,
-    objective: Annotated[str | None, typer.Option(
-        "--objective", metavar="NAME", show_default=False,
-        help="terminal (information at the end of the horizon, the paper's) or cumulative "
-             f"(summed over its steps). [default: {RUN_DEFAULTS['objective']}]")] = None,
-    miss_update: Annotated[str | None, typer.Option(
-        "--miss-update", metavar="MODE", show_default=False,
-        help="Tracker's reaction to a look that misses its target (SPEC 3): negative "
-             "(update with the negative information) or none (the paper's). "
-             "[default: file's tracker.miss_update, else negative]")] = None,
     out: Annotated[Path, typer.Option(
         "--out", "-o", metavar="DIR",
         help="Directory for episode.npz (every array of the run) and episode.png.")
     ] = Path("out/simulate"),
+    **settings: Any,
 ) -> None:
     """Simulate one closed-loop run and summarize it.
 
@@ -158,19 +122,17 @@ def simulate(
     planning time per decision) and writes the run's arrays (DIR/episode.npz, readable with
     sensorplan.simulation.Episode.load) and a figure (DIR/episode.png).
 
-    Options override the scenario file; a [default] applies when neither sets a value.
-    Bad input exits with status 2 and one line on stderr.
+    Options override the scenario file's [planning], [tracker] and [run] tables; a
+    [default] applies when neither sets a value. Bad input exits with status 2 and one line
+    on stderr.
 
     Example: sensorplan simulate --preset paper --planner pg --horizon 3 --steps-per-epoch 2
     """
     from .config import load_simulation
     from .io import ensure_out_dir
 
-    overrides = dict(planner=planner, horizon=horizon, steps_per_epoch=steps_per_epoch,
-                     execution=execution, steps=steps, seed=seed, visibility=visibility,
-                     objective=objective, miss_update=miss_update)
     with _bad_input():
-        cfg = load_simulation(config, preset, overrides)
+        cfg = load_simulation(config, preset, {**settings, "seed": seed})
         ensure_out_dir(out)
 
     from .simulation import run_episode
@@ -191,6 +153,33 @@ def simulate(
 
     plot_episode(episode, cfg.scenario, png)
     _print_summary(episode, cfg, [npz, png, timing])
+
+
+def _setting_options() -> list[inspect.Parameter]:
+    """An option of ``simulate`` for every run setting that declares option names, with its
+    help, value placeholder and default from the declaration (sensorplan.settings)."""
+    params = []
+    for cls, _, f, s in all_settings():
+        if not s.cli:
+            continue
+        # Choices known only at run time cannot be written into the help sentence.
+        text = (s.help.removesuffix(".") + f" ({', '.join(s.allowed())})."
+                if callable(s.choices) else s.help)
+        option = typer.Option(*s.cli, metavar=s.metavar, show_default=False,
+                              help=f"{text} [default: {default_of(f)}]")
+        params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=None,
+                                        annotation=Annotated[field_type(cls, f.name) | None,
+                                                             option]))
+    return params
+
+
+# typer reads the command's options from its signature (it calls it with keywords only).
+_fixed = [p.replace(kind=inspect.Parameter.KEYWORD_ONLY)
+          for p in inspect.signature(simulate, eval_str=True).parameters.values()
+          if p.kind is not inspect.Parameter.VAR_KEYWORD]
+simulate.__signature__ = inspect.Signature(  # type: ignore[attr-defined]
+    _fixed[:2] + _setting_options() + _fixed[2:])
+app.command()(simulate)
 
 
 def _run_with_progress(run_episode: Any, cfg: Any) -> Any:
@@ -217,37 +206,30 @@ def _print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
     from rich.console import Console
     from rich.table import Table
 
+    from .study.metrics import LOST_THRESHOLD, episode_errors
+
     console = Console()
     s = cfg.settings
     console.print(f"[bold]{s.planner}[/], K = {s.horizon}, e = {s.steps_per_epoch}, "
                   f"{s.execution.upper()}, {s.steps} steps, seed {cfg.seed}", highlight=False)
-    console.print(f"visibility {s.visibility}, objective {s.objective}, miss update "
-                  f"{s.miss_update or cfg.scenario.miss_update}", highlight=False)
+    tracker = ", ".join(f"{meta.label or f.name} {getattr(s.tracker, f.name)}"
+                        for _, path, f, meta in all_settings() if path.startswith("tracker."))
+    console.print(f"visibility {s.visibility}, objective {s.objective}, {tracker}",
+                  highlight=False)
 
-    err = np.asarray(episode.error)[1:]                        # (S, M) steps 1..S
-    kinds = list(episode.target_kinds)
     measured = np.asarray(episode.measured)[1:]                # (S, M, N)
-    lost = 50.0                                                # m; SPEC 6 "lost" threshold
-    rmse = np.asarray(episode.rmse())
-
     tracks = Table(title="Position error over steps 1..S (m)",
-                   caption=f"lost: share of steps with error > {lost:g} m; measured: steps "
-                           "with at least one measurement")
+                   caption=f"lost: share of steps with error > {LOST_THRESHOLD:g} m; measured: "
+                           "steps with at least one measurement")
     for name in ("target", "kind", "RMSE", "mean", "final", "lost", "measured"):
         tracks.add_column(name, justify="left" if name in ("target", "kind") else "right")
-    for j, kind in enumerate(kinds):
-        tracks.add_row(str(j), kind, f"{rmse[j]:.1f}", f"{err[:, j].mean():.1f}",
-                       f"{err[-1, j]:.1f}", f"{(err[:, j] > lost).mean():.0%}",
-                       str(int(measured[:, j].any(axis=1).sum())))
-    tracks.add_section()
-    groups = [(k, [j for j, kk in enumerate(kinds) if kk == k]) for k in dict.fromkeys(kinds)]
-    if len(groups) > 1:
-        groups.append(("all", list(range(len(kinds)))))
-    for kind, idx in groups:
-        e = err[:, idx]
-        tracks.add_row("all", kind, f"{np.sqrt(np.mean(e ** 2)):.1f}", f"{e.mean():.1f}",
-                       f"{e[-1].mean():.1f}", f"{(e > lost).mean():.0%}",
-                       str(int(measured[:, idx].any(axis=2).sum())), style="bold")
+    rows = episode_errors(episode)
+    for i, row in enumerate(rows):
+        if i and row.target == "all" and rows[i - 1].target != "all":
+            tracks.add_section()                   # per-target rows, then the groups
+        tracks.add_row(row.target, row.kind, f"{row.rmse:.1f}", f"{row.mean:.1f}",
+                       f"{row.final:.1f}", f"{row.lost_share:.0%}", str(row.measured),
+                       style="bold" if row.target == "all" else None)
     console.print(tracks)
 
     looked = np.asarray(episode.looked)[1:]                    # (S, N)
@@ -286,7 +268,7 @@ def _print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
 
 def _study_progress(label: str) -> Any:
     """Context manager yielding a ``progress(done, total, already)`` callback for
-    :func:`sensorplan.experiments.run_study`: a rich bar with ETA on a terminal, a plain
+    :func:`sensorplan.study.run_study`: a rich bar with ETA on a terminal, a plain
     line about every 10 % or every minute (and at the end) otherwise."""
     import time
 
@@ -350,7 +332,7 @@ def _study_progress(label: str) -> Any:
 
 def _run_study_command(study_obj: Any, out: Path, workers: int | None,
                        scheduler: str | None, label: str) -> Any:
-    from .experiments import StudyInterrupted, run_study
+    from .study import StudyInterrupted, run_study
 
     try:
         with _bad_input(), _study_progress(label) as progress:
@@ -398,7 +380,7 @@ def study(
 
     Example: sensorplan study studies/paper.toml --out runs/paper --workers 2
     """
-    from .config import load_study
+    from .study import load_study
 
     with _bad_input():
         study_obj = load_study(study_file)
@@ -465,13 +447,13 @@ def demo(
 
     Example: sensorplan demo --out out/demo
     """
-    from .experiments import demo_study
+    from . import study as studies
     from .report import write_report
 
     with _bad_input():
         if workers is not None and workers < 1:
             raise ConfigError("--workers", f"must be an integer >= 1, got {workers}")
-        study_obj = demo_study()
+        study_obj = studies.demo_study()
     res = _run_study_command(study_obj, out, workers, None, "demo study")
     with _bad_input():
         written = write_report(out, None)

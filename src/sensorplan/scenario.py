@@ -1,7 +1,9 @@
-"""Scenario values: the world, the targets' truth models, the sensors, the tracker options.
+"""Scenario values: the world, the targets' truth models and the sensors.
 
 A scenario may fix initial target states and sensor poses or leave them to be drawn from a
 run's seed (the paper draws them anew in every run, SPEC 1): a field left ``None`` is drawn.
+How a run plans and tracks is not part of the scenario: see :mod:`sensorplan.settings`.
+Scenario files are read and written by :mod:`sensorplan.scenario_file`.
 """
 
 from __future__ import annotations
@@ -16,11 +18,10 @@ from ._types import FloatArray
 from .errors import ConfigError
 from .problem import MapRect, check_covariance
 from .sensors import SensorParams
+from .truth import TruthModel
 
 TargetKind = Literal["cv", "dubins"]
-MissUpdate = Literal["negative", "none"]
 TARGET_KINDS = ("cv", "dubins")
-MISS_UPDATES = ("negative", "none")
 
 
 @dataclass(frozen=True)
@@ -59,7 +60,7 @@ class SensorSpec:
 
 @dataclass(frozen=True)
 class Scenario:
-    """World, targets, sensors and tracker options (SPEC 1-3).
+    """World, targets and sensors (SPEC 1-2).
 
     Attributes
     ----------
@@ -71,7 +72,6 @@ class Scenario:
     speed_range : (lo, hi)           initial target speeds (m/s)
     sensor_box : (lo, hi)            initial sensor positions uniform in [lo, hi]^2
     initial_cov : (4, 4)             P0: initial estimate = truth + N(0, P0)
-    miss_update : {"negative", "none"}  tracker option (SPEC 3)
     """
 
     world: MapRect = field(default_factory=MapRect)
@@ -84,7 +84,6 @@ class Scenario:
     sensor_box: tuple[float, float] = (50.0, 550.0)
     initial_cov: tuple[tuple[float, ...], ...] = (
         (400.0, 0.0, 0.0, 0.0), (0.0, 400.0, 0.0, 0.0), (0.0, 0.0, 4.0, 0.0), (0.0, 0.0, 0.0, 4.0))
-    miss_update: str = "negative"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "targets", tuple(self.targets))
@@ -109,8 +108,6 @@ class Scenario:
             raise ConfigError("targets", "at least one target is required")
         if not self.sensors:
             raise ConfigError("sensors", "at least one sensor is required")
-        if self.miss_update not in MISS_UPDATES:
-            raise ConfigError("tracker.miss_update", f"must be one of {MISS_UPDATES}")
         for name in ("target_box", "speed_range", "sensor_box"):
             lo, hi = getattr(self, name)
             if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
@@ -133,14 +130,14 @@ class Scenario:
                 raise ConfigError(f"sensors[{i}].position", "is outside the map")
 
 
-def paper_scenario(miss_update: str = "negative") -> Scenario:
+def paper_scenario() -> Scenario:
     """SPEC 1 paper scenario: M = 5 (3 ``cv``, 2 ``dubins``), N = 3 sensors at 490/500/510 m.
 
     Initial target states and sensor poses are left to each run's seed.
     """
     targets = tuple(TargetSpec(kind=k) for k in ("cv", "cv", "cv", "dubins", "dubins"))
     sensors = tuple(SensorSpec(SensorParams(altitude=a)) for a in (490.0, 500.0, 510.0))
-    return Scenario(targets=targets, sensors=sensors, miss_update=miss_update)
+    return Scenario(targets=targets, sensors=sensors)
 
 
 @dataclass(frozen=True)
@@ -189,3 +186,14 @@ def draw_initial(scenario: Scenario, truth_rng: np.random.Generator,
     L = np.linalg.cholesky(np.array(scenario.initial_cov))
     estimate = truth + init_rng.standard_normal((M, 4)) @ L.T
     return InitialConditions(truth, estimate, positions, headings)
+
+
+def make_truth(scenario: Scenario, initial_states: FloatArray,
+               rng: np.random.Generator) -> TruthModel:
+    """The scenario's :class:`~sensorplan.truth.TruthModel` starting at ``initial_states``
+    ``(M, 4)``, drawing from the truth generator ``rng``."""
+    return TruthModel(scenario.target_kinds, initial_states, rng,
+                      turn_hold=[t.turn_hold for t in scenario.targets],
+                      max_turn_rate=[t.max_turn_rate for t in scenario.targets],
+                      world_size=(scenario.world.width, scenario.world.height),
+                      dt=scenario.dt, process_noise=scenario.process_noise)

@@ -30,14 +30,13 @@ between methods are paired).
 
 from __future__ import annotations
 
-import dataclasses
 import io
 import json
 import math
 import time
 import zipfile
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -49,91 +48,19 @@ from .ekf import nees
 from .tracker import Tracker
 from .errors import ConfigError
 from .planners import make_planner
-from .problem import OBJECTIVES, VISIBILITY_MODES, PlanningProblem
-from .scenario import MISS_UPDATES, Scenario, draw_initial
-from . import radar
+from .problem import PlanningProblem
+from .scenario import Scenario, draw_initial, make_truth
 from .sensors import radar_table
-from .truth import TruthModel
+from .settings import EXECUTIONS, RunSettings
+from . import radar
 
-EXECUTIONS = ("ol", "olf")
+__all__ = ["EXECUTIONS", "STREAMS", "Episode", "RunSettings", "run_episode", "run_streams"]
 #: Names of the run's independent random streams, in spawn order.
 STREAMS = ("truth", "init", "noise", "planner")
 
 
 def _is_int(v: Any) -> bool:
     return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
-
-
-@dataclass(frozen=True)
-class RunSettings:
-    """How one closed-loop run plans and executes.
-
-    Attributes
-    ----------
-    planner : str
-        Registry name (:func:`sensorplan.planners.make_planner`).
-    planner_params : Mapping
-        Keyword arguments of the planner, e.g. ``{"alpha": 0.3}``.
-    horizon : int
-        K, epochs per plan (>= 1).
-    steps_per_epoch : int
-        e, simulation steps per epoch (>= 1).
-    execution : {"ol", "olf"}
-        ``ol`` executes all K epochs before replanning, ``olf`` only the first.
-    steps : int
-        Simulation steps S (>= 1).
-    visibility : {"probabilistic", "mean"}
-        Planning objective setting (SPEC 4).
-    objective : {"terminal", "cumulative"}
-        Planning objective (SPEC 4).
-    miss_update : {"negative", "none"} or None
-        Tracker option (SPEC 3); None uses the scenario's.
-    """
-
-    planner: str = "pg"
-    planner_params: Mapping[str, Any] = field(default_factory=dict)
-    horizon: int = 1
-    steps_per_epoch: int = 1
-    execution: str = "olf"
-    steps: int = 100
-    visibility: str = "probabilistic"
-    objective: str = "terminal"
-    miss_update: str | None = None
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "planner_params", dict(self.planner_params))
-        for name in ("horizon", "steps_per_epoch", "steps"):
-            v = getattr(self, name)
-            if not _is_int(v) or v < 1:
-                raise ConfigError(name, f"must be an integer >= 1, got {v!r}")
-            object.__setattr__(self, name, int(v))
-        if self.execution not in EXECUTIONS:
-            raise ConfigError("execution", f"must be one of {EXECUTIONS}, got "
-                              f"{self.execution!r}")
-        if self.visibility not in VISIBILITY_MODES:
-            raise ConfigError("visibility", f"must be one of {VISIBILITY_MODES}, got "
-                              f"{self.visibility!r}")
-        if self.objective not in OBJECTIVES:
-            raise ConfigError("objective", f"must be one of {OBJECTIVES}, got "
-                              f"{self.objective!r}")
-        if self.miss_update is not None and self.miss_update not in MISS_UPDATES:
-            raise ConfigError("miss_update", f"must be one of {MISS_UPDATES} or None, got "
-                              f"{self.miss_update!r}")
-        if not isinstance(self.planner, str):
-            raise ConfigError("planner", f"must be a planner name, got {self.planner!r}")
-        # Instantiating once reports an unknown name or bad parameters now, not mid-study.
-        try:
-            make_planner(self.planner, **self.planner_params)
-        except ConfigError:
-            raise
-        except (TypeError, ValueError) as exc:
-            raise ConfigError("planner_params", str(exc)) from None
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dictionary of every field."""
-        d = dataclasses.asdict(self)
-        d["planner_params"] = dict(self.planner_params)
-        return d
 
 
 @dataclass(frozen=True)
@@ -316,8 +243,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     truth_rng = np.random.default_rng(streams["truth"])
     init_rng = np.random.default_rng(streams["init"])
     planner_rng = np.random.default_rng(streams["planner"])
-    miss_mode = settings.miss_update or scenario.miss_update
-    miss_update = _miss_update_kernel() if miss_mode == "negative" else None
+    miss_update = _miss_update_kernel() if settings.tracker.miss_update == "negative" else None
     planner = make_planner(settings.planner, **settings.planner_params)
 
     S, K, e = settings.steps, settings.horizon, settings.steps_per_epoch
@@ -327,7 +253,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     max_turn = np.array([float(p.max_turn) for p in sensor_list])
 
     init = draw_initial(scenario, truth_rng, init_rng)
-    truth_model = TruthModel(scenario, init.truth, truth_rng)
+    truth_model = make_truth(scenario, init.truth, truth_rng)
     tracker = Tracker(init.estimate, np.array(scenario.initial_cov), scenario.dt, table,
                       process_noise=scenario.process_noise)
     # All noise up front: each sensor's stream yields 2 normals per step in order, so this

@@ -27,12 +27,13 @@ uniform per redraw, the first at the start.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from ._types import BoolArray, FloatArray
 from .angles import wrap_angle
 from .dynamics import cv_matrices
-from .scenario import Scenario
 
 #: Steps of ``cv`` process noise drawn per block.
 NOISE_BLOCK = 256
@@ -106,18 +107,27 @@ def dubins_arc(xy: FloatArray, speed: FloatArray, heading: FloatArray, turn_rate
 
 
 class TruthModel:
-    """Batched true motion of a scenario's targets.
+    """Batched true motion of M targets (:func:`sensorplan.scenario.make_truth` builds one
+    from a scenario).
 
     Parameters
     ----------
-    scenario : Scenario
-        Supplies ``dt``, ``process_noise``, the map and each target's kind, ``turn_hold``
-        and ``max_turn_rate``.
+    kinds : (M,) sequence of {"cv", "dubins"}
     initial_states : (M, 4)
         True ``[x, y, vx, vy]`` at time 0 (inside the map). A ``dubins`` target's speed and
         heading are those of its initial velocity.
     rng : numpy.random.Generator
         The truth generator; one child per target is spawned from it.
+    turn_hold : (M,) float
+        s between turn-rate draws (used for ``dubins`` targets only).
+    max_turn_rate : (M,) float
+        rad/s, turn rates are drawn from ``[-max_turn_rate, max_turn_rate]`` (``dubins``).
+    world_size : (2,) float
+        Map width and height (m): walls at ``x = 0, W`` and ``y = 0, H``.
+    dt : float
+        Step (s).
+    process_noise : float
+        q (m^2/s^3) of the ``cv`` targets' CWNA model.
 
     Attributes
     ----------
@@ -125,30 +135,35 @@ class TruthModel:
         Current true states; :meth:`step` replaces (does not mutate) this array.
     """
 
-    def __init__(self, scenario: Scenario, initial_states: FloatArray,
-                 rng: np.random.Generator) -> None:
+    def __init__(self, kinds: Sequence[str], initial_states: FloatArray,
+                 rng: np.random.Generator, *, turn_hold: Sequence[float] | FloatArray,
+                 max_turn_rate: Sequence[float] | FloatArray,
+                 world_size: Sequence[float] | FloatArray, dt: float,
+                 process_noise: float) -> None:
+        kinds = np.asarray(kinds, dtype=str).reshape(-1)
         states = np.array(initial_states, dtype=float)
-        M = len(scenario.targets)
+        M = len(kinds)
         if states.shape != (M, 4):
             raise ValueError(f"initial_states must have shape ({M}, 4), got {states.shape}")
-        kinds = np.array(scenario.target_kinds)
-        self.width = float(scenario.world.width)
-        self.height = float(scenario.world.height)
-        self.dt = float(scenario.dt)
-        self.F, Q = cv_matrices(self.dt, scenario.process_noise)
+        hold = np.asarray(turn_hold, dtype=float).reshape(-1)
+        rate = np.asarray(max_turn_rate, dtype=float).reshape(-1)
+        if hold.shape != (M,) or rate.shape != (M,):
+            raise ValueError(f"turn_hold and max_turn_rate must have shape ({M},)")
+        self.width, self.height = (float(v) for v in world_size)
+        self.dt = float(dt)
+        self.F, Q = cv_matrices(self.dt, process_noise)
         # Cholesky of Q(dt, q) = q Q(dt, 1): Q(dt, 1) is positive definite for dt > 0,
         # and q = 0 (allowed) gives no noise instead of a failed factorisation.
         _, Q1 = cv_matrices(self.dt, 1.0)
-        self.L = np.sqrt(scenario.process_noise) * np.linalg.cholesky(Q1)
+        self.L = np.sqrt(process_noise) * np.linalg.cholesky(Q1)
         self._rngs = rng.spawn(M)
         self.cv = np.flatnonzero(kinds == "cv")
         self.dub = np.flatnonzero(kinds == "dubins")
         self._noise = np.empty((len(self.cv), NOISE_BLOCK, 4))
         self._noise_at = NOISE_BLOCK
         d = self.dub
-        self.turn_hold = np.array([scenario.targets[j].turn_hold for j in d], dtype=float)
-        self.max_turn_rate = np.array([scenario.targets[j].max_turn_rate for j in d],
-                                      dtype=float)
+        self.turn_hold = hold[d]
+        self.max_turn_rate = rate[d]
         self.xy = states[d, :2].copy()
         self.speed = np.hypot(states[d, 2], states[d, 3])
         self.heading = np.arctan2(states[d, 3], states[d, 2])
@@ -222,14 +237,3 @@ class TruthModel:
         self.states = new
         self.time += self.dt
         return new
-
-
-def init_truth(scenario: Scenario, initial_states: FloatArray,
-               rng: np.random.Generator) -> TruthModel:
-    """A :class:`TruthModel` starting at ``initial_states`` ``(M, 4)``."""
-    return TruthModel(scenario, initial_states, rng)
-
-
-def step_truth(model: TruthModel) -> FloatArray:
-    """Advance ``model`` by one step (in place); return the true states ``(M, 4)``."""
-    return model.step()

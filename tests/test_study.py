@@ -17,10 +17,10 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from sensorplan import experiments as ex
-from sensorplan.config import (load_study, parse_study, scenario_from_dict, scenario_to_dict,
-                               study_from_dict)
+from sensorplan import study as studies
 from sensorplan.errors import ConfigError
+from sensorplan.scenario_file import scenario_from_dict, scenario_to_dict
+from sensorplan.study import load_study, parse_study, study_from_dict
 
 ROOT = Path(__file__).resolve().parents[1]
 STUDIES = ROOT / "studies"
@@ -43,16 +43,17 @@ name = "paper/olf"
 planner = "pg"
 horizon = 2
 visibility = "mean"
+[methods.tracker]
 miss_update = "none"
 """
 
 
-def tiny_study(text: str = TINY) -> ex.Study:
+def tiny_study(text: str = TINY) -> studies.Study:
     return parse_study(text)
 
 
 def frames(out: Path) -> dict[str, pd.DataFrame]:
-    t = ex.load_study_dir(out)
+    t = studies.load_study_dir(out)
     assert t.complete
     return {"steps": t.steps, "decisions": t.decisions.drop(columns="planning_seconds"),
             "sensors": t.sensors}
@@ -60,7 +61,7 @@ def frames(out: Path) -> dict[str, pd.DataFrame]:
 
 def assert_same_tables(a: Path, b: Path) -> None:
     fa, fb = frames(a), frames(b)
-    for name in ex.TABLES:
+    for name in studies.TABLES:
         pd.testing.assert_frame_equal(fa[name], fb[name], check_exact=True, obj=name)
 
 
@@ -100,8 +101,8 @@ class _Recorder:
         return call
 
 
-def _recorded_task(monkeypatch: pytest.MonkeyPatch, study: ex.Study, run: int,
-                   method: int) -> tuple[ex.TaskResult, list[Any]]:
+def _recorded_task(monkeypatch: pytest.MonkeyPatch, study: studies.Study, run: int,
+                   method: int) -> tuple[studies.TaskResult, list[Any]]:
     log: list[Any] = []
     real = np.random.default_rng
 
@@ -115,7 +116,7 @@ def _recorded_task(monkeypatch: pytest.MonkeyPatch, study: ex.Study, run: int,
 
     with monkeypatch.context() as m:
         m.setattr(np.random, "default_rng", default_rng)
-        res = ex.run_task(study, run, method)
+        res = studies.run_task(study, run, method)
     return res, log
 
 
@@ -162,23 +163,22 @@ def test_pairing_same_truth_estimates_and_noise_draws(monkeypatch: pytest.Monkey
 @pytest.fixture(scope="module")
 def serial_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("serial") / "study"
-    res = ex.run_study(tiny_study(), out, workers=1)
+    res = studies.run_study(tiny_study(), out, workers=1)
     assert res.ran == res.total == 9
     return out
 
 
-def test_same_tables_with_2_workers_and_dask(serial_dir: Path, tmp_path: Path) -> None:
+def test_same_tables_on_dask(serial_dir: Path, tmp_path: Path) -> None:
+    # The local process pool: test_run_study_from_a_script[guarded].
     study = tiny_study()
-    ex.run_study(study, tmp_path / "pool", workers=2)
-    assert_same_tables(serial_dir, tmp_path / "pool")
-    ex.run_study(study, tmp_path / "dask", workers=2, scheduler="local", processes=False)
+    studies.run_study(study, tmp_path / "dask", workers=2, scheduler="local", processes=False)
     assert_same_tables(serial_dir, tmp_path / "dask")
     meta = json.loads((tmp_path / "dask" / "meta.json").read_text())
     assert meta["complete"] and meta["sessions"][-1]["executor"].startswith("dask local")
 
 
 def test_tables_have_every_row_once(serial_dir: Path) -> None:
-    t = ex.load_study_dir(serial_dir)
+    t = studies.load_study_dir(serial_dir)
     study = t.study
     M, N = len(study.scenario.targets), len(study.scenario.sensors)
     n_methods = len(study.methods)
@@ -201,7 +201,7 @@ def test_finished_study_is_not_recomputed(serial_dir: Path) -> None:
     parts = sorted((serial_dir / "parts").rglob("*.parquet"))
     before = {p: p.stat().st_mtime_ns for p in parts}
     table = (serial_dir / "steps.parquet").stat().st_mtime_ns
-    res = ex.run_study(tiny_study(), serial_dir, workers=2)
+    res = studies.run_study(tiny_study(), serial_dir, workers=2)
     assert res.ran == 0
     assert {p: p.stat().st_mtime_ns for p in parts} == before
     assert (serial_dir / "steps.parquet").stat().st_mtime_ns == table
@@ -211,20 +211,20 @@ def test_changed_study_in_existing_dir_is_an_error(serial_dir: Path) -> None:
     changed = tiny_study(TINY.replace("runs = 3", "runs = 4").replace("horizon = 2",
                                                                       "horizon = 3"))
     with pytest.raises(ConfigError) as info:
-        ex.run_study(changed, serial_dir, workers=1)
+        studies.run_study(changed, serial_dir, workers=1)
     assert info.value.field == "--out"
     assert "different study" in info.value.message
     assert "runs (3 -> 4)" in info.value.message
     assert "methods[2].horizon (2 -> 3)" in info.value.message
     # A new description alone does not change the results: allowed.
     same = tiny_study('description = "renamed"\n' + TINY)
-    assert ex.run_study(same, serial_dir, workers=1).ran == 0
+    assert studies.run_study(same, serial_dir, workers=1).ran == 0
 
 
 def test_non_study_directory_is_refused(tmp_path: Path) -> None:
     (tmp_path / "something.txt").write_text("x")
     with pytest.raises(ConfigError, match="not a study directory"):
-        ex.run_study(tiny_study(), tmp_path, workers=1)
+        studies.run_study(tiny_study(), tmp_path, workers=1)
 
 
 # --------------------------------------------------------------------------- resume
@@ -246,7 +246,7 @@ def test_resume_after_sigkill_gives_the_uninterrupted_tables(tmp_path: Path) -> 
                             stderr=subprocess.DEVNULL, start_new_session=True, env=env)
     try:
         deadline = time.monotonic() + 120
-        while not (out.exists() and ex.done_tasks(out, study)):
+        while not (out.exists() and studies.done_tasks(out, study)):
             assert proc.poll() is None, "the study ended before it could be killed"
             assert time.monotonic() < deadline, "no (run, method) finished in 120 s"
             time.sleep(0.01)
@@ -254,7 +254,7 @@ def test_resume_after_sigkill_gives_the_uninterrupted_tables(tmp_path: Path) -> 
         # The whole process group: the study and its pool workers.
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
-    done = ex.done_tasks(out, study)
+    done = studies.done_tasks(out, study)
     total = len(study.tasks())
     assert 0 < len(done) < total, "killed too late to test resuming"
     assert not (out / "steps.parquet").exists()
@@ -270,9 +270,9 @@ def test_resume_after_sigkill_gives_the_uninterrupted_tables(tmp_path: Path) -> 
     assert last["tasks_run"] == total - len(done)         # only what was missing
 
     ref = tmp_path / "uninterrupted"
-    ex.run_study(study, ref, workers=1)
+    studies.run_study(study, ref, workers=1)
     assert_same_tables(ref, out)
-    t = ex.load_study_dir(out)
+    t = studies.load_study_dir(out)
     assert not t.steps.duplicated(["run", "method", "step", "target"]).any()
     assert sorted(t.steps["run"].unique()) == list(range(study.runs))
     assert not list(out.rglob(".*.tmp*"))
@@ -284,11 +284,11 @@ def test_resume_after_sigkill_gives_the_uninterrupted_tables(tmp_path: Path) -> 
 @pytest.mark.parametrize("n", [2, 3, 7, 30, 101])
 def test_t_interval_matches_scipy(n: int) -> None:
     x = np.random.default_rng(n).gamma(2.0, 10.0, size=n)
-    mean, lo, hi = ex.t_interval(x)
+    mean, lo, hi = studies.t_interval(x)
     ref = stats.t.interval(0.95, n - 1, loc=np.mean(x), scale=stats.sem(x))
     np.testing.assert_allclose([lo, hi], ref, rtol=1e-12)
     np.testing.assert_allclose(mean, np.mean(x), rtol=1e-14)
-    lo90, hi90 = ex.t_interval(x, level=0.9)[1:]
+    lo90, hi90 = studies.t_interval(x, level=0.9)[1:]
     np.testing.assert_allclose([lo90, hi90], stats.t.interval(0.9, n - 1, loc=np.mean(x),
                                                               scale=stats.sem(x)), rtol=1e-12)
 
@@ -296,31 +296,31 @@ def test_t_interval_matches_scipy(n: int) -> None:
 def test_t_interval_along_an_axis_with_nans() -> None:
     a = np.random.default_rng(0).normal(size=(12, 5))
     a[3, 1] = np.nan
-    mean, lo, hi = ex.t_interval(a, axis=0)
+    mean, lo, hi = studies.t_interval(a, axis=0)
     for j in range(5):
         col = a[:, j][~np.isnan(a[:, j])]
         ref = stats.t.interval(0.95, col.size - 1, loc=col.mean(), scale=stats.sem(col))
         np.testing.assert_allclose([mean[j], lo[j], hi[j]], [col.mean(), *ref], rtol=1e-12)
-    m1, lo1, hi1 = ex.t_interval([4.0])
+    m1, lo1, hi1 = studies.t_interval([4.0])
     assert m1 == 4.0 and np.isnan(lo1) and np.isnan(hi1)
 
 
 @pytest.mark.parametrize("n", [6, 10, 25, 100])
 def test_median_interval_is_the_binomial_order_statistic_interval(n: int) -> None:
     x = np.random.default_rng(n).normal(size=n)
-    med, lo, hi = ex.median_interval(x)
+    med, lo, hi = studies.median_interval(x)
     xs = np.sort(x)
     assert med == np.median(x)
     # l is the largest rank whose interval [x_(l), x_(n-l+1)] still has coverage >= 95 %.
     cover = [1 - 2 * stats.binom.cdf(k - 1, n, 0.5) for k in range(1, n // 2 + 1)]
     ell = max(k for k, c in enumerate(cover, start=1) if c >= 0.95)
     assert (lo, hi) == (xs[ell - 1], xs[n - ell])
-    assert np.isnan(ex.median_interval(x[:5])[1])            # n = 5 cannot reach 95 %
+    assert np.isnan(studies.median_interval(x[:5])[1])            # n = 5 cannot reach 95 %
 
 
 def test_run_metrics_and_paired_differences_match_direct_computations(serial_dir: Path) -> None:
-    t = ex.load_study_dir(serial_dir)
-    metrics = ex.run_metrics(t)
+    t = studies.load_study_dir(serial_dir)
+    metrics = studies.run_metrics(t)
     st = t.steps
     for (method, run, kind) in [("ours/myopic", 1, "cv"), ("paper/olf", 2, "dubins"),
                                 ("ours/random", 0, "all")]:
@@ -331,9 +331,9 @@ def test_run_metrics_and_paired_differences_match_direct_computations(serial_dir
         row = metrics[(metrics["method"] == method) & (metrics["run"] == run)
                       & (metrics["kind"] == kind)]
         np.testing.assert_allclose(row["rmse"], np.sqrt(np.mean(err ** 2)), rtol=1e-12)
-        np.testing.assert_allclose(row["lost_share"], np.mean(err > ex.LOST_THRESHOLD))
+        np.testing.assert_allclose(row["lost_share"], np.mean(err > studies.LOST_THRESHOLD))
 
-    diffs = ex.paired_differences(metrics, t.study)
+    diffs = studies.paired_differences(metrics, t.study)
     row = diffs[(diffs["method"] == "ours/myopic") & (diffs["against"] == "random")
                 & (diffs["kind"] == "cv")].iloc[0]
     assert row["reference"] == "ours/random"
@@ -344,15 +344,15 @@ def test_run_metrics_and_paired_differences_match_direct_computations(serial_dir
     np.testing.assert_allclose([row["mean"], row["mean_lo"], row["mean_hi"]],
                                [np.mean(a - b), ci.low, ci.high], rtol=1e-10)
 
-    summ = ex.summary(metrics)
+    summ = studies.summary(metrics)
     s = summ[(summ["method"] == "ours/myopic") & (summ["kind"] == "cv")].iloc[0]
     ref = stats.t.interval(0.95, a.size - 1, loc=a.mean(), scale=stats.sem(a))
     np.testing.assert_allclose([s["mean_lo"], s["mean_hi"]], ref, rtol=1e-12)
 
 
 def test_rmse_over_time_matches_a_direct_computation(serial_dir: Path) -> None:
-    t = ex.load_study_dir(serial_dir)
-    curves = ex.rmse_over_time(t)
+    t = studies.load_study_dir(serial_dir)
+    curves = studies.rmse_over_time(t)
     st = t.steps
     step = 9
     sel = (st["method"] == "paper/olf") & (st["kind"] == "dubins") & (st["step"] == step)
@@ -367,7 +367,7 @@ def test_rmse_over_time_matches_a_direct_computation(serial_dir: Path) -> None:
 
 
 def test_references_pair_random_by_tracker_and_myopic_by_objective() -> None:
-    refs = ex.references(load_study(STUDIES / "paper.toml"))
+    refs = studies.references(load_study(STUDIES / "paper.toml"))
     assert refs["paper/olf"] == {"myopic": "paper/myopic", "random": "paper/random"}
     assert refs["paper/ol"] == {"myopic": "paper/myopic", "random": "paper/random"}
     assert refs["ours/olf-pg-refine"] == {"myopic": "ours/myopic", "random": "ours/random"}
@@ -378,10 +378,11 @@ def test_references_pair_random_by_tracker_and_myopic_by_objective() -> None:
 # ---------------------------------------------------------------------- study files
 
 
-def _settings(study: ex.Study) -> dict[str, tuple[Any, ...]]:
+def _settings(study: studies.Study) -> dict[str, tuple[Any, ...]]:
     return {m.name: (m.settings.planner, m.settings.horizon, m.settings.steps_per_epoch,
-                     m.settings.execution, m.settings.visibility, m.settings.miss_update,
-                     m.settings.objective) for m in study.methods}
+                     m.settings.execution, m.settings.visibility,
+                     m.settings.tracker.miss_update, m.settings.objective)
+            for m in study.methods}
 
 
 def test_paper_study_is_the_issue_6_list() -> None:
@@ -409,24 +410,24 @@ def test_horizon_study_runs_k_1_to_6_on_the_paper_runs() -> None:
     assert (horizon.seed, horizon.runs, horizon.steps) == (paper.seed, paper.runs, paper.steps)
     ks = [m.settings.horizon for m in horizon.methods if m.settings.planner == "pg"]
     assert ks == [1, 2, 3, 4, 5, 6]
-    assert {(m.settings.execution, m.settings.visibility, m.settings.miss_update)
+    assert {(m.settings.execution, m.settings.visibility, m.settings.tracker.miss_update)
             for m in horizon.methods} == {("olf", "probabilistic", "negative")}
-    assert [[m.settings.horizon for m in g] for g in ex.horizon_groups(horizon)] == \
+    assert [[m.settings.horizon for m in g] for g in studies.horizon_groups(horizon)] == \
         [[1, 2, 3, 4, 5, 6]]
 
 
 def test_demo_file_is_the_built_in_demo() -> None:
-    assert (STUDIES / "demo.toml").read_text() == ex.DEMO_STUDY
-    demo = ex.demo_study()
+    assert (STUDIES / "demo.toml").read_text() == studies.DEMO_STUDY
+    demo = studies.demo_study()
     assert demo.resolved() == load_study(STUDIES / "demo.toml").resolved()
-    assert {m.settings.miss_update for m in demo.methods} == {"negative"}
+    assert {m.settings.tracker.miss_update for m in demo.methods} == {"negative"}
     assert {m.settings.visibility for m in demo.methods} == {"probabilistic"}
 
 
 def test_resolved_config_round_trips(tmp_path: Path) -> None:
     study = load_study(STUDIES / "paper.toml")
     data = json.loads(json.dumps(study.resolved()))
-    again = ex.Study.from_resolved(data)
+    again = studies.Study.from_resolved(data)
     assert again.resolved() == study.resolved()
     assert again.scenario == study.scenario
     assert scenario_from_dict(scenario_to_dict(study.scenario)) == study.scenario
@@ -438,7 +439,7 @@ def test_resolved_config_round_trips(tmp_path: Path) -> None:
 def test_defaults_table_and_scenario_file(tmp_path: Path) -> None:
     (tmp_path / "sc.toml").write_text(
         '[[targets]]\nkind = "dubins"\n[[sensors]]\naltitude = 400.0\n'
-        '[tracker]\nmiss_update = "none"\n')
+        '[tracker]\nmiss_update = "none"\n[planning]\nhorizon = 4\n[run]\nsteps = 9\n')
     study = study_from_dict({
         "runs": 2, "steps": 5, "scenario": {"file": "sc.toml"},
         "defaults": {"planner": "pg", "horizon": 2, "planner_params": {"alpha": 0.5}},
@@ -450,8 +451,61 @@ def test_defaults_table_and_scenario_file(tmp_path: Path) -> None:
     assert a.settings.planner_params["alpha"] == 0.5
     assert (b.settings.planner_params["alpha"], b.settings.planner_params["max_outer"]) == \
         (0.5, 3)
-    assert a.settings.miss_update == "none"              # the scenario file's tracker
+    # The scenario file's [tracker], [planning] and [run] tables are not the study's.
+    assert a.settings.tracker.miss_update == "negative"
+    assert a.settings.steps == b.settings.steps == 5
     assert study.scenario.target_kinds == ("dubins",)
+
+
+def test_tracker_settings_inherit_key_by_key() -> None:
+    text = TINY + """
+[[methods]]
+name = "inherits"
+planner = "pg"
+[defaults.tracker]
+miss_update = "none"
+"""
+    study = parse_study(text)
+    got = {m.name: m.settings.tracker.miss_update for m in study.methods}
+    assert got == {"ours/random": "none", "ours/myopic": "none", "paper/olf": "none",
+                   "inherits": "none"}
+    study = parse_study(text.replace('[defaults.tracker]\nmiss_update = "none"', ""))
+    assert {m.settings.tracker.miss_update for m in study.methods if m.name != "paper/olf"} \
+        == {"negative"}                                   # the setting's default
+    resolved = study.resolved()["methods"]
+    assert [m["tracker"] for m in resolved] == [{"miss_update": "negative"}] * 2 + [
+        {"miss_update": "none"}, {"miss_update": "negative"}]
+    assert all("steps" not in m for m in resolved)         # study-wide, at the top level
+
+
+def test_a_flat_tracker_key_points_to_the_sub_table() -> None:
+    with pytest.raises(ConfigError) as info:
+        parse_study(TINY.replace('[methods.tracker]\nmiss_update = "none"',
+                                 'miss_update = "none"'))
+    assert info.value.field == "methods[2].miss_update"
+    assert "did you mean 'tracker.miss_update'?" in info.value.message
+    with pytest.raises(ConfigError) as info:
+        parse_study(TINY + '[defaults.tracker]\nmiss_update = "sometimes"\n')
+    assert info.value.field == "defaults.tracker.miss_update"
+    assert info.value.message == "unknown miss update 'sometimes'; choose from negative, none"
+
+
+def test_a_directory_of_the_previous_format_is_refused_with_the_fix(serial_dir: Path,
+                                                                     tmp_path: Path) -> None:
+    old = tmp_path / "old"
+    old.mkdir()
+    config = json.loads((serial_dir / "config.resolved.json").read_text())
+    config["format"] = "sensorplan-study/1"
+    (old / "config.resolved.json").write_text(json.dumps(config))
+    with pytest.raises(ConfigError) as info:
+        studies.load_study_dir(old)
+    assert info.value.field == "DIR"
+    assert "sensorplan-study/1" in info.value.message
+    assert "run the study again into a new directory" in info.value.message
+    with pytest.raises(ConfigError) as info:
+        studies.run_study(tiny_study(), old, workers=1)
+    assert info.value.field == "--out"
+    assert "use another --out or delete it" in info.value.message
 
 
 def test_a_planner_refusing_in_a_worker_names_the_method_field(tmp_path: Path) -> None:
@@ -465,9 +519,47 @@ horizon = 2
 planner_params = { max_plans = 10 }
 """)
     with pytest.raises(ConfigError) as info:
-        ex.run_study(study, tmp_path / "bf", workers=2)
+        studies.run_study(study, tmp_path / "bf", workers=2)
     assert info.value.field == "methods[0].planner_params.max_plans"
     assert "exhaustive" in info.value.message
+
+
+SCRIPT = """\
+from sensorplan.study import load_study, run_study
+
+STUDY = load_study({study!r})
+{call}
+"""
+
+
+@pytest.mark.parametrize("guarded", [False, True])
+def test_run_study_from_a_script(serial_dir: Path, tmp_path: Path, guarded: bool) -> None:
+    """Worker processes run the calling script again: without the main guard the call
+    fails at once with one sentence naming the fix; with it the study runs in a process
+    pool and gives the tables of the serial run."""
+    (tmp_path / "tiny.toml").write_text(TINY)
+    out = tmp_path / "out"
+    call = f"run_study(STUDY, {str(out)!r}, workers=2)\nprint('finished')"
+    if guarded:
+        call = "if __name__ == '__main__':\n    " + call.replace("\n", "\n    ")
+    script = tmp_path / "my_study.py"
+    script.write_text(SCRIPT.format(study=str(tmp_path / "tiny.toml"), call=call))
+    res = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                         timeout=300, cwd=tmp_path)
+    if guarded:
+        assert res.returncode == 0, res.stderr
+        assert res.stdout.splitlines() == ["finished"]
+        meta = json.loads((out / "meta.json").read_text())
+        assert meta["sessions"][-1]["executor"] == "process pool (2 workers)"
+        assert_same_tables(serial_dir, out)
+        return
+    assert res.returncode == 1
+    last = res.stderr.strip().splitlines()[-1]
+    assert last == (f"RuntimeError: run_study starts worker processes, which run {script} "
+                    "again, so call it under `if __name__ == \"__main__\":` in that script "
+                    "(or pass workers=1)")
+    assert "BrokenProcessPool" not in res.stderr and "in use" not in res.stderr
+    assert res.stdout == "" and not out.exists()
 
 
 def test_config_error_pickles() -> None:

@@ -1,0 +1,128 @@
+"""What ``sensorplan simulate`` runs: a scenario file or preset, plus option overrides."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .. import io
+from ..errors import ConfigError
+from ..scenario import Scenario, paper_scenario
+from ..scenario_file import ScenarioFile, SettingsTables
+from ..settings import RunSettings, all_settings
+from ..validation import given, validate
+from .planners import build_planner, planner_settings
+
+#: Built-in scenarios for ``sensorplan simulate --preset`` and study files.
+PRESETS = ("paper",)
+
+#: Run setting -> (section, key) in a scenario file, and the run's seed.
+FILE_KEYS = {f.name: (s.section, f.name) for _, _, f, s in all_settings()}
+FILE_KEYS["seed"] = ("run", "seed")
+#: RunSettings field path -> its path in a scenario file.
+_FILE_PATHS = {path: f"{s.section}.{f.name}" for _, path, f, s in all_settings()}
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    """Everything ``sensorplan simulate`` runs: scenario, run settings and the run's seed."""
+
+    scenario: Scenario
+    settings: RunSettings
+    seed: int
+
+
+def option_name(key: str) -> str:
+    """The ``simulate`` option of an override key: its first declared name, else
+    ``--key-with-dashes``."""
+    for _, _, f, s in all_settings():
+        if f.name == key and s.cli:
+            return s.cli[0]
+    return "--" + key.replace("_", "-")
+
+
+def _rename(exc: ConfigError, renames: Mapping[str, str]) -> ConfigError:
+    for old, new in renames.items():
+        if exc.field == old or exc.field.startswith(old + ".") or exc.field.startswith(old + "["):
+            return ConfigError(new + exc.field[len(old):], exc.message)
+    return exc
+
+
+def preset_scenario(name: str | None, field: str) -> Scenario:
+    """The built-in scenario ``name`` (default ``paper``); an unknown name names ``field``."""
+    name = name or "paper"
+    if name not in PRESETS:
+        raise ConfigError(field, f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
+    return paper_scenario()
+
+
+def load_simulation(path: str | Path | None = None, preset: str | None = None,
+                    overrides: Mapping[str, Any] | None = None) -> SimulationConfig:
+    """Scenario file or preset, plus command-line overrides, as a :class:`SimulationConfig`.
+
+    Parameters
+    ----------
+    path : path, optional
+        A scenario TOML file (:mod:`sensorplan.scenario_file`); its ``[planning]``,
+        ``[tracker]`` and ``[run]`` tables give the run settings and seed.
+    preset : str, optional
+        A name in :data:`PRESETS` (``paper``: :func:`~sensorplan.scenario.paper_scenario` with
+        default run settings). Give ``path`` or ``preset``, not both; neither means ``paper``.
+    overrides : mapping, optional
+        Run settings by field name (``horizon``, ``miss_update``, ...) and ``seed``; ``None``
+        values are ignored. They replace the file's values; errors in them name the option
+        (``--horizon``).
+
+    Raises
+    ------
+    ConfigError
+    """
+    given_ = {k: v for k, v in (overrides or {}).items() if v is not None}
+    unknown = sorted(set(given_) - set(FILE_KEYS))
+    if unknown:
+        raise ConfigError(option_name(unknown[0]), "is not a simulation setting")
+    if path is not None and preset is not None:
+        raise ConfigError("--preset", "give a scenario file or --preset, not both")
+    if path is None:
+        scenario = preset_scenario(preset, "--preset")
+        data: dict[str, Any] = {}
+    else:
+        data = io.read_toml(path)
+    renames: dict[str, str] = {}
+    for key, value in given_.items():
+        section, name = FILE_KEYS[key]
+        if not isinstance(data.setdefault(section, {}), dict):
+            continue                                # the model reports the bad section
+        data[section][name] = value
+        renames[f"{section}.{name}"] = option_name(key)
+    try:
+        if path is None:
+            tables: Any = validate(SettingsTables, data)
+        else:
+            tables = validate(ScenarioFile, data)
+            scenario = tables.scenario()
+        settings = _run_settings(tables, planner_overridden="planner" in given_)
+    except ConfigError as exc:
+        raise _rename(exc, renames) from None
+    return SimulationConfig(scenario, settings, tables.run.seed)
+
+
+def _run_settings(tables: Any, planner_overridden: bool = False) -> RunSettings:
+    """RunSettings from a file's settings tables: given keys, else the fields' defaults."""
+    planning, run = given(tables.planning), given(tables.run)
+    run.pop("seed", None)
+    kwargs: dict[str, Any] = {**planning, **run, "tracker": given(tables.tracker)}
+    name = kwargs.get("planner", RunSettings.__dataclass_fields__["planner"].default)
+    params = dict(kwargs.pop("planner_params", {}))
+    if planner_overridden and name != "brute-force":
+        # The file's settings were meant for its own planner; --planner replaces it.
+        params.pop("max_plans", None)
+    kwargs["planner_params"] = planner_settings(
+        name, params, name_field="planning.planner", params_field="planning.planner_params")
+    build_planner(name, kwargs["planner_params"], "planning.planner_params")
+    try:
+        return RunSettings(**kwargs)
+    except ConfigError as exc:
+        raise _rename(exc, _FILE_PATHS) from None

@@ -1,0 +1,318 @@
+"""The report of a study: PNG figures, one self-contained HTML page, a markdown summary.
+
+Everything is computed from the study directory's files alone (``config.resolved.json``,
+``meta.json`` and the tidy tables) with the statistics of :mod:`sensorplan.study.metrics`;
+this package only draws (:mod:`.figures`) and formats (this module). The HTML page embeds
+its figures as base64 ``data:`` URIs, so it opens from disk with no network and can be
+mailed as one file. The definitions of every number are in docs/studies.md.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..settings import all_settings
+from ..study.metrics import (LOST_THRESHOLD, kinds_with_all, paired_differences,
+                             planning_summary, references, rmse_over_time, run_metrics,
+                             sensing_summary, summary)
+from ..study.model import Method
+from ..study.storage import StudyTables, load_study_dir
+from .figures import FIGURES, draw_figures
+
+
+@dataclass
+class ReportFiles:
+    """What :func:`write_report` wrote."""
+
+    html: Path
+    markdown: Path
+    figures: dict[str, Path] = field(default_factory=dict)
+    complete: bool = True
+    runs: int = 0
+
+
+def _f(v: float, digits: int = 1) -> str:
+    return "–" if v is None or not math.isfinite(v) else f"{v:.{digits}f}"
+
+
+def _ci(mean: float, lo: float, hi: float, digits: int = 1, pct: bool = False) -> str:
+    k = 100.0 if pct else 1.0
+    unit = " %" if pct else ""
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return f"{_f(k * mean, digits)}{unit}"
+    return f"{_f(k * mean, digits)} [{_f(k * lo, digits)}, {_f(k * hi, digits)}]{unit}"
+
+
+def _setting_text(m: Method, path: str) -> str:
+    value: Any = m.settings
+    for part in path.split("."):
+        value = getattr(value, part)
+    return str(value)
+
+
+class _Doc:
+    """Blocks rendered both as markdown and as HTML."""
+
+    def __init__(self) -> None:
+        self.blocks: list[tuple[str, Any]] = []
+
+    def h(self, level: int, text: str) -> None:
+        self.blocks.append(("h", (level, text)))
+
+    def p(self, text: str) -> None:
+        self.blocks.append(("p", text))
+
+    def table(self, header: list[str], rows: list[list[str]], caption: str = "") -> None:
+        self.blocks.append(("table", (header, rows, caption)))
+
+    def figure(self, name: str, path: Path) -> None:
+        self.blocks.append(("figure", (name, path)))
+
+    def markdown(self) -> str:
+        out: list[str] = []
+        for kind, b in self.blocks:
+            if kind == "h":
+                out.append("#" * b[0] + " " + b[1])
+            elif kind == "p":
+                out.append(b)
+            elif kind == "table":
+                header, rows, caption = b
+                if caption:
+                    out.append(f"*{caption}*\n")
+                esc = [[c.replace("|", "\\|") for c in r] for r in [header] + rows]
+                out.append("| " + " | ".join(esc[0]) + " |")
+                out.append("|" + "|".join("---" if i == 0 else "--:"
+                                          for i in range(len(header))) + "|")
+                out += ["| " + " | ".join(r) + " |" for r in esc[1:]]
+            elif kind == "figure":
+                name, path = b
+                out.append(f"![{FIGURES[name]}]({path.name})\n\n*{FIGURES[name]}*")
+            out.append("")
+        return "\n".join(out)
+
+    def html(self, title: str) -> str:
+        body: list[str] = []
+        for kind, b in self.blocks:
+            if kind == "h":
+                body.append(f"<h{b[0]}>{html.escape(b[1])}</h{b[0]}>")
+            elif kind == "p":
+                body.append(f"<p>{_inline(b)}</p>")
+            elif kind == "table":
+                header, rows, caption = b
+                cap = f"<caption>{html.escape(caption)}</caption>" if caption else ""
+                head = "".join(f"<th>{html.escape(c)}</th>" for c in header)
+                trs = "".join("<tr>" + "".join(
+                    f"<td>{html.escape(c)}</td>" for c in r) + "</tr>" for r in rows)
+                body.append(f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{trs}"
+                            "</tbody></table>")
+            elif kind == "figure":
+                name, path = b
+                data = base64.b64encode(path.read_bytes()).decode("ascii")
+                body.append(f'<figure id="fig-{name}"><img src="data:image/png;base64,{data}" '
+                            f'alt="{html.escape(FIGURES[name])}"><figcaption>'
+                            f"{html.escape(FIGURES[name])}</figcaption></figure>")
+        return _HTML.format(title=html.escape(title), body="\n".join(body))
+
+
+def _inline(text: str) -> str:
+    """Escape, then render markdown `code` and **bold** spans."""
+    import re
+
+    t = html.escape(text)
+    t = re.sub(r"`([^`]+)`", r"<code>\1</code>", t)
+    return re.sub(r"\*\*([^*]+)\*\*", r"<strong>\1</strong>", t)
+
+
+_HTML = """<!DOCTYPE html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>{title}</title>
+<style>
+body {{ font-family: system-ui, -apple-system, "Segoe UI", sans-serif; max-width: 1150px;
+       margin: 2em auto; padding: 0 1em; color: #222; line-height: 1.45; }}
+h1 {{ font-size: 1.6em; }} h2 {{ margin-top: 1.8em; border-bottom: 1px solid #ddd; }}
+table {{ border-collapse: collapse; margin: 0.8em 0 1.2em; font-size: 0.9em; }}
+caption {{ caption-side: top; text-align: left; font-style: italic; padding-bottom: 0.3em; }}
+th, td {{ border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: right; }}
+th:first-child, td:first-child {{ text-align: left; }}
+thead th {{ background: #f3f3f3; }}
+tbody tr:nth-child(even) {{ background: #fafafa; }}
+figure {{ margin: 1.2em 0; }} figure img {{ max-width: 100%; height: auto; }}
+figcaption {{ font-size: 0.9em; color: #444; }}
+code {{ background: #f3f3f3; padding: 0 0.2em; }}
+</style>
+</head>
+<body>
+{body}
+</body>
+</html>
+"""
+
+
+# ------------------------------------------------------------------------------ report
+
+
+def write_report(study_dir: str | Path, out: str | Path | None = None) -> ReportFiles:
+    """Write ``report.html``, ``summary.md`` and the PNG figures of a study directory.
+
+    Parameters
+    ----------
+    study_dir : path
+        Written by :func:`sensorplan.study.run_study` (finished or not: an unfinished
+        study is reported on the runs every method has finished).
+    out : path, optional
+        Report directory (default ``study_dir/report``).
+
+    Returns
+    -------
+    ReportFiles
+
+    Raises
+    ------
+    ConfigError
+        ``study_dir`` is not a study directory or holds no finished run.
+    """
+    study_dir = Path(study_dir)
+    t = load_study_dir(study_dir)
+    out = Path(out) if out is not None else study_dir / "report"
+    out.mkdir(parents=True, exist_ok=True)
+
+    metrics = run_metrics(t)
+    rmse = summary(metrics, "rmse")
+    lost = summary(metrics, "lost_share")
+    # A t-interval of a share can leave [0, 1]; show it clipped (the share cannot).
+    lost[["mean_lo", "mean_hi"]] = lost[["mean_lo", "mean_hi"]].clip(0.0, 1.0)
+    diffs = paired_differences(metrics, t.study)
+    plan = planning_summary(t)
+    sensing = sensing_summary(t)
+    figs = draw_figures(t, out, {"rmse": rmse, "lost": lost, "diffs": diffs, "plan": plan,
+                                 "curves": rmse_over_time(t)})
+
+    doc = _document(t, rmse, lost, diffs, plan, sensing, figs)
+    title = f"sensorplan study report: {study_dir.name}"
+    md = out / "summary.md"
+    page = out / "report.html"
+    md.write_text(doc.markdown(), encoding="utf-8")
+    page.write_text(doc.html(title), encoding="utf-8")
+    return ReportFiles(page, md, figs, t.complete, len(t.runs_done))
+
+
+def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensing: Any,
+              figs: dict[str, Path]) -> _Doc:
+    study, meta = t.study, t.meta
+    doc = _Doc()
+    doc.h(1, "Study report" + (f": {study.description}" if study.description else ""))
+    sessions = meta.get("sessions", [])
+    wall = meta.get("wall_seconds")
+    versions = meta.get("versions", {})
+    kinds = study.scenario.target_kinds
+    counts = ", ".join(f"{kinds.count(k)} {k}" for k in dict.fromkeys(kinds))
+    facts = [f"{len(t.runs_done)} paired runs" + ("" if t.complete else
+                                                  f" of {study.runs} (**study unfinished**)"),
+             f"{study.steps} steps of {study.scenario.dt:g} s", f"seed {study.seed}",
+             f"scenario: {study.scenario_source}",
+             f"{len(study.scenario.targets)} targets ({counts}), "
+             f"{len(study.scenario.sensors)} sensors"]
+    doc.p("; ".join(facts) + ".")
+    if wall is not None:
+        ex_names = ", ".join(dict.fromkeys(s.get("executor", "?") for s in sessions))
+        doc.p(f"Computed in {wall:.0f} s wall time over {len(sessions)} session(s) "
+              f"({ex_names}) on {meta.get('platform', '?')} with {meta.get('cpu_count', '?')} "
+              f"CPUs; sensorplan {versions.get('sensorplan', '?')}, numpy "
+              f"{versions.get('numpy', '?')}, Python {versions.get('python', '?')}"
+              + (f", git {meta['git']}" if meta.get("git") else "") + ".")
+
+    doc.h(2, "Methods")
+    refs = references(study)
+    # One column per method setting (planner settings aside), from their declarations.
+    columns = [(path, s.label or f.name) for _, path, f, s in all_settings()
+               if s.section != "run" and f.name != "planner_params"]
+    doc.table(["method", *(label for _, label in columns), "vs myopic", "vs random"],
+              [[m.name, *(_setting_text(m, path) for path, _ in columns),
+                refs[m.name]["myopic"] or "–", refs[m.name]["random"] or "–"]
+               for m in study.methods])
+    doc.p("Every method runs on the same paired runs: identical true trajectories, initial "
+          "estimates, sensor starts and measurement noise streams (common random numbers).")
+
+    doc.h(2, "Position RMSE and lost tracks")
+    doc.p("RMSE of a run (per target kind) = sqrt(mean over steps 1..S and the kind's targets "
+          "of the squared position error). Across runs: mean [95 % t-interval] and median "
+          "[95 % distribution-free order-statistic interval]. Lost: share of target-steps with "
+          f"error > {LOST_THRESHOLD:g} m, mean across runs [95 % t-interval, clipped to "
+          "[0, 100] %].")
+    for kind in kinds_with_all(study):
+        r = rmse[rmse["kind"] == kind].set_index("method")
+        lo = lost[lost["kind"] == kind].set_index("method")
+        rows = []
+        for name in study.method_names:
+            if name not in r.index:
+                continue
+            a, b = r.loc[name], lo.loc[name]
+            rows.append([name, _ci(a["mean"], a["mean_lo"], a["mean_hi"]),
+                         _ci(a["median"], a["median_lo"], a["median_hi"]),
+                         _ci(b["mean"], b["mean_lo"], b["mean_hi"], pct=True)])
+        label = f"{kind} targets" if kind != "all" else "all targets"
+        doc.table(["method", "RMSE mean (m)", "RMSE median (m)", "lost target-steps"], rows,
+                  caption=label)
+    doc.figure("rmse_time", figs["rmse_time"])
+    doc.figure("rmse_overall", figs["rmse_overall"])
+    doc.figure("lost_share", figs["lost_share"])
+
+    doc.h(2, "Paired differences")
+    doc.p("Per run: RMSE of the method minus RMSE of the reference on the same run. Mean "
+          "[95 % paired t-interval], median [95 % order-statistic interval], and the share "
+          "of runs in which the method had the lower RMSE. An interval entirely below zero "
+          "means the method is better with 95 % confidence.")
+    for against in ("myopic", "random"):
+        d = diffs[diffs["against"] == against] if len(diffs) else diffs
+        rows = [[r.method, r.reference, str(r.kind), _ci(r.mean, r.mean_lo, r.mean_hi),
+                 _ci(r.median, r.median_lo, r.median_hi), f"{100 * r.better_share:.0f} %"]
+                for r in d.itertuples()] if len(d) else []
+        if rows:
+            doc.table(["method", "reference", "kind", "\u0394 RMSE mean (m)",
+                       "\u0394 RMSE median (m)", "runs better"], rows,
+                      caption=f"against {against}")
+        else:
+            doc.p(f"No method has a {against} reference in this study.")
+    doc.figure("paired_differences", figs["paired_differences"])
+
+    doc.h(2, "Planning time and convergence")
+    rows = []
+    for r in plan.itertuples():
+        conv = ("–" if not math.isfinite(r.converged_share)
+                else f"{100 * r.converged_share:.1f} %")
+        sweeps = "–" if not math.isfinite(r.sweeps_mean) else \
+            f"{r.sweeps_mean:.2f} (max {r.sweeps_max:.0f})"
+        rows.append([str(r.method), str(r.decisions), _f(r.mean_ms, 2), _f(r.median_ms, 2),
+                     _f(r.p90_ms, 2), _f(r.max_ms, 1), _f(r.seconds_per_run, 2), conv,
+                     sweeps, _f(r.phi_mean, 2)])
+    doc.table(["method", "decisions", "mean ms", "median ms", "p90 ms", "max ms",
+               "s per run", "converged", "sweeps", "mean Phi (nats)"], rows,
+              caption="planning time is wall-clock time of the planner call (depends on "
+                      "the machine and its load)")
+    doc.figure("planning_time", figs["planning_time"])
+    doc.figure("convergence", figs["convergence"])
+    if "horizon" in figs:
+        doc.figure("horizon", figs["horizon"])
+
+    doc.h(2, "Sensing")
+    doc.table(["method", "looks per sensor-step", "measurements per sensor-step",
+               "looks that missed"],
+              [[str(r.method), f"{r.look_share:.2f}", f"{r.measurements_per_sensor_step:.2f}",
+                "–" if not math.isfinite(r.miss_share) else f"{100 * r.miss_share:.1f} %"]
+               for r in sensing.itertuples()],
+              caption="over sensor-steps 1..S; a missed look points at a target that is "
+                      "truly outside the field of view")
+    doc.figure("scenario", figs["scenario"])
+    doc.p("Files: `config.resolved.json` (the study with every default), `meta.json` "
+          "(versions, seed, wall time), `steps.parquet`, `decisions.parquet`, "
+          "`sensors.parquet` (tidy tables); regenerate this report with "
+          "`sensorplan report DIR`.")
+    return doc

@@ -1,0 +1,187 @@
+"""Scenario files (TOML): their strict model, reading and writing.
+
+Every key is optional except ``targets`` and ``sensors``; angles in radians; defaults are
+SPEC 1-4's (``configs/paper.toml`` spells out every key)::
+
+    dt = 1.0                      # s
+    process_noise = 0.05          # q, m^2/s^3
+
+    [map]
+    width = 600.0                 # m
+    height = 600.0
+
+    [initial]                     # what each run draws (SPEC 1)
+    target_box = [100.0, 500.0]   # initial target positions uniform in [lo, hi]^2
+    speed_range = [3.0, 6.0]      # m/s
+    sensor_box = [50.0, 550.0]
+    cov = [[400.0, 0.0, 0.0, 0.0], [0.0, 400.0, 0.0, 0.0],
+           [0.0, 0.0, 4.0, 0.0], [0.0, 0.0, 0.0, 4.0]]     # P0
+
+    [[targets]]
+    kind = "cv"                   # or "dubins"
+    # position = [300.0, 200.0]   (drawn if absent), speed = 4.0, heading = 0.5
+    turn_hold = 10.0              # s (dubins)
+    max_turn_rate = 0.1           # rad/s (dubins)
+
+    [[sensors]]
+    altitude = 500.0              # and every other SensorParams field
+    moves = [20.0, 40.0]
+    # position = [100.0, 100.0]   (drawn if absent), heading = 0.0
+
+    # How ``sensorplan simulate`` runs it (sensorplan.settings declares every key; a study
+    # using the file ignores these three tables):
+    [planning]                    # planner, planner_params, horizon, steps_per_epoch,
+    horizon = 1                   # execution, visibility, objective
+    [tracker]                     # miss_update
+    [run]                         # steps, and the run's seed
+    seed = 0
+
+:func:`scenario_from_dict` validates a parsed file and builds the
+:class:`~sensorplan.scenario.Scenario`; :func:`scenario_to_dict` writes one back (the
+scenario of a study's ``config.resolved.json``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Annotated, Any
+
+from pydantic import Field
+
+from .problem import MapRect
+from .scenario import TARGET_KINDS, Scenario, SensorSpec, TargetSpec
+from .sensors import SensorParams
+from .settings import RunSettings, TrackerSettings
+from .validation import (MapModel, Matrix4, Seed, SensorParamsModel, Strict, Vec2, choice,
+                         section_model, validate)
+
+_TS = TargetSpec()
+_SC = Scenario(targets=(TargetSpec(),), sensors=(SensorSpec(),))
+
+TargetKind = Annotated[str, choice(TARGET_KINDS, "target kind")]
+
+#: The run-settings tables, generated from sensorplan.settings.
+PlanningTable = section_model(RunSettings, "planning", "PlanningTable",
+                              "The ``[planning]`` table; ``None`` takes the setting's default.")
+TrackerTable = section_model(TrackerSettings, "tracker", "TrackerTable",
+                             "The ``[tracker]`` table; ``None`` takes the setting's default.")
+RunTable = section_model(RunSettings, "run", "RunTable",
+                         "The ``[run]`` table: run settings and the run's seed.",
+                         seed=(Seed, 0))
+
+
+class InitialModel(Strict):
+    target_box: Vec2 = list(_SC.target_box)
+    speed_range: Vec2 = list(_SC.speed_range)
+    sensor_box: Vec2 = list(_SC.sensor_box)
+    cov: Matrix4 = [list(row) for row in _SC.initial_cov]
+
+
+class ScenarioTarget(Strict):
+    kind: TargetKind = _TS.kind
+    position: Vec2 | None = None
+    speed: Annotated[float, Field(ge=0.0)] | None = None
+    heading: float | None = None
+    turn_hold: float = _TS.turn_hold
+    max_turn_rate: float = _TS.max_turn_rate
+
+
+class ScenarioSensor(SensorParamsModel):
+    position: Vec2 | None = None
+    heading: float | None = None
+
+
+class SettingsTables(Strict):
+    """The run-settings part of a scenario file (all a preset can be given)."""
+
+    planning: PlanningTable = PlanningTable()  # type: ignore[valid-type]
+    tracker: TrackerTable = TrackerTable()  # type: ignore[valid-type]
+    run: RunTable = RunTable()  # type: ignore[valid-type]
+
+
+class ScenarioFile(Strict):
+    dt: float = _SC.dt
+    process_noise: float = _SC.process_noise
+    map: MapModel = MapModel()
+    initial: InitialModel = InitialModel()
+    tracker: TrackerTable = TrackerTable()  # type: ignore[valid-type]
+    targets: list[ScenarioTarget]
+    sensors: list[ScenarioSensor]
+    planning: PlanningTable = PlanningTable()  # type: ignore[valid-type]
+    run: RunTable = RunTable()  # type: ignore[valid-type]
+
+    def scenario(self) -> Scenario:
+        targets = tuple(
+            TargetSpec(kind=t.kind,
+                       position=None if t.position is None else (t.position[0], t.position[1]),
+                       speed=t.speed, heading=t.heading, turn_hold=t.turn_hold,
+                       max_turn_rate=t.max_turn_rate)
+            for t in self.targets)
+        sensors = tuple(
+            SensorSpec(params=s.params(),
+                       position=None if s.position is None else (s.position[0], s.position[1]),
+                       heading=s.heading)
+            for s in self.sensors)
+        ini = self.initial
+        return Scenario(
+            world=MapRect(self.map.width, self.map.height), dt=self.dt,
+            process_noise=self.process_noise, targets=targets, sensors=sensors,
+            target_box=(ini.target_box[0], ini.target_box[1]),
+            speed_range=(ini.speed_range[0], ini.speed_range[1]),
+            sensor_box=(ini.sensor_box[0], ini.sensor_box[1]),
+            initial_cov=tuple(tuple(row) for row in ini.cov))
+
+
+def scenario_from_dict(data: Any) -> Scenario:
+    """Validate scenario-file content (a parsed TOML table) and build the scenario.
+
+    ``[planning]``, ``[tracker]`` and ``[run]`` are validated but not part of the scenario.
+
+    Raises
+    ------
+    ConfigError
+        Naming the field as in a scenario file (``targets[0].kind``).
+    """
+    model: ScenarioFile = validate(ScenarioFile, data)
+    return model.scenario()
+
+
+def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
+    """A scenario as the content of a scenario file, every default filled in.
+
+    Fields left to each run's seed (``None`` positions, speeds, headings) are omitted, as
+    they would be in the file. :func:`scenario_from_dict` inverts it exactly (floats
+    round-trip through JSON unchanged).
+    """
+    def sensor(spec: SensorSpec) -> dict[str, Any]:
+        d: dict[str, Any] = {}
+        for f in dataclasses.fields(SensorParams):
+            v = getattr(spec.params, f.name)
+            d[f.name] = [float(m) for m in v] if f.name == "moves" else float(v)
+        if spec.position is not None:
+            d["position"] = [float(spec.position[0]), float(spec.position[1])]
+        if spec.heading is not None:
+            d["heading"] = float(spec.heading)
+        return d
+
+    def target(spec: TargetSpec) -> dict[str, Any]:
+        d: dict[str, Any] = {"kind": spec.kind}
+        if spec.position is not None:
+            d["position"] = [float(spec.position[0]), float(spec.position[1])]
+        for name in ("speed", "heading"):
+            if getattr(spec, name) is not None:
+                d[name] = float(getattr(spec, name))
+        d["turn_hold"] = float(spec.turn_hold)
+        d["max_turn_rate"] = float(spec.max_turn_rate)
+        return d
+
+    return {
+        "dt": float(scenario.dt), "process_noise": float(scenario.process_noise),
+        "map": {"width": float(scenario.world.width), "height": float(scenario.world.height)},
+        "initial": {"target_box": [float(v) for v in scenario.target_box],
+                    "speed_range": [float(v) for v in scenario.speed_range],
+                    "sensor_box": [float(v) for v in scenario.sensor_box],
+                    "cov": [[float(v) for v in row] for row in scenario.initial_cov]},
+        "targets": [target(t) for t in scenario.targets],
+        "sensors": [sensor(s) for s in scenario.sensors],
+    }

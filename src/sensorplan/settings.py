@@ -1,0 +1,352 @@
+"""Run settings: how one closed-loop run plans, executes and tracks, each declared once.
+
+Every setting is one field of :class:`RunSettings` (or of its nested
+:class:`TrackerSettings`) declared with :func:`setting`, whose metadata (a
+:class:`Setting`) says everything the rest of the package needs:
+
+- its one-sentence help text;
+- its section: the table of a scenario file that holds it (``[planning]``, ``[tracker]`` or
+  ``[run]``); the key is the field name everywhere (files, study methods, resolved configs);
+- its ``sensorplan simulate`` option names (``--horizon``, ``-K``), if it has any;
+- its rule besides the type annotation: choices, a range or a custom check.
+
+From this one declaration come the checks of ``__post_init__`` (:func:`check_fields`), the
+strict file models (:func:`sensorplan.validation.section_model`), the ``simulate`` options
+(:mod:`sensorplan.cli`), study methods with their per-key inheritance
+(:mod:`sensorplan.study.file`) and the resolved files (:meth:`RunSettings.to_dict`,
+:meth:`RunSettings.from_dict`). Adding a setting is adding a field here (and its docs).
+
+Sections map to study files like this: ``planning`` keys are flat in ``[defaults]`` and
+``[[methods]]``; ``tracker`` keys live in their sub-table ``[methods.tracker]`` /
+``[defaults.tracker]``; ``run`` keys are study-wide top-level keys.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import math
+import typing
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .errors import ConfigError
+from .problem import OBJECTIVES, VISIBILITY_MODES
+
+EXECUTIONS = ("ol", "olf")
+MISS_UPDATES = ("negative", "none")
+#: Tables of a scenario file that hold run settings, in file order.
+SECTIONS = ("planning", "tracker", "run")
+
+
+@dataclass(frozen=True)
+class Setting:
+    """How one run setting is written, checked and documented (a field's metadata).
+
+    Attributes
+    ----------
+    help : str            one sentence for ``--help`` and the docs
+    section : str         ``planning``, ``tracker`` or ``run`` (see the module docstring)
+    cli : tuple of str    option names of ``sensorplan simulate`` (none: file-only setting)
+    metavar : str         the option's value placeholder
+    label : str           short column heading in reports (default: the key)
+    choices : tuple or callable
+                          allowed values (strings), or a function returning them when they
+                          are only known at run time (the registered planners)
+    noun : str            what a value is called in errors: "unknown <noun> 'x'; choose from"
+    ge, gt, le, lt : float or None     bounds; ``gt`` and ``lt`` together read "in (gt, lt)"
+    check : callable      extra rule: raises ValueError with the message
+    """
+
+    help: str
+    section: str
+    cli: tuple[str, ...] = ()
+    metavar: str = "VALUE"
+    label: str = ""
+    choices: tuple[str, ...] | Callable[[], tuple[str, ...]] = ()
+    noun: str = "value"
+    ge: float | None = None
+    gt: float | None = None
+    le: float | None = None
+    lt: float | None = None
+    check: Callable[[Any], None] | None = None
+
+    def allowed(self) -> tuple[str, ...]:
+        """The allowed values (empty: no list)."""
+        return self.choices() if callable(self.choices) else self.choices
+
+    def validate(self, value: Any) -> None:
+        """Raise ``ValueError(message)`` if a value of the right type breaks the rule."""
+        choices = self.allowed()
+        if choices and value not in choices:
+            raise ValueError(f"unknown {self.noun} {value!r}; choose from {', '.join(choices)}")
+        if self.gt is not None and self.lt is not None:
+            if not self.gt < value < self.lt:
+                raise ValueError(f"must be in ({_num(self.gt)}, {_num(self.lt)}), got {value!r}")
+        for bound, ok, words in ((self.ge, lambda b: value >= b, "greater than or equal to"),
+                                 (self.gt, lambda b: value > b, "greater than"),
+                                 (self.le, lambda b: value <= b, "less than or equal to"),
+                                 (self.lt, lambda b: value < b, "less than")):
+            if bound is not None and not ok(bound):
+                raise ValueError(f"must be {words} {_num(bound)}")
+        if self.check is not None:
+            self.check(value)
+
+
+def _num(x: float) -> str:
+    return str(int(x)) if float(x).is_integer() else repr(x)
+
+
+def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
+            default_factory: Any = dataclasses.MISSING, **rule: Any) -> Any:
+    """A dataclass field carrying its :class:`Setting` (keyword arguments as there)."""
+    meta = {"setting": Setting(help=help, section=section, **rule)}
+    return field(default=default, default_factory=default_factory, metadata=meta)
+
+
+def registered_planners() -> tuple[str, ...]:
+    """The names in the planner registry, sorted."""
+    # Imported when a name is checked, not at import time: the registry loads the kernels.
+    from .planners import PLANNERS
+
+    return tuple(sorted(PLANNERS))
+
+
+class _Settings:
+    """Shared behaviour of the settings dataclasses: checks and dict conversion."""
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready dictionary of every field (nested groups as nested dictionaries)."""
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            v = getattr(self, f.name)
+            if isinstance(v, _Settings):
+                v = v.to_dict()
+            elif isinstance(v, Mapping):
+                v = {k: _plain(x) for k, x in v.items()}
+            out[f.name] = _plain(v)
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Any:
+        """Inverse of :meth:`to_dict`; unknown keys are a :class:`ConfigError`."""
+        names = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
+        for key in data:
+            if key not in names:
+                raise ConfigError(str(key), f"unknown key; allowed: {', '.join(names)}")
+        return cls(**data)
+
+
+def _plain(v: Any) -> Any:
+    return v.item() if isinstance(v, np.generic) else v
+
+
+@functools.cache
+def _hints(cls: type) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
+
+
+def field_type(cls: type, name: str) -> Any:
+    """The declared type of a settings field (``int``, ``float``, ``str``, ``bool``,
+    ``Mapping`` for tables, or a nested settings class)."""
+    tp = _hints(cls)[name]
+    return typing.get_origin(tp) or tp
+
+
+def is_group(tp: Any) -> bool:
+    """Whether a field type is a nested settings class (a sub-table such as ``tracker``)."""
+    return isinstance(tp, type) and issubclass(tp, _Settings)
+
+
+def declared(cls: type, section: str | None = None) -> list[tuple[dataclasses.Field[Any],
+                                                                   Setting]]:
+    """The fields of ``cls`` declared with :func:`setting` (optionally of one section)."""
+    out = []
+    for f in dataclasses.fields(cls):
+        s = f.metadata.get("setting")
+        if s is not None and (section is None or s.section == section):
+            out.append((f, s))
+    return out
+
+
+def _is_int(v: Any) -> bool:
+    return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(
+        v, (bool, np.bool_))
+
+
+def _coerce(tp: Any, v: Any) -> Any:
+    """``v`` as type ``tp`` or ``ValueError(message)``; the wording of the file checks."""
+    got = repr(v) if len(repr(v)) <= 40 else repr(v)[:37] + "..."
+    if tp is int:
+        if not _is_int(v):
+            raise ValueError(f"must be an integer, got {got}")
+        return int(v)
+    if tp is float:
+        if not _is_number(v):
+            raise ValueError(f"must be a number, got {got}")
+        if not math.isfinite(v):
+            raise ValueError("must be a finite number")
+        return float(v)
+    if tp is bool:
+        if not isinstance(v, (bool, np.bool_)):
+            raise ValueError(f"must be true or false, got {got}")
+        return bool(v)
+    if tp is str:
+        if not isinstance(v, str):
+            raise ValueError(f"must be a string, got {got}")
+        return v
+    if tp is Mapping or tp is dict:
+        if not isinstance(v, Mapping):
+            raise ValueError(f"must be a table, got {got}")
+        return dict(v)
+    raise TypeError(f"settings fields of type {tp!r} are not supported")  # pragma: no cover
+
+
+def check_fields(obj: Any) -> None:
+    """Check (and normalise) every field of a settings dataclass from its declaration.
+
+    Integers become ``int``, numbers ``float``, tables ``dict``; a nested group given as a
+    mapping becomes its settings class.
+
+    Raises
+    ------
+    ConfigError
+        Naming the field (``horizon``, ``tracker.miss_update``) with the rule it breaks.
+    """
+    cls = type(obj)
+    for f in dataclasses.fields(obj):
+        v = getattr(obj, f.name)
+        tp = field_type(cls, f.name)
+        if is_group(tp):
+            if isinstance(v, Mapping):
+                try:
+                    v = tp.from_dict(v)
+                except ConfigError as exc:
+                    raise ConfigError(f"{f.name}.{exc.field}", exc.message) from None
+            elif not isinstance(v, tp):
+                raise ConfigError(f.name, f"must be a {tp.__name__} or a table, got {v!r}")
+            object.__setattr__(obj, f.name, v)
+            continue
+        s: Setting | None = f.metadata.get("setting")
+        if s is None:
+            continue
+        try:
+            v = _coerce(tp, v)
+            s.validate(v)
+        except ValueError as exc:
+            raise ConfigError(f.name, str(exc)) from None
+        object.__setattr__(obj, f.name, v)
+
+
+# ------------------------------------------------------------------------ the settings
+
+
+@dataclass(frozen=True)
+class TrackerSettings(_Settings):
+    """How the run's trackers filter the measurements (the ``[tracker]`` table)."""
+
+    miss_update: str = setting(
+        "negative", section="tracker", cli=("--miss-update",), metavar="MODE",
+        label="miss update", choices=MISS_UPDATES, noun="miss update",
+        help="Tracker's reaction to a look that misses its target: negative (update with the "
+             "negative information) or none (the paper's).")
+
+
+@dataclass(frozen=True)
+class RunSettings(_Settings):
+    """How one closed-loop run plans, executes and tracks (see the module docstring).
+
+    Attributes
+    ----------
+    planner : str                  registry name (:func:`sensorplan.planners.make_planner`)
+    planner_params : dict          keyword arguments of the planner, e.g. ``{"alpha": 0.3}``
+    horizon : int                  K, epochs per plan (>= 1)
+    steps_per_epoch : int          e, simulation steps per epoch (>= 1)
+    execution : {"ol", "olf"}      ``ol`` executes all K epochs before replanning, ``olf``
+                                   only the first
+    visibility : {"probabilistic", "mean"}
+    objective : {"terminal", "cumulative"}
+    steps : int                    simulation steps S (>= 1)
+    tracker : TrackerSettings      (a mapping is accepted and converted)
+
+    Raises
+    ------
+    ConfigError
+        A value breaks its rule, the planner is unknown or rejects ``planner_params``.
+    """
+
+    planner: str = setting(
+        "pg", section="planning", cli=("--planner",), metavar="NAME", noun="planner",
+        choices=registered_planners, help="Planner that chooses the sensors' moves and looks.")
+    planner_params: Mapping[str, Any] = setting(
+        section="planning", default_factory=dict, label="planner settings",
+        help="Settings passed to the planner's constructor (only those it takes).")
+    horizon: int = setting(
+        1, section="planning", cli=("--horizon", "-K"), metavar="K", label="K", ge=1,
+        help="Planning horizon in epochs (1 = myopic).")
+    steps_per_epoch: int = setting(
+        1, section="planning", cli=("--steps-per-epoch", "-e"), metavar="E", label="e", ge=1,
+        help="Simulation steps per epoch: a decision every E steps.")
+    execution: str = setting(
+        "olf", section="planning", cli=("--execution",), metavar="MODE",
+        choices=EXECUTIONS, noun="execution mode",
+        help="ol: execute all K epochs of a plan, then replan; olf: execute the first epoch, "
+             "then replan (rolling horizon).")
+    visibility: str = setting(
+        "probabilistic", section="planning", cli=("--visibility",), metavar="MODE",
+        choices=VISIBILITY_MODES, noun="visibility mode",
+        help="Which planned looks count in the planning objective: probabilistic (weighted "
+             "by the chance the target is in view) or mean (the paper's: iff the predicted "
+             "mean is in view).")
+    objective: str = setting(
+        "terminal", section="planning", cli=("--objective",), metavar="NAME",
+        choices=OBJECTIVES, noun="objective",
+        help="terminal (information at the end of the horizon, the paper's) or cumulative "
+             "(summed over its steps).")
+    steps: int = setting(
+        100, section="run", cli=("--steps", "-n"), metavar="N", ge=1,
+        help="Simulation steps of the run.")
+    tracker: TrackerSettings = field(default_factory=TrackerSettings)
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        # Instantiating once reports bad planner parameters now, not mid-study.
+        from .planners import make_planner
+
+        try:
+            make_planner(self.planner, **self.planner_params)
+        except ConfigError:
+            raise
+        except (TypeError, ValueError) as exc:
+            raise ConfigError("planner_params", str(exc)) from None
+
+
+def all_settings(cls: type = RunSettings, prefix: str = ""
+                 ) -> list[tuple[type, str, dataclasses.Field[Any], Setting]]:
+    """Every declared setting as ``(settings class, path, field, Setting)``, in declaration
+    order, with paths dotted through nested groups (``tracker.miss_update``)."""
+    out: list[tuple[type, str, dataclasses.Field[Any], Setting]] = []
+    for f in dataclasses.fields(cls):
+        tp = field_type(cls, f.name)
+        if is_group(tp):
+            out += all_settings(tp, f"{prefix}{f.name}.")
+        elif "setting" in f.metadata:
+            out.append((cls, prefix + f.name, f, f.metadata["setting"]))
+    return out
+
+
+def default_of(f: dataclasses.Field[Any]) -> Any:
+    """A field's default value (calling its factory)."""
+    if f.default_factory is not dataclasses.MISSING:
+        return f.default_factory()
+    return f.default

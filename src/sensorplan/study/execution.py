@@ -1,0 +1,376 @@
+"""Running a study: each (run, method) as a task, in this process, a local process pool
+or on Dask, with the results written as they arrive (:func:`run_study`).
+
+Run ``r`` gets the seed ``SeedSequence(study.seed, spawn_key=(r,))`` and every method
+receives that same sequence, so ``simulation.run_episode`` draws the same truths, initial
+estimates, sensor starts and per-sensor noise for all of them: method differences are
+paired (common random numbers). Results do not depend on the executor.
+"""
+
+from __future__ import annotations
+
+import ast
+import concurrent.futures as cf
+import contextlib
+import multiprocessing
+import os
+import signal
+import sys
+import time
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..io import ensure_out_dir
+from ..simulation import run_episode
+from .model import Study
+from .storage import (TABLES, clean_temporaries, consolidate, done_tasks, git_describe, locked,
+                      now, prepare, versions, write_meta, write_part)
+from .tables import TaskResult, episode_tables
+
+#: Environment variables that limit BLAS/OpenMP threads in worker processes: with one
+#: process per core, threaded linear algebra on 4x4 matrices only adds contention.
+THREAD_LIMITS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                 "NUMEXPR_NUM_THREADS", "VECLIB_MAXIMUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+def run_task(study: Study, run: int, method: int) -> TaskResult:
+    """Simulate method ``method`` (index) on run ``run`` and return its tables."""
+    m = study.methods[method]
+    wall, cpu = time.perf_counter(), time.process_time()
+    try:
+        episode = run_episode(study.scenario, m.settings, study.run_seed(run))
+    except ConfigError as exc:
+        # A planner refusing mid-run (brute force above max_plans) names its own setting.
+        field = exc.field.removeprefix("planner.").removeprefix("planner")
+        raise ConfigError(f"methods[{method}].planner_params" + (f".{field}" if field else ""),
+                          f"{exc.message} (method {m.name!r}, run {run})") from None
+    tables = episode_tables(episode, run, m.name)
+    return TaskResult(run, method, tables, time.perf_counter() - wall,
+                      time.process_time() - cpu, float(np.sum(episode.planning_seconds)))
+
+
+# ------------------------------------------------------------------------- executors
+
+_WORKER_STUDY: Study | None = None
+
+
+def _pool_init(study: Study) -> None:
+    global _WORKER_STUDY
+    _WORKER_STUDY = study
+    # The parent handles Ctrl-C (it stops the pool); workers should not print tracebacks.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def _pool_task(run: int, method: int) -> TaskResult:
+    assert _WORKER_STUDY is not None
+    return run_task(_WORKER_STUDY, run, method)
+
+
+@contextlib.contextmanager
+def _thread_limits() -> Iterator[None]:
+    """Set the thread-limit variables (unless the user set them) for child processes."""
+    saved = {k: os.environ.get(k) for k in THREAD_LIMITS}
+    for k in THREAD_LIMITS:
+        os.environ.setdefault(k, "1")
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def _in_process(study: Study, tasks: Sequence[tuple[int, int]]) -> Iterator[TaskResult]:
+    for r, m in tasks:
+        yield run_task(study, r, m)
+
+
+def _process_pool(study: Study, tasks: Sequence[tuple[int, int]],
+                  workers: int) -> Iterator[TaskResult]:
+    # 'spawn' (not fork): workers start from a clean interpreter, which is portable and
+    # safe with the threads that numba, BLAS or Dask may have started in this process.
+    ctx = multiprocessing.get_context("spawn")
+    with _thread_limits():
+        pool = cf.ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
+                                      initializer=_pool_init, initargs=(study,))
+        try:
+            # A bounded window of submitted tasks: Ctrl-C then cancels little work, and
+            # results stream back as they finish.
+            todo = iter(tasks)
+            pending: set[cf.Future[TaskResult]] = set()
+            for r, m in todo:
+                pending.add(pool.submit(_pool_task, r, m))
+                if len(pending) >= 2 * workers:
+                    break
+            while pending:
+                done, pending = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
+                for fut in done:
+                    nxt = next(todo, None)
+                    if nxt is not None:
+                        pending.add(pool.submit(_pool_task, *nxt))
+                    yield fut.result()
+        except BaseException:
+            # Running tasks would finish for nothing; there is no public way to stop them
+            # before Python 3.14 (ProcessPoolExecutor.terminate_workers).
+            procs = list((getattr(pool, "_processes", None) or {}).values())
+            pool.shutdown(wait=False, cancel_futures=True)
+            for proc in procs:
+                with contextlib.suppress(Exception):
+                    proc.terminate()
+            raise
+        else:
+            pool.shutdown(wait=True)
+
+
+def _dask(study: Study, tasks: Sequence[tuple[int, int]], scheduler: str, workers: int,
+          processes: bool) -> Iterator[TaskResult]:
+    import logging
+
+    from distributed import Client, LocalCluster, as_completed
+
+    cluster = None
+    with _thread_limits():
+        if scheduler == "local":
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                                   processes=processes, dashboard_address=None,
+                                   silence_logs=logging.ERROR)
+            client = Client(cluster)
+        else:
+            try:
+                client = Client(scheduler, timeout="30s")
+            except (OSError, TimeoutError) as exc:
+                raise ConfigError("--scheduler", f"cannot connect to {scheduler} "
+                                  f"({exc})") from None
+    futures = []
+    try:
+        # Ship the study once to every worker instead of once per task.
+        study_f = client.scatter(study, broadcast=True)
+        futures = [client.submit(run_task, study_f, r, m, pure=False) for r, m in tasks]
+        for fut in as_completed(futures):
+            yield fut.result()
+    finally:
+        with contextlib.suppress(Exception):
+            client.cancel(futures)
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def default_workers() -> int:
+    """Cores available to this process."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+class StudyInterrupted(KeyboardInterrupt):
+    """Ctrl-C during :func:`run_study`; the finished pairs are on disk."""
+
+    def __init__(self, done: int, total: int) -> None:
+        super().__init__(f"{done} of {total} (run, method) pairs done")
+        self.done = done
+        self.total = total
+
+
+@dataclass
+class StudyRun:
+    """What :func:`run_study` did.
+
+    Attributes
+    ----------
+    out : Path
+    total : int          (run, method) pairs in the study
+    ran : int            pairs computed by this call (0: the study was already complete)
+    wall : float         this call's wall time (s)
+    timing : dict        this session's record in meta.json
+    """
+
+    out: Path
+    total: int
+    ran: int
+    wall: float
+    timing: dict[str, Any] = field(default_factory=dict)
+
+
+def _is_main_guard(node: ast.AST) -> bool:
+    """``if __name__ == "__main__":`` (either operand order)."""
+    if not (isinstance(node, ast.If) and isinstance(node.test, ast.Compare)
+            and len(node.test.ops) == 1 and isinstance(node.test.ops[0], ast.Eq)):
+        return False
+    sides = [node.test.left, *node.test.comparators]
+    return (any(isinstance(s, ast.Name) and s.id == "__name__" for s in sides)
+            and any(isinstance(s, ast.Constant) and s.value == "__main__" for s in sides))
+
+
+def _within(stmt: ast.stmt, line: int) -> bool:
+    return stmt.lineno <= line <= (stmt.end_lineno or stmt.lineno)
+
+
+def _guarded(body: list[ast.stmt], line: int) -> bool:
+    """Whether ``line`` lies in the body of a main guard among ``body`` (at any depth)."""
+    for stmt in body:
+        if not _within(stmt, line):
+            continue
+        if _is_main_guard(stmt):
+            return any(_within(s, line) for s in stmt.body)      # not its ``else:``
+        inner = [s for name in ("body", "orelse", "finalbody") for s in getattr(stmt, name, [])]
+        inner += [s for h in getattr(stmt, "handlers", []) for s in h.body]
+        return _guarded(inner, line)
+    return False
+
+
+def unguarded_script() -> str | None:
+    """The script whose top-level code is calling us outside ``if __name__ == "__main__":``.
+
+    Worker processes started with 'spawn' (the pool, a Dask LocalCluster) run the main
+    module again (multiprocessing skips only a package's ``__main__``), so such a call
+    would run again in every worker. None when the main module is safe or cannot be read.
+    """
+    main = sys.modules.get("__main__")
+    spec_name = getattr(getattr(main, "__spec__", None), "name", None) or ""
+    if main is None or spec_name.endswith("__main__") or not getattr(main, "__file__", None):
+        return None
+    frame = sys._getframe(1)
+    while frame is not None and not (frame.f_globals is main.__dict__
+                                     and frame.f_code.co_name == "<module>"):
+        frame = frame.f_back  # type: ignore[assignment]
+    if frame is None:
+        return None                     # the script's top level has finished: no rerun
+    path = frame.f_code.co_filename
+    try:
+        tree = ast.parse(Path(path).read_text(encoding="utf-8"))
+    except (OSError, SyntaxError, ValueError):
+        return None
+    return None if _guarded(tree.body, frame.f_lineno) else path
+
+
+ProgressFn = Callable[[int, int, int], None]
+
+
+def run_study(study: Study, out: str | Path, *, workers: int | None = None,
+              scheduler: str | None = None, processes: bool = True,
+              progress: ProgressFn | None = None) -> StudyRun:
+    """Run what is missing of ``study`` into directory ``out`` and write its tables.
+
+    Parameters
+    ----------
+    study : Study
+    out : path
+        Study directory: created if missing; if it exists it must hold the same study
+        (same ``config.resolved.json`` result keys), else ConfigError.
+    workers : int, optional
+        Worker processes (default: the cores available). 1 without ``scheduler`` runs in
+        this process; more uses a ``ProcessPoolExecutor`` with the 'spawn' context.
+    scheduler : str, optional
+        Run on Dask distributed instead: a scheduler address (``tcp://host:8786``) or
+        ``"local"`` for a ``LocalCluster`` started here with ``workers`` workers.
+    processes : bool
+        For ``scheduler="local"``: worker processes (default) or threads in this process.
+    progress : callable(done, total, already), optional
+        Called before the first task and after each one: pairs done by this call, pairs
+        this call has to do, pairs that were already on disk.
+
+    Returns
+    -------
+    StudyRun
+
+    Raises
+    ------
+    ConfigError
+        ``out`` holds another study, is not a study directory, or is locked by another
+        process; a bad ``workers`` or ``scheduler``.
+    RuntimeError
+        Worker processes are needed but the call runs in a script's top-level code outside
+        an ``if __name__ == "__main__":`` block (the workers would run the script again).
+    StudyInterrupted
+        On Ctrl-C; everything finished before is kept and a rerun resumes.
+    """
+    out = Path(out)
+    if workers is None:
+        workers = default_workers()
+    if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
+        raise ConfigError("--workers", f"must be an integer >= 1, got {workers!r}")
+    if scheduler is not None and scheduler != "local" and "://" not in scheduler:
+        raise ConfigError("--scheduler", f"must be 'local' or an address such as "
+                          f"tcp://host:8786, got {scheduler!r}")
+    if (workers > 1 and scheduler is None) or (scheduler == "local" and processes):
+        script = unguarded_script()
+        if script is not None:
+            raise RuntimeError(
+                f"run_study starts worker processes, which run {script} again, so call it "
+                f"under `if __name__ == \"__main__\":` in that script (or pass workers=1)")
+    ensure_out_dir(out)
+
+    import pyarrow.parquet  # noqa: F401  (imported now, not inside the first write's timing)
+
+    start_wall, start_cpu = time.perf_counter(), time.process_time()
+    with locked(out):
+        prepare(out, study)
+        clean_temporaries(out)
+        done = done_tasks(out, study)
+        todo = [t for t in study.tasks() if t not in done]
+        if scheduler is not None:
+            executor = f"dask {scheduler}" + (f" ({workers} workers)" if scheduler == "local"
+                                              else "")
+        elif workers == 1 or len(todo) <= 1:
+            executor = "in process"
+        else:
+            executor = f"process pool ({workers} workers)"
+        session: dict[str, Any] = {
+            "id": f"{now()}-{os.getpid()}", "started": now(), "finished": None,
+            "executor": executor if todo else "none (complete)", "tasks_run": 0,
+            "tasks_before": len(done), "interrupted": False,
+            # Per session: a resumed study may have been continued with other code.
+            "sensorplan": versions().get("sensorplan"), "git": git_describe()}
+        timing = {"compute_wall_seconds": 0.0, "compute_cpu_seconds": 0.0,
+                  "planning_seconds": 0.0, "write_seconds": 0.0, "consolidate_seconds": 0.0}
+        complete = not todo and all((out / f"{t}.parquet").exists() for t in TABLES)
+        if complete:
+            return StudyRun(out, len(study.tasks()), 0, time.perf_counter() - start_wall)
+        write_meta(out, study, session, complete=False)
+        if progress is not None:
+            progress(0, len(todo), len(done))
+        n = 0
+        finished = False
+        try:
+            if not todo:
+                results: Iterable[TaskResult] = ()
+            elif scheduler is not None:
+                results = _dask(study, todo, scheduler, workers, processes)
+            elif executor == "in process":
+                results = _in_process(study, todo)
+            else:
+                results = _process_pool(study, todo, workers)
+            for res in results:
+                t0 = time.perf_counter()
+                write_part(out, res)
+                timing["write_seconds"] += time.perf_counter() - t0
+                timing["compute_wall_seconds"] += res.wall
+                timing["compute_cpu_seconds"] += res.cpu
+                timing["planning_seconds"] += res.planning
+                n += 1
+                if progress is not None:
+                    progress(n, len(todo), len(done))
+            t0 = time.perf_counter()
+            consolidate(out, study)
+            timing["consolidate_seconds"] = time.perf_counter() - t0
+            finished = True
+        except KeyboardInterrupt:
+            session["interrupted"] = True
+            raise StudyInterrupted(len(done) + n, len(study.tasks())) from None
+        finally:
+            wall = time.perf_counter() - start_wall
+            session.update({k: round(v, 4) for k, v in timing.items()})
+            session.update({"finished": now(), "tasks_run": n, "wall_seconds": round(wall, 3),
+                            "main_cpu_seconds": round(time.process_time() - start_cpu, 3)})
+            with contextlib.suppress(Exception):
+                write_meta(out, study, session, complete=finished)
+    return StudyRun(out, len(study.tasks()), n, wall, session)

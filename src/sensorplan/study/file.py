@@ -1,0 +1,220 @@
+"""Study files (TOML): their strict model and the :class:`~sensorplan.study.model.Study`.
+
+A study file names a scenario, the number of paired runs, their length, the root seed and a
+list of methods; ``sensorplan study`` runs every method on every run (docs/studies.md)::
+
+    description = "what this study is for"      # optional, free text
+    runs = 100                                  # paired Monte Carlo runs
+    steps = 100                                 # simulation steps per run
+    seed = 2024                                 # root SeedSequence of the study
+
+    [scenario]                                  # optional; default: preset = "paper"
+    preset = "paper"                            # or: file = "../configs/paper.toml"
+                                                # (relative to this file; its [planning],
+                                                # [tracker] and [run] tables are not used)
+
+    [defaults]                                  # optional: settings every method inherits
+    steps_per_epoch = 2
+    [defaults.tracker]
+    miss_update = "negative"
+
+    [[methods]]
+    name = "paper/olf"                          # unique; used in tables and figures
+    planner = "pg"                              # a registered planner
+    horizon = 3                                 # and every other [planning] setting
+    [methods.planner_params]                    # alpha, beta, max_inner, max_outer,
+    alpha = 0.3                                 # max_plans (brute-force)
+    [methods.tracker]                           # every [tracker] setting
+    miss_update = "none"
+
+The method settings are :mod:`sensorplan.settings`' ``planning`` and ``tracker`` sections;
+each key is the method's value, else the one in ``[defaults]``, else the setting's default.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import tomllib
+from pathlib import Path
+from typing import Annotated, Any
+
+from pydantic import AfterValidator, create_model
+
+from .. import io
+from ..config.planners import build_planner, planner_settings
+from ..config.simulate import preset_scenario
+from ..errors import ConfigError
+from ..scenario import Scenario
+from ..scenario_file import scenario_from_dict
+from ..settings import RunSettings, declared, field_type, is_group
+from ..validation import (PlannerParamsModel, PositiveInt, Seed, Strict, given, section_model,
+                          setting_annotation, validate)
+from .model import STUDY_KEYS, Method, Study
+
+
+def _method_name(value: str) -> str:
+    if not value.strip():
+        raise ValueError("must be a non-empty name")
+    if len(value) > 80:
+        raise ValueError(f"must be at most 80 characters, got {len(value)}")
+    if any(not ch.isprintable() for ch in value):
+        raise ValueError("must not contain control characters")
+    return value
+
+
+def _non_empty(value: list[Any]) -> list[Any]:
+    if not value:
+        raise ValueError("at least one method is required")
+    return value
+
+
+class StudyScenarioModel(Strict):
+    preset: str | None = None
+    file: str | None = None
+
+
+def _groups(cls: type) -> dict[str, Any]:
+    """Each nested settings group of ``cls`` as an optional sub-table model."""
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(cls):
+        tp = field_type(cls, f.name)
+        if is_group(tp):
+            section = declared(tp)[0][1].section
+            out[f.name] = (section_model(tp, section, f"Method_{f.name}") | None, None)
+    return out
+
+
+#: A method's settings; a key left out inherits ``[defaults]``, then the setting's default.
+MethodSettings = section_model(RunSettings, "planning", "MethodSettings",
+                               "A method's settings (also the [defaults] table).",
+                               **_groups(RunSettings))
+MethodModel = create_model("MethodModel", __base__=MethodSettings,
+                           name=(Annotated[str, AfterValidator(_method_name)], ...))
+_STUDY_WIDE = {f.name: (setting_annotation(RunSettings, f, s) | None, None)
+               for f, s in declared(RunSettings, "run")}
+_STUDY_WIDE["steps"] = (PositiveInt, ...)
+StudyFile = create_model(
+    "StudyFile", __base__=Strict, description=(str, ""), runs=(PositiveInt, ...),
+    **_STUDY_WIDE, seed=(Seed, 0), scenario=(StudyScenarioModel, StudyScenarioModel()),
+    defaults=(MethodSettings, MethodSettings()),
+    methods=(Annotated[list[MethodModel], AfterValidator(_non_empty)], ...))
+
+
+def _inherit(cls: type, own: dict[str, Any], inherited: dict[str, Any], own_at: str,
+             inherited_at: str, origin: dict[str, str], prefix: str = "") -> dict[str, Any]:
+    """Per key: the method's value, else the inherited one (absent: the field's default).
+
+    ``origin`` receives, for each settings path given, where its value was written.
+    """
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(cls):
+        key, path = f.name, prefix + f.name
+        if is_group(field_type(cls, key)):
+            out[key] = _inherit(field_type(cls, key), own.get(key, {}), inherited.get(key, {}),
+                                f"{own_at}.{key}", f"{inherited_at}.{key}", origin, path + ".")
+        elif key == "planner_params":
+            continue                                 # merged key by key by the caller
+        elif key in own:
+            out[key], origin[path] = own[key], f"{own_at}.{key}"
+        elif key in inherited:
+            out[key], origin[path] = inherited[key], f"{inherited_at}.{key}"
+    return out
+
+
+def _study_scenario(model: StudyScenarioModel, base_dir: Path | None) -> tuple[Scenario, str]:
+    if model.preset is not None and model.file is not None:
+        raise ConfigError("scenario", "give preset or file, not both")
+    if model.file is None:
+        scenario = preset_scenario(model.preset, "scenario.preset")
+        return scenario, f"preset {model.preset or 'paper'}"
+    path = Path(model.file)
+    if not path.is_absolute() and base_dir is not None:
+        path = base_dir / path
+    try:
+        data = io.read_toml(path)
+        return scenario_from_dict(data), f"file {path}"
+    except ConfigError as exc:
+        where = exc.field if exc.field == str(path) else f"{path}: {exc.field}"
+        raise ConfigError("scenario.file", f"{where}: {exc.message}") from None
+
+
+def _method(i: int, m: Any, defaults: dict[str, Any], study_wide: dict[str, Any]) -> Method:
+    own = given(m)
+    own.pop("name")
+    origin: dict[str, str] = {}
+    kwargs = _inherit(RunSettings, own, defaults, f"methods[{i}]", "defaults", origin)
+    if "planner" not in kwargs:
+        raise ConfigError(f"methods[{i}].planner", "is required (in the method or in "
+                          "[defaults])")
+    params = dict(defaults.get("planner_params", {}))
+    params.update(own.get("planner_params", {}))
+    params_field = ("defaults.planner_params" if m.planner_params is None
+                    else f"methods[{i}].planner_params")
+    name = kwargs["planner"]
+    settings = planner_settings(name, params, name_field=origin["planner"],
+                                params_field=params_field)
+    planner = build_planner(name, settings, params_field)
+    # Every setting the study file can give, filled with the planner's own default so
+    # that config.resolved.json shows what ran.
+    settable = set(PlannerParamsModel.model_fields)
+    if dataclasses.is_dataclass(planner):
+        filled = {f.name: getattr(planner, f.name) for f in dataclasses.fields(planner)
+                  if f.name in settable}
+    else:
+        filled = dict(settings)
+    try:
+        run_settings = RunSettings(planner_params=filled, **study_wide, **kwargs)
+    except ConfigError as exc:
+        field = origin.get(exc.field, f"methods[{i}].{exc.field}")
+        raise ConfigError(field, exc.message) from None
+    return Method(m.name, run_settings)
+
+
+def study_from_dict(data: Any, base_dir: str | Path | None = None) -> Study:
+    """Validate a study table and build the :class:`~sensorplan.study.model.Study`.
+
+    Parameters
+    ----------
+    data : object
+        The parsed TOML (see the module docstring for the keys).
+    base_dir : path, optional
+        Directory that a relative ``scenario.file`` is relative to (the study file's).
+
+    Raises
+    ------
+    ConfigError
+        Naming the field with a dotted path such as ``methods[2].horizon`` (or
+        ``defaults.horizon`` when the value came from ``[defaults]``).
+    """
+    model: Any = validate(StudyFile, data)
+    scenario, source = _study_scenario(model.scenario, None if base_dir is None
+                                       else Path(base_dir))
+    defaults = given(model.defaults)
+    study_wide = {k: getattr(model, k) for k in STUDY_KEYS if getattr(model, k) is not None}
+    seen: dict[str, int] = {}
+    methods = []
+    for i, m in enumerate(model.methods):
+        if m.name in seen:
+            raise ConfigError(f"methods[{i}].name", f"duplicate method name {m.name!r} "
+                              f"(also methods[{seen[m.name]}])")
+        seen[m.name] = i
+        methods.append(_method(i, m, defaults, study_wide))
+    return Study(scenario=scenario, runs=model.runs, steps=model.steps, seed=model.seed,
+                 methods=tuple(methods), description=model.description,
+                 scenario_source=source)
+
+
+def load_study(path: str | Path) -> Study:
+    """:func:`study_from_dict` on a TOML file (a relative scenario file is relative to it)."""
+    path = Path(path)
+    return study_from_dict(io.read_toml(path), base_dir=path.parent)
+
+
+def parse_study(text: str, source: str = "<study>", base_dir: str | Path | None = None
+                ) -> Study:
+    """:func:`study_from_dict` on TOML text (the built-in demo study)."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(source, f"invalid TOML: {exc}") from None
+    return study_from_dict(data, base_dir=base_dir)

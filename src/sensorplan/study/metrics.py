@@ -1,0 +1,357 @@
+"""Metrics and statistics of runs and studies: the one place where errors become numbers.
+
+Position RMSE per run, lost target-steps (error above :data:`LOST_THRESHOLD`), across-run
+means with t-intervals, medians with order-statistic intervals, paired differences against
+reference methods, RMSE over time and planning/sensing summaries, all functions of a
+study's tidy tables; :func:`episode_errors` gives the same per-target numbers for one
+episode (``sensorplan simulate``). The report only draws and formats these. This module
+never imports matplotlib.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .._types import FloatArray
+from ..settings import RunSettings
+from .model import Method, Study
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..simulation import Episode
+    from .storage import StudyTables
+
+#: Position error above which a target-step counts as lost (m), SPEC 6.
+LOST_THRESHOLD = 50.0
+#: Confidence level of every interval.
+LEVEL = 0.95
+
+
+def lost(error: Any) -> Any:
+    """Whether each target-step is lost: position error (m) > :data:`LOST_THRESHOLD`."""
+    return error > LOST_THRESHOLD
+
+
+@dataclass(frozen=True)
+class ErrorRow:
+    """Position errors over steps 1..S of one target or a group of targets (m).
+
+    ``target`` is the index, or ``"all"`` for every target of ``kind`` (``"all"`` kinds:
+    every target); ``lost_share`` is the share of target-steps lost; ``measured`` counts
+    the target-steps with at least one measurement.
+    """
+
+    target: str
+    kind: str
+    rmse: float
+    mean: float
+    final: float
+    lost_share: float
+    measured: int
+
+
+def episode_errors(episode: "Episode") -> list[ErrorRow]:
+    """Per target, then per target kind (and all targets when there are several kinds)."""
+    err = np.asarray(episode.error)[1:]                                # (S, M)
+    measured = np.asarray(episode.measured)[1:].any(axis=2)            # (S, M)
+    kinds = list(episode.target_kinds)
+
+    def row(target: str, kind: str, idx: list[int]) -> ErrorRow:
+        e = err[:, idx]
+        return ErrorRow(target, kind, float(np.sqrt(np.mean(e ** 2))), float(e.mean()),
+                        float(e[-1].mean()), float(lost(e).mean()),
+                        int(measured[:, idx].sum()))
+
+    rows = [row(str(j), kind, [j]) for j, kind in enumerate(kinds)]
+    for kind in _with_all(kinds):
+        rows.append(row("all", kind, [j for j, k in enumerate(kinds) if kind in (k, "all")]))
+    return rows
+
+
+def t_interval(values: Any, level: float = LEVEL, axis: int = 0
+               ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Mean and two-sided t confidence interval of the mean along ``axis``.
+
+    ``mean -+ t_{(1+level)/2, n-1} * s / sqrt(n)`` with the sample standard deviation
+    ``s`` (ddof = 1): ``scipy.stats.t.interval(level, n - 1, loc=mean, scale=s/sqrt(n))``.
+    NaNs are ignored; bounds are NaN with fewer than 2 values.
+
+    Returns
+    -------
+    mean, lo, hi : arrays (``values`` with ``axis`` removed; 0-d for 1-D input)
+    """
+    from scipy import stats
+
+    x = np.asarray(values, dtype=float)
+    ok = ~np.isnan(x)
+    n = ok.sum(axis=axis)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(n > 0, np.nansum(x, axis=axis) / np.maximum(n, 1), np.nan)
+        dev = np.where(ok, x - np.expand_dims(mean, axis), 0.0)
+        var = (dev ** 2).sum(axis=axis) / np.maximum(n - 1, 1)
+        sem = np.sqrt(var / np.maximum(n, 1))
+        tq = stats.t.ppf(0.5 + level / 2, np.maximum(n - 1, 1))
+        half = np.where(n >= 2, tq * sem, np.nan)
+    return mean, mean - half, mean + half
+
+
+def median_interval(values: Any, level: float = LEVEL) -> tuple[float, float, float]:
+    """Median and a distribution-free confidence interval for it (order statistics).
+
+    With ``B ~ Binomial(n, 1/2)`` and ``l`` the largest integer with
+    ``P(B <= l - 1) <= (1 - level) / 2``, the interval ``[x_(l), x_(n-l+1)]`` (1-based order
+    statistics) covers the population median with probability ``1 - 2 P(B <= l - 1) >=
+    level``. Bounds are NaN when ``n`` is too small for the level (n < 6 at 95 %).
+    """
+    from scipy import stats
+
+    x = np.sort(np.asarray(values, dtype=float)[~np.isnan(np.asarray(values, dtype=float))])
+    n = x.size
+    if n == 0:
+        return math.nan, math.nan, math.nan
+    med = float(np.median(x))
+    lo_rank = int(stats.binom.ppf((1 - level) / 2, n, 0.5))
+    # ppf gives the smallest l with P(B <= l) >= alpha/2, so P(B <= l - 1) < alpha/2.
+    if lo_rank < 1:
+        return med, math.nan, math.nan
+    return med, float(x[lo_rank - 1]), float(x[n - lo_rank])
+
+
+def kinds_with_all(study: Study) -> list[str]:
+    """Target kinds of the scenario in first-seen order, then ``"all"`` if several."""
+    return _with_all(study.scenario.target_kinds)
+
+
+def _with_all(target_kinds: Any) -> list[str]:
+    kinds = list(dict.fromkeys(target_kinds))
+    return kinds + ["all"] if len(kinds) > 1 else kinds
+
+
+def run_metrics(tables: StudyTables) -> Any:
+    """Per (method, run, kind) metrics over steps 1..S.
+
+    Columns: method, run, kind (each target kind and ``all``), rmse (m; ``sqrt`` of the mean
+    over steps 1..S and the kind's targets of error^2), mean_error (m), lost_share (share of
+    those target-steps with error > :data:`LOST_THRESHOLD`), measured_share (share with at
+    least one measurement), negative_share (share that got a missed-look update).
+    """
+    import pandas as pd
+
+    d = tables.steps[tables.steps["step"] >= 1]
+    d = d.assign(se=d["error"] ** 2, lost=lost(d["error"]))
+    agg = dict(mse=("se", "mean"), mean_error=("error", "mean"), lost_share=("lost", "mean"),
+               measured_share=("measured", "mean"),
+               negative_share=("negative_update", "mean"))
+    per_kind = d.groupby(["method", "run", "kind"], observed=True).agg(**agg).reset_index()
+    frames = [per_kind]
+    if "all" in kinds_with_all(tables.study):
+        everything = d.groupby(["method", "run"], observed=True).agg(**agg).reset_index()
+        everything["kind"] = "all"
+        frames.append(everything)
+    out = pd.concat(frames, ignore_index=True)
+    out["kind"] = pd.Categorical(out["kind"].astype(str), categories=kinds_with_all(
+        tables.study), ordered=True)
+    out["rmse"] = np.sqrt(out.pop("mse"))
+    return out.sort_values(["method", "kind", "run"]).reset_index(drop=True)
+
+
+def summary(metrics: Any, column: str = "rmse", level: float = LEVEL) -> Any:
+    """Across-run statistics of a run metric per (method, kind).
+
+    Columns: method, kind, n (runs), mean, mean_lo, mean_hi (t-interval), median,
+    median_lo, median_hi (order-statistic interval).
+    """
+    import pandas as pd
+
+    rows = []
+    for (method, kind), g in metrics.groupby(["method", "kind"], observed=True, sort=True):
+        x = g[column].to_numpy(float)
+        mean, lo, hi = t_interval(x, level)
+        med, mlo, mhi = median_interval(x, level)
+        rows.append(dict(method=method, kind=kind, n=x.size, mean=float(mean),
+                         mean_lo=float(lo), mean_hi=float(hi), median=med, median_lo=mlo,
+                         median_hi=mhi))
+    return pd.DataFrame(rows)
+
+
+def references(study: Study) -> dict[str, dict[str, str | None]]:
+    """The myopic and random method each method is compared with (paired differences).
+
+    - ``random``: the first method with planner ``random``, the same tracker settings (the
+      tracker decides how a random policy tracks) and the same ``steps_per_epoch``; failing
+      that, any with the same tracker settings.
+    - ``myopic``: the first method with planner ``pg``, ``horizon = 1`` and the same
+      ``visibility``, ``objective``, tracker settings and ``steps_per_epoch``.
+
+    A method is not compared with itself, a ``random`` method with nothing (myopic against
+    random already shows that difference), and an entry is None when no method matches.
+    """
+    out: dict[str, dict[str, str | None]] = {}
+    for m in study.methods:
+        s = m.settings
+
+        def first(pred: Callable[[RunSettings], bool], m: Method = m) -> str | None:
+            for other in study.methods:
+                if other.name != m.name and pred(other.settings):
+                    return other.name
+            return None
+
+        rnd = first(lambda o: o.planner == "random" and o.tracker == s.tracker
+                    and o.steps_per_epoch == s.steps_per_epoch)
+        if rnd is None:
+            rnd = first(lambda o: o.planner == "random" and o.tracker == s.tracker)
+        myo = first(lambda o: o.planner == "pg" and o.horizon == 1
+                    and o.visibility == s.visibility and o.objective == s.objective
+                    and o.tracker == s.tracker
+                    and o.steps_per_epoch == s.steps_per_epoch)
+        if s.planner == "random":
+            # random vs myopic is myopic vs random with the sign flipped.
+            rnd = myo = None
+        if s.planner == "pg" and s.horizon == 1:
+            myo = None
+        out[m.name] = {"myopic": myo, "random": rnd}
+    return out
+
+
+def paired_differences(metrics: Any, study: Study, column: str = "rmse",
+                       level: float = LEVEL) -> Any:
+    """Paired differences ``method - reference`` of a run metric, per run, summarized.
+
+    For each method, each of its :func:`references` and each kind: ``d_r = x(method, r) -
+    x(reference, r)`` over the runs both finished; the mean with its paired t-interval, the
+    median with its order-statistic interval, and the share of runs where the method is
+    lower (better).
+
+    Columns: method, against (``myopic`` or ``random``), reference, kind, n, mean, mean_lo,
+    mean_hi, median, median_lo, median_hi, better_share.
+    """
+    import pandas as pd
+
+    wide = metrics.pivot_table(index=["kind", "run"], columns="method", values=column,
+                               observed=True)
+    rows = []
+    for method, refs in references(study).items():
+        for against in ("myopic", "random"):
+            ref = refs[against]
+            if ref is None or method not in wide or ref not in wide:
+                continue
+            for kind in kinds_with_all(study):
+                if kind not in wide.index.get_level_values(0):
+                    continue
+                both = wide.loc[kind, [method, ref]].dropna()
+                d = (both[method] - both[ref]).to_numpy(float)
+                mean, lo, hi = t_interval(d, level)
+                med, mlo, mhi = median_interval(d, level)
+                rows.append(dict(method=method, against=against, reference=ref, kind=kind,
+                                 n=d.size, mean=float(mean), mean_lo=float(lo),
+                                 mean_hi=float(hi), median=med, median_lo=mlo,
+                                 median_hi=mhi,
+                                 better_share=float(np.mean(d < 0)) if d.size else math.nan))
+    return pd.DataFrame(rows)
+
+
+def rmse_over_time(tables: StudyTables, level: float = LEVEL) -> Any:
+    """Position RMSE at each step per (method, kind) with a band across runs.
+
+    At step t, with ``m_r(t)`` run r's mean over the kind's targets of error^2, the RMSE is
+    ``sqrt(mean_r m_r(t))`` and the band is ``sqrt`` of the t-interval of that mean
+    (clipped at 0): a 95 % interval for the RMSE of the step across runs.
+
+    Columns: method, kind, step, rmse, lo, hi, n.
+    """
+    import pandas as pd
+
+    st = tables.steps
+    se = st.assign(se=st["error"] ** 2)
+    frames = [se.groupby(["method", "kind", "step", "run"], observed=True)["se"].mean()
+              .reset_index()]
+    if "all" in kinds_with_all(tables.study):
+        a = se.groupby(["method", "step", "run"], observed=True)["se"].mean().reset_index()
+        a["kind"] = "all"
+        frames.append(a)
+    per_run = pd.concat(frames, ignore_index=True)
+    per_run["kind"] = per_run["kind"].astype(str)
+    rows = []
+    for (method, kind), g in per_run.groupby(["method", "kind"], observed=True, sort=False):
+        wide = g.pivot(index="run", columns="step", values="se")       # (runs, steps)
+        mean, lo, hi = t_interval(wide.to_numpy(float), level, axis=0)
+        rows.append(pd.DataFrame(dict(
+            method=method, kind=kind, step=wide.columns.to_numpy(), rmse=np.sqrt(mean),
+            lo=np.sqrt(np.clip(lo, 0.0, None)), hi=np.sqrt(np.clip(hi, 0.0, None)),
+            n=wide.notna().sum(axis=0).to_numpy())))
+    out = pd.concat(rows, ignore_index=True)
+    out["method"] = out["method"].astype(tables.steps["method"].dtype)
+    return out.sort_values(["method", "kind", "step"]).reset_index(drop=True)
+
+
+def planning_summary(tables: StudyTables) -> Any:
+    """Per method: decisions, planning time per decision (ms: mean, median, 90th
+    percentile, max), total planning time per run (s), converged share and sweeps (mean,
+    max) where the planner reports them, and the mean potential Phi (nats)."""
+    import pandas as pd
+
+    rows = []
+    dec = tables.decisions
+    for method, g in dec.groupby("method", observed=True, sort=True):
+        ms = 1e3 * g["planning_seconds"].to_numpy(float)
+        conv = g["converged"].dropna().astype(float).to_numpy()
+        sweeps = g["sweeps"].dropna().astype(float).to_numpy()
+        per_run = g.groupby("run")["planning_seconds"].sum().to_numpy(float)
+        rows.append(dict(
+            method=method, decisions=len(g), mean_ms=float(ms.mean()),
+            median_ms=float(np.median(ms)), p90_ms=float(np.percentile(ms, 90)),
+            max_ms=float(ms.max()), seconds_per_run=float(per_run.mean()),
+            converged_share=float(conv.mean()) if conv.size else math.nan,
+            sweeps_mean=float(sweeps.mean()) if sweeps.size else math.nan,
+            sweeps_max=float(sweeps.max()) if sweeps.size else math.nan,
+            phi_mean=float(g["phi"].mean())))
+    return pd.DataFrame(rows)
+
+
+def sensing_summary(tables: StudyTables) -> Any:
+    """Per method, over sensor-steps 1..S: looks (share of sensor-steps pointed at a
+    target), measurements per sensor-step, and the share of looks that missed."""
+    import pandas as pd
+
+    s = tables.sensors[tables.sensors["step"] >= 1]
+    rows = []
+    for method, g in s.groupby("method", observed=True, sort=True):
+        looks = g["target"].to_numpy() >= 0
+        rows.append(dict(method=method, look_share=float(looks.mean()),
+                         measurements_per_sensor_step=float(g["measured"].mean()),
+                         miss_share=float(g["missed"].to_numpy()[looks].mean())
+                         if looks.any() else math.nan))
+    return pd.DataFrame(rows)
+
+
+def horizon_groups(study: Study, minimum: int = 3) -> list[list[Method]]:
+    """Groups of methods that differ only in the horizon K (at least ``minimum`` distinct K),
+    each sorted by K: the report plots RMSE and planning time against K for them.
+
+    A K = 1 method joins the groups of either execution (OL and OLF are the same policy
+    when K = 1).
+    """
+    groups: dict[str, list[Method]] = {}
+    for m in study.methods:
+        d = m.to_dict()
+        for k in ("name", "horizon", "execution"):
+            d.pop(k)
+        groups.setdefault(json.dumps(d, sort_keys=True, default=str), []).append(m)
+    out = []
+    for members in groups.values():
+        myopic = [m for m in members if m.settings.horizon == 1]
+        executions = dict.fromkeys(m.settings.execution for m in members
+                                   if m.settings.horizon > 1)
+        for execution in executions:
+            by_k: dict[int, Method] = {}
+            for m in myopic + [m for m in members if m.settings.horizon > 1
+                               and m.settings.execution == execution]:
+                by_k.setdefault(m.settings.horizon, m)
+            if len(by_k) >= minimum:
+                out.append([by_k[k] for k in sorted(by_k)])
+    return out

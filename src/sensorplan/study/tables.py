@@ -1,0 +1,136 @@
+"""The tidy tables of a study: one row per (run, method, step, target), per decision and per
+(run, method, step, sensor), built from episodes (:func:`episode_tables`)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..simulation import Episode
+
+#: Tidy tables, in the order a part's files are written (the last one marks it done).
+TABLES = ("decisions", "sensors", "steps")
+
+#: What each table holds, column by column.
+TABLE_DOC = {
+    "steps": "one row per (run, method, step, target): run, method, step (0 = initial state, "
+             "1..S), target, kind, error (m, |p_true - p_est|), nees (4-D NEES), measured "
+             "(any sensor measured it at that step), measurements (how many did), "
+             "negative_update, inflated (missed-look update / inflation, SPEC 3), x, y "
+             "(true position, m), x_est, y_est (estimated position, m)",
+    "decisions": "one row per (run, method, decision): run, method, decision (0-based), step "
+                 "(time index of the decision), planning_seconds (wall time of the planner "
+                 "call), phi (potential of the chosen plan, nats), converged (null for "
+                 "planners without the notion), sweeps (null likewise)",
+    "sensors": "one row per (run, method, step, sensor): run, method, step, sensor, x, y "
+               "(ground position, m), heading (rad), target (looked-at target, -1 none), "
+               "missed (the look missed: target truly outside the field of view), measured",
+}
+
+
+@dataclass
+class TaskResult:
+    """What a worker sends back: one (run, method)'s tables as columns, and its timing.
+
+    Attributes
+    ----------
+    run, method : int
+    tables : dict of table name -> dict of column name -> (rows,) array
+    wall, cpu : float         the task's wall and process CPU time (s)
+    planning : float          wall time inside planner calls (s)
+    """
+
+    run: int
+    method: int
+    tables: dict[str, dict[str, np.ndarray]]
+    wall: float
+    cpu: float
+    planning: float
+
+
+def episode_tables(episode: Episode, run: int, method: str) -> dict[str, dict[str, np.ndarray]]:
+    """The tidy rows of one episode (see :data:`TABLE_DOC`), as column arrays.
+
+    Parameters
+    ----------
+    episode : Episode
+    run : int
+    method : str
+
+    Returns
+    -------
+    dict
+        ``{"steps": {...}, "decisions": {...}, "sensors": {...}}``; row order is step-major
+        (then target or sensor) and decision order.
+    """
+    S1, M = episode.error.shape
+    N = episode.looked.shape[1]
+    D = episode.decision_steps.shape[0]
+    kinds = np.asarray(episode.target_kinds, dtype=object)
+    measured = np.asarray(episode.measured)                            # (S+1, M, N)
+    steps = {
+        "run": np.full(S1 * M, run, dtype=np.int32),
+        "method": np.full(S1 * M, method, dtype=object),
+        "step": np.repeat(np.arange(S1, dtype=np.int32), M),
+        "target": np.tile(np.arange(M, dtype=np.int16), S1),
+        "kind": np.tile(kinds, S1),
+        "error": episode.error.reshape(-1),
+        "nees": episode.nees.reshape(-1),
+        "measured": measured.any(axis=2).reshape(-1),
+        "measurements": measured.sum(axis=2).astype(np.int8).reshape(-1),
+        "negative_update": np.asarray(episode.negative_update).reshape(-1),
+        "inflated": np.asarray(episode.inflated).reshape(-1),
+        "x": episode.truth[..., 0].reshape(-1),
+        "y": episode.truth[..., 1].reshape(-1),
+        "x_est": episode.estimate[..., 0].reshape(-1),
+        "y_est": episode.estimate[..., 1].reshape(-1),
+    }
+    converged = np.asarray(episode.converged, dtype=float)
+    sweeps = np.asarray(episode.sweeps, dtype=float)
+    decisions = {
+        "run": np.full(D, run, dtype=np.int32),
+        "method": np.full(D, method, dtype=object),
+        "decision": np.arange(D, dtype=np.int32),
+        "step": np.asarray(episode.decision_steps, dtype=np.int32),
+        "planning_seconds": np.asarray(episode.planning_seconds, dtype=float),
+        "phi": np.asarray(episode.potential, dtype=float),
+        # NaN marks "no notion of convergence"; it becomes a null in Parquet.
+        "converged": converged,
+        "sweeps": sweeps,
+    }
+    sensors = {
+        "run": np.full(S1 * N, run, dtype=np.int32),
+        "method": np.full(S1 * N, method, dtype=object),
+        "step": np.repeat(np.arange(S1, dtype=np.int32), N),
+        "sensor": np.tile(np.arange(N, dtype=np.int16), S1),
+        "x": episode.sensor_positions[..., 0].reshape(-1),
+        "y": episode.sensor_positions[..., 1].reshape(-1),
+        "heading": episode.sensor_headings.reshape(-1),
+        "target": np.asarray(episode.looked, dtype=np.int16).reshape(-1),
+        "missed": np.asarray(episode.missed).reshape(-1),
+        "measured": measured.any(axis=1).reshape(-1),
+    }
+    return {"steps": steps, "decisions": decisions, "sensors": sensors}
+
+
+def arrow_table(columns: Mapping[str, np.ndarray]) -> Any:
+    """A pyarrow table of :func:`episode_tables` columns (NaN ``converged``/``sweeps`` as
+    nulls, objects as strings)."""
+    import pyarrow as pa
+
+    arrays = {}
+    for name, col in columns.items():
+        if col.dtype == object:
+            arrays[name] = pa.array(col.tolist(), type=pa.string())
+        elif name in ("converged", "sweeps"):
+            mask = np.isnan(col)
+            values = col if name == "converged" else np.nan_to_num(col)
+            typ = pa.bool_() if name == "converged" else pa.int32()
+            arrays[name] = pa.array(values.astype(bool if name == "converged" else np.int32),
+                                    mask=mask, type=typ)
+        else:
+            arrays[name] = pa.array(col)
+    return pa.table(arrays)

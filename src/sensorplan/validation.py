@@ -1,0 +1,272 @@
+"""Strict models of the input files and the translation of their errors.
+
+Every input file (the single-decision JSON, scenario and study TOML) is parsed by strict
+pydantic v2 models built on :class:`Strict`: unknown keys are errors, no int is accepted as
+a bool or a float as an int (ints are accepted where floats are expected), and every float
+must be finite. The models are then turned into the frozen dataclasses of the core, whose
+own checks apply the semantic rules. Every bad input becomes one
+:class:`~sensorplan.errors.ConfigError` naming the field with a dotted path such as
+``sensors[1].altitude`` (:func:`validate`).
+
+The tables that hold run settings are generated from their one declaration in
+:mod:`sensorplan.settings` (:func:`section_model`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import types
+import typing
+from collections.abc import Mapping
+from typing import Annotated, Any, Union
+
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, create_model
+
+from .errors import ConfigError
+from .problem import MapRect
+from .sensors import SensorParams
+from .settings import Setting, declared, field_type, is_group
+
+# --------------------------------------------------------------------------- field types
+
+
+def _length(n: int, what: str) -> AfterValidator:
+    def check(value: list[Any]) -> list[Any]:
+        if len(value) != n:
+            raise ValueError(f"must be {what}, got {len(value)} item(s)")
+        return value
+    return AfterValidator(check)
+
+
+def choice(valid: tuple[str, ...], what: str) -> AfterValidator:
+    """A validator accepting one of ``valid``; errors read "unknown <what> 'x'; choose from"."""
+    def check(value: str) -> str:
+        if value not in valid:
+            raise ValueError(f"unknown {what} {value!r}; choose from {', '.join(valid)}")
+        return value
+    return AfterValidator(check)
+
+
+def _open_unit(value: float) -> float:
+    if not 0.0 < value < 1.0:
+        raise ValueError(f"must be in (0, 1), got {value!r}")
+    return value
+
+
+Vec2 = Annotated[list[float], _length(2, "a list of 2 numbers")]
+Vec4 = Annotated[list[float], _length(4, "a list of 4 numbers")]
+Matrix4 = Annotated[list[Vec4], _length(4, "a 4x4 matrix (4 rows of 4 numbers)")]
+Fraction = Annotated[float, AfterValidator(_open_unit)]
+PositiveInt = Annotated[int, Field(ge=1)]
+Seed = Annotated[int, Field(ge=0)]
+
+
+class Strict(BaseModel):
+    """Base of every file model: unknown keys, loose types and non-finite floats fail."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, frozen=True)
+
+
+_SP = SensorParams()
+_MAP = MapRect()
+
+
+class MapModel(Strict):
+    width: float = _MAP.width
+    height: float = _MAP.height
+
+
+class SensorParamsModel(Strict):
+    """Every :class:`~sensorplan.sensors.SensorParams` field, with its default."""
+
+    altitude: float = _SP.altitude
+    moves: list[float] = list(_SP.moves)
+    max_turn: float = _SP.max_turn
+    fov_half_angle: float = _SP.fov_half_angle
+    min_ground_range: float = _SP.min_ground_range
+    max_ground_range: float = _SP.max_ground_range
+    depression: float = _SP.depression
+    snr_ref_db: float = _SP.snr_ref_db
+    range_ref: float = _SP.range_ref
+    beamwidth: float = _SP.beamwidth
+    monopulse_slope: float = _SP.monopulse_slope
+    range_resolution: float = _SP.range_resolution
+
+    def params(self) -> SensorParams:
+        kwargs = {f.name: getattr(self, f.name) for f in dataclasses.fields(SensorParams)}
+        kwargs["moves"] = tuple(self.moves)
+        return SensorParams(**kwargs)
+
+
+class PlannerParamsModel(Strict):
+    """Planner settings; ``None`` leaves the planner's own default."""
+
+    alpha: Fraction | None = None
+    beta: Fraction | None = None
+    max_inner: PositiveInt | None = None
+    max_outer: PositiveInt | None = None
+    max_plans: PositiveInt | None = None
+
+    def given(self) -> dict[str, Any]:
+        return {k: v for k, v in self.model_dump().items() if v is not None}
+
+
+# ------------------------------------------------------------ tables from the settings
+
+
+def _rule(s: Setting) -> AfterValidator:
+    def check(value: Any) -> Any:
+        s.validate(value)
+        return value
+    return AfterValidator(check)
+
+
+def setting_annotation(cls: type, f: dataclasses.Field[Any], s: Setting) -> Any:
+    """The strict file type of a declared setting: its declared type plus its rule."""
+    tp = field_type(cls, f.name)
+    if tp is Mapping or tp is dict:
+        return PlannerParamsModel
+    if tp not in (int, float, str, bool):  # pragma: no cover - caught by the settings tests
+        raise TypeError(f"no file type for setting {f.name} of type {tp!r}")
+    return Annotated[tp, _rule(s)]
+
+
+def setting_type(cls: type, name: str) -> Any:
+    """:func:`setting_annotation` of the field ``name`` of ``cls`` (required, not optional)."""
+    f = next(f for f in dataclasses.fields(cls) if f.name == name)
+    return setting_annotation(cls, f, f.metadata["setting"])
+
+
+def section_model(cls: type, section: str, name: str, doc: str = "",
+                  **extra: Any) -> type[Strict]:
+    """A strict model of one section's settings of ``cls``, every key optional.
+
+    A missing key is ``None`` (the caller inherits or takes the field's default); a nested
+    settings group of ``cls`` whose settings are all of ``section`` becomes an optional
+    sub-table. ``extra`` adds ``name=(type, default)`` fields that are not run settings.
+    """
+    fields: dict[str, Any] = {}
+    for f in dataclasses.fields(cls):
+        tp = field_type(cls, f.name)
+        s = f.metadata.get("setting")
+        if s is not None and s.section == section:
+            fields[f.name] = (setting_annotation(cls, f, s) | None, None)
+        elif is_group(tp) and declared(tp) and all(g.section == section
+                                                   for _, g in declared(tp)):
+            sub = section_model(tp, section, f"{name}_{f.name}")
+            fields[f.name] = (sub | None, None)
+    fields.update(extra)
+    return create_model(name, __base__=Strict, __doc__=doc or None, **fields)
+
+
+def given(model: BaseModel | None) -> dict[str, Any]:
+    """The keys a section model was given (non-None), sub-tables as dictionaries."""
+    if model is None:
+        return {}
+    out = {}
+    for key in type(model).model_fields:
+        v = getattr(model, key)
+        if isinstance(v, PlannerParamsModel):
+            out[key] = v.given()
+        elif isinstance(v, BaseModel):
+            out[key] = given(v)
+        elif v is not None:
+            out[key] = v
+    return out
+
+
+# ------------------------------------------------------------------- error translation
+
+
+def _dotted(loc: tuple[Any, ...]) -> str:
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+    return out or "(top level)"
+
+
+def _unwrap(tp: Any) -> Any:
+    while True:
+        origin = typing.get_origin(tp)
+        if origin is Annotated:
+            tp = typing.get_args(tp)[0]
+        elif origin in (Union, types.UnionType):
+            tp = next(a for a in typing.get_args(tp) if a is not type(None))
+        else:
+            return tp
+
+
+def _as_model(tp: Any) -> type[BaseModel] | None:
+    tp = _unwrap(tp)
+    return tp if isinstance(tp, type) and issubclass(tp, BaseModel) else None
+
+
+def _model_at(model: type[BaseModel], loc: tuple[Any, ...]) -> type[BaseModel] | None:
+    tp: Any = model
+    for part in loc:
+        tp = _unwrap(tp)
+        if isinstance(part, int):
+            args = typing.get_args(tp)
+            if not args:
+                return None
+            tp = args[0]
+        elif isinstance(tp, type) and issubclass(tp, BaseModel) and part in tp.model_fields:
+            tp = tp.model_fields[part].annotation
+        else:
+            return None
+    return _as_model(tp)
+
+
+def _unknown_key(parent: type[BaseModel] | None, key: str) -> str:
+    allowed = list(parent.model_fields) if parent is not None else []
+    message = "unknown key"
+    # A key that belongs in a sub-table (a tracker setting among the planning ones).
+    homes = [f"{name}.{key}" for name, info in (parent.model_fields.items() if parent else ())
+             if (sub := _as_model(info.annotation)) is not None and key in sub.model_fields]
+    close = homes[:1] or difflib.get_close_matches(key, allowed, n=1)
+    if close:
+        message += f" (did you mean {close[0]!r}?)"
+    if allowed:
+        message += f"; allowed: {', '.join(allowed)}"
+    return message
+
+
+_TYPE_NAMES = {"float_type": "a number", "int_type": "an integer", "string_type": "a string",
+               "bool_type": "true or false", "list_type": "a list"}
+
+
+def translate(exc: ValidationError, model: type[BaseModel], container: str) -> ConfigError:
+    """One :class:`ConfigError` for the first error pydantic found."""
+    err = exc.errors()[0]
+    loc = tuple(err["loc"])
+    kind = err["type"]
+    field = _dotted(loc)
+    if kind == "extra_forbidden":
+        message = _unknown_key(_model_at(model, loc[:-1]), str(loc[-1]))
+    elif kind == "missing":
+        message = "is required"
+    elif kind == "finite_number":
+        message = "must be a finite number"
+    elif kind in _TYPE_NAMES:
+        got = repr(err.get("input"))
+        got = got if len(got) <= 40 else got[:37] + "..."
+        message = f"must be {_TYPE_NAMES[kind]}, got {got}"
+    elif kind in ("model_type", "model_attributes_type", "dict_type"):
+        message = f"must be {container}"
+    elif kind == "value_error":
+        message = err["msg"].removeprefix("Value error, ")
+    else:
+        message = err["msg"].replace("Input should be", "must be")
+    return ConfigError(field, message)
+
+
+def validate(model: type[BaseModel], data: Any, container: str = "a table") -> Any:
+    """``model.model_validate(data)`` with the first error as a :class:`ConfigError`.
+
+    ``container`` names what a nested value must be (``"a table"``, ``"a JSON object"``).
+    """
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        raise translate(exc, model, container) from None

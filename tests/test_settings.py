@@ -1,0 +1,186 @@
+"""Run settings declared once: the declarations, the checks and file tables they generate,
+the dictionaries of the resolved files, and adding a setting as one edit."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+import pytest
+
+from sensorplan.errors import ConfigError
+from sensorplan.scenario import paper_scenario
+from sensorplan.scenario_file import PlanningTable, RunTable, TrackerTable
+from sensorplan.settings import (SECTIONS, RunSettings, TrackerSettings, _Settings,
+                                 all_settings, field_type, setting)
+from sensorplan.validation import section_model, validate
+
+DECLARED = all_settings()
+TABLES = {"planning": PlanningTable, "tracker": TrackerTable, "run": RunTable}
+
+
+def test_every_field_is_a_declared_setting_or_a_group() -> None:
+    for cls in (RunSettings, TrackerSettings):
+        for f in dataclasses.fields(cls):
+            tp = field_type(cls, f.name)
+            assert "setting" in f.metadata or issubclass(tp, _Settings), f.name
+    paths = [path for _, path, _, _ in DECLARED]
+    assert paths == ["planner", "planner_params", "horizon", "steps_per_epoch", "execution",
+                     "visibility", "objective", "steps", "tracker.miss_update"]
+
+
+@pytest.mark.parametrize("cls,path,f,s", DECLARED, ids=[d[1] for d in DECLARED])
+def test_declarations_are_complete(cls: type, path: str, f: Any, s: Any) -> None:
+    assert s.section in SECTIONS
+    # A nested group's settings live in the table named after it.
+    assert s.section == path.split(".")[0] if "." in path else s.section != "tracker"
+    assert s.help.endswith(".") and s.help.count(". ") == 0, "one sentence"
+    assert all(name.startswith("-") for name in s.cli)
+    # The generated file table of its section has exactly this key.
+    assert f.name in TABLES[s.section].model_fields
+
+
+def test_names_are_unique_across_groups_and_options() -> None:
+    names = [f.name for _, _, f, _ in DECLARED]
+    assert len(names) == len(set(names))          # simulate's overrides are keyed by name
+    options = [o for _, _, _, s in DECLARED for o in s.cli]
+    assert len(options) == len(set(options))
+
+
+def test_tables_hold_exactly_their_section() -> None:
+    for section, table in TABLES.items():
+        keys = {f.name for _, _, f, s in DECLARED if s.section == section}
+        extra = {"seed"} if section == "run" else set()
+        assert set(table.model_fields) == keys | extra
+
+
+#: (path, bad value, message); each rule kind once, plus the type checks.
+BAD = [
+    ("horizon", 0, "must be greater than or equal to 1"),
+    ("steps", -3, "must be greater than or equal to 1"),
+    ("horizon", 1.5, "must be an integer, got 1.5"),
+    ("horizon", True, "must be an integer, got True"),
+    ("execution", "closed", "unknown execution mode 'closed'; choose from ol, olf"),
+    ("visibility", "always", "unknown visibility mode 'always'; choose from probabilistic, "
+                             "mean"),
+    ("objective", 3, "must be a string, got 3"),
+    ("tracker.miss_update", "sometimes",
+     "unknown miss update 'sometimes'; choose from negative, none"),
+]
+
+
+@pytest.mark.parametrize("path,value,message", BAD, ids=[f"{b[0]}={b[1]!r}" for b in BAD])
+def test_one_rule_gives_one_message_in_the_api_and_in_files(path: str, value: Any,
+                                                            message: str) -> None:
+    *group, key = path.split(".")
+    kwargs: dict[str, Any] = {group[0]: {key: value}} if group else {key: value}
+    with pytest.raises(ConfigError) as api:
+        RunSettings(**kwargs)
+    assert (api.value.field, api.value.message) == (path, message)
+    section = next(s.section for _, p, _, s in DECLARED if p == path)
+    with pytest.raises(ConfigError) as file:
+        validate(TABLES[section], {key: value})
+    assert (file.value.field, file.value.message) == (key, message)
+
+
+def test_unknown_planner_lists_the_registry_in_both_paths() -> None:
+    from sensorplan.planners import PLANNERS
+
+    expected = f"unknown planner 'nope'; choose from {', '.join(sorted(PLANNERS))}"
+    with pytest.raises(ConfigError) as api:
+        RunSettings(planner="nope")
+    with pytest.raises(ConfigError) as file:
+        validate(PlanningTable, {"planner": "nope"})
+    assert api.value.message == file.value.message == expected
+
+
+def test_values_are_normalised_and_round_trip_through_dicts() -> None:
+    import numpy as np
+
+    s = RunSettings(planner="random", horizon=np.int64(3), planner_params={"seed": 2},
+                    tracker={"miss_update": "none"})
+    assert type(s.horizon) is int and s.tracker == TrackerSettings(miss_update="none")
+    d = s.to_dict()
+    assert d == {"planner": "random", "planner_params": {"seed": 2}, "horizon": 3,
+                 "steps_per_epoch": 1, "execution": "olf", "visibility": "probabilistic",
+                 "objective": "terminal", "steps": 100, "tracker": {"miss_update": "none"}}
+    assert RunSettings.from_dict(d) == s
+    with pytest.raises(ConfigError) as info:
+        RunSettings.from_dict({**d, "horizn": 2})
+    assert info.value.field == "horizn" and "allowed: planner," in info.value.message
+    with pytest.raises(ConfigError) as info:
+        RunSettings.from_dict({**d, "tracker": {"miss_update": "none", "gate": 0.9}})
+    assert info.value.field == "tracker.gate"
+
+
+def test_file_tables_are_strict() -> None:
+    cases = [({"horizon": "2"}, "horizon", "must be an integer, got '2'"),
+             ({"horizon": 2.0}, "horizon", "must be an integer, got 2.0"),
+             ({"steps_per_epoch": True}, "steps_per_epoch", "must be an integer, got True"),
+             ({"horizn": 2}, "horizn", "unknown key (did you mean 'horizon'?); allowed: "
+                                       "planner, planner_params, horizon, steps_per_epoch, "
+                                       "execution, visibility, objective"),
+             ({"planner_params": {"alpha": 1.0}}, "planner_params.alpha",
+              "must be in (0, 1), got 1.0")]
+    for data, field, message in cases:
+        with pytest.raises(ConfigError) as info:
+            validate(PlanningTable, data)
+        assert (info.value.field, info.value.message) == (field, message)
+    assert validate(PlanningTable, {}).horizon is None      # absent: the default applies
+
+
+# ----------------------------------------------------------- adding a setting is one edit
+
+
+@dataclasses.dataclass(frozen=True)
+class _Tracker(_Settings):
+    """A tracker with two settings of the kinds the next issues add."""
+
+    miss_update: str = setting(
+        "negative", section="tracker", choices=("negative", "none"), noun="miss update",
+        help="Tracker's reaction to a look that misses its target.")
+    gate_probability: float = setting(
+        0.99, section="tracker", cli=("--gate-probability",), metavar="P", gt=0.0, lt=1.0,
+        help="Probability that the gate holds a target's own measurement.")
+    reacquire: bool = setting(
+        True, section="tracker", cli=("--reacquire",), metavar="BOOL",
+        help="Whether a lost track is searched for again.")
+
+
+def test_a_new_setting_is_checked_in_the_api_and_in_files_from_its_declaration() -> None:
+    assert _Tracker().gate_probability == 0.99
+    table = section_model(_Tracker, "tracker", "ToyTracker")
+    assert set(table.model_fields) == {"miss_update", "gate_probability", "reacquire"}
+    assert validate(table, {"gate_probability": 0.5, "reacquire": False}).reacquire is False
+    for value, message in [(1.0, "must be in (0, 1), got 1.0"),
+                           (0, "must be in (0, 1), got 0.0"),
+                           ("x", "must be a number, got 'x'"),
+                           (math.nan, "must be a finite number")]:
+        with pytest.raises(ConfigError) as api:
+            _Tracker(gate_probability=value)
+        assert (api.value.field, api.value.message) == ("gate_probability", message)
+        with pytest.raises(ConfigError) as file:
+            validate(table, {"gate_probability": value})
+        assert (file.value.field, file.value.message) == ("gate_probability", message)
+    for data in ({"reacquire": 1}, {"reacquire": "yes"}):
+        with pytest.raises(ConfigError) as info:
+            validate(table, data)
+        assert info.value.message.startswith("must be true or false")
+    with pytest.raises(ConfigError) as api:
+        _Tracker(reacquire=1)
+    assert api.value.message == "must be true or false, got 1"
+    assert _Tracker(gate_probability=0.5).to_dict() == {
+        "miss_update": "negative", "gate_probability": 0.5, "reacquire": True}
+
+
+# ------------------------------------------------------------------------ transitional
+
+
+def test_the_tracker_option_lives_in_tracker_settings() -> None:
+    with pytest.raises(TypeError):
+        RunSettings(planner="random", miss_update="none")       # type: ignore[call-arg]
+    with pytest.raises(TypeError):
+        paper_scenario(miss_update="none")                      # type: ignore[call-arg]
+    s = RunSettings(planner="random", tracker={"miss_update": "none"})
+    assert s.tracker == TrackerSettings(miss_update="none")
