@@ -30,9 +30,8 @@ from stonesoup.types.state import GaussianState, State
 from stonesoup.types.track import Track
 from stonesoup.updater.kalman import ExtendedKalmanUpdater
 
-from sensorplan.integrations.stonesoup import (LatticeMovable, SensorplanManager,
+from sensorplan.integrations.stonesoup import (LatticeMovable, MapRect, SensorplanManager,
                                                SensorplanRadar, execute, from_gaussian_state)
-from sensorplan.problem import MapRect
 from sensorplan.sensors import SensorParams
 
 START = datetime.datetime(2024, 1, 1)
@@ -69,14 +68,20 @@ def build(rng: np.random.Generator, n_targets: int = 5):
                                 heading=float(rng.uniform(-math.pi, math.pi)))
         movable = LatticeMovable(states=[State([[x], [y], [altitude]], timestamp=START)],
                                  position_mapping=(0, 1, 2), move_distances=(20.0, 40.0),
-                                 world=MapRect(600.0, 600.0))
+                                 world=MapRect(0.0, 0.0, 600.0, 600.0))
         platforms.append(FixedPlatform(movement_controller=movable, sensors=[radar]))
     return truths, tracks, platforms
 
 
 # %%
 def run(steps: int, seed: int = 0, planner: str = "pg", horizon: int = 3) -> LoopResult:
-    """The tracking loop: plan, act, move the truth, predict, measure, update."""
+    """The tracking loop: plan, act, move the truth, predict, measure, update.
+
+    Every random draw comes from generators made from ``seed`` (truth noise and radar noise
+    from ``rng``, the planner from its own), so a run repeats exactly. Stone Soup's habit
+    works too: with no ``rng`` / ``random_state`` passed, the radar and Stone Soup's models
+    draw from NumPy's global state, and ``np.random.seed(seed)`` makes the run repeatable.
+    """
     rng = np.random.default_rng(seed)
     truths, tracks, platforms = build(rng)
     transition = CombinedLinearGaussianTransitionModel([ConstantVelocity(Q),

@@ -26,13 +26,16 @@ from stonesoup.movable.grid import NStepDirectionalGridMovable  # noqa: E402
 from stonesoup.platform import FixedPlatform  # noqa: E402
 from stonesoup.predictor.kalman import ExtendedKalmanPredictor  # noqa: E402
 from stonesoup.types.detection import Detection  # noqa: E402
+from stonesoup.types.groundtruth import GroundTruthPath, GroundTruthState  # noqa: E402
 from stonesoup.types.hypothesis import SingleHypothesis  # noqa: E402
 from stonesoup.types.state import GaussianState, State  # noqa: E402
+from stonesoup.types.track import Track  # noqa: E402
 from stonesoup.updater.kalman import ExtendedKalmanUpdater  # noqa: E402
 
 from sensorplan import ekf  # noqa: E402
 from sensorplan.angles import wrap_angle  # noqa: E402
 from sensorplan.dynamics import cv_matrices  # noqa: E402
+from sensorplan.errors import ConfigError  # noqa: E402
 from sensorplan.information import potential  # noqa: E402
 from sensorplan.integrations import stonesoup as ss  # noqa: E402
 from sensorplan.planners import make_planner  # noqa: E402
@@ -118,10 +121,18 @@ def test_converters_round_trip_exactly(rng):
 
 
 def test_ordered_tracks_is_deterministic_for_sets(rng):
-    tracks = ss.to_tracks(rng.normal(size=(4, 4)), np.eye(4) * 10, T0)
+    means = rng.normal(size=(4, 4))
+    tracks = ss.to_tracks(means, np.eye(4) * 10, T0)
     assert ss.ordered_tracks(tracks) == tracks                       # lists keep their order
-    by_id = sorted(tracks, key=lambda t: str(t.id))
-    assert ss.ordered_tracks(set(tracks)) == by_id
+    # A set is ordered by content (first state's time, then state vector): the same for
+    # copies with other (random, uuid4) ids, whatever the set's iteration order.
+    by_x = [tracks[k] for k in np.argsort(means[:, 0])]
+    assert ss.ordered_tracks(set(tracks)) == by_x
+    copies = [Track(list(t.states), id=f"z{k}") for k, t in enumerate(tracks)]
+    assert [t.state for t in ss.ordered_tracks(set(copies))] == [t.state for t in by_x]
+    later = Track([GaussianState(tracks[0].state_vector, tracks[0].covar,
+                                 timestamp=T0 + datetime.timedelta(seconds=1))])
+    assert ss.ordered_tracks({later, *tracks})[-1] is later          # then by first time
 
 
 # ------------------------------------------------------------------------ measurement model
@@ -532,3 +543,456 @@ def test_example_runs_short_and_tracks_stay_finite(tmp_path):
             assert np.all(np.isfinite(np.asarray(state.state_vector, dtype=float)))
             assert np.all(np.isfinite(np.asarray(state.covar, dtype=float)))
     assert np.all(np.isfinite(result.errors))
+    # Reproducible: the same seed gives the same run, another seed another one.
+    again = module["run"](6, 0)
+    np.testing.assert_array_equal(again.errors, result.errors)
+    assert np.abs(module["run"](6, 1).errors[-1] - result.errors[-1]).max() > 1e-6
+
+
+# ------------------------------------------------------- seeding: Stone Soup's convention
+
+
+@pytest.fixture
+def global_numpy_state():
+    """Restore NumPy's global state after a test that seeds it."""
+    saved = np.random.get_state()
+    yield
+    np.random.set_state(saved)
+
+
+def _global_seed_loop(radar_seed=None, steps=4):
+    """A small Stone Soup loop with no generator passed anywhere: truth noise, measurement
+    noise (and planning, seeded by the manager's rng) as a Stone Soup user writes it."""
+    transition = _transition(0.05)
+    platforms = [
+        FixedPlatform(movement_controller=ss.LatticeMovable(
+            states=[State([[x], [y], [z]], timestamp=T0)], position_mapping=(0, 1, 2)),
+            sensors=[ss.SensorplanRadar(params=SensorParams(altitude=z), heading=h,
+                                        seed=radar_seed)])
+        for x, y, z, h in ((40.0, 300.0, 490.0, 0.0), (300.0, 560.0, 510.0, -math.pi / 2))]
+    starts = ([330.0, 2.0, 310.0, -1.0], [280.0, -1.5, 250.0, 2.5])
+    truths = [GroundTruthPath([GroundTruthState(sv, timestamp=T0)]) for sv in starts]
+    tracks = [Track([GaussianState(sv, np.diag([100.0, 4.0, 100.0, 4.0]), timestamp=T0)])
+              for sv in starts]
+    mgr = ss.SensorplanManager(platforms=platforms, rng=0)
+    predictor = ExtendedKalmanPredictor(transition)
+    updater = ExtendedKalmanUpdater(None)
+    out = []
+    for k in range(1, steps + 1):
+        now = T0 + datetime.timedelta(seconds=k)
+        ss.execute(mgr.choose_actions(tracks, now)[0], now)
+        for truth in truths:
+            truth.append(GroundTruthState(transition.function(
+                truth.state, noise=True, time_interval=datetime.timedelta(seconds=1)),
+                timestamp=now))
+        for track in tracks:
+            track.append(predictor.predict(track.state, timestamp=now))
+        for platform in platforms:
+            radar = platform.sensors[0]
+            j = tracks.index(radar.aim_target)
+            for det in radar.measure([truths[j].state]):
+                out.append(np.asarray(det.state_vector, dtype=float).ravel())
+                tracks[j].append(updater.update(SingleHypothesis(tracks[j].state, det)))
+    assert len(out) >= steps                       # the radars do see their targets
+    return np.array(out)
+
+
+def test_np_random_seed_makes_a_stonesoup_loop_repeatable(global_numpy_state):
+    np.random.seed(1990)
+    first = _global_seed_loop()
+    np.random.seed(1990)
+    again = _global_seed_loop()
+    np.testing.assert_array_equal(again, first)
+    np.random.seed(1991)
+    other = _global_seed_loop()
+    assert other.shape != first.shape or np.abs(other - first).max() > 1e-6
+    # An explicit seed gives each radar its own stream: the global seed no longer moves the
+    # measurement noise (only the truth, drawn by Stone Soup from the global state).
+    np.random.seed(7)
+    seeded = _global_seed_loop(radar_seed=3)
+    np.random.seed(7)
+    np.testing.assert_array_equal(_global_seed_loop(radar_seed=3), seeded)
+    np.random.seed(7)
+    assert np.abs(_global_seed_loop(radar_seed=4) - seeded).max() > 1e-6
+
+
+def test_noise_comes_from_rng_then_seed_then_the_global_state(global_numpy_state):
+    model = _model(None)
+    state = ss.to_gaussian_state([430.0, 330.0, 0, 0], np.eye(4))
+    sd = np.sqrt(np.diag(model.covar(state=state)))
+    np.random.seed(5)
+    draw = np.ravel(model.rvs(state=state))
+    np.testing.assert_array_equal(draw, sd * np.random.RandomState(5).standard_normal(2))
+    seeded = ss.RadarMeasurementModel(sensor_xy=(120.0, 80.0), heading=0.4,
+                                      params=SensorParams(altitude=505.0), seed=3)
+    np.testing.assert_array_equal(np.ravel(seeded.rvs(state=state)),
+                                  sd * np.random.default_rng(3).standard_normal(2))
+    np.testing.assert_array_equal(np.ravel(seeded.rvs(state=state,
+                                                      random_state=np.random.default_rng(9))),
+                                  sd * np.random.default_rng(9).standard_normal(2))
+    # The radar: rng argument, else its seed, else the global state.
+    (platform,) = _platforms([(100.0, 100.0)], [math.pi / 4])
+    radar = platform.sensors[0]
+    truth = ss.to_ground_truth_state([340.0, 330.0, 1.0, 1.0], T0)
+    clean = np.ravel(np.asarray(next(iter(radar.measure([truth], noise=False))).state_vector,
+                                dtype=float))
+    sd_t = radar.measurement_model.noise_std(truth)[0]
+
+    def noise_of(**kw):
+        (det,) = radar.measure([truth], **kw)
+        return np.ravel(np.asarray(det.state_vector, dtype=float)) - clean
+
+    np.random.seed(11)
+    np.testing.assert_allclose(noise_of(), sd_t * np.random.RandomState(11).standard_normal(2),
+                               rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(noise_of(rng=np.random.default_rng(2)),
+                               sd_t * np.random.default_rng(2).standard_normal(2),
+                               rtol=1e-9, atol=1e-12)
+    radar.seed = 6                                   # setting the seed restarts the stream
+    np.testing.assert_allclose(noise_of(), sd_t * np.random.default_rng(6).standard_normal(2),
+                               rtol=1e-9, atol=1e-12)
+
+
+# ------------------------------------------------------------------------- 6-D tracks
+
+
+def _six_d(mean4, cov4, rng, timestamp=T0):
+    """A Stone Soup 6-D state [x, vx, y, vy, z, vz] whose ground marginal is (mean4, cov4)
+    (ours), with z correlated to the ground entries."""
+    A = rng.normal(size=(6, 6))
+    C = A @ A.T + 6 * np.eye(6)
+    C[:4, :4] = ss.to_stonesoup_cov(cov4)
+    while np.linalg.eigvalsh(C).min() <= 0:          # shrink the cross terms until PD
+        C[:4, 4:] *= 0.5
+        C[4:, :4] *= 0.5
+    sv = np.r_[ss.to_stonesoup_mean(mean4), 100.0 + rng.normal(), rng.normal()]
+    return GaussianState(sv, C, timestamp=timestamp)
+
+
+def test_six_d_tracks_plan_on_their_ground_marginal(rng):
+    means, covs, positions, headings = _decision(rng)
+    tracks4 = ss.to_tracks(means, covs, T0)
+    tracks6 = [Track([_six_d(m, P, rng)]) for m, P in zip(means, covs)]
+    m6, P6 = ss.from_tracks(tracks6)
+    np.testing.assert_array_equal(m6, means)
+    np.testing.assert_array_equal(P6, covs)
+    t1 = T0 + datetime.timedelta(seconds=1)
+    configs = []
+    for tracks in (tracks4, tracks6):
+        platforms = _platforms(positions, headings)
+        mgr = ss.SensorplanManager(platforms=platforms, horizon=2, rng=5)
+        [config] = mgr.choose_actions(tracks, t1)
+        ss.execute(config, t1)
+        configs.append((mgr.last_result.plan, [np.ravel(p.position) for p in platforms],
+                        [p.sensors[0].heading for p in platforms],
+                        [tracks.index(config[p.sensors[0]][0].target) for p in platforms]))
+    (plan4, pos4, head4, tgt4), (plan6, pos6, head6, tgt6) = configs
+    np.testing.assert_array_equal(plan6.positions, plan4.positions)
+    np.testing.assert_array_equal(plan6.targets, plan4.targets)
+    np.testing.assert_array_equal(pos6, pos4)
+    assert head6 == head4 and tgt6 == tgt4
+
+
+def test_other_state_layouts_need_mappings(rng):
+    means, covs, positions, headings = _decision(rng, n_sensors=1, n_targets=2)
+    platforms = _platforms(positions, headings)
+    t1 = T0 + datetime.timedelta(seconds=1)
+    five = [Track([GaussianState(np.r_[ss.to_stonesoup_mean(m), 0.0], np.eye(5), timestamp=T0)])
+            for m in means]
+    with pytest.raises(ConfigError, match=r"tracks\[0\]\.state: a 5-D state; expected Stone "
+                                          r"Soup's \[x, vx, y, vy\] \(4-D\) or \[x, vx, y, vy, z, "
+                                          r"vz\] \(6-D\), or give position_mapping"):
+        ss.SensorplanManager(platforms=platforms).choose_actions(five, t1)
+    # Our own order [x, y, vx, vy], named by the mappings, gives the same plan.
+    ours = [Track([GaussianState(m, P, timestamp=T0)]) for m, P in zip(means, covs)]
+    mapped = ss.SensorplanManager(platforms=platforms, position_mapping=(0, 1),
+                                  velocity_mapping=(2, 3), rng=1)
+    mapped.choose_actions(ours, t1)
+    plain = ss.SensorplanManager(platforms=_platforms(positions, headings), rng=1)
+    plain.choose_actions(ss.to_tracks(means, covs, T0), t1)
+    np.testing.assert_array_equal(mapped.last_problem.means, plain.last_problem.means)
+    np.testing.assert_array_equal(mapped.last_problem.covs, plain.last_problem.covs)
+    np.testing.assert_array_equal(mapped.last_result.plan.targets, plain.last_result.plan.targets)
+    with pytest.raises(ConfigError, match="must name four different entries"):
+        ss.from_tracks(ours, position_mapping=(0, 1), velocity_mapping=(1, 7))
+
+
+def test_six_d_ekf_update_equals_the_four_d_update_on_the_ground(rng):
+    q = 0.05
+    pred4 = ExtendedKalmanPredictor(_transition(q))
+    pred6 = ExtendedKalmanPredictor(CombinedLinearGaussianTransitionModel(
+        [ConstantVelocity(q)] * 3))
+    updater = ExtendedKalmanUpdater(None, use_joseph_cov=True)
+    (platform,) = _platforms([(40.0, 300.0)], [0.0])
+    radar = platform.sensors[0]
+    t1 = T0 + datetime.timedelta(seconds=1)
+    for _ in range(5):
+        x = np.array([340.0 + rng.normal(0, 20), 300.0 + rng.normal(0, 20), *rng.normal(0, 2, 2)])
+        P = _covariance(rng)
+        s6 = _six_d(x, P, rng)
+        s4 = ss.to_gaussian_state(x, P, T0)
+        truth6 = GroundTruthState(np.r_[ss.to_stonesoup_mean(x + np.r_[3.0, -2.0, 0, 0]),
+                                        100.0, 0.0], timestamp=t1)
+        (det,) = radar.measure([truth6], noise=False)
+        assert det.measurement_model.ndim_state == 6
+        # Any model of this radar linearises a 6-D state with six columns, zero off the ground.
+        H6 = radar.measurement_model.jacobian(s6)
+        H4 = radar.measurement_model.jacobian(s4)
+        np.testing.assert_array_equal(H6[:, :4], H4)
+        np.testing.assert_array_equal(H6[:, 4:], 0.0)
+        post6 = updater.update(SingleHypothesis(pred6.predict(s6, timestamp=t1), det))
+        det4 = Detection(det.state_vector, measurement_model=radar.measurement_model,
+                         timestamp=t1)
+        post4 = updater.update(SingleHypothesis(pred4.predict(s4, timestamp=t1), det4))
+        m6, P6 = ss.from_gaussian_state(post6)
+        m4, P4 = ss.from_gaussian_state(post4)
+        np.testing.assert_allclose(m6, m4, rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(P6, P4, rtol=1e-9, atol=1e-9 * np.abs(P4).max())
+
+
+def test_mi_reward_of_six_d_tracks_equals_that_of_their_ground_marginals(rng):
+    q = 0.05
+    reward4 = ss.MutualInformationReward(predictor=ExtendedKalmanPredictor(_transition(q)),
+                                         updater=ExtendedKalmanUpdater(None))
+    reward6 = ss.MutualInformationReward(predictor=ExtendedKalmanPredictor(
+        CombinedLinearGaussianTransitionModel([ConstantVelocity(q)] * 3)),
+        updater=ExtendedKalmanUpdater(None))
+    t1 = T0 + datetime.timedelta(seconds=1)
+    nonzero = 0
+    for _ in range(3):
+        means, covs, positions, headings = _decision(rng, n_sensors=2, n_targets=3)
+        platforms = _platforms(positions, headings)
+        radars = [p.sensors[0] for p in platforms]
+        tracks4 = ss.to_tracks(means, covs, T0)
+        tracks6 = [Track([_six_d(m, P, rng)]) for m, P in zip(means, covs)]
+        move_gens = [next(iter(p.actions(t1))) for p in platforms]
+        for _ in range(8):
+            picks = [(list(mg)[rng.integers(len(list(mg)))], rng.integers(3)) for mg in move_gens]
+            values = []
+            for tracks, reward in ((tracks4, reward4), (tracks6, reward6)):
+                ss.set_aim_candidates(radars, tracks, 1.0)
+                config = {}
+                for (move, j), p, r in zip(picks, platforms, radars):
+                    (aim_gen,) = r.actions(t1)
+                    config[p], config[r] = (move,), (list(aim_gen)[j],)
+                    assert config[r][0].target is tracks[j]
+                values.append(reward(config, tracks, t1))
+            assert values[1] == pytest.approx(values[0], rel=1e-9, abs=1e-12)
+            nonzero += values[0] > 0
+    assert nonzero >= 3
+
+
+# ----------------------------------------------------------------- no tracks: stay and hold
+
+
+def test_no_tracks_returns_stay_and_hold(rng):
+    means, covs, positions, headings = _decision(rng)
+    platforms = _platforms(positions, headings)
+    radars = [p.sensors[0] for p in platforms]
+    mgr = ss.SensorplanManager(platforms=platforms, horizon=2, rng=4)
+    t1, t2 = T0 + datetime.timedelta(seconds=1), T0 + datetime.timedelta(seconds=2)
+    # First aim every radar at a point behind it: the turn is limited, so the aim is not
+    # reached and a second turn toward it would change the heading.
+    for p, r in zip(platforms, radars):
+        (ag,) = r.actions(t1)
+        behind = np.ravel(p.position)[:2] - 100 * np.array([math.cos(r.heading),
+                                                            math.sin(r.heading)])
+        ss.execute({r: [ag.action(behind)]}, t1)
+    before = ([np.ravel(p.position).copy() for p in platforms], [r.heading for r in radars],
+              [r.aim for r in radars])
+    for empty in ([], set()):
+        [config] = mgr.choose_actions(empty, t2)
+        assert set(map(id, config)) == set(map(id, mgr.actionables))
+        for p, r in zip(platforms, radars):
+            (move,) = config[p]
+            (aim,) = config[r]
+            assert move.move_index == 0 and aim.hold
+        ss.execute(config, t2)
+        after = ([np.ravel(p.position) for p in platforms], [r.heading for r in radars],
+                 [r.aim for r in radars])
+        np.testing.assert_array_equal(after[0], before[0])
+        assert after[1] == before[1] and after[2] == before[2]
+        assert mgr.last_result is None and mgr.last_problem is None and mgr.last_tracks == []
+    # Holding draws nothing from the manager's generator: the next plan is a fresh one's.
+    tracks = ss.to_tracks(means, covs, t2)
+    t3 = T0 + datetime.timedelta(seconds=3)
+    mgr.choose_actions(tracks, t3)
+    fresh = ss.SensorplanManager(platforms=platforms, horizon=2, rng=4)
+    fresh.choose_actions(tracks, t3)
+    np.testing.assert_array_equal(mgr.last_result.plan.targets, fresh.last_result.plan.targets)
+    # A radar that never aimed holds too (no aim, heading unchanged).
+    (p0,) = _platforms([(300.0, 300.0)], [0.3])
+    [config] = ss.SensorplanManager(platforms=[p0]).choose_actions([], t1)
+    ss.execute(config, t1)
+    assert p0.sensors[0].aim is None and p0.sensors[0].heading == 0.3
+
+
+# ---------------------------------------------------------------- maps with any origin
+
+
+def test_map_origin_translates_exactly(rng):
+    # The same decision twice: on [0, 600]^2, and shifted by (-300, -300) onto a map
+    # centred on 0. Integer coordinates make every shift exact, so everything must agree
+    # bit for bit after the shift.
+    shift = np.array([-300.0, -300.0])
+    means = np.column_stack([rng.integers(150, 450, (5, 2)), rng.integers(-4, 5, (5, 2))])
+    means = means.astype(float)
+    covs = np.stack([np.diag([400.0, 400.0, 4.0, 4.0])] * 5)
+    positions = rng.integers(60, 540, size=(3, 2)).astype(float)
+    headings = rng.uniform(-math.pi, math.pi, 3)
+    t1 = T0 + datetime.timedelta(seconds=1)
+    runs = []
+    for offset, world in ((np.zeros(2), ss.MapRect(0, 0, 600, 600)),
+                          (shift, ss.MapRect(-300, -300, 600, 600))):
+        platforms = _platforms(positions + offset, headings, world=world)
+        moved = means.copy()
+        moved[:, :2] += offset
+        mgr = ss.SensorplanManager(platforms=platforms, horizon=3, rng=2)
+        [config] = mgr.choose_actions(ss.to_tracks(moved, covs, T0), t1)
+        aims = [config[p.sensors[0]][0].target_value for p in platforms]
+        planned = mgr.planned_positions()
+        ss.execute(config, t1)
+        runs.append((mgr, np.array(aims), planned,
+                     np.stack([np.ravel(p.position)[:2] for p in platforms]),
+                     [p.sensors[0].heading for p in platforms]))
+    (m0, aims0, plan0, pos0, head0), (m1, aims1, plan1, pos1, head1) = runs
+    np.testing.assert_array_equal(m1.last_problem.means, m0.last_problem.means)
+    np.testing.assert_array_equal(m1.last_problem.positions, m0.last_problem.positions)
+    np.testing.assert_array_equal(m1.last_result.plan.positions, m0.last_result.plan.positions)
+    np.testing.assert_array_equal(m1.last_result.plan.targets, m0.last_result.plan.targets)
+    np.testing.assert_array_equal(aims1, aims0 + shift)
+    np.testing.assert_array_equal(plan1, plan0 + shift)
+    np.testing.assert_array_equal(pos1, pos0 + shift)
+    np.testing.assert_array_equal(plan0, m0.last_result.plan.positions)     # origin 0: as is
+    assert head1 == head0
+
+
+def test_map_origin_executes_the_planners_plan(rng):
+    # An awkward origin: the plan, made in the planner's frame, executes in world
+    # coordinates; positions come from the lattice moves bit for bit.
+    origin = np.array([-512.3, 77.7])
+    world = ss.MapRect(*origin, 600.0, 600.0)
+    means, covs, positions, headings = _decision(rng)
+    platforms = _platforms(positions + origin, headings, world=world)
+    start = np.stack([np.ravel(p.position)[:2] for p in platforms])
+    world_means = means.copy()
+    world_means[:, :2] += origin
+    mgr = ss.SensorplanManager(platforms=platforms, horizon=2, rng=7)
+    t1 = T0 + datetime.timedelta(seconds=1)
+    [config] = mgr.choose_actions(ss.to_tracks(world_means, covs, T0), t1)
+    planned = mgr.planned_positions()
+    ss.execute(config, t1)
+    problem = PlanningProblem(means=world_means - np.r_[origin, 0, 0], covs=covs,
+                              positions=start - origin, headings=headings,
+                              sensors=tuple(SensorParams(altitude=z)
+                                            for z in (490.0, 500.0, 510.0)), horizon=2)
+    expected = make_planner("pg").plan(problem, rng=np.random.default_rng(7))
+    np.testing.assert_array_equal(mgr.last_result.plan.targets, expected.plan.targets)
+    moves = move_vectors((20.0, 40.0))
+    for i, p in enumerate(platforms):
+        (move,) = config[p]
+        now = np.ravel(p.position)[:2]
+        np.testing.assert_array_equal(now, start[i] + moves[move.move_index])
+        np.testing.assert_array_equal(planned[i, 0], now)
+        np.testing.assert_allclose(planned[i], expected.plan.positions[i] + origin,
+                                   rtol=0, atol=1e-9)
+        assert p.sensors[0].heading == pytest.approx(expected.headings[i, 0], abs=1e-12)
+        assert world.contains(planned[i]).all()
+
+
+def test_out_of_map_errors_state_the_bounds(rng):
+    means, covs, _, _ = _decision(rng, n_targets=2)
+    tracks = ss.to_tracks(means, covs, T0)
+    centred = ss.MapRect(-500, -500, 1000, 1000)
+    assert str(centred) == "[-500, 500] x [-500, 500]"
+    ok, out = _platforms([(0.0, 0.0), (-600.0, 20.0)], [0.0, 0.0], world=centred)
+    for given in (tracks, []):
+        with pytest.raises(ConfigError) as err:
+            ss.SensorplanManager(platforms=[ok, out]).choose_actions(given, T0)
+        assert str(err.value) == (
+            "sensors[1].position: (-600, 20) is outside the map [-500, 500] x [-500, 500]; "
+            "set LatticeMovable(world=MapRect(x0, y0, width, height))")
+        assert err.value.field == "sensors[1].position"
+    (default,) = _platforms([(-100.0, 20.5)], [0.0])
+    assert default.movement_controller.world == ss.MapRect(0, 0, 600, 600)
+    with pytest.raises(ConfigError) as err:
+        ss.SensorplanManager(platforms=[default]).choose_actions(tracks, T0)
+    assert str(err.value) == (
+        "sensors[0].position: (-100, 20.5) is outside the map [0, 600] x [0, 600] "
+        "(LatticeMovable's default world); set LatticeMovable(world=MapRect(x0, y0, width, "
+        "height))")
+    # Other map mistakes.
+    with pytest.raises(TypeError):
+        ss.MapRect(600, 600)                     # the core's (width, height) is not an origin
+    with pytest.raises(ConfigError, match=r"world\.height: must be > 0"):
+        ss.MapRect(0, 0, 600, 0)
+    (a,) = _platforms([(10.0, 10.0)], [0.0], world=ss.MapRect(0, 0, 600, 600))
+    (b,) = _platforms([(10.0, 10.0)], [0.0], world=ss.MapRect(0, 0, 600, 601))
+    with pytest.raises(ValueError, match="share one map"):
+        ss.SensorplanManager(platforms=[a, b]).choose_actions(tracks, T0)
+    # The core's map is read as [0, W] x [0, H].
+    (c,) = _platforms([(10.0, 10.0)], [0.0], world=MapRect(800.0, 400.0))
+    assert c.movement_controller.world == ss.MapRect(0, 0, 800, 400)
+    assert not c.movement_controller.world_is_default
+
+
+def test_lattice_moves_respect_a_shifted_map():
+    world = ss.MapRect(-300.0, -300.0, 600.0, 600.0)
+    (platform,) = _platforms([(-280.0, 0.0)], [0.0], world=world)
+    (gen,) = platform.actions(T0 + datetime.timedelta(seconds=1))
+    ends = np.array([np.ravel(a.target_value)[:2] for a in gen])
+    expected = np.array([-280.0, 0.0]) + move_vectors((20.0, 40.0))
+    np.testing.assert_array_equal(ends, expected[expected[:, 0] >= -300.0])
+    assert len(ends) == 17 - 3
+
+
+def test_a_radar_offset_from_its_platform_is_refused(rng):
+    means, covs, positions, headings = _decision(rng, n_sensors=1)
+    (platform,) = _platforms(positions, headings)
+    platform.sensors[0].mounting_offset = np.array([[5.0], [0.0], [0.0]])
+    with pytest.raises(ValueError, match="mounting_offset"):
+        ss.SensorplanManager(platforms=[platform]).choose_actions(
+            ss.to_tracks(means, covs, T0), T0)
+
+
+# ------------------------------------------------------------------- Stone Soup YAML
+
+
+def test_yaml_round_trip_of_a_manager_setup(rng):
+    from ruamel.yaml.representer import RepresenterError
+    from stonesoup.serialise import YAML
+
+    means, covs, positions, headings = _decision(rng)
+    world = ss.MapRect(-100.0, -50.0, 700.0, 650.0)
+    platforms = _platforms(positions, headings, world=world, move_distances=(15.0, 30.0))
+    platforms[1].sensors[0].seed = 5
+    mgr = ss.SensorplanManager(platforms=platforms, planner="pg", planner_params={"alpha": 0.4},
+                               horizon=2, visibility="mean", rng=3)
+    t1, t2 = T0 + datetime.timedelta(seconds=1), T0 + datetime.timedelta(seconds=2)
+    ss.execute(mgr.choose_actions(ss.to_tracks(means, covs, T0), t1)[0], t1)   # mid-run
+    text = YAML().dumps(mgr)
+    loaded = YAML().load(text)
+    assert type(loaded) is ss.SensorplanManager
+    assert (loaded.planner, dict(loaded.planner_params), loaded.horizon, loaded.visibility,
+            loaded.rng) == ("pg", {"alpha": 0.4}, 2, "mean", 3)
+    for p, q in zip(platforms, loaded.platforms):
+        r, s = p.sensors[0], q.sensors[0]
+        assert q.movement_controller.world == world
+        assert tuple(q.movement_controller.move_distances) == (15.0, 30.0)
+        assert s.params == r.params and s.heading == r.heading and s.seed == r.seed
+        assert tuple(s.aim) == tuple(r.aim)
+        np.testing.assert_array_equal(np.ravel(q.position), np.ravel(p.position))
+        assert s.movement_controller is q.movement_controller           # still mounted
+    # The loaded setup plans as the original does (same seed, same state).
+    tracks = ss.to_tracks(means, covs, t1)
+    [c0] = ss.SensorplanManager(platforms=platforms, planner="pg",
+                                planner_params={"alpha": 0.4}, horizon=2, visibility="mean",
+                                rng=3).choose_actions(tracks, t2)
+    [c1] = loaded.choose_actions(tracks, t2)
+    for p, q in zip(platforms, loaded.platforms):
+        np.testing.assert_array_equal(np.ravel(c1[q][0].target_value),
+                                      np.ravel(c0[p][0].target_value))
+        assert c1[q.sensors[0]][0].target is c0[p.sensors[0]][0].target
+    assert YAML().load(YAML().dumps(loaded)).horizon == 2                    # and again
+    with pytest.raises(RepresenterError, match="integer seed"):
+        YAML().dumps(ss.SensorplanManager(platforms=platforms, rng=np.random.default_rng(1)))

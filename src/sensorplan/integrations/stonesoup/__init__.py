@@ -25,6 +25,16 @@ What is here (``docs/stonesoup.md`` has the full mapping and its limits):
   the sum over tracks of ``0.5 log det P_prior / det P_post`` after Stone Soup's predictor
   and updater apply every look whose target's predicted mean is in the field of view.
 
+- :class:`MapRect` ``(x0, y0, width, height)``: the map in world coordinates with any origin;
+  the manager plans in the core's frame (world minus the origin) and acts in world
+  coordinates.
+- Stone Soup's habits: with no seed or generator, the radar and its measurement model draw
+  from NumPy's global state (``np.random.seed`` makes a run repeatable); 6-D tracks
+  ``[x, vx, y, vy, z, vz]`` (or any layout named by ``position_mapping`` and
+  ``velocity_mapping``) are planned on their ground marginal; no tracks gives a
+  stay-and-hold configuration; ``stonesoup.serialise.YAML`` saves and loads a manager setup
+  (importing this module registers the readers it needs, see :func:`yaml_init`).
+
 Timing convention (Stone Soup's): ``choose_actions(tracks, timestamp)`` receives tracks at
 time ``t0`` and returns actions that end at ``timestamp``; the actionables ``act`` at the
 start of the epoch, then measure. The planning problem's time 0 is ``t0`` and its step is
@@ -34,14 +44,18 @@ the manager's ``dt``.
 from ._actionables import (AimAction, AimActionGenerator, LatticeMovable, LatticeMoveAction,
                            LatticeMoveActionGenerator, SensorplanRadar, set_aim_candidates)
 from ._convert import (STONESOUP_ORDER, from_gaussian_state, from_stonesoup_cov,
-                       from_stonesoup_mean, from_tracks, ordered_tracks, to_gaussian_state,
-                       to_ground_truth_state, to_stonesoup_cov, to_stonesoup_mean, to_tracks)
+                       from_stonesoup_mean, from_tracks, ground_index, ordered_tracks,
+                       to_gaussian_state, to_ground_truth_state, to_stonesoup_cov,
+                       to_stonesoup_mean, to_tracks)
 from ._manager import MutualInformationReward, SensorplanManager, execute
 from ._measurement import RadarMeasurementModel
+from ._serialise import yaml_init
+from ._world import DEFAULT_WORLD, MapRect
 
-__all__ = ["STONESOUP_ORDER", "AimAction", "AimActionGenerator", "LatticeMovable",
-           "LatticeMoveAction", "LatticeMoveActionGenerator", "MutualInformationReward",
-           "RadarMeasurementModel", "SensorplanManager", "SensorplanRadar", "execute",
-           "from_gaussian_state", "from_stonesoup_cov", "from_stonesoup_mean", "from_tracks",
-           "ordered_tracks", "set_aim_candidates", "to_gaussian_state", "to_ground_truth_state",
-           "to_stonesoup_cov", "to_stonesoup_mean", "to_tracks"]
+__all__ = ["DEFAULT_WORLD", "STONESOUP_ORDER", "AimAction", "AimActionGenerator",
+           "LatticeMovable", "LatticeMoveAction", "LatticeMoveActionGenerator", "MapRect",
+           "MutualInformationReward", "RadarMeasurementModel", "SensorplanManager",
+           "SensorplanRadar", "execute", "from_gaussian_state", "from_stonesoup_cov",
+           "from_stonesoup_mean", "from_tracks", "ground_index", "ordered_tracks",
+           "set_aim_candidates", "to_gaussian_state", "to_ground_truth_state",
+           "to_stonesoup_cov", "to_stonesoup_mean", "to_tracks", "yaml_init"]

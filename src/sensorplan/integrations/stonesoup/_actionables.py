@@ -21,12 +21,13 @@ from stonesoup.types.track import Track
 from ..._types import FloatArray
 from ...angles import heading_rule
 from ...dynamics import cv_matrices
-from ...problem import POSITION_TOL, MapRect, move_vectors
+from ...problem import POSITION_TOL, move_vectors
 from ... import radar
 from ...sensors import SensorParams, radar_table
 
 from ._convert import _ground_xy, from_tracks, ordered_tracks
-from ._measurement import RadarMeasurementModel
+from ._measurement import RadarMeasurementModel, noise_source
+from ._world import DEFAULT_WORLD, MapRect, as_world
 
 # --------------------------------------------------------------------------------------------
 # Platform movement: the SPEC 2 moves
@@ -44,7 +45,8 @@ class LatticeMoveActionGenerator(ActionGenerator):
 
     move_distances: Sequence[float] = Property(default=(20.0, 40.0),
                                                doc="Move distances s (m).")
-    world: MapRect = Property(default_factory=MapRect, doc="The map; its edge is inside.")
+    world: MapRect = Property(default=DEFAULT_WORLD,
+                              doc="The map (world coordinates); its edge is inside.")
     ground_mapping: Sequence[int] = Property(
         default=(0, 1), doc="Indices of ground x and y in the platform position.")
 
@@ -104,11 +106,26 @@ class LatticeMovable(FixedMovable):
     Use it as the ``movement_controller`` of a Stone Soup ``FixedPlatform``. The position is
     3-D ``[x, y, z]`` by default (``position_mapping=(0, 1, 2)``); moves change x and y. A
     move takes effect at the platform's next ``act``; with no action the platform stays.
+
+    ``world`` is the map in world coordinates, a :class:`MapRect` ``(x0, y0, width, height)``
+    with any origin (``MapRect(-500, -500, 1000, 1000)`` is centred on 0). Without one it is
+    ``DEFAULT_WORLD``, the paper's ``[0, 600] x [0, 600]``. A core
+    ``sensorplan.problem.MapRect(W, H)`` is taken as ``[0, W] x [0, H]``.
     """
 
     move_distances: Sequence[float] = Property(default=(20.0, 40.0),
                                                doc="Move distances s (m), SPEC 2.")
-    world: MapRect = Property(default_factory=MapRect, doc="The map [0, W] x [0, H].")
+    world: MapRect = Property(default=DEFAULT_WORLD,
+                              doc="The map in world coordinates; default [0, 600] x [0, 600].")
+
+    @world.setter
+    def world(self, value: Any) -> None:
+        self._property_world = as_world(value)
+
+    @property
+    def world_is_default(self) -> bool:
+        """Whether the map is the default one (no ``world`` given)."""
+        return self.world is DEFAULT_WORLD
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -152,9 +169,15 @@ class LatticeMovable(FixedMovable):
 
 class AimAction(Action):
     """Look at ground point ``target_value`` ``(x, y)``; ``target`` names what is there
-    (a track, or any key)."""
+    (a track, or any key).
+
+    With ``hold=True`` the radar keeps its aim, its aimed target and its heading (no turn):
+    the generator's ``default_action``, and what :class:`SensorplanManager` returns when there
+    is no track.
+    """
 
     target: Any = Property(default=None, doc="The target looked at (e.g. its Track).")
+    hold: bool = Property(default=False, doc="Keep the current aim and heading.")
 
     def act(self, current_time: Any, timestamp: Any, init_value: Any, **kwargs: Any) -> Any:
         return self.target_value
@@ -173,9 +196,10 @@ class AimActionGenerator(ActionGenerator):
 
     @property
     def default_action(self) -> AimAction:
-        owner = self.owner
+        """Hold: keep the aim and the heading (no turn)."""
         return AimAction(generator=self, end_time=self.end_time,
-                         target_value=self.current_value, target=owner.aim_target)
+                         target_value=self.current_value, target=self.owner.aim_target,
+                         hold=True)
 
     def __iter__(self) -> Any:
         for target, point in self.candidates:
@@ -183,6 +207,8 @@ class AimActionGenerator(ActionGenerator):
 
     def __contains__(self, item: Any) -> bool:
         if isinstance(item, AimAction):
+            if item.hold:
+                return True
             item = item.target_value
         p = np.asarray(item, dtype=float).ravel()
         return any(np.allclose(p, np.asarray(q, dtype=float), rtol=0, atol=10 * POSITION_TOL)
@@ -205,8 +231,18 @@ class SensorplanRadar(Sensor):
     as SPEC 5 executes it. The heading then stays fixed until the next aim action.
 
     Field of view: ground range in ``[min_ground_range, max_ground_range]``, azimuth within
-    ``fov_half_angle`` of the heading, ``cos psi > 0`` (SPEC 2), via
-    :func:`sensorplan.sensors.visible`.
+    ``fov_half_angle`` of the heading, ``cos psi > 0``, from the one radar model
+    (:func:`sensorplan.radar.measure_looks`).
+
+    Randomness, as in Stone Soup: :meth:`measure` draws its noise from ``rng`` when given, else
+    from the radar's own generator when ``seed`` is set (``numpy.random.default_rng(seed)``,
+    one stream for the radar's life), else from NumPy's global state. So
+    ``np.random.seed(1990)`` at the top of a script makes the detections repeatable, like
+    Stone Soup's own sensors and models.
+
+    Truths may have any state layout whose ground x and y sit at ``position_mapping``
+    (``(0, 2)`` fits ``[x, vx, y, vy]`` and ``[x, vx, y, vy, z, vz]``); each detection's
+    measurement model has the truth's dimension.
     """
 
     params: SensorParams = Property(default_factory=SensorParams, doc="Radar parameters.")
@@ -221,13 +257,21 @@ class SensorplanRadar(Sensor):
     ndim_state: int = Property(default=4, doc="Target state dimension.")
     position_mapping: Sequence[int] = Property(
         default=(0, 2), doc="Indices of a target's ground x and y in its state vector.")
-    seed: int | None = Property(default=None, doc="Seed of the radar's noise generator.")
+    seed: int | None = Property(
+        default=None, doc="Seed of the radar's own noise generator (setting it restarts "
+                          "the generator); None: NumPy's global state (seed it with "
+                          "np.random.seed), as in Stone Soup.")
+
+    @seed.setter
+    def seed(self, value: int | None) -> None:
+        self._property_seed = value
+        #: The radar's own generator (from ``seed``), or None: NumPy's global state.
+        self.rng = None if value is None else np.random.default_rng(value)
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         self._pending = False
         self.aim_target: Any = None
-        self.rng = np.random.default_rng(self.seed)
 
     @heading.getter
     def heading(self) -> float:
@@ -257,7 +301,9 @@ class SensorplanRadar(Sensor):
             self.timestamp = timestamp
             return
         action = self.scheduled_actions.pop("aim", None)
-        if action is not None:
+        if action is not None and action.hold:
+            self._resolve()          # the previous aim's turn, if never used, still happens
+        elif action is not None:
             self._resolve()          # the previous aim's turn, if never used, happens first
             self._property_aim = tuple(float(v) for v in action.target_value)
             self.aim_target = action.target
@@ -267,7 +313,12 @@ class SensorplanRadar(Sensor):
     @property
     def measurement_model(self) -> RadarMeasurementModel:
         """The measurement model at the radar's current pose."""
-        return RadarMeasurementModel(ndim_state=self.ndim_state,
+        return self.measurement_model_for(self.ndim_state)
+
+    def measurement_model_for(self, ndim_state: int) -> RadarMeasurementModel:
+        """The measurement model at the radar's current pose for states of ``ndim_state``
+        entries (the ground position at ``position_mapping``)."""
+        return RadarMeasurementModel(ndim_state=int(ndim_state),
                                      mapping=tuple(self.position_mapping),
                                      sensor_xy=tuple(self.ground_position),
                                      heading=self.heading, params=self.params)
@@ -284,17 +335,22 @@ class SensorplanRadar(Sensor):
         """Detections of the ground truths in the field of view (noise drawn in the
         iteration order of ``ground_truths``).
 
-        ``noise``: True draws from ``N(0, R)`` with ``R`` at the true state (SPEC 2) using
-        ``rng`` or the radar's own generator; False adds none; an array is added as is (see
+        ``noise``: True draws from ``N(0, R)`` with ``R`` at the true state, from
+        ``rng``, else the radar's own generator (``seed``), else NumPy's global state (see the
+        class docstring); False adds none; an array is added as is (see
         :meth:`RadarMeasurementModel.scaled_noise`). For reproducible noise pass a list (or a
         single truth, a dwell on one target) rather than a set.
         """
-        model = self.measurement_model
-        gen = rng if rng is not None else self.rng
+        models: dict[int, RadarMeasurementModel] = {}
+        gen = noise_source(rng, self.rng)
         detections: set[TrueDetection] = set()
         for truth in ground_truths:
             if not self.is_detectable(truth):
                 continue
+            n = int(np.shape(truth.state_vector)[0])
+            if n not in models:
+                models[n] = self.measurement_model_for(n)
+            model = models[n]
             if noise is True:
                 e = model.rvs(state=truth, random_state=gen)
             elif noise is False or noise is None:
@@ -308,16 +364,18 @@ class SensorplanRadar(Sensor):
 
 
 def set_aim_candidates(radars: Iterable[SensorplanRadar], tracks: Iterable[Track],
-                       dt: float) -> None:
+                       dt: float, position_mapping: Sequence[int] | None = None,
+                       velocity_mapping: Sequence[int] | None = None) -> None:
     """Offer every track as an aim to each radar, for Stone Soup's own sensor managers.
 
     The aim point is the track's mean predicted one step ``dt`` ahead (the point our
     planners aim at in the first step of an epoch, SPEC 4). The candidate's target is the
-    Track itself.
+    Track itself. The mappings locate the ground position and velocity in the tracks' states
+    (see :func:`ground_index`; 4-D and 6-D constant-velocity states need none).
     """
     tracks = ordered_tracks(tracks)
     F, _ = cv_matrices(dt, 0.0)
-    means, _ = from_tracks(tracks)
+    means, _ = from_tracks(tracks, position_mapping, velocity_mapping)
     aims = (means @ F.T)[:, :2]
     cands = tuple((t, (float(a[0]), float(a[1]))) for t, a in zip(tracks, aims))
     for rad in radars:

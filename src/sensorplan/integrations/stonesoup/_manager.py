@@ -22,12 +22,14 @@ from stonesoup.types.hypothesis import SingleHypothesis
 from stonesoup.types.track import Track
 from stonesoup.updater import Updater
 
+from ..._types import FloatArray
 from ...dynamics import cv_matrices
 from ...planners import PlanResult, make_planner
-from ...problem import PlanningProblem
+from ...problem import POSITION_TOL, PlanningProblem, move_vectors
 
 from ._actionables import LatticeMovable, SensorplanRadar
 from ._convert import from_tracks, ordered_tracks
+from ._world import MapRect, check_inside
 
 # --------------------------------------------------------------------------------------------
 # The sensor manager
@@ -48,18 +50,35 @@ class SensorplanManager(SensorManager):
       ahead, with ``target`` = that Track; the radar's heading rule then gives exactly the
       planner's heading.
 
+    With no track at all (a tracker before its first initiation) it returns the
+    stay-and-hold configuration: every platform stays, every radar keeps its aim and heading.
+
+    Tracks: Stone Soup's constant-velocity states ``[x, vx, y, vy]`` or
+    ``[x, vx, y, vy, z, vz]`` as they are; any other layout names its ground position and
+    velocity entries with ``position_mapping`` and ``velocity_mapping``. The planner sees the
+    ground marginal (those four entries of the mean, that block of the covariance,
+    symmetrised).
+
+    Map: the platforms' :class:`MapRect` in world coordinates, any origin. The planner works
+    in its own frame ``[0, width] x [0, height]`` (world minus the origin): ``last_problem``
+    and ``last_result`` are in that frame, :meth:`planned_positions` and the returned
+    actions in world coordinates.
+
     Supported actionables: Stone Soup platforms whose movement controller is a
     :class:`LatticeMovable`, each carrying exactly one :class:`SensorplanRadar` (a platform
     and its radar form one sensor of the plan; the radars are taken from the platforms).
-    Anything else raises ``TypeError``. All platforms must share one map. Track covariances
-    are symmetrised (``(P + P^T) / 2``) before planning.
+    Anything else raises ``TypeError``. All platforms must share one map.
 
     Order: the platforms in the order given when ``platforms`` is a list or tuple, otherwise
-    sorted by position; the tracks likewise (a set is sorted by ``track.id``, see
-    :func:`ordered_tracks`). The target index of the plan is the track's index in that order.
+    sorted by position; the tracks likewise (a set is sorted by content, see
+    :func:`ordered_tracks`). Sensor i of the plan (``sensors[i]`` in error messages) is the
+    i-th platform, target j the j-th track in that order.
+
+    Randomness: the planner draws from ``rng`` only (a ``numpy.random.Generator``, or a seed
+    for one, used for every call), never from NumPy's global state.
 
     After each call ``last_problem``, ``last_result`` (the :class:`PlanResult`) and
-    ``last_tracks`` hold what was planned.
+    ``last_tracks`` hold what was planned (None, None and ``[]`` after a hold).
     """
 
     planner: str = Property(default="pg", doc="Registered planner name (``make_planner``).")
@@ -74,16 +93,26 @@ class SensorplanManager(SensorManager):
     visibility: str = Property(default="probabilistic", doc="SPEC 4 visibility mode.")
     objective: str = Property(default="terminal", doc="SPEC 4 objective.")
     rng: Any = Property(default=0, doc="numpy Generator used for every planning call, or a "
-                                       "seed for one.")
+                                       "seed for one (a seed, to save the setup as YAML).")
+    position_mapping: Sequence[int] | None = Property(
+        default=None, doc="Indices of ground x and y in the tracks' states; None: (0, 2) for "
+                          "Stone Soup's 4-D and 6-D constant-velocity states.")
+    velocity_mapping: Sequence[int] | None = Property(
+        default=None, doc="Indices of ground vx and vy in the tracks' states; None: (1, 3) "
+                          "for Stone Soup's 4-D and 6-D constant-velocity states.")
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
+        # Stone Soup's YAML writes the derived set of sensors and reads it back as ruamel's
+        # CommentedSet, which lacks the set methods SensorManager uses.
+        self._property_sensors = set(self._property_sensors or ())
         self._planner = make_planner(self.planner, **dict(self.planner_params))
         self._rng = (self.rng if isinstance(self.rng, np.random.Generator)
                      else np.random.default_rng(self.rng))
         self.last_problem: PlanningProblem | None = None
         self.last_result: PlanResult | None = None
         self.last_tracks: list[Track] = []
+        self._last_start: FloatArray | None = None
 
     @property
     def actionables(self) -> list[Any]:
@@ -112,6 +141,10 @@ class SensorplanManager(SensorManager):
                 names = [type(s).__name__ for s in platform.sensors]
                 raise TypeError("each managed platform must carry exactly one SensorplanRadar "
                                 f"and no other sensor; got {names}")
+            # The plan moves the radar; the lattice moves the platform: they must coincide.
+            if np.abs(radars[0].ground_position - movable.ground_position).max() > POSITION_TOL:
+                raise ValueError("a managed SensorplanRadar must sit at its platform's ground "
+                                 "position (mounting_offset zero in x and y)")
             pairs.append((platform, radars[0]))
         mounted = {id(r) for _, r in pairs}
         loose = [s for s in self._property_sensors if id(s) not in mounted]
@@ -122,30 +155,44 @@ class SensorplanManager(SensorManager):
             raise TypeError("SensorplanManager needs at least one platform")
         return pairs
 
+    def world_of(self, pairs: Sequence[tuple[Platform, SensorplanRadar]]) -> MapRect:
+        """The platforms' common map; raises ``ValueError`` if they differ and a
+        :class:`~sensorplan.errors.ConfigError` naming ``sensors[i].position`` and the map's
+        bounds if a platform is outside it."""
+        world = pairs[0][0].movement_controller.world
+        for platform, _ in pairs[1:]:
+            if platform.movement_controller.world != world:
+                raise ValueError("all managed platforms must share one map (world); got "
+                                 f"{world} and {platform.movement_controller.world}")
+        for i, (platform, radar) in enumerate(pairs):
+            check_inside(f"sensors[{i}].position", radar.ground_position, world,
+                         platform.movement_controller.world_is_default)
+        return world
+
     def build_problem(self, tracks: Iterable[Track]) -> tuple[PlanningProblem, list[Track]]:
-        """The planning problem of the current tracks and platforms, and the track order."""
+        """The planning problem of the current tracks and platforms (in the planner's frame:
+        world coordinates minus the map's origin), and the track order."""
         ordered = ordered_tracks(tracks)
         if not ordered:
-            raise ValueError("choose_actions needs at least one track")
+            raise ValueError("a planning problem needs at least one track (choose_actions "
+                             "returns the stay-and-hold configuration instead)")
         times = {t.state.timestamp for t in ordered}
         if len(times) != 1:
             raise ValueError("all tracks must be at the same time (predict them first)")
-        means, covs = from_tracks(ordered)
+        means, covs = from_tracks(ordered, self.position_mapping, self.velocity_mapping)
         pairs = self.pairs()
-        worlds = {(p.movement_controller.world.width, p.movement_controller.world.height)
-                  for p, _ in pairs}
-        if len(worlds) != 1:
-            raise ValueError("all managed platforms must share one map (world)")
-        world = pairs[0][0].movement_controller.world
+        world = self.world_of(pairs)
+        start = np.stack([r.ground_position for _, r in pairs])
+        means[:, :2] -= world.origin          # exact for the default origin (0, 0)
         sensors = tuple(dataclasses.replace(
             r.params, moves=tuple(float(s) for s in p.movement_controller.move_distances))
             for p, r in pairs)
         problem = PlanningProblem(
             means=means, covs=0.5 * (covs + np.swapaxes(covs, -1, -2)),
-            positions=np.stack([r.ground_position for _, r in pairs]),
+            positions=start - world.origin,
             headings=np.array([r.heading for _, r in pairs]), sensors=sensors,
             horizon=int(self.horizon), steps_per_epoch=int(self.steps_per_epoch),
-            dt=float(self.dt), process_noise=float(self.process_noise), world=world,
+            dt=float(self.dt), process_noise=float(self.process_noise), world=world.core,
             visibility=self.visibility, objective=self.objective)
         return problem, ordered
 
@@ -157,20 +204,37 @@ class SensorplanManager(SensorManager):
         Parameters
         ----------
         tracks : iterable of Track
-            Every target's track, all at the same time ``t0``.
+            Every target's track, all at the same time ``t0``. None at all gives the
+            stay-and-hold configuration (every platform stays, every radar keeps its aim).
         timestamp : datetime
             End time of the actions (the next measurement time).
         """
         if nchoose != 1:
             raise ValueError("SensorplanManager returns one configuration (nchoose=1)")
-        problem, ordered = self.build_problem(tracks)
-        result = self._planner.plan(problem, rng=self._rng)
-        F, _ = cv_matrices(problem.dt, 0.0)
-        aims = (problem.means @ F.T)[:, :2]
+        ordered = ordered_tracks(tracks)
+        pairs = self.pairs()
         config: dict[Any, list[Action]] = {}
-        for i, (platform, radar) in enumerate(self.pairs()):
+        if not ordered:
+            self.world_of(pairs)
+            for platform, radar in pairs:
+                (move_gen,) = platform.actions(timestamp)
+                aim_gen = next(g for g in radar.actions(timestamp) if g.attribute == "aim")
+                config[platform] = [move_gen.default_action]
+                config[radar] = [aim_gen.default_action]
+            self.last_problem, self.last_result, self.last_tracks = None, None, []
+            self._last_start = None
+            return [config]
+        problem, ordered = self.build_problem(ordered)
+        start = np.stack([r.ground_position for _, r in pairs])     # world, as planned from
+        result = self._planner.plan(problem, rng=self._rng)
+        # Aim points from the world-frame means, as the planner aims in its frame.
+        F, _ = cv_matrices(problem.dt, 0.0)
+        means, _ = from_tracks(ordered, self.position_mapping, self.velocity_mapping)
+        aims = (means @ F.T)[:, :2]
+        origin = pairs[0][0].movement_controller.world.origin
+        for i, (platform, radar) in enumerate(pairs):
             (move_gen,) = platform.actions(timestamp)
-            move = move_gen.action_from_value(result.plan.positions[i, 0])
+            move = move_gen.action_from_value(result.plan.positions[i, 0] + origin)
             if move is None:   # pragma: no cover - a feasible plan is always one move away
                 raise RuntimeError(f"planned position of platform {i} is not one move away")
             aim_gen = next(g for g in radar.actions(timestamp) if g.attribute == "aim")
@@ -178,9 +242,33 @@ class SensorplanManager(SensorManager):
             config[platform] = [move]
             config[radar] = [aim_gen.action(aims[j], target=ordered[j])]
         self.last_problem, self.last_result, self.last_tracks = problem, result, ordered
+        self._last_start = start
         return [config]
 
+    def planned_positions(self) -> FloatArray:
+        """World ground positions ``(N, K, 2)`` (m) of the last plan, epoch by epoch.
 
+        Replayed from the platforms' world positions at planning time with the plan's moves,
+        each added as :class:`LatticeMovable` adds it: the positions the platforms reach when
+        they execute the plan, bit for bit, whatever the map's origin. NaN where a player is
+        unassigned.
+        """
+        if self.last_result is None or self._last_start is None:
+            raise ValueError("no plan yet (choose_actions has not planned)")
+        problem, plan = self.last_problem, self.last_result.plan
+        assert problem is not None
+        out = np.full(plan.positions.shape, np.nan)
+        for i, params in enumerate(problem.sensors):
+            moves = move_vectors(tuple(params.moves))
+            core, world = problem.positions[i], self._last_start[i]
+            for k in range(plan.positions.shape[1]):
+                step = plan.positions[i, k] - core
+                if not np.all(np.isfinite(step)):
+                    continue
+                m = int(np.argmin(np.abs(moves - step).max(axis=1)))
+                core, world = plan.positions[i, k], world + moves[m]
+                out[i, k] = world
+        return out
 def execute(config: Mapping[Any, Sequence[Action]], timestamp: datetime.datetime) -> None:
     """Give each actionable its actions and act (platforms first, then sensors), the usual
     Stone Soup loop step; any order gives the same result with :class:`SensorplanRadar`."""
@@ -249,7 +337,7 @@ class MutualInformationReward(RewardFunction):
             k = by_id.get(str(getattr(radar.aim_target, "id", None)))
             if k is None or not radar.is_detectable(prior[k]):
                 continue
-            model = radar.measurement_model
+            model = radar.measurement_model_for(np.shape(prior[k].state_vector)[0])
             z = Detection(model.function(post[k], noise=False), measurement_model=model,
                           timestamp=metric_time)
             post[k] = self.updater.update(SingleHypothesis(post[k], z))

@@ -20,6 +20,24 @@ from ...sensors import SensorParams, radar_table
 
 from ._convert import _ground_xy
 
+
+def noise_source(rng: Any, own: Any) -> Any:
+    """Where noise is drawn from: ``rng`` when given, else ``own`` (a generator from an
+    explicit seed), else NumPy's global state.
+
+    The global fallback is deliberate and confined to the Stone Soup bridge: Stone Soup's
+    models draw from ``np.random`` when no seed is given, and its users make runs repeatable
+    with ``np.random.seed``. Everywhere else sensorplan takes explicit generators.
+    """
+    if rng is not None:
+        return rng
+    if own is not None:
+        return own
+    # The module's functions draw from the global RandomState that np.random.seed seeds and
+    # Stone Soup's models use; it has the standard_normal a Generator has.
+    return np.random
+
+
 # --------------------------------------------------------------------------------------------
 # Measurement model
 # --------------------------------------------------------------------------------------------
@@ -44,6 +62,16 @@ class RadarMeasurementModel(MeasurementModel, GaussianModel, ReversibleModel):
     ``covar()``): the filter's ``R`` is therefore taken at its predicted state, as SPEC 2
     says.
 
+    The model works on any state layout whose ground x and y sit at ``mapping`` (4-D
+    ``[x, vx, y, vy]``, 6-D ``[x, vx, y, vy, z, vz]``, ...): :meth:`jacobian` has one column
+    per entry of the state it is given. A target's z does not enter (targets are on the
+    ground; the radar's altitude is ``params.altitude``).
+
+    Randomness (Stone Soup's convention): :meth:`rvs` draws from ``random_state`` when given,
+    else from the model's own generator when ``seed`` is set
+    (``numpy.random.default_rng(seed)``), else from NumPy's global state ``np.random``, so
+    ``np.random.seed(...)`` makes a run repeatable.
+
     The field of view is not part of a measurement model; :class:`SensorplanRadar` applies it.
     """
 
@@ -61,7 +89,9 @@ class RadarMeasurementModel(MeasurementModel, GaussianModel, ReversibleModel):
         super().__init__(*args, **kwargs)
         self.sensor_xy = tuple(float(v) for v in np.asarray(self.sensor_xy, float).ravel()[:2])
         self._linearised_at: FloatArray | None = None
-        self._rng = np.random.default_rng(self.seed)
+        # Stone Soup's convention: an explicit seed gives the model its own stream, no seed
+        # means NumPy's global state (see rvs).
+        self._rng = None if self.seed is None else np.random.default_rng(self.seed)
         self._table = radar_table(self.params)
 
     def _radar(self, xy: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, Any]:
@@ -84,7 +114,8 @@ class RadarMeasurementModel(MeasurementModel, GaussianModel, ReversibleModel):
         return np.array([[0.0], [Bearing(0.0)]]) + StateVectors(z) + noise
 
     def jacobian(self, state: Any, **kwargs: Any) -> FloatArray:
-        r"""Analytic Jacobian ``(2, ndim_state)`` at one state (SPEC 2), Stone Soup order.
+        r"""Analytic Jacobian ``(2, n)`` at one state of ``n`` entries, in Stone Soup's
+        order; zero outside the ground position columns ``mapping``.
 
         .. math:: \partial r/\partial x = dx/r,\ \partial r/\partial y = dy/r,\
                   \partial\phi/\partial x = -dy/g^2,\ \partial\phi/\partial y = dx/g^2
@@ -95,7 +126,8 @@ class RadarMeasurementModel(MeasurementModel, GaussianModel, ReversibleModel):
         if xy.shape[0] != 1:
             raise ValueError("jacobian takes one state")
         Hp = self._radar(xy)[1][0]                                              # (2, 2)
-        H = np.zeros((2, self.ndim_state))
+        sv = state.state_vector if hasattr(state, "state_vector") else state
+        H = np.zeros((2, np.shape(sv)[0]))
         H[:, self.mapping[0]] = Hp[:, 0]
         H[:, self.mapping[1]] = Hp[:, 1]
         self._linearised_at = xy[0].copy()
@@ -133,10 +165,11 @@ class RadarMeasurementModel(MeasurementModel, GaussianModel, ReversibleModel):
             **kwargs: Any) -> StateVector | StateVectors:
         """Draws from ``N(0, R)``; ``R`` at ``state`` (one column per state when several).
 
-        ``random_state`` may be a ``numpy.random.Generator`` (or ``RandomState``); by default
-        the model's own generator seeded with ``seed``.
+        ``random_state``: a ``numpy.random.Generator`` or ``RandomState``. Without it, the
+        model's own generator when ``seed`` is set, else NumPy's global state (Stone Soup's
+        convention: ``np.random.seed`` makes the draws repeatable).
         """
-        gen = random_state if random_state is not None else self._rng
+        gen = noise_source(random_state, self._rng)
         sd = self.noise_std(state)                                              # (n, 2)
         n = max(num_samples, sd.shape[0])
         draws = (np.broadcast_to(sd, (n, 2)) * gen.standard_normal((n, 2))).T
@@ -159,7 +192,7 @@ class RadarMeasurementModel(MeasurementModel, GaussianModel, ReversibleModel):
         state entries zero."""
         r, phi = np.asarray(detection.state_vector, dtype=float).reshape(2)
         g = math.sqrt(max(r * r - float(self.params.altitude) ** 2, 0.0))
-        out = np.zeros(self.ndim_state)
+        out = np.zeros(max(int(self.ndim_state), max(self.mapping[:2]) + 1))
         out[self.mapping[0]] = self.sensor_xy[0] + g * math.cos(phi)
         out[self.mapping[1]] = self.sensor_xy[1] + g * math.sin(phi)
         return StateVector(out)
