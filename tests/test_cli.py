@@ -417,8 +417,10 @@ def test_simulate_has_an_option_per_declared_setting_with_its_default() -> None:
             "steps", "miss_update"} <= {f.name for _, f, _ in declared}
     for path, f, s in declared:
         option = options[f.name]
-        assert tuple(option.opts + option.secondary_opts) == s.cli
-        assert option.metavar == s.metavar and option.default is None
+        names = tuple(n for spec in s.cli for n in spec.split("/"))   # "--a/--no-a" flags
+        assert tuple(option.opts + option.secondary_opts) == names
+        assert option.default is None
+        assert option.is_flag or option.metavar == s.metavar
         value: Any = defaults
         for part in path.split("."):
             value = getattr(value, part)

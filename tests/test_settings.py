@@ -4,6 +4,7 @@ the dictionaries of the resolved files, and adding a setting as one edit."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from typing import Any
 
@@ -27,7 +28,10 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
             assert "setting" in f.metadata or issubclass(tp, _Settings), f.name
     paths = [path for _, path, _, _ in DECLARED]
     assert paths == ["planner", "planner_params", "horizon", "steps_per_epoch", "execution",
-                     "visibility", "objective", "steps", "tracker.miss_update"]
+                     "visibility", "objective", "steps", "tracker.miss_update",
+                     "tracker.model", "tracker.process_noise", "tracker.mode_process_noise",
+                     "tracker.switching", "tracker.gate", "tracker.gate_probability",
+                     "tracker.reacquire", "tracker.known_map"]
 
 
 @pytest.mark.parametrize("cls,path,f,s", DECLARED, ids=[d[1] for d in DECLARED])
@@ -102,9 +106,15 @@ def test_values_are_normalised_and_round_trip_through_dicts() -> None:
                     tracker={"miss_update": "none"})
     assert type(s.horizon) is int and s.tracker == TrackerSettings(miss_update="none")
     d = s.to_dict()
+    tracker = d.pop("tracker")
     assert d == {"planner": "random", "planner_params": {"seed": 2}, "horizon": 3,
                  "steps_per_epoch": 1, "execution": "olf", "visibility": "probabilistic",
-                 "objective": "terminal", "steps": 100, "tracker": {"miss_update": "none"}}
+                 "objective": "terminal", "steps": 100}
+    assert tracker["miss_update"] == "none"
+    assert tracker == json.loads(json.dumps(
+        {f.name: getattr(TrackerSettings(), f.name)
+         for f in dataclasses.fields(TrackerSettings)} | {"miss_update": "none"}))
+    d["tracker"] = json.loads(json.dumps(tracker))          # lists, as a JSON file gives
     assert RunSettings.from_dict(d) == s
     with pytest.raises(ConfigError) as info:
         RunSettings.from_dict({**d, "horizn": 2})

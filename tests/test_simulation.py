@@ -23,9 +23,13 @@ from sensorplan.settings import TrackerSettings
 from sensorplan.simulation import Episode, RunSettings, run_episode, run_streams
 
 
+#: The plain tracker these tests were written for: one CV filter, no gate, no map.
+PLAIN = dict(model="cv", gate=False, reacquire=False, known_map=False)
+
+
 def settings(miss_update: str = "none", **kw) -> RunSettings:
     base = dict(planner="random", steps=30, steps_per_epoch=2, horizon=1,
-                tracker=TrackerSettings(miss_update=miss_update))
+                tracker=TrackerSettings(miss_update=miss_update, **PLAIN))
     base.update(kw)
     return RunSettings(**base)
 

@@ -15,6 +15,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pytest
+
+from sensorplan.settings import TrackerSettings
 from scipy import stats
 
 from sensorplan import study as studies
@@ -473,8 +475,10 @@ miss_update = "none"
     assert {m.settings.tracker.miss_update for m in study.methods if m.name != "paper/olf"} \
         == {"negative"}                                   # the setting's default
     resolved = study.resolved()["methods"]
-    assert [m["tracker"] for m in resolved] == [{"miss_update": "negative"}] * 2 + [
-        {"miss_update": "none"}, {"miss_update": "negative"}]
+    assert [m["tracker"]["miss_update"] for m in resolved] == ["negative"] * 2 + [
+        "none", "negative"]
+    # every tracker key is written out, with its default where the file gave none
+    assert resolved[0]["tracker"] == TrackerSettings().to_dict()
     assert all("steps" not in m for m in resolved)         # study-wide, at the top level
 
 

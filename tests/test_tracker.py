@@ -255,8 +255,71 @@ def test_the_paper_configuration_reproduces_the_tracks_bit_for_bit(seed):
 
     golden = np.load(Path(__file__).parent / "data" / "paper_rows_golden.npz")
     s = RunSettings(planner="pg", horizon=3, steps_per_epoch=2, execution="olf", steps=40,
-                    visibility="mean", tracker=TrackerSettings(miss_update="none"))
+                    visibility="mean",
+                    tracker=TrackerSettings(miss_update="none", model="cv", gate=False,
+                                            reacquire=False, known_map=False))
     ep = run_episode(paper_scenario(), s, seed)
     np.testing.assert_array_equal(ep.estimate, golden[f"estimate_{seed}"])
     np.testing.assert_array_equal(ep.cov, golden[f"cov_{seed}"])
     np.testing.assert_array_equal(ep.looked, golden[f"looked_{seed}"])
+
+
+# ------------------------------------------------------------------------------ bad settings
+
+
+@pytest.mark.parametrize("table,field", [
+    ("process_noise = -0.1", "tracker.process_noise"),
+    ("gate_probability = 1.0", "tracker.gate_probability"),
+    ("gate_probability = 0.0", "tracker.gate_probability"),
+    ("switching = [[0.9, 0.2], [0.1, 0.9]]", "tracker.switching"),
+    ("switching = [[0.9, 0.1]]", "tracker.switching"),
+    ("mode_process_noise = [0.05, -1.0]", "tracker.mode_process_noise"),
+    ("model = \"kalman\"", "tracker.model"),
+    ("gate = false", "tracker.reacquire"),
+])
+def test_bad_tracker_settings_exit_2_naming_the_field(table, field, tmp_path, capsys):
+    from cli_helpers import assert_bad_input, run
+
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(f"[tracker]\n{table}\n[[targets]]\n[[sensors]]\n")
+    line = assert_bad_input(run(capsys, "simulate", scenario, "--steps", "2", "--out",
+                                tmp_path / "out"), field)
+    if "switching = [[0.9, 0.2]" in table:
+        assert "row 0 must sum to 1" in line
+
+
+# ------------------------------------------------------------------------------ NEES statistics
+
+
+def test_nees_band_covers_a_consistent_filter_in_95_percent_of_seeds():
+    """A linear Gaussian Kalman filter with the true model: the average NEES over 100
+    independent runs at one step lies in its 95 % chi-square band for about 95 % of seeds
+    (at least 90 of 100 here), and an overconfident filter's does not."""
+    from sensorplan.ekf import joseph_update, nees, predict
+    from sensorplan.study.metrics import nees_band
+
+    runs, seeds, steps = 100, 100, 25
+    F, Q = cv_matrices(1.0, 0.3)
+    H = np.zeros((2, 4))
+    H[0, 0] = H[1, 1] = 1.0
+    R = np.diag([25.0, 16.0])
+    rng = np.random.default_rng(2024)
+    B = runs * seeds
+    x = rng.multivariate_normal(np.zeros(4), P0, size=B)            # truth
+    m = np.zeros((B, 4))                                            # estimate
+    P = np.broadcast_to(P0, (B, 4, 4)).copy()
+    LQ, LR = np.linalg.cholesky(Q), np.linalg.cholesky(R)
+    Hb, Rb = np.broadcast_to(H, (B, 2, 4)), np.broadcast_to(R, (B, 2, 2))
+    for _ in range(steps):
+        x = x @ F.T + rng.standard_normal((B, 4)) @ LQ.T
+        m, P = predict(m, P, F, Q)
+        z = x[:, :2] + rng.standard_normal((B, 2)) @ LR.T
+        m, P = joseph_update(m, P, z - m[:, :2], Hb, Rb)
+    per_seed = nees(x, m, P).reshape(seeds, runs).mean(axis=1)
+    lo, hi = nees_band(runs)
+    assert lo < 4.0 < hi
+    inside = np.count_nonzero((per_seed >= lo) & (per_seed <= hi))
+    assert inside >= 90, inside
+    # The same errors judged by a filter that is twice too confident fall outside.
+    over = nees(x, m, P / 2.0).reshape(seeds, runs).mean(axis=1)
+    assert np.count_nonzero((over >= lo) & (over <= hi)) <= 10

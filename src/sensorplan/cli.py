@@ -206,7 +206,7 @@ def _print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    from .study.metrics import LOST_THRESHOLD, episode_errors
+    from .study.metrics import LOST_THRESHOLD, NEES_HIGH, episode_consistency, episode_errors
 
     console = Console()
     s = cfg.settings
@@ -220,8 +220,10 @@ def _print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
     measured = np.asarray(episode.measured)[1:]                # (S, M, N)
     tracks = Table(title="Position error over steps 1..S (m)",
                    caption=f"lost: share of steps with error > {LOST_THRESHOLD:g} m; measured: "
-                           "steps with at least one measurement")
-    for name in ("target", "kind", "RMSE", "mean", "final", "lost", "measured"):
+                           "steps with at least one measurement; ANEES: average NEES (4 for "
+                           "an honest filter); restarts: tracks restarted from a detection")
+    for name in ("target", "kind", "RMSE", "mean", "final", "lost", "measured", "ANEES",
+                 "restarts"):
         tracks.add_column(name, justify="left" if name in ("target", "kind") else "right")
     rows = episode_errors(episode)
     for i, row in enumerate(rows):
@@ -229,8 +231,15 @@ def _print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
             tracks.add_section()                   # per-target rows, then the groups
         tracks.add_row(row.target, row.kind, f"{row.rmse:.1f}", f"{row.mean:.1f}",
                        f"{row.final:.1f}", f"{row.lost_share:.0%}", str(row.measured),
+                       f"{row.anees:.2f}", str(row.restarts),
                        style="bold" if row.target == "all" else None)
     console.print(tracks)
+    c = episode_consistency(episode)
+    console.print(f"track consistency: ANEES {c['anees']:.2f} (95 % band of an honest filter "
+                  f"[{c['band_lo']:.2f}, {c['band_hi']:.2f}]), NEES > {NEES_HIGH:.2f} on "
+                  f"{100 * c['high_share']:.1f} % of target-steps (1 % when honest), "
+                  f"{c['restarts']} restarts, {c['map_corrections']} map corrections",
+                  highlight=False)
 
     looked = np.asarray(episode.looked)[1:]                    # (S, N)
     missed = np.asarray(episode.missed)[1:]                    # (S, N)

@@ -38,6 +38,7 @@ from .problem import OBJECTIVES, VISIBILITY_MODES
 
 EXECUTIONS = ("ol", "olf")
 MISS_UPDATES = ("negative", "none")
+TRACKER_MODELS = ("cv", "imm")
 #: Tables of a scenario file that hold run settings, in file order.
 SECTIONS = ("planning", "tracker", "run")
 
@@ -144,6 +145,9 @@ class _Settings:
 
 
 def _plain(v: Any) -> Any:
+    """A JSON-ready value: numpy scalars as Python numbers, tuples as lists."""
+    if isinstance(v, tuple):
+        return [_plain(x) for x in v]
     return v.item() if isinstance(v, np.generic) else v
 
 
@@ -154,9 +158,14 @@ def _hints(cls: type) -> dict[str, Any]:
 
 def field_type(cls: type, name: str) -> Any:
     """The declared type of a settings field (``int``, ``float``, ``str``, ``bool``,
-    ``Mapping`` for tables, or a nested settings class)."""
+    ``Mapping`` for tables, ``tuple`` for lists, or a nested settings class)."""
     tp = _hints(cls)[name]
     return typing.get_origin(tp) or tp
+
+
+def field_hint(cls: type, name: str) -> Any:
+    """The full type hint of a settings field (``tuple[float, ...]`` for a list)."""
+    return _hints(cls)[name]
 
 
 def is_group(tp: Any) -> bool:
@@ -209,6 +218,11 @@ def _coerce(tp: Any, v: Any) -> Any:
         if not isinstance(v, Mapping):
             raise ValueError(f"must be a table, got {got}")
         return dict(v)
+    if typing.get_origin(tp) is tuple:
+        if not isinstance(v, (list, tuple)):
+            raise ValueError(f"must be a list, got {got}")
+        inner = typing.get_args(tp)[0]
+        return tuple(_coerce(inner, x) for x in v)
     raise TypeError(f"settings fields of type {tp!r} are not supported")  # pragma: no cover
 
 
@@ -241,7 +255,7 @@ def check_fields(obj: Any) -> None:
         if s is None:
             continue
         try:
-            v = _coerce(tp, v)
+            v = _coerce(field_hint(cls, f.name) if tp is tuple else tp, v)
             s.validate(v)
         except ValueError as exc:
             raise ConfigError(f.name, str(exc)) from None
@@ -251,15 +265,89 @@ def check_fields(obj: Any) -> None:
 # ------------------------------------------------------------------------ the settings
 
 
+def _switching_matrix(value: tuple[tuple[float, ...], ...]) -> None:
+    """A Markov switching matrix: square, entries in [0, 1], every row summing to 1."""
+    R = len(value)
+    if R < 1 or any(len(row) != R for row in value):
+        raise ValueError(f"must be a square matrix (one row per mode), got {R} row(s) of "
+                         f"lengths {[len(row) for row in value]}")
+    for i, row in enumerate(value):
+        if any(not 0.0 <= p <= 1.0 for p in row):
+            raise ValueError(f"row {i}: probabilities must be in [0, 1], got {list(row)}")
+        if abs(sum(row) - 1.0) > 1e-9:
+            raise ValueError(f"row {i} must sum to 1, got {sum(row)!r}")
+
+
+def _mode_noises(value: tuple[float, ...]) -> None:
+    if len(value) < 2:
+        raise ValueError(f"must list at least two modes, got {len(value)}")
+    if any(q < 0 for q in value):
+        raise ValueError(f"every mode's q must be >= 0, got {list(value)}")
+
+
 @dataclass(frozen=True)
 class TrackerSettings(_Settings):
-    """How the run's trackers filter the measurements (the ``[tracker]`` table)."""
+    """How the run's trackers filter the measurements (the ``[tracker]`` table).
+
+    The defaults were chosen by a measured sweep on the paper scenario (docs/results.md,
+    "Choosing the tracker"); ``studies/paper.toml``'s paper rows turn every option off.
+    """
 
     miss_update: str = setting(
         "negative", section="tracker", cli=("--miss-update",), metavar="MODE",
         label="miss update", choices=MISS_UPDATES, noun="miss update",
         help="Tracker's reaction to a look that misses its target: negative (update with the "
              "negative information) or none (the paper's).")
+    model: str = setting(
+        "imm", section="tracker", cli=("--tracker-model",), metavar="MODEL",
+        label="model", choices=TRACKER_MODELS, noun="tracker model",
+        help="The filter's motion model: cv (one constant-velocity model with q = "
+             "process_noise) or imm (interacting multiple models: CWNA modes with the q's of "
+             "mode_process_noise and Markov switching).")
+    process_noise: float = setting(
+        0.05, section="tracker", cli=("--tracker-q",), metavar="Q", label="q", ge=0.0,
+        help="q (m^2/s^3) of the cv filter; the truth's q is the scenario's process_noise.")
+    mode_process_noise: tuple[float, ...] = setting(
+        (0.05, 2.0), section="tracker", label="IMM q's", check=_mode_noises,
+        help="q (m^2/s^3) of each IMM mode, quiet first.")
+    switching: tuple[tuple[float, ...], ...] = setting(
+        ((0.95, 0.05), (0.1, 0.9)), section="tracker", label="IMM switching",
+        check=_switching_matrix,
+        help="IMM switching matrix: row i gives the probabilities of moving from mode i to "
+             "each mode in one step (rows sum to 1).")
+    gate: bool = setting(
+        True, section="tracker", cli=("--gate/--no-gate",), label="gate",
+        help="Use a detection only inside the validation gate of its track.")
+    gate_probability: float = setting(
+        0.999, section="tracker", cli=("--gate-probability",), metavar="P",
+        label="gate probability", gt=0.0, lt=1.0,
+        help="Probability that a track's own detection falls inside its gate (the gate is "
+             "the chi-square(2) quantile of it).")
+    reacquire: bool = setting(
+        True, section="tracker", cli=("--reacquire/--no-reacquire",), label="re-acquire",
+        help="Restart a track from a detection of its target outside the gate (needs the "
+             "gate; off when false alarms are on).")
+    known_map: bool = setting(
+        True, section="tracker", cli=("--known-map/--no-known-map",), label="known map",
+        help="Truncate a track that leaves the map to the map (targets never leave it).")
+
+    def __post_init__(self) -> None:
+        check_fields(self)
+        if len(self.switching) != len(self.mode_process_noise):
+            raise ConfigError("switching", f"must have one row per mode "
+                              f"({len(self.mode_process_noise)}), got {len(self.switching)}")
+        if self.reacquire and not self.gate:
+            raise ConfigError("reacquire", "needs gate = true (a detection outside the gate "
+                              "triggers it)")
+
+    def tracker_options(self) -> dict[str, Any]:
+        """Keyword arguments of :class:`sensorplan.tracker.Tracker` for these settings."""
+        imm = self.model == "imm"
+        return dict(process_noise=self.process_noise,
+                    mode_process_noise=self.mode_process_noise if imm else None,
+                    switching=np.array(self.switching) if imm else None,
+                    gate_probability=self.gate_probability if self.gate else None,
+                    reacquire=self.reacquire)
 
 
 @dataclass(frozen=True)

@@ -254,8 +254,12 @@ def run_episode(scenario: Scenario, settings: RunSettings,
 
     init = draw_initial(scenario, truth_rng, init_rng)
     truth_model = make_truth(scenario, init.truth, truth_rng)
-    tracker = Tracker(init.estimate, np.array(scenario.initial_cov), scenario.dt, table,
-                      process_noise=scenario.process_noise)
+    P0 = np.array(scenario.initial_cov)
+    tracker = Tracker(init.estimate, P0, scenario.dt, table,
+                      world=(scenario.world.width, scenario.world.height)
+                      if settings.tracker.known_map else None,
+                      restart_velocity_var=(P0[2, 2], P0[3, 3]),
+                      **settings.tracker.tracker_options())
     # All noise up front: each sensor's stream yields 2 normals per step in order, so this
     # equals drawing them step by step, and a sensor draws whether it measures or not.
     noise = np.stack([np.random.default_rng(c).standard_normal((S, 2))

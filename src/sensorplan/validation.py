@@ -26,7 +26,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationErr
 from .errors import ConfigError
 from .problem import MapRect
 from .sensors import SensorParams
-from .settings import Setting, declared, field_type, is_group
+from .settings import Setting, declared, field_hint, field_type, is_group
 
 # --------------------------------------------------------------------------- field types
 
@@ -127,9 +127,17 @@ def setting_annotation(cls: type, f: dataclasses.Field[Any], s: Setting) -> Any:
     tp = field_type(cls, f.name)
     if tp is Mapping or tp is dict:
         return PlannerParamsModel
+    if tp is tuple:
+        return Annotated[_file_list(field_hint(cls, f.name)), _rule(s)]
     if tp not in (int, float, str, bool):  # pragma: no cover - caught by the settings tests
         raise TypeError(f"no file type for setting {f.name} of type {tp!r}")
     return Annotated[tp, _rule(s)]
+
+
+def _file_list(hint: Any) -> Any:
+    """A list type of a file for a ``tuple[X, ...]`` setting (nested for a matrix)."""
+    inner = typing.get_args(hint)[0]
+    return list[_file_list(inner)] if typing.get_origin(inner) is tuple else list[inner]
 
 
 def setting_type(cls: type, name: str) -> Any:

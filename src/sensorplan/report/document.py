@@ -17,9 +17,9 @@ from pathlib import Path
 from typing import Any
 
 from ..settings import all_settings
-from ..study.metrics import (LOST_THRESHOLD, kinds_with_all, paired_differences,
-                             planning_summary, references, rmse_over_time, run_metrics,
-                             sensing_summary, summary)
+from ..study.metrics import (DIVERGED_THRESHOLD, LOST_THRESHOLD, consistency, kinds_with_all,
+                             nees_over_time, paired_differences, planning_summary, references,
+                             rmse_over_time, run_metrics, sensing_summary, summary)
 from ..study.model import Method
 from ..study.storage import StudyTables, load_study_dir
 from .figures import FIGURES, draw_figures
@@ -52,6 +52,10 @@ def _setting_text(m: Method, path: str) -> str:
     value: Any = m.settings
     for part in path.split("."):
         value = getattr(value, part)
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    if isinstance(value, tuple):
+        return str(list(value)).replace("[", "(").replace("]", ")")
     return str(value)
 
 
@@ -192,10 +196,11 @@ def write_report(study_dir: str | Path, out: str | Path | None = None) -> Report
     diffs = paired_differences(metrics, t.study)
     plan = planning_summary(t)
     sensing = sensing_summary(t)
+    honest = consistency(t)
     figs = draw_figures(t, out, {"rmse": rmse, "lost": lost, "diffs": diffs, "plan": plan,
-                                 "curves": rmse_over_time(t)})
+                                 "curves": rmse_over_time(t), "nees": nees_over_time(t)})
 
-    doc = _document(t, rmse, lost, diffs, plan, sensing, figs)
+    doc = _document(t, rmse, lost, diffs, plan, sensing, figs, honest)
     title = f"sensorplan study report: {study_dir.name}"
     md = out / "summary.md"
     page = out / "report.html"
@@ -205,7 +210,7 @@ def write_report(study_dir: str | Path, out: str | Path | None = None) -> Report
 
 
 def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensing: Any,
-              figs: dict[str, Path]) -> _Doc:
+              figs: dict[str, Path], honest: Any) -> _Doc:
     study, meta = t.study, t.meta
     doc = _Doc()
     doc.h(1, "Study report" + (f": {study.description}" if study.description else ""))
@@ -231,13 +236,20 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
 
     doc.h(2, "Methods")
     refs = references(study)
-    # One column per method setting (planner settings aside), from their declarations.
+    # One column per method setting that differs between methods (planner settings aside),
+    # from their declarations; the settings every method shares are listed once below.
     columns = [(path, s.label or f.name) for _, path, f, s in all_settings()
                if s.section != "run" and f.name != "planner_params"]
-    doc.table(["method", *(label for _, label in columns), "vs myopic", "vs random"],
-              [[m.name, *(_setting_text(m, path) for path, _ in columns),
+    text = {path: [_setting_text(m, path) for m in study.methods] for path, _ in columns}
+    varying = [(p, label) for p, label in columns if len(set(text[p])) > 1 or p == "planner"]
+    shared = [(p, label) for p, label in columns if (p, label) not in varying]
+    doc.table(["method", *(label for _, label in varying), "vs myopic", "vs random"],
+              [[m.name, *(text[p][n] for p, _ in varying),
                 refs[m.name]["myopic"] or "–", refs[m.name]["random"] or "–"]
-               for m in study.methods])
+               for n, m in enumerate(study.methods)])
+    if shared:
+        doc.p("Every method: " + "; ".join(f"{label} {text[p][0]}" for p, label in shared)
+              + ".")
     doc.p("Every method runs on the same paired runs: identical true trajectories, initial "
           "estimates, sensor starts and measurement noise streams (common random numbers).")
 
@@ -264,6 +276,26 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
     doc.figure("rmse_time", figs["rmse_time"])
     doc.figure("rmse_overall", figs["rmse_overall"])
     doc.figure("lost_share", figs["lost_share"])
+
+    doc.h(2, "Track consistency")
+    doc.p("Is each filter honest about its own error? NEES = e^T P^-1 e of the full state "
+          "(position and velocity) is chi-square with 4 degrees of freedom for a consistent "
+          "filter: its average (ANEES) is 4, inside the 95 % chi-square band for the number "
+          f"of samples, and {100 * (1 - 0.99):.0f} % of target-steps exceed 13.28 (the 99 % "
+          "point). Restarts: tracks restarted from a detection outside their gate; map "
+          "corrections: tracks truncated to the known map (both per run). Diverged runs: "
+          f"largest position error above {DIVERGED_THRESHOLD:g} m.")
+    for kind in kinds_with_all(study):
+        h = honest[honest["kind"] == kind]
+        rows = [[str(r.method), f"{r.anees:.2f} [{r.band_lo:.2f}, {r.band_hi:.2f}]",
+                 f"{r.median_nees:.2f}", f"{100 * r.high_share:.1f} %", f"{r.restarts:.2f}",
+                 f"{r.map_corrections:.1f}", f"{r.diverged} of {r.runs}"]
+                for r in h.itertuples()]
+        label = f"{kind} targets" if kind != "all" else "all targets"
+        doc.table(["method", "ANEES [95 % band]", "median NEES", "NEES > 13.28",
+                   "restarts per run", "map corrections per run", "diverged runs"], rows,
+                  caption=label)
+    doc.figure("nees_time", figs["nees_time"])
 
     doc.h(2, "Paired differences")
     doc.p("Per run: RMSE of the method minus RMSE of the reference on the same run. Mean "

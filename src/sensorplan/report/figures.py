@@ -31,6 +31,10 @@ FIGURES = {
                  "interval across runs.",
     "rmse_overall": "Overall position RMSE per run, summarized across runs: mean with its "
                     "95 % t-interval and median with its 95 % order-statistic interval.",
+    "nees_time": "Average NEES over time for each target kind (runs x targets at each step), "
+                 "one line per method, on a log scale; the grey band is the 95 % chi-square "
+                 "band of a consistent filter for that many samples, the dashed line its "
+                 "expected value 4.",
     "lost_share": f"Share of lost target-steps (position error > {LOST_THRESHOLD:g} m), mean "
                   "across runs with its 95 % t-interval.",
     "paired_differences": "Paired RMSE differences (method minus reference, run by run) "
@@ -64,6 +68,7 @@ def draw_figures(t: StudyTables, out: Path, stats: dict[str, Any]) -> dict[str, 
         "rmse_time": _fig_rmse_time(stats["curves"], t, colors, out / "rmse_time.png"),
         "rmse_overall": _fig_rmse_overall(stats["rmse"], t, out / "rmse_overall.png"),
         "lost_share": _fig_lost(stats["lost"], t, out / "lost_share.png"),
+        "nees_time": _fig_nees_time(stats["nees"], t, colors, out / "nees_time.png"),
         "paired_differences": _fig_paired(stats["diffs"], t, out / "paired_differences.png"),
         "planning_time": _fig_planning(t, colors, out / "planning_time.png"),
         "convergence": _fig_convergence(stats["plan"], t, out / "convergence.png"),
@@ -192,6 +197,35 @@ def _fig_rmse_time(curves: Any, t: StudyTables, colors: dict[str, Any],
     fig.legend(handles, labels, loc="outside lower center", ncol=min(5, len(labels)),
                fontsize=9, frameon=False)
     fig.suptitle("Position RMSE over time (band: 95 % interval across runs)")
+    return _save(fig, path)
+
+
+def _fig_nees_time(curves: Any, t: StudyTables, colors: dict[str, Any], path: Path) -> Path:
+    kinds = list(dict.fromkeys(t.study.scenario.target_kinds))
+    dt = t.study.scenario.dt
+    styles = _method_styles(t.study)
+    fig = _new_figure(6.0 * len(kinds) + 0.5, 5.0)
+    axes = fig.subplots(1, len(kinds), sharey=True, squeeze=False)[0]
+    for ax, kind in zip(axes, kinds):
+        ck = curves[(curves["kind"] == kind) & (curves["step"] >= 1)]
+        band = ck.groupby("step")[["band_lo", "band_hi"]].first()
+        time_s = band.index.to_numpy() * dt
+        ax.fill_between(time_s, band["band_lo"], band["band_hi"], color="0.8", linewidth=0,
+                        label="95 % band (consistent)")
+        ax.axhline(4.0, color="0.35", linestyle="--", linewidth=0.8)
+        for name in t.study.method_names:
+            c = ck[ck["method"] == name]
+            ax.plot(c["step"].to_numpy() * dt, c["anees"], color=colors[name],
+                    linestyle=styles[name], linewidth=1.2, label=name)
+        ax.set_yscale("log")
+        ax.set_title(f"{kind} targets")
+        ax.set_xlabel("time (s)")
+        ax.grid(True, which="both", linewidth=0.3, alpha=0.5)
+    axes[0].set_ylabel("average NEES")
+    handles, labels = axes[0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=min(5, len(labels)),
+               fontsize=9, frameon=False)
+    fig.suptitle("Track consistency over time: average NEES (4 for an honest filter)")
     return _save(fig, path)
 
 

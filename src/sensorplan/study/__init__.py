@@ -1,4 +1,4 @@
-"""Monte Carlo studies (SPEC 5, 6): paired runs, resumable execution, tidy tables, statistics.
+"""Monte Carlo studies: paired runs, resumable execution, tidy tables, statistics.
 
 A :class:`Study` runs every :class:`Method` on the same ``runs`` paired runs (common random
 numbers); :func:`run_study` executes the missing (run, method) pairs and writes a study
@@ -9,7 +9,8 @@ directory that :func:`load_study_dir` reads back. The package's modules:
 - :mod:`.execution`: one (run, method) as a task, the executors, :func:`run_study`;
 - :mod:`.storage`: the study directory (atomic parts, lock, metadata, reading back);
 - :mod:`.tables`: the tidy tables of an episode;
-- :mod:`.metrics`: RMSE, lost tracks, intervals, paired differences, summaries;
+- :mod:`.metrics`: RMSE, lost tracks, track consistency (NEES), intervals, paired
+  differences, summaries;
 - :mod:`.demo`: the built-in demo study.
 """
 
@@ -17,14 +18,18 @@ from .demo import DEMO_STUDY, demo_study
 from .execution import StudyInterrupted, StudyRun, TaskResult, default_workers, run_study, \
     run_task
 from .file import load_study, parse_study, study_from_dict
-from .metrics import (LEVEL, LOST_THRESHOLD, episode_errors, horizon_groups, kinds_with_all,
-                      median_interval, paired_differences, planning_summary, references,
-                      rmse_over_time, run_metrics, sensing_summary, summary, t_interval)
+from .metrics import (DIVERGED_THRESHOLD, LEVEL, LOST_THRESHOLD, NEES_HIGH, consistency,
+                      episode_consistency, episode_errors, horizon_groups, kinds_with_all,
+                      median_interval, nees_band, nees_over_time, paired_differences,
+                      planning_summary, references, rmse_over_time, run_metrics,
+                      sensing_summary, summary, t_interval)
 from .model import FORMAT, Method, Study
 from .storage import StudyTables, consolidate, done_tasks, load_study_dir, part_path
 from .tables import TABLE_DOC, TABLES, episode_tables
 
-__all__ = ["DEMO_STUDY", "FORMAT", "LEVEL", "LOST_THRESHOLD", "Method", "Study",
+__all__ = ["DEMO_STUDY", "DIVERGED_THRESHOLD", "FORMAT", "LEVEL", "LOST_THRESHOLD",
+           "NEES_HIGH", "Method", "Study", "consistency", "episode_consistency", "nees_band",
+           "nees_over_time",
            "StudyInterrupted", "StudyRun", "StudyTables", "TABLES", "TABLE_DOC", "TaskResult",
            "consolidate", "default_workers", "demo_study", "done_tasks", "episode_errors",
            "episode_tables", "horizon_groups", "kinds_with_all", "load_study",

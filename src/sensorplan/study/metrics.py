@@ -26,10 +26,31 @@ if TYPE_CHECKING:  # pragma: no cover
     from ..simulation import Episode
     from .storage import StudyTables
 
-#: Position error above which a target-step counts as lost (m), SPEC 6.
+#: Position error above which a target-step counts as lost (m).
 LOST_THRESHOLD = 50.0
+#: A run whose largest position error exceeds this (m) has diverged.
+DIVERGED_THRESHOLD = 300.0
+#: State dimension of the NEES (x, y, vx, vy): a consistent filter's NEES is chi-square(4).
+NEES_DOF = 4
+#: NEES above the 99 % point of chi-square(4) (13.28) is counted as inconsistent.
+NEES_HIGH = 13.276704135987622
 #: Confidence level of every interval.
 LEVEL = 0.95
+
+
+def nees_band(n: Any, level: float = LEVEL, dof: int = NEES_DOF) -> tuple[Any, Any]:
+    """Two-sided chi-square band of the average of ``n`` NEES values of a consistent filter.
+
+    The sum of n independent chi-square(dof) values is chi-square(n dof), so the average lies
+    in ``[chi2.ppf(a, n dof) / n, chi2.ppf(1 - a, n dof) / n]``, ``a = (1 - level) / 2``,
+    with probability ``level``.
+    """
+    from scipy import stats
+
+    n = np.asarray(n, dtype=float)
+    a = (1.0 - level) / 2.0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (stats.chi2.ppf(a, n * dof) / n, stats.chi2.ppf(1.0 - a, n * dof) / n)
 
 
 def lost(error: Any) -> Any:
@@ -43,7 +64,8 @@ class ErrorRow:
 
     ``target`` is the index, or ``"all"`` for every target of ``kind`` (``"all"`` kinds:
     every target); ``lost_share`` is the share of target-steps lost; ``measured`` counts
-    the target-steps with at least one measurement.
+    the target-steps with at least one measurement; ``anees`` is the average NEES (4 for an
+    honest filter) and ``restarts`` counts the track restarts.
     """
 
     target: str
@@ -53,24 +75,40 @@ class ErrorRow:
     final: float
     lost_share: float
     measured: int
+    anees: float = math.nan
+    restarts: int = 0
 
 
 def episode_errors(episode: "Episode") -> list[ErrorRow]:
     """Per target, then per target kind (and all targets when there are several kinds)."""
     err = np.asarray(episode.error)[1:]                                # (S, M)
     measured = np.asarray(episode.measured)[1:].any(axis=2)            # (S, M)
+    nees = np.asarray(episode.nees)[1:]
+    restarted = np.asarray(episode.restarted)[1:]
     kinds = list(episode.target_kinds)
 
     def row(target: str, kind: str, idx: list[int]) -> ErrorRow:
         e = err[:, idx]
         return ErrorRow(target, kind, float(np.sqrt(np.mean(e ** 2))), float(e.mean()),
                         float(e[-1].mean()), float(lost(e).mean()),
-                        int(measured[:, idx].sum()))
+                        int(measured[:, idx].sum()), float(nees[:, idx].mean()),
+                        int(restarted[:, idx].sum()))
 
     rows = [row(str(j), kind, [j]) for j, kind in enumerate(kinds)]
     for kind in _with_all(kinds):
         rows.append(row("all", kind, [j for j, k in enumerate(kinds) if kind in (k, "all")]))
     return rows
+
+
+def episode_consistency(episode: "Episode") -> dict[str, float]:
+    """ANEES over steps 1..S and targets, its band, the share above :data:`NEES_HIGH`, and
+    the track restarts and map corrections of one episode."""
+    nees = np.asarray(episode.nees)[1:]
+    lo, hi = nees_band(nees.size)
+    return dict(anees=float(nees.mean()), band_lo=float(lo), band_hi=float(hi),
+                high_share=float((nees > NEES_HIGH).mean()),
+                restarts=int(np.asarray(episode.restarted).sum()),
+                map_corrections=int(np.asarray(episode.map_corrected).sum()))
 
 
 def t_interval(values: Any, level: float = LEVEL, axis: int = 0
@@ -158,6 +196,58 @@ def run_metrics(tables: StudyTables) -> Any:
         tables.study), ordered=True)
     out["rmse"] = np.sqrt(out.pop("mse"))
     return out.sort_values(["method", "kind", "run"]).reset_index(drop=True)
+
+
+def consistency(tables: StudyTables) -> Any:
+    """Per (method, kind): how honest the tracks are, over steps 1..S of every run.
+
+    Columns: method, kind, n (target-steps), anees (average NEES), band_lo, band_hi (its
+    95 % chi-square band for n samples of a consistent filter), high_share (share of
+    target-steps with NEES above the 99 % point of chi-square(4), 13.28; a consistent filter
+    has 1 %), median_nees, restarts and map_corrections (per run, mean), runs, diverged
+    (runs whose largest position error exceeds :data:`DIVERGED_THRESHOLD`).
+    """
+    import pandas as pd
+
+    d = tables.steps[tables.steps["step"] >= 1]
+    rows = []
+    for kind in kinds_with_all(tables.study):
+        dk = d if kind == "all" else d[d["kind"] == kind]
+        for method, g in dk.groupby("method", observed=True, sort=True):
+            nees = g["nees"].to_numpy(float)
+            lo, hi = nees_band(nees.size)
+            per_run = g.groupby("run")
+            runs = per_run.ngroups
+            restarts = g["restarted"].to_numpy() if "restarted" in g else np.zeros(len(g))
+            mapc = g["map_corrected"].to_numpy() if "map_corrected" in g else np.zeros(len(g))
+            rows.append(dict(
+                method=method, kind=kind, n=nees.size, anees=float(nees.mean()),
+                band_lo=float(lo), band_hi=float(hi),
+                high_share=float((nees > NEES_HIGH).mean()),
+                median_nees=float(np.median(nees)),
+                restarts=float(restarts.sum() / runs), map_corrections=float(mapc.sum() / runs),
+                runs=runs, diverged=int((per_run["error"].max() > DIVERGED_THRESHOLD).sum())))
+    return pd.DataFrame(rows)
+
+
+def nees_over_time(tables: StudyTables) -> Any:
+    """Average NEES at each step per (method, kind), with its 95 % chi-square band.
+
+    Columns: method, kind, step, anees, band_lo, band_hi, n (runs x the kind's targets).
+    """
+    import pandas as pd
+
+    st = tables.steps
+    frames = []
+    for kind in kinds_with_all(tables.study):
+        dk = st if kind == "all" else st[st["kind"] == kind]
+        g = dk.groupby(["method", "step"], observed=True)["nees"].agg(["mean", "size"])
+        g = g.reset_index().rename(columns={"mean": "anees", "size": "n"})
+        g["kind"] = kind
+        frames.append(g)
+    out = pd.concat(frames, ignore_index=True)
+    out["band_lo"], out["band_hi"] = nees_band(out["n"].to_numpy())
+    return out[["method", "kind", "step", "anees", "band_lo", "band_hi", "n"]]
 
 
 def summary(metrics: Any, column: str = "rmse", level: float = LEVEL) -> Any:

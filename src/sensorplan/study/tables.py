@@ -19,8 +19,10 @@ TABLE_DOC = {
     "steps": "one row per (run, method, step, target): run, method, step (0 = initial state, "
              "1..S), target, kind, error (m, |p_true - p_est|), nees (4-D NEES), measured "
              "(any sensor measured it at that step), measurements (how many did), "
-             "negative_update, inflated (missed-look update / inflation, SPEC 3), x, y "
-             "(true position, m), x_est, y_est (estimated position, m)",
+             "negative_update, inflated (missed-look update / inflation), gated_out "
+             "(detections of it that fell outside its validation gate), restarted (the track "
+             "was restarted from a detection), map_corrected (the known map truncated it), "
+             "x, y (true position, m), x_est, y_est (estimated position, m)",
     "decisions": "one row per (run, method, decision): run, method, decision (0-based), step "
                  "(time index of the decision), planning_seconds (wall time of the planner "
                  "call), phi (potential of the chosen plan, nats), converged (null for "
@@ -83,6 +85,9 @@ def episode_tables(episode: Episode, run: int, method: str) -> dict[str, dict[st
         "measurements": measured.sum(axis=2).astype(np.int8).reshape(-1),
         "negative_update": np.asarray(episode.negative_update).reshape(-1),
         "inflated": np.asarray(episode.inflated).reshape(-1),
+        "gated_out": np.asarray(episode.gated_out).sum(axis=2).astype(np.int8).reshape(-1),
+        "restarted": np.asarray(episode.restarted).reshape(-1),
+        "map_corrected": np.asarray(episode.map_corrected).reshape(-1),
         "x": episode.truth[..., 0].reshape(-1),
         "y": episode.truth[..., 1].reshape(-1),
         "x_est": episode.estimate[..., 0].reshape(-1),
