@@ -52,13 +52,13 @@ class AgentOutcome:
     work_seconds: tuple[float, ...] = ()
 
 
-def outcome(agent: Agent, inbox: Inbox | None, rounds: int, sent: int,
+def outcome(agent: Agent, inbox: Inbox | None, rounds: int, sent: int, received: int,
             round_seconds: Iterable[float] = (), work_seconds: Iterable[float] = ()
             ) -> AgentOutcome:
     """Collect an agent's result after :meth:`Agent.complete`."""
     pos, tgt = agent.own_plan()
     bpos, btgt = agent.beliefs()
-    counts = {"delivered": 0, "lost": 0, "out_of_range": 0, "in_flight": 0,
+    counts = {"received": received, "delivered": 0, "lost": 0, "out_of_range": 0, "in_flight": 0,
               "ignored": agent.ignored}
     if inbox is not None:
         counts.update(delivered=inbox.delivered, lost=inbox.lost,
@@ -116,7 +116,7 @@ def assemble(ctx: Context, outcomes: Mapping[int, AgentOutcome],
     o = [outcomes.get(i) if i in live else None for i in range(N)]
     log = DecisionLog(
         rounds=max((x.rounds for x in o if x is not None), default=0),
-        sent=sum(x.sent for x in o if x is not None),
+        sent=sum(x.sent for x in o if x is not None), received=total["received"],
         delivered=total["delivered"], lost=total["lost"], out_of_range=total["out_of_range"],
         in_flight=total["in_flight"], ignored=total["ignored"], stale=stale,
         failed=tuple(sorted(failed)),
@@ -183,7 +183,8 @@ def run_inproc(ctx: Context, spec: AgentSpec, link: LinkModel, gen: np.random.Ge
     agents = {i: Agent(ctx, i, spec, copy.deepcopy(gen), decision, failed) for i in live}
     inboxes = {i: Inbox(i, link) for i in live}
     sent: Counter[int] = Counter()
-    times: defaultdict[int, list[float]] = defaultdict(list)
+    received: Counter[int] = Counter()
+    times: list[float] = []        # wall time of each round, all agents together
     rounds = 0
     for r in range(1, spec.budget(ctx.N) + 1):
         for j in sorted(j for j, fr in (fail_at or {}).items() if fr == r and j in agents):
@@ -202,10 +203,11 @@ def run_inproc(ctx: Context, spec: AgentSpec, link: LinkModel, gen: np.random.Ge
             delivered = []
             if spec.communicate:
                 for data in net.receive(i):
+                    received[i] += 1
                     inboxes[i].accept(decode(data))
                 delivered = inboxes[i].due(r)
             a.end_round(r, delivered)
-        times[0].append(time.perf_counter() - start)
+        times.append(time.perf_counter() - start)
         rounds = r
         if all(m.settled for m in msgs.values()):
             break
@@ -213,5 +215,5 @@ def run_inproc(ctx: Context, spec: AgentSpec, link: LinkModel, gen: np.random.Ge
     for i, a in agents.items():
         a.complete()
         out[i] = outcome(a, inboxes[i] if spec.communicate else None, rounds, sent[i],
-                         times[0])
+                         received[i], times, times)
     return out

@@ -92,6 +92,8 @@ class DecisionLog:
     rounds : int                    rounds run (the decision ends early once every live
                                     agent is settled)
     sent : int                      messages sent (one per live ordered pair and round)
+    received : int                  messages agents took from the transport (before the
+                                    links decide whether they count)
     delivered : int                 messages that reached their receiver in time
     lost : int                      dropped by the loss draw
     out_of_range : int              dropped because the platforms were too far apart
@@ -112,6 +114,7 @@ class DecisionLog:
 
     rounds: int
     sent: int
+    received: int
     delivered: int
     lost: int
     out_of_range: int

@@ -108,6 +108,7 @@ class AgentProcess:
         live = set(range(self.n)) - set(job["failed"])
         early: defaultdict[int, dict[int, Message]] = defaultdict(dict)
         sent, rounds = 0, 0
+        self.received = 0
         round_s, work_s = [], []
         for r in range(1, spec.budget(self.n) + 1):
             t0 = time.perf_counter()
@@ -140,8 +141,8 @@ class AgentProcess:
             if settled:
                 break
         agent.complete()
-        return outcome(agent, inbox if spec.communicate else None, rounds, sent, round_s,
-                       work_s)
+        return outcome(agent, inbox if spec.communicate else None, rounds, sent,
+                       self.received, round_s, work_s)
 
     def collect(self, r: int, live: set[int], early: defaultdict[int, dict[int, Message]],
                 agent: Agent, inbox: Inbox, decision: int, timeout: float,
@@ -166,6 +167,7 @@ class AgentProcess:
                 if sock is self.pull:
                     while self.pull.poll(0):
                         m = decode(self.pull.recv())
+                        self.received += 1
                         if m.decision != decision or m.sender not in live:
                             inbox.ignored += 1
                         elif m.round == r:
