@@ -199,6 +199,9 @@ def test_loss_draw_is_keyed_not_ordered():
     assert abs(np.mean(forward) - 0.3) < 4 * math.sqrt(0.3 * 0.7 / len(keys))
     other = LinkModel((1, 2, 4), np.zeros((3, 2)), p_loss=0.3)
     assert forward != [other.lost(*k) for k in keys]
+    rounds = range(1, 200)             # every part of the key matters
+    draws = {(s, d): [link.lost(r, s, d) for r in rounds] for s, d in [(0, 1), (0, 2), (1, 0)]}
+    assert draws[0, 1] != draws[0, 2] and draws[0, 1] != draws[1, 0]
 
 
 def test_delay_longer_than_the_budget_is_independent():
@@ -279,6 +282,38 @@ def test_duplicated_and_late_messages_change_nothing():
         np.testing.assert_array_equal(clean.tgt, noisy.tgt)
         assert noisy.log.ignored > clean.log.ignored
         assert noisy.log.delivered == clean.log.delivered
+
+
+def test_announced_switches_are_void_at_an_equilibrium():
+    """In a round where every player is at a best response the epoch game ends and nobody
+    switches: garbling the announced actions of such rounds changes nothing."""
+    import dataclasses
+
+    class Garble(InprocTransport):
+        garbled = 0
+
+        def receive(self, me):
+            msgs = [decode(d) for q in self.queues.values() for d in q]
+            eq_round = msgs and all(m.best and m.cond is not None for m in msgs) and len(
+                {(m.round, m.sweep, m.epoch, m.iteration) for m in msgs}) == 1
+            if eq_round:
+                for j, q in self.queues.items():
+                    out = []
+                    for d in q:
+                        m = decode(d)
+                        tgt = (m.cond[1] + 1) % problem.n_targets
+                        out.append(encode(dataclasses.replace(m, cond=(m.cond[0], tgt))))
+                        Garble.garbled += 1
+                    self.queues[j] = out
+            return super().receive(me)
+
+    problem = paper_problem(np.random.default_rng(15), horizon=3)
+    spec = AgentSpec("jsfp")
+    clean, _ = decide(problem, spec, seed=3)
+    garbled, _ = decide(problem, spec, seed=3, transport=Garble())
+    assert Garble.garbled > 0
+    np.testing.assert_array_equal(clean.tgt, garbled.tgt)
+    assert garbled.log.stale == 0
 
 
 def test_agent_ignores_duplicates_and_older_rounds():
