@@ -8,15 +8,23 @@ import numpy as np
 import pytest
 
 import sensorplan.decentral as dec
-from sensorplan.decentral import (AgentSpec, InprocTransport, LinkModel, Message, assemble,
-                                  decision_key, decode, encode, run_inproc)
+from factories import paper_problem, tiny_problem
+from sensorplan.decentral import (
+    AgentSpec,
+    InprocTransport,
+    LinkModel,
+    Message,
+    assemble,
+    decision_key,
+    decode,
+    encode,
+    run_inproc,
+)
 from sensorplan.errors import ConfigError
 from sensorplan.information import prepare
 from sensorplan.planners import make_planner, potential_game
 from sensorplan.planners.engine import GameState, choose
 from sensorplan.problem import check_plan
-
-from factories import paper_problem, tiny_problem
 from test_planner_contract import test_never_above_brute_force as never_above_brute_force
 from test_planner_contract import test_planner_contract as planner_contract
 
@@ -87,7 +95,7 @@ def test_lossless_jsfp_closed_loop_equals_pg():
     from sensorplan.simulation import RunSettings, run_episode
 
     sc = paper_scenario(miss_update="none")
-    kw = dict(horizon=2, steps_per_epoch=2, steps=10)
+    kw = {"horizon": 2, "steps_per_epoch": 2, "steps": 10}
     ref = run_episode(sc, RunSettings(planner="pg", **kw), 3)
     with dec.recording() as logs:
         got = run_episode(sc, RunSettings(planner="dec-jsfp", **kw), 3)
@@ -162,7 +170,7 @@ def test_independent_agent_sees_only_itself():
     """Each independent agent's plan is a best response with every other platform
     unassigned: no single-player change of its own raises Phi of its plan alone."""
     problem = paper_problem(np.random.default_rng(8), horizon=2)
-    got, out = decide(problem, AgentSpec("best-response", communicate=False))
+    _, out = decide(problem, AgentSpec("best-response", communicate=False))
     ctx = prepare(problem)
     for i, o in out.items():
         assert np.all(o.belief_tgt[np.arange(ctx.N) != i] == -1)
@@ -216,24 +224,21 @@ def test_delay_longer_than_the_budget_is_independent():
         assert late.log.sent == late.log.rounds * n * (n - 1)
 
 
-def test_delay_delivers_after_the_given_rounds():
+def test_delay_delivers_after_the_given_rounds(monkeypatch):
     """A message sent in round r is first believed at the end of round r + delay."""
     problem = paper_problem(np.random.default_rng(6), horizon=2)
+    seen: dict[tuple[int, int, int], int] = {}
+
+    class Spy(dec.Agent):
+        def end_round(self, rnd, delivered):
+            for m in delivered:
+                seen.setdefault((self.i, m.sender, m.round), rnd)
+            super().end_round(rnd, delivered)
+
+    monkeypatch.setattr(dec.decision, "Agent", Spy)
     for delay in (0, 1, 2):
-        seen = {}
-
-        class Spy(dec.Agent):
-            def end_round(self, rnd, delivered):
-                for m in delivered:
-                    seen.setdefault((self.i, m.sender, m.round), rnd)
-                super().end_round(rnd, delivered)
-
-        original = dec.decision.Agent
-        dec.decision.Agent = Spy
-        try:
-            got, _ = decide(problem, AgentSpec("jsfp", rounds=8), delay=delay)
-        finally:
-            dec.decision.Agent = original
+        seen.clear()
+        got, _ = decide(problem, AgentSpec("jsfp", rounds=8), delay=delay)
         assert seen and all(r == sent + delay for (_, _, sent), r in seen.items())
         n = problem.n_sensors
         assert got.log.in_flight == min(delay, got.log.rounds) * n * (n - 1)
@@ -274,7 +279,7 @@ def test_duplicated_and_late_messages_change_nothing():
             return n
 
     problem = paper_problem(np.random.default_rng(10), horizon=3)
-    for kw in (dict(), dict(p_loss=0.3, delay=1)):
+    for kw in ({}, {"p_loss": 0.3, "delay": 1}):
         spec = AgentSpec("jsfp", rounds=60)
         clean, _ = decide(problem, spec, seed=4, **kw)
         noisy, _ = decide(problem, spec, seed=4, transport=Noisy(), **kw)

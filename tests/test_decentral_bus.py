@@ -16,11 +16,10 @@ import pytest
 
 pytest.importorskip("zmq")
 
+from factories import paper_problem
 from sensorplan.decentral import AgentSpec, LinkModel, assemble, decision_key, run_inproc
 from sensorplan.decentral.bus import Bus
 from sensorplan.information import prepare
-
-from factories import paper_problem
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 TESTS = str(Path(__file__).resolve().parent)
@@ -66,7 +65,7 @@ def planner():
     assert p.pids == ()
 
 
-LOSSY = dict(p_loss=0.3, delay=1, comm_range=300.0)
+LOSSY = {"p_loss": 0.3, "delay": 1, "comm_range": 300.0}
 CASES = [                         # (how agents play, links); budgets keep lossy runs short
     (AgentSpec("jsfp"), {}),
     (AgentSpec("jsfp", rounds=25), LOSSY),
@@ -204,14 +203,13 @@ def test_killed_agent_is_lost_and_the_others_finish():
 @pytest.mark.slow
 def test_closed_loop_on_the_bus_equals_inproc_and_pg():
     from sensorplan.decentral import run_agents
+    from sensorplan.decentral.bus import open_buses
     from sensorplan.scenario import paper_scenario
     from sensorplan.simulation import RunSettings, run_episode
 
-    from sensorplan.decentral.bus import open_buses
-
     before = open_buses()
     sc = paper_scenario(miss_update="none")
-    kw = dict(horizon=3, steps_per_epoch=2, steps=12)
+    kw = {"horizon": 3, "steps_per_epoch": 2, "steps": 12}
     ref = run_episode(sc, RunSettings(planner="pg", **kw), 4)
     inproc, logs_in = run_agents(sc, RunSettings(planner="dec-jsfp", **kw), 4)
     bus_ep, logs_bus = run_agents(

@@ -9,8 +9,12 @@ from .decision import AgentOutcome, InprocTransport, assemble, run_inproc
 from .episode import recording, run_agents
 from .links import Inbox, LinkModel, decision_key
 from .messages import DecisionLog, Message, decode, encode
-from .planners import (DecentralIndependentPlanner, DecentralJSFPPlanner, DecentralResult,
-                       DecentralSequentialPlanner)
+from .planners import (
+                       DecentralIndependentPlanner,
+                       DecentralJSFPPlanner,
+                       DecentralResult,
+                       DecentralSequentialPlanner,
+)
 
 __all__ = ["MODES", "Agent", "AgentOutcome", "AgentSpec", "DecentralIndependentPlanner",
            "DecentralJSFPPlanner", "DecentralResult", "DecentralSequentialPlanner",

@@ -106,7 +106,9 @@ class Agent:
         if mode == "jsfp" and not self.settled:
             return self._jsfp_step(rnd)
         if mode == "best-response":
-            self.settled = not any([self._best_response(k) for k in range(self.K, 0, -1)])
+            # A list, not a generator: every player responds, any() must not stop early.
+            changed = [self._best_response(k) for k in range(self.K, 0, -1)]
+            self.settled = not any(changed)
         elif mode == "sequential" and rnd == self.i + 1:
             self._greedy_turn()
             self.settled = True

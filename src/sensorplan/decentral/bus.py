@@ -22,8 +22,8 @@ import sys
 import tempfile
 import time
 import weakref
+from typing import Self
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import zmq
@@ -35,10 +35,10 @@ from .links import LinkModel
 from .worker import POLL, endpoint
 
 START_TIMEOUT = 120.0       # s: importing numpy/numba and loading compiled kernels
-_OPEN: "weakref.WeakSet[Bus]" = weakref.WeakSet()
+_OPEN: weakref.WeakSet[Bus] = weakref.WeakSet()
 
 
-def open_buses() -> list["Bus"]:
+def open_buses() -> list[Bus]:
     """Every bus of this process that is not closed yet."""
     return [b for b in list(_OPEN) if not b.closed]
 
@@ -203,8 +203,8 @@ class Bus:
         _OPEN.discard(self)
         self._finalizer()
 
-    def __enter__(self) -> "Bus":
+    def __enter__(self) -> Self:
         return self
 
-    def __exit__(self, *exc: Any) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()

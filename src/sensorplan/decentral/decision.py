@@ -64,7 +64,7 @@ def outcome(agent: Agent, inbox: Inbox | None, rounds: int, sent: int, received:
         counts.update(delivered=inbox.delivered, lost=inbox.lost,
                       out_of_range=inbox.out_of_range, in_flight=len(inbox.pending),
                       ignored=agent.ignored + inbox.ignored)
-    return AgentOutcome(agent.i, pos, tgt, bpos, btgt, agent.gen.bit_generator.state,
+    return AgentOutcome(agent.i, pos, tgt, bpos, btgt, dict(agent.gen.bit_generator.state),
                         agent.settled, agent.converged, agent.sweeps, agent.completed,
                         tuple(agent.trace), rounds, sent, counts,
                         tuple(int(j) for j in np.flatnonzero(agent.failed)),
@@ -189,9 +189,9 @@ def run_inproc(ctx: Context, spec: AgentSpec, link: LinkModel, gen: np.random.Ge
     for r in range(1, spec.budget(ctx.N) + 1):
         for j in sorted(j for j, fr in (fail_at or {}).items() if fr == r and j in agents):
             del agents[j], inboxes[j]
-            for a in agents:
-                agents[a].peer_failed(j)
-                inboxes[a].drop_sender(j)
+            for other, agent in agents.items():
+                agent.peer_failed(j)
+                inboxes[other].drop_sender(j)
         if not agents:
             break
         start = time.perf_counter()

@@ -42,10 +42,10 @@ def record(log: DecisionLog) -> None:
         logs.append(log)
 
 
-def run_agents(scenario: "Scenario", settings: "RunSettings",
+def run_agents(scenario: Scenario, settings: RunSettings,
                seed: int | np.random.SeedSequence,
                progress: Callable[[int, int], None] | None = None,
-               ) -> tuple["Episode", list[DecisionLog]]:
+               ) -> tuple[Episode, list[DecisionLog]]:
     """One closed-loop episode with a decentralized planner; every agent process it
     started is stopped when it returns or raises (also on KeyboardInterrupt).
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
-from typing import Any, ClassVar
+from typing import Any, ClassVar, Self
 
 import numpy as np
 
@@ -123,11 +123,11 @@ class _Agents:
         record(got.log)
         res = finish(self.name, ctx, to_plan(ctx, got.pos, got.tgt), start, None, None,
                      got.trace)
-        return DecentralResult(*(getattr(res, f.name) for f in fields(PlanResult)),
-                               log=got.log, timing=got.timing)
+        base = {f.name: getattr(res, f.name) for f in fields(PlanResult)}
+        return DecentralResult(**base, log=got.log, timing=got.timing)
 
     def _bus(self, n_agents: int) -> Any:
-        from .bus import Bus   # lazy: only the bus transport needs pyzmq
+        from .bus import Bus  # lazy: only the bus transport needs pyzmq
 
         bus = self._runtime.get("bus")
         if bus is None or bus.closed or bus.n_agents != n_agents:
@@ -149,7 +149,7 @@ class _Agents:
         if bus is not None:
             bus.close()
 
-    def __enter__(self) -> "_Agents":
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc: object) -> None:
