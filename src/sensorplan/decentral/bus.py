@@ -22,8 +22,8 @@ import sys
 import tempfile
 import time
 import weakref
-from typing import Self
 from pathlib import Path
+from typing import Self
 
 import numpy as np
 import zmq
