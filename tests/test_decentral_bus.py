@@ -137,9 +137,10 @@ COORDINATOR = textwrap.dedent("""
 """)
 
 
-def start_coordinator():
+def start_coordinator(new_session: bool = False):
     proc = subprocess.Popen([sys.executable, "-c", COORDINATOR.format(src=SRC, tests=TESTS)],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=new_session)
     line = proc.stdout.readline()
     if not line:
         proc.kill()
@@ -151,9 +152,14 @@ def start_coordinator():
 
 
 @pytest.mark.slow
-def test_sigint_to_the_coordinator_ends_every_agent():
-    proc, pids = start_coordinator()
-    proc.send_signal(signal.SIGINT)
+@pytest.mark.parametrize("group", [False, True], ids=["coordinator", "process-group"])
+def test_sigint_ends_every_agent(group):
+    """SIGINT to the coordinator alone, or to its whole process group (Ctrl-C)."""
+    proc, pids = start_coordinator(new_session=group)
+    if group:
+        os.killpg(proc.pid, signal.SIGINT)
+    else:
+        proc.send_signal(signal.SIGINT)
     proc.wait(timeout=30)
     assert wait_gone(pids) == []
 

@@ -206,16 +206,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--parent", type=int, required=True)
     args = ap.parse_args(argv)
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
-    from .._kernels import warm_up
-
-    warm_up()                    # load the compiled kernels before saying ready
-    proc = AgentProcess(args.dir, args.index, args.agents, args.parent)
+    proc = None
     try:
+        from .._kernels import warm_up
+
+        warm_up()                # load the compiled kernels before saying ready
+        proc = AgentProcess(args.dir, args.index, args.agents, args.parent)
         proc.serve()
     except (Stop, KeyboardInterrupt, SystemExit):
-        pass
+        pass                     # interrupted or told to stop: a quiet, clean exit
     finally:
-        proc.close()
+        if proc is not None:
+            proc.close()
     return 0
 
 
