@@ -137,6 +137,16 @@ COORDINATOR = textwrap.dedent("""
 """)
 
 
+def socket_dirs(pids) -> set[str]:
+    """The bus directories the agent processes were started with (from their command line)."""
+    out = set()
+    for pid in pids:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            args = f.read().decode().split("\0")
+        out.add(args[args.index("--dir") + 1])
+    return out
+
+
 def start_coordinator(new_session: bool = False):
     proc = subprocess.Popen([sys.executable, "-c", COORDINATOR.format(src=SRC, tests=TESTS)],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -168,9 +178,12 @@ def test_sigint_ends_every_agent(group):
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL])
 def test_agents_exit_when_the_coordinator_dies(sig):
     proc, pids = start_coordinator()
+    sockets = socket_dirs(pids)
+    assert sockets
     proc.send_signal(sig)
     proc.wait(timeout=30)
     assert wait_gone(pids) == []
+    assert not any(os.path.exists(d) for d in sockets)      # the orphans cleaned up
 
 
 @pytest.mark.slow

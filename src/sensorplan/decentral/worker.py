@@ -14,6 +14,7 @@ from __future__ import annotations
 import argparse
 import os
 import pickle
+import shutil
 import signal
 import sys
 import time
@@ -37,6 +38,10 @@ def endpoint(directory: str, name: str) -> str:
 
 class Stop(Exception):
     """The coordinator said stop, or is gone."""
+
+
+class Orphaned(Stop):
+    """The coordinator is gone without cleaning up."""
 
 
 class AgentProcess:
@@ -68,7 +73,7 @@ class AgentProcess:
     # ------------------------------------------------------------------ plumbing
     def check_parent(self) -> None:
         if os.getppid() != self.parent:
-            raise Stop
+            raise Orphaned
 
     def beat(self, every: float) -> None:
         """Tell the coordinator this agent is alive (at most every ``every`` s)."""
@@ -207,17 +212,22 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(0))
     proc = None
+    orphaned = False
     try:
         from .._kernels import warm_up
 
         warm_up()                # load the compiled kernels before saying ready
         proc = AgentProcess(args.dir, args.index, args.agents, args.parent)
         proc.serve()
+    except Orphaned:
+        orphaned = True
     except (Stop, KeyboardInterrupt, SystemExit):
         pass                     # interrupted or told to stop: a quiet, clean exit
     finally:
         if proc is not None:
             proc.close()
+    if orphaned:                 # nobody else will remove the socket directory
+        shutil.rmtree(args.dir, ignore_errors=True)
     return 0
 
 
