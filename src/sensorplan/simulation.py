@@ -294,65 +294,71 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     target = np.full(N, -1, dtype=np.int64)
     F = tracker.F
 
-    for t in range(1, S + 1):
-        if (t - 1) % e == 0:
-            if epoch == epochs_per_plan:
-                problem = PlanningProblem(
-                    means=tracker.means, covs=tracker.covs, positions=pos, headings=head,
-                    sensors=sensor_list, horizon=K, steps_per_epoch=e, dt=scenario.dt,
-                    process_noise=tracker.planning_process_noise(), world=scenario.world,
-                    visibility=settings.visibility, objective=settings.objective)
-                start = time.perf_counter()
-                result = planner.plan(problem, rng=planner_rng)
-                seconds = time.perf_counter() - start
-                decisions.append((t - 1, seconds, float(result.potential),
-                                  _nan_if_none(result.converged), _nan_if_none(result.sweeps)))
-                plan_targets = np.asarray(result.plan.targets)
-                plan_positions = np.asarray(result.plan.positions)
-                epoch = 0
-            target = plan_targets[:, epoch]
+    try:
+        for t in range(1, S + 1):
+            if (t - 1) % e == 0:
+                if epoch == epochs_per_plan:
+                    problem = PlanningProblem(
+                        means=tracker.means, covs=tracker.covs, positions=pos, headings=head,
+                        sensors=sensor_list, horizon=K, steps_per_epoch=e, dt=scenario.dt,
+                        process_noise=tracker.planning_process_noise(), world=scenario.world,
+                        visibility=settings.visibility, objective=settings.objective)
+                    start = time.perf_counter()
+                    result = planner.plan(problem, rng=planner_rng)
+                    seconds = time.perf_counter() - start
+                    decisions.append((t - 1, seconds, float(result.potential),
+                                      _nan_if_none(result.converged), _nan_if_none(result.sweeps)))
+                    plan_targets = np.asarray(result.plan.targets)
+                    plan_positions = np.asarray(result.plan.positions)
+                    epoch = 0
+                target = plan_targets[:, epoch]
+                assigned = target >= 0
+                pos = np.where(assigned[:, None], plan_positions[:, epoch], pos)
+                aim = tracker.means[np.maximum(target, 0)] @ F[:2].T           # (N, 2)
+                bearing = np.arctan2(aim[:, 1] - pos[:, 1], aim[:, 0] - pos[:, 0])
+                head = np.where(assigned, heading_rule(head, bearing, max_turn), head)
+                epoch += 1
+
+            x_true = truth_model.step()
+            map_corrected[t] = tracker.predict()
+
+            # Looks at the truth: visibility and the sampled noise use the true position.
+            tj = np.maximum(target, 0)
+            h_true, _, var_true, seen = radar.measure_looks(table, sensor_index, x_true[tj, :2],
+                                                            pos, head)
             assigned = target >= 0
-            pos = np.where(assigned[:, None], plan_positions[:, epoch], pos)
-            aim = tracker.means[np.maximum(target, 0)] @ F[:2].T           # (N, 2)
-            bearing = np.arctan2(aim[:, 1] - pos[:, 1], aim[:, 0] - pos[:, 0])
-            head = np.where(assigned, heading_rule(head, bearing, max_turn), head)
-            epoch += 1
+            miss = assigned & ~seen
+            seen &= assigned
 
-        x_true = truth_model.step()
-        map_corrected[t] = tracker.predict()
+            if miss_update is not None and miss.any():
+                i = sensor_index[miss]
+                negative[t], inflated[t] = tracker.miss(i, target[i], pos[i], head[i],
+                                                        kernel=miss_update)
 
-        # Looks at the truth: visibility and the sampled noise use the true position.
-        tj = np.maximum(target, 0)
-        h_true, _, var_true, seen = radar.measure_looks(table, sensor_index, x_true[tj, :2],
-                                                        pos, head)
-        assigned = target >= 0
-        miss = assigned & ~seen
-        seen &= assigned
+            if seen.any():
+                i = sensor_index[seen]
+                z = h_true[i] + np.sqrt(var_true[i]) * noise[t - 1, i]
+                z[:, 1] = wrap_angle(z[:, 1])
+                looks = tracker.update(i, target[i], z, pos[i], head[i])
+                measured[t, target[i], i] = True
+                gated_out[t, target[i], i] = looks.gated_out
+                restarted[t, target[i][looks.restarted]] = True
+                map_corrected[t] |= looks.map_corrected
 
-        if miss_update is not None and miss.any():
-            i = sensor_index[miss]
-            negative[t], inflated[t] = tracker.miss(i, target[i], pos[i], head[i],
-                                                    kernel=miss_update)
-
-        if seen.any():
-            i = sensor_index[seen]
-            z = h_true[i] + np.sqrt(var_true[i]) * noise[t - 1, i]
-            z[:, 1] = wrap_angle(z[:, 1])
-            looks = tracker.update(i, target[i], z, pos[i], head[i])
-            measured[t, target[i], i] = True
-            gated_out[t, target[i], i] = looks.gated_out
-            restarted[t, target[i][looks.restarted]] = True
-            map_corrected[t] |= looks.map_corrected
-
-        truth[t] = x_true
-        estimate[t] = tracker.means
-        cov[t] = tracker.covs
-        looked[t] = target
-        missed[t] = miss
-        positions[t] = pos
-        headings[t] = head
-        if progress is not None:
-            progress(t, S)
+            truth[t] = x_true
+            estimate[t] = tracker.means
+            cov[t] = tracker.covs
+            looked[t] = target
+            missed[t] = miss
+            positions[t] = pos
+            headings[t] = head
+            if progress is not None:
+                progress(t, S)
+    finally:
+        # A planner that holds resources (agent processes) releases them with the run.
+        close = getattr(planner, "close", None)
+        if callable(close):
+            close()
 
     error = np.hypot(truth[..., 0] - estimate[..., 0], truth[..., 1] - estimate[..., 1])
     d = np.array(decisions, dtype=float).reshape(-1, 5)
@@ -360,7 +366,8 @@ def run_episode(scenario: Scenario, settings: RunSettings,
         target_kinds=scenario.target_kinds, truth=truth, estimate=estimate, cov=cov,
         error=error, nees=nees(truth, estimate, cov), measured=measured, looked=looked,
         missed=missed, negative_update=negative, inflated=inflated, gated_out=gated_out,
-        restarted=restarted, map_corrected=map_corrected, sensor_positions=positions, sensor_headings=headings,
+        restarted=restarted, map_corrected=map_corrected, sensor_positions=positions,
+        sensor_headings=headings,
         decision_steps=d[:, 0].astype(np.int64), planning_seconds=d[:, 1], potential=d[:, 2],
         converged=d[:, 3], sweeps=d[:, 4], settings=settings,
         seed_entropy=_entropy(seed_ss), seed_spawn_key=tuple(seed_ss.spawn_key))
