@@ -94,7 +94,7 @@ def test_lossless_jsfp_closed_loop_equals_pg():
     from sensorplan.scenario import paper_scenario
     from sensorplan.simulation import RunSettings, run_episode
 
-    sc = paper_scenario(miss_update="none")
+    sc = paper_scenario()
     kw = {"horizon": 2, "steps_per_epoch": 2, "steps": 10}
     ref = run_episode(sc, RunSettings(planner="pg", **kw), 3)
     with dec.recording() as logs:

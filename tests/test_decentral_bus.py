@@ -227,7 +227,7 @@ def test_closed_loop_on_the_bus_equals_inproc_and_pg():
     from sensorplan.simulation import RunSettings, run_episode
 
     before = open_buses()
-    sc = paper_scenario(miss_update="none")
+    sc = paper_scenario()
     kw = {"horizon": 3, "steps_per_epoch": 2, "steps": 12}
     ref = run_episode(sc, RunSettings(planner="pg", **kw), 4)
     inproc, logs_in = run_agents(sc, RunSettings(planner="dec-jsfp", **kw), 4)
@@ -259,7 +259,7 @@ def test_episode_goes_on_when_an_agent_process_is_killed():
     settings = RunSettings(planner="dec-jsfp", horizon=2, steps_per_epoch=2, steps=12,
                            planner_params={"transport": "bus", "timeout": 3.0})
     start = time.monotonic()
-    ep, logs = run_agents(paper_scenario(miss_update="none"), settings, 6, progress)
+    ep, logs = run_agents(paper_scenario(), settings, 6, progress)
     assert time.monotonic() - start < 120
     assert killed and wait_gone(killed) == []
     assert [log.failed for log in logs] == [()] * 2 + [(1,)] * 4
