@@ -36,7 +36,8 @@ def wrap_angle(a: Any) -> FloatArray:
     return np.where(w <= -math.pi, w + 2 * math.pi, w)
 
 
-_SCALAR_FIELDS = tuple(f.name for f in fields(SensorParams) if f.name != "moves")
+_SCALAR_FIELDS = tuple(f.name for f in fields(SensorParams)
+                       if f.name not in ("moves", "detection"))
 
 
 def stack_params(params: "list[SensorParams] | tuple[SensorParams, ...]") -> SensorParams:

@@ -21,7 +21,8 @@ from sensorplan.tracker import Tracker
 
 def table_of(params: SensorParams) -> np.ndarray:
     """Radar table with one row per entry of stacked (or scalar) parameters."""
-    names = [f.name for f in dataclasses.fields(SensorParams) if f.name != "moves"]
+    names = [f.name for f in dataclasses.fields(SensorParams)
+             if f.name not in ("moves", "detection")]
     cols = [np.atleast_1d(np.asarray(getattr(params, n), dtype=float)) for n in names]
     n = max(len(c) for c in cols)
     return radar_table([SensorParams(**{k: float(np.broadcast_to(c, (n,))[i])

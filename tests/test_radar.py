@@ -23,7 +23,8 @@ DEF = SensorParams()
 
 def _table(p: SensorParams, shape: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
     """Radar table of ``p`` (fields scalars or arrays broadcast to ``shape``) and row indices."""
-    names = [f.name for f in dataclasses.fields(SensorParams) if f.name != "moves"]
+    names = [f.name for f in dataclasses.fields(SensorParams)
+             if f.name not in ("moves", "detection")]
     arrays = np.broadcast_arrays(*[np.asarray(getattr(p, n), dtype=float) for n in names],
                                  np.empty(shape))[:-1]
     flat = [a.ravel() for a in arrays]

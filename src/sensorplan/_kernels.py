@@ -16,6 +16,7 @@ from numba import njit
 
 from . import radar
 from .radar import P_VIS_MIN, look, range_weight, wrap
+from .sensors import COLUMNS
 
 
 @njit(cache=True, fastmath=False)
@@ -293,7 +294,7 @@ def warm_up() -> None:
     W = np.zeros((1, 1, 2, 2))
     for cv in (True, False):
         covariance_recursion_nb(P, W, np.eye(4), np.zeros((1, 4, 4)), True, cv, 1.0)
-    row = np.zeros(11)
+    row = np.zeros(len(COLUMNS))
     row[0] = row[1] = 1.0
     for probabilistic in (True, False):
         for all_headings in (True, False):

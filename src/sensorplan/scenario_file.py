@@ -157,7 +157,10 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
         d: dict[str, Any] = {}
         for f in dataclasses.fields(SensorParams):
             v = getattr(spec.params, f.name)
-            d[f.name] = [float(m) for m in v] if f.name == "moves" else float(v)
+            if f.name == "moves":
+                d[f.name] = [float(m) for m in v]
+            else:
+                d[f.name] = v if isinstance(v, str) else float(v)
         if spec.position is not None:
             d["position"] = [float(spec.position[0]), float(spec.position[1])]
         if spec.heading is not None:

@@ -18,6 +18,9 @@ import numpy as np
 from ._types import FloatArray
 from .errors import ConfigError
 
+#: Detection models of a sensor.
+DETECTION_MODELS = ("ideal", "swerling1")
+
 @dataclass(frozen=True)
 class SensorParams:
     """Platform and radar parameters of one sensor (SPEC 2 defaults).
@@ -44,6 +47,15 @@ class SensorParams:
         Monopulse slope (dimensionless).
     range_resolution : float
         Range resolution (m).
+    detection : {"ideal", "swerling1"}
+        ``ideal``: every look at a target in the field of view detects it; ``swerling1``:
+        it is detected with probability ``Pd = Pfa ** (1 / (1 + SNR))`` (a Swerling 1
+        target and a square-law detector), SNR at the target's range.
+    false_alarm_probability : float
+        Pfa per resolution cell, in (0, 1); sets the detection threshold (``swerling1``).
+    clutter_rate : float
+        Expected number of false detections per look (Poisson), uniform over the look's
+        sensing region (>= 0).
     """
 
     altitude: Any = 500.0
@@ -58,10 +70,18 @@ class SensorParams:
     beamwidth: Any = math.radians(3.0)
     monopulse_slope: Any = 1.6
     range_resolution: Any = 30.0
+    detection: str = "ideal"
+    false_alarm_probability: Any = 1e-6
+    clutter_rate: Any = 0.0
 
     def validate(self, prefix: str = "sensor") -> None:
-        """Raise :class:`ConfigError` naming the field if a value breaks SPEC 7's rules."""
+        """Raise :class:`ConfigError` naming the field if a value is out of its range."""
+        if self.detection not in DETECTION_MODELS:
+            raise ConfigError(f"{prefix}.detection", f"unknown detection model "
+                              f"{self.detection!r}; choose from {', '.join(DETECTION_MODELS)}")
         for f in fields(self):
+            if f.name == "detection":
+                continue
             value = getattr(self, f.name)
             values = value if f.name == "moves" else (value,)
             for v in np.atleast_1d(np.asarray(values, dtype=float)).ravel():
@@ -80,18 +100,30 @@ class SensorParams:
             raise ConfigError(f"{prefix}.max_turn", "must be >= 0")
         if np.any(np.asarray(self.min_ground_range) > np.asarray(self.max_ground_range)):
             raise ConfigError(f"{prefix}.min_ground_range", "must be <= max_ground_range")
+        pfa = np.asarray(self.false_alarm_probability)
+        if np.any((pfa <= 0) | (pfa >= 1)):
+            raise ConfigError(f"{prefix}.false_alarm_probability",
+                              f"must be in (0, 1), got {self.false_alarm_probability!r}")
+        if np.any(np.asarray(self.clutter_rate) < 0):
+            raise ConfigError(f"{prefix}.clutter_rate", "must be >= 0")
 
 
 #: Columns of a radar table row (:func:`radar_table`), in order. ``snr0`` is the linear SNR
 #: at ``range_ref``; ``var_r`` and ``var_phi`` are the noise constants with
-#: :math:`\sigma_r^2 = c_r r^4` and :math:`\sigma_\phi^2 = c_\phi r^4 / \cos^2\psi`.
+#: :math:`\sigma_r^2 = c_r r^4` and :math:`\sigma_\phi^2 = c_\phi r^4 / \cos^2\psi`;
+#: ``swerling`` is 1 for Swerling 1 detection, 0 for ideal; ``log_pfa`` is ln Pfa;
+#: ``clutter_rate`` the false detections per look and ``area`` the sensing region's ground
+#: area (m^2). The last two columns belong to planning: ``aware`` is 1 when planned looks
+#: count their detection probability and clutter, ``gate_probability`` the tracker's gate.
 COLUMNS = ("altitude", "altitude2", "cos_depression", "sin_depression", "fov_half_angle",
-           "min_ground_range", "max_ground_range", "snr0", "range_ref", "var_r", "var_phi")
-ALTITUDE, ALTITUDE2, COS_DEP, SIN_DEP, FOV, G_MIN, G_MAX, SNR0, RANGE_REF, VAR_R, VAR_PHI = \
-    range(len(COLUMNS))
+           "min_ground_range", "max_ground_range", "snr0", "range_ref", "var_r", "var_phi",
+           "swerling", "log_pfa", "clutter_rate", "area", "aware", "gate_probability")
+(ALTITUDE, ALTITUDE2, COS_DEP, SIN_DEP, FOV, G_MIN, G_MAX, SNR0, RANGE_REF, VAR_R, VAR_PHI,
+ SWERLING, LOG_PFA, CLUTTER_RATE, AREA, AWARE, GATE_P) = range(len(COLUMNS))
 
 
-def radar_table(sensors: Sequence[SensorParams] | SensorParams) -> FloatArray:
+def radar_table(sensors: Sequence[SensorParams] | SensorParams, *, aware: bool = False,
+                gate_probability: float = 0.999) -> FloatArray:
     r"""One row of radar constants per sensor, shaped ``(N, len(COLUMNS))``.
 
     With :math:`s_0 = 10^{\mathrm{snr_{ref}}/10}` the SNR model
@@ -106,10 +138,15 @@ def radar_table(sensors: Sequence[SensorParams] | SensorParams) -> FloatArray:
     Parameters
     ----------
     sensors : SensorParams or sequence of SensorParams (scalar fields)
+    aware : bool
+        Planned looks count their detection probability and the clutter (see
+        :func:`sensorplan.radar.look`).
+    gate_probability : float
+        The tracker's gate probability, for the clutter's information reduction.
 
     Returns
     -------
-    (N, 11) float64, C-contiguous; a single SensorParams gives N = 1.
+    (N, len(COLUMNS)) float64, C-contiguous; a single SensorParams gives N = 1.
     """
     seq = (sensors,) if isinstance(sensors, SensorParams) else tuple(sensors)
     out = np.empty((len(seq), len(COLUMNS)))
@@ -118,8 +155,12 @@ def radar_table(sensors: Sequence[SensorParams] | SensorParams) -> FloatArray:
         two_s0_r4 = 2.0 * snr0 * float(p.range_ref) ** 4
         alt = float(p.altitude)
         dep = float(p.depression)
-        out[n] = (alt, alt * alt, math.cos(dep), math.sin(dep), float(p.fov_half_angle),
-                  float(p.min_ground_range), float(p.max_ground_range), snr0,
+        fov, gmin, gmax = (float(p.fov_half_angle), float(p.min_ground_range),
+                           float(p.max_ground_range))
+        out[n] = (alt, alt * alt, math.cos(dep), math.sin(dep), fov, gmin, gmax, snr0,
                   float(p.range_ref), float(p.range_resolution) ** 2 / two_s0_r4,
-                  (float(p.beamwidth) / float(p.monopulse_slope)) ** 2 / two_s0_r4)
+                  (float(p.beamwidth) / float(p.monopulse_slope)) ** 2 / two_s0_r4,
+                  float(p.detection == "swerling1"), math.log(float(p.false_alarm_probability)),
+                  float(p.clutter_rate), fov * (gmax * gmax - gmin * gmin), float(aware),
+                  float(gate_probability))
     return out

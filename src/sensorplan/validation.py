@@ -25,7 +25,7 @@ from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationErr
 
 from .errors import ConfigError
 from .problem import MapRect
-from .sensors import SensorParams
+from .sensors import DETECTION_MODELS, SensorParams
 from .settings import Setting, declared, field_hint, field_type, is_group
 
 # --------------------------------------------------------------------------- field types
@@ -92,6 +92,9 @@ class SensorParamsModel(Strict):
     beamwidth: float = _SP.beamwidth
     monopulse_slope: float = _SP.monopulse_slope
     range_resolution: float = _SP.range_resolution
+    detection: Annotated[str, choice(DETECTION_MODELS, "detection model")] = _SP.detection
+    false_alarm_probability: float = _SP.false_alarm_probability
+    clutter_rate: float = _SP.clutter_rate
 
     def params(self) -> SensorParams:
         kwargs = {f.name: getattr(self, f.name) for f in dataclasses.fields(SensorParams)}
