@@ -1,4 +1,4 @@
-r"""Negative information from missed looks (SPEC 3, ``miss_update = "negative"``).
+r"""Negative information from missed looks (``miss_update = "negative"``).
 
 A sensor that looked for a target and did not detect it learns that the target is
 probably not in its sensing region :math:`A` (range band, azimuth wedge around the heading,
@@ -20,8 +20,14 @@ and the remaining ``n`` points are moment matched with weights ``1/n``:
 
 When the fraction ``f = (S - n) / S`` of points inside is ``>= 0.95`` the filter was
 inconsistent (it was almost sure the target was there): the track is not truncated, each
-position variance grows by :math:`(g_{max} - g_{min})^2 / 4` instead. The maths, the
-choices and the accuracy are documented in ``docs/missed_looks.md``.
+position variance grows by :math:`(g_{max} - g_{min})^2 / 4` instead.
+
+With imperfect detection the rule generalises: a point inside the sensing region keeps the
+weight :math:`1 - P_d P_G` (the probability that a target there gave no gated detection;
+:math:`P_d` from the radar model at the point's range, :math:`P_G` the gate probability)
+instead of being dropped, a point outside keeps weight 1, and the moments are the weighted
+ones. With :math:`P_d = P_G = 1` the weights are exactly 0 and 1: the rule above. The
+maths, the choices and the accuracy are documented in docs/model.md.
 """
 
 from __future__ import annotations
@@ -122,7 +128,9 @@ def _point_set(points: FloatArray | None) -> tuple[FloatArray, FloatArray]:
 
 def _inside(means: FloatArray, chol: FloatArray, x: FloatArray, sensor_xy: FloatArray,
             heading: FloatArray, table: FloatArray, sensor: IntArray) -> BoolArray:
-    """Which mapped points ``m + L x_s`` lie in the sensing region, ``(..., S)``."""
+    """Probability that the look detects a target at each mapped point ``m + L x_s``,
+    ``(..., S)``: its detection probability inside the sensing region, 0 outside (exactly
+    0 or 1 with ideal detection)."""
     # L is lower triangular, so the ground position of a point depends on its first two
     # whitened coordinates and the 2x2 position block of L only.
     # Written out elementwise: a broadcast matmul of (S, 2) by (..., 2, 2) is slower.
@@ -132,9 +140,9 @@ def _inside(means: FloatArray, chol: FloatArray, x: FloatArray, sensor_xy: Float
     dy = base[..., 1, None] + l10 * x[:, 0] + l11 * x[:, 1]
     batch = dx.shape[:-1]
     S = x.shape[0]
-    inside = radar.visible_points(table, np.broadcast_to(sensor, batch).reshape(-1),
-                                  dx.reshape(-1, S), dy.reshape(-1, S),
-                                  np.broadcast_to(heading, batch).reshape(-1))
+    inside = radar.detectable_points(table, np.broadcast_to(sensor, batch).reshape(-1),
+                                     dx.reshape(-1, S), dy.reshape(-1, S),
+                                     np.broadcast_to(heading, batch).reshape(-1))
     return inside.reshape(batch + (S,))
 
 
@@ -167,14 +175,14 @@ def inside_fraction(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
     chol = np.linalg.cholesky(np.asarray(covs, dtype=float))
     inside = _inside(means, chol, x, np.asarray(sensor_xy, dtype=float),
                      np.asarray(heading, dtype=float), table, sensor)
-    return np.count_nonzero(inside, axis=-1) / x.shape[0]
+    return np.count_nonzero(inside > 0, axis=-1) / x.shape[0]
 
 
 def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
                 heading: FloatArray, table: FloatArray | SensorParams,
                 sensor: IntArray | int | None = None, *,
-                points: FloatArray | None = None, return_fraction: bool = False
-                ) -> tuple[FloatArray, ...]:
+                points: FloatArray | None = None, gate_probability: float = 1.0,
+                return_fraction: bool = False) -> tuple[FloatArray, ...]:
     r"""Update tracks with a missed look (SPEC 3, ``negative``), batched over tracks.
 
     Each track :math:`N(m, P)` is replaced by the moments of its restriction to the outside
@@ -202,9 +210,12 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
     points : (S, 4) float64, optional
         Whitened standard-normal points (mean 0 and covariance ``I`` with weights ``1/S``);
         default the cached 512 Sobol points of :func:`standard_points`.
+    gate_probability : float
+        Pg of the tracker's gate: a target detected outside the gate would not have been
+        associated, so the look's miss means "not detected in the gate".
     return_fraction : bool
-        Also return the fraction of points inside the sensing region (the probability,
-        under the track, that the look should have seen the target).
+        Also return the probability mass the look removes (the probability, under the
+        track, that the look should have detected the target in its gate).
 
     Returns
     -------
@@ -238,13 +249,16 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
     inside = _inside(means, chol, x, np.asarray(sensor_xy, dtype=float), heading, table,
                      sensor)
 
-    outside = ~inside
-    n_out = np.count_nonzero(outside, axis=-1)
+    # Each point keeps the probability that the look would NOT have produced a gated
+    # detection of a target there: 1 - Pd Pg inside the sensing region, 1 outside. With
+    # ideal detection and no gate the weights are exactly 0 and 1: the points inside are
+    # dropped.
+    w = 1.0 - gate_probability * inside
+    n_out = w.sum(axis=-1)
     inflated = ((S - n_out) / S >= INFLATE_FRACTION) | (n_out < MIN_OUTSIDE)
     # Inflated rows are discarded below; any n > 0 keeps their arithmetic finite.
     n = np.where(inflated, S, n_out).astype(float)
 
-    w = outside.astype(float)
     mu = (w @ x) / n[..., None]                                              # (..., 4)
     second = (w @ xx).reshape(w.shape[:-1] + (4, 4)) / n[..., None, None]
     C = second - mu[..., :, None] * mu[..., None, :]

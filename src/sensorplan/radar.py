@@ -367,6 +367,20 @@ def _visible_grid(table: np.ndarray, idx: np.ndarray, dx: np.ndarray, dy: np.nda
 
 
 @njit(cache=True, error_model="numpy")
+def _detect_grid(table: np.ndarray, idx: np.ndarray, dx: np.ndarray, dy: np.ndarray,
+                 heading: np.ndarray) -> np.ndarray:
+    B, S = dx.shape
+    out = np.zeros((B, S))
+    for b in range(B):
+        row = table[idx[b]]
+        for s in range(S):
+            if visible(row, dx[b, s], dy[b, s], heading[b]):
+                out[b, s] = detection_probability(
+                    row, dx[b, s] * dx[b, s] + dy[b, s] * dy[b, s] + row[ALTITUDE2])
+    return out
+
+
+@njit(cache=True, error_model="numpy")
 def _look_batch(row: np.ndarray, dx: np.ndarray, dy: np.ndarray, th: np.ndarray,
                 C: np.ndarray, probabilistic: bool) -> tuple[np.ndarray, np.ndarray]:
     n = dx.shape[0]
@@ -483,6 +497,23 @@ def visible_points(table: FloatArray, sensor: IntArray, dx: FloatArray, dy: Floa
                          np.ascontiguousarray(heading, dtype=float))
 
 
+def detectable_points(table: FloatArray, sensor: IntArray, dx: FloatArray, dy: FloatArray,
+                      heading: FloatArray) -> FloatArray:
+    """Probability that a look detects a target at each of S ground offsets per look:
+    the detection probability inside the field of view, 0 outside (see
+    :func:`visible_points`; ideal detection gives exactly 0 or 1).
+
+    Returns
+    -------
+    (B, S) float64 in [0, 1]
+    """
+    return _detect_grid(np.ascontiguousarray(table, dtype=float),
+                        np.ascontiguousarray(sensor, dtype=np.int64),
+                        np.ascontiguousarray(dx, dtype=float),
+                        np.ascontiguousarray(dy, dtype=float),
+                        np.ascontiguousarray(heading, dtype=float))
+
+
 def look_information(row: FloatArray, dx: FloatArray, dy: FloatArray, th: FloatArray,
                      C: FloatArray, probabilistic: bool) -> tuple[FloatArray, FloatArray]:
     """Weight and information of planned looks by one sensor (see :func:`look`).
@@ -518,5 +549,6 @@ def warm_up() -> None:
     _inverse_batch(table, i, np.ones((1, 2)), z)
     _pd_batch(table, i, z + 1.0, z)
     _visible_grid(table, i, np.ones((1, 1)), np.zeros((1, 1)), z)
+    _detect_grid(table, i, np.ones((1, 1)), np.zeros((1, 1)), z)
     for probabilistic in (True, False):
         _look_batch(table[0], z + 1.0, z, z, np.ones((1, 3)), probabilistic)

@@ -39,6 +39,7 @@ from .problem import OBJECTIVES, VISIBILITY_MODES
 EXECUTIONS = ("ol", "olf")
 MISS_UPDATES = ("negative", "none")
 TRACKER_MODELS = ("cv", "imm")
+ASSOCIATIONS = ("pda", "nearest")
 #: Tables of a scenario file that hold run settings, in file order.
 SECTIONS = ("planning", "tracker", "run")
 
@@ -327,6 +328,12 @@ class TrackerSettings(_Settings):
         True, section="tracker", cli=("--reacquire/--no-reacquire",), label="re-acquire",
         help="Restart a track from a detection of its target outside the gate (needs the "
              "gate; off when false alarms are on).")
+    association: str = setting(
+        "pda", section="tracker", cli=("--association",), metavar="NAME",
+        label="association", choices=ASSOCIATIONS, noun="association",
+        help="How a look's detections update its track when the sensor reports false "
+             "alarms: pda (probabilistic data association over the gated detections) or "
+             "nearest (the gated detection closest to the track).")
     known_map: bool = setting(
         True, section="tracker", cli=("--known-map/--no-known-map",), label="known map",
         help="Truncate a track that leaves the map to the map (targets never leave it).")
@@ -347,7 +354,7 @@ class TrackerSettings(_Settings):
                     mode_process_noise=self.mode_process_noise if imm else None,
                     switching=np.array(self.switching) if imm else None,
                     gate_probability=self.gate_probability if self.gate else None,
-                    reacquire=self.reacquire)
+                    reacquire=self.reacquire, association=self.association)
 
 
 @dataclass(frozen=True)

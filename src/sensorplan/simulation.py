@@ -50,13 +50,14 @@ from .errors import ConfigError
 from .planners import make_planner
 from .problem import PlanningProblem
 from .scenario import Scenario, draw_initial, make_truth
-from .sensors import radar_table
+from .sensors import CLUTTER_RATE, FOV, G_MAX, G_MIN, SWERLING, radar_table
 from .settings import EXECUTIONS, RunSettings
 from . import radar
 
 __all__ = ["EXECUTIONS", "STREAMS", "Episode", "RunSettings", "run_episode", "run_streams"]
-#: Names of the run's independent random streams, in spawn order.
-STREAMS = ("truth", "init", "noise", "planner")
+#: Names of the run's independent random streams, in spawn order (a new stream is only ever
+#: appended, so the earlier ones keep their values).
+STREAMS = ("truth", "init", "noise", "planner", "detection", "clutter")
 
 
 def _is_int(v: Any) -> bool:
@@ -89,6 +90,11 @@ class Episode:
                                       validation gate (discarded, or used to restart)
     restarted : (S+1, M) bool         track j was restarted from a detection at t
     map_corrected : (S+1, M) bool     the known map corrected track j at t
+    detections : (S+1, N) int         detections sensor i's look returned at t (its target's
+                                      and false alarms)
+    false_alarms : (S+1, N) int       of which false alarms
+    used : (S+1, N) int               detections the tracker used
+    discarded : (S+1, N) int          detections outside the validation gate
     sensor_positions : (S+1, N, 2)    pose during step t (initial pose at t = 0)
     sensor_headings : (S+1, N)
     decision_steps : (D,) int         time index at which each decision was taken
@@ -116,6 +122,10 @@ class Episode:
     gated_out: BoolArray
     restarted: BoolArray
     map_corrected: BoolArray
+    detections: IntArray
+    false_alarms: IntArray
+    used: IntArray
+    discarded: IntArray
     sensor_positions: FloatArray
     sensor_headings: FloatArray
     decision_steps: IntArray
@@ -182,7 +192,7 @@ def _timing_path(path: Path) -> Path:
 
 _ARRAYS = ("truth", "estimate", "cov", "error", "nees", "measured", "looked", "missed",
            "negative_update", "inflated", "gated_out", "restarted", "map_corrected",
-           "sensor_positions", "sensor_headings",
+           "detections", "false_alarms", "used", "discarded", "sensor_positions", "sensor_headings",
            "decision_steps", "potential", "converged", "sweeps")
 
 
@@ -211,6 +221,75 @@ def run_streams(seed: int | np.random.SeedSequence) -> dict[str, np.random.SeedS
     return {name: np.random.SeedSequence(ss.entropy, spawn_key=tuple(ss.spawn_key) + (k,),
                                          pool_size=ss.pool_size)
             for k, name in enumerate(STREAMS)}
+
+
+def _imperfect(table: FloatArray) -> bool:
+    """Whether some sensor misses targets in view or reports false alarms."""
+    return bool(table[:, SWERLING].any() or table[:, CLUTTER_RATE].any())
+
+
+class _DetectionDraws:
+    """A run's detection outcomes and false alarms, drawn up front from their own streams.
+
+    Per sensor and step: one uniform decides whether a target in view is detected
+    (``u < Pd``), drawn whether the sensor looks or not; a Poisson count of false alarms
+    (mean ``clutter_rate``) and, per false alarm, two uniforms (its ground range and
+    azimuth, uniform in area over the sensing region) and two standard normals (its
+    measurement noise). The draws depend only on the run's seed, so every method of a study
+    sees the same ones (common random numbers).
+    """
+
+    def __init__(self, table: FloatArray, streams: dict[str, np.random.SeedSequence],
+                 S: int) -> None:
+        N = len(table)
+        self.table = table
+        self.u = np.stack([np.random.default_rng(c).random(S)
+                           for c in streams["detection"].spawn(N)], axis=1)   # (S, N)
+        self.counts = np.zeros((S, N), dtype=np.int64)
+        self.points: list[list[FloatArray]] = []
+        for i, c in enumerate(streams["clutter"].spawn(N)):
+            rng = np.random.default_rng(c)
+            lam = table[i, CLUTTER_RATE]
+            counts = rng.poisson(lam, S) if lam > 0 else np.zeros(S, dtype=np.int64)
+            draws = rng.random((int(counts.sum()), 2))
+            normals = rng.standard_normal((int(counts.sum()), 2))
+            self.counts[:, i] = counts
+            split = np.cumsum(counts)[:-1]
+            self.points.append(list(zip(np.split(draws, split), np.split(normals, split))))
+
+    def detected(self, t: int, target_xy: FloatArray, sensor_xy: FloatArray) -> BoolArray:
+        """Whether each sensor's look would detect its target if in view, at step t."""
+        pd = radar.detection_probabilities(self.table, np.arange(len(self.table)),
+                                           target_xy, sensor_xy)
+        return self.u[t - 1] < pd
+
+    def looks(self, t: int, seen: BoolArray, z: FloatArray, pos: FloatArray, head: FloatArray,
+              assigned: BoolArray) -> tuple[list[FloatArray], IntArray]:
+        """Each sensor's detections at step t (its target's if seen, then its false alarms
+        in the sensing region), and its number of false alarms."""
+        sets, false = [], np.zeros(len(self.table), dtype=np.int16)
+        for i in range(len(self.table)):
+            clutter = self._clutter_of(i, t, pos[i], head[i]) if assigned[i] \
+                else np.zeros((0, 2))
+            false[i] = len(clutter)
+            sets.append(np.concatenate(([z[i:i + 1]] if seen[i] else []) + [clutter]))
+        return sets, false
+
+    def _clutter_of(self, i: int, t: int, sxy: FloatArray, heading: float) -> FloatArray:
+        u, n = self.points[i][t - 1]
+        if len(u) == 0:
+            return np.zeros((0, 2))
+        row = self.table[i]
+        g2min, g2max = row[G_MIN] ** 2, row[G_MAX] ** 2
+        g = np.sqrt(g2min + u[:, 0] * (g2max - g2min))              # uniform in area
+        a = heading + row[FOV] * (2.0 * u[:, 1] - 1.0)
+        xy = sxy + g[:, None] * np.column_stack([np.cos(a), np.sin(a)])
+        h, _, var, inside = radar.measure_looks(self.table, np.full(len(g), i), xy, sxy,
+                                                np.full(len(g), heading))
+        zc = h + np.sqrt(var) * n
+        zc[:, 1] = wrap_angle(zc[:, 1])
+        # Points behind the boresight plane (cos psi <= 0) are outside the sensing region.
+        return zc[inside]
 
 
 def _miss_update_kernel() -> Callable[..., tuple[FloatArray, FloatArray, BoolArray]]:
@@ -264,6 +343,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     # equals drawing them step by step, and a sensor draws whether it measures or not.
     noise = np.stack([np.random.default_rng(c).standard_normal((S, 2))
                       for c in streams["noise"].spawn(N)], axis=1)           # (S, N, 2)
+    detect = _DetectionDraws(table, streams, S) if _imperfect(table) else None
 
     truth = np.empty((S + 1, M, 4))
     estimate = np.empty((S + 1, M, 4))
@@ -274,6 +354,10 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     negative = np.zeros((S + 1, M), dtype=bool)
     inflated = np.zeros((S + 1, M), dtype=bool)
     gated_out = np.zeros((S + 1, M, N), dtype=bool)
+    detections = np.zeros((S + 1, N), dtype=np.int16)
+    false_alarms = np.zeros((S + 1, N), dtype=np.int16)
+    used = np.zeros((S + 1, N), dtype=np.int16)
+    discarded = np.zeros((S + 1, N), dtype=np.int16)
     restarted = np.zeros((S + 1, M), dtype=bool)
     map_corrected = np.zeros((S + 1, M), dtype=bool)
     positions = np.empty((S + 1, N, 2))
@@ -327,23 +411,45 @@ def run_episode(scenario: Scenario, settings: RunSettings,
             h_true, _, var_true, seen = radar.measure_looks(table, sensor_index, x_true[tj, :2],
                                                             pos, head)
             assigned = target >= 0
-            miss = assigned & ~seen
             seen &= assigned
+            if detect is not None:
+                seen &= detect.detected(t, x_true[tj, :2], pos)
+            z = h_true + np.sqrt(var_true) * noise[t - 1]
+            z[:, 1] = wrap_angle(z[:, 1])
+            sets = n_false = None
+            if detect is not None:
+                sets, n_false = detect.looks(t, seen, z, pos, head, assigned)
+            empty = assigned & ~seen if sets is None else assigned & np.array(
+                [len(d) == 0 for d in sets])
+            miss = assigned & ~seen
 
-            if miss_update is not None and miss.any():
-                i = sensor_index[miss]
+            if miss_update is not None and empty.any():
+                i = sensor_index[empty]
                 negative[t], inflated[t] = tracker.miss(i, target[i], pos[i], head[i],
                                                         kernel=miss_update)
 
-            if seen.any():
+            if sets is not None:
+                i = sensor_index[assigned & ~empty]
+                if i.size:
+                    res = tracker.update_sets(i, target[i], [sets[n] for n in i], pos[i],
+                                              head[i], kernel=miss_update)
+                    negative[t] |= res.negative
+                    restarted[t, target[i][res.restarted]] = True
+                    map_corrected[t] |= res.map_corrected
+                    used[t, i], discarded[t, i] = res.used, res.discarded
+                    detections[t, i] = [len(sets[n]) for n in i]
+                    false_alarms[t, i] = n_false[i]
+                measured[t, target[seen], sensor_index[seen]] = True
+            elif seen.any():
                 i = sensor_index[seen]
-                z = h_true[i] + np.sqrt(var_true[i]) * noise[t - 1, i]
-                z[:, 1] = wrap_angle(z[:, 1])
-                looks = tracker.update(i, target[i], z, pos[i], head[i])
+                looks = tracker.update(i, target[i], z[i], pos[i], head[i])
                 measured[t, target[i], i] = True
                 gated_out[t, target[i], i] = looks.gated_out
                 restarted[t, target[i][looks.restarted]] = True
                 map_corrected[t] |= looks.map_corrected
+                detections[t, i] = 1
+                used[t, i] = looks.used
+                discarded[t, i] = looks.gated_out
 
             truth[t] = x_true
             estimate[t] = tracker.means
@@ -366,7 +472,8 @@ def run_episode(scenario: Scenario, settings: RunSettings,
         target_kinds=scenario.target_kinds, truth=truth, estimate=estimate, cov=cov,
         error=error, nees=nees(truth, estimate, cov), measured=measured, looked=looked,
         missed=missed, negative_update=negative, inflated=inflated, gated_out=gated_out,
-        restarted=restarted, map_corrected=map_corrected, sensor_positions=positions,
+        restarted=restarted, map_corrected=map_corrected, detections=detections,
+        false_alarms=false_alarms, used=used, discarded=discarded, sensor_positions=positions,
         sensor_headings=headings,
         decision_steps=d[:, 0].astype(np.int64), planning_seconds=d[:, 1], potential=d[:, 2],
         converged=d[:, 3], sweeps=d[:, 4], settings=settings,

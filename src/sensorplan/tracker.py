@@ -41,7 +41,11 @@ from ._types import BoolArray, FloatArray, IntArray
 from .dynamics import cv_matrices
 from .ekf import innovations, mahalanobis2, position_update, predict, update, update_rounds
 from .known_map import map_constraint
-from .radar import inverse_looks
+from .radar import detection_probabilities, inverse_looks
+from .sensors import AREA, CLUTTER_RATE
+
+#: Ways to associate a look's detections with its track when false alarms are on.
+ASSOCIATIONS = ("pda", "nearest")
 
 #: Degrees of freedom of a range/azimuth innovation.
 GATE_DOF = 2
@@ -64,6 +68,26 @@ def stationary(switching: FloatArray) -> FloatArray:
     pi = np.linalg.lstsq(A, b, rcond=None)[0]
     pi = np.clip(pi, 0.0, None)
     return pi / pi.sum()
+
+
+@dataclass(frozen=True)
+class SetResults:
+    """What :meth:`Tracker.update_sets` did with each of L looks.
+
+    Attributes
+    ----------
+    used : (L,) int         detections applied to the track
+    discarded : (L,) int    detections outside the gate (not used)
+    restarted : (L,) bool   the track was restarted from the look's detection
+    negative : (M,) bool    tracks that got a negative update (no gated detection)
+    map_corrected : (M,) bool
+    """
+
+    used: IntArray
+    discarded: IntArray
+    restarted: BoolArray
+    negative: BoolArray
+    map_corrected: BoolArray
 
 
 @dataclass(frozen=True)
@@ -101,7 +125,10 @@ class Tracker:
     gate_probability : float in (0, 1), optional
         Validation gate; None: every detection is used.
     reacquire : bool
-        Restart a track from a detection outside the gate (needs the gate).
+        Restart a track from a detection outside the gate (needs the gate; only for sensors
+        without false alarms).
+    association : {"pda", "nearest"}
+        How the detections of a look with false alarms update the track.
     world : (width, height), optional
         The map ``[0, W] x [0, H]`` the targets never leave; None: not used.
     restart_velocity_var : (2,)
@@ -111,7 +138,8 @@ class Tracker:
     def __init__(self, means: FloatArray, covs: FloatArray, dt: float, table: FloatArray, *,
                  process_noise: float, mode_process_noise: tuple[float, ...] | None = None,
                  switching: FloatArray | None = None, gate_probability: float | None = None,
-                 reacquire: bool = False, world: tuple[float, float] | None = None,
+                 reacquire: bool = False, association: str = "pda",
+                 world: tuple[float, float] | None = None,
                  restart_velocity_var: tuple[float, float] = (4.0, 4.0)) -> None:
         means = np.array(means, dtype=float)
         covs = np.array(np.broadcast_to(covs, means.shape + (4,)), dtype=float)
@@ -131,6 +159,10 @@ class Tracker:
         self.mode_covs = np.repeat(covs[:, None], R, axis=1)
         self.mode_probs = np.tile(self.initial_probs, (M, 1))
         self.gate = None if gate_probability is None else gate_threshold(gate_probability)
+        self.gate_probability = gate_probability
+        if association not in ASSOCIATIONS:
+            raise ValueError(f"association must be one of {ASSOCIATIONS}, got {association!r}")
+        self.association = association
         if reacquire and self.gate is None:
             raise ValueError("re-acquisition needs the validation gate")
         self.reacquire = reacquire
@@ -239,18 +271,21 @@ class Tracker:
         inflated = np.zeros(M, dtype=bool)
         for rnd in update_rounds(targets):
             i, j = sensors[rnd], targets[rnd]
+            # A detection outside the gate would not have been used: the look says "no
+            # gated detection" (with no gate the kernel's own rule, Pg = 1).
+            gate_kw = {} if self.gate is None else {"gate_probability": self.gate_probability}
             if self.n_modes == 1:
                 m, P, infl = kernel(self.mode_means[j, 0], self.mode_covs[j, 0], sensor_xy[rnd],
-                                    heading[rnd], self.table, i)
+                                    heading[rnd], self.table, i, **gate_kw)
                 self.mode_means[j, 0], self.mode_covs[j, 0] = m, P
             else:
                 R = self.n_modes
                 m, P, infl, f = kernel(self.mode_means[j], self.mode_covs[j],
                                        sensor_xy[rnd][:, None], heading[rnd][:, None],
                                        self.table, np.repeat(i[:, None], R, axis=1),
-                                       return_fraction=True)
+                                       return_fraction=True, **gate_kw)
                 self.mode_means[j], self.mode_covs[j] = m, P
-                # The mode's probability of having missed: the mass it puts outside.
+                # The mode's probability of the miss: the mass the look did not remove.
                 self._reweight(j, np.log(np.maximum(1.0 - f, 1.0 / 512)))
                 infl = infl.any(axis=1)
             self._combine(j)
@@ -297,6 +332,116 @@ class Tracker:
                 self._update_modes(keep, sensors, targets, z, sensor_xy, heading)
                 used[keep] = True
         return LookResults(used, gated_out, restarted, self.apply_map())
+
+    def update_sets(self, sensors: IntArray, targets: IntArray, detections: list[FloatArray],
+                    sensor_xy: FloatArray, heading: FloatArray,
+                    kernel: object = None) -> SetResults:
+        """Apply L looks that each returned a set of detections (the target's, false alarms).
+
+        Looks are processed one at a time, in the given (sensor) order. A look's detections
+        are gated with the track; then
+
+        - the sensor reports false alarms (its ``clutter_rate`` > 0): probabilistic data
+          association (``association = "pda"``) or the nearest gated detection
+          (``"nearest"``); with no gated detection the look is a miss and gets the
+          negative update for ``Pd < 1`` (``kernel``, default
+          :func:`sensorplan.missed.miss_update`), if the tracker has missed-look updates;
+        - it does not: the (single) detection is the target's, as in :meth:`update`.
+
+        Parameters
+        ----------
+        sensors, targets : (L,) int
+        detections : list of L arrays ``(m_l, 2)``   ``[r, phi]`` of each look (m, rad)
+        sensor_xy : (L, 2);  heading : (L,)
+
+        Returns
+        -------
+        SetResults
+        """
+        M = len(self.means)
+        L = len(targets)
+        used = np.zeros(L, dtype=np.int64)
+        discarded = np.zeros(L, dtype=np.int64)
+        restarted = np.zeros(L, dtype=bool)
+        negative = np.zeros(M, dtype=bool)
+        for n in range(L):
+            i, j = int(sensors[n]), int(targets[n])
+            Z = np.asarray(detections[n], dtype=float).reshape(-1, 2)
+            if Z.shape[0] == 0:
+                continue
+            clutter = self.table[i, CLUTTER_RATE] > 0.0
+            if not clutter:
+                if Z.shape[0] != 1:
+                    raise ValueError(f"look {n}: {Z.shape[0]} detections from a sensor "
+                                     "without false alarms")
+                one = self.update(np.array([i]), np.array([j]), Z, sensor_xy[n:n + 1],
+                                  heading[n:n + 1])
+                used[n], discarded[n] = int(one.used[0]), int(one.gated_out[0])
+                restarted[n] = one.restarted[0]
+                continue
+            ok = np.ones(len(Z), dtype=bool)
+            if self.gate is not None:
+                rep = np.full(len(Z), i)
+                nu, S, _, _ = innovations(np.repeat(self.means[j:j + 1], len(Z), 0),
+                                          np.repeat(self.covs[j:j + 1], len(Z), 0), Z,
+                                          np.repeat(sensor_xy[n:n + 1], len(Z), 0),
+                                          np.repeat(heading[n:n + 1], len(Z), 0), self.table,
+                                          rep)
+                ok = mahalanobis2(nu, S) < self.gate
+            discarded[n] = int((~ok).sum())
+            gated = Z[ok]
+            if len(gated) == 0:
+                if kernel is not None:
+                    neg, _ = self._miss_one(i, j, sensor_xy[n], heading[n], kernel)
+                    negative |= neg
+                continue
+            if self.association == "nearest":
+                gated = gated[[int(np.argmin(mahalanobis2(nu[ok], S[ok])))]] \
+                    if self.gate is not None else gated[:1]
+            self._pda(i, j, gated, sensor_xy[n], heading[n])
+            used[n] = len(gated)
+        return SetResults(used, discarded, restarted, negative, self.apply_map())
+
+    def _miss_one(self, i: int, j: int, sxy: FloatArray, hd: float,
+                  kernel: object) -> tuple[BoolArray, BoolArray]:
+        return self.miss(np.array([i]), np.array([j]), np.asarray(sxy)[None],
+                         np.array([hd]), kernel=kernel)
+
+    def _pda(self, i: int, j: int, Z: FloatArray, sxy: FloatArray, hd: float) -> None:
+        """Probabilistic data association update of track j with gated detections Z."""
+        R, m = self.n_modes, len(Z)
+        x = self.mode_means[j]                                           # (R, 4)
+        P = self.mode_covs[j]                                            # (R, 4, 4)
+        xr = np.repeat(x, m, 0)
+        Pr = np.repeat(P, m, 0)
+        nu, S, Hp, var = innovations(xr, Pr, np.tile(Z, (R, 1)), np.tile(sxy, (R * m, 1)),
+                                     np.full(R * m, hd), self.table, np.full(R * m, i))
+        d2 = mahalanobis2(nu, S).reshape(R, m)
+        logdet = np.linalg.slogdet(S)[1].reshape(R, m)
+        pg = self.gate_probability if self.gate is not None else 1.0
+        # Pd at each mode's predicted position; clutter density in (r, phi) at each detection.
+        pd = detection_probabilities(self.table, np.full(R, i), x[:, :2], np.tile(sxy, (R, 1)))
+        rho = self.table[i, CLUTTER_RATE] * Z[:, 0] / self.table[i, AREA]     # (m,)
+        lik = pd[:, None] * np.exp(-0.5 * d2 - 0.5 * logdet) / (2.0 * math.pi) / rho[None]
+        none = 1.0 - pd * pg
+        den = none + lik.sum(axis=1)                                     # (R,)
+        beta = lik / den[:, None]                                        # (R, m)
+        beta0 = none / den
+        nu = nu.reshape(R, m, 2)
+        nu_c = np.einsum("rm,rmk->rk", beta, nu)                         # combined innovation
+        Hp0, var0 = Hp.reshape(R, m, 2, 2)[:, 0], var.reshape(R, m, 2)[:, 0]
+        xc, Pc = position_update(x, P, nu_c, Hp0, var0)                  # Joseph, P_c
+        # Gain K = P H'^T S^-1 at the mode's linearisation (the same for every detection).
+        S0 = S.reshape(R, m, 2, 2)[:, 0]
+        PHt = P[:, :, :2] @ np.swapaxes(Hp0, -1, -2)
+        K = np.swapaxes(np.linalg.solve(S0, np.swapaxes(PHt, -1, -2)), -1, -2)   # (R, 4, 2)
+        spread = np.einsum("rm,rmk,rml->rkl", beta, nu, nu) - nu_c[:, :, None] * nu_c[:, None]
+        Pn = beta0[:, None, None] * P + (1.0 - beta0)[:, None, None] * Pc \
+            + K @ spread @ np.swapaxes(K, -1, -2)
+        self.mode_means[j] = xc
+        self.mode_covs[j] = 0.5 * (Pn + np.swapaxes(Pn, -1, -2))
+        self._reweight(np.array([j]), np.log(den)[None])
+        self._combine(np.array([j]))
 
     def _update_modes(self, idx: IntArray, sensors: IntArray, targets: IntArray, z: FloatArray,
                       sensor_xy: FloatArray, heading: FloatArray) -> None:
