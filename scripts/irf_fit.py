@@ -16,8 +16,8 @@ This script estimates it by Monte Carlo on a grid of (Pd, lam), divides by its c
 value Pd (1 - (1 + g^2/2) exp(-g^2/2)) so that the clutter factor q2 is 1 without clutter,
 and fits Kershaw and Evans's functional form
     q2(Pd, lam) = 1 / (1 + b Pd^-c lam^d)
-by least squares on log(1/q2 - 1). Run once; its output is in docs/model.md and the
-constants in sensorplan/radar.py:
+by least squares on log q2 (relative errors: the planner's objective is a log-det). Run
+once; its output is in docs/model.md and the constants in sensorplan/radar.py:
 
     python scripts/irf_fit.py            (about 10 min on 2 cores)
 """
@@ -76,16 +76,16 @@ def main() -> None:
                   flush=True)
     data = np.array(rows)
 
-    def resid(theta: np.ndarray) -> np.ndarray:
+    def model(theta: np.ndarray) -> np.ndarray:
         b, c, d = theta
-        model = 1.0 / (1.0 + b * data[:, 0] ** -c * data[:, 1] ** d)
-        return model - data[:, 2]
+        return 1.0 / (1.0 + b * data[:, 0] ** -c * data[:, 1] ** d)
 
-    fit = least_squares(resid, x0=[20.0, 1.0, 1.0])
+    fit = least_squares(lambda th: np.log(model(th)) - np.log(data[:, 2]), x0=[20.0, 1.0, 1.0])
     b, c, d = fit.x
-    err = np.abs(resid(fit.x))
-    print(f"\nfit: q2 = 1 / (1 + {b:.4g} Pd^-{c:.4g} lam^{d:.4g}); "
-          f"max |error| {err.max():.4f}, mean {err.mean():.4f}")
+    err = model(fit.x) - data[:, 2]
+    print(f"\nfit: q2 = 1 / (1 + {b:.4g} Pd^-{c:.4g} lam^{d:.4g}); max |error| "
+          f"{np.abs(err).max():.4f}, mean {np.abs(err).mean():.4f}, max relative error "
+          f"{np.abs(err / data[:, 2]).max():.3f}")
     sys.stdout.flush()
 
 

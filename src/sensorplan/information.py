@@ -129,8 +129,9 @@ def prepare(problem: PlanningProblem) -> Context:
     Cbar = np.stack([Pbar[..., 0, 0], Pbar[..., 0, 1], Pbar[..., 1, 1]], axis=-1)
     xbar_xy = np.ascontiguousarray(xbar[..., :2])
     max_turn = np.array([float(s.max_turn) for s in problem.sensors])
-    return Context(problem, F, Q, xbar, Pbar, ld_bar, Cbar, aim, radar_table(problem.sensors),
-                   max_turn, lattices, xbar_xy)
+    table = radar_table(problem.sensors, aware=problem.planning_detection == "aware")
+    return Context(problem, F, Q, xbar, Pbar, ld_bar, Cbar, aim, table, max_turn, lattices,
+                   xbar_xy)
 
 
 def chain_headings(ctx: Context, i: int, k_first: int, positions: FloatArray,

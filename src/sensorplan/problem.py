@@ -28,6 +28,7 @@ Visibility = Literal["probabilistic", "mean"]
 Objective = Literal["terminal", "cumulative"]
 VISIBILITY_MODES = ("probabilistic", "mean")
 OBJECTIVES = ("terminal", "cumulative")
+PLANNING_DETECTIONS = ("ignore", "aware")
 
 
 def move_vectors(distances: tuple[float, ...] | list[float]) -> FloatArray:
@@ -207,6 +208,10 @@ class PlanningProblem:
     world : MapRect
     visibility : {"probabilistic", "mean"}
     objective : {"terminal", "cumulative"}
+    planning_detection : {"ignore", "aware"}
+        ``aware``: a planned look's information also counts its detection probability and
+        the clutter (:func:`sensorplan.radar.look`); ``ignore``: only whether the target is
+        in view.
     """
 
     means: FloatArray
@@ -221,6 +226,7 @@ class PlanningProblem:
     world: MapRect = field(default_factory=MapRect)
     visibility: str = "probabilistic"
     objective: str = "terminal"
+    planning_detection: str = "aware"
 
     def __post_init__(self) -> None:
         # Read-only copies: planners cannot mutate the caller's arrays (or each other's).
@@ -286,6 +292,9 @@ class PlanningProblem:
             raise ConfigError("visibility", f"must be one of {VISIBILITY_MODES}, got {self.visibility!r}")
         if self.objective not in OBJECTIVES:
             raise ConfigError("objective", f"must be one of {OBJECTIVES}, got {self.objective!r}")
+        if self.planning_detection not in PLANNING_DETECTIONS:
+            raise ConfigError("planning_detection", f"must be one of {PLANNING_DETECTIONS}, "
+                              f"got {self.planning_detection!r}")
         if not np.all(np.isfinite(self.means)):
             j = int(np.flatnonzero(~np.all(np.isfinite(self.means), axis=1))[0])
             raise ConfigError(f"targets[{j}].mean", "must be finite")

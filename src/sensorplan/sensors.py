@@ -113,17 +113,17 @@ class SensorParams:
 #: :math:`\sigma_r^2 = c_r r^4` and :math:`\sigma_\phi^2 = c_\phi r^4 / \cos^2\psi`;
 #: ``swerling`` is 1 for Swerling 1 detection, 0 for ideal; ``log_pfa`` is ln Pfa;
 #: ``clutter_rate`` the false detections per look and ``area`` the sensing region's ground
-#: area (m^2). The last two columns belong to planning: ``aware`` is 1 when planned looks
-#: count their detection probability and clutter, ``gate_probability`` the tracker's gate.
+#: area (m^2). The last column belongs to planning: ``aware`` is 1 when planned looks count
+#: their detection probability and the clutter.
 COLUMNS = ("altitude", "altitude2", "cos_depression", "sin_depression", "fov_half_angle",
            "min_ground_range", "max_ground_range", "snr0", "range_ref", "var_r", "var_phi",
-           "swerling", "log_pfa", "clutter_rate", "area", "aware", "gate_probability")
+           "swerling", "log_pfa", "clutter_rate", "area", "aware")
 (ALTITUDE, ALTITUDE2, COS_DEP, SIN_DEP, FOV, G_MIN, G_MAX, SNR0, RANGE_REF, VAR_R, VAR_PHI,
- SWERLING, LOG_PFA, CLUTTER_RATE, AREA, AWARE, GATE_P) = range(len(COLUMNS))
+ SWERLING, LOG_PFA, CLUTTER_RATE, AREA, AWARE) = range(len(COLUMNS))
 
 
-def radar_table(sensors: Sequence[SensorParams] | SensorParams, *, aware: bool = False,
-                gate_probability: float = 0.999) -> FloatArray:
+def radar_table(sensors: Sequence[SensorParams] | SensorParams, *,
+                aware: bool = False) -> FloatArray:
     r"""One row of radar constants per sensor, shaped ``(N, len(COLUMNS))``.
 
     With :math:`s_0 = 10^{\mathrm{snr_{ref}}/10}` the SNR model
@@ -141,8 +141,6 @@ def radar_table(sensors: Sequence[SensorParams] | SensorParams, *, aware: bool =
     aware : bool
         Planned looks count their detection probability and the clutter (see
         :func:`sensorplan.radar.look`).
-    gate_probability : float
-        The tracker's gate probability, for the clutter's information reduction.
 
     Returns
     -------
@@ -161,6 +159,5 @@ def radar_table(sensors: Sequence[SensorParams] | SensorParams, *, aware: bool =
                   float(p.range_ref), float(p.range_resolution) ** 2 / two_s0_r4,
                   (float(p.beamwidth) / float(p.monopulse_slope)) ** 2 / two_s0_r4,
                   float(p.detection == "swerling1"), math.log(float(p.false_alarm_probability)),
-                  float(p.clutter_rate), fov * (gmax * gmax - gmin * gmin), float(aware),
-                  float(gate_probability))
+                  float(p.clutter_rate), fov * (gmax * gmax - gmin * gmin), float(aware))
     return out

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from .errors import ConfigError
-from .problem import OBJECTIVES, VISIBILITY_MODES
+from .problem import OBJECTIVES, PLANNING_DETECTIONS, VISIBILITY_MODES
 
 EXECUTIONS = ("ol", "olf")
 MISS_UPDATES = ("negative", "none")
@@ -371,6 +371,7 @@ class RunSettings(_Settings):
                                    only the first
     visibility : {"probabilistic", "mean"}
     objective : {"terminal", "cumulative"}
+    planning_detection : {"aware", "ignore"}
     steps : int                    simulation steps S (>= 1)
     tracker : TrackerSettings      (a mapping is accepted and converted)
 
@@ -408,6 +409,12 @@ class RunSettings(_Settings):
         choices=OBJECTIVES, noun="objective",
         help="terminal (information at the end of the horizon, the paper's) or cumulative "
              "(summed over its steps).")
+    planning_detection: str = setting(
+        "aware", section="planning", cli=("--planning-detection",), metavar="MODE",
+        label="detection in planning", choices=PLANNING_DETECTIONS, noun="planning detection",
+        help="aware: a planned look's information counts its detection probability and the "
+             "clutter (no change for ideal sensors without false alarms); ignore: only "
+             "whether the target is in view.")
     steps: int = setting(
         100, section="run", cli=("--steps", "-n"), metavar="N", ge=1,
         help="Simulation steps of the run.")

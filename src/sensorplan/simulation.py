@@ -386,7 +386,8 @@ def run_episode(scenario: Scenario, settings: RunSettings,
                         means=tracker.means, covs=tracker.covs, positions=pos, headings=head,
                         sensors=sensor_list, horizon=K, steps_per_epoch=e, dt=scenario.dt,
                         process_noise=tracker.planning_process_noise(), world=scenario.world,
-                        visibility=settings.visibility, objective=settings.objective)
+                        visibility=settings.visibility, objective=settings.objective,
+                        planning_detection=settings.planning_detection)
                     start = time.perf_counter()
                     result = planner.plan(problem, rng=planner_rng)
                     seconds = time.perf_counter() - start

@@ -49,6 +49,8 @@ class DecisionFile(Strict):
         _problem_default("visibility"))
     objective: setting_type(RunSettings, "objective") = (  # type: ignore[valid-type]
         _problem_default("objective"))
+    planning_detection: setting_type(  # type: ignore[valid-type]
+        RunSettings, "planning_detection") = _problem_default("planning_detection")
     targets: list[DecisionTarget]
     sensors: list[DecisionSensor]
     planner: DecisionPlanner = DecisionPlanner()
@@ -98,7 +100,8 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
         sensors=tuple(s.params() for s in model.sensors),
         horizon=model.horizon, steps_per_epoch=model.steps_per_epoch, dt=model.dt,
         process_noise=model.process_noise, world=MapRect(model.map.width, model.map.height),
-        visibility=model.visibility, objective=model.objective)
+        visibility=model.visibility, objective=model.objective,
+        planning_detection=model.planning_detection)
     params = model.planner.given()
     if model.planner.seed is not None:
         params["seed"] = model.planner.seed
