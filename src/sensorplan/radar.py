@@ -515,6 +515,31 @@ def detectable_points(table: FloatArray, sensor: IntArray, dx: FloatArray, dy: F
                         np.ascontiguousarray(heading, dtype=float))
 
 
+def clutter_points(row: FloatArray, sensor_xy: FloatArray, heading: float,
+                   u: FloatArray) -> FloatArray:
+    """Ground positions of false alarms, uniform in area over a look's sensing region.
+
+    Parameters
+    ----------
+    row : (C,) the sensor's radar table row
+    sensor_xy : (2,); heading : float
+    u : (n, 2) uniforms in [0, 1): ground range (uniform in area over the range band) and
+        azimuth (uniform over the wedge)
+
+    Returns
+    -------
+    (n, 2) ground positions, all in the range band and the wedge; those with
+    ``cos psi <= 0`` (behind the boresight plane) are not in the sensing region and are
+    left to the caller's visibility test (:func:`measure_looks`).
+    """
+    u = np.asarray(u, dtype=float).reshape(-1, 2)
+    g2min, g2max = row[G_MIN] ** 2, row[G_MAX] ** 2
+    g = np.sqrt(g2min + u[:, 0] * (g2max - g2min))
+    a = heading + row[FOV] * (2.0 * u[:, 1] - 1.0)
+    return np.asarray(sensor_xy, dtype=float) + g[:, None] * np.column_stack(
+        [np.cos(a), np.sin(a)])
+
+
 def look_information(row: FloatArray, dx: FloatArray, dy: FloatArray, th: FloatArray,
                      C: FloatArray, probabilistic: bool) -> tuple[FloatArray, FloatArray]:
     """Weight and information of planned looks by one sensor (see :func:`look`).

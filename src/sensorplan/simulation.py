@@ -50,7 +50,7 @@ from .errors import ConfigError
 from .planners import make_planner
 from .problem import PlanningProblem
 from .scenario import Scenario, draw_initial, make_truth
-from .sensors import CLUTTER_RATE, FOV, G_MAX, G_MIN, SWERLING, radar_table
+from .sensors import CLUTTER_RATE, SWERLING, radar_table
 from .settings import EXECUTIONS, RunSettings
 from . import radar
 
@@ -279,13 +279,9 @@ class _DetectionDraws:
         u, n = self.points[i][t - 1]
         if len(u) == 0:
             return np.zeros((0, 2))
-        row = self.table[i]
-        g2min, g2max = row[G_MIN] ** 2, row[G_MAX] ** 2
-        g = np.sqrt(g2min + u[:, 0] * (g2max - g2min))              # uniform in area
-        a = heading + row[FOV] * (2.0 * u[:, 1] - 1.0)
-        xy = sxy + g[:, None] * np.column_stack([np.cos(a), np.sin(a)])
-        h, _, var, inside = radar.measure_looks(self.table, np.full(len(g), i), xy, sxy,
-                                                np.full(len(g), heading))
+        xy = radar.clutter_points(self.table[i], sxy, heading, u)
+        h, _, var, inside = radar.measure_looks(self.table, np.full(len(u), i), xy, sxy,
+                                                np.full(len(u), heading))
         zc = h + np.sqrt(var) * n
         zc[:, 1] = wrap_angle(zc[:, 1])
         # Points behind the boresight plane (cos psi <= 0) are outside the sensing region.
