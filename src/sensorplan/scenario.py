@@ -9,8 +9,9 @@ Scenario files are read and written by :mod:`sensorplan.scenario_file`.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -130,14 +131,33 @@ class Scenario:
                 raise ConfigError(f"sensors[{i}].position", "is outside the map")
 
 
-def paper_scenario() -> Scenario:
-    """SPEC 1 paper scenario: M = 5 (3 ``cv``, 2 ``dubins``), N = 3 sensors at 490/500/510 m.
+def paper_scenario(**radar: Any) -> Scenario:
+    """The paper's scenario: M = 5 (3 ``cv``, 2 ``dubins``), N = 3 sensors at 490/500/510 m.
 
-    Initial target states and sensor poses are left to each run's seed.
+    Initial target states and sensor poses are left to each run's seed. ``radar`` gives
+    every sensor further :class:`SensorParams` fields (the ``radar`` preset's detection).
     """
     targets = tuple(TargetSpec(kind=k) for k in ("cv", "cv", "cv", "dubins", "dubins"))
-    sensors = tuple(SensorSpec(SensorParams(altitude=a)) for a in (490.0, 500.0, 510.0))
+    sensors = tuple(SensorSpec(SensorParams(altitude=a, **radar)) for a in (490.0, 500.0, 510.0))
     return Scenario(targets=targets, sensors=sensors)
+
+
+#: Detection of the ``radar`` preset (docs/model.md, "Detection and false alarms"): a
+#: Swerling 1 target behind a CFAR detector with a false-alarm probability of 1e-6 per
+#: resolution cell, and one false detection per look from clutter residue.
+RADAR_DETECTION = {"detection": "swerling1", "false_alarm_probability": 1e-6,
+                   "clutter_rate": 1.0}
+
+
+def radar_scenario() -> Scenario:
+    """The paper's scenario with real radar conditions: Swerling 1 detection (Pd about
+    0.5-0.7 over the sensing region) and one false alarm per look (see
+    :data:`RADAR_DETECTION`)."""
+    return paper_scenario(**RADAR_DETECTION)
+
+
+#: Built-in scenarios by name (``--preset``, a study's ``scenario.preset``).
+PRESETS: dict[str, Callable[[], Scenario]] = {"paper": paper_scenario, "radar": radar_scenario}
 
 
 @dataclass(frozen=True)

@@ -9,14 +9,15 @@ from typing import Any
 
 from .. import io
 from ..errors import ConfigError
-from ..scenario import Scenario, paper_scenario
+from ..scenario import PRESETS as SCENARIO_PRESETS
+from ..scenario import Scenario
 from ..scenario_file import ScenarioFile, SettingsTables
 from ..settings import RunSettings, all_settings
 from ..validation import given, validate
 from .planners import build_planner, planner_settings
 
 #: Built-in scenarios for ``sensorplan simulate --preset`` and study files.
-PRESETS = ("paper",)
+PRESETS = tuple(SCENARIO_PRESETS)
 
 #: Run setting -> (section, key) in a scenario file, and the run's seed.
 FILE_KEYS = {f.name: (s.section, f.name) for _, _, f, s in all_settings()}
@@ -55,7 +56,7 @@ def preset_scenario(name: str | None, field: str) -> Scenario:
     name = name or "paper"
     if name not in PRESETS:
         raise ConfigError(field, f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
-    return paper_scenario()
+    return SCENARIO_PRESETS[name]()
 
 
 def load_simulation(path: str | Path | None = None, preset: str | None = None,
