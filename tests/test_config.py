@@ -214,7 +214,7 @@ def test_paper_toml_is_the_preset() -> None:
     assert preset.scenario == cfg.scenario
     assert preset.settings == cfg.settings
     assert preset.seed == cfg.seed == 0
-    assert PRESETS == ("paper",)
+    assert PRESETS[0] == "paper" and "radar" in PRESETS
 
 
 def test_quick_toml_is_tiny() -> None:
@@ -324,3 +324,14 @@ def test_planner_override_drops_max_plans(tmp_path: Path) -> None:
     path.write_text('[planning]\nplanner = "random"\n[planning.planner_params]\n'
                     'max_plans = 100\n[[targets]]\n[[sensors]]\n')
     assert error_of(load_simulation, path).field == "planning.planner_params.max_plans"
+
+
+def test_the_radar_preset_is_the_paper_scenario_with_radar_detection() -> None:
+    from sensorplan.scenario import RADAR_DETECTION, radar_scenario
+
+    sc = load_simulation(preset="radar").scenario
+    assert sc == radar_scenario()
+    assert sc.targets == paper_scenario().targets
+    for spec, paper in zip(sc.sensors, paper_scenario().sensors):
+        assert spec.params.altitude == paper.params.altitude
+        assert {k: getattr(spec.params, k) for k in RADAR_DETECTION} == RADAR_DETECTION
