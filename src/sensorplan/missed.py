@@ -40,7 +40,7 @@ from scipy.special import ndtri
 from scipy.stats import qmc
 
 from . import radar
-from ._types import BoolArray, FloatArray, IntArray
+from ._types import FloatArray, IntArray
 from .sensors import G_MAX, G_MIN, SensorParams, radar_table
 
 #: Number of quadrature points (SPEC 3).
@@ -127,7 +127,8 @@ def _point_set(points: FloatArray | None) -> tuple[FloatArray, FloatArray]:
 
 
 def _inside(means: FloatArray, chol: FloatArray, x: FloatArray, sensor_xy: FloatArray,
-            heading: FloatArray, table: FloatArray, sensor: IntArray) -> BoolArray:
+            heading: FloatArray, table: FloatArray, sensor: IntArray,
+            buildings: FloatArray | None = None) -> FloatArray:
     """Probability that the look detects a target at each mapped point ``m + L x_s``,
     ``(..., S)``: its detection probability inside the sensing region, 0 outside (exactly
     0 or 1 with ideal detection)."""
@@ -140,9 +141,11 @@ def _inside(means: FloatArray, chol: FloatArray, x: FloatArray, sensor_xy: Float
     dy = base[..., 1, None] + l10 * x[:, 0] + l11 * x[:, 1]
     batch = dx.shape[:-1]
     S = x.shape[0]
+    sxy = None if buildings is None else np.broadcast_to(sensor_xy, batch + (2,)).reshape(-1, 2)
     inside = radar.detectable_points(table, np.broadcast_to(sensor, batch).reshape(-1),
                                      dx.reshape(-1, S), dy.reshape(-1, S),
-                                     np.broadcast_to(heading, batch).reshape(-1))
+                                     np.broadcast_to(heading, batch).reshape(-1), sxy,
+                                     buildings)
     return inside.reshape(batch + (S,))
 
 
@@ -182,6 +185,7 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
                 heading: FloatArray, table: FloatArray | SensorParams,
                 sensor: IntArray | int | None = None, *,
                 points: FloatArray | None = None, gate_probability: float = 1.0,
+                buildings: FloatArray | None = None,
                 return_fraction: bool = False) -> tuple[FloatArray, ...]:
     r"""Update tracks with a missed look (SPEC 3, ``negative``), batched over tracks.
 
@@ -213,6 +217,9 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
     gate_probability : float
         Pg of the tracker's gate: a target detected outside the gate would not have been
         associated, so the look's miss means "not detected in the gate".
+    buildings : (K, 5) float64, optional
+        Buildings ``x0, y0, x1, y1, height``: a point they hide from the sensor counts as
+        outside the sensing region (the look could not have seen a target there).
     return_fraction : bool
         Also return the probability mass the look removes (the probability, under the
         track, that the look should have detected the target in its gate).
@@ -247,7 +254,7 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
     heading = np.asarray(heading, dtype=float)
     chol = np.linalg.cholesky(covs)
     inside = _inside(means, chol, x, np.asarray(sensor_xy, dtype=float), heading, table,
-                     sensor)
+                     sensor, buildings)
 
     # Each point keeps the probability that the look would NOT have produced a gated
     # detection of a target there: 1 - Pd Pg inside the sensing region, 1 outside. With

@@ -118,6 +118,40 @@ def visible(row: np.ndarray, dx: float, dy: float, heading: float) -> bool:
 
 
 @njit(cache=True, error_model="numpy")
+def hidden(buildings: np.ndarray, sx: float, sy: float, z: float, qx: float,
+           qy: float) -> bool:
+    """Whether a building blocks the line of sight from a sensor to a ground point.
+
+    The sight line runs from the sensor at ``(sx, sy, z)`` to the target at ``(qx, qy, 0)``;
+    a building ``(x0, y0, x1, y1, h)`` is the box ``[x0, x1] x [y0, y1] x [0, h]``. The
+    target is hidden when the line passes through the inside of a box; a line that only
+    touches a wall, an edge or the roof (grazing) is not blocked.
+    """
+    dx, dy = qx - sx, qy - sy
+    for b in range(buildings.shape[0]):
+        x0, y0, x1, y1, h = (buildings[b, 0], buildings[b, 1], buildings[b, 2],
+                             buildings[b, 3], buildings[b, 4])
+        # Along the line P(s) = sensor + s (target - sensor), s in [0, 1], the height
+        # z (1 - s) is below the roof for s > 1 - h / z.
+        lo, hi = max(0.0, 1.0 - h / z), 1.0
+        if dx == 0.0:
+            if not x0 < sx < x1:
+                continue
+        else:
+            t1, t2 = (x0 - sx) / dx, (x1 - sx) / dx
+            lo, hi = max(lo, min(t1, t2)), min(hi, max(t1, t2))
+        if dy == 0.0:
+            if not y0 < sy < y1:
+                continue
+        else:
+            t1, t2 = (y0 - sy) / dy, (y1 - sy) / dy
+            lo, hi = max(lo, min(t1, t2)), min(hi, max(t1, t2))
+        if lo < hi:
+            return True
+    return False
+
+
+@njit(cache=True, error_model="numpy")
 def detection_probability(row: np.ndarray, r2: float) -> float:
     r"""Probability of detecting a target in view at slant range^2 ``r2``.
 
@@ -369,15 +403,28 @@ def _visible_grid(table: np.ndarray, idx: np.ndarray, dx: np.ndarray, dy: np.nda
 
 @njit(cache=True, error_model="numpy")
 def _detect_grid(table: np.ndarray, idx: np.ndarray, dx: np.ndarray, dy: np.ndarray,
-                 heading: np.ndarray) -> np.ndarray:
+                 heading: np.ndarray, sxy: np.ndarray, buildings: np.ndarray) -> np.ndarray:
     B, S = dx.shape
     out = np.zeros((B, S))
     for b in range(B):
         row = table[idx[b]]
         for s in range(S):
-            if visible(row, dx[b, s], dy[b, s], heading[b]):
+            if visible(row, dx[b, s], dy[b, s], heading[b]) and (
+                    buildings.shape[0] == 0
+                    or not hidden(buildings, sxy[b, 0], sxy[b, 1], row[ALTITUDE],
+                                  sxy[b, 0] + dx[b, s], sxy[b, 1] + dy[b, s])):
                 out[b, s] = detection_probability(
                     row, dx[b, s] * dx[b, s] + dy[b, s] * dy[b, s] + row[ALTITUDE2])
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _hidden_batch(buildings: np.ndarray, sxy: np.ndarray, z: np.ndarray,
+                  qxy: np.ndarray) -> np.ndarray:
+    n = sxy.shape[0]
+    out = np.zeros(n, dtype=np.bool_)
+    for b in range(n):
+        out[b] = hidden(buildings, sxy[b, 0], sxy[b, 1], z[b], qxy[b, 0], qxy[b, 1])
     return out
 
 
@@ -499,20 +546,49 @@ def visible_points(table: FloatArray, sensor: IntArray, dx: FloatArray, dy: Floa
 
 
 def detectable_points(table: FloatArray, sensor: IntArray, dx: FloatArray, dy: FloatArray,
-                      heading: FloatArray) -> FloatArray:
+                      heading: FloatArray, sensor_xy: FloatArray | None = None,
+                      buildings: FloatArray | None = None) -> FloatArray:
     """Probability that a look detects a target at each of S ground offsets per look:
-    the detection probability inside the field of view, 0 outside (see
-    :func:`visible_points`; ideal detection gives exactly 0 or 1).
+    the detection probability inside the field of view and in sight (no building in
+    between; needs ``sensor_xy``), 0 otherwise (ideal detection gives exactly 0 or 1).
+
+    Parameters
+    ----------
+    table : (N, C); sensor : (B,) int; dx, dy : (B, S); heading : (B,)
+    sensor_xy : (B, 2), optional     sensor ground positions, for the line of sight
+    buildings : (K, 5), optional     ``x0, y0, x1, y1, height`` of each building
 
     Returns
     -------
     (B, S) float64 in [0, 1]
     """
+    blds = _buildings(buildings)
+    sxy = np.zeros((len(sensor), 2)) if sensor_xy is None else np.ascontiguousarray(
+        sensor_xy, dtype=float).reshape(-1, 2)
     return _detect_grid(np.ascontiguousarray(table, dtype=float),
                         np.ascontiguousarray(sensor, dtype=np.int64),
                         np.ascontiguousarray(dx, dtype=float),
                         np.ascontiguousarray(dy, dtype=float),
-                        np.ascontiguousarray(heading, dtype=float))
+                        np.ascontiguousarray(heading, dtype=float), sxy, blds)
+
+
+def _buildings(buildings: FloatArray | None) -> np.ndarray:
+    if buildings is None:
+        return np.zeros((0, 5))
+    return np.ascontiguousarray(buildings, dtype=float).reshape(-1, 5)
+
+
+def hidden_looks(buildings: FloatArray | None, sensor_xy: FloatArray, altitude: FloatArray,
+                 target_xy: FloatArray) -> BoolArray:
+    """Whether buildings hide each target ``(B, 2)`` from its sensor ``(B, 2)`` at
+    ``altitude`` ``(B,)`` (see :func:`hidden`)."""
+    blds = _buildings(buildings)
+    n = len(np.asarray(sensor_xy).reshape(-1, 2))
+    if len(blds) == 0:
+        return np.zeros(n, dtype=bool)
+    return _hidden_batch(blds, np.ascontiguousarray(sensor_xy, dtype=float).reshape(-1, 2),
+                         np.ascontiguousarray(np.broadcast_to(altitude, (n,)), dtype=float),
+                         np.ascontiguousarray(target_xy, dtype=float).reshape(-1, 2))
 
 
 def clutter_points(row: FloatArray, sensor_xy: FloatArray, heading: float,
@@ -575,6 +651,8 @@ def warm_up() -> None:
     _inverse_batch(table, i, np.ones((1, 2)), z)
     _pd_batch(table, i, z + 1.0, z)
     _visible_grid(table, i, np.ones((1, 1)), np.zeros((1, 1)), z)
-    _detect_grid(table, i, np.ones((1, 1)), np.zeros((1, 1)), z)
+    _detect_grid(table, i, np.ones((1, 1)), np.zeros((1, 1)), z, np.zeros((1, 2)),
+                 np.zeros((1, 5)))
+    _hidden_batch(np.zeros((1, 5)), np.zeros((1, 2)), z + 1.0, np.ones((1, 2)))
     for probabilistic in (True, False):
         _look_batch(table[0], z + 1.0, z, z, np.ones((1, 3)), probabilistic)

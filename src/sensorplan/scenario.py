@@ -19,7 +19,7 @@ from ._types import FloatArray
 from .errors import ConfigError
 from .problem import MapRect, check_covariance
 from .sensors import SensorParams
-from .truth import TruthModel
+from .truth import TruthModel, inside_buildings
 
 TargetKind = Literal["cv", "dubins"]
 TARGET_KINDS = ("cv", "dubins")
@@ -73,6 +73,9 @@ class Scenario:
     speed_range : (lo, hi)           initial target speeds (m/s)
     sensor_box : (lo, hi)            initial sensor positions uniform in [lo, hi]^2
     initial_cov : (4, 4)             P0: initial estimate = truth + N(0, P0)
+    buildings : tuple of (x0, y0, x1, y1, height)
+        Buildings: axis-aligned boxes on the ground (m) that hide targets from sensors
+        and that targets reflect off; every sensor flies above all of them.
     """
 
     world: MapRect = field(default_factory=MapRect)
@@ -85,11 +88,19 @@ class Scenario:
     sensor_box: tuple[float, float] = (50.0, 550.0)
     initial_cov: tuple[tuple[float, ...], ...] = (
         (400.0, 0.0, 0.0, 0.0), (0.0, 400.0, 0.0, 0.0), (0.0, 0.0, 4.0, 0.0), (0.0, 0.0, 0.0, 4.0))
+    buildings: tuple[tuple[float, float, float, float, float], ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "targets", tuple(self.targets))
         object.__setattr__(self, "sensors", tuple(self.sensors))
+        object.__setattr__(self, "buildings",
+                           tuple(tuple(float(v) for v in b) for b in self.buildings))
         self.validate()
+
+    @property
+    def building_array(self) -> FloatArray:
+        """The buildings as a ``(K, 5)`` array ``x0, y0, x1, y1, height``."""
+        return np.array(self.buildings, dtype=float).reshape(-1, 5)
 
     @property
     def target_kinds(self) -> tuple[str, ...]:
@@ -129,6 +140,32 @@ class Scenario:
             s.params.validate(f"sensors[{i}]")
             if s.position is not None and not self.world.contains(np.array(s.position)):
                 raise ConfigError(f"sensors[{i}].position", "is outside the map")
+        self._validate_buildings()
+
+    def _validate_buildings(self) -> None:
+        W, H = self.world.width, self.world.height
+        tallest = 0.0
+        for k, b in enumerate(self.buildings):
+            if len(b) != 5 or not all(math.isfinite(v) for v in b):
+                raise ConfigError(f"buildings[{k}]", "must be 5 finite numbers: x0, y0, x1, y1, "
+                                  "height")
+            x0, y0, x1, y1, h = b
+            if not (x0 < x1 and y0 < y1):
+                raise ConfigError(f"buildings[{k}].box", "must have x0 < x1 and y0 < y1")
+            if not (0.0 <= x0 and x1 <= W and 0.0 <= y0 and y1 <= H):
+                raise ConfigError(f"buildings[{k}].box", f"must lie inside the map [0, {W:g}] "
+                                  f"x [0, {H:g}]")
+            if h <= 0:
+                raise ConfigError(f"buildings[{k}].height", "must be > 0")
+            tallest = max(tallest, h)
+        for i, s in enumerate(self.sensors):
+            if self.buildings and float(s.params.altitude) <= tallest:
+                raise ConfigError(f"sensors[{i}].altitude", f"must be above every building "
+                                  f"(the tallest is {tallest:g} m)")
+        blds = self.building_array
+        for j, t in enumerate(self.targets):
+            if t.position is not None and inside_buildings(np.array(t.position), blds):
+                raise ConfigError(f"targets[{j}].position", "is inside a building")
 
 
 def paper_scenario(**radar: Any) -> Scenario:
@@ -187,8 +224,17 @@ def draw_initial(scenario: Scenario, truth_rng: np.random.Generator,
     """
     M = len(scenario.targets)
     truth = np.empty((M, 4))
+    blds = scenario.building_array
     for j, t in enumerate(scenario.targets):
         pos = truth_rng.uniform(*scenario.target_box, size=2)
+        # Targets start outside the buildings: redraw (only a scenario with buildings ever
+        # draws more than once, so the others keep their streams).
+        for _ in range(1000):
+            if not (t.position is None and inside_buildings(pos, blds)):
+                break
+            pos = truth_rng.uniform(*scenario.target_box, size=2)
+        else:
+            raise ConfigError("initial.target_box", "is (almost) all inside buildings")
         speed = truth_rng.uniform(*scenario.speed_range)
         heading = np.pi - truth_rng.uniform(0.0, 2 * np.pi)
         pos = np.array(t.position, dtype=float) if t.position is not None else pos
@@ -216,4 +262,5 @@ def make_truth(scenario: Scenario, initial_states: FloatArray,
                       turn_hold=[t.turn_hold for t in scenario.targets],
                       max_turn_rate=[t.max_turn_rate for t in scenario.targets],
                       world_size=(scenario.world.width, scenario.world.height),
-                      dt=scenario.dt, process_noise=scenario.process_noise)
+                      dt=scenario.dt, process_noise=scenario.process_noise,
+                      buildings=scenario.building_array)

@@ -86,6 +86,13 @@ class ScenarioTarget(Strict):
     max_turn_rate: float = _TS.max_turn_rate
 
 
+class ScenarioBuilding(Strict):
+    """One building: its footprint ``box = [x0, y0, x1, y1]`` (m) and its height (m)."""
+
+    box: Annotated[list[float], Field(min_length=4, max_length=4)]
+    height: float
+
+
 class ScenarioSensor(SensorParamsModel):
     position: Vec2 | None = None
     heading: float | None = None
@@ -107,6 +114,7 @@ class ScenarioFile(Strict):
     tracker: TrackerTable = TrackerTable()  # type: ignore[valid-type]
     targets: list[ScenarioTarget]
     sensors: list[ScenarioSensor]
+    buildings: list[ScenarioBuilding] = []
     planning: PlanningTable = PlanningTable()  # type: ignore[valid-type]
     run: RunTable = RunTable()  # type: ignore[valid-type]
 
@@ -129,7 +137,8 @@ class ScenarioFile(Strict):
             target_box=(ini.target_box[0], ini.target_box[1]),
             speed_range=(ini.speed_range[0], ini.speed_range[1]),
             sensor_box=(ini.sensor_box[0], ini.sensor_box[1]),
-            initial_cov=tuple(tuple(row) for row in ini.cov))
+            initial_cov=tuple(tuple(row) for row in ini.cov),
+            buildings=tuple((*b.box, b.height) for b in self.buildings))
 
 
 def scenario_from_dict(data: Any) -> Scenario:
@@ -187,4 +196,6 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
                     "cov": [[float(v) for v in row] for row in scenario.initial_cov]},
         "targets": [target(t) for t in scenario.targets],
         "sensors": [sensor(s) for s in scenario.sensors],
+        "buildings": [{"box": [float(v) for v in b[:4]], "height": float(b[4])}
+                      for b in scenario.buildings],
     }

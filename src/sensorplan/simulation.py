@@ -50,7 +50,7 @@ from .errors import ConfigError
 from .planners import make_planner
 from .problem import PlanningProblem
 from .scenario import Scenario, draw_initial, make_truth
-from .sensors import CLUTTER_RATE, SWERLING, radar_table
+from .sensors import ALTITUDE, CLUTTER_RATE, SWERLING, radar_table
 from .settings import EXECUTIONS, RunSettings
 from . import radar
 
@@ -192,8 +192,8 @@ def _timing_path(path: Path) -> Path:
 
 _ARRAYS = ("truth", "estimate", "cov", "error", "nees", "measured", "looked", "missed",
            "negative_update", "inflated", "gated_out", "restarted", "map_corrected",
-           "detections", "false_alarms", "used", "discarded", "sensor_positions", "sensor_headings",
-           "decision_steps", "potential", "converged", "sweeps")
+           "detections", "false_alarms", "used", "discarded", "sensor_positions",
+           "sensor_headings", "decision_steps", "potential", "converged", "sweeps")
 
 
 def _json(v: Any) -> Any:
@@ -334,6 +334,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
                       world=(scenario.world.width, scenario.world.height)
                       if settings.tracker.known_map else None,
                       restart_velocity_var=(P0[2, 2], P0[3, 3]),
+                      buildings=scenario.building_array,
                       **settings.tracker.tracker_options())
     # All noise up front: each sensor's stream yields 2 normals per step in order, so this
     # equals drawing them step by step, and a sensor draws whether it measures or not.
@@ -409,6 +410,10 @@ def run_episode(scenario: Scenario, settings: RunSettings,
                                                             pos, head)
             assigned = target >= 0
             seen &= assigned
+            if scenario.buildings:
+                # A building in the line of sight hides the target (false alarms still occur).
+                seen &= ~radar.hidden_looks(scenario.building_array, pos, table[:, ALTITUDE],
+                                            x_true[tj, :2])
             if detect is not None:
                 seen &= detect.detected(t, x_true[tj, :2], pos)
             z = h_true + np.sqrt(var_true) * noise[t - 1]

@@ -131,6 +131,9 @@ class Tracker:
         How the detections of a look with false alarms update the track.
     world : (width, height), optional
         The map ``[0, W] x [0, H]`` the targets never leave; None: not used.
+    buildings : (K, 5), optional
+        Buildings ``x0, y0, x1, y1, height`` that can hide targets: a missed look learns
+        nothing about the places they hide.
     restart_velocity_var : (2,)
         Velocity variances (m^2/s^2) of a restarted track.
     """
@@ -140,6 +143,7 @@ class Tracker:
                  switching: FloatArray | None = None, gate_probability: float | None = None,
                  reacquire: bool = False, association: str = "pda",
                  world: tuple[float, float] | None = None,
+                 buildings: FloatArray | None = None,
                  restart_velocity_var: tuple[float, float] = (4.0, 4.0)) -> None:
         means = np.array(means, dtype=float)
         covs = np.array(np.broadcast_to(covs, means.shape + (4,)), dtype=float)
@@ -167,6 +171,8 @@ class Tracker:
             raise ValueError("re-acquisition needs the validation gate")
         self.reacquire = reacquire
         self.world = world
+        self.buildings = None if buildings is None or len(buildings) == 0 else np.asarray(
+            buildings, dtype=float).reshape(-1, 5)
         self.restart_velocity_var = np.asarray(restart_velocity_var, dtype=float)
         self.means, self.covs = means, covs
 
@@ -273,7 +279,10 @@ class Tracker:
             i, j = sensors[rnd], targets[rnd]
             # A detection outside the gate would not have been used: the look says "no
             # gated detection" (with no gate the kernel's own rule, Pg = 1).
-            gate_kw = {} if self.gate is None else {"gate_probability": self.gate_probability}
+            gate_kw: dict[str, object] = {} if self.gate is None else {
+                "gate_probability": self.gate_probability}
+            if self.buildings is not None:
+                gate_kw["buildings"] = self.buildings
             if self.n_modes == 1:
                 m, P, infl = kernel(self.mode_means[j, 0], self.mode_covs[j, 0], sensor_xy[rnd],
                                     heading[rnd], self.table, i, **gate_kw)

@@ -106,6 +106,77 @@ def dubins_arc(xy: FloatArray, speed: FloatArray, heading: FloatArray, turn_rate
     return out, wrap_angle(heading + 2.0 * a)
 
 
+#: Most reflections off building walls resolved in one step (a corner, or two buildings).
+MAX_REFLECTIONS = 4
+
+
+def inside_buildings(xy: FloatArray, buildings: FloatArray) -> BoolArray:
+    """Whether ground points ``(..., 2)`` are strictly inside a building's footprint.
+
+    ``buildings`` is ``(B, 5)``: ``x0, y0, x1, y1, height``. A point on a wall is outside.
+    """
+    xy = np.asarray(xy, dtype=float)
+    if len(buildings) == 0:
+        return np.zeros(xy.shape[:-1], dtype=bool)
+    b = np.asarray(buildings, dtype=float)
+    x, y = xy[..., 0, None], xy[..., 1, None]
+    return np.any((x > b[:, 0]) & (x < b[:, 2]) & (y > b[:, 1]) & (y < b[:, 3]), axis=-1)
+
+
+def reflect_off_buildings(old: FloatArray, new: FloatArray, buildings: FloatArray
+                          ) -> tuple[FloatArray, BoolArray]:
+    """Mirror points that moved into a building back out across the wall they crossed.
+
+    A point that moved from ``old`` (outside) to ``new`` (inside a footprint) crossed the
+    wall the segment enters through last (the later of its x and y entry times); it is
+    mirrored across that wall, like a wall of the map, and that velocity component changes
+    sign. Repeated up to :data:`MAX_REFLECTIONS` times (corners, neighbouring buildings);
+    a point still inside after that stays at ``old`` with both components flipped.
+
+    Parameters
+    ----------
+    old, new : (M, 2) ground positions before and after the step (m)
+    buildings : (B, 5) ``x0, y0, x1, y1, height``
+
+    Returns
+    -------
+    xy : (M, 2) outside every footprint
+    flipped : (M, 2) bool, whether each velocity component changes sign
+    """
+    xy = np.array(new, dtype=float)
+    flipped = np.zeros(xy.shape, dtype=bool)
+    if len(buildings) == 0:
+        return xy, flipped
+    b = np.asarray(buildings, dtype=float)
+    for m in np.flatnonzero(inside_buildings(xy, b)):
+        start = np.array(old[m], dtype=float)
+        for _ in range(MAX_REFLECTIONS):
+            hit = np.flatnonzero((xy[m, 0] > b[:, 0]) & (xy[m, 0] < b[:, 2])
+                                 & (xy[m, 1] > b[:, 1]) & (xy[m, 1] < b[:, 3]))
+            if hit.size == 0:
+                break
+            x0, y0, x1, y1 = b[hit[0], :4]
+            d = xy[m] - start
+            # Entry time through each pair of walls (the wall facing the start point).
+            tx = ((x0 if d[0] > 0 else x1) - start[0]) / d[0] if d[0] != 0 else -np.inf
+            ty = ((y0 if d[1] > 0 else y1) - start[1]) / d[1] if d[1] != 0 else -np.inf
+            if tx >= ty:
+                wall = x0 if d[0] > 0 else x1
+                start = np.array([wall, start[1] + tx * d[1]])
+                xy[m, 0] = 2.0 * wall - xy[m, 0]
+                flipped[m, 0] ^= True
+            else:
+                wall = y0 if d[1] > 0 else y1
+                start = np.array([start[0] + ty * d[0], wall])
+                xy[m, 1] = 2.0 * wall - xy[m, 1]
+                flipped[m, 1] ^= True
+        else:
+            if inside_buildings(xy[m], b):
+                xy[m] = old[m]
+                flipped[m] = True
+    return xy, flipped
+
+
 class TruthModel:
     """Batched true motion of M targets (:func:`sensorplan.scenario.make_truth` builds one
     from a scenario).
@@ -128,6 +199,9 @@ class TruthModel:
         Step (s).
     process_noise : float
         q (m^2/s^3) of the ``cv`` targets' CWNA model.
+    buildings : (B, 5), optional
+        Building footprints and heights ``x0, y0, x1, y1, h``: targets reflect off their
+        walls as off the map's (:func:`reflect_off_buildings`).
 
     Attributes
     ----------
@@ -139,7 +213,7 @@ class TruthModel:
                  rng: np.random.Generator, *, turn_hold: Sequence[float] | FloatArray,
                  max_turn_rate: Sequence[float] | FloatArray,
                  world_size: Sequence[float] | FloatArray, dt: float,
-                 process_noise: float) -> None:
+                 process_noise: float, buildings: FloatArray | None = None) -> None:
         kinds = np.asarray(kinds, dtype=str).reshape(-1)
         states = np.array(initial_states, dtype=float)
         M = len(kinds)
@@ -150,6 +224,8 @@ class TruthModel:
         if hold.shape != (M,) or rate.shape != (M,):
             raise ValueError(f"turn_hold and max_turn_rate must have shape ({M},)")
         self.width, self.height = (float(v) for v in world_size)
+        self.buildings = np.zeros((0, 5)) if buildings is None else np.asarray(
+            buildings, dtype=float).reshape(-1, 5)
         self.dt = float(dt)
         self.F, Q = cv_matrices(self.dt, process_noise)
         # Cholesky of Q(dt, q) = q Q(dt, 1): Q(dt, 1) is positive definite for dt > 0,
@@ -226,6 +302,18 @@ class TruthModel:
             new[self.dub, 2] = self.speed * np.cos(self.heading)
             new[self.dub, 3] = self.speed * np.sin(self.heading)
         folded, flipped = mirror(new[:, :2], self._size)
+        if len(self.buildings):
+            # A wall of a building near the edge of the map can send a point out of the
+            # map and back: alternate the two reflections until it is outside every
+            # building and inside the map.
+            for _ in range(MAX_REFLECTIONS):
+                bounced, off_walls = reflect_off_buildings(self.states[:, :2], folded,
+                                                           self.buildings)
+                flipped = flipped ^ off_walls
+                folded, off_map = mirror(bounced, self._size)
+                flipped = flipped ^ off_map
+                if not off_map.any():
+                    break
         new[:, :2] = folded
         new[:, 2:] = np.where(flipped, -new[:, 2:], new[:, 2:])
         if len(self.dub):
