@@ -24,7 +24,7 @@ from sensorplan.errors import ConfigError
 from sensorplan.information import prepare
 from sensorplan.planners import make_planner, potential_game
 from sensorplan.planners.engine import GameState, choose
-from sensorplan.problem import check_plan
+from sensorplan.problem import TIE_TOL, check_plan
 from test_planner_contract import test_never_above_brute_force as never_above_brute_force
 from test_planner_contract import test_planner_contract as planner_contract
 
@@ -181,7 +181,7 @@ def test_independent_agent_sees_only_itself():
         for k in range(1, ctx.K + 1):
             pos, tgt = state.player_actions(i, k)
             alt = state.evaluate_chains(i, k, pos[:, None], tgt[:, None])
-            assert alt.max() <= phi + 1e-9 * max(1.0, phi)
+            assert alt.max() <= phi + TIE_TOL * max(1.0, phi)
 
 
 # ---------------------------------------------------------------------- links

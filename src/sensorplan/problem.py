@@ -23,6 +23,9 @@ DIRECTIONS = np.array([(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -
                       dtype=float)
 #: Positions closer than this (m) are the same position.
 POSITION_TOL = 1e-6
+#: Relative tolerance of ties between values of Phi: ``a`` beats ``b`` only if
+#: ``a > b + TIE_TOL * max(1, |Phi|)`` (every planner and the decentralized agents use it).
+TIE_TOL = 1e-9
 
 Visibility = Literal["probabilistic", "mean"]
 Objective = Literal["terminal", "cumulative"]
