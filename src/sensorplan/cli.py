@@ -18,12 +18,15 @@ from typing import Annotated, Any
 
 import typer
 
+from . import __version__
 from .errors import ConfigError
-from .planners import PLANNERS
+from .planners.registry import BUILTIN
 from .settings import all_settings, default_of, field_type
 
-#: For help texts; validation always asks the registry itself.
-_PLANNER_NAMES = ", ".join(sorted(PLANNERS))
+#: For help texts: the built-in names (no installed plugin is looked up for --help);
+#: validation always asks the registry.
+_PLANNER_NAMES = ", ".join(sorted(BUILTIN)) + ", an installed plugin's name or " \
+    "package.module:Class"
 
 app = typer.Typer(
     name="sensorplan",
@@ -35,6 +38,22 @@ app = typer.Typer(
     rich_markup_mode="markdown",
     context_settings={"help_option_names": ["-h", "--help"]},
 )
+
+def _print_version(value: bool) -> None:
+    if value:
+        sys.stdout.write(f"sensorplan {__version__}\n")
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(
+    version: Annotated[bool, typer.Option(
+        "--version", is_eager=True, callback=_print_version,
+        help="Print the version and exit.")] = False,
+) -> None:
+    """Non-myopic planning of mobile sensor networks for multi-target tracking (potential
+    games, Lee, Park & Choi)."""
+
 
 #: Exit status for bad input (SPEC 7).
 EXIT_BAD_INPUT = 2
@@ -163,8 +182,12 @@ def _setting_options() -> list[inspect.Parameter]:
         if not s.cli:
             continue
         # Choices known only at run time cannot be written into the help sentence.
-        text = (s.help.removesuffix(".") + f" ({', '.join(s.allowed())})."
-                if callable(s.choices) else s.help)
+        if callable(s.choices):
+            text = s.help.removesuffix(".") + f" ({', '.join(s.allowed())})."
+        elif s.names is not None:
+            text = s.help.removesuffix(".") + f" ({', '.join(s.names())}, ...)."
+        else:
+            text = s.help
         option = typer.Option(*s.cli, metavar=s.metavar, show_default=False,
                               help=f"{text} [default: {default_of(f)}]")
         params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=None,

@@ -16,6 +16,7 @@ import numpy as np
 
 from ._types import FloatArray, IntArray
 from .errors import ConfigError
+from .modes import OBJECTIVES, VISIBILITY_MODES, Objective, Visibility  # noqa: F401
 from .sensors import SensorParams
 
 #: The 8 lattice directions in SPEC order.
@@ -27,10 +28,6 @@ POSITION_TOL = 1e-6
 #: ``a > b + TIE_TOL * max(1, |Phi|)`` (every planner and the decentralized agents use it).
 TIE_TOL = 1e-9
 
-Visibility = Literal["probabilistic", "mean"]
-Objective = Literal["terminal", "cumulative"]
-VISIBILITY_MODES = ("probabilistic", "mean")
-OBJECTIVES = ("terminal", "cumulative")
 
 
 def move_vectors(distances: tuple[float, ...] | list[float]) -> FloatArray:
