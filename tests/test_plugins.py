@@ -25,20 +25,7 @@ SRC = ROOT / "src"
 REFERENCE = "nearest_planner:NearestTargetPlanner"
 
 
-@pytest.fixture
-def on_path(monkeypatch: pytest.MonkeyPatch):
-    """examples/ importable; the module forgotten afterwards (``nearest`` unregistered)."""
-    monkeypatch.syspath_prepend(str(EXAMPLES))
-    yield
-    sys.modules.pop("nearest_planner", None)
-    if "nearest" in PLANNERS:
-        try:
-            del PLANNERS["nearest"]
-        except KeyError:
-            pass
-
-
-def test_the_example_passes_the_contract(on_path: None) -> None:
+def test_the_example_passes_the_contract(nearest_on_path: None) -> None:
     cls = planner_class(REFERENCE)
     check_planner(cls())
     assert "nearest" in PLANNERS                    # importing it ran @register
@@ -51,7 +38,7 @@ def test_the_docs_show_the_example_verbatim() -> None:
 
 
 def test_module_class_form_in_plan_files_and_options(
-        on_path: None, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+        nearest_on_path: None, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     data = {**SPEC7, "planner": {"name": REFERENCE, "standoff": 300}}
     decision = decision_from_dict(data)
     assert dict(decision.settings) == {"standoff": 300.0}
@@ -74,19 +61,27 @@ def test_module_class_form_in_plan_files_and_options(
     ({"standoff": "far"}, "planner.standoff", "must be a number, got 'far'"),
     ({"standoff": -1.0}, "planner.standoff", "standoff must be >= 0 m, got -1.0"),
 ])
-def test_its_settings_are_its_fields(on_path: None, params: dict, field: str,
+def test_its_settings_are_its_fields(nearest_on_path: None, params: dict, field: str,
                                      message: str) -> None:
     with pytest.raises(ConfigError) as err:
         decision_from_dict({**SPEC7, "planner": {"name": REFERENCE, **params}})
     assert (err.value.field, err.value.message) == (field, message)
 
 
-def test_module_class_form_in_a_scenario(on_path: None, tmp_path: Path) -> None:
+def test_module_class_form_in_a_scenario(nearest_on_path: None, tmp_path: Path) -> None:
     path = tmp_path / "s.toml"
     path.write_text(f'[planning]\nplanner = "{REFERENCE}"\n[planning.planner_params]\n'
                     'standoff = 250\n[[targets]]\n[[sensors]]\n')
     settings = load_simulation(path).settings
     assert (settings.planner, dict(settings.planner_params)) == (REFERENCE, {"standoff": 250.0})
+    # simulate --planner: the file's settings the new planner lacks are dropped.
+    path.write_text('[planning]\nplanner = "pg"\n[planning.planner_params]\nalpha = 0.5\n'
+                    '[[targets]]\n[[sensors]]\n')
+    settings = load_simulation(path, overrides={"planner": REFERENCE}).settings
+    assert (settings.planner, dict(settings.planner_params)) == (REFERENCE, {})
+    with pytest.raises(ConfigError) as err:
+        load_simulation(path, overrides={"planner": "nearest_planner:Nearest"})
+    assert err.value.field == "--planner"
 
 
 @pytest.mark.parametrize("name,message", [
@@ -96,7 +91,7 @@ def test_module_class_form_in_a_scenario(on_path: None, tmp_path: Path) -> None:
     ("nearest_planner:np", "'nearest_planner:np' is not a planner class: not a class"),
     ("nearest_planner:", "'nearest_planner:' is not a planner reference"),
 ])
-def test_bad_references_say_why(on_path: None, name: str, message: str) -> None:
+def test_bad_references_say_why(nearest_on_path: None, name: str, message: str) -> None:
     with pytest.raises(ConfigError) as err:
         make_planner(name)
     assert err.value.field == "planner.name"
@@ -127,8 +122,7 @@ def test_an_entry_point_adds_a_name(tmp_path: Path, monkeypatch: pytest.MonkeyPa
         assert "(did you mean 'nearest'?)" in err.value.message
     finally:
         sys.modules.pop("nearest_planner", None)
-        if "nearest" in PLANNERS:
-            del PLANNERS["nearest"]
+        del PLANNERS["nearest"]                      # loading it ran @register
 
 
 # -------------------------------------------------- study and report, as processes

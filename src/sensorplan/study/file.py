@@ -170,9 +170,10 @@ def _method(i: int, m: Any, defaults: dict[str, Any], study_wide: dict[str, Any]
             "defaults.planner_params"
         raise ConfigError(at + (f".{key}" if key else ""), exc.message) from None
     # Every setting of the planner, filled with its value, so that config.resolved.json
-    # shows what ran (the seed comes from the run).
+    # shows what ran (the seed comes from the run). Settings that are None (off) are left
+    # out: a setting added later with a default of None leaves old study directories valid.
     filled = {k: getattr(planner, k) for k in planner_settings_of(cls)
-              if k not in RUN_SEED and hasattr(planner, k)}
+              if k not in RUN_SEED and getattr(planner, k, None) is not None}
     if not dataclasses.is_dataclass(planner):
         filled = dict(settings)
     try:
