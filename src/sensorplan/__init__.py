@@ -24,9 +24,9 @@ def __getattr__(name: str) -> Any:
     if name in ("MapRect", "Plan", "PlanningProblem"):
         from . import problem as module
     elif name == "SensorParams":
-        from . import sensors as module
+        from . import sensors as module  # type: ignore[no-redef]
     elif name == "potential":
-        from . import information as module
+        from . import information as module  # type: ignore[no-redef]
     else:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     value = getattr(module, name)

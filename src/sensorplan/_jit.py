@@ -54,7 +54,8 @@ def cache_places() -> list[str]:
     """Where numba would cache this package's kernels, in numba's order of preference."""
     from numba.misc.appdirs import AppDirs
 
-    places = [numba.config.CACHE_DIR] if numba.config.CACHE_DIR else []
+    cache_dir = getattr(numba.config, "CACHE_DIR", "")
+    places = [cache_dir] if cache_dir else []
     places.append(os.path.join(os.path.dirname(os.path.abspath(__file__)), "__pycache__"))
     places.append(AppDirs(appname="numba", appauthor=False).user_cache_dir)
     return places
@@ -72,7 +73,7 @@ def ensure_cache() -> str | None:
         return None
     fallback = _private_dir(tempfile.gettempdir())
     if fallback is not None:
-        numba.config.CACHE_DIR = fallback
+        setattr(numba.config, "CACHE_DIR", fallback)
         os.environ["NUMBA_CACHE_DIR"] = fallback
         notice = (f"{NOTICE}cannot write numba's kernel cache ({', '.join(places)}); caching "
                   f"the compiled kernels in {fallback} (set NUMBA_CACHE_DIR to choose)")

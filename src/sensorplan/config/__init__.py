@@ -25,9 +25,9 @@ def __getattr__(name: str) -> Any:
     if name in ("Decision", "decision_from_dict", "load_decision"):
         from . import decision as module
     elif name in ("build_planner", "planner_settings"):
-        from . import planners as module
+        from . import planners as module  # type: ignore[no-redef]
     elif name in ("PRESETS", "SimulationConfig", "load_simulation"):
-        from . import simulate as module
+        from . import simulate as module  # type: ignore[no-redef]
     else:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     value = getattr(module, name)

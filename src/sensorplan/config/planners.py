@@ -12,7 +12,6 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from ..errors import ConfigError
 from ..planners.registry import check_settings, instantiate, planner_class
 
 if TYPE_CHECKING:  # pragma: no cover

@@ -39,11 +39,11 @@ def __getattr__(name: str) -> Any:
         from .. import problem as module
     elif name in ("PlanResult", "Planner", "RngLike", "finish", "make_rng", "prepare",
                   "start_clock"):
-        from . import base as module
+        from . import base as module  # type: ignore[no-redef]
     elif name in ("CHECKS", "PlannerCheckError", "check_planner"):
-        from . import checks as module
+        from . import checks as module  # type: ignore[no-redef]
     elif name == "potential":
-        from .. import information as module
+        from .. import information as module  # type: ignore[no-redef]
     else:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     value = getattr(module, name)

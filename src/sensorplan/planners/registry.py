@@ -51,7 +51,7 @@ BUILTIN: dict[str, str] = {
     "dec-sequential": "sensorplan.decentral.planners:DecentralSequentialPlanner",
 }
 
-_REGISTERED: dict[str, type] = {}
+_REGISTERED: dict[str, Any] = {}
 _ENTRY_POINTS: dict[tuple[str, ...], dict[str, Any]] = {}
 
 
@@ -80,7 +80,7 @@ def register(cls: Any) -> Any:
     return cls
 
 
-def _reference(cls: type) -> str:
+def _reference(cls: Any) -> str:
     return f"{cls.__module__}:{cls.__qualname__}"
 
 
@@ -88,7 +88,8 @@ def _not_a_planner(cls: Any) -> str:
     """Why ``cls`` is not a planner class ('' if it is one)."""
     if not isinstance(cls, type):
         return "not a class"
-    if not isinstance(getattr(cls, "name", None), str) or not cls.name:
+    name = getattr(cls, "name", None)
+    if not isinstance(name, str) or not name:
         return "it needs a class attribute `name` (a non-empty string)"
     if not callable(getattr(cls, "plan", None)):
         return "it needs a method `plan(problem, rng=None)`"
@@ -128,7 +129,7 @@ def unknown_planner(name: Any) -> str:
             "'package.module:Class'")
 
 
-def _import_class(reference: str, field: str) -> type:
+def _import_class(reference: str, field: str) -> Any:
     module_name, _, attr = reference.partition(":")
     if not module_name or not attr:
         raise ConfigError(field, f"{reference!r} is not a planner reference of the form "
@@ -150,7 +151,7 @@ def _import_class(reference: str, field: str) -> type:
     return obj
 
 
-def planner_class(name: str, field: str = "planner.name") -> type:
+def planner_class(name: str, field: str = "planner.name") -> Any:
     """The class of planner ``name`` (a registered name or ``package.module:Class``).
 
     Imports the planner's module on first use. Errors name ``field``.
@@ -234,7 +235,7 @@ PLANNERS: Mapping[str, type] = Registry()
 # ------------------------------------------------------------------------- settings
 
 
-def planner_settings_of(cls: type) -> dict[str, Any]:
+def planner_settings_of(cls: Any) -> dict[str, Any]:
     """A planner's settings: name -> type annotation (``Any`` when unknown).
 
     The init fields of a dataclass not starting with ``_``, else the constructor's keyword
@@ -250,7 +251,8 @@ def planner_settings_of(cls: type) -> dict[str, Any]:
         names = [p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
                  and not p.name.startswith("_")]
     try:
-        hints = typing.get_type_hints(cls if dataclasses.is_dataclass(cls) else cls.__init__)
+        hints = typing.get_type_hints(cls if dataclasses.is_dataclass(cls)
+                                      else getattr(cls, "__init__"))
     except Exception:  # noqa: BLE001 - unresolvable annotations: the constructor checks
         hints = {}
     return {n: hints.get(n, Any) for n in names}
@@ -291,7 +293,7 @@ def _normal(hint: Any, value: Any) -> Any:
     return value
 
 
-def check_settings(name: str | type, params: Mapping[str, Any], prefix: str = "planner", *,
+def check_settings(name: Any, params: Mapping[str, Any], prefix: str = "planner", *,
                    strict: bool = True, exclude: Mapping[str, str] | None = None,
                    construct: bool = True, keep_none: bool = False) -> dict[str, Any]:
     """Check the settings ``params`` for planner ``name`` and return them normalised.
@@ -353,7 +355,7 @@ def check_settings(name: str | type, params: Mapping[str, Any], prefix: str = "p
     return out
 
 
-def instantiate(cls: type, settings: Mapping[str, Any], prefix: str = "planner") -> Any:
+def instantiate(cls: Any, settings: Mapping[str, Any], prefix: str = "planner") -> Any:
     """``cls(**settings)`` with every failure as a :class:`ConfigError` under ``prefix``.
 
     The planner's own ``ConfigError("planner.<key>")`` becomes ``<prefix>.<key>``; a
