@@ -175,12 +175,13 @@ def simulate(
     print_summary(episode, cfg, [npz, png, timing])
 
 
-def _setting_options() -> list[inspect.Parameter]:
-    """An option of ``simulate`` for every run setting that declares option names, with its
-    help, value placeholder and default from the declaration (sensorplan.settings)."""
+def _setting_options(skip: tuple[str, ...] = ()) -> list[inspect.Parameter]:
+    """An option of ``simulate`` for every run setting that declares option names (but those
+    in ``skip``), with its help, value placeholder and default from the declaration
+    (sensorplan.settings)."""
     params = []
     for cls, _, f, s in all_settings():
-        if not s.cli:
+        if not s.cli or f.name in skip:
             continue
         # Choices known only at run time cannot be written into the help sentence.
         if callable(s.choices):
@@ -197,13 +198,14 @@ def _setting_options() -> list[inspect.Parameter]:
     return params
 
 
-def _with_setting_options(command: Any) -> Any:
-    """``command`` with an option per run setting after its first two parameters (typer
-    reads a command's options from its signature and calls it with keywords only)."""
+def _with_setting_options(command: Any, skip: tuple[str, ...] = ()) -> Any:
+    """``command`` with an option per run setting (but those in ``skip``) after its first
+    two parameters (typer reads a command's options from its signature and calls it with
+    keywords only)."""
     fixed = [p.replace(kind=inspect.Parameter.KEYWORD_ONLY)
              for p in inspect.signature(command, eval_str=True).parameters.values()
              if p.kind is not inspect.Parameter.VAR_KEYWORD]
-    command.__signature__ = inspect.Signature(fixed[:2] + _setting_options() + fixed[2:])
+    command.__signature__ = inspect.Signature(fixed[:2] + _setting_options(skip) + fixed[2:])
     return command
 
 
@@ -220,6 +222,10 @@ def agents(
     preset: Annotated[str | None, typer.Option(
         "--preset", metavar="NAME", show_default=False,
         help="Built-in scenario instead of a file: 'paper'.")] = None,
+    planner: Annotated[str | None, typer.Option(
+        "--planner", metavar="NAME", show_default=False,
+        help="The decentralized planner: dec-jsfp, dec-independent or dec-sequential. "
+             "[default: the file's if it is one of these, else dec-jsfp]")] = None,
     seed: Annotated[int | None, typer.Option(
         "--seed", metavar="S", show_default=False,
         help="Seed of the run. [default: file's run.seed, else 0]")] = None,
@@ -266,7 +272,8 @@ def agents(
     links = {"transport": transport, "rounds": rounds, "p_loss": p_loss, "delay": delay,
              "comm_range": comm_range, "mode": agent_mode}
     with _bad_input():
-        cfg = load_agents(config, preset, {**settings, "seed": seed}, links)
+        cfg = load_agents(config, preset, {**settings, "planner": planner, "seed": seed},
+                          links)
         ensure_out_dir(out)
 
     from .console import print_links, print_summary, run_with_progress
@@ -291,7 +298,7 @@ def agents(
     print_links(logs)
 
 
-app.command()(_with_setting_options(agents))
+app.command()(_with_setting_options(agents, skip=("planner",)))
 
 
 class _Terminated(KeyboardInterrupt):
