@@ -7,11 +7,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from pydantic import ConfigDict
+
 from .. import io
 from ..problem import MapRect, PlanningProblem
 from ..settings import RunSettings
-from pydantic import ConfigDict
-
 from ..validation import (MapModel, Matrix4, Seed, SensorParamsModel, Strict, Vec2, Vec4,
                           setting_type, validate)
 from .planners import build_planner, planner_settings
