@@ -8,10 +8,15 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from factories import make_problem, random_plan
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
 @pytest.fixture
@@ -30,3 +35,20 @@ def problem_factory():
 def plan_factory():
     """:func:`factories.random_plan`, as a fixture."""
     return random_plan
+
+
+@pytest.fixture
+def nearest_on_path(monkeypatch):
+    """examples/ importable (``nearest_planner``); afterwards the module is forgotten and the
+    name ``nearest`` its import registered is removed again."""
+    monkeypatch.syspath_prepend(str(EXAMPLES))
+    yield
+    sys.modules.pop("nearest_planner", None)
+    from sensorplan.planners import PLANNERS
+    from sensorplan.planners.registry import planner_names
+
+    if "nearest" in planner_names():
+        try:
+            del PLANNERS["nearest"]
+        except KeyError:                       # an entry point: not a registration
+            pass

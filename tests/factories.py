@@ -4,10 +4,10 @@
   visible, and random feasible plans for them (plain functions, so that hypothesis tests can
   call them; ``conftest.py`` also hands them out as the fixtures ``problem_factory`` and
   ``plan_factory``);
-- :func:`tiny_problem`: random tiny problems small enough for exhaustive search;
 - :func:`lattice_problem`: a seeded small problem on a coarse lattice with chosen sizes;
-- :func:`paper_problem`: a decision of the paper scenario;
-- :func:`random_covariance`, :func:`joint_plan_count`: their building blocks.
+- :func:`random_covariance`: a building block;
+- :func:`tiny_problem`, :func:`paper_problem`, :func:`joint_plan_count`: from
+  :mod:`sensorplan.planners.problems`, where the planner contract needs them.
 """
 
 from __future__ import annotations
@@ -17,8 +17,12 @@ from typing import Any
 
 import numpy as np
 
-from sensorplan.problem import MapRect, Plan, PlanningProblem, build_lattice, move_vectors
+from sensorplan.planners.problems import joint_plan_count, paper_problem, tiny_problem
+from sensorplan.problem import MapRect, Plan, PlanningProblem, move_vectors
 from sensorplan.sensors import SensorParams
+
+__all__ = ["joint_plan_count", "lattice_problem", "make_problem", "paper_problem",
+           "random_covariance", "random_plan", "tiny_problem"]
 
 
 def random_covariance(rng: np.random.Generator, pos_sd: tuple[float, float] = (5.0, 30.0),
@@ -138,84 +142,6 @@ def random_plan(problem: PlanningProblem, rng: np.random.Generator,
     return Plan(positions, targets)
 
 
-def random_plan(problem: PlanningProblem, rng: np.random.Generator,
-                p_unassigned: float = 0.0) -> Plan:
-    """A random feasible plan: each sensor walks random in-map moves epoch by epoch.
-
-    Every epoch's position is one move from the previous epoch's (so it lies in ``R_k`` and
-    satisfies every feasibility rule whatever is assigned); each player is unassigned with
-    probability ``p_unassigned`` (its position is then NaN), else looks at a uniformly
-    random target.
-    """
-    N, K, M = problem.n_sensors, problem.horizon, problem.n_targets
-    positions = np.full((N, K, 2), np.nan)
-    targets = np.full((N, K), -1, dtype=np.int64)
-    for i, s in enumerate(problem.sensors):
-        mv = move_vectors(s.moves)
-        p = np.array(problem.positions[i], dtype=float)
-        for k in range(K):
-            cand = p + mv
-            ok = np.flatnonzero(problem.world.contains(cand))
-            p = cand[rng.choice(ok)]
-            if rng.random() >= p_unassigned:
-                positions[i, k] = p
-                targets[i, k] = rng.integers(M)
-    return Plan(positions, targets)
-
-
-def joint_plan_count(problem: PlanningProblem) -> int:
-    """Exact number of feasible joint plans (product over sensors of chains x M^K)."""
-    total = 1
-    for i, s in enumerate(problem.sensors):
-        lat = build_lattice(problem.positions[i], move_vectors(s.moves), problem.horizon,
-                            problem.world)
-        ways = np.ones(1)
-        for k in range(1, problem.horizon + 1):
-            nxt = np.zeros(len(lat.positions[k]))
-            q, m = np.nonzero(lat.child[k] >= 0)
-            np.add.at(nxt, lat.child[k][q, m], ways[q])
-            ways = nxt
-        total *= int(ways.sum()) * problem.n_targets ** problem.horizon
-    return total
-
-
-def tiny_problem(rng: np.random.Generator, max_plans: int = 60_000,
-                 visibility: str | None = None, objective: str = "terminal") -> PlanningProblem:
-    """A random tiny problem (N <= 3, M <= 4, K <= 4) with at most ``max_plans`` joint plans.
-
-    Geometry and sensor parameters vary: a map two to three moves wide, one move distance,
-    random field of view, range band, turn limit and altitude, targets anywhere around the
-    map (so some sensors must move before they see anything).
-    """
-    while True:
-        N = int(rng.integers(1, 4))
-        M = int(rng.integers(1, 5))
-        K = int(rng.integers(1, 5))
-        e = int(rng.integers(1, 3))
-        s = float(rng.uniform(60.0, 120.0))
-        width, height = s * rng.uniform(1.2, 3.0, size=2)
-        gmin = float(rng.uniform(0.0, 1.5 * s))
-        sensors = tuple(
-            SensorParams(altitude=float(rng.uniform(60.0, 300.0)), moves=(s,),
-                         max_turn=float(rng.uniform(math.pi / 8, math.pi)),
-                         fov_half_angle=float(rng.uniform(math.pi / 10, math.pi / 2)),
-                         min_ground_range=gmin,
-                         max_ground_range=gmin + float(rng.uniform(0.8 * s, 3.0 * s)),
-                         snr_ref_db=float(rng.uniform(5.0, 20.0)))
-            for _ in range(N))
-        pos = rng.uniform(0, 1, (N, 2)) * [width, height]
-        tpos = rng.uniform(-0.5, 1.5, (M, 2)) * [width, height]
-        means = np.c_[tpos, rng.normal(0.0, 3.0, (M, 2))]
-        sd = rng.uniform(5.0, 40.0, M)
-        covs = np.array([np.diag([d * d, d * d, 4.0, 4.0]) for d in sd])
-        vis = visibility or ("probabilistic" if rng.random() < 0.5 else "mean")
-        problem = PlanningProblem(means, covs, pos, rng.uniform(-math.pi, math.pi, N), sensors,
-                                  horizon=K, steps_per_epoch=e, world=MapRect(width, height),
-                                  visibility=vis, objective=objective)
-        if joint_plan_count(problem) <= max_plans:
-            return problem
-
-
 def lattice_problem(seed: int, *, n_sensors: int, n_targets: int, horizon: int,
                  steps_per_epoch: int = 1, visibility: str = "probabilistic",
                  objective: str = "terminal", size: float = 60.0,
@@ -244,18 +170,4 @@ def lattice_problem(seed: int, *, n_sensors: int, n_targets: int, horizon: int,
                            headings=rng.uniform(-math.pi, math.pi, size=N), sensors=sensors,
                            horizon=horizon, steps_per_epoch=steps_per_epoch,
                            world=MapRect(size, size), visibility=visibility,
-                           objective=objective)
-
-
-def paper_problem(rng: np.random.Generator, horizon: int = 3, steps_per_epoch: int = 2,
-                  visibility: str = "probabilistic", objective: str = "terminal",
-                  n_sensors: int = 3, n_targets: int = 5) -> PlanningProblem:
-    """A decision of the paper scenario: targets in [100, 500]^2, P0, sensors in [50, 550]^2."""
-    means = np.c_[rng.uniform(100, 500, (n_targets, 2)), rng.normal(0, 3, (n_targets, 2))]
-    covs = np.tile(np.diag([400.0, 400.0, 4.0, 4.0]), (n_targets, 1, 1))
-    alts = (490.0, 500.0, 510.0)
-    sensors = tuple(SensorParams(altitude=alts[i % 3]) for i in range(n_sensors))
-    return PlanningProblem(means, covs, rng.uniform(50, 550, (n_sensors, 2)),
-                           rng.uniform(-math.pi, math.pi, n_sensors), sensors, horizon=horizon,
-                           steps_per_epoch=steps_per_epoch, visibility=visibility,
                            objective=objective)

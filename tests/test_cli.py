@@ -194,7 +194,8 @@ BAD_JSON = [
 def test_plan_bad_input(mutate: Callable[[dict[str, Any]], None], field: str, tmp_path: Path,
                         capsys: pytest.CaptureFixture[str]) -> None:
     data = copy.deepcopy(SPEC7)
-    data["planner"]["name"] = "random" if field != "planner.max_plans" else "pg"
+    if not field.startswith("planner."):
+        data["planner"] = {"name": "random", "seed": 0}      # fast: only the input is wrong
     mutate(data)
     assert_bad_input(run(capsys, "plan", write_json(tmp_path, data)), field)
 
@@ -314,7 +315,7 @@ BASE_TOML: dict[str, Any] = {
     "map": {"width": 600.0, "height": 600.0},
     "initial": {"cov": [[400.0, 0, 0, 0], [0, 400.0, 0, 0], [0, 0, 4.0, 0], [0, 0, 0, 4.0]]},
     "tracker": {"miss_update": "negative"},
-    "planning": {"planner": "random", "horizon": 1, "planner_params": {"alpha": 0.3}},
+    "planning": {"planner": "random", "horizon": 1, "planner_params": {}},
     "run": {"steps": 3, "seed": 0},
     "targets": [{"kind": "cv", "position": [300.0, 200.0]}],
     "sensors": [{"altitude": 500.0, "position": [100.0, 100.0], "heading": 0.0}],
@@ -355,8 +356,12 @@ BAD_TOML = [
     ("fov", _set("sensors.0.fov_half_angle", 0.0), "sensors[0].fov_half_angle"),
     ("min > max range", _set("sensors.0.max_ground_range", 200.0),
      "sensors[0].min_ground_range"),
-    ("alpha", _set("planning.planner_params.alpha", 1.0), "planning.planner_params.alpha"),
-    ("beta", _set("planning.planner_params.beta", 0.0), "planning.planner_params.beta"),
+    ("alpha", _set("planning", {"planner": "pg", "planner_params": {"alpha": 1.0}}),
+     "planning.planner_params.alpha"),
+    ("beta", _set("planning", {"planner": "pg", "planner_params": {"beta": 0.0}}),
+     "planning.planner_params.beta"),
+    ("alpha for random", _set("planning.planner_params", {"alpha": 0.3}),
+     "planning.planner_params.alpha"),
     ("max_plans for random", _set("planning.planner_params.max_plans", 10),
      "planning.planner_params.max_plans"),
     ("unknown planner", _set("planning.planner", "nope"), "planning.planner"),

@@ -141,21 +141,64 @@ def test_semantic_errors_come_from_the_dataclasses() -> None:
 
 
 @pytest.mark.parametrize("name", sorted(PLANNERS))
-def test_planner_gets_only_its_own_settings(name: str) -> None:
+def test_planner_gets_exactly_its_own_settings(name: str) -> None:
     cls = PLANNERS[name]
-    fields = {f.name for f in dataclasses.fields(cls)}
-    params = {"seed": 3, "alpha": 0.2, "beta": 0.9, "max_inner": 7, "max_outer": 4}
-    if name == "brute-force":
-        params["max_plans"] = 1000
-    settings = planner_settings(name, params)
-    assert settings == {k: v for k, v in params.items() if k in fields}
-    d = spec7(planner={"name": name, **params})
-    decision = decision_from_dict(d)
+    fields = [f.name for f in dataclasses.fields(cls) if f.init and not f.name.startswith("_")]
+    params = {"seed": 3, "alpha": 0.2, "beta": 0.9, "max_inner": 7, "max_outer": 4,
+              "max_plans": 1000, "rounds": 5, "p_loss": 0.25, "mode": "best-response"}
+    own = {k: v for k, v in params.items() if k in fields}
+    assert planner_settings(name, own) == own
+    decision = decision_from_dict(spec7(planner={"name": name, **own}))
     assert decision.planner == name
-    assert dict(decision.settings) == settings
+    assert dict(decision.settings) == own
     planner = decision.make_planner()
-    for k, v in settings.items():
+    for k, v in own.items():
         assert getattr(planner, k) == v
+    # A setting of another planner is refused, naming the closest of its own.
+    other = sorted(set(params) - set(fields))[0]
+    err = error_of(decision_from_dict, spec7(planner={"name": name, other: params[other]}))
+    assert err.field == f"planner.{other}"
+    assert err.message.startswith(f"unknown key for planner {name!r}")
+    assert err.message.endswith(f"allowed: {', '.join(fields)}")
+
+
+DEC_TOML = """
+[planning]
+planner = "dec-jsfp"
+[planning.planner_params]
+{params}
+[[targets]]
+[[sensors]]
+"""
+
+
+@pytest.mark.parametrize("params,field,message", [
+    ("rounds = 8\np_loss = 0.25\ndelay = 1\ncomm_range = inf\nmode = 'best-response'\n"
+     "transport = 'inproc'\ntimeout = 5", None, None),
+    ("rouds = 8", "planning.planner_params.rouds", "unknown key for planner 'dec-jsfp' "
+     "(did you mean 'rounds'?); allowed: alpha, beta, max_inner, max_outer, rounds, p_loss, "
+     "delay, comm_range, mode, transport, timeout"),
+    ("rounds = 1.5", "planning.planner_params.rounds", "must be an integer, got 1.5"),
+    ("p_loss = 'high'", "planning.planner_params.p_loss", "must be a number, got 'high'"),
+    ("p_loss = 2", "planning.planner_params.p_loss", "must be a number in [0, 1], got 2.0"),
+    ("comm_range = nan", "planning.planner_params.comm_range",
+     "must be a ground distance > 0 in m (inf: unlimited), got nan"),
+    ("seed = 4", "planning.planner_params.seed", "is not a setting here: the run's seed "
+     "drives the planner ([run] seed of a scenario, seed of a study)"),
+])
+def test_a_scenario_takes_exactly_the_planners_settings(tmp_path: Path, params: str,
+                                                        field: str | None,
+                                                        message: str | None) -> None:
+    path = tmp_path / "dec.toml"
+    path.write_text(DEC_TOML.format(params=params))
+    if field is None:
+        s = load_simulation(path).settings
+        assert dict(s.planner_params) == {"rounds": 8, "p_loss": 0.25, "delay": 1,
+                                          "comm_range": math.inf, "mode": "best-response",
+                                          "transport": "inproc", "timeout": 5.0}
+        return
+    err = error_of(load_simulation, path)
+    assert (err.field, err.message) == (field, message)
 
 
 @pytest.mark.parametrize("name", sorted(set(PLANNERS) - {"brute-force"}))
@@ -251,7 +294,7 @@ cov = [[1, 0, 0, 0], [0, 2, 0, 0], [0, 0, 3, 0], [0, 0, 0, 4]]
 [tracker]
 miss_update = "none"
 [planning]
-planner = "random"
+planner = "pg"
 horizon = 2
 steps_per_epoch = 3
 execution = "ol"
@@ -286,8 +329,8 @@ heading = 1.5
                                      (50.0, 60.0), 1.5),)
     s = cfg.settings
     assert (s.planner, s.horizon, s.steps_per_epoch, s.execution, s.visibility, s.objective,
-            s.steps) == ("random", 2, 3, "ol", "mean", "cumulative", 7)
-    assert dict(s.planner_params) == {}          # random has no alpha: dropped
+            s.steps) == ("pg", 2, 3, "ol", "mean", "cumulative", 7)
+    assert dict(s.planner_params) == {"alpha": 0.5}
     assert cfg.seed == 11
 
 

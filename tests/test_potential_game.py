@@ -13,7 +13,7 @@ from sensorplan.information import potential, prepare
 from sensorplan.planners import make_planner
 from sensorplan.planners.engine import GameState
 from sensorplan.planners.potential_game import jsfp_epoch
-from sensorplan.problem import MapRect, Plan, PlanningProblem, check_plan
+from sensorplan.problem import TIE_TOL, MapRect, Plan, PlanningProblem, check_plan
 from sensorplan.sensors import SensorParams
 
 from factories import paper_problem, tiny_problem
@@ -48,7 +48,7 @@ def test_converged_pg_plan_is_a_pure_nash_equilibrium(seed):
     result = make_planner("pg").plan(problem, rng=seed)
     assert result.converged
     phi = potential(problem, result.plan)[0]
-    tol = 1e-9 * max(1.0, abs(phi))
+    tol = TIE_TOL * max(1.0, abs(phi))
     for i in range(problem.n_sensors):
         for k in range(1, problem.horizon + 1):
             for deviation in _feasible_actions(problem, result.plan, i, k):
@@ -112,7 +112,7 @@ def test_quality_against_the_exact_optimum_on_200_tiny_problems():
     assert np.mean(refine >= 0.95) >= 0.97
     for _, res in rows:
         floor = max(res["pg"].potential, res["sequential-greedy"].potential)
-        assert res["pg-refine"].potential >= floor - 1e-9 * max(1.0, floor)
+        assert res["pg-refine"].potential >= floor - TIE_TOL * max(1.0, floor)
         assert res["pg-refine"].converged
 
 

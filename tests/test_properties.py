@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from sensorplan.dynamics import predict_covariance
 from sensorplan.information import (evaluate, information_update, plan_information, potential,
                                     prepare, sum_by_target)
-from sensorplan.problem import Plan, check_plan, move_vectors
+from sensorplan.problem import TIE_TOL, Plan, check_plan, move_vectors
 from sensorplan.sensors import SensorParams
 
 SETTINGS = settings(max_examples=60, deadline=None)
@@ -33,7 +33,7 @@ def problems(draw, min_sensors=1):
 
 
 def tol(phi: float) -> float:
-    return 1e-9 * max(1.0, abs(phi))
+    return TIE_TOL * max(1.0, abs(phi))
 
 
 @SETTINGS

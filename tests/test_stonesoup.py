@@ -362,6 +362,27 @@ def test_manager_actions_execute_the_planners_first_epoch(rng, planner, horizon,
         assert aim.target is tracks[int(expected.plan.targets[i, 0])]
 
 
+def test_manager_takes_a_planner_from_outside_with_its_settings(rng, nearest_on_path):
+    reference = "nearest_planner:NearestTargetPlanner"
+    means, covs, positions, headings = _decision(rng)
+    platforms = _platforms(positions, headings)
+    mgr = ss.SensorplanManager(platforms=platforms, planner=reference, horizon=2,
+                               planner_params={"standoff": 300.0}, rng=2)
+    mgr.choose_actions(ss.to_tracks(means, covs, T0), T0 + datetime.timedelta(seconds=1))
+    sensors = tuple(SensorParams(altitude=z) for z in (490.0, 500.0, 510.0))
+    problem = PlanningProblem(means=means, covs=covs, positions=positions, headings=headings,
+                              sensors=sensors, horizon=2)
+    expected = make_planner(reference, standoff=300.0).plan(problem)
+    assert mgr.last_result.planner == "nearest"
+    np.testing.assert_array_equal(mgr.last_result.plan.targets, expected.plan.targets)
+    np.testing.assert_array_equal(mgr.last_result.plan.positions, expected.plan.positions)
+    with pytest.raises(ConfigError) as err:
+        ss.SensorplanManager(platforms=platforms, planner=reference,
+                             planner_params={"stand_off": 300.0})
+    assert err.value.field == "planner.stand_off"
+    assert "did you mean 'standoff'?" in err.value.message
+
+
 def test_manager_plans_again_from_the_executed_state(rng):
     means, covs, positions, headings = _decision(rng)
     platforms = _platforms(positions, headings)

@@ -459,6 +459,46 @@ def test_defaults_table_and_scenario_file(tmp_path: Path) -> None:
     assert study.scenario.target_kinds == ("dubins",)
 
 
+def test_method_planner_params_are_exactly_the_planners_settings() -> None:
+    inf = float("inf")
+    study = study_from_dict({
+        "runs": 1, "steps": 3, "defaults": {"planner_params": {"alpha": 0.5}},
+        "methods": [{"name": "dec", "planner": "dec-jsfp",
+                     "planner_params": {"p_loss": 0.1, "comm_range": inf}},
+                    {"name": "random", "planner": "random"}]})
+    resolved = study.resolved()["methods"]
+    # dec-jsfp's settings as docs/decentral.md lists them, with their defaults.
+    assert resolved[0]["planner_params"] == {
+        "alpha": 0.5, "beta": 0.95, "max_inner": 50, "max_outer": 10, "rounds": 1000,
+        "p_loss": 0.1, "delay": 0, "comm_range": inf, "mode": "jsfp", "transport": "inproc",
+        "timeout": 10.0}
+    assert resolved[1]["planner_params"] == {}           # alpha is not random's: not applied
+    again = studies.Study.from_resolved(json.loads(json.dumps(study.resolved())))
+    assert again.resolved() == study.resolved()
+
+
+@pytest.mark.parametrize("data,field,start", [
+    ({"methods": [{"name": "r", "planner": "random", "planner_params": {"alpha": 0.5}}]},
+     "methods[0].planner_params.alpha", "unknown key for planner 'random'"),
+    ({"defaults": {"planner_params": {"alhpa": 0.5}},
+      "methods": [{"name": "p", "planner": "pg"}, {"name": "r", "planner": "random"}]},
+     "defaults.planner_params.alhpa", "no method's planner takes it (did you mean 'alpha'?)"),
+    ({"defaults": {"planner_params": {"alpha": 1.5}},
+      "methods": [{"name": "r", "planner": "random"}, {"name": "p", "planner": "pg"}]},
+     "defaults.planner_params.alpha", "must be in (0, 1), got 1.5"),
+    ({"methods": [{"name": "p", "planner": "pg", "planner_params": {"seed": 1}}]},
+     "methods[0].planner_params.seed", "is not a setting here: the run's seed drives"),
+    ({"methods": [{"name": "d", "planner": "dec-jsfp", "planner_params": {"rounds": 2.5}}]},
+     "methods[0].planner_params.rounds", "must be an integer, got 2.5"),
+])
+def test_bad_method_planner_params_name_where_they_were_written(data: dict, field: str,
+                                                                start: str) -> None:
+    with pytest.raises(ConfigError) as info:
+        study_from_dict({"runs": 1, "steps": 3, **data})
+    assert info.value.field == field
+    assert info.value.message.startswith(start), info.value.message
+
+
 def test_tracker_settings_inherit_key_by_key() -> None:
     text = TINY + """
 [[methods]]

@@ -1,11 +1,34 @@
-"""sensorplan: non-myopic planning of mobile sensor networks for multi-target tracking."""
+"""sensorplan: non-myopic planning of mobile sensor networks for multi-target tracking.
+
+Importing the package is cheap: numpy, the compiled kernels (numba), the plotting stack and
+the table libraries load when first used, so the names below other than ``ConfigError`` and
+``__version__`` are imported on first access.
+"""
+
+from typing import TYPE_CHECKING, Any
 
 from .errors import ConfigError
-from .information import potential
-from .problem import MapRect, Plan, PlanningProblem
-from .sensors import SensorParams
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .information import potential
+    from .problem import MapRect, Plan, PlanningProblem
+    from .sensors import SensorParams
 
 __version__ = "0.1.0"
 
 __all__ = ["ConfigError", "MapRect", "Plan", "PlanningProblem", "SensorParams", "potential",
            "__version__"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in ("MapRect", "Plan", "PlanningProblem"):
+        from . import problem as module
+    elif name == "SensorParams":
+        from . import sensors as module  # type: ignore[no-redef]
+    elif name == "potential":
+        from . import information as module  # type: ignore[no-redef]
+    else:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(module, name)
+    globals()[name] = value
+    return value

@@ -18,12 +18,15 @@ from typing import Annotated, Any
 
 import typer
 
+from . import __version__
 from .errors import ConfigError
-from .planners import PLANNERS
+from .planners.registry import BUILTIN
 from .settings import all_settings, default_of, field_type
 
-#: For help texts; validation always asks the registry itself.
-_PLANNER_NAMES = ", ".join(sorted(PLANNERS))
+#: For help texts: the built-in names (no installed plugin is looked up for --help);
+#: validation always asks the registry.
+_PLANNER_NAMES = ", ".join(sorted(BUILTIN)) + ", an installed plugin's name or " \
+    "package.module:Class"
 
 app = typer.Typer(
     name="sensorplan",
@@ -35,6 +38,22 @@ app = typer.Typer(
     rich_markup_mode="markdown",
     context_settings={"help_option_names": ["-h", "--help"]},
 )
+
+def _print_version(value: bool) -> None:
+    if value:
+        sys.stdout.write(f"sensorplan {__version__}\n")
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(
+    version: Annotated[bool, typer.Option(
+        "--version", is_eager=True, callback=_print_version,
+        help="Print the version and exit.")] = False,
+) -> None:
+    """Non-myopic planning of mobile sensor networks for multi-target tracking (potential
+    games, Lee, Park & Choi)."""
+
 
 #: Exit status for bad input (SPEC 7).
 EXIT_BAD_INPUT = 2
@@ -135,10 +154,11 @@ def simulate(
         cfg = load_simulation(config, preset, {**settings, "seed": seed})
         ensure_out_dir(out)
 
+    from .console import print_summary, run_with_progress
     from .simulation import run_episode
 
     try:
-        episode = _run_with_progress(run_episode, cfg)
+        episode = run_with_progress(run_episode, cfg)
     except ConfigError as exc:
         # A planner refusing mid-run (brute force above max_plans) names its own setting;
         # in a scenario file that lives under [planning.planner_params].
@@ -152,19 +172,24 @@ def simulate(
     from .plotting import plot_episode
 
     plot_episode(episode, cfg.scenario, png)
-    _print_summary(episode, cfg, [npz, png, timing])
+    print_summary(episode, cfg, [npz, png, timing])
 
 
-def _setting_options() -> list[inspect.Parameter]:
-    """An option of ``simulate`` for every run setting that declares option names, with its
-    help, value placeholder and default from the declaration (sensorplan.settings)."""
+def _setting_options(skip: tuple[str, ...] = ()) -> list[inspect.Parameter]:
+    """An option of ``simulate`` for every run setting that declares option names (but those
+    in ``skip``), with its help, value placeholder and default from the declaration
+    (sensorplan.settings)."""
     params = []
     for cls, _, f, s in all_settings():
-        if not s.cli:
+        if not s.cli or f.name in skip:
             continue
         # Choices known only at run time cannot be written into the help sentence.
-        text = (s.help.removesuffix(".") + f" ({', '.join(s.allowed())})."
-                if callable(s.choices) else s.help)
+        if callable(s.choices):
+            text = s.help.removesuffix(".") + f" ({', '.join(s.allowed())})."
+        elif s.names is not None:
+            text = s.help.removesuffix(".") + f" ({', '.join(s.names())}, ...)."
+        else:
+            text = s.help
         option = typer.Option(*s.cli, metavar=s.metavar, show_default=False,
                               help=f"{text} [default: {default_of(f)}]")
         params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=None,
@@ -173,178 +198,152 @@ def _setting_options() -> list[inspect.Parameter]:
     return params
 
 
-# typer reads the command's options from its signature (it calls it with keywords only).
-_fixed = [p.replace(kind=inspect.Parameter.KEYWORD_ONLY)
-          for p in inspect.signature(simulate, eval_str=True).parameters.values()
-          if p.kind is not inspect.Parameter.VAR_KEYWORD]
-simulate.__signature__ = inspect.Signature(  # type: ignore[attr-defined]
-    _fixed[:2] + _setting_options() + _fixed[2:])
-app.command()(simulate)
+def _with_setting_options(command: Any, skip: tuple[str, ...] = ()) -> Any:
+    """``command`` with an option per run setting (but those in ``skip``) after its first
+    two parameters (typer reads a command's options from its signature and calls it with
+    keywords only)."""
+    fixed = [p.replace(kind=inspect.Parameter.KEYWORD_ONLY)
+             for p in inspect.signature(command, eval_str=True).parameters.values()
+             if p.kind is not inspect.Parameter.VAR_KEYWORD]
+    command.__signature__ = inspect.Signature(fixed[:2] + _setting_options(skip) + fixed[2:])
+    return command
 
 
-def _run_with_progress(run_episode: Any, cfg: Any) -> Any:
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, \
-        TimeElapsedColumn, TimeRemainingColumn
-
-    console = Console(stderr=True)
-    columns = (TextColumn("simulating"), BarColumn(), MofNCompleteColumn(),
-               TextColumn("steps"), TimeElapsedColumn(), TimeRemainingColumn())
-    # A bar in a log file is noise: show it only on a terminal.
-    with Progress(*columns, console=console, transient=True,
-                  disable=not console.is_terminal) as progress:
-        task = progress.add_task("simulate", total=cfg.settings.steps)
-
-        def report(done: int, total: int) -> None:
-            progress.update(task, completed=done, total=total)
-
-        return run_episode(cfg.scenario, cfg.settings, cfg.seed, progress=report)
+app.command()(_with_setting_options(simulate))
 
 
-def _print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
-    import numpy as np
-    from rich.console import Console
-    from rich.table import Table
+# ----------------------------------------------------------------------------- agents
 
-    from .study.metrics import LOST_THRESHOLD, NEES_HIGH, episode_consistency, episode_errors
 
-    console = Console()
-    s = cfg.settings
-    console.print(f"[bold]{s.planner}[/], K = {s.horizon}, e = {s.steps_per_epoch}, "
-                  f"{s.execution.upper()}, {s.steps} steps, seed {cfg.seed}", highlight=False)
-    tracker = ", ".join(f"{meta.label or f.name} {getattr(s.tracker, f.name)}"
-                        for _, path, f, meta in all_settings() if path.startswith("tracker."))
-    console.print(f"visibility {s.visibility}, objective {s.objective}, {tracker}",
-                  highlight=False)
+def agents(
+    config: Annotated[Path | None, typer.Argument(
+        metavar="CONFIG.toml", show_default=False,
+        help="Scenario file, as for simulate. Without it, --preset is used.")] = None,
+    preset: Annotated[str | None, typer.Option(
+        "--preset", metavar="NAME", show_default=False,
+        help="Built-in scenario instead of a file: 'paper'.")] = None,
+    planner: Annotated[str | None, typer.Option(
+        "--planner", metavar="NAME", show_default=False,
+        help="The decentralized planner: dec-jsfp, dec-independent or dec-sequential. "
+             "[default: the file's if it is one of these, else dec-jsfp]")] = None,
+    seed: Annotated[int | None, typer.Option(
+        "--seed", metavar="S", show_default=False,
+        help="Seed of the run. [default: file's run.seed, else 0]")] = None,
+    out: Annotated[Path, typer.Option(
+        "--out", "-o", metavar="DIR",
+        help="Directory for episode.npz, episode.png and agents.json.")] = Path("out/agents"),
+    transport: Annotated[str | None, typer.Option(
+        "--transport", metavar="inproc|bus", show_default=False,
+        help="inproc: every agent in this process; bus: one process per agent on ZeroMQ. "
+             "[default: inproc]")] = None,
+    rounds: Annotated[int | None, typer.Option(
+        "--rounds", metavar="R", show_default=False,
+        help="Round budget of a decision (dec-jsfp, dec-independent). [default: 1000]")] = None,
+    p_loss: Annotated[float | None, typer.Option(
+        "--p-loss", metavar="P", show_default=False,
+        help="Probability that a message is lost, in [0, 1]. [default: 0]")] = None,
+    delay: Annotated[int | None, typer.Option(
+        "--delay", metavar="D", show_default=False,
+        help="Rounds a message takes. [default: 0]")] = None,
+    comm_range: Annotated[float | None, typer.Option(
+        "--comm-range", metavar="M", show_default=False,
+        help="Largest ground distance (m) of a working link; inf: unlimited. "
+             "[default: inf]")] = None,
+    agent_mode: Annotated[str | None, typer.Option(
+        "--agent-mode", metavar="jsfp|best-response", show_default=False,
+        help="What the agents play: the paper's JSFP with inertia, or plain best response. "
+             "[default: jsfp]")] = None,
+    **settings: Any,
+) -> None:
+    """Run one closed-loop episode with one planning agent per platform.
 
-    measured = np.asarray(episode.measured)[1:]                # (S, M, N)
-    tracks = Table(title="Position error over steps 1..S (m)",
-                   caption=f"lost: share of steps with error > {LOST_THRESHOLD:g} m; measured: "
-                           "steps with at least one measurement; ANEES: average NEES (4 for "
-                           "an honest filter); restarts: tracks restarted from a detection")
-    for name in ("target", "kind", "RMSE", "mean", "final", "lost", "measured", "ANEES",
-                 "restarts"):
-        tracks.add_column(name, justify="left" if name in ("target", "kind") else "right")
-    rows = episode_errors(episode)
-    for i, row in enumerate(rows):
-        if i and row.target == "all" and rows[i - 1].target != "all":
-            tracks.add_section()                   # per-target rows, then the groups
-        tracks.add_row(row.target, row.kind, f"{row.rmse:.1f}", f"{row.mean:.1f}",
-                       f"{row.final:.1f}", f"{row.lost_share:.0%}", str(row.measured),
-                       f"{row.anees:.2f}", str(row.restarts),
-                       style="bold" if row.target == "all" else None)
-    console.print(tracks)
-    c = episode_consistency(episode)
-    console.print(f"track consistency: ANEES {c['anees']:.2f} (95 % band of an honest filter "
-                  f"[{c['band_lo']:.2f}, {c['band_hi']:.2f}]), NEES > {NEES_HIGH:.2f} on "
-                  f"{100 * c['high_share']:.1f} % of target-steps (1 % when honest), "
-                  f"{c['restarts']} restarts, {c['map_corrections']} map corrections",
-                  highlight=False)
+    The platforms negotiate their plans over simulated links (message loss, delay, range)
+    with a decentralized planner: --planner dec-jsfp (default), dec-independent or
+    dec-sequential (docs/decentral.md). Writes what simulate writes (DIR/episode.npz,
+    DIR/episode.png, the timing file) plus DIR/agents.json (every decision's link log),
+    prints simulate's summary and one line on the links. Every agent process ends with the
+    run, also on Ctrl-C or SIGTERM.
 
-    looked = np.asarray(episode.looked)[1:]                    # (S, N)
-    missed = np.asarray(episode.missed)[1:]                    # (S, N)
-    sensors = Table(title="Sensors (steps 1..S)")
-    for name in ("sensor", "altitude (m)", "looks", "measurements", "missed looks"):
-        sensors.add_column(name, justify="left" if name == "sensor" else "right")
-    for i, spec in enumerate(cfg.scenario.sensors):
-        sensors.add_row(str(i), f"{float(spec.params.altitude):g}",
-                        str(int((looked[:, i] >= 0).sum())),
-                        str(int(measured[:, :, i].sum())), str(int(missed[:, i].sum())))
-    console.print(sensors)
+    Example: sensorplan agents --preset paper --steps 20 --transport bus --p-loss 0.1
+    """
+    from .config.agents import load_agents
+    from .io import ensure_out_dir
 
-    secs = 1e3 * np.asarray(episode.planning_seconds)
-    conv = np.asarray(episode.converged, dtype=float)
-    sweeps = np.asarray(episode.sweeps, dtype=float)
-    plans = Table(title="Planning per decision",
-                  caption="time: wall time of the planner call (ms)")
-    for name in ("decisions", "mean ms", "median ms", "max ms", "mean Phi", "converged",
-                 "sweeps"):
-        plans.add_column(name, justify="right")
+    links = {"transport": transport, "rounds": rounds, "p_loss": p_loss, "delay": delay,
+             "comm_range": comm_range, "mode": agent_mode}
+    with _bad_input():
+        cfg = load_agents(config, preset, {**settings, "planner": planner, "seed": seed},
+                          links)
+        ensure_out_dir(out)
 
-    def stat(values: Any, fmt: str, fn: Any = np.mean) -> str:
-        ok = values[~np.isnan(values)] if values.size else values
-        return format(float(fn(ok)), fmt) if ok.size else "-"
+    from .console import print_links, print_summary, run_with_progress
+    from .decentral import run_agents
 
-    plans.add_row(str(secs.size), stat(secs, ".2f"), stat(secs, ".2f", np.median),
-                  stat(secs, ".2f", np.max), stat(np.asarray(episode.potential), ".3f"),
-                  stat(conv, ".0%"), stat(sweeps, ".1f"))
-    console.print(plans)
-    console.print("wrote " + ", ".join(str(p) for p in written), highlight=False)
+    try:
+        with _terminate_on_sigterm():
+            episode, logs = run_with_progress(run_agents, cfg)
+    except KeyboardInterrupt as exc:
+        # run_agents has stopped every agent process on the way out.
+        term = isinstance(exc, _Terminated)
+        sys.stdout.flush()
+        sys.stderr.write("error: terminated\n" if term else "error: interrupted\n")
+        raise typer.Exit(143 if term else 130) from None
+    npz, png, log_file = out / "episode.npz", out / "episode.png", out / "agents.json"
+    timing = episode.save(npz)
+    _write_logs(log_file, episode, logs)
+    from .plotting import plot_episode
+
+    plot_episode(episode, cfg.scenario, png)
+    print_summary(episode, cfg, [npz, png, timing, log_file])
+    print_links(logs)
+
+
+app.command()(_with_setting_options(agents, skip=("planner",)))
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the program is, like Ctrl-C's KeyboardInterrupt."""
+
+
+@contextmanager
+def _terminate_on_sigterm() -> Iterator[None]:
+    """SIGTERM ends the command as Ctrl-C does: unwinding, so agent processes are stopped."""
+    import signal
+
+    def stop(signum: int, frame: Any) -> None:
+        raise _Terminated
+
+    previous = signal.signal(signal.SIGTERM, stop)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _write_logs(path: Path, episode: Any, logs: Sequence[Any]) -> None:
+    """agents.json: the decision steps and each decision's :class:`DecisionLog`."""
+    import dataclasses
+    import json
+
+    def plain(v: Any) -> Any:
+        return v.item() if hasattr(v, "item") else str(v)
+
+    steps = json.dumps([int(s) for s in episode.decision_steps])
+    rows = ",\n".join("  " + json.dumps(dataclasses.asdict(log), default=plain) for log in logs)
+    path.write_text(f'{{"decision_steps": {steps},\n "decisions": [\n{rows}\n]}}\n',
+                    encoding="utf-8")
 
 
 # ------------------------------------------------------------------------------ study
 
 
-def _study_progress(label: str) -> Any:
-    """Context manager yielding a ``progress(done, total, already)`` callback for
-    :func:`sensorplan.study.run_study`: a rich bar with ETA on a terminal, a plain
-    line about every 10 % or every minute (and at the end) otherwise."""
-    import time
-
-    from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, \
-        TimeElapsedColumn, TimeRemainingColumn
-
-    console = Console(stderr=True)
-
-    @contextmanager
-    def bar() -> Iterator[Any]:
-        columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                   TextColumn("(run, method) pairs"), TimeElapsedColumn(),
-                   TextColumn("ETA"), TimeRemainingColumn())
-        progress = Progress(*columns, console=console, transient=False)
-        task = progress.add_task(label, total=None)
-        started = False
-
-        def report(done: int, total: int, already: int) -> None:
-            nonlocal started
-            if not started:
-                # Started on the first report only, so that an error found before any
-                # work (a changed study) prints its one line and nothing else.
-                progress.start()
-                started = True
-            progress.update(task, completed=done, total=total,
-                            description=label + (f" ({already} already done)"
-                                                 if already else ""))
-        try:
-            yield report
-        finally:
-            if started:
-                progress.stop()
-
-    @contextmanager
-    def lines() -> Iterator[Any]:
-        state = {"start": time.perf_counter(), "next": 0.0, "last": time.perf_counter()}
-
-        def report(done: int, total: int, already: int) -> None:
-            now = time.perf_counter()
-            if done == 0:
-                state["start"] = state["last"] = now
-                console.print(f"{label}: {total} (run, method) pairs to run"
-                              + (f", {already} already done" if already else ""),
-                              highlight=False)
-                return
-            # A line about every 10 % or every minute, and at the end.
-            if (done / total + 1e-12 < state["next"] and now - state["last"] < 60
-                    and done != total):
-                return
-            state["next"] = done / total + 0.1
-            state["last"] = now
-            elapsed = now - state["start"]
-            eta = elapsed / done * (total - done)
-            console.print(f"{label}: {done}/{total} done, {elapsed:.0f} s elapsed, "
-                          f"ETA {eta:.0f} s", highlight=False)
-        yield report
-
-    return bar() if console.is_terminal else lines()
-
-
 def _run_study_command(study_obj: Any, out: Path, workers: int | None,
                        scheduler: str | None, label: str) -> Any:
+    from .console import study_progress
     from .study import StudyInterrupted, run_study
 
     try:
-        with _bad_input(), _study_progress(label) as progress:
+        with _bad_input(), study_progress(label) as progress:
             return run_study(study_obj, out, workers=workers, scheduler=scheduler,
                              progress=progress)
     except StudyInterrupted as exc:

@@ -10,12 +10,13 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
-from typing import Literal
 
 import numpy as np
 
 from ._types import FloatArray, IntArray
 from .errors import ConfigError
+from .modes import (OBJECTIVES, PLANNING_DETECTIONS, VISIBILITY_MODES,  # noqa: F401
+                    Objective, Visibility)
 from .sensors import SensorParams
 
 #: The 8 lattice directions in SPEC order.
@@ -23,12 +24,10 @@ DIRECTIONS = np.array([(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -
                       dtype=float)
 #: Positions closer than this (m) are the same position.
 POSITION_TOL = 1e-6
+#: Relative tolerance of ties between values of Phi: ``a`` beats ``b`` only if
+#: ``a > b + TIE_TOL * max(1, |Phi|)`` (every planner and the decentralized agents use it).
+TIE_TOL = 1e-9
 
-Visibility = Literal["probabilistic", "mean"]
-Objective = Literal["terminal", "cumulative"]
-VISIBILITY_MODES = ("probabilistic", "mean")
-OBJECTIVES = ("terminal", "cumulative")
-PLANNING_DETECTIONS = ("ignore", "aware")
 
 
 def move_vectors(distances: tuple[float, ...] | list[float]) -> FloatArray:

@@ -51,8 +51,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from ._jit import njit  # numba.njit, once numba's kernel cache is known to be writable
 from ._types import BoolArray, FloatArray, IntArray
 from .sensors import (ALTITUDE, ALTITUDE2, AREA, AWARE, CLUTTER_RATE, COLUMNS, COS_DEP, FOV,
                       G_MAX, G_MIN, LOG_PFA, RANGE_REF, SIN_DEP, SNR0, SWERLING, VAR_PHI, VAR_R)

@@ -23,18 +23,18 @@ Sections map to study files like this: ``planning`` keys are flat in ``[defaults
 
 from __future__ import annotations
 
+import contextvars
 import dataclasses
 import functools
 import math
+import numbers
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-
 from .errors import ConfigError
-from .problem import OBJECTIVES, PLANNING_DETECTIONS, VISIBILITY_MODES
+from .modes import OBJECTIVES, PLANNING_DETECTIONS, VISIBILITY_MODES
 
 EXECUTIONS = ("ol", "olf")
 MISS_UPDATES = ("negative", "none")
@@ -57,7 +57,9 @@ class Setting:
     label : str           short column heading in reports (default: the key)
     choices : tuple or callable
                           allowed values (strings), or a function returning them when they
-                          are only known at run time (the registered planners)
+                          are only known at run time
+    names : callable      known values listed in the help when the list is open (other
+                          values may pass ``check``: a planner given as module:Class)
     noun : str            what a value is called in errors: "unknown <noun> 'x'; choose from"
     ge, gt, le, lt : float or None     bounds; ``gt`` and ``lt`` together read "in (gt, lt)"
     check : callable      extra rule: raises ValueError with the message
@@ -69,6 +71,7 @@ class Setting:
     metavar: str = "VALUE"
     label: str = ""
     choices: tuple[str, ...] | Callable[[], tuple[str, ...]] = ()
+    names: Callable[[], tuple[str, ...]] | None = None
     noun: str = "value"
     ge: float | None = None
     gt: float | None = None
@@ -109,12 +112,28 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
     return field(default=default, default_factory=default_factory, metadata=meta)
 
 
-def registered_planners() -> tuple[str, ...]:
-    """The names in the planner registry, sorted."""
-    # Imported when a name is checked, not at import time: the registry loads the kernels.
-    from .planners import PLANNERS
+def builtin_planners() -> tuple[str, ...]:
+    """The built-in planner names, sorted (for help texts: no plugin is looked up)."""
+    from .planners.registry import BUILTIN
 
-    return tuple(sorted(PLANNERS))
+    return tuple(sorted(BUILTIN))
+
+
+def known_planner(name: str) -> None:
+    """Raise ``ValueError(message)`` unless ``name`` is a planner (a known name or a
+    ``package.module:Class`` that imports as one)."""
+    from .planners.registry import planner_class
+
+    try:
+        planner_class(name)
+    except ConfigError as exc:
+        raise ValueError(exc.message) from None
+
+
+#: True while settings are read back from a finished run (:meth:`_Settings.from_dict` with
+#: ``trusted``): the planner is then neither imported nor instantiated.
+_TRUSTED: contextvars.ContextVar[bool] = contextvars.ContextVar("sensorplan_trusted",
+                                                                 default=False)
 
 
 class _Settings:
@@ -136,20 +155,40 @@ class _Settings:
         return out
 
     @classmethod
-    def from_dict(cls, data: Mapping[str, Any]) -> Any:
-        """Inverse of :meth:`to_dict`; unknown keys are a :class:`ConfigError`."""
+    def from_dict(cls, data: Mapping[str, Any], *, trusted: bool = False) -> Any:
+        """Inverse of :meth:`to_dict`; unknown keys are a :class:`ConfigError`.
+
+        With ``trusted`` (settings a finished run wrote, read back by ``sensorplan report``)
+        the planner and its settings are taken as written: its class is not imported, so a
+        study run with a planner from another package reads back where that package is not
+        installed. Every other setting is checked as usual.
+        """
         names = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
         for key in data:
             if key not in names:
                 raise ConfigError(str(key), f"unknown key; allowed: {', '.join(names)}")
-        return cls(**data)
+        token = _TRUSTED.set(trusted or _TRUSTED.get())
+        try:
+            return cls(**data)
+        finally:
+            _TRUSTED.reset(token)
 
 
 def _plain(v: Any) -> Any:
     """A JSON-ready value: numpy scalars as Python numbers, tuples as lists."""
     if isinstance(v, tuple):
         return [_plain(x) for x in v]
-    return v.item() if isinstance(v, np.generic) else v
+    return v.item() if _is_numpy(v) and getattr(v, "ndim", None) == 0 else v
+
+
+# numpy is not imported here (the command line's help reads the settings): its scalars are
+# recognised by the numbers ABCs, which numpy registers them with, and by their module.
+def _is_numpy(v: Any) -> bool:
+    return type(v).__module__ == "numpy"
+
+
+def _is_bool(v: Any) -> bool:
+    return isinstance(v, bool) or (_is_numpy(v) and type(v).__name__ in ("bool", "bool_"))
 
 
 @functools.cache
@@ -186,12 +225,11 @@ def declared(cls: type, section: str | None = None) -> list[tuple[dataclasses.Fi
 
 
 def _is_int(v: Any) -> bool:
-    return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+    return isinstance(v, numbers.Integral) and not _is_bool(v)
 
 
 def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(
-        v, (bool, np.bool_))
+    return isinstance(v, numbers.Real) and not _is_bool(v)
 
 
 def _coerce(tp: Any, v: Any) -> Any:
@@ -208,7 +246,7 @@ def _coerce(tp: Any, v: Any) -> Any:
             raise ValueError("must be a finite number")
         return float(v)
     if tp is bool:
-        if not isinstance(v, (bool, np.bool_)):
+        if not _is_bool(v):
             raise ValueError(f"must be true or false, got {got}")
         return bool(v)
     if tp is str:
@@ -227,11 +265,12 @@ def _coerce(tp: Any, v: Any) -> Any:
     raise TypeError(f"settings fields of type {tp!r} are not supported")  # pragma: no cover
 
 
-def check_fields(obj: Any) -> None:
+def check_fields(obj: Any, unchecked: tuple[str, ...] = ()) -> None:
     """Check (and normalise) every field of a settings dataclass from its declaration.
 
     Integers become ``int``, numbers ``float``, tables ``dict``; a nested group given as a
-    mapping becomes its settings class.
+    mapping becomes its settings class. Fields in ``unchecked`` get their type checked but
+    not their rule.
 
     Raises
     ------
@@ -257,7 +296,8 @@ def check_fields(obj: Any) -> None:
             continue
         try:
             v = _coerce(field_hint(cls, f.name) if tp is tuple else tp, v)
-            s.validate(v)
+            if f.name not in unchecked:
+                s.validate(v)
         except ValueError as exc:
             raise ConfigError(f.name, str(exc)) from None
         object.__setattr__(obj, f.name, v)
@@ -349,6 +389,8 @@ class TrackerSettings(_Settings):
 
     def tracker_options(self) -> dict[str, Any]:
         """Keyword arguments of :class:`sensorplan.tracker.Tracker` for these settings."""
+        import numpy as np
+
         imm = self.model == "imm"
         return dict(process_noise=self.process_noise,
                     mode_process_noise=self.mode_process_noise if imm else None,
@@ -363,8 +405,10 @@ class RunSettings(_Settings):
 
     Attributes
     ----------
-    planner : str                  registry name (:func:`sensorplan.planners.make_planner`)
-    planner_params : dict          keyword arguments of the planner, e.g. ``{"alpha": 0.3}``
+    planner : str                  a planner name or ``package.module:Class``
+                                   (:func:`sensorplan.planners.make_planner`)
+    planner_params : dict          the planner's settings, e.g. ``{"alpha": 0.3}``: exactly
+                                   the fields the planner's class has
     horizon : int                  K, epochs per plan (>= 1)
     steps_per_epoch : int          e, simulation steps per epoch (>= 1)
     execution : {"ol", "olf"}      ``ol`` executes all K epochs before replanning, ``olf``
@@ -378,15 +422,19 @@ class RunSettings(_Settings):
     Raises
     ------
     ConfigError
-        A value breaks its rule, the planner is unknown or rejects ``planner_params``.
+        A value breaks its rule, the planner is unknown, or ``planner_params`` has a key
+        the planner does not take or a value it rejects (``planner_params.<key>``).
     """
 
     planner: str = setting(
         "pg", section="planning", cli=("--planner",), metavar="NAME", noun="planner",
-        choices=registered_planners, help="Planner that chooses the sensors' moves and looks.")
+        names=builtin_planners, check=known_planner,
+        help="Planner that chooses the sensors' moves and looks: a planner name or "
+             "package.module:Class.")
     planner_params: Mapping[str, Any] = setting(
         section="planning", default_factory=dict, label="planner settings",
-        help="Settings passed to the planner's constructor (only those it takes).")
+        help="Settings of the planner: its constructor's keyword arguments (an unknown key "
+             "is an error).")
     horizon: int = setting(
         1, section="planning", cli=("--horizon", "-K"), metavar="K", label="K", ge=1,
         help="Planning horizon in epochs (1 = myopic).")
@@ -421,16 +469,16 @@ class RunSettings(_Settings):
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
 
     def __post_init__(self) -> None:
+        if _TRUSTED.get():
+            check_fields(self, unchecked=("planner",))
+            return
         check_fields(self)
-        # Instantiating once reports bad planner parameters now, not mid-study.
-        from .planners import make_planner
+        # Checking the settings instantiates the planner once: bad values show now, not
+        # mid-study.
+        from .planners.registry import check_settings
 
-        try:
-            make_planner(self.planner, **self.planner_params)
-        except ConfigError:
-            raise
-        except (TypeError, ValueError) as exc:
-            raise ConfigError("planner_params", str(exc)) from None
+        object.__setattr__(self, "planner_params", check_settings(
+            self.planner, self.planner_params, "planner_params", keep_none=True))
 
 
 def all_settings(cls: type = RunSettings, prefix: str = ""

@@ -180,7 +180,7 @@ class Episode:
         else:
             seconds = np.full(len(arrays["decision_steps"]), np.nan)
         return cls(target_kinds=tuple(meta["target_kinds"]),
-                   settings=RunSettings(**meta["settings"]),
+                   settings=RunSettings.from_dict(meta["settings"], trusted=True),
                    seed_entropy=meta["seed_entropy"],
                    seed_spawn_key=tuple(int(k) for k in meta.get("seed_spawn_key", ())),
                    planning_seconds=seconds, **arrays)

@@ -48,16 +48,9 @@ def choice(valid: tuple[str, ...], what: str) -> AfterValidator:
     return AfterValidator(check)
 
 
-def _open_unit(value: float) -> float:
-    if not 0.0 < value < 1.0:
-        raise ValueError(f"must be in (0, 1), got {value!r}")
-    return value
-
-
 Vec2 = Annotated[list[float], _length(2, "a list of 2 numbers")]
 Vec4 = Annotated[list[float], _length(4, "a list of 4 numbers")]
 Matrix4 = Annotated[list[Vec4], _length(4, "a 4x4 matrix (4 rows of 4 numbers)")]
-Fraction = Annotated[float, AfterValidator(_open_unit)]
 PositiveInt = Annotated[int, Field(ge=1)]
 Seed = Annotated[int, Field(ge=0)]
 
@@ -102,17 +95,9 @@ class SensorParamsModel(Strict):
         return SensorParams(**kwargs)
 
 
-class PlannerParamsModel(Strict):
-    """Planner settings; ``None`` leaves the planner's own default."""
-
-    alpha: Fraction | None = None
-    beta: Fraction | None = None
-    max_inner: PositiveInt | None = None
-    max_outer: PositiveInt | None = None
-    max_plans: PositiveInt | None = None
-
-    def given(self) -> dict[str, Any]:
-        return {k: v for k, v in self.model_dump().items() if v is not None}
+#: A planner's settings: a table whose keys and values the planner's class decides
+#: (:func:`sensorplan.planners.registry.check_settings`), so any planner's settings pass here.
+PlannerParams = dict[str, Any]
 
 
 # ------------------------------------------------------------ tables from the settings
@@ -129,7 +114,7 @@ def setting_annotation(cls: type, f: dataclasses.Field[Any], s: Setting) -> Any:
     """The strict file type of a declared setting: its declared type plus its rule."""
     tp = field_type(cls, f.name)
     if tp is Mapping or tp is dict:
-        return PlannerParamsModel
+        return PlannerParams
     if tp is tuple:
         return Annotated[_file_list(field_hint(cls, f.name)), _rule(s)]
     if tp not in (int, float, str, bool):  # pragma: no cover - caught by the settings tests
@@ -178,9 +163,7 @@ def given(model: BaseModel | None) -> dict[str, Any]:
     out = {}
     for key in type(model).model_fields:
         v = getattr(model, key)
-        if isinstance(v, PlannerParamsModel):
-            out[key] = v.given()
-        elif isinstance(v, BaseModel):
+        if isinstance(v, BaseModel):
             out[key] = given(v)
         elif v is not None:
             out[key] = v

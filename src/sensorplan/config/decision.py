@@ -7,11 +7,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from pydantic import ConfigDict
+
 from .. import io
 from ..problem import MapRect, PlanningProblem
 from ..settings import RunSettings
-from ..validation import (MapModel, Matrix4, PlannerParamsModel, Seed, SensorParamsModel,
-                          Strict, Vec2, Vec4, setting_type, validate)
+from ..validation import (MapModel, Matrix4, Seed, SensorParamsModel, Strict, Vec2, Vec4,
+                          setting_type, validate)
 from .planners import build_planner, planner_settings
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -32,7 +34,12 @@ class DecisionSensor(SensorParamsModel):
     heading: float
 
 
-class DecisionPlanner(PlannerParamsModel):
+class DecisionPlanner(Strict):
+    """``planner``: its name, seed and settings; the planner decides which settings exist
+    (checked by :func:`~sensorplan.config.planners.planner_settings`)."""
+
+    model_config = ConfigDict(extra="allow")
+
     name: str = "pg"
     seed: Seed | None = None
 
@@ -63,7 +70,7 @@ class Decision:
     Attributes
     ----------
     problem : PlanningProblem
-    planner : str                  registry name
+    planner : str                  a planner name or ``package.module:Class``
     settings : dict                the settings passed to the planner's constructor
     """
 
@@ -84,7 +91,7 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
         The parsed JSON.
     planner : str, optional
         Overrides ``planner.name`` (the CLI's ``--planner``); settings of the file that the
-        new planner does not take (including ``max_plans``) are dropped.
+        new planner does not take are dropped.
 
     Raises
     ------
@@ -102,19 +109,16 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
         process_noise=model.process_noise, world=MapRect(model.map.width, model.map.height),
         visibility=model.visibility, objective=model.objective,
         planning_detection=model.planning_detection)
-    params = model.planner.given()
+    params = dict(model.planner.model_extra or {})
     if model.planner.seed is not None:
         params["seed"] = model.planner.seed
     if planner is None:
         name = model.planner.name
         settings = planner_settings(name, params)
-        field = "planner"
     else:
-        if planner != "brute-force":
-            params.pop("max_plans", None)
-        settings = planner_settings(planner, params, name_field="--planner")
-        name, field = planner, "--planner"
-    build_planner(name, settings, field)          # surface bad settings now
+        # The file's settings were written for its own planner: keep those the new one takes.
+        name = planner
+        settings = planner_settings(name, params, name_field="--planner", strict=False)
     return Decision(problem, name, settings)
 
 

@@ -1,60 +1,57 @@
-"""Planner settings from input files: which a planner takes, and building it."""
+"""Planner settings from input files: checking them and building the planner.
+
+A file's planner settings are open-ended but strict: a key is accepted if and only if the
+chosen planner has that setting (:func:`sensorplan.planners.registry.check_settings`), and
+the planner's own constructor checks the values. Errors name the file's field:
+``planner.<key>`` in a plan file, ``planning.planner_params.<key>`` in a scenario,
+``methods[i].planner_params.<key>`` in a study.
+"""
 
 from __future__ import annotations
 
-import dataclasses
-import inspect
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from ..errors import ConfigError
+from ..planners.registry import check_settings, instantiate, planner_class
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..planners import Planner
 
+#: Why a scenario or study may not set the planner's seed.
+RUN_SEED = {"seed": "is not a setting here: the run's seed drives the planner ([run] seed of "
+                    "a scenario, seed of a study)"}
+
 
 def planner_settings(name: str, params: Mapping[str, Any], name_field: str = "planner.name",
-                     params_field: str = "planner") -> dict[str, Any]:
-    """The subset of ``params`` that planner ``name`` takes (its dataclass fields).
+                     params_field: str = "planner", *, strict: bool = True,
+                     exclude: Mapping[str, str] | None = None) -> dict[str, Any]:
+    """The settings ``params`` checked for planner ``name`` (``None`` values dropped).
 
     Parameters
     ----------
     name : str
-        A name in :data:`sensorplan.planners.PLANNERS`.
+        A planner name or ``package.module:Class``.
     params : mapping
-        Candidate settings (``None`` values are dropped: the planner keeps its default).
+        Candidate settings.
     name_field, params_field : str
-        Field paths used in errors.
+        Field paths used in errors: the planner's name, and the table of its settings.
+    strict : bool
+        With False, keys the planner does not take are dropped instead of refused (the
+        file's settings were written for another planner: ``--planner`` replaced it).
+    exclude : mapping, optional
+        Settings not allowed in this file -> why (:data:`RUN_SEED`).
 
     Raises
     ------
     ConfigError
-        Unknown planner (the message lists the registered names), or ``max_plans`` for a
-        planner other than ``brute-force``.
+        Unknown planner (``name_field``, with close matches and every known name), unknown
+        key (``params_field.key``, with the closest setting), bad type or a value the
+        planner rejects.
     """
-    from ..planners import PLANNERS
-
-    if not isinstance(name, str) or name not in PLANNERS:
-        raise ConfigError(name_field, f"unknown planner {name!r}; choose from "
-                          f"{', '.join(sorted(PLANNERS))}")
-    if params.get("max_plans") is not None and name != "brute-force":
-        raise ConfigError(f"{params_field}.max_plans",
-                          f"only the brute-force planner takes max_plans (planner is {name!r})")
-    cls = PLANNERS[name]
-    if dataclasses.is_dataclass(cls):
-        accepted = {f.name for f in dataclasses.fields(cls)}
-    else:
-        accepted = set(inspect.signature(cls).parameters)
-    return {k: v for k, v in params.items() if v is not None and k in accepted}
+    cls = planner_class(name, name_field)
+    return check_settings(cls, params, params_field, strict=strict, exclude=exclude)
 
 
 def build_planner(name: str, settings: Mapping[str, Any], field: str = "planner") -> "Planner":
-    """``make_planner(name, **settings)`` with every failure as a :class:`ConfigError`."""
-    from ..planners import make_planner
-
-    try:
-        return make_planner(name, **settings)
-    except ConfigError as exc:
-        raise ConfigError(field if exc.field == "planner" else exc.field, exc.message) from None
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(field, str(exc)) from None
+    """The planner ``name`` with checked ``settings``; failures name ``field``'s keys."""
+    return instantiate(planner_class(name, field + ".name"), settings, field)

@@ -14,7 +14,7 @@ from ..scenario import Scenario
 from ..scenario_file import ScenarioFile, SettingsTables
 from ..settings import RunSettings, all_settings
 from ..validation import given, validate
-from .planners import build_planner, planner_settings
+from .planners import RUN_SEED, planner_settings
 
 #: Built-in scenarios for ``sensorplan simulate --preset`` and study files.
 PRESETS = tuple(SCENARIO_PRESETS)
@@ -116,13 +116,12 @@ def _run_settings(tables: Any, planner_overridden: bool = False) -> RunSettings:
     run.pop("seed", None)
     kwargs: dict[str, Any] = {**planning, **run, "tracker": given(tables.tracker)}
     name = kwargs.get("planner", RunSettings.__dataclass_fields__["planner"].default)
-    params = dict(kwargs.pop("planner_params", {}))
-    if planner_overridden and name != "brute-force":
-        # The file's settings were meant for its own planner; --planner replaces it.
-        params.pop("max_plans", None)
+    # With --planner the file's settings were meant for its own planner: keep those the new
+    # one takes.
     kwargs["planner_params"] = planner_settings(
-        name, params, name_field="planning.planner", params_field="planning.planner_params")
-    build_planner(name, kwargs["planner_params"], "planning.planner_params")
+        name, kwargs.pop("planner_params", {}), name_field="planning.planner",
+        params_field="planning.planner_params", strict=not planner_overridden,
+        exclude=RUN_SEED)
     try:
         return RunSettings(**kwargs)
     except ConfigError as exc:

@@ -1,7 +1,8 @@
 """Decentralized planning: one agent per platform, negotiating plans over links.
 
-Importing this package registers the planners ``dec-jsfp``, ``dec-independent`` and
-``dec-sequential``. See ``docs/decentral.md`` for the protocol.
+The planners ``dec-jsfp``, ``dec-independent`` and ``dec-sequential`` are known by name
+everywhere (the registry imports :mod:`.planners` on first use). See ``docs/decentral.md``
+for the protocol.
 """
 
 from .agent import MODES, Agent, AgentSpec

@@ -1,18 +1,31 @@
-"""The planner protocol, the result value and the registry (SPEC 4)."""
+"""The planner protocol, the result value and the helpers every planner uses.
+
+A planner is a class with a class attribute ``name`` and a method
+``plan(problem, rng=None) -> PlanResult`` (:class:`Planner`). Its body usually reads::
+
+    start = start_clock()                  # warm the compiled kernels, then read the clock
+    gen = make_rng(rng, self.seed)         # the caller's generator, else the planner's seed
+    ...                                    # choose a feasible, complete Plan
+    return finish(self.name, problem, plan, start)   # Phi of the plan by its one definition
+
+The numeric modules are imported when a helper is first called, not with this module, so
+that naming a planner (the registry, ``sensorplan --help``) does not load the kernels.
+"""
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from typing import Any, Callable, ClassVar, Protocol
+from typing import TYPE_CHECKING, ClassVar, Protocol
 
 import numpy as np
 
-from .._kernels import warm_up
 from .._types import FloatArray
-from ..errors import ConfigError
-from ..information import Context, evaluate, prepare
 from ..problem import Plan, PlanningProblem
+from .registry import PLANNERS, make_planner, register
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..information import Context
 
 RngLike = np.random.Generator | int | None
 
@@ -23,14 +36,16 @@ class PlanResult:
 
     Attributes
     ----------
-    plan : Plan
-    potential : float              Phi(plan) in nats, recomputed by :func:`potential`'s code
-    information : (M,)             per-target terms of Phi
-    headings : (N, K)              planned headings
+    planner : str                  the planner's ``name``
+    plan : Plan                    positions (N, K, 2) m and targets (N, K)
+    potential : float              Phi(plan) in nats, by the one definition of Phi
+                                   (:func:`finish` computes it)
+    information : (M,)             per-target terms of Phi (nats); they sum to ``potential``
+    headings : (N, K)              planned headings (rad)
     measurements : (N, K) int      looks that count in Phi
-    converged : bool or None       ``pg``/``pg-refine`` only
-    sweeps : int or None           outer sweeps (``pg``/``pg-refine`` only)
-    seconds : float                the planner's own time
+    converged : bool or None       None for planners without a notion of convergence
+    sweeps : int or None           outer sweeps (``pg``/``pg-refine``), else None
+    seconds : float                the planner's own time (s)
     trace : tuple of float         Phi after each sweep (diagnostics)
     """
 
@@ -55,45 +70,57 @@ class Planner(Protocol):
 
 
 def start_clock() -> float:
-    """Warm the compiled kernels, then read the clock: ``seconds`` is the planner's own time."""
+    """Warm the compiled kernels, then read the clock: ``seconds`` is the planner's own time.
+
+    Returns
+    -------
+    float   ``time.perf_counter()`` after the warm-up; pass it to :func:`finish`.
+    """
+    from .._kernels import warm_up
+
     warm_up()
     return time.perf_counter()
 
 
 def make_rng(rng: RngLike, seed: int | None) -> np.random.Generator:
-    """The planner's generator: ``rng`` when given, else one seeded with ``seed``."""
+    """The planner's generator: ``rng`` itself when it is a Generator, else
+    ``np.random.default_rng(rng)`` when given, else ``default_rng(seed)``."""
     if isinstance(rng, np.random.Generator):
         return rng
     return np.random.default_rng(seed if rng is None else rng)
 
 
-def finish(name: str, ctx: Context, plan: Plan, start: float, converged: bool | None = None,
-           sweeps: int | None = None, trace: tuple[float, ...] = ()) -> PlanResult:
-    """Evaluate ``plan`` with the one definition of Phi and wrap it in a :class:`PlanResult`."""
+def prepare(problem: PlanningProblem) -> Context:
+    """Everything Phi needs that does not depend on the plan (lattices, predictions, noise
+    tables): :func:`sensorplan.information.prepare`. Prepare once per decision."""
+    from ..information import prepare as _prepare
+
+    return _prepare(problem)
+
+
+def finish(name: str, ctx: Context | PlanningProblem, plan: Plan, start: float,
+           converged: bool | None = None, sweeps: int | None = None,
+           trace: tuple[float, ...] = ()) -> PlanResult:
+    """Evaluate ``plan`` with the one definition of Phi and wrap it in a :class:`PlanResult`.
+
+    Parameters
+    ----------
+    name : str               the planner's name
+    ctx : Context or PlanningProblem
+                             :func:`prepare`'s result, or the problem (prepared here)
+    plan : Plan              feasible and complete
+    start : float            :func:`start_clock`'s value; ``seconds`` runs until now
+    converged, sweeps, trace : as in :class:`PlanResult`
+    """
+    from ..information import evaluate
+    from ..information import prepare as _prepare
+
+    if isinstance(ctx, PlanningProblem):
+        ctx = _prepare(ctx)
     ev = evaluate(ctx, plan)
     return PlanResult(name, plan, ev.potential, ev.information, ev.headings, ev.measurements,
                       converged, sweeps, time.perf_counter() - start, trace)
 
 
-PLANNERS: dict[str, Callable[..., Planner]] = {}
-
-
-def register(cls: Any) -> Any:
-    """Class decorator adding a planner to :data:`PLANNERS` under ``cls.name``."""
-    PLANNERS[cls.name] = cls
-    return cls
-
-
-def make_planner(name: str, **params: Any) -> Planner:
-    """Instantiate a registered planner; unknown names or settings raise ConfigError."""
-    if name not in PLANNERS:
-        raise ConfigError("planner.name", f"unknown planner {name!r}; choose from "
-                          f"{sorted(PLANNERS)}")
-    try:
-        return PLANNERS[name](**params)
-    except TypeError as exc:
-        raise ConfigError("planner", str(exc)) from None
-
-
-__all__ = ["PLANNERS", "PlanResult", "Planner", "finish", "make_planner", "make_rng",
-           "prepare", "register", "start_clock"]
+__all__ = ["PLANNERS", "PlanResult", "Planner", "RngLike", "finish", "make_planner",
+           "make_rng", "prepare", "register", "start_clock"]

@@ -42,11 +42,9 @@ from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..information import (Context, chain_headings, covariance_recursion, epoch_information,
                            prepare)
-from ..problem import Lattice, Plan, PlanningProblem
+from ..problem import TIE_TOL, Lattice, Plan, PlanningProblem
 from .base import PlanResult, RngLike, finish, register, start_clock
 
-#: Relative tolerance under which two values of Phi are a tie (SPEC 4).
-TIE_RTOL = 1e-9
 #: Class combinations per batch of the covariance recursion (bounds its temporaries).
 _F_BATCH = 1 << 15
 #: Largest joint-plan count whose flat indices fit int64 comfortably.
@@ -424,7 +422,7 @@ def _search(options: list[_SensorOptions], terms: list[_TargetTerm],
         last = _chunk_phi(chunks, c, terms)
         maxima[c] = last.max()
     best = float(maxima.max())
-    floor = best - TIE_RTOL * max(1.0, abs(best))
+    floor = best - TIE_TOL * max(1.0, abs(best))
     c = int(np.flatnonzero(maxima >= floor)[0])
     phi = last if c == chunks.count - 1 and last is not None else _chunk_phi(chunks, c, terms)
     pos = int(np.flatnonzero(phi >= floor)[0])

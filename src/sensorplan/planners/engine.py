@@ -25,7 +25,7 @@ import numpy as np
 
 from .._types import FloatArray, IntArray
 from ..information import Context, chain_looks, covariance_recursion, sum_by_target
-from ..problem import Plan
+from ..problem import TIE_TOL, Plan
 
 
 @dataclass
@@ -359,7 +359,7 @@ def choose(values: FloatArray, current: int = -1, scale: float | None = None) ->
     """
     vmax = float(values.max())
     scale = abs(vmax) if scale is None else scale
-    near = values >= vmax - 1e-9 * max(1.0, scale)
+    near = values >= vmax - TIE_TOL * max(1.0, scale)
     if current >= 0 and near[current]:
         return current
     return int(np.argmax(near))

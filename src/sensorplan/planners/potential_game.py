@@ -16,7 +16,7 @@ import numpy as np
 from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..information import prepare
-from ..problem import PlanningProblem
+from ..problem import TIE_TOL, PlanningProblem
 from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
 from .engine import GameState, choose
 
@@ -69,7 +69,7 @@ def is_best(values: FloatArray, current: int, scale: float) -> bool:
     """No action raises the utility by more than ``1e-9 max(1, scale)``, scale = |Phi|."""
     if current < 0:
         return False
-    return bool(values.max() <= float(values[current]) + 1e-9 * max(1.0, scale))
+    return bool(values.max() <= float(values[current]) + TIE_TOL * max(1.0, scale))
 
 
 def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float, beta: float,

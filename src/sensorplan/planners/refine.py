@@ -24,7 +24,7 @@ import numpy as np
 
 from .._types import IntArray
 from ..information import prepare
-from ..problem import PlanningProblem
+from ..problem import TIE_TOL, PlanningProblem
 from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
 from .engine import GameState, choose
 from .greedy import sequential_greedy
@@ -33,7 +33,7 @@ from .potential_game import LearningSettings, current_index, run_sweeps
 
 def _improves(new: float, old: float, scale: float) -> bool:
     """``new`` beats ``old`` by more than the tolerance ``1e-9 max(1, |Phi|)`` (SPEC 4)."""
-    return bool(new > old + 1e-9 * max(1.0, scale))
+    return bool(new > old + TIE_TOL * max(1.0, scale))
 
 
 def pair_moves(state: GameState, i: int, k: int) -> IntArray:

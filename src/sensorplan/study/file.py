@@ -20,20 +20,24 @@ list of methods; ``sensorplan study`` runs every method on every run (docs/studi
 
     [[methods]]
     name = "paper/olf"                          # unique; used in tables and figures
-    planner = "pg"                              # a registered planner
+    planner = "pg"                              # a planner name or package.module:Class
     horizon = 3                                 # and every other [planning] setting
-    [methods.planner_params]                    # alpha, beta, max_inner, max_outer,
-    alpha = 0.3                                 # max_plans (brute-force)
+    [methods.planner_params]                    # the planner's settings (pg: alpha, beta,
+    alpha = 0.3                                 # max_inner, max_outer)
     [methods.tracker]                           # every [tracker] setting
     miss_update = "none"
 
 The method settings are :mod:`sensorplan.settings`' ``planning`` and ``tracker`` sections;
 each key is the method's value, else the one in ``[defaults]``, else the setting's default.
+``planner_params`` merge key by key: a method's own keys must be settings of its planner; a
+key of ``[defaults.planner_params]`` applies to the methods whose planner takes it, and must
+be taken by at least one.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import tomllib
 from pathlib import Path
 from typing import Annotated, Any
@@ -41,14 +45,15 @@ from typing import Annotated, Any
 from pydantic import AfterValidator, create_model
 
 from .. import io
-from ..config.planners import build_planner, planner_settings
+from ..config.planners import RUN_SEED
 from ..config.simulate import preset_scenario
 from ..errors import ConfigError
 from ..scenario import Scenario
 from ..scenario_file import scenario_from_dict
+from ..planners.registry import check_settings, instantiate, planner_class, planner_settings_of
 from ..settings import RunSettings, declared, field_type, is_group
-from ..validation import (PlannerParamsModel, PositiveInt, Seed, Strict, given, section_model,
-                          setting_annotation, validate)
+from ..validation import (PositiveInt, Seed, Strict, given, section_model, setting_annotation,
+                          validate)
 from .model import STUDY_KEYS, Method, Study
 
 
@@ -138,7 +143,9 @@ def _study_scenario(model: StudyScenarioModel, base_dir: Path | None) -> tuple[S
         raise ConfigError("scenario.file", f"{where}: {exc.message}") from None
 
 
-def _method(i: int, m: Any, defaults: dict[str, Any], study_wide: dict[str, Any]) -> Method:
+def _method(i: int, m: Any, defaults: dict[str, Any], study_wide: dict[str, Any],
+            used: set[str]) -> Method:
+    """Method ``i``; adds to ``used`` the ``[defaults.planner_params]`` keys it takes."""
     own = given(m)
     own.pop("name")
     origin: dict[str, str] = {}
@@ -146,21 +153,28 @@ def _method(i: int, m: Any, defaults: dict[str, Any], study_wide: dict[str, Any]
     if "planner" not in kwargs:
         raise ConfigError(f"methods[{i}].planner", "is required (in the method or in "
                           "[defaults])")
-    params = dict(defaults.get("planner_params", {}))
-    params.update(own.get("planner_params", {}))
-    params_field = ("defaults.planner_params" if m.planner_params is None
-                    else f"methods[{i}].planner_params")
-    name = kwargs["planner"]
-    settings = planner_settings(name, params, name_field=origin["planner"],
-                                params_field=params_field)
-    planner = build_planner(name, settings, params_field)
-    # Every setting the study file can give, filled with the planner's own default so
-    # that config.resolved.json shows what ran.
-    settable = set(PlannerParamsModel.model_fields)
-    if dataclasses.is_dataclass(planner):
-        filled = {f.name: getattr(planner, f.name) for f in dataclasses.fields(planner)
-                  if f.name in settable}
-    else:
+    cls = planner_class(kwargs["planner"], origin["planner"])
+    own_params = own.get("planner_params", {})
+    own_at = f"methods[{i}].planner_params"
+    settings = check_settings(cls, own_params, own_at, exclude=RUN_SEED, construct=False)
+    inherited = {k: v for k, v in defaults.get("planner_params", {}).items()
+                 if k not in own_params}
+    settings.update(check_settings(cls, inherited, "defaults.planner_params", strict=False,
+                                   exclude=RUN_SEED, construct=False))
+    used.update(k for k in settings if k not in own_params)
+    try:
+        planner = instantiate(cls, settings)
+    except ConfigError as exc:
+        key = exc.field.removeprefix("planner").removeprefix(".")
+        at = own_at if key in own_params or (not key and own_params) else \
+            "defaults.planner_params"
+        raise ConfigError(at + (f".{key}" if key else ""), exc.message) from None
+    # Every setting of the planner, filled with its value, so that config.resolved.json
+    # shows what ran (the seed comes from the run). Settings that are None (off) are left
+    # out: a setting added later with a default of None leaves old study directories valid.
+    filled = {k: getattr(planner, k) for k in planner_settings_of(cls)
+              if k not in RUN_SEED and getattr(planner, k, None) is not None}
+    if not dataclasses.is_dataclass(planner):
         filled = dict(settings)
     try:
         run_settings = RunSettings(planner_params=filled, **study_wide, **kwargs)
@@ -168,6 +182,21 @@ def _method(i: int, m: Any, defaults: dict[str, Any], study_wide: dict[str, Any]
         field = origin.get(exc.field, f"methods[{i}].{exc.field}")
         raise ConfigError(field, exc.message) from None
     return Method(m.name, run_settings)
+
+
+def _unused_defaults(defaults: dict[str, Any], used: set[str], methods: list[Method]) -> None:
+    """A ``[defaults.planner_params]`` key that no method's planner takes is an error."""
+    for key in defaults.get("planner_params", {}):
+        if key in used:
+            continue
+        takes = sorted({k for m in methods for k in planner_settings_of(
+            planner_class(m.settings.planner)) if k not in RUN_SEED})
+        message = "no method's planner takes it"
+        close = difflib.get_close_matches(key, takes, n=1)
+        if close:
+            message += f" (did you mean {close[0]!r}?)"
+        raise ConfigError(f"defaults.planner_params.{key}",
+                          message + f"; the methods' planners take: {', '.join(takes)}")
 
 
 def study_from_dict(data: Any, base_dir: str | Path | None = None) -> Study:
@@ -192,13 +221,15 @@ def study_from_dict(data: Any, base_dir: str | Path | None = None) -> Study:
     defaults = given(model.defaults)
     study_wide = {k: getattr(model, k) for k in STUDY_KEYS if getattr(model, k) is not None}
     seen: dict[str, int] = {}
-    methods = []
+    methods: list[Method] = []
+    used: set[str] = set()
     for i, m in enumerate(model.methods):
         if m.name in seen:
             raise ConfigError(f"methods[{i}].name", f"duplicate method name {m.name!r} "
                               f"(also methods[{seen[m.name]}])")
         seen[m.name] = i
-        methods.append(_method(i, m, defaults, study_wide))
+        methods.append(_method(i, m, defaults, study_wide, used))
+    _unused_defaults(defaults, used, methods)
     return Study(scenario=scenario, runs=model.runs, steps=model.steps, seed=model.seed,
                  methods=tuple(methods), description=model.description,
                  scenario_source=source)

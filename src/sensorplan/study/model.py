@@ -109,7 +109,9 @@ class Study:
         for m in data["methods"]:
             m = dict(m)
             name = m.pop("name")
-            methods.append(Method(name, RunSettings.from_dict({**m, **shared})))
+            # Trusted: the planner is not imported (the report of a study run with a
+            # planner from another package must not need that package).
+            methods.append(Method(name, RunSettings.from_dict({**m, **shared}, trusted=True)))
         return cls(scenario=scenario_from_dict(data["scenario"]), runs=int(data["runs"]),
                    steps=int(data["steps"]), seed=int(data["seed"]), methods=tuple(methods),
                    description=data.get("description", ""),

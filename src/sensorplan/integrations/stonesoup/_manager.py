@@ -81,9 +81,11 @@ class SensorplanManager(SensorManager):
     ``last_tracks`` hold what was planned (None, None and ``[]`` after a hold).
     """
 
-    planner: str = Property(default="pg", doc="Registered planner name (``make_planner``).")
-    planner_params: Mapping[str, Any] = Property(default_factory=dict,
-                                                 doc="Keyword arguments of the planner.")
+    planner: str = Property(default="pg", doc="A planner name or ``package.module:Class`` "
+                                              "(``make_planner``).")
+    planner_params: Mapping[str, Any] = Property(
+        default_factory=dict, doc="The planner's settings (its dataclass fields, e.g. "
+                                  "``time_budget``); an unknown key is a ConfigError.")
     horizon: int = Property(default=1, doc="K, epochs per plan.")
     steps_per_epoch: int = Property(default=1, doc="e, filter steps per epoch.")
     dt: float = Property(default=1.0, doc="Filter step (s).")

@@ -1,0 +1,94 @@
+"""Start-up time of the command line, as whole processes (median of N runs).
+
+Measures ``import sensorplan``, ``sensorplan --help``, ``sensorplan --version`` and
+``sensorplan plan examples/problem.json`` end to end with a warm kernel cache (one untimed
+run first), plus the floors they stand on: the interpreter, numpy, numba, and loading
+numba's compiler target with the cached kernels. Prints wall time and CPU time (user + sys
+of the child): on a loaded machine wall time includes waiting for a core, CPU time does not.
+
+    PYTHONPATH=src .venv/bin/python benchmarks/bench_startup.py [--runs 15] [--src DIR ...]
+
+``--src`` times other checkouts' ``src`` directories (before/after comparisons); their runs
+alternate, so that a change in the machine's load affects them alike. A case a checkout
+cannot run (an option it lacks) prints ``-``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+PROBLEM = ROOT / "examples" / "problem.json"
+
+CASES = [
+    ("python -c pass", ["-c", "pass"]),
+    ("import numpy", ["-c", "import numpy"]),
+    ("import numba", ["-c", "import numba"]),
+    ("numba target + cached kernels",
+     ["-c", "from sensorplan._kernels import warm_up; warm_up()"]),
+    ("import sensorplan", ["-c", "import sensorplan"]),
+    ("sensorplan --version", ["-m", "sensorplan", "--version"]),
+    ("sensorplan --help", ["-m", "sensorplan", "--help"]),
+    ("sensorplan plan examples/problem.json", ["-m", "sensorplan", "plan", str(PROBLEM)]),
+]
+
+
+def run_once(args: list[str], env: dict[str, str]) -> tuple[float, float] | None:
+    """(wall, cpu) seconds of one child process; None if it failed."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, *args], env=env, stdout=subprocess.DEVNULL,
+                          stderr=subprocess.PIPE, text=True)
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if done.returncode != 0:
+        return None
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, cpu
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--runs", type=int, default=15, help="processes per case")
+    parser.add_argument("--src", type=Path, action="append",
+                        help="a src directory to time (repeatable; default: this checkout's)")
+    opts = parser.parse_args()
+    srcs = [s.resolve() for s in (opts.src or [ROOT / "src"])]
+    envs = [{**os.environ, "PYTHONPATH": str(s)} for s in srcs]
+    print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python "
+          f"{platform.python_version()}, load average "
+          f"{', '.join(f'{x:.1f}' for x in os.getloadavg())}")
+    for i, s in enumerate(srcs):
+        print(f"[{i}] {s}")
+    print(f"median of {opts.runs} processes per case; wall s / cpu s")
+    print(f"{'case':40s}" + "".join(f"{f'[{i}] wall':>10s}{'cpu':>7s}" for i in range(len(srcs))))
+    for label, args in CASES:
+        results: list[list[tuple[float, float]]] = [[] for _ in srcs]
+        ok = [run_once(args, env) is not None for env in envs]      # warm-up run
+        for _ in range(opts.runs):
+            for i, env in enumerate(envs):
+                if ok[i]:
+                    res = run_once(args, env)
+                    if res is not None:
+                        results[i].append(res)
+        cells = []
+        for times in results:
+            if not times:
+                cells.append(f"{'-':>10s}{'-':>7s}")
+                continue
+            wall = statistics.median(t[0] for t in times)
+            cpu = statistics.median(t[1] for t in times)
+            cells.append(f"{wall:10.3f}{cpu:7.3f}")
+        print(f"{label:40s}" + "".join(cells), flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,94 @@
+"""Where numba caches the compiled kernels, and what happens when nowhere is writable.
+
+The kernels are compiled once and cached on disk (``@njit(cache=True)``). numba writes the
+cache to the first writable place of: ``NUMBA_CACHE_DIR`` if set, the package's own
+``__pycache__`` directory, the user's cache directory (``~/.cache/numba`` on Linux). When
+none is writable (a read-only install and a read-only home), numba refuses at import with
+a traceback. :func:`ensure_cache`, run before the first kernel is defined (the radar
+module imports :data:`njit` from here), checks those places first; when none is writable it
+caches in a private directory under the system's temporary directory, and when even that
+fails it compiles without a cache. Either way it says so in one line on stderr, and child
+processes (study workers, agents) inherit the choice through ``NUMBA_CACHE_DIR``.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+import sys
+import tempfile
+
+import numba
+from numba import njit
+
+#: The notice's prefix, on stderr.
+NOTICE = "note: "
+
+
+def _writable(path: str) -> bool:
+    """Whether ``path`` is (or can be made) a directory this process can write in."""
+    try:
+        os.makedirs(path, exist_ok=True)
+        tempfile.TemporaryFile(dir=path).close()
+        return True
+    except OSError:
+        return False
+
+
+def _private_dir(base: str) -> str | None:
+    """``base/sensorplan-numba-<uid>``, owned by this user and not a link, or a fresh
+    directory under ``base``; None if ``base`` is not writable."""
+    path = os.path.join(base, f"sensorplan-numba-{os.getuid() if hasattr(os, 'getuid') else 0}")
+    try:
+        os.makedirs(path, mode=0o700, exist_ok=True)
+        st = os.lstat(path)
+        mine = not hasattr(os, "getuid") or st.st_uid == os.getuid()
+        if stat.S_ISDIR(st.st_mode) and mine and _writable(path):
+            return path
+        return tempfile.mkdtemp(prefix="sensorplan-numba-", dir=base)
+    except OSError:
+        return None
+
+
+def cache_places() -> list[str]:
+    """Where numba would cache this package's kernels, in numba's order of preference."""
+    from numba.misc.appdirs import AppDirs
+
+    cache_dir = getattr(numba.config, "CACHE_DIR", "")
+    places = [cache_dir] if cache_dir else []
+    places.append(os.path.join(os.path.dirname(os.path.abspath(__file__)), "__pycache__"))
+    places.append(AppDirs(appname="numba", appauthor=False).user_cache_dir)
+    return places
+
+
+def ensure_cache() -> str | None:
+    """Make sure numba can cache the kernels (see the module docstring).
+
+    Returns
+    -------
+    str or None   the notice written to stderr, or None when a usual place is writable
+    """
+    places = cache_places()
+    if any(_writable(p) for p in places):
+        return None
+    fallback = _private_dir(tempfile.gettempdir())
+    if fallback is not None:
+        setattr(numba.config, "CACHE_DIR", fallback)
+        os.environ["NUMBA_CACHE_DIR"] = fallback
+        notice = (f"{NOTICE}cannot write numba's kernel cache ({', '.join(places)}); caching "
+                  f"the compiled kernels in {fallback} (set NUMBA_CACHE_DIR to choose)")
+    else:
+        # No directory at all: compile in every process. Dispatchers then keep numba's
+        # null cache instead of failing on cache=True.
+        numba.core.dispatcher.Dispatcher.enable_caching = lambda self: None  # type: ignore
+        notice = (f"{NOTICE}no writable directory for numba's kernel cache ({', '.join(places)}, "
+                  f"{tempfile.gettempdir()}); compiling the kernels in this process, without "
+                  "a cache (set NUMBA_CACHE_DIR to a writable directory)")
+    sys.stderr.write(notice + "\n")
+    sys.stderr.flush()
+    return notice
+
+
+ensure_cache()
+
+__all__ = ["NOTICE", "cache_places", "ensure_cache", "njit"]

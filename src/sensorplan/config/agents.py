@@ -1,0 +1,70 @@
+"""What ``sensorplan agents`` runs: a simulation whose planner is decentralized.
+
+The scenario file or preset and the ``simulate`` options are read as for ``simulate``
+(:func:`~sensorplan.config.simulate.load_simulation`). The planner is ``--planner`` (one of
+:data:`DECENTRAL`), else the file's when it is decentralized, else ``dec-jsfp``; a file's
+planner settings that the chosen planner does not take are dropped, as with ``--planner``.
+The link and agent options then set the planner's settings; the planner checks them, and an
+error names the option (``--p-loss``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from ..errors import ConfigError
+from ..planners.registry import check_settings
+from .simulate import SimulationConfig, load_simulation
+
+#: The decentralized planners, one agent per platform (docs/decentral.md).
+DECENTRAL = ("dec-jsfp", "dec-independent", "dec-sequential")
+#: Planner setting -> the ``sensorplan agents`` option that sets it.
+AGENT_OPTIONS = {"transport": "--transport", "rounds": "--rounds", "p_loss": "--p-loss",
+                 "delay": "--delay", "comm_range": "--comm-range", "mode": "--agent-mode"}
+
+
+def load_agents(path: str | Path | None = None, preset: str | None = None,
+                overrides: Mapping[str, Any] | None = None,
+                agent: Mapping[str, Any] | None = None) -> SimulationConfig:
+    """Scenario, run settings and seed of an episode with one agent per platform.
+
+    Parameters
+    ----------
+    path, preset, overrides
+        As for :func:`~sensorplan.config.simulate.load_simulation`; ``overrides["planner"]``
+        must be one of :data:`DECENTRAL`.
+    agent : mapping, optional
+        Planner settings from the agent options, keyed as :data:`AGENT_OPTIONS`
+        (``None`` values are ignored).
+
+    Raises
+    ------
+    ConfigError
+        As ``load_simulation``; ``--planner`` for a planner that is not decentralized; the
+        option of a link or agent setting the planner does not take or rejects.
+    """
+    overrides = dict(overrides or {})
+    chosen = overrides.get("planner")
+    if chosen is not None and chosen not in DECENTRAL:
+        raise ConfigError("--planner", f"must be a decentralized planner ({', '.join(DECENTRAL)}"
+                          f"), got {chosen!r}")
+    cfg = load_simulation(path, preset, overrides)
+    if cfg.settings.planner not in DECENTRAL:
+        cfg = load_simulation(path, preset, {**overrides, "planner": DECENTRAL[0]})
+    given = {k: v for k, v in (agent or {}).items() if v is not None}
+    unknown = sorted(set(given) - set(AGENT_OPTIONS))
+    if unknown:
+        raise ConfigError(unknown[0], "is not an agent option")
+    settings = cfg.settings
+    params = {**settings.planner_params, **given}
+    try:
+        params = check_settings(settings.planner, params, "planner")
+    except ConfigError as exc:
+        key = exc.field.removeprefix("planner.")
+        field = AGENT_OPTIONS[key] if key in given else f"planning.planner_params.{key}"
+        raise ConfigError(field, exc.message) from None
+    return dataclasses.replace(cfg, settings=dataclasses.replace(settings,
+                                                                 planner_params=params))

@@ -1,0 +1,21 @@
+"""The planning modes: which planned looks count in Phi, and how Phi sums them.
+
+Kept apart from :mod:`sensorplan.problem` so that the run settings (and the command line's
+help) can name them without importing numpy.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+Visibility = Literal["probabilistic", "mean"]
+Objective = Literal["terminal", "cumulative"]
+#: ``probabilistic``: a look counts weighted by the chance its target is in view;
+#: ``mean``: a look counts iff the predicted mean is in view (the paper's).
+VISIBILITY_MODES = ("probabilistic", "mean")
+#: ``terminal``: information at the end of the horizon (the paper's); ``cumulative``: summed
+#: over its steps.
+OBJECTIVES = ("terminal", "cumulative")
+#: ``aware``: a planned look also counts its detection probability and the clutter;
+#: ``ignore``: only whether its target is in view.
+PLANNING_DETECTIONS = ("ignore", "aware")

@@ -1,0 +1,266 @@
+"""The planner contract: named checks every planner must pass (:func:`check_planner`).
+
+In the style of scikit-learn's ``check_estimator``: each check runs the planner on a fixed
+set of problems (:func:`~sensorplan.planners.problems.contract_problems`: both visibility
+modes and both objectives, tiny problems and paper-size ones) and raises
+:class:`PlannerCheckError` naming the check, the planner and the problem on the first
+failure. The project's own contract suite (``tests/test_planner_contract.py``) runs exactly
+these checks for every registered planner.
+
+A planner may decline a problem that is too large for it by raising a
+:class:`~sensorplan.errors.ConfigError` on one of its settings (``planner.max_plans``, as
+``brute-force`` does); the checks skip such a problem, but declining a tiny one fails.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..information import potential
+from ..problem import TIE_TOL, Plan, PlanningProblem, check_plan
+from .base import PlanResult
+from .problems import ContractProblem, contract_problems
+from .registry import make_planner, planner_class
+
+#: The seed passed as ``rng`` to every ``plan`` call of the checks.
+SEED = 3
+
+
+class PlannerCheckError(AssertionError):
+    """A planner failed a check of the contract.
+
+    Attributes
+    ----------
+    check : str       the check's name (a key of :data:`CHECKS`)
+    planner : str     the planner's name
+    problem : str     label of the problem it failed on ('' if none)
+    detail : str      what went wrong
+    """
+
+    def __init__(self, check: str, planner: str, problem: str, detail: str) -> None:
+        self.check, self.planner, self.problem, self.detail = check, planner, problem, detail
+        where = f" on {problem}" if problem else ""
+        super().__init__(f"planner {planner!r} fails check {check!r}{where}: {detail}")
+
+
+class _Failure(Exception):
+    """Raised inside a check; :func:`check_planner` adds the check's and planner's names."""
+
+    def __init__(self, problem: str, detail: str) -> None:
+        super().__init__(detail)
+        self.problem, self.detail = problem, detail
+
+
+def _plan(planner: Any, case: ContractProblem) -> PlanResult | None:
+    """``planner.plan(problem, rng=SEED)``; None if the planner declines a large problem."""
+    try:
+        return planner.plan(case.problem, rng=SEED)
+    except ConfigError as exc:
+        if case.tiny or not exc.field.startswith("planner."):
+            raise _Failure(case.label, f"plan raised ConfigError({exc})") from exc
+        return None
+    except Exception as exc:  # noqa: BLE001 - any error of the planner fails the check
+        raise _Failure(case.label, f"plan raised {type(exc).__name__}: {exc}") from exc
+
+
+def _results(planner: Any, tiny_only: bool = False
+             ) -> Iterator[tuple[ContractProblem, PlanResult]]:
+    for case in contract_problems():
+        if tiny_only and not case.tiny:
+            continue
+        result = _plan(planner, case)
+        if result is not None:
+            yield case, result
+
+
+def _close(a: Any, b: Any) -> bool:
+    return bool(np.allclose(a, b, rtol=1e-9, atol=1e-12))
+
+
+# -------------------------------------------------------------------------- checks
+
+
+def check_result_well_formed(planner: Any) -> None:
+    """``plan`` returns a :class:`PlanResult` carrying the planner's name, a plan of shapes
+    (N, K, 2) and (N, K), a finite Phi >= 0, one information term per target, headings and
+    measurements of shape (N, K) and a finite ``seconds`` >= 0."""
+    for case, res in _results(planner):
+        problem = _result_problem(planner, case.problem, res)
+        if problem:
+            raise _Failure(case.label, problem)
+
+
+def _result_problem(planner: Any, p: PlanningProblem, res: Any) -> str:
+    """What is wrong with result ``res`` of ``planner`` on ``p`` ('' if nothing)."""
+    N, K, M = p.n_sensors, p.horizon, p.n_targets
+    if not isinstance(res, PlanResult):
+        return f"plan returned {type(res).__name__}, not a PlanResult"
+    if res.planner != planner.name:
+        return f"result.planner is {res.planner!r}, not the planner's name {planner.name!r}"
+    if not isinstance(res.plan, Plan):
+        return f"result.plan is {type(res.plan).__name__}, not a Plan"
+    shapes = {"plan.positions": (np.shape(res.plan.positions), (N, K, 2)),
+              "plan.targets": (np.shape(res.plan.targets), (N, K)),
+              "information": (np.shape(res.information), (M,)),
+              "headings": (np.shape(res.headings), (N, K)),
+              "measurements": (np.shape(res.measurements), (N, K))}
+    for what, (got, want) in shapes.items():
+        if got != want:
+            return f"result.{what} has shape {got}, expected {want}"
+    if not (isinstance(res.potential, (float, np.floating)) and math.isfinite(res.potential)
+            and res.potential >= 0.0):
+        return f"result.potential must be a finite float >= 0, got {res.potential!r}"
+    if not (isinstance(res.seconds, (float, int)) and math.isfinite(res.seconds)
+            and res.seconds >= 0.0):
+        return f"result.seconds must be finite and >= 0, got {res.seconds!r}"
+    return ""
+
+
+def check_feasible_complete_plan(planner: Any) -> None:
+    """Every player is assigned and the plan is feasible: each position lies in the map and
+    in its reachable set, one move from the previous one, and every target exists."""
+    for case, res in _results(planner):
+        try:
+            check_plan(case.problem, res.plan, complete=True)
+        except ValueError as exc:
+            raise _Failure(case.label, str(exc)) from None
+
+
+def check_potential_matches_recomputation(planner: Any) -> None:
+    """The reported Phi and its per-target terms equal an independent recomputation with
+    :func:`sensorplan.information.potential` (rtol 1e-9), and the terms sum to Phi."""
+    for case, res in _results(planner):
+        phi, info = potential(case.problem, res.plan)
+        if not _close(res.potential, phi):
+            raise _Failure(case.label, f"reported potential {res.potential!r} but the plan's "
+                           f"Phi is {phi!r}")
+        if not _close(res.information, info):
+            raise _Failure(case.label, f"reported information {np.asarray(res.information)} "
+                           f"but the plan's per-target terms are {info}")
+        if not _close(np.sum(res.information), res.potential):
+            raise _Failure(case.label, "the information terms do not sum to the potential")
+
+
+def _same_plan(a: Plan, b: Plan) -> bool:
+    return (np.array_equal(a.targets, b.targets)
+            and np.array_equal(a.positions, b.positions, equal_nan=True))
+
+
+def check_same_seed_same_plan(planner: Any) -> None:
+    """Two calls with the same seed give the same plan and the same Phi."""
+    for case, res in _results(planner):
+        again = _plan(planner, case)
+        if again is None or not _same_plan(res.plan, again.plan) or \
+                again.potential != res.potential:
+            raise _Failure(case.label, f"two calls with rng={SEED} gave different plans")
+
+
+def _snapshot(problem: PlanningProblem) -> dict[str, Any]:
+    return {f.name: (np.array(v, copy=True) if isinstance(v, np.ndarray) else v)
+            for f in dataclasses.fields(problem) for v in [getattr(problem, f.name)]}
+
+
+def _changed(before: dict[str, Any], problem: PlanningProblem) -> list[str]:
+    out = []
+    for name, old in before.items():
+        new = getattr(problem, name)
+        same = (np.array_equal(old, new, equal_nan=True) if isinstance(old, np.ndarray)
+                else old == new)
+        if not same:
+            out.append(name)
+    return out
+
+
+def check_input_not_mutated(planner: Any) -> None:
+    """``plan`` leaves every field of the problem as it was."""
+    for case in contract_problems():
+        before = _snapshot(case.problem)
+        _plan(planner, case)
+        changed = _changed(before, case.problem)
+        if changed:
+            contract_problems.cache_clear()        # do not hand the damage to other checks
+            raise _Failure(case.label, f"plan changed problem.{', problem.'.join(changed)}")
+
+
+#: id(problem) -> (problem, Phi of its brute-force optimum); holding the problem keeps the id.
+_OPTIMA: dict[int, tuple[PlanningProblem, float]] = {}
+
+
+def _optimum(problem: PlanningProblem) -> float:
+    """Phi of the brute-force optimum of a contract problem (computed once per process)."""
+    if id(problem) not in _OPTIMA:
+        best = planner_class("brute-force")().plan(problem).potential
+        _OPTIMA[id(problem)] = (problem, best)
+    return _OPTIMA[id(problem)][1]
+
+
+def check_never_above_brute_force(planner: Any) -> None:
+    """On the tiny problems, Phi is at most the brute-force optimum (within the tie
+    tolerance :data:`~sensorplan.problem.TIE_TOL`): nobody beats exhaustive search."""
+    for case, res in _results(planner, tiny_only=True):
+        best = _optimum(case.problem)
+        if res.potential > best + TIE_TOL * max(1.0, abs(best)):
+            raise _Failure(case.label, f"potential {res.potential!r} is above the optimum "
+                           f"{best!r}")
+
+
+#: The checks, by name, in the order :func:`check_planner` runs them.
+CHECKS: dict[str, Callable[[Any], None]] = {
+    "result_well_formed": check_result_well_formed,
+    "feasible_complete_plan": check_feasible_complete_plan,
+    "potential_matches_recomputation": check_potential_matches_recomputation,
+    "same_seed_same_plan": check_same_seed_same_plan,
+    "input_not_mutated": check_input_not_mutated,
+    "never_above_brute_force": check_never_above_brute_force,
+}
+
+
+def check_planner(planner: Any, checks: Iterable[str] | None = None) -> None:
+    """Run the contract's named checks on ``planner``; raise on the first failure.
+
+    Parameters
+    ----------
+    planner : Planner or str
+        A planner object (``name`` and ``plan(problem, rng)``), or a name for
+        :func:`~sensorplan.planners.make_planner` (default settings).
+    checks : iterable of str, optional
+        Names of :data:`CHECKS` to run (default: all, in order).
+
+    Raises
+    ------
+    PlannerCheckError
+        Naming the check, the planner and the problem that failed.
+    ValueError
+        An unknown check name.
+
+    Examples
+    --------
+    >>> from sensorplan.planners import check_planner
+    >>> check_planner("sequential-greedy", checks=["feasible_complete_plan"])
+    """
+    if isinstance(planner, str):
+        planner = make_planner(planner)
+    names = list(CHECKS) if checks is None else list(checks)
+    unknown = [n for n in names if n not in CHECKS]
+    if unknown:
+        raise ValueError(f"unknown check {unknown[0]!r}; choose from {', '.join(CHECKS)}")
+    label = str(getattr(planner, "name", type(planner).__name__))
+    for name in names:
+        try:
+            CHECKS[name](planner)
+        except _Failure as exc:
+            raise PlannerCheckError(name, label, exc.problem, exc.detail) from exc.__cause__
+        except Exception as exc:  # noqa: BLE001 - e.g. a result of the wrong shape
+            raise PlannerCheckError(name, label, "", f"{type(exc).__name__}: {exc}") from exc
+
+
+__all__ = ["CHECKS", "SEED", "PlannerCheckError", "check_feasible_complete_plan",
+           "check_input_not_mutated", "check_never_above_brute_force", "check_planner",
+           "check_potential_matches_recomputation", "check_result_well_formed",
+           "check_same_seed_same_plan"]

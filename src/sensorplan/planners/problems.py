@@ -1,0 +1,127 @@
+"""Seeded planning problems for the planner contract, the tests and the benchmarks.
+
+- :func:`tiny_problem`: random tiny problems, small enough for exhaustive search;
+- :func:`paper_problem`: a decision of the paper scenario (3 sensors, 5 targets);
+- :func:`joint_plan_count`: the exact number of feasible joint plans of a problem;
+- :func:`contract_problems`: the fixed set :func:`~sensorplan.planners.check_planner` uses.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..problem import (OBJECTIVES, VISIBILITY_MODES, MapRect, PlanningProblem, build_lattice,
+                       move_vectors)
+from ..sensors import SensorParams
+
+
+def joint_plan_count(problem: PlanningProblem) -> int:
+    """Exact number of feasible joint plans (product over sensors of chains x M^K)."""
+    total = 1
+    for i, s in enumerate(problem.sensors):
+        lat = build_lattice(problem.positions[i], move_vectors(s.moves), problem.horizon,
+                            problem.world)
+        ways = np.ones(1)
+        for k in range(1, problem.horizon + 1):
+            nxt = np.zeros(len(lat.positions[k]))
+            q, m = np.nonzero(lat.child[k] >= 0)
+            np.add.at(nxt, lat.child[k][q, m], ways[q])
+            ways = nxt
+        total *= int(ways.sum()) * problem.n_targets ** problem.horizon
+    return total
+
+
+def tiny_problem(rng: np.random.Generator, max_plans: int = 60_000,
+                 visibility: str | None = None, objective: str = "terminal") -> PlanningProblem:
+    """A random tiny problem (N <= 3, M <= 4, K <= 4) with at most ``max_plans`` joint plans.
+
+    Geometry and sensor parameters vary: a map two to three moves wide, one move distance,
+    random field of view, range band, turn limit and altitude, targets anywhere around the
+    map (so some sensors must move before they see anything). ``visibility=None`` draws it.
+    """
+    while True:
+        N = int(rng.integers(1, 4))
+        M = int(rng.integers(1, 5))
+        K = int(rng.integers(1, 5))
+        e = int(rng.integers(1, 3))
+        s = float(rng.uniform(60.0, 120.0))
+        width, height = s * rng.uniform(1.2, 3.0, size=2)
+        gmin = float(rng.uniform(0.0, 1.5 * s))
+        sensors = tuple(
+            SensorParams(altitude=float(rng.uniform(60.0, 300.0)), moves=(s,),
+                         max_turn=float(rng.uniform(math.pi / 8, math.pi)),
+                         fov_half_angle=float(rng.uniform(math.pi / 10, math.pi / 2)),
+                         min_ground_range=gmin,
+                         max_ground_range=gmin + float(rng.uniform(0.8 * s, 3.0 * s)),
+                         snr_ref_db=float(rng.uniform(5.0, 20.0)))
+            for _ in range(N))
+        pos = rng.uniform(0, 1, (N, 2)) * [width, height]
+        tpos = rng.uniform(-0.5, 1.5, (M, 2)) * [width, height]
+        means = np.c_[tpos, rng.normal(0.0, 3.0, (M, 2))]
+        sd = rng.uniform(5.0, 40.0, M)
+        covs = np.array([np.diag([d * d, d * d, 4.0, 4.0]) for d in sd])
+        vis = visibility or ("probabilistic" if rng.random() < 0.5 else "mean")
+        problem = PlanningProblem(means, covs, pos, rng.uniform(-math.pi, math.pi, N), sensors,
+                                  horizon=K, steps_per_epoch=e, world=MapRect(width, height),
+                                  visibility=vis, objective=objective)
+        if joint_plan_count(problem) <= max_plans:
+            return problem
+
+
+def paper_problem(rng: np.random.Generator, horizon: int = 3, steps_per_epoch: int = 2,
+                  visibility: str = "probabilistic", objective: str = "terminal",
+                  n_sensors: int = 3, n_targets: int = 5) -> PlanningProblem:
+    """A decision of the paper scenario: targets in [100, 500]^2, P0, sensors in [50, 550]^2."""
+    means = np.c_[rng.uniform(100, 500, (n_targets, 2)), rng.normal(0, 3, (n_targets, 2))]
+    covs = np.tile(np.diag([400.0, 400.0, 4.0, 4.0]), (n_targets, 1, 1))
+    alts = (490.0, 500.0, 510.0)
+    sensors = tuple(SensorParams(altitude=alts[i % 3]) for i in range(n_sensors))
+    return PlanningProblem(means, covs, rng.uniform(50, 550, (n_sensors, 2)),
+                           rng.uniform(-math.pi, math.pi, n_sensors), sensors, horizon=horizon,
+                           steps_per_epoch=steps_per_epoch, visibility=visibility,
+                           objective=objective)
+
+
+@dataclass(frozen=True)
+class ContractProblem:
+    """One problem of the contract set.
+
+    Attributes
+    ----------
+    label : str                 e.g. ``"tiny[2] (mean, cumulative)"``, for messages
+    problem : PlanningProblem
+    tiny : bool                 at most 20,000 joint plans: exhaustive search is cheap
+    """
+
+    label: str
+    problem: PlanningProblem
+    tiny: bool
+
+
+#: Joint plans of the contract's tiny problems, at most.
+TINY_PLANS = 20_000
+
+
+@functools.cache
+def contract_problems() -> tuple[ContractProblem, ...]:
+    """The fixed problems of the planner contract: for each visibility mode and objective,
+    four tiny problems and one paper-size decision (K = 2). Built once per process."""
+    out = []
+    for visibility in VISIBILITY_MODES:
+        for objective in OBJECTIVES:
+            rng = np.random.default_rng(7)
+            mode = f"({visibility}, {objective})"
+            out += [ContractProblem(f"tiny[{j}] {mode}",
+                                    tiny_problem(rng, TINY_PLANS, visibility, objective), True)
+                    for j in range(4)]
+            out.append(ContractProblem(f"paper {mode}", paper_problem(
+                rng, horizon=2, visibility=visibility, objective=objective), False))
+    return tuple(out)
+
+
+__all__ = ["TINY_PLANS", "ContractProblem", "contract_problems", "joint_plan_count",
+           "paper_problem", "tiny_problem"]

@@ -1,0 +1,147 @@
+"""``sensorplan agents``: a closed-loop episode with one agent per platform."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cli_helpers import assert_bad_input, run
+from sensorplan.config.agents import load_agents
+from sensorplan.decentral import run_agents
+from sensorplan.scenario import paper_scenario
+from sensorplan.settings import RunSettings
+from sensorplan.simulation import Episode
+from test_decentral_bus import running, wait_gone
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+
+
+def test_agents_runs_an_episode_and_reports_the_links(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(capsys, "agents", "--preset", "paper", "--steps", "4", "--seed", "3",
+                         "--p-loss", "0.2", "--rounds", "30", "--out", tmp_path)
+    assert code == 0, err
+    for name in ("episode.npz", "episode.png", "episode.timing.json", "agents.json"):
+        assert (tmp_path / name).is_file(), name
+    episode = Episode.load(tmp_path / "episode.npz")
+    logs = json.loads((tmp_path / "agents.json").read_text())
+    assert logs["decision_steps"] == episode.decision_steps.tolist()
+    assert len(logs["decisions"]) == len(episode.decision_steps) == 4
+    # The same episode and logs as the library call with the settings written out by hand.
+    settings = RunSettings(planner="dec-jsfp", planner_params={"p_loss": 0.2, "rounds": 30},
+                           steps=4)
+    assert episode.settings == settings
+    again, again_logs = run_agents(paper_scenario(), settings, 3)
+    np.testing.assert_array_equal(again.estimate, episode.estimate)
+    np.testing.assert_array_equal(again.sensor_positions, episode.sensor_positions)
+    assert [log.sent for log in again_logs] == [d["sent"] for d in logs["decisions"]]
+    # The links line adds up the decisions' logs.
+    line = next(ln for ln in out.splitlines() if ln.startswith("links: "))
+    counts = {k: sum(d[k] for d in logs["decisions"]) for k in ("sent", "delivered", "lost")}
+    assert (f"{counts['sent']} messages sent, {counts['delivered']} delivered, "
+            f"{counts['lost']} lost") in line
+    assert counts["lost"] > 0 and line.endswith("failed agents: none")
+    rounds = [d["rounds"] for d in logs["decisions"]]
+    assert f"median {np.median(rounds):g}, max {max(rounds):g}" in line
+
+
+BAD = [
+    (["--planner", "pg"], "--planner"),
+    (["--p-loss", "2"], "--p-loss"),
+    (["--planner", "dec-independent", "--p-loss", "0.1"], "--p-loss"),
+    (["--planner", "dec-sequential", "--rounds", "3"], "--rounds"),
+    (["--transport", "pigeon"], "--transport"),
+    (["--agent-mode", "gossip"], "--agent-mode"),
+    (["--rounds", "0"], "--rounds"),
+    (["--comm-range", "-1"], "--comm-range"),
+    (["--horizon", "0"], "--horizon"),
+]
+
+
+@pytest.mark.parametrize("args,field", BAD, ids=[" ".join(a) for a, _ in BAD])
+def test_bad_agent_options_name_the_option(args: list[str], field: str, tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "out"
+    assert_bad_input(run(capsys, "agents", "--preset", "paper", *args, "--out", out), field)
+    assert not out.exists()
+
+
+def test_the_file_decides_the_planner_unless_it_is_centralized(tmp_path: Path) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text('[planning]\nplanner = "dec-sequential"\n[planning.planner_params]\n'
+                    'p_loss = 0.3\n[[targets]]\n[[sensors]]\n')
+    cfg = load_agents(path, agent={"delay": 2, "comm_range": float("inf")})
+    assert cfg.settings.planner == "dec-sequential"
+    assert dict(cfg.settings.planner_params) == {"p_loss": 0.3, "delay": 2,
+                                                 "comm_range": float("inf")}
+    path.write_text('[planning]\nplanner = "pg"\n[planning.planner_params]\nalpha = 0.5\n'
+                    '[[targets]]\n[[sensors]]\n')
+    cfg = load_agents(path)
+    assert (cfg.settings.planner, dict(cfg.settings.planner_params)) == ("dec-jsfp",
+                                                                         {"alpha": 0.5})
+
+
+# ------------------------------------------------------- the bus: no process outlives it
+
+
+def _agents(pid: int) -> list[int]:
+    """Process ids of the agent processes whose parent is ``pid``."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+            cmd = (entry / "cmdline").read_bytes().decode(errors="replace")
+        except OSError:
+            continue
+        if int(stat.rsplit(")", 1)[1].split()[1]) == pid and "decentral.worker" in cmd:
+            found.append(int(entry.name))
+    return found
+
+
+def _start(tmp_path: Path) -> tuple[subprocess.Popen[str], list[int]]:
+    env = {**os.environ, "PYTHONPATH": str(SRC)}
+    proc = subprocess.Popen([sys.executable, "-m", "sensorplan", "agents", "--preset", "paper",
+                             "--steps", "6", "--transport", "bus", "--out", str(tmp_path)],
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    pids: list[int] = []
+    while time.monotonic() < deadline and proc.poll() is None and len(pids) < 3:
+        pids = _agents(proc.pid)
+        time.sleep(0.02)
+    assert len(pids) == 3, proc.communicate()
+    return proc, pids
+
+
+@pytest.mark.slow
+def test_every_agent_process_ends_with_the_run(tmp_path: Path) -> None:
+    proc, pids = _start(tmp_path)
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 0, err
+    assert re.search(r"links: 6 decisions, \d+ messages sent", out)
+    assert wait_gone(pids) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig,code,line", [(signal.SIGTERM, 143, "error: terminated"),
+                                           (signal.SIGINT, 130, "error: interrupted")],
+                         ids=["SIGTERM", "SIGINT"])
+def test_every_agent_process_ends_when_the_run_is_stopped(tmp_path: Path, sig: int,
+                                                           code: int, line: str) -> None:
+    proc, pids = _start(tmp_path)
+    assert all(running(p) for p in pids)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == code, err
+    assert err.splitlines() == [line]
+    assert wait_gone(pids) == []

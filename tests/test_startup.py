@@ -1,0 +1,155 @@
+"""Fast start and cold start: what ``import sensorplan`` and ``--help`` load, ``--version``,
+and a read-only install (package, home and NUMBA_CACHE_DIR not writable)."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import sensorplan
+from cli_helpers import run
+
+ROOT = Path(__file__).resolve().parents[1]
+SRC = ROOT / "src"
+PROBLEM = ROOT / "examples" / "problem.json"
+#: Modules that neither ``import sensorplan`` nor ``sensorplan --help`` may load: the
+#: compiled kernels, the plotting and table stacks, and numpy itself (for a fast --help).
+HEAVY = ("numpy", "numba", "llvmlite", "scipy", "matplotlib", "pandas", "pyarrow", "dask",
+         "distributed", "zmq")
+
+PROBE = """
+import json, sys
+{code}
+loaded = sorted(m for m in {heavy!r} if m in sys.modules)
+sys.stderr.write("LOADED " + json.dumps(loaded) + "\\n")
+"""
+
+
+def _loaded(code: str) -> list[str]:
+    env = {**os.environ, "PYTHONPATH": str(SRC)}
+    done = subprocess.run([sys.executable, "-c", PROBE.format(code=code, heavy=HEAVY)],
+                          env=env, capture_output=True, text=True, timeout=120)
+    line = next(ln for ln in done.stderr.splitlines() if ln.startswith("LOADED "))
+    return json.loads(line.removeprefix("LOADED "))
+
+
+def test_import_sensorplan_loads_nothing_heavy() -> None:
+    assert _loaded("import sensorplan, sensorplan.planners, sensorplan.settings") == []
+    # ... and the lazy names still work.
+    assert _loaded("from sensorplan.planners import PLANNERS; list(PLANNERS)") == []
+    assert "numba" in _loaded("from sensorplan import potential")
+
+
+def test_help_loads_nothing_heavy() -> None:
+    code = ("from sensorplan.cli import main\n"
+            "for args in (['--help'], ['simulate', '--help'], ['plan', '--help']):\n"
+            "    try:\n        main(args)\n    except SystemExit:\n        pass")
+    assert _loaded(code) == []
+
+
+def test_version(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(capsys, "--version")
+    assert (code, out, err) == (0, f"sensorplan {sensorplan.__version__}\n", "")
+    # The package's version is the distribution's (pyproject.toml), not a second number.
+    assert f'\nversion = "{sensorplan.__version__}"\n' in (ROOT / "pyproject.toml").read_text()
+
+
+# --------------------------------------------------------------- read-only install
+
+
+def _read_only_copy(tmp_path: Path) -> Path:
+    """The package copied under tmp_path/pkg, read-only, with a plain file where each
+    ``__pycache__`` directory would go (so that not even root can cache next to it)."""
+    pkg = tmp_path / "pkg"
+    shutil.copytree(SRC / "sensorplan", pkg / "sensorplan",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    for d in [pkg, *[p for p in pkg.rglob("*") if p.is_dir()]]:
+        (d / "__pycache__").write_text("")
+    for p in [pkg, *pkg.rglob("*")]:
+        p.chmod(p.stat().st_mode & ~(stat.S_IWUSR | stat.S_IWGRP | stat.S_IWOTH))
+    return pkg
+
+
+def _seed_cache(pkg: Path, fallback: Path) -> None:
+    """Copy the warm kernel cache of this checkout to where the read-only copy will look
+    for it (numba names a cache directory after the source directory), so that the test
+    does not compile every kernel again. Without it the test is only slower."""
+    from numba.core.caching import UserProvidedCacheLocator
+
+    from sensorplan import radar
+    from sensorplan._kernels import warm_up
+
+    warm_up()
+    cached = Path(radar.wrap._cache.cache_path)
+    sub = UserProvidedCacheLocator.get_suitable_cache_subpath(str(pkg / "sensorplan" /
+                                                                  "radar.py"))
+    (fallback / sub).mkdir(parents=True)
+    for f in cached.iterdir():
+        if f.name.startswith(("radar.", "_kernels.")) and f.suffix in (".nbi", ".nbc"):
+            shutil.copy(f, fallback / sub)
+
+
+def test_a_read_only_install_caches_the_kernels_in_a_temp_dir(tmp_path: Path) -> None:
+    pkg = _read_only_copy(tmp_path)
+    blocker = tmp_path / "blocker"                    # a file: nothing can be made under it
+    blocker.write_text("")
+    temp = tmp_path / "tmp"
+    temp.mkdir()
+    uid = os.getuid()
+    _seed_cache(pkg, temp / f"sensorplan-numba-{uid}")
+    env = {**os.environ, "PYTHONPATH": str(pkg), "PYTHONDONTWRITEBYTECODE": "1",
+           "HOME": str(blocker / "home"), "XDG_CACHE_HOME": str(blocker / "cache"),
+           "NUMBA_CACHE_DIR": str(blocker / "numba"), "TMPDIR": str(temp)}
+    try:
+        done = subprocess.run([sys.executable, "-m", "sensorplan", "plan", str(PROBLEM)],
+                              env=env, capture_output=True, text=True, timeout=600,
+                              cwd=tmp_path)
+    finally:
+        for p in [pkg, *pkg.rglob("*")]:
+            p.chmod(p.stat().st_mode | stat.S_IWUSR)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["planner"] == "pg"
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and "Traceback" not in done.stderr
+    assert lines[0].startswith("note: cannot write numba's kernel cache (")
+    assert f"caching the compiled kernels in {temp / f'sensorplan-numba-{uid}'}" in lines[0]
+    assert any(temp.rglob("*.nbi"))
+
+
+def test_nowhere_writable_compiles_without_a_cache(tmp_path: Path,
+                                                   monkeypatch: pytest.MonkeyPatch,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    import numba
+    from numba.core import dispatcher
+
+    from sensorplan import _jit
+
+    blocker = tmp_path / "blocker"
+    blocker.write_text("")
+    monkeypatch.setattr(_jit, "cache_places", lambda: [str(blocker / "a"), str(blocker / "b")])
+    monkeypatch.setattr(_jit.tempfile, "gettempdir", lambda: str(blocker / "tmp"))
+    monkeypatch.setattr(numba.config, "CACHE_DIR", numba.config.CACHE_DIR)
+    monkeypatch.setattr(dispatcher.Dispatcher, "enable_caching",
+                        dispatcher.Dispatcher.enable_caching)
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    notice = _jit.ensure_cache()
+    assert notice is not None and "without a cache" in notice
+    assert capsys.readouterr().err == notice + "\n"
+    twice = numba.njit(cache=True)(lambda x: 2 * x)    # would raise if caching were on
+    assert twice(21) == 42
+    assert "NUMBA_CACHE_DIR" not in os.environ
+
+
+def test_a_writable_place_changes_nothing(monkeypatch: pytest.MonkeyPatch,
+                                          tmp_path: Path) -> None:
+    from sensorplan import _jit
+
+    monkeypatch.setattr(_jit, "cache_places", lambda: [str(tmp_path / "cache")])
+    assert _jit.ensure_cache() is None
