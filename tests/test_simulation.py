@@ -24,7 +24,7 @@ from sensorplan.simulation import Episode, RunSettings, run_episode, run_streams
 
 
 #: The plain tracker these tests were written for: one CV filter, no gate, no map.
-PLAIN = dict(model="cv", gate=False, reacquire=False, known_map=False)
+PLAIN = dict(model="cv", process_noise=0.05, gate=False, reacquire=False, known_map=False)
 
 
 def settings(miss_update: str = "none", **kw) -> RunSettings:

@@ -330,8 +330,11 @@ def _mode_noises(value: tuple[float, ...]) -> None:
 class TrackerSettings(_Settings):
     """How the run's trackers filter the measurements (the ``[tracker]`` table).
 
-    The defaults were chosen by a measured sweep on the paper scenario (docs/results.md,
-    "Choosing the tracker"); ``studies/paper.toml``'s paper rows turn every option off.
+    The defaults were chosen by a measured sweep on the paper scenario with a rule fixed
+    beforehand (``studies/tracker_sweep.toml``, docs/results.md): an IMM with modes of q =
+    0.05 and 5, the gate, re-acquisition and the known map; ``process_noise`` (the cv
+    model's q) is the best cv candidate of the same sweep. ``studies/paper.toml``'s paper
+    rows turn every option off.
     """
 
     miss_update: str = setting(
@@ -346,10 +349,10 @@ class TrackerSettings(_Settings):
              "process_noise) or imm (interacting multiple models: CWNA modes with the q's of "
              "mode_process_noise and Markov switching).")
     process_noise: float = setting(
-        0.05, section="tracker", cli=("--tracker-q",), metavar="Q", label="q", ge=0.0,
+        1.0, section="tracker", cli=("--tracker-q",), metavar="Q", label="q", ge=0.0,
         help="q (m^2/s^3) of the cv filter; the truth's q is the scenario's process_noise.")
     mode_process_noise: tuple[float, ...] = setting(
-        (0.05, 2.0), section="tracker", label="IMM q's", check=_mode_noises,
+        (0.05, 5.0), section="tracker", label="IMM q's", check=_mode_noises,
         help="q (m^2/s^3) of each IMM mode, quiet first.")
     switching: tuple[tuple[float, ...], ...] = setting(
         ((0.95, 0.05), (0.1, 0.9)), section="tracker", label="IMM switching",
