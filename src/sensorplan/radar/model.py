@@ -152,6 +152,41 @@ def hidden(buildings: np.ndarray, sx: float, sy: float, z: float, qx: float,
     return False
 
 
+#: Nodes and weights of the 3-point Gauss-Hermite rule for a standard normal (exact for
+#: polynomials up to degree 5); their tensor product gives the occlusion factor's 9 points.
+_GH_NODES = (-math.sqrt(3.0), 0.0, math.sqrt(3.0))
+_GH_WEIGHTS = (1.0 / 6.0, 2.0 / 3.0, 1.0 / 6.0)
+
+
+@njit(cache=True, error_model="numpy")
+def in_sight_probability(buildings: np.ndarray, sx: float, sy: float, z: float, mx: float,
+                         my: float, c00: float, c01: float, c11: float,
+                         probabilistic: bool) -> float:
+    r"""Probability that no building hides a target at ``N((mx, my), C)`` from a sensor.
+
+    ``probabilistic``: the weighted share of 9 fixed points of the position distribution
+    that are in sight, the tensor product of the 3-point Gauss-Hermite rule mapped through
+    the Cholesky factor of ``C`` (nodes :math:`0, \pm\sqrt 3` standard deviations, weights
+    2/3 and 1/6 per axis): deterministic, in [0, 1], and exactly 1 without buildings.
+    Otherwise: 1 if the mean is in sight, else 0.
+    """
+    if buildings.shape[0] == 0:
+        return 1.0
+    if not probabilistic:
+        return 0.0 if hidden(buildings, sx, sy, z, mx, my) else 1.0
+    l00 = math.sqrt(max(c00, 0.0))
+    l10 = c01 / l00 if l00 > 0.0 else 0.0
+    l11 = math.sqrt(max(c11 - l10 * l10, 0.0))
+    total = 0.0
+    for a in range(3):
+        for b in range(3):
+            qx = mx + l00 * _GH_NODES[a]
+            qy = my + l10 * _GH_NODES[a] + l11 * _GH_NODES[b]
+            if not hidden(buildings, sx, sy, z, qx, qy):
+                total += _GH_WEIGHTS[a] * _GH_WEIGHTS[b]
+    return total
+
+
 @njit(cache=True, error_model="numpy")
 def detection_probability(row: np.ndarray, r2: float) -> float:
     r"""Probability of detecting a target in view at slant range^2 ``r2``.
