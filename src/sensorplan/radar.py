@@ -63,6 +63,9 @@ RANGE_TOL = 1e-9
 ANGLE_TOL = 1e-12
 #: Planned looks less likely than this to see their target do not count.
 P_VIS_MIN = 1e-6
+#: A planned look whose predicted ground range is more than this many standard deviations
+#: outside the range band does not count: its in-band mass is below Ncdf(-6) ~ 1e-9.
+BAND_SIGMAS = 6.0
 
 
 # ------------------------------------------------------------------ scalar kernels
@@ -193,9 +196,27 @@ def range_weight(row: np.ndarray, ux: float, uy: float, g: float, c00: float, c0
     gmin, gmax = row[G_MIN], row[G_MAX]
     # More than 6 sd outside the band the mass is below Ncdf(-6) ~ 1e-9, far below
     # P_VIS_MIN: skip the two erfc calls (most looks of a large candidate set are far out).
-    if sd > 0.0 and (g > gmax + 6.0 * sd or g < gmin - 6.0 * sd):
+    if sd > 0.0 and (g > gmax + BAND_SIGMAS * sd or g < gmin - BAND_SIGMAS * sd):
         return 0.0
     return _interval(gmin - g, gmax - g, sd)
+
+
+@njit(cache=True, error_model="numpy")
+def reach(row: np.ndarray, c00: float, c01: float, c11: float, probabilistic: bool) -> float:
+    """A ground range (m) beyond which no planned look at the target can count.
+
+    :func:`range_weight` is 0 for every ground range above it, in any direction, when the
+    target's position covariance has the entries ``c00, c01, c11``: ``g_max + 6 sd`` with
+    ``sd`` the largest standard deviation of that covariance (``probabilistic``), else the
+    band's edge; both with a margin for round-off. Planners use it to skip far candidates
+    without evaluating them.
+    """
+    if probabilistic:
+        lam = 0.5 * (c00 + c11) + math.sqrt(0.25 * (c00 - c11) ** 2 + c01 * c01)
+        edge = row[G_MAX] + BAND_SIGMAS * math.sqrt(max(lam, 0.0) * (1.0 + 1e-9))
+    else:
+        edge = row[G_MAX] + RANGE_TOL
+    return edge * (1.0 + 1e-12) + 1e-9
 
 
 @njit(cache=True, error_model="numpy")
@@ -207,14 +228,31 @@ def look(row: np.ndarray, dx: float, dy: float, heading: float, c00: float, c01:
     entries c00, c01, c11; otherwise ``p`` is the 0/1 visibility of the mean. A look with
     ``p < P_VIS_MIN`` gives zeros.
     """
-    g2 = dx * dx + dy * dy
-    if g2 == 0.0:
-        return 0.0, 0.0, 0.0, 0.0
-    g = math.sqrt(g2)
-    ux, uy = dx / g, dy / g
-    p = range_weight(row, ux, uy, g, c00, c01, c11, probabilistic)
+    p, g2, g = look_range(row, dx, dy, c00, c01, c11, probabilistic)
     if p < P_VIS_MIN:
         return 0.0, 0.0, 0.0, 0.0
+    return look_in_range(row, dx, dy, g2, g, p, heading, c00, c01, c11, probabilistic)
+
+
+@njit(cache=True, error_model="numpy")
+def look_range(row: np.ndarray, dx: float, dy: float, c00: float, c01: float, c11: float,
+               probabilistic: bool) -> tuple[float, float, float]:
+    """The heading-free first part of :func:`look`: the range factor ``p`` of the weight
+    (:func:`range_weight`; 0 at the nadir), with ``g^2`` and ``g``."""
+    g2 = dx * dx + dy * dy
+    if g2 == 0.0:
+        return 0.0, g2, 0.0
+    g = math.sqrt(g2)
+    return range_weight(row, dx / g, dy / g, g, c00, c01, c11, probabilistic), g2, g
+
+
+@njit(cache=True, error_model="numpy")
+def look_in_range(row: np.ndarray, dx: float, dy: float, g2: float, g: float, p: float,
+                  heading: float, c00: float, c01: float, c11: float,
+                  probabilistic: bool) -> tuple[float, float, float, float]:
+    """The rest of :func:`look` given :func:`look_range`'s ``p >= P_VIS_MIN``, ``g2``, ``g``
+    (a planner computes that part once for looks that differ only in heading)."""
+    ux, uy = dx / g, dy / g
     r2 = g2 + row[ALTITUDE2]
     r = math.sqrt(r2)
     cpsi = cos_psi(row, dx, dy, math.cos(heading), math.sin(heading), r)

@@ -24,20 +24,34 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._types import FloatArray, IntArray
-from ..information import Context, chain_looks, covariance_recursion, sum_by_target
+from ..information import (Context, _c, chain_looks, covariance_recursion, cv_form,
+                           sum_by_target)
 from ..problem import Plan
+from .kernels import (chain_pairs_nb, gains_nb, game_gains_nb, index_pairs_nb,
+                      jsfp_step_nb)
 
 
 @dataclass
-class _ChainCache:
-    """What :meth:`GameState.chain_gains` keeps between calls for one player."""
+class _Pairs:
+    """One player's candidate chains, as the (candidate, target) pairs whose looks count.
+
+    ``data`` holds each pair's information (w00, w01, w11) from its first non-zero step on
+    (:func:`~sensorplan.planners.kernels.chain_pairs_nb`); ``delta`` its cached term change
+    and ``rows`` the other players' information it was computed with (NaN: never).
+    """
 
     key: tuple
+    n_cand: int
+    lo: int                    # sensor i's removed epochs, 0-based [lo, hi)
+    hi: int
     c_pair: IntArray
     j_pair: IntArray
-    W_add: FloatArray
-    W_rows: FloatArray         # the other players' looks each delta was computed with
+    first: IntArray
+    count: IntArray
+    offset: IntArray
+    data: FloatArray
     delta: FloatArray
+    rows: FloatArray           # (M, T, 3)
 
 
 class GameState:
@@ -61,6 +75,10 @@ class GameState:
         self.W = np.zeros((N, K, e, 2, 2))
         self._cache: dict = {}
         self._actions: dict = {}
+        self._phi: tuple[int, float] | None = None
+        self.version = 0                    # bumped by every change of an action
+        self._covs = _c(np.array(ctx.problem.covs))        # writable copies for the kernels
+        self._Q = _c(np.array(ctx.Q))
 
     # ----------------------------------------------------------------- plan access
     def copy(self) -> "GameState":
@@ -71,6 +89,9 @@ class GameState:
         other.heading, other.W = self.heading.copy(), self.W.copy()
         other._cache = {}
         other._actions = self._actions          # depends only on the lattices: share it
+        other._phi = None
+        other.version = 0
+        other._covs, other._Q = self._covs, self._Q
         return other
 
     def xy(self, i: int, k: int, idx: IntArray | int) -> FloatArray:
@@ -104,6 +125,10 @@ class GameState:
         """Whether player (i, k) has an action; epoch 0 (the start pose) always counts."""
         return k == 0 or (1 <= k <= self.ctx.K and self.tgt[i, k - 1] >= 0)
 
+    def complete(self) -> bool:
+        """Whether every player has an action."""
+        return bool(np.all(self.tgt >= 0))
+
     # ----------------------------------------------------------------- updates
     def set_action(self, i: int, k: int, pos_idx: int, target: int) -> None:
         """Give player (i, k) an action and refresh sensor i's headings and information."""
@@ -121,6 +146,7 @@ class GameState:
     def refresh(self, i: int) -> None:
         """Recompute sensor i's headings and look information from its actions."""
         ctx = self.ctx
+        self.version += 1
         self.heading[i] = np.nan
         self.W[i] = 0.0
         k = 1
@@ -146,12 +172,16 @@ class GameState:
 
     # ----------------------------------------------------------------- evaluation
     def potential(self) -> float:
-        """Phi of the current (partial) plan."""
+        """Phi of the current (partial) plan (cached until an action changes)."""
+        if self._phi is not None and self._phi[0] == self.version:
+            return self._phi[1]
         ctx = self.ctx
         W_t = sum_by_target(ctx, self.W, self.tgt)
         _, ld_end, ld_sum = covariance_recursion(np.asarray(ctx.problem.covs), W_t, ctx.F, ctx.Q,
                                                  self.cumulative)
-        return float(self._phi_terms(ld_end, ld_sum).sum())
+        phi = float(self._phi_terms(ld_end, ld_sum).sum())
+        self._phi = (self.version, phi)
+        return phi
 
     def _phi_terms(self, ld_end: FloatArray, ld_sum: FloatArray) -> FloatArray:
         ctx = self.ctx
@@ -178,7 +208,8 @@ class GameState:
         return base + gains
 
     def chain_gains(self, i: int, k0: int, cand_pos: IntArray, cand_tgt: IntArray,
-                    with_base: bool = False) -> tuple[FloatArray, float]:
+                    with_base: bool = False, token: tuple | None = None
+                    ) -> tuple[FloatArray, float]:
         """Marginal contribution of each candidate chain: Phi(chain) - Phi(no chain).
 
         "No chain" leaves sensor i's epochs ``k0 ..`` up to the end of the assigned run that
@@ -186,11 +217,39 @@ class GameState:
         candidate, so it is a valid utility for every player whose action the chain holds
         (SPEC 4) and the game's decisions are the same with either.
 
+        ``token`` names the candidate set when the caller knows it (see
+        :meth:`action_token`), so that the cache recognises it without comparing arrays.
+
         Returns
         -------
         gains : (C,)
         base : float    Phi(no chain) if ``with_base``, else NaN
         """
+        entry = self._pairs(i, k0, cand_pos, cand_tgt, token)
+        s0 = (k0 - 1) * self.ctx.e
+        gains, ld_pre, ld_end, ld_sum = self._gains(
+            s0, np.array([i]), np.array([entry.lo]), np.array([entry.hi]),
+            np.array([0, len(entry.c_pair)]), entry.c_pair, entry.j_pair, entry.first,
+            entry.count, entry.offset, entry.data, entry.delta, entry.rows[None],
+            np.array([0, entry.n_cand]), with_base)
+        base = float(self._phi_terms(ld_end, ld_pre + ld_sum).sum()) if with_base else np.nan
+        return gains, base
+
+    def _gains(self, s0: int, sensor: IntArray, lo: IntArray, hi: IntArray,
+               pair_off: IntArray, c_loc: IntArray, j_pair: IntArray, first: IntArray,
+               count: IntArray, offset: IntArray, data: FloatArray, delta: FloatArray,
+               rows: FloatArray, cand_off: IntArray,
+               all_targets: bool) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        ctx = self.ctx
+        cv, dt = cv_form(ctx.F)
+        return gains_nb(self.W, self.tgt, self._covs, ctx.F, self._Q, cv, dt,
+                        self.cumulative, s0, sensor, lo, hi, pair_off, c_loc, j_pair, first,
+                        count, offset, data, delta, rows, cand_off, all_targets)
+
+    def _pairs(self, i: int, k0: int, cand_pos: IntArray, cand_tgt: IntArray,
+               token: tuple | None) -> _Pairs:
+        """The cached pairs of sensor i's candidate chains from epoch k0 (computed if the
+        chain's context or the candidates changed)."""
         ctx = self.ctx
         C, L = cand_tgt.shape
         # The chain continues through the following assigned epochs: their headings change.
@@ -199,92 +258,16 @@ class GameState:
             else k_last
         prev_ok = self.assigned(i, k0 - 1)
         prev = self.heading[i, k0 - 2] if k0 > 1 and prev_ok else ctx.problem.headings[i]
-
-        mask_tgt = self.tgt.copy()
-        mask_tgt[i, k0 - 1:k_end] = -1
-        W_fixed = sum_by_target(ctx, self.W, mask_tgt)                    # (M, T, 2, 2)
-        s0 = (k0 - 1) * ctx.e
         # The chain's own looks depend only on the chain; a (candidate, target) term depends
         # on them and on the other players' looks at that target. Both are cached, so a call
         # recomputes only the terms of targets whose other looks changed since the last call
         # for this player (in JSFP: the targets the neighbours switched to or from).
-        key = (k0, L, prev_ok, float(prev), cand_pos.tobytes(), cand_tgt.tobytes(),
-               self.pos[i, k_last:k_end].tobytes(), self.tgt[i, k_last:k_end].tobytes())
+        cands = token if token is not None else (cand_pos.tobytes(), cand_tgt.tobytes())
+        key = (k0, L, prev_ok, float(prev), cands, self.pos[i, k_last:k_end].tobytes(),
+               self.tgt[i, k_last:k_end].tobytes())
         entry = self._cache.get((i, k0, L))
-        if entry is None or entry.key != key:
-            c_pair, j_pair, W_add = self._chain_looks(i, k0, cand_pos, cand_tgt, k_end, prev,
-                                                      prev_ok)
-            entry = _ChainCache(key, c_pair, j_pair, W_add, np.full_like(W_fixed, np.nan),
-                                np.zeros(len(c_pair)))
-            self._cache[(i, k0, L)] = entry
-        stale = np.any(entry.W_rows != W_fixed, axis=(1, 2, 3))           # (M,) NaN != all
-        base = np.nan
-        redo = np.flatnonzero(stale)
-        if with_base:
-            redo = np.arange(ctx.M)
-        if redo.size:
-            covs = np.asarray(ctx.problem.covs)[redo]
-            cum = self.cumulative
-            Q = ctx.Q_rows(redo)
-            P_pre, _, ld_pre = covariance_recursion(covs, W_fixed[redo, :s0], ctx.F, Q, cum)
-            _, ld_end_b, ld_sum_b = covariance_recursion(P_pre, W_fixed[redo, s0:], ctx.F, Q,
-                                                         cum)
-            if with_base:
-                base = float(self._phi_terms(ld_end_b, ld_pre + ld_sum_b).sum())
-            where = np.full(ctx.M, -1)
-            where[redo] = np.arange(redo.size)
-            sel = np.flatnonzero(stale[entry.j_pair])
-            if sel.size:
-                r = where[entry.j_pair[sel]]
-                W_pair = W_fixed[entry.j_pair[sel], s0:] + entry.W_add[sel]
-                _, ld_end, ld_sum = covariance_recursion(P_pre[r], W_pair, ctx.F,
-                                                         ctx.Q_rows(entry.j_pair[sel]), cum)
-                if cum:
-                    entry.delta[sel] = 0.5 * (ld_sum_b[r] - ld_sum)
-                else:
-                    entry.delta[sel] = 0.5 * (ld_end_b[r] - ld_end)
-            entry.W_rows[stale] = W_fixed[stale]
-        return np.bincount(entry.c_pair, weights=entry.delta, minlength=C), base
-
-    def contributing(self, i: int, k0: int, L: int = 1) -> IntArray:
-        """Candidates of the last :meth:`chain_gains` call for (i, k0, L) with a look that counts.
-
-        The others have gain exactly 0 against any other players' actions.
-        """
-        c = self._cache[(i, k0, L)].c_pair                # sorted by candidate
-        return c[np.r_[True, c[1:] != c[:-1]]] if c.size else c
-
-    def restrict(self, i: int, k0: int, keep: IntArray, cand_pos: IntArray,
-                 cand_tgt: IntArray) -> None:
-        """Carry the cache of player (i, k0) over to the candidate subset ``keep``.
-
-        ``cand_pos, cand_tgt`` are the kept candidates, ``(len(keep), 1)``; the next
-        :meth:`chain_gains` call with them then reuses the looks already computed.
-        """
-        entry = self._cache[(i, k0, 1)]
-        remap = np.full(int(keep.max()) + 1 if keep.size else 0, -1, dtype=np.int64)
-        remap[keep] = np.arange(keep.size)
-        inside = entry.c_pair < remap.size
-        inside[inside] = remap[entry.c_pair[inside]] >= 0
-        entry.key = entry.key[:4] + (cand_pos.tobytes(), cand_tgt.tobytes()) + entry.key[6:]
-        entry.c_pair = remap[entry.c_pair[inside]]
-        entry.j_pair = entry.j_pair[inside]
-        entry.W_add = entry.W_add[inside]
-        entry.delta = entry.delta[inside]
-
-    def _chain_looks(self, i: int, k0: int, cand_pos: IntArray, cand_tgt: IntArray,
-                     k_end: int, prev: float,
-                     prev_ok: bool) -> tuple[IntArray, IntArray, FloatArray]:
-        """The information every candidate chain adds to each target it looks at.
-
-        Returns
-        -------
-        c_pair, j_pair : (n,) int   every (candidate, target) pair with a look that counts
-        W_add : (n, T - s0, 2, 2)   that pair's information from step ``s0 + 1`` on
-        """
-        ctx = self.ctx
-        C, L = cand_tgt.shape
-        e, M = ctx.e, ctx.M
+        if entry is not None and entry.key == key:
+            return entry
         Lf = k_end - k0 + 1
         pos_xy = np.empty((C, Lf, 2))
         tgt = np.empty((C, Lf), dtype=np.int64)
@@ -295,20 +278,25 @@ class GameState:
             kk = k0 + l
             pos_xy[:, l] = self.xy(i, kk, self.pos[i, kk - 1])
             tgt[:, l] = self.tgt[i, kk - 1]
-        _, W_chain, counted = chain_looks(ctx, i, k0, pos_xy, tgt, prev, prev_ok,
-                                          all_headings=False)            # (C, Lf, e, 2, 2)
-        # A look that does not count adds nothing: its target keeps its baseline term.
-        counts = counted.any(axis=2)                                      # (C, Lf)
-        c_idx, l_idx = np.nonzero(counts)
-        if Lf == 1:                     # one look per candidate: pairs are already unique
-            c_pair, j_pair = c_idx, tgt[c_idx, 0]
-        else:
-            c_pair, j_pair = np.divmod(np.unique(c_idx * M + tgt[c_idx, l_idx]), M)
-        W_add = np.zeros((len(c_pair), ctx.T - (k0 - 1) * e, 2, 2))
-        for l in range(Lf):
-            hit = (tgt[c_pair, l] == j_pair)[:, None, None, None]
-            W_add[:, l * e:(l + 1) * e] = np.where(hit, W_chain[c_pair, l], 0.0)
-        return c_pair, j_pair, W_add
+        c_pair, j_pair, first, count, offset, data = chain_pairs_nb(
+            pos_xy, tgt, k0, ctx.e, float(prev), bool(prev_ok), float(ctx.problem.headings[i]),
+            float(ctx.max_turn[i]), ctx.aim, ctx.xbar_xy, ctx.Cbar, ctx.probabilistic,
+            ctx.radar[i], ctx.T - (k0 - 1) * ctx.e)
+        entry = _Pairs(key, C, k0 - 1, k_end, c_pair, j_pair, first, count, offset, data,
+                       np.zeros(len(c_pair)), np.full((ctx.M, ctx.T, 3), np.nan))
+        self._cache[(i, k0, L)] = entry
+        return entry
+
+    def contributing(self, i: int, k0: int, L: int = 1) -> IntArray:
+        """Candidates of the last :meth:`chain_gains` call for (i, k0, L) with a look that counts.
+
+        The others have gain exactly 0 against any other players' actions.
+        """
+        return _unique_sorted(self._cache[(i, k0, L)].c_pair)
+
+    def forget(self, i: int, k0: int, L: int = 1) -> None:
+        """Drop the cached pairs of (i, k0, L) (e.g. an initialisation set never used again)."""
+        self._cache.pop((i, k0, L), None)
 
     # ----------------------------------------------------------------- player actions
     def player_actions(self, i: int, k: int) -> tuple[IntArray, IntArray]:
@@ -324,12 +312,22 @@ class GameState:
         -------
         pos : (P * M,) int lattice indices in R_k;  tgt : (P * M,) int
         """
+        key = self.action_token(i, k)
+        if key in self._actions:
+            return self._actions[key]
+        actions = self._player_actions(i, k)
+        if key[2] >= 0 or k == 1:
+            # Sets after an unassigned predecessor (the initialisation's, up to R_k x M)
+            # are used once: not kept.
+            self._actions[key] = actions
+        return actions
+
+    def action_token(self, i: int, k: int) -> tuple:
+        """A key that determines the feasible actions of player (i, k): ``(i, k, p_{k-1},
+        p_{k+1})`` as lattice indices (-1 when that neighbour is unassigned)."""
         pred = (0 if k == 1 else int(self.pos[i, k - 2])) if self.assigned(i, k - 1) else -1
         succ = int(self.pos[i, k]) if k < self.ctx.K and self.assigned(i, k + 1) else -1
-        key = (i, k, pred, succ)
-        if key not in self._actions:
-            self._actions[key] = self._player_actions(i, k)
-        return self._actions[key]
+        return ("actions", i, k, pred, succ)
 
     def _player_actions(self, i: int, k: int) -> tuple[IntArray, IntArray]:
         lat = self.ctx.lattices[i]
@@ -350,6 +348,10 @@ class GameState:
         return np.repeat(cand, M), np.tile(np.arange(M), len(cand))
 
 
+def _unique_sorted(c: IntArray) -> IntArray:
+    return c[np.r_[True, c[1:] != c[:-1]]] if c.size else c
+
+
 def choose(values: FloatArray, current: int = -1, scale: float | None = None) -> int:
     """Index of the best value under SPEC 4's tie rule.
 
@@ -363,3 +365,127 @@ def choose(values: FloatArray, current: int = -1, scale: float | None = None) ->
     if current >= 0 and near[current]:
         return current
     return int(np.argmax(near))
+
+
+def relevant(contributing: IntArray, n: int, current: int) -> IntArray:
+    """Indices to keep: every action with a counting look, the first without, the current."""
+    keep = np.zeros(n, dtype=bool)
+    keep[contributing] = True
+    if not keep.all():
+        keep[int(np.argmin(keep))] = True
+    if current >= 0:
+        keep[current] = True
+    return np.flatnonzero(keep)
+
+
+class EpochGame:
+    """The players (i, k), i = 0..N-1, of one epoch game, batched for the compiled kernels.
+
+    Each player's feasible actions are fixed for the whole game (only epoch k changes), and
+    so are its chain's looks. Actions whose looks never count have utility exactly 0 whatever
+    the others do; only the first of them in tie order (and the current action) can ever be
+    chosen, so the game is played on the rest: same decisions, far fewer candidates.
+
+    Attributes
+    ----------
+    actions : list of (pos, tgt)   each player's kept actions, in tie order
+    cur : (N,) int                 index of each player's current action (-1 unassigned)
+    cand_off : (N + 1,) int        player i's utilities are ``u[cand_off[i]:cand_off[i+1]]``
+    """
+
+    def __init__(self, state: GameState, k: int) -> None:
+        self.state, self.k = state, k
+        N = state.ctx.N
+        self.actions: list[tuple[IntArray, IntArray]] = []
+        self.cur = np.full(N, -1, dtype=np.int64)
+        self._init_sets = []
+        entries, c_loc = [], []
+        for i in range(N):
+            token = state.action_token(i, k)
+            pos, tgt = state.player_actions(i, k)
+            entry = state._pairs(i, k, pos[:, None], tgt[:, None], token)
+            if token[3] < 0 and k > 1:
+                self._init_sets.append(i)
+            cur = _current(state, i, k, pos, tgt)
+            keep = relevant(_unique_sorted(entry.c_pair), len(pos), cur)
+            remap = np.full(len(pos), -1, dtype=np.int64)
+            remap[keep] = np.arange(keep.size)
+            self.actions.append((pos[keep], tgt[keep]))
+            self.cur[i] = remap[cur] if cur >= 0 else -1
+            entries.append(entry)
+            c_loc.append(remap[entry.c_pair])
+        sizes = np.array([len(a[0]) for a in self.actions])
+        self.cand_off = np.r_[0, np.cumsum(sizes)]
+        n_pairs = np.array([len(en.c_pair) for en in entries])
+        n_data = np.array([len(en.data) for en in entries])
+        self._pair_off = np.r_[0, np.cumsum(n_pairs)]
+        data_off = np.r_[0, np.cumsum(n_data)]
+        cat = np.concatenate
+        self._c_loc = cat(c_loc)
+        self._j = cat([en.j_pair for en in entries])
+        self._first = cat([en.first for en in entries])
+        self._count = cat([en.count for en in entries])
+        self._offset = cat([en.offset + data_off[i] for i, en in enumerate(entries)])
+        self._data = _c(cat([en.data for en in entries]))
+        self._delta = cat([en.delta for en in entries])
+        self._rows = np.stack([en.rows for en in entries])
+        self._hi = np.array([en.hi for en in entries])
+        for i, en in enumerate(entries):
+            # The cache keeps working on the game's buffers (views): no copy back needed.
+            en.delta = self._delta[self._pair_off[i]:self._pair_off[i + 1]]
+            en.rows = self._rows[i]
+        ctx = state.ctx
+        self._by_t, self._t_off, self._cp_off = index_pairs_nb(
+            self._pair_off, self._c_loc, self._j, self.cand_off, ctx.M)
+        n = int(self.cand_off[-1])
+        self._gcache = np.zeros(n)
+        self._dirty = np.ones(n, dtype=bool)
+        S = ctx.T - (k - 1) * ctx.e
+        self._shared = np.zeros(1, dtype=bool)
+        self._pre = np.empty((ctx.M, 4, 4))
+        self._tot_rows = np.full((ctx.M, ctx.T, 3), np.nan)
+        self._tot_pred = np.empty((ctx.M, S, 4, 4))
+        self._tot_part = np.empty((ctx.M, S))
+        self._tot_ld = np.empty((ctx.M, 2))
+
+    def utilities(self) -> FloatArray:
+        """Every player's utility of each kept action (marginal contributions), concatenated."""
+        st = self.state
+        cv, dt = cv_form(st.ctx.F)
+        return game_gains_nb(st.W, st.tgt, st._covs, st.ctx.F, st._Q, cv, dt, st.cumulative,
+                             self.k, self._hi, self._c_loc, self._j, self._first, self._count,
+                             self._offset, self._data, self._delta, self._rows, self._by_t,
+                             self._t_off, self._cp_off, self.cand_off, self._gcache,
+                             self._dirty, self._shared, self._pre, self._tot_rows,
+                             self._tot_pred, self._tot_part, self._tot_ld)
+
+    def split(self, values: FloatArray) -> list[FloatArray]:
+        """Per-player views of concatenated values."""
+        return np.split(values, self.cand_off[1:-1])
+
+    def step(self, u: FloatArray, ubar: FloatArray, t: int,
+             scale: float) -> tuple[bool, FloatArray, IntArray]:
+        """Equilibrium test, running averages and best responses of iteration ``t``.
+
+        The equilibrium: no player can raise its utility ``u`` by more than
+        ``1e-9 max(1, scale)``. Otherwise ``ubar <- (t-1)/t ubar + u/t`` and each player's
+        best response is ``argmax ubar`` under the tie rule (see :func:`choose`).
+
+        Returns
+        -------
+        equilibrium : bool;  ubar : new averages (unchanged at an equilibrium);
+        best : (N,) indices into each player's kept actions
+        """
+        return jsfp_step_nb(u, ubar, t, self.cand_off, self.cur, 1e-9 * max(1.0, scale))
+
+    def close(self) -> None:
+        """Forget the initialisation sets' pairs (their actions are never offered again)."""
+        for i in self._init_sets:
+            self.state.forget(i, self.k)
+
+
+def _current(state: GameState, i: int, k: int, pos: IntArray, tgt: IntArray) -> int:
+    if state.tgt[i, k - 1] < 0:
+        return -1
+    hit = np.flatnonzero((pos == state.pos[i, k - 1]) & (tgt == state.tgt[i, k - 1]))
+    return int(hit[0]) if hit.size else -1

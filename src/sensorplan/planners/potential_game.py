@@ -18,7 +18,7 @@ from ..errors import ConfigError
 from ..information import prepare
 from ..problem import PlanningProblem
 from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
-from .engine import GameState, choose
+from .engine import EpochGame, GameState
 
 
 @dataclass
@@ -54,17 +54,6 @@ def current_index(state: GameState, i: int, k: int, pos: IntArray, tgt: IntArray
     return int(hit[0]) if hit.size else -1
 
 
-def _relevant(contributing: IntArray, n: int, current: int) -> IntArray:
-    """Indices to keep: every action with a counting look, the first without, the current."""
-    keep = np.zeros(n, dtype=bool)
-    keep[contributing] = True
-    if not keep.all():
-        keep[int(np.argmin(keep))] = True
-    if current >= 0:
-        keep[current] = True
-    return np.flatnonzero(keep)
-
-
 def is_best(values: FloatArray, current: int, scale: float) -> bool:
     """No action raises the utility by more than ``1e-9 max(1, scale)``, scale = |Phi|."""
     if current < 0:
@@ -82,41 +71,33 @@ def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float,
     ``argmax ubar`` (SPEC tie rule) and each player switches to it with probability
     ``1 - alpha`` (an unassigned player always does); then the loop ends with probability
     ``1 - beta``, or after ``max_inner`` iterations.
+
+    Actions whose looks never count are left out (see :class:`EpochGame`): they have
+    utility 0 whatever the others do and only the first of them can ever be chosen.
     """
     N = state.ctx.N
-    actions = [state.player_actions(i, k) for i in range(N)]   # fixed within the epoch game
-    ubar = [np.zeros(len(a[0])) for a in actions]
-    for t in range(1, max_inner + 1):
-        # Utilities are marginal contributions: Phi up to a term the player cannot change.
-        u = [state.chain_gains(i, k, actions[i][0][:, None], actions[i][1][:, None])[0]
-             for i in range(N)]
-        scale = abs(state.potential())
-        if t == 1:
-            cur = [current_index(state, i, k, *actions[i]) for i in range(N)]
-            # Actions whose looks never count have utility 0 whatever the others do; only
-            # the first of them in tie order (and the current action) can ever be chosen,
-            # so the game is played on the rest: same decisions, far fewer candidates.
+    game = EpochGame(state, k)
+    cur = game.cur
+    ubar = np.zeros(game.cand_off[-1])
+    try:
+        for t in range(1, max_inner + 1):
+            # Utilities are marginal contributions: Phi up to a term the player cannot change.
+            u = game.utilities()
+            scale = abs(state.potential())
+            eq, ubar, best = game.step(u, ubar, t, scale)
+            yield EpochState(t, game.split(u), game.split(ubar), eq)
+            if eq:
+                return
+            switch = rng.random(N) >= alpha                 # switch w.p. 1 - alpha (inertia)
             for i in range(N):
-                keep = _relevant(state.contributing(i, k), len(u[i]), cur[i])
-                actions[i] = (actions[i][0][keep], actions[i][1][keep])
-                state.restrict(i, k, keep, actions[i][0][:, None], actions[i][1][:, None])
-                u[i] = u[i][keep]
-                ubar[i] = ubar[i][keep]
-                cur[i] = current_index(state, i, k, *actions[i])
-        eq = all(is_best(u[i], cur[i], scale) for i in range(N))
-        if not eq:
-            ubar = [(t - 1) / t * ubar[i] + u[i] / t for i in range(N)]
-        yield EpochState(t, u, ubar, eq)
-        if eq:
-            return
-        switch = rng.random(N) >= alpha                 # switch w.p. 1 - alpha (inertia)
-        for i in range(N):
-            best = choose(ubar[i], cur[i], scale)
-            if best != cur[i] and (cur[i] < 0 or switch[i]):
-                state.set_action(i, k, int(actions[i][0][best]), int(actions[i][1][best]))
-                cur[i] = best                  # only this loop changes epoch k's actions
-        if rng.random() >= beta:                        # stop w.p. 1 - beta
-            return
+                if best[i] != cur[i] and (cur[i] < 0 or switch[i]):
+                    pos, tgt = game.actions[i]
+                    state.set_action(i, k, int(pos[best[i]]), int(tgt[best[i]]))
+                    cur[i] = best[i]           # only this loop changes epoch k's actions
+            if rng.random() >= beta:                        # stop w.p. 1 - beta
+                return
+    finally:
+        game.close()
 
 
 def run_sweeps(state: GameState, rng: np.random.Generator, alpha: float, beta: float,
