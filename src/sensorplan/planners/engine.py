@@ -52,6 +52,8 @@ class _Pairs:
     data: FloatArray
     delta: FloatArray
     rows: FloatArray           # (M, T, 3)
+    contrib: IntArray          # candidates with a pair (sorted)
+    free: int                  # the first candidate without one (-1 if none)
 
 
 class GameState:
@@ -250,8 +252,29 @@ class GameState:
                token: tuple | None) -> _Pairs:
         """The cached pairs of sensor i's candidate chains from epoch k0 (computed if the
         chain's context or the candidates changed)."""
+        cands = token if token is not None else (cand_pos.tobytes(), cand_tgt.tobytes())
+        return self._cached_pairs(i, k0, cand_tgt.shape[1], cands,
+                                  lambda: (self.xy_chains(i, k0, cand_pos), cand_tgt))
+
+    def _game_pairs(self, i: int, k: int, cand: IntArray, token: tuple) -> _Pairs:
+        """:meth:`_pairs` of player (i, k)'s actions: positions ``cand`` times every target."""
+        M = self.ctx.M
+
+        def candidates() -> tuple[FloatArray, IntArray]:
+            xy = self.xy(i, k, cand)
+            return np.repeat(xy, M, axis=0)[:, None], np.tile(np.arange(M), len(cand))[:, None]
+
+        return self._cached_pairs(i, k, 1, token, candidates)
+
+    def xy_chains(self, i: int, k0: int, cand_pos: IntArray) -> FloatArray:
+        """Ground positions ``(C, L, 2)`` of candidate chains ``cand_pos (C, L)`` from k0."""
+        out = np.empty(cand_pos.shape + (2,))
+        for l in range(cand_pos.shape[1]):
+            out[:, l] = self.xy(i, k0 + l, cand_pos[:, l])
+        return out
+
+    def _cached_pairs(self, i: int, k0: int, L: int, cands: tuple, candidates) -> _Pairs:
         ctx = self.ctx
-        C, L = cand_tgt.shape
         # The chain continues through the following assigned epochs: their headings change.
         k_last = k0 + L - 1
         k_end = self._run_end(i, k_last + 1) if self.assigned(i, k_last + 1) and k_last < ctx.K \
@@ -262,18 +285,18 @@ class GameState:
         # on them and on the other players' looks at that target. Both are cached, so a call
         # recomputes only the terms of targets whose other looks changed since the last call
         # for this player (in JSFP: the targets the neighbours switched to or from).
-        cands = token if token is not None else (cand_pos.tobytes(), cand_tgt.tobytes())
         key = (k0, L, prev_ok, float(prev), cands, self.pos[i, k_last:k_end].tobytes(),
                self.tgt[i, k_last:k_end].tobytes())
         entry = self._cache.get((i, k0, L))
         if entry is not None and entry.key == key:
             return entry
+        xy, tgt_var = candidates()
+        C = len(tgt_var)
         Lf = k_end - k0 + 1
         pos_xy = np.empty((C, Lf, 2))
         tgt = np.empty((C, Lf), dtype=np.int64)
-        for l in range(L):
-            pos_xy[:, l] = self.xy(i, k0 + l, cand_pos[:, l])
-        tgt[:, :L] = cand_tgt
+        pos_xy[:, :L] = xy
+        tgt[:, :L] = tgt_var
         for l in range(L, Lf):
             kk = k0 + l
             pos_xy[:, l] = self.xy(i, kk, self.pos[i, kk - 1])
@@ -282,8 +305,11 @@ class GameState:
             pos_xy, tgt, k0, ctx.e, float(prev), bool(prev_ok), float(ctx.problem.headings[i]),
             float(ctx.max_turn[i]), ctx.aim, ctx.xbar_xy, ctx.Cbar, ctx.probabilistic,
             ctx.radar[i], ctx.T - (k0 - 1) * ctx.e)
+        contrib = _unique_sorted(c_pair)
+        gaps = np.flatnonzero(contrib != np.arange(len(contrib)))
+        free = int(gaps[0]) if gaps.size else (len(contrib) if len(contrib) < C else -1)
         entry = _Pairs(key, C, k0 - 1, k_end, c_pair, j_pair, first, count, offset, data,
-                       np.zeros(len(c_pair)), np.full((ctx.M, ctx.T, 3), np.nan))
+                       np.zeros(len(c_pair)), np.full((ctx.M, ctx.T, 3), np.nan), contrib, free)
         self._cache[(i, k0, L)] = entry
         return entry
 
@@ -292,7 +318,7 @@ class GameState:
 
         The others have gain exactly 0 against any other players' actions.
         """
-        return _unique_sorted(self._cache[(i, k0, L)].c_pair)
+        return self._cache[(i, k0, L)].contrib
 
     def forget(self, i: int, k0: int, L: int = 1) -> None:
         """Drop the cached pairs of (i, k0, L) (e.g. an initialisation set never used again)."""
@@ -312,24 +338,33 @@ class GameState:
         -------
         pos : (P * M,) int lattice indices in R_k;  tgt : (P * M,) int
         """
+        cand = self.player_positions(i, k)
+        M = self.ctx.M
+        return np.repeat(cand, M), np.tile(np.arange(M), len(cand))
+
+    def player_positions(self, i: int, k: int) -> IntArray:
+        """The feasible positions of player (i, k) in tie-break order (lattice indices in
+        ``R_k``); its actions are these positions times every target, position-major."""
         key = self.action_token(i, k)
-        if key in self._actions:
-            return self._actions[key]
-        actions = self._player_actions(i, k)
-        if key[2] >= 0 or k == 1:
-            # Sets after an unassigned predecessor (the initialisation's, up to R_k x M)
-            # are used once: not kept.
-            self._actions[key] = actions
-        return actions
+        cand = self._actions.get(key)
+        if cand is None:
+            cand = self._player_positions(i, k)
+            if key[3] >= 0:
+                # Sets after an unassigned predecessor (the initialisation's, up to all of
+                # R_k) are used once: not kept.
+                self._actions[key] = cand
+        return cand
 
     def action_token(self, i: int, k: int) -> tuple:
         """A key that determines the feasible actions of player (i, k): ``(i, k, p_{k-1},
         p_{k+1})`` as lattice indices (-1 when that neighbour is unassigned)."""
-        pred = (0 if k == 1 else int(self.pos[i, k - 2])) if self.assigned(i, k - 1) else -1
-        succ = int(self.pos[i, k]) if k < self.ctx.K and self.assigned(i, k + 1) else -1
+        K = self.ctx.K
+        tgt = self.tgt
+        pred = (0 if k == 1 else int(self.pos[i, k - 2])) if k == 1 or tgt[i, k - 2] >= 0 else -1
+        succ = int(self.pos[i, k]) if k < K and tgt[i, k] >= 0 else -1
         return ("actions", i, k, pred, succ)
 
-    def _player_actions(self, i: int, k: int) -> tuple[IntArray, IntArray]:
+    def _player_positions(self, i: int, k: int) -> IntArray:
         lat = self.ctx.lattices[i]
         if self.assigned(i, k - 1):
             q = 0 if k == 1 else self.pos[i, k - 2]
@@ -343,13 +378,16 @@ class GameState:
             parents = lat.parent_move[k + 1][self.pos[i, k]]
             cand = cand[np.isin(cand, parents[parents >= 0])]
         dist = np.rint(np.linalg.norm(lat.positions[k][cand] - ref, axis=1) * 1e6)
-        cand = cand[np.argsort(dist, kind="stable")]
-        M = self.ctx.M
-        return np.repeat(cand, M), np.tile(np.arange(M), len(cand))
+        return cand[np.argsort(dist, kind="stable")]
 
 
 def _unique_sorted(c: IntArray) -> IntArray:
-    return c[np.r_[True, c[1:] != c[:-1]]] if c.size else c
+    if c.size == 0:
+        return c
+    keep = np.empty(c.size, dtype=bool)
+    keep[0] = True
+    np.not_equal(c[1:], c[:-1], out=keep[1:])
+    return c[keep]
 
 
 def choose(values: FloatArray, current: int = -1, scale: float | None = None) -> int:
@@ -365,17 +403,6 @@ def choose(values: FloatArray, current: int = -1, scale: float | None = None) ->
     if current >= 0 and near[current]:
         return current
     return int(np.argmax(near))
-
-
-def relevant(contributing: IntArray, n: int, current: int) -> IntArray:
-    """Indices to keep: every action with a counting look, the first without, the current."""
-    keep = np.zeros(n, dtype=bool)
-    keep[contributing] = True
-    if not keep.all():
-        keep[int(np.argmin(keep))] = True
-    if current >= 0:
-        keep[current] = True
-    return np.flatnonzero(keep)
 
 
 class EpochGame:
@@ -400,20 +427,27 @@ class EpochGame:
         self.cur = np.full(N, -1, dtype=np.int64)
         self._init_sets = []
         entries, c_loc = [], []
+        M = state.ctx.M
         for i in range(N):
             token = state.action_token(i, k)
-            pos, tgt = state.player_actions(i, k)
-            entry = state._pairs(i, k, pos[:, None], tgt[:, None], token)
+            cand = state.player_positions(i, k)
+            entry = state._game_pairs(i, k, cand, token)
             if token[3] < 0 and k > 1:
                 self._init_sets.append(i)
-            cur = _current(state, i, k, pos, tgt)
-            keep = relevant(_unique_sorted(entry.c_pair), len(pos), cur)
-            remap = np.full(len(pos), -1, dtype=np.int64)
-            remap[keep] = np.arange(keep.size)
-            self.actions.append((pos[keep], tgt[keep]))
-            self.cur[i] = remap[cur] if cur >= 0 else -1
+            cur = -1
+            if state.tgt[i, k - 1] >= 0:
+                q = np.flatnonzero(cand == state.pos[i, k - 1])
+                cur = int(q[0]) * M + int(state.tgt[i, k - 1]) if q.size else -1
+            keep = entry.contrib
+            for extra in (entry.free, cur):
+                if extra >= 0:
+                    at = int(np.searchsorted(keep, extra))
+                    if at == len(keep) or keep[at] != extra:
+                        keep = np.insert(keep, at, extra)
+            self.actions.append((cand[keep // M], keep % M))
+            self.cur[i] = int(np.searchsorted(keep, cur)) if cur >= 0 else -1
             entries.append(entry)
-            c_loc.append(remap[entry.c_pair])
+            c_loc.append(np.searchsorted(keep, entry.c_pair))
         sizes = np.array([len(a[0]) for a in self.actions])
         self.cand_off = np.r_[0, np.cumsum(sizes)]
         n_pairs = np.array([len(en.c_pair) for en in entries])
@@ -439,7 +473,10 @@ class EpochGame:
             self._pair_off, self._c_loc, self._j, self.cand_off, ctx.M)
         n = int(self.cand_off[-1])
         self._gcache = np.zeros(n)
-        self._dirty = np.ones(n, dtype=bool)
+        self._dirty = np.zeros(n, dtype=bool)
+        self._dlist = np.empty(n, dtype=np.int64)
+        self._seen = np.full((N, ctx.M), -1, dtype=np.int64)
+        self._tot_ver = np.zeros(ctx.M, dtype=np.int64)
         S = ctx.T - (k - 1) * ctx.e
         self._shared = np.zeros(1, dtype=bool)
         self._pre = np.empty((ctx.M, 4, 4))
@@ -456,12 +493,14 @@ class EpochGame:
                              self.k, self._hi, self._c_loc, self._j, self._first, self._count,
                              self._offset, self._data, self._delta, self._rows, self._by_t,
                              self._t_off, self._cp_off, self.cand_off, self._gcache,
-                             self._dirty, self._shared, self._pre, self._tot_rows,
-                             self._tot_pred, self._tot_part, self._tot_ld)
+                             self._dirty, self._dlist, self._seen, self._shared, self._pre,
+                             self._tot_rows, self._tot_ver, self._tot_pred, self._tot_part,
+                             self._tot_ld)
 
     def split(self, values: FloatArray) -> list[FloatArray]:
         """Per-player views of concatenated values."""
-        return np.split(values, self.cand_off[1:-1])
+        off = self.cand_off.tolist()
+        return [values[a:b] for a, b in zip(off[:-1], off[1:])]
 
     def step(self, u: FloatArray, ubar: FloatArray, t: int,
              scale: float) -> tuple[bool, FloatArray, IntArray]:
@@ -482,10 +521,3 @@ class EpochGame:
         """Forget the initialisation sets' pairs (their actions are never offered again)."""
         for i in self._init_sets:
             self.state.forget(i, self.k)
-
-
-def _current(state: GameState, i: int, k: int, pos: IntArray, tgt: IntArray) -> int:
-    if state.tgt[i, k - 1] < 0:
-        return -1
-    hit = np.flatnonzero((pos == state.pos[i, k - 1]) & (tgt == state.tgt[i, k - 1]))
-    return int(hit[0]) if hit.size else -1

@@ -281,6 +281,9 @@ def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q
     P = np.empty((4, 4))
     FP = np.empty((4, 4))
     Pc = np.empty((4, 2))
+    by_t = np.empty(j_pair.shape[0], dtype=np.int64)
+    t_off = np.zeros(M + 1, dtype=np.int64)
+    fill = np.zeros(M, dtype=np.int64)
     for p in range(sensor.shape[0]):
         i = sensor[p]
         # The other players' looks, summed by target and step in the order of
@@ -330,12 +333,27 @@ def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q
                 part[j, t] = acc
             ld_end[j] = logdet4(P)
             ld_sum[j] = acc
-        for q in range(pair_off[p], pair_off[p + 1]):
+        # The pairs of stale targets, grouped by target.
+        a, b = pair_off[p], pair_off[p + 1]
+        for j in range(M + 1):
+            t_off[j] = 0
+        for q in range(a, b):
+            if stale[j_pair[q]]:
+                t_off[j_pair[q] + 1] += 1
+        for j in range(M):
+            t_off[j + 1] += t_off[j]
+            fill[j] = t_off[j]
+        for q in range(a, b):
             j = j_pair[q]
             if stale[j]:
-                delta[q] = _pair_delta(P_pred, part, ld_end[j], ld_sum[j], Wf, j, s0,
-                                       first[q], count[q], offset[q], data, F, Q,
-                                       0 if shared_q else j, cv, dt, cum, P, FP, Pc)
+                by_t[fill[j]] = q
+                fill[j] += 1
+        for j in range(M):
+            if t_off[j + 1] > t_off[j]:
+                _deltas(by_t, t_off[j], t_off[j + 1], P_pred, part, ld_end[j], ld_sum[j], Wf,
+                        j, s0, first, count, offset, data, delta, F, Q,
+                        0 if shared_q else j, cv, dt, cum, P, FP, Pc)
+        for q in range(a, b):
             gains[cand_off[p] + c_loc[q]] += delta[q]
         for j in range(M):
             if stale[j]:
@@ -345,42 +363,51 @@ def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q
     return gains, ld_pre, ld_end, ld_sum
 
 
-@njit(cache=True, fastmath=False, inline="always")
-def _pair_delta(P_pred: np.ndarray, part: np.ndarray, ld_end_b: float, ld_sum_b: float,
-                Wf: np.ndarray, j: int, s0: int, f: int, cnt: int, off: int, data: np.ndarray,
-                F: np.ndarray, Q: np.ndarray, qb: int, cv: bool, dt: float, cum: bool,
-                P: np.ndarray, FP: np.ndarray, Pc: np.ndarray) -> float:
-    """``term(no chain + pair) - term(no chain)`` of one pair's target.
+@njit(cache=True, fastmath=False)
+def _deltas(idx: np.ndarray, a: int, b: int, P_pred: np.ndarray, part: np.ndarray,
+            ld_end_b: float, ld_sum_b: float, Wf: np.ndarray, j: int, s0: int,
+            first: np.ndarray, count: np.ndarray, offset: np.ndarray, data: np.ndarray,
+            delta: np.ndarray, F: np.ndarray, Q: np.ndarray, qb: int, cv: bool, dt: float,
+            cum: bool, P: np.ndarray, FP: np.ndarray, Pc: np.ndarray) -> None:
+    """``delta[q] = term(no chain + pair q) - term(no chain)`` for pairs ``idx[a:b]``, all
+    of target j (one call per target: the per-pair work is a tight loop).
 
-    Up to step ``f`` the pair adds nothing (it adds exact zeros), so its recursion equals
-    the baseline's: it starts from the baseline's predicted covariance at ``f`` and its
+    Up to its first non-zero step ``f`` a pair adds nothing (exact zeros), so its recursion
+    equals the baseline's: it starts from the baseline's predicted covariance at ``f`` and
     running log-det sum.
     """
     S = part.shape[1]
-    if f >= S:
-        return 0.5 * (ld_sum_b - ld_sum_b) if cum else 0.5 * (ld_end_b - ld_end_b)
-    for r in range(4):
-        for c in range(4):
-            P[r, c] = P_pred[j, f, r, c]
-    acc = part[j, f - 1] if f > 0 else 0.0
-    for t in range(f, S):
-        if t > f:
-            predict_step(P, F, Q, qb, cv, dt, FP)
-        d = t - f
-        if d < cnt:
-            w00 = Wf[j, s0 + t, 0] + data[off + d, 0]
-            w01 = Wf[j, s0 + t, 1] + data[off + d, 1]
-            w11 = Wf[j, s0 + t, 2] + data[off + d, 2]
-        else:
-            w00 = Wf[j, s0 + t, 0] + 0.0
-            w01 = Wf[j, s0 + t, 1] + 0.0
-            w11 = Wf[j, s0 + t, 2] + 0.0
-        update_step(P, w00, w01, w11, Pc, FP)
+    for x in range(a, b):
+        q = idx[x]
+        f = first[q]
+        if f >= S:
+            delta[q] = 0.5 * (ld_sum_b - ld_sum_b) if cum else 0.5 * (ld_end_b - ld_end_b)
+            continue
+        cnt = count[q]
+        off = offset[q]
+        for r in range(4):
+            for c in range(4):
+                P[r, c] = P_pred[j, f, r, c]
+        acc = part[j, f - 1] if f > 0 else 0.0
+        for t in range(f, S):
+            if t > f:
+                predict_step(P, F, Q, qb, cv, dt, FP)
+            d = t - f
+            if d < cnt:
+                w00 = Wf[j, s0 + t, 0] + data[off + d, 0]
+                w01 = Wf[j, s0 + t, 1] + data[off + d, 1]
+                w11 = Wf[j, s0 + t, 2] + data[off + d, 2]
+            else:
+                w00 = Wf[j, s0 + t, 0] + 0.0
+                w01 = Wf[j, s0 + t, 1] + 0.0
+                w11 = Wf[j, s0 + t, 2] + 0.0
+            update_step(P, w00, w01, w11, Pc, FP)
+            if cum:
+                acc += logdet4(P)
         if cum:
-            acc += logdet4(P)
-    if cum:
-        return 0.5 * (ld_sum_b - acc)
-    return 0.5 * (ld_end_b - logdet4(P))
+            delta[q] = 0.5 * (ld_sum_b - acc)
+        else:
+            delta[q] = 0.5 * (ld_end_b - logdet4(P))
 
 
 @njit(cache=True)
@@ -452,8 +479,9 @@ def game_gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarr
                   count: np.ndarray, offset: np.ndarray, data: np.ndarray, delta: np.ndarray,
                   rows: np.ndarray, by_t: np.ndarray, t_off: np.ndarray, cp_off: np.ndarray,
                   cand_off: np.ndarray, gcache: np.ndarray, dirty: np.ndarray,
-                  shared: np.ndarray, pre: np.ndarray, tot_rows: np.ndarray,
-                  tot_pred: np.ndarray, tot_part: np.ndarray, tot_ld: np.ndarray) -> np.ndarray:
+                  dlist: np.ndarray, seen: np.ndarray, shared: np.ndarray, pre: np.ndarray,
+                  tot_rows: np.ndarray, tot_ver: np.ndarray, tot_pred: np.ndarray,
+                  tot_part: np.ndarray, tot_ld: np.ndarray) -> np.ndarray:
     """Utilities of the players (p, k), p = 0..N-1, of an epoch game (one call per iteration).
 
     The same values as :func:`gains_nb` for each player (sensor p's epochs ``k-1 .. hi[p]-1``
@@ -461,15 +489,17 @@ def game_gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarr
 
     * the other players' information at target j equals the total over every player when
       player p's own chain adds nothing at j (exact zeros leave a sum unchanged), so those
-      targets share one "no chain" recursion per change of the total (``tot_*``); only the
-      few targets p's own chain looks at get a private one;
+      targets share one "no chain" recursion per change of the total (``tot_*``, whose
+      changes ``tot_ver`` counts); only the few targets p's own chain looks at get a
+      private one;
     * the covariance at step ``s0 = (k-1) e`` depends on epochs before k only, which the game
       never changes: it is computed once (``pre``, ``shared[0]``);
     * a candidate's utility is the sum of its pairs' terms in pair order; it is summed again
-      only when one of them changed (``gcache``, ``dirty``).
+      only when one of them changed (``gcache``; ``dirty``/``dlist`` list those).
 
-    ``rows[p]`` holds the information each of p's cached terms was computed with, NaN when
-    never; ``tot_rows`` the same for the shared recursions.
+    ``rows[p]`` holds the information each of p's cached terms was computed with (NaN:
+    never), ``seen[p, j]`` the version of the total it equals (-1: unknown), ``tot_rows``
+    the total the shared recursions were computed with.
 
     Returns
     -------
@@ -496,7 +526,8 @@ def game_gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarr
                 Wtot[j, t, 0] += Wp[i2, k2, s, 0, 0]
                 Wtot[j, t, 1] += Wp[i2, k2, s, 0, 1]
                 Wtot[j, t, 2] += Wp[i2, k2, s, 1, 1]
-    if not shared[0]:
+    first_call = not shared[0]
+    if first_call:
         for j in range(M):
             qb = 0 if shared_q else j
             for r in range(4):
@@ -509,24 +540,22 @@ def game_gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarr
                 for c in range(4):
                     pre[j, r, c] = P[r, c]
         shared[0] = True
-    tot_ok = np.zeros(M, dtype=np.bool_)
+    tot_ok = np.ones(M, dtype=np.bool_)              # shared recursion valid for the total
     for j in range(M):
-        tot_ok[j] = True
-        for t in range(T):
-            if (tot_rows[j, t, 0] != Wtot[j, t, 0] or tot_rows[j, t, 1] != Wtot[j, t, 1]
-                    or tot_rows[j, t, 2] != Wtot[j, t, 2]):
-                tot_ok[j] = False
-                break
-    tot_fresh = np.zeros(M, dtype=np.bool_)
+        if not _same_row(tot_rows, j, Wtot, j, T):
+            tot_ver[j] += 1
+            tot_ok[j] = False
+            for t in range(T):
+                for x in range(3):
+                    tot_rows[j, t, x] = Wtot[j, t, x]
     own = np.zeros(M, dtype=np.bool_)
     Wown = np.zeros((M, T, 3))
     own_pred = np.empty((M, S, 4, 4))
     own_part = np.empty((M, S))
     own_ld = np.empty((M, 2))
+    n_dirty = 0
     for p in range(N):
         lo, h = k - 1, hi[p]
-        for j in range(M):
-            own[j] = False
         for k2 in range(lo, h):
             j = tgt[p, k2]
             if j < 0:
@@ -554,50 +583,65 @@ def game_gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarr
                             Wown[j, t, 0] += Wp[i2, k2, s, 0, 0]
                             Wown[j, t, 1] += Wp[i2, k2, s, 0, 1]
                             Wown[j, t, 2] += Wp[i2, k2, s, 1, 1]
+                if _same_row(rows[p], j, Wown, j, T):
+                    continue
+                seen[p, j] = -1
                 Wf = Wown
-            else:
-                Wf = Wtot
-            stale = False
-            for t in range(T):
-                if (rows[p, j, t, 0] != Wf[j, t, 0] or rows[p, j, t, 1] != Wf[j, t, 1]
-                        or rows[p, j, t, 2] != Wf[j, t, 2]):
-                    stale = True
-                    break
-            if not stale:
-                continue
-            if own[j]:
                 own_ld[j, 0], own_ld[j, 1] = _base(pre[j], Wown[j], s0, F, Q, qb, cv, dt, cum,
                                                    own_pred[j], own_part[j], P, FP, Pc)
                 base_pred, base_part = own_pred, own_part
                 ld_end_b, ld_sum_b = own_ld[j, 0], own_ld[j, 1]
             else:
-                if not (tot_ok[j] or tot_fresh[j]):
+                if seen[p, j] == tot_ver[j]:
+                    continue
+                if _same_row(rows[p], j, Wtot, j, T):
+                    seen[p, j] = tot_ver[j]
+                    continue
+                seen[p, j] = tot_ver[j]
+                Wf = Wtot
+                if not tot_ok[j]:
                     tot_ld[j, 0], tot_ld[j, 1] = _base(pre[j], Wtot[j], s0, F, Q, qb, cv, dt,
                                                        cum, tot_pred[j], tot_part[j], P, FP, Pc)
-                    for t in range(T):
-                        for x in range(3):
-                            tot_rows[j, t, x] = Wtot[j, t, x]
-                    tot_fresh[j] = True
+                    tot_ok[j] = True
                 base_pred, base_part = tot_pred, tot_part
                 ld_end_b, ld_sum_b = tot_ld[j, 0], tot_ld[j, 1]
+            _deltas(by_t, t_off[p, j], t_off[p, j + 1], base_pred, base_part, ld_end_b,
+                    ld_sum_b, Wf, j, s0, first, count, offset, data, delta, F, Q, qb, cv, dt,
+                    cum, P, FP, Pc)
             for x in range(t_off[p, j], t_off[p, j + 1]):
-                q = by_t[x]
-                delta[q] = _pair_delta(base_pred, base_part, ld_end_b, ld_sum_b, Wf, j, s0,
-                                       first[q], count[q], offset[q], data, F, Q, qb, cv, dt,
-                                       cum, P, FP, Pc)
+                c = cand_off[p] + c_loc[by_t[x]]
+                if not dirty[c]:
+                    dirty[c] = True
+                    dlist[n_dirty] = c
+                    n_dirty += 1
             for t in range(T):
                 for x in range(3):
                     rows[p, j, t, x] = Wf[j, t, x]
-            for x in range(t_off[p, j], t_off[p, j + 1]):
-                dirty[cand_off[p] + c_loc[by_t[x]]] = True
-    for x in range(gcache.shape[0]):
-        if dirty[x]:
-            g = 0.0
-            for q in range(cp_off[x], cp_off[x + 1]):
-                g += delta[q]
-            gcache[x] = g
-            dirty[x] = False
+        for k2 in range(lo, h):
+            j = tgt[p, k2]
+            if j >= 0:
+                own[j] = False
+    if first_call:                                   # every utility is summed once
+        n_dirty = gcache.shape[0]
+        for c in range(n_dirty):
+            dlist[c] = c
+    for y in range(n_dirty):
+        c = dlist[y]
+        g = 0.0
+        for q in range(cp_off[c], cp_off[c + 1]):
+            g += delta[q]
+        gcache[c] = g
+        dirty[c] = False
     return gcache.copy()
+
+
+@njit(cache=True)
+def _same_row(A: np.ndarray, a: int, B: np.ndarray, b: int, T: int) -> bool:
+    """Whether rows ``A[a]`` and ``B[b]`` (T, 3) are equal (bit for bit; NaN never is)."""
+    for t in range(T):
+        if A[a, t, 0] != B[b, t, 0] or A[a, t, 1] != B[b, t, 1] or A[a, t, 2] != B[b, t, 2]:
+            return False
+    return True
 
 
 @njit(cache=True)
