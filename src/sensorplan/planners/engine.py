@@ -54,6 +54,7 @@ class _Pairs:
     rows: FloatArray           # (M, T, 3)
     contrib: IntArray          # candidates with a pair (sorted)
     free: int                  # the first candidate without one (-1 if none)
+    view: tuple | None = None  # an epoch game's (current action, kept actions, c_loc, ...)
 
 
 class GameState:
@@ -81,6 +82,7 @@ class GameState:
         self.version = 0                    # bumped by every change of an action
         self._covs = _c(np.array(ctx.problem.covs))        # writable copies for the kernels
         self._Q = _c(np.array(ctx.Q))
+        self._rows_buf: dict[int, FloatArray] = {}
 
     # ----------------------------------------------------------------- plan access
     def copy(self) -> "GameState":
@@ -94,6 +96,7 @@ class GameState:
         other._phi = None
         other.version = 0
         other._covs, other._Q = self._covs, self._Q
+        other._rows_buf = {}
         return other
 
     def xy(self, i: int, k: int, idx: IntArray | int) -> FloatArray:
@@ -308,8 +311,17 @@ class GameState:
         contrib = _unique_sorted(c_pair)
         gaps = np.flatnonzero(contrib != np.arange(len(contrib)))
         free = int(gaps[0]) if gaps.size else (len(contrib) if len(contrib) < C else -1)
+        if L == 1:
+            # Rows of the players of epoch k0 live in one buffer, passed whole to the game.
+            buf = self._rows_buf.get(k0)
+            if buf is None:
+                buf = self._rows_buf[k0] = np.full((ctx.N, ctx.M, ctx.T, 3), np.nan)
+            rows = buf[i]
+            rows[:] = np.nan
+        else:
+            rows = np.full((ctx.M, ctx.T, 3), np.nan)
         entry = _Pairs(key, C, k0 - 1, k_end, c_pair, j_pair, first, count, offset, data,
-                       np.zeros(len(c_pair)), np.full((ctx.M, ctx.T, 3), np.nan), contrib, free)
+                       np.zeros(len(c_pair)), rows, contrib, free)
         self._cache[(i, k0, L)] = entry
         return entry
 
@@ -438,16 +450,20 @@ class EpochGame:
             if state.tgt[i, k - 1] >= 0:
                 q = np.flatnonzero(cand == state.pos[i, k - 1])
                 cur = int(q[0]) * M + int(state.tgt[i, k - 1]) if q.size else -1
-            keep = entry.contrib
-            for extra in (entry.free, cur):
-                if extra >= 0:
-                    at = int(np.searchsorted(keep, extra))
-                    if at == len(keep) or keep[at] != extra:
-                        keep = np.insert(keep, at, extra)
-            self.actions.append((cand[keep // M], keep % M))
-            self.cur[i] = int(np.searchsorted(keep, cur)) if cur >= 0 else -1
+            if entry.view is None or entry.view[0] != cur:
+                keep = entry.contrib
+                for extra in (entry.free, cur):
+                    if extra >= 0:
+                        at = int(np.searchsorted(keep, extra))
+                        if at == len(keep) or keep[at] != extra:
+                            keep = np.insert(keep, at, extra)
+                entry.view = (cur, (cand[keep // M], keep % M),
+                              int(np.searchsorted(keep, cur)) if cur >= 0 else -1,
+                              np.searchsorted(keep, entry.c_pair))
+            _, actions, self.cur[i], loc = entry.view
+            self.actions.append(actions)
             entries.append(entry)
-            c_loc.append(np.searchsorted(keep, entry.c_pair))
+            c_loc.append(loc)
         sizes = np.array([len(a[0]) for a in self.actions])
         self.cand_off = np.r_[0, np.cumsum(sizes)]
         n_pairs = np.array([len(en.c_pair) for en in entries])
@@ -462,12 +478,11 @@ class EpochGame:
         self._offset = cat([en.offset + data_off[i] for i, en in enumerate(entries)])
         self._data = _c(cat([en.data for en in entries]))
         self._delta = cat([en.delta for en in entries])
-        self._rows = np.stack([en.rows for en in entries])
+        self._rows = state._rows_buf[k]          # every entry's rows are views into it
         self._hi = np.array([en.hi for en in entries])
         for i, en in enumerate(entries):
-            # The cache keeps working on the game's buffers (views): no copy back needed.
+            # The cache keeps working on the game's buffer (views): no copy back needed.
             en.delta = self._delta[self._pair_off[i]:self._pair_off[i + 1]]
-            en.rows = self._rows[i]
         ctx = state.ctx
         self._by_t, self._t_off, self._cp_off = index_pairs_nb(
             self._pair_off, self._c_loc, self._j, self.cand_off, ctx.M)
