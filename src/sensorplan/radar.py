@@ -75,7 +75,9 @@ BAND_SIGMAS = 6.0
 def wrap(a: float) -> float:
     """Wrap an angle to (-pi, pi] (as :func:`sensorplan.angles.wrap_angle`)."""
     two_pi = 2.0 * math.pi
-    w = math.pi - ((math.pi - a) % two_pi)
+    x = math.pi - a
+    # x % two_pi is x itself for 0 <= x < two_pi (the usual case): skip the floating modulo.
+    w = math.pi - (x if 0.0 <= x < two_pi else x % two_pi)
     return w + two_pi if w <= -math.pi else w
 
 
@@ -252,13 +254,23 @@ def look_in_range(row: np.ndarray, dx: float, dy: float, g2: float, g: float, p:
                   probabilistic: bool) -> tuple[float, float, float, float]:
     """The rest of :func:`look` given :func:`look_range`'s ``p >= P_VIS_MIN``, ``g2``, ``g``
     (a planner computes that part once for looks that differ only in heading)."""
+    return look_at_azimuth(row, dx, dy, g2, g, p, math.atan2(dy, dx), heading, c00, c01, c11,
+                           probabilistic)
+
+
+@njit(cache=True, error_model="numpy")
+def look_at_azimuth(row: np.ndarray, dx: float, dy: float, g2: float, g: float, p: float,
+                    azimuth: float, heading: float, c00: float, c01: float, c11: float,
+                    probabilistic: bool) -> tuple[float, float, float, float]:
+    """:func:`look_in_range` given the azimuth ``atan2(dy, dx)`` (a planner that has just
+    computed the same bearing for the heading rule passes it on)."""
     ux, uy = dx / g, dy / g
     r2 = g2 + row[ALTITUDE2]
     r = math.sqrt(r2)
     cpsi = cos_psi(row, dx, dy, math.cos(heading), math.sin(heading), r)
     if cpsi <= 0.0:
         return 0.0, 0.0, 0.0, 0.0
-    d = wrap(math.atan2(dy, dx) - heading)
+    d = wrap(azimuth - heading)
     if probabilistic:
         sd_phi = math.sqrt(max(uy * uy * c00 - 2.0 * ux * uy * c01 + ux * ux * c11, 0.0)) / g
         fov = row[FOV]

@@ -25,7 +25,7 @@ import numpy as np
 from numba import njit
 
 from .._kernels import _heading_rule, logdet4, predict_step, update_step
-from ..radar import P_VIS_MIN, look_in_range, look_range, reach
+from ..radar import P_VIS_MIN, look_at_azimuth, look_range, reach
 
 
 @njit(cache=True)
@@ -184,9 +184,13 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
                 for s in range(e):
                     if rng_[s, 0] >= P_VIS_MIN:
                         t = t1 + s
-                        p, w00, w01, w11 = look_in_range(
+                        # At the epoch's first step the target's azimuth is the bearing the
+                        # heading rule aimed at (the same numbers): reuse it.
+                        azimuth = bearing if s == 0 else math.atan2(xbar[j, t, 1] - py,
+                                                                     xbar[j, t, 0] - px)
+                        p, w00, w01, w11 = look_at_azimuth(
                             row, xbar[j, t, 0] - px, xbar[j, t, 1] - py, rng_[s, 1],
-                            rng_[s, 2], rng_[s, 0], h, Cbar[j, t, 0], Cbar[j, t, 1],
+                            rng_[s, 2], rng_[s, 0], azimuth, h, Cbar[j, t, 0], Cbar[j, t, 1],
                             Cbar[j, t, 2], probabilistic)
                         w[l, s, 0] = w00
                         w[l, s, 1] = w01
