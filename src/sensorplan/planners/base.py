@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 from typing import Any, Callable, ClassVar, Protocol
 
 import numpy as np
 
 from .._kernels import warm_up
+from . import anytime
 from .._types import FloatArray
 from ..errors import ConfigError
 from ..information import Context, evaluate, prepare
@@ -32,6 +32,8 @@ class PlanResult:
     sweeps : int or None           outer sweeps (``pg``/``pg-refine`` only)
     seconds : float                the planner's own time
     trace : tuple of float         Phi after each sweep (diagnostics)
+    budget_exhausted : bool        the time budget stopped the planner before it finished
+                                   (the plan is then the best complete one it had found)
     """
 
     planner: str
@@ -44,6 +46,7 @@ class PlanResult:
     sweeps: int | None = None
     seconds: float = 0.0
     trace: tuple[float, ...] = field(default=())
+    budget_exhausted: bool = False
 
 
 class Planner(Protocol):
@@ -57,7 +60,32 @@ class Planner(Protocol):
 def start_clock() -> float:
     """Warm the compiled kernels, then read the clock: ``seconds`` is the planner's own time."""
     warm_up()
-    return time.perf_counter()
+    _warm_engine()
+    return anytime.clock()
+
+
+_ENGINE_WARM = False
+
+
+def _warm_engine() -> None:
+    """Compile (or load from numba's cache) the engine's kernels once, on a tiny decision."""
+    global _ENGINE_WARM
+    if _ENGINE_WARM:
+        return
+    _ENGINE_WARM = True
+    from ..problem import PlanningProblem
+    from ..sensors import SensorParams
+    from .engine import GameState
+    from .potential_game import jsfp_epoch
+
+    problem = PlanningProblem(np.array([[300.0, 300.0, 1.0, 0.0]]),
+                              np.diag([400.0, 400.0, 4.0, 4.0])[None], np.array([[0.0, 300.0]]),
+                              np.array([0.0]), (SensorParams(),), horizon=2)
+    state = GameState(prepare(problem))
+    for _ in jsfp_epoch(state, 2, np.random.default_rng(0), 0.3, 0.95, 2):
+        pass
+    pos, tgt = state.player_actions(0, 1)
+    state.chain_gains(0, 1, pos[:, None], tgt[:, None], with_base=True)
 
 
 def make_rng(rng: RngLike, seed: int | None) -> np.random.Generator:
@@ -68,11 +96,12 @@ def make_rng(rng: RngLike, seed: int | None) -> np.random.Generator:
 
 
 def finish(name: str, ctx: Context, plan: Plan, start: float, converged: bool | None = None,
-           sweeps: int | None = None, trace: tuple[float, ...] = ()) -> PlanResult:
+           sweeps: int | None = None, trace: tuple[float, ...] = (),
+           budget_exhausted: bool = False) -> PlanResult:
     """Evaluate ``plan`` with the one definition of Phi and wrap it in a :class:`PlanResult`."""
     ev = evaluate(ctx, plan)
     return PlanResult(name, plan, ev.potential, ev.information, ev.headings, ev.measurements,
-                      converged, sweeps, time.perf_counter() - start, trace)
+                      converged, sweeps, anytime.clock() - start, trace, budget_exhausted)
 
 
 PLANNERS: dict[str, Callable[..., Planner]] = {}

@@ -20,6 +20,7 @@ and is tested equal to :func:`sensorplan.information.potential` to round-off.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -432,7 +433,8 @@ class EpochGame:
     cand_off : (N + 1,) int        player i's utilities are ``u[cand_off[i]:cand_off[i+1]]``
     """
 
-    def __init__(self, state: GameState, k: int) -> None:
+    def __init__(self, state: GameState, k: int, check: Callable[[], None] | None = None
+                 ) -> None:
         self.state, self.k = state, k
         N = state.ctx.N
         self.actions: list[tuple[IntArray, IntArray]] = []
@@ -441,6 +443,8 @@ class EpochGame:
         entries, c_loc = [], []
         M = state.ctx.M
         for i in range(N):
+            if check is not None and i > 0:
+                check()                          # a time budget's safe point
             token = state.action_token(i, k)
             cand = state.player_positions(i, k)
             entry = state._game_pairs(i, k, cand, token)

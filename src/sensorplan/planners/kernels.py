@@ -288,6 +288,7 @@ def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q
     by_t = np.empty(j_pair.shape[0], dtype=np.int64)
     t_off = np.zeros(M + 1, dtype=np.int64)
     fill = np.zeros(M, dtype=np.int64)
+    has_pair = np.zeros(M, dtype=np.bool_)
     for p in range(sensor.shape[0]):
         i = sensor[p]
         # The other players' looks, summed by target and step in the order of
@@ -303,6 +304,9 @@ def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q
                     Wf[j, t, 0] += Wp[i2, k2, s, 0, 0]
                     Wf[j, t, 1] += Wp[i2, k2, s, 0, 1]
                     Wf[j, t, 2] += Wp[i2, k2, s, 1, 1]
+        has_pair[:] = False
+        for q in range(pair_off[p], pair_off[p + 1]):
+            has_pair[j_pair[q]] = True
         for j in range(M):
             stale[j] = False
             for t in range(T):
@@ -310,7 +314,9 @@ def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q
                         or rows[p, j, t, 2] != Wf[j, t, 2]):
                     stale[j] = True
                     break
-            if not (stale[j] or all_targets):
+            # The baseline is needed for targets with a pair, or for every target when the
+            # caller wants Phi(no chain).
+            if not (all_targets or (stale[j] and has_pair[j])):
                 continue
             # "No chain" recursion of target j: up to s0, then from s0 on, keeping the
             # predicted covariance and the running log-det sum of every step.

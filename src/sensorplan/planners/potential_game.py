@@ -9,7 +9,7 @@ players then play joint strategy fictitious play with inertia, everyone else fix
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar, Iterator
+from typing import Callable, ClassVar, Iterator
 
 import numpy as np
 
@@ -18,6 +18,7 @@ from ..errors import ConfigError
 from ..information import prepare
 from ..problem import PlanningProblem
 from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
+from .anytime import Anytime, BudgetExhausted, check_budget, complete
 from .engine import EpochGame, GameState
 
 
@@ -62,7 +63,8 @@ def is_best(values: FloatArray, current: int, scale: float) -> bool:
 
 
 def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float, beta: float,
-               max_inner: int) -> Iterator[EpochState]:
+               max_inner: int, check: Callable[[], None] | None = None
+               ) -> Iterator[EpochState]:
     """JSFP with inertia among players (i, k), i = 0..N-1 (mutates ``state``).
 
     Each iteration every player computes its utility of every feasible action against the
@@ -74,9 +76,10 @@ def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float,
 
     Actions whose looks never count are left out (see :class:`EpochGame`): they have
     utility 0 whatever the others do and only the first of them can ever be chosen.
+    ``check`` (a time budget's) is called between the players' preparations.
     """
     N = state.ctx.N
-    game = EpochGame(state, k)
+    game = EpochGame(state, k, check)
     cur = game.cur
     ubar = np.zeros(game.cand_off[-1])
     try:
@@ -101,8 +104,14 @@ def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float,
 
 
 def run_sweeps(state: GameState, rng: np.random.Generator, alpha: float, beta: float,
-               max_inner: int, max_outer: int) -> tuple[bool, int, list[float]]:
+               max_inner: int, max_outer: int,
+               anytime: Anytime | None = None) -> tuple[bool, int, list[float]]:
     """Outer sweeps k = K..1 until a sweep changes nothing and ends at equilibria.
+
+    With ``anytime`` (a time budget), every JSFP iteration is a check (the current plan is
+    offered when complete); in the first sweep the partial plan's completion is offered
+    after iterations 1, 2, 4, 8, ... and at the end of each epoch game; ``anytime.sweeps``/``anytime.trace`` follow the progress. Stopping
+    raises :class:`~sensorplan.planners.anytime.BudgetExhausted`.
 
     Returns
     -------
@@ -114,17 +123,33 @@ def run_sweeps(state: GameState, rng: np.random.Generator, alpha: float, beta: f
     trace: list[float] = []
     for sweep in range(1, max_outer + 1):
         changed, all_eq = False, True
+        if anytime is not None:
+            anytime.sweeps += 1
         for k in range(K, 0, -1):
             before = (state.pos[:, k - 1].copy(), state.tgt[:, k - 1].copy())
             last = None
-            for last in jsfp_epoch(state, k, rng, alpha, beta, max_inner):
-                pass
+            check = None
+            if anytime is not None:
+                anytime.check(state)
+                check = anytime.check
+            for last in jsfp_epoch(state, k, rng, alpha, beta, max_inner, check):
+                if anytime is not None:
+                    t = last.iteration
+                    if t > 1 and (t - 1) & (t - 2) == 0 and not state.complete():
+                        # First sweep: offer the completed partial plan after iterations
+                        # 1, 2, 4, 8, ... of each epoch game (a few completions per game).
+                        anytime.offer(complete(state))
+                    anytime.check(state)
+            if anytime is not None and not state.complete():
+                anytime.offer(complete(state))
             # A loop that ended by chance or by max_inner may still sit at an equilibrium
             # reached by its last switch; only a verified equilibrium counts.
             all_eq &= last is not None and last.equilibrium
             changed |= bool(np.any(before[0] != state.pos[:, k - 1])
                             or np.any(before[1] != state.tgt[:, k - 1]))
         trace.append(state.potential())
+        if anytime is not None:
+            anytime.trace.append(trace[-1])
         if not changed and all_eq:
             return True, sweep, trace
     return False, max_outer, trace
@@ -152,6 +177,12 @@ class LearningSettings:
     beta : float       probability that an inner loop continues after an iteration
     max_inner, max_outer : int
     seed : int or None used when ``plan`` gets no ``rng``
+    time_budget : float or None
+        Seconds the planner may use (None: no limit). When they run out it returns the best
+        complete plan found so far (``converged`` False, ``budget_exhausted`` True); see
+        :mod:`sensorplan.planners.anytime`. A budget makes a stopped run's result depend on
+        the machine's speed; without one, or if the run ends in time, the result is the
+        same as without a budget.
     """
 
     alpha: float = 0.3
@@ -159,9 +190,11 @@ class LearningSettings:
     max_inner: int = 50
     max_outer: int = 10
     seed: int | None = 0
+    time_budget: float | None = None
 
     def __post_init__(self) -> None:
         check_learning_params(self.alpha, self.beta, self.max_inner, self.max_outer)
+        check_budget(self.time_budget)
 
     @property
     def learning(self) -> tuple[float, float, int, int]:
@@ -180,5 +213,15 @@ class PotentialGamePlanner(LearningSettings):
         gen = make_rng(rng, self.seed)
         ctx = prepare(problem)
         state = GameState(ctx)
-        converged, sweeps, trace = run_sweeps(state, gen, *self.learning)
+        if self.time_budget is None:
+            converged, sweeps, trace = run_sweeps(state, gen, *self.learning)
+            return finish(self.name, ctx, state.to_plan(), start, converged, sweeps,
+                          tuple(trace))
+        anytime = Anytime(self.time_budget, start)
+        anytime.offer(complete(state))                 # the first complete plan, fast
+        try:
+            converged, sweeps, trace = run_sweeps(state, gen, *self.learning, anytime=anytime)
+        except BudgetExhausted:
+            return finish(self.name, ctx, anytime.best_plan(), start, False, anytime.sweeps,
+                          tuple(anytime.trace), budget_exhausted=True)
         return finish(self.name, ctx, state.to_plan(), start, converged, sweeps, tuple(trace))
