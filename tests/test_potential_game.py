@@ -182,6 +182,18 @@ def test_engine_utilities_equal_the_plain_computation_bit_for_bit(seed):
     plan = make_planner("random").plan(problem, rng=seed).plan
     state = GameState.from_plan(prepare(problem), plan)
     k = int(rng.integers(1, problem.horizon + 1))
+    for i in range(problem.n_sensors):
+        # Every candidate (duplicates of earlier candidates included) by the per-player path.
+        pos, tgt = state.player_actions(i, k)
+        np.testing.assert_array_equal(state.copy().chain_gains(i, k, pos[:, None],
+                                                               tgt[:, None])[0],
+                                      dense_gains(state, i, k, pos[:, None], tgt[:, None]))
+        # Make some current actions duplicates (kept only as the current action).
+        entry = state.copy()._game_pairs(i, k, state.player_positions(i, k),
+                                          state.action_token(i, k))
+        if entry.dups.size and rng.random() < 0.7:
+            c = int(entry.dups[rng.integers(entry.dups.size)])
+            state.set_action(i, k, int(pos[c]), int(tgt[c]))
     game = EpochGame(state, k)
     for _ in range(3):
         u = game.split(game.utilities())

@@ -53,8 +53,11 @@ class _Pairs:
     data: FloatArray
     delta: FloatArray
     rows: FloatArray           # (M, T, 3)
-    contrib: IntArray          # candidates with a pair (sorted)
+    contrib: IntArray          # candidates with a look that counts (sorted)
     free: int                  # the first candidate without one (-1 if none)
+    owners: IntArray           # candidates that hold pairs (sorted)
+    dups: IntArray             # candidates whose pairs equal an earlier one's (left out) ...
+    dup_of: IntArray           # ... and that earlier candidate: the same utility, always
     view: tuple | None = None  # an epoch game's (current action, kept actions, c_loc, ...)
 
 
@@ -239,6 +242,8 @@ class GameState:
             entry.count, entry.offset, entry.data, entry.delta, entry.rows[None],
             np.array([0, entry.n_cand]), with_base)
         base = float(self._phi_terms(ld_end, ld_pre + ld_sum).sum()) if with_base else np.nan
+        if entry.dups.size:
+            gains[entry.dups] = gains[entry.dup_of]     # identical pairs, identical sums
         return gains, base
 
     def _gains(self, s0: int, sensor: IntArray, lo: IntArray, hi: IntArray,
@@ -305,11 +310,13 @@ class GameState:
             kk = k0 + l
             pos_xy[:, l] = self.xy(i, kk, self.pos[i, kk - 1])
             tgt[:, l] = self.tgt[i, kk - 1]
-        c_pair, j_pair, first, count, offset, data = chain_pairs_nb(
+        c_pair, j_pair, first, count, offset, data, rep = chain_pairs_nb(
             pos_xy, tgt, k0, ctx.e, float(prev), bool(prev_ok), float(ctx.problem.headings[i]),
             float(ctx.max_turn[i]), ctx.aim, ctx.xbar_xy, ctx.Cbar, ctx.probabilistic,
             ctx.radar[i], ctx.T - (k0 - 1) * ctx.e)
-        contrib = _unique_sorted(c_pair)
+        owners = _unique_sorted(c_pair)
+        dups = np.flatnonzero(rep != np.arange(C))
+        contrib = np.union1d(owners, dups) if dups.size else owners
         gaps = np.flatnonzero(contrib != np.arange(len(contrib)))
         free = int(gaps[0]) if gaps.size else (len(contrib) if len(contrib) < C else -1)
         if L == 1:
@@ -322,7 +329,7 @@ class GameState:
         else:
             rows = np.full((ctx.M, ctx.T, 3), np.nan)
         entry = _Pairs(key, C, k0 - 1, k_end, c_pair, j_pair, first, count, offset, data,
-                       np.zeros(len(c_pair)), rows, contrib, free)
+                       np.zeros(len(c_pair)), rows, contrib, free, owners, dups, rep[dups])
         self._cache[(i, k0, L)] = entry
         return entry
 
@@ -440,7 +447,7 @@ class EpochGame:
         self.actions: list[tuple[IntArray, IntArray]] = []
         self.cur = np.full(N, -1, dtype=np.int64)
         self._init_sets = []
-        entries, c_loc = [], []
+        entries, c_loc, aliases = [], [], []
         M = state.ctx.M
         for i in range(N):
             if check is not None and i > 0:
@@ -455,21 +462,33 @@ class EpochGame:
                 q = np.flatnonzero(cand == state.pos[i, k - 1])
                 cur = int(q[0]) * M + int(state.tgt[i, k - 1]) if q.size else -1
             if entry.view is None or entry.view[0] != cur:
-                keep = entry.contrib
+                # Kept: candidates holding pairs, the first without a counting look, the
+                # current action. A duplicate (same pairs as an earlier candidate) can only
+                # be chosen as the current action; it then takes its original's utility.
+                keep = entry.owners
                 for extra in (entry.free, cur):
                     if extra >= 0:
                         at = int(np.searchsorted(keep, extra))
                         if at == len(keep) or keep[at] != extra:
                             keep = np.insert(keep, at, extra)
-                entry.view = (cur, (cand[keep // M], keep % M),
-                              int(np.searchsorted(keep, cur)) if cur >= 0 else -1,
-                              np.searchsorted(keep, entry.c_pair))
-            _, actions, self.cur[i], loc = entry.view
+                cur_loc = int(np.searchsorted(keep, cur)) if cur >= 0 else -1
+                alias = -1
+                if cur >= 0 and entry.dups.size:
+                    d = int(np.searchsorted(entry.dups, cur))
+                    if d < entry.dups.size and entry.dups[d] == cur:
+                        alias = int(np.searchsorted(keep, entry.dup_of[d]))
+                entry.view = (cur, (cand[keep // M], keep % M), cur_loc,
+                              np.searchsorted(keep, entry.c_pair), alias)
+            _, actions, self.cur[i], loc, alias = entry.view
             self.actions.append(actions)
             entries.append(entry)
             c_loc.append(loc)
+            aliases.append(alias)
         sizes = np.array([len(a[0]) for a in self.actions])
         self.cand_off = np.r_[0, np.cumsum(sizes)]
+        al = np.array([(self.cand_off[i] + self.cur[i], self.cand_off[i] + a)
+                       for i, a in enumerate(aliases) if a >= 0], dtype=np.int64).reshape(-1, 2)
+        self._alias_dst, self._alias_src = al[:, 0].copy(), al[:, 1].copy()
         n_pairs = np.array([len(en.c_pair) for en in entries])
         n_data = np.array([len(en.data) for en in entries])
         self._pair_off = np.r_[0, np.cumsum(n_pairs)]
@@ -514,7 +533,7 @@ class EpochGame:
                              self._t_off, self._cp_off, self.cand_off, self._gcache,
                              self._dirty, self._dlist, self._seen, self._shared, self._pre,
                              self._tot_rows, self._tot_ver, self._tot_pred, self._tot_part,
-                             self._tot_ld)
+                             self._tot_ld, self._alias_dst, self._alias_src)
 
     def split(self, values: FloatArray) -> list[FloatArray]:
         """Per-player views of concatenated values."""

@@ -22,7 +22,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.typed import Dict
 
 from .._kernels import _heading_rule, logdet4, predict_step, update_step
 from ..radar import P_VIS_MIN, look_at_azimuth, look_range, reach
@@ -52,6 +53,8 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
     offset : (n,) int64           row of step ``first`` in ``data``
     data : (m, 3)                 w00, w01, w11 of the pair's looks, steps ``first ..
                                   first + count - 1`` (zero where it does not look)
+    rep : (C,) int64              the first candidate with exactly the same pairs (itself
+                                  unless a duplicate; a duplicate's pairs are left out)
     """
     C, L = tgt.shape
     M = aim.shape[0]
@@ -118,6 +121,14 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
     data = np.empty((cap * min(n_steps, L * e), 3))
     n = 0
     m = 0
+    # Duplicate candidates (chains of several epochs only): rep[c] is the first candidate
+    # with exactly c's pairs.
+    dedupe = L > 1
+    rep = np.arange(C)
+    seen = Dict.empty(key_type=types.int64, value_type=types.int64)
+    pair_start = np.zeros(C if dedupe else 0, dtype=np.int64)
+    pair_end = np.zeros(C if dedupe else 0, dtype=np.int64)
+    bits = data.reshape(-1).view(np.int64)
     w = np.zeros((L, e, 3))
     rng_ = np.zeros((e, 3))
     looked = np.zeros(L, dtype=np.bool_)
@@ -211,6 +222,7 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
                 n_kept += 1
         # One pair per distinct target among the epochs with a look that counts, in
         # increasing target order; it holds every look of the chain at that target.
+        n0, m0 = n, m
         j_prev = -1
         while True:
             j_next = M
@@ -241,8 +253,47 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
                 data[m + q, 2] = w[l, s, 2] if hit else 0.0
             n += 1
             m += cnt
+        if dedupe and n > n0:
+            # A candidate whose pairs equal an earlier candidate's (same targets, steps and
+            # information, bit for bit) has the same utility whatever the others do: keep
+            # the earlier one's pairs only (typically chains whose turn is clipped, so that
+            # their shared tail is entered with the same heading, and whose own look does
+            # not count).
+            hsh = np.int64(1469598103934665603)
+            for q in range(n0, n):
+                hsh = (hsh ^ j_pair[q]) * np.int64(1099511628211)
+                hsh = (hsh ^ first[q]) * np.int64(1099511628211)
+                for x in range(offset[q] * 3, (offset[q] + count[q]) * 3):
+                    hsh = (hsh ^ bits[x]) * np.int64(1099511628211)
+            c0 = seen[hsh] if hsh in seen else -1
+            if c0 >= 0 and _same_pairs_range(pair_start[c0], pair_end[c0], n0, n, j_pair,
+                                             first, count, offset, bits):
+                rep[c] = c0
+                n, m = n0, m0                            # drop the copy
+            elif c0 < 0:
+                seen[hsh] = c
+                pair_start[c] = n0
+                pair_end[c] = n
     return (c_pair[:n].copy(), j_pair[:n].copy(), first[:n].copy(), count[:n].copy(),
-            offset[:n].copy(), data[:m].copy())
+            offset[:n].copy(), data[:m].copy(), rep)
+
+
+@njit(cache=True)
+def _same_pairs_range(a0: int, a1: int, b0: int, b1: int, j_pair: np.ndarray,
+                      first: np.ndarray, count: np.ndarray, offset: np.ndarray,
+                      bits: np.ndarray) -> bool:
+    """Whether pairs ``a0..a1-1`` and ``b0..b1-1`` are equal (targets, steps, information
+    bits)."""
+    if a1 - a0 != b1 - b0:
+        return False
+    for d in range(a1 - a0):
+        qa, qb = a0 + d, b0 + d
+        if j_pair[qa] != j_pair[qb] or first[qa] != first[qb] or count[qa] != count[qb]:
+            return False
+        for x in range(count[qa] * 3):
+            if bits[offset[qa] * 3 + x] != bits[offset[qb] * 3 + x]:
+                return False
+    return True
 
 
 @njit(cache=True, fastmath=False)
@@ -491,7 +542,8 @@ def game_gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarr
                   cand_off: np.ndarray, gcache: np.ndarray, dirty: np.ndarray,
                   dlist: np.ndarray, seen: np.ndarray, shared: np.ndarray, pre: np.ndarray,
                   tot_rows: np.ndarray, tot_ver: np.ndarray, tot_pred: np.ndarray,
-                  tot_part: np.ndarray, tot_ld: np.ndarray) -> np.ndarray:
+                  tot_part: np.ndarray, tot_ld: np.ndarray, alias_dst: np.ndarray,
+                  alias_src: np.ndarray) -> np.ndarray:
     """Utilities of the players (p, k), p = 0..N-1, of an epoch game (one call per iteration).
 
     The same values as :func:`gains_nb` for each player (sensor p's epochs ``k-1 .. hi[p]-1``
@@ -505,7 +557,8 @@ def game_gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarr
     * the covariance at step ``s0 = (k-1) e`` depends on epochs before k only, which the game
       never changes: it is computed once (``pre``, ``shared[0]``);
     * a candidate's utility is the sum of its pairs' terms in pair order; it is summed again
-      only when one of them changed (``gcache``; ``dirty``/``dlist`` list those).
+      only when one of them changed (``gcache``; ``dirty``/``dlist`` list those); a current
+      action that duplicates an earlier candidate takes its sum (``alias_*``).
 
     ``rows[p]`` holds the information each of p's cached terms was computed with (NaN:
     never), ``seen[p, j]`` the version of the total it equals (-1: unknown), ``tot_rows``
@@ -642,6 +695,8 @@ def game_gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarr
             g += delta[q]
         gcache[c] = g
         dirty[c] = False
+    for x in range(alias_dst.shape[0]):              # a duplicate current action
+        gcache[alias_dst[x]] = gcache[alias_src[x]]
     return gcache.copy()
 
 
