@@ -29,7 +29,7 @@ from ..information import (Context, _c, chain_looks, covariance_recursion, cv_fo
                            sum_by_target)
 from ..problem import Plan
 from .kernels import (chain_pairs_nb, gains_nb, game_gains_nb, index_pairs_nb,
-                      jsfp_step_nb)
+                      jsfp_step_nb, player_positions_nb)
 
 
 @dataclass
@@ -388,17 +388,19 @@ class GameState:
         lat = self.ctx.lattices[i]
         if self.assigned(i, k - 1):
             q = 0 if k == 1 else self.pos[i, k - 2]
-            row = lat.child[k][q]
-            cand = row[row >= 0]                         # already in move order
+            cand = lat.child[k][q]                       # in move order; -1 outside the map
+            cand = cand[cand >= 0]
             ref = lat.positions[k - 1][q]
         else:
             cand = np.arange(len(lat.positions[k]))
             ref = lat.positions[0][0]
+        parents, use = _NONE, False
         if k < self.ctx.K and self.assigned(i, k + 1):
-            parents = lat.parent_move[k + 1][self.pos[i, k]]
-            cand = cand[np.isin(cand, parents[parents >= 0])]
-        dist = np.rint(np.linalg.norm(lat.positions[k][cand] - ref, axis=1) * 1e6)
-        return cand[np.argsort(dist, kind="stable")]
+            parents, use = lat.parent_move[k + 1][self.pos[i, k]], True
+        return player_positions_nb(lat.positions[k], cand, _c(parents, np.int64), use, _c(ref))
+
+
+_NONE = np.zeros(0, dtype=np.int64)
 
 
 def _unique_sorted(c: IntArray) -> IntArray:

@@ -760,3 +760,30 @@ def jsfp_step_nb(u: np.ndarray, ubar: np.ndarray, t: int, cand_off: np.ndarray,
                 best[p] = x - a
                 break
     return False, new, best
+
+
+@njit(cache=True)
+def player_positions_nb(positions: np.ndarray, cand: np.ndarray, parents: np.ndarray,
+                        use_parents: bool, ref: np.ndarray) -> np.ndarray:
+    """Candidate positions (indices into ``positions``), only those among ``parents`` if
+    ``use_parents``, sorted stably by their distance from ``ref`` rounded to 1e-6 m (the
+    engine's tie order)."""
+    keep = np.empty(cand.shape[0], dtype=np.int64)
+    n = 0
+    for x in range(cand.shape[0]):
+        c = cand[x]
+        ok = not use_parents
+        for y in range(parents.shape[0]):
+            if parents[y] == c:
+                ok = True
+                break
+        if ok:
+            keep[n] = c
+            n += 1
+    dist = np.empty(n)
+    for x in range(n):
+        dx = positions[keep[x], 0] - ref[0]
+        dy = positions[keep[x], 1] - ref[1]
+        dist[x] = np.rint(np.sqrt(dx * dx + dy * dy) * 1e6)
+    order = np.argsort(dist, kind="mergesort")
+    return keep[:n][order]
