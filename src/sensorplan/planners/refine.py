@@ -136,13 +136,15 @@ class RefinedPlanner(LearningSettings):
     def _refine(self, ctx, gen: np.random.Generator, gen_pg: np.random.Generator,
                 start: float, anytime: Anytime | None) -> PlanResult:
         settings = self.learning
+        # The greedy start first: it is deterministic and fast, so a budgeted run holds a
+        # good plan early (the order of the starts does not change the result).
+        greedy_state = sequential_greedy(ctx, anytime)
+        if anytime is not None:
+            anytime.offer(greedy_state)
         pg_state = GameState(ctx)
         _, sweeps_pg, trace = run_sweeps(pg_state, gen_pg, *settings, anytime=anytime)
         if anytime is not None:
             anytime.offer(pg_state)
-        greedy_state = sequential_greedy(ctx, anytime)
-        if anytime is not None:
-            anytime.offer(greedy_state)
         continued = greedy_state.copy()
         _, sweeps_cont, trace_cont = run_sweeps(continued, gen, *settings, anytime=anytime)
         if anytime is not None:
