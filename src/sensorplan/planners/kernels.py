@@ -22,8 +22,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, types
-from numba.typed import Dict
+from numba import njit
 
 from .._kernels import _heading_rule, logdet4, predict_step, update_step
 from ..radar import P_VIS_MIN, look_at_azimuth, look_range, reach
@@ -125,7 +124,12 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
     # with exactly c's pairs.
     dedupe = L > 1
     rep = np.arange(C)
-    seen = Dict.empty(key_type=types.int64, value_type=types.int64)
+    # Open-addressing hash table of candidates by the hash of their pairs.
+    h_size = 1
+    while dedupe and h_size < 2 * C:
+        h_size *= 2
+    h_cand = np.full(h_size, -1, dtype=np.int64)
+    h_key = np.zeros(h_size, dtype=np.int64)
     pair_start = np.zeros(C if dedupe else 0, dtype=np.int64)
     pair_end = np.zeros(C if dedupe else 0, dtype=np.int64)
     bits = data.reshape(-1).view(np.int64)
@@ -265,13 +269,20 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
                 hsh = (hsh ^ first[q]) * np.int64(1099511628211)
                 for x in range(offset[q] * 3, (offset[q] + count[q]) * 3):
                     hsh = (hsh ^ bits[x]) * np.int64(1099511628211)
-            c0 = seen[hsh] if hsh in seen else -1
+            slot = hsh & (h_size - 1)
+            c0 = -1
+            while h_cand[slot] >= 0:
+                if h_key[slot] == hsh:
+                    c0 = h_cand[slot]
+                    break
+                slot = (slot + 1) & (h_size - 1)
             if c0 >= 0 and _same_pairs_range(pair_start[c0], pair_end[c0], n0, n, j_pair,
                                              first, count, offset, bits):
                 rep[c] = c0
                 n, m = n0, m0                            # drop the copy
             elif c0 < 0:
-                seen[hsh] = c
+                h_cand[slot] = c
+                h_key[slot] = hsh
                 pair_start[c] = n0
                 pair_end[c] = n
     return (c_pair[:n].copy(), j_pair[:n].copy(), first[:n].copy(), count[:n].copy(),
