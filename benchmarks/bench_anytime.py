@@ -31,9 +31,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
-from factories import paper_problem  # noqa: E402
-from planner_reference import scale_problem, swarm_problem  # noqa: E402
-from sensorplan.planners import make_planner  # noqa: E402
+from factories import paper_problem
+from planner_reference import scale_problem, swarm_problem
+from sensorplan.planners import make_planner
 
 PLANNERS = ("pg", "pg-refine", "sequential-greedy")
 BUDGETS = np.logspace(-3, 0, 13)

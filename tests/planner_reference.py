@@ -14,14 +14,13 @@ from __future__ import annotations
 
 import math
 import sys
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
+from factories import paper_problem, tiny_problem
 from sensorplan.problem import MapRect, PlanningProblem
 from sensorplan.sensors import SensorParams
-
-from factories import paper_problem, tiny_problem
 
 
 def scale_problem(n_sensors: int = 20, n_targets: int = 50, horizon: int = 10,

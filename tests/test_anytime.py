@@ -11,13 +11,12 @@ import math
 import numpy as np
 import pytest
 
+from factories import paper_problem, tiny_problem
+from planner_reference import scale_problem
 from sensorplan.errors import ConfigError
 from sensorplan.information import potential
 from sensorplan.planners import anytime, make_planner
 from sensorplan.problem import check_plan
-
-from factories import paper_problem, tiny_problem
-from planner_reference import scale_problem
 
 BUDGETED = ("pg", "pg-refine", "sequential-greedy")
 

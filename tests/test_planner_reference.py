@@ -13,9 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sensorplan.planners import make_planner
-
 from planner_reference import CASES
+from sensorplan.planners import make_planner
 
 REFERENCE = np.load(Path(__file__).parent / "data" / "planner_reference.npz")
 PARAMS = [pytest.param(case, name, id=f"{case}-{name}")

@@ -2,17 +2,18 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable, ClassVar, Protocol
+from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
 from .._kernels import warm_up
-from . import anytime
 from .._types import FloatArray
 from ..errors import ConfigError
 from ..information import Context, evaluate, prepare
 from ..problem import Plan, PlanningProblem
+from . import anytime
 
 RngLike = np.random.Generator | int | None
 

@@ -1,35 +1,41 @@
 r"""Fast, exact evaluation of Phi for a batch of changes to one sensor's actions.
 
 The planners change one sensor's actions at a time: one player (i, k) in the game, two
-consecutive epochs in ``pg-refine``'s local search. :meth:`GameState.evaluate_chains` returns
-Phi for a whole batch of such changes in one vectorised pass and reuses everything the change
-cannot touch:
+consecutive epochs in ``pg-refine``'s local search. :meth:`GameState.chain_gains` returns,
+for a whole batch of such changes, each one's gain ``Phi(chain) - Phi(no chain)``, and
+:class:`EpochGame` the utilities of every player of an epoch game at once. Both reuse
+everything a change cannot touch:
 
-* measurements of every other player are summed once per call into ``W_fixed (M, T, 2, 2)``;
-* steps before the first changed epoch are the same for every candidate, so each target's
-  covariance recursion up to step ``s0 = (k0 - 1) e`` is run once (the prefix);
 * a candidate only changes the targets its own chain looks at (its epochs k0.. and, through
   the heading rule, the following assigned epochs of the same sensor); every other target
-  keeps its baseline term, so only (candidate, affected target) pairs are recomputed.
+  keeps its baseline term, so only (candidate, affected target) *pairs* are evaluated, and a
+  pair's term is kept until the other players' information at its target changes;
+* steps before a pair's first look are the baseline's, so its recursion starts there;
+* the other players' information, the baselines and the prefix up to the game's epoch are
+  shared between candidates and players wherever they are the same numbers.
 
 Phi(c) = Phi_base + sum over affected targets j of (term_j(c) - term_j(base)), where "base"
-is the plan with sensor i's changed chain removed. This is the definition of SPEC 4 regrouped,
-and is tested equal to :func:`sensorplan.information.potential` to round-off.
+is the plan with sensor i's changed chain removed. This is the definition of SPEC 4 regrouped;
+the compiled kernels (:mod:`~sensorplan.planners.kernels`,
+:mod:`~sensorplan.planners.gain_kernels`) compute every term with the same operations in the
+same order as the plain dense computation, so utilities are bit for bit its values
+(``tests/engine_reference.py``), and equal :func:`sensorplan.information.potential`'s
+differences to round-off.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
+from itertools import pairwise
 
 import numpy as np
 
 from .._types import FloatArray, IntArray
-from ..information import (Context, _c, chain_looks, covariance_recursion, cv_form,
-                           sum_by_target)
+from ..information import Context, _c, chain_looks, covariance_recursion, cv_form, sum_by_target
 from ..problem import Plan
-from .kernels import (chain_pairs_nb, gains_nb, game_gains_nb, index_pairs_nb,
-                      jsfp_step_nb, player_positions_nb)
+from .gain_kernels import gains_nb, game_gains_nb, index_pairs_nb, jsfp_step_nb
+from .kernels import chain_pairs_nb, player_positions_nb
 
 
 @dataclass
@@ -89,7 +95,7 @@ class GameState:
         self._rows_buf: dict[int, FloatArray] = {}
 
     # ----------------------------------------------------------------- plan access
-    def copy(self) -> "GameState":
+    def copy(self) -> GameState:
         other = GameState.__new__(GameState)
         other.ctx = self.ctx
         other.cumulative = self.cumulative
@@ -117,7 +123,7 @@ class GameState:
         return Plan(positions, self.tgt.copy())
 
     @classmethod
-    def from_plan(cls, ctx: Context, plan: Plan) -> "GameState":
+    def from_plan(cls, ctx: Context, plan: Plan) -> GameState:
         state = cls(ctx)
         for i in range(ctx.N):
             for k in range(1, ctx.K + 1):
@@ -539,8 +545,7 @@ class EpochGame:
 
     def split(self, values: FloatArray) -> list[FloatArray]:
         """Per-player views of concatenated values."""
-        off = self.cand_off.tolist()
-        return [values[a:b] for a, b in zip(off[:-1], off[1:])]
+        return [values[a:b] for a, b in pairwise(self.cand_off.tolist())]
 
     def step(self, u: FloatArray, ubar: FloatArray, t: int,
              scale: float) -> tuple[bool, FloatArray, IntArray]:

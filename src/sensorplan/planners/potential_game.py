@@ -8,8 +8,9 @@ players then play joint strategy fictitious play with inertia, everyone else fix
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Callable, ClassVar, Iterator
+from typing import ClassVar
 
 import numpy as np
 
@@ -17,8 +18,8 @@ from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..information import prepare
 from ..problem import PlanningProblem
-from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
 from .anytime import Anytime, BudgetExhausted, check_budget, complete
+from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
 from .engine import EpochGame, GameState
 
 

@@ -25,9 +25,9 @@ import numpy as np
 from .._types import IntArray
 from ..information import prepare
 from ..problem import PlanningProblem
+from .anytime import Anytime, BudgetExhausted, complete
 from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
 from .engine import GameState, choose
-from .anytime import Anytime, BudgetExhausted, complete
 from .greedy import sequential_greedy
 from .potential_game import LearningSettings, current_index, run_sweeps
 
