@@ -36,7 +36,7 @@ import numpy as np
 from sensorplan.planners import make_planner
 from sensorplan.planners.base import start_clock
 from planner_reference import scale_problem, swarm_problem
-start_clock()                                   # imports and kernel warm-up only
+start_clock(engine=True)                        # imports and kernel warm-up only
 base_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 case, reps = {case!r}, {reps}
 problem = scale_problem() if case == "scale" else swarm_problem()

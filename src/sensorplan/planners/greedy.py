@@ -52,7 +52,7 @@ class SequentialGreedyPlanner:
         check_budget(self.time_budget)
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
-        start = start_clock()
+        start = start_clock(engine=True)
         ctx = prepare(problem)
         if self.time_budget is None:
             return finish(self.name, ctx, sequential_greedy(ctx).to_plan(), start)

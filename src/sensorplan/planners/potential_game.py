@@ -210,7 +210,7 @@ class PotentialGamePlanner(LearningSettings):
     name: ClassVar[str] = "pg"
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
-        start = start_clock()
+        start = start_clock(engine=True)
         gen = make_rng(rng, self.seed)
         ctx = prepare(problem)
         state = GameState(ctx)

@@ -118,7 +118,7 @@ class RefinedPlanner(LearningSettings):
     name: ClassVar[str] = "pg-refine"
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
-        start = start_clock()
+        start = start_clock(engine=True)
         gen = make_rng(rng, self.seed)
         gen_pg = copy.deepcopy(gen)       # pg's own stream: start 1 is exactly `pg`'s plan
         ctx = prepare(problem)
