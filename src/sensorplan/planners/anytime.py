@@ -103,15 +103,6 @@ class Anytime:
         st.pos, st.tgt = self.pos.copy(), self.tgt.copy()
         return st.to_plan()
 
-    def best_state(self) -> GameState:
-        """The best complete plan seen, as a fresh :class:`GameState`."""
-        assert self._state is not None and self.pos is not None and self.tgt is not None
-        st = self._state.copy()
-        st.pos, st.tgt = self.pos.copy(), self.tgt.copy()
-        for i in range(st.ctx.N):
-            st.refresh(i)
-        return st
-
 
 def hold_chains(state: GameState, i: int) -> tuple[np.ndarray, np.ndarray]:
     """Sensor i's *hold* chains: stay at the start for all K epochs, looking at one target.

@@ -339,13 +339,6 @@ class GameState:
         self._cache[(i, k0, L)] = entry
         return entry
 
-    def contributing(self, i: int, k0: int, L: int = 1) -> IntArray:
-        """Candidates of the last :meth:`chain_gains` call for (i, k0, L) with a look that counts.
-
-        The others have gain exactly 0 against any other players' actions.
-        """
-        return self._cache[(i, k0, L)].contrib
-
     def forget(self, i: int, k0: int, L: int = 1) -> None:
         """Drop the cached pairs of (i, k0, L) (e.g. an initialisation set never used again)."""
         self._cache.pop((i, k0, L), None)

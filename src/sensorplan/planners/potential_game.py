@@ -56,13 +56,6 @@ def current_index(state: GameState, i: int, k: int, pos: IntArray, tgt: IntArray
     return int(hit[0]) if hit.size else -1
 
 
-def is_best(values: FloatArray, current: int, scale: float) -> bool:
-    """No action raises the utility by more than ``1e-9 max(1, scale)``, scale = |Phi|."""
-    if current < 0:
-        return False
-    return bool(values.max() <= float(values[current]) + 1e-9 * max(1.0, scale))
-
-
 def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float, beta: float,
                max_inner: int, check: Callable[[], None] | None = None
                ) -> Iterator[EpochState]:
