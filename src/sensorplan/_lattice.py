@@ -1,7 +1,7 @@
-"""Compiled breadth-first construction of the reachable sets (:func:`sensorplan.problem.build_lattice`).
+"""Compiled breadth-first pass building the reachable sets (``problem.build_lattice``).
 
 The same sets, in the same order, as the array version it replaced: ``R_k`` lists the
-positions ``p + m`` (``p`` in ``R_{k-1}`` in order, moves in SPEC order) that lie in the map,
+positions ``p + m`` (``p`` in ``R_{k-1}`` in order, moves in their order) that lie in the map,
 each the first time it is seen; two positions are the same when their offsets from the start
 round to the same point of a 1e-6 m grid.
 """

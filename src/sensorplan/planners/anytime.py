@@ -7,23 +7,24 @@ keeps the best complete plan seen (by Phi); then, if the budget is spent, it sto
 returns that best plan. So the plan a planner would return if stopped at a check never has
 a lower Phi than the one it would have returned at the previous check.
 
-The first complete plan comes before the first check and fast (:func:`hold_plan`: every
-sensor stays where it is and looks, epoch after epoch, at the target that adds most, sensor
-by sensor), so even a budget far too small for anything else returns a feasible plan; its
-``seconds`` then exceed the budget by the time that took. Partial plans are completed by
-:func:`complete` (a sensor without actions gets its hold chain; one with some gets the
-moves that connect them to the start, or stays after them, looking at the nearest assigned
-epoch's target).
+The first complete plan comes before the first check and fast (:func:`complete` of the
+empty plan: every sensor stays where it is and looks, epoch after epoch, at the target that
+adds most, sensor by sensor; :func:`hold_chains`), so even a budget far too small for
+anything else returns a feasible plan; its ``seconds`` then exceed the budget by the time
+that took. Partial plans are completed by :func:`complete` too (a sensor with some actions
+gets the moves that connect them to the start, or stays after them, looking at the nearest
+assigned epoch's target).
 
 The clock decides only *when* a planner stops, never what it chooses otherwise: every
 offered plan is computed whether or not the budget is close. A budgeted run that finishes in
-time therefore returns exactly what the same planner returns without a budget; one that is
-stopped depends on how fast the machine is.
+time returns exactly what the same planner returns without a budget (its own final plan);
+one that is stopped depends on how fast the machine is.
 """
 
 from __future__ import annotations
 
 import math
+import numbers
 import time
 from collections.abc import Callable
 
@@ -48,7 +49,7 @@ def check_budget(time_budget: float | None) -> None:
     """Raise ConfigError unless ``time_budget`` is None or a finite number > 0 (seconds)."""
     if time_budget is None:
         return
-    if isinstance(time_budget, bool) or not isinstance(time_budget, (int, float)):
+    if isinstance(time_budget, bool) or not isinstance(time_budget, numbers.Real):
         raise ConfigError("planner.time_budget",
                           f"must be a number of seconds or null, got {time_budget!r}")
     if not (math.isfinite(time_budget) and time_budget > 0):

@@ -15,7 +15,7 @@ everything a change cannot touch:
   shared between candidates and players wherever they are the same numbers.
 
 Phi(c) = Phi_base + sum over affected targets j of (term_j(c) - term_j(base)), where "base"
-is the plan with sensor i's changed chain removed. This is the definition of SPEC 4 regrouped;
+is the plan with sensor i's changed chain removed. This is the definition of Phi regrouped;
 the compiled kernels (:mod:`~sensorplan.planners.kernels`,
 :mod:`~sensorplan.planners.gain_kernels`) compute every term with the same operations in the
 same order as the plain dense computation, so utilities are bit for bit its values
