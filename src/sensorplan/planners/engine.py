@@ -35,7 +35,7 @@ from .._types import FloatArray, IntArray
 from ..information import Context, _c, chain_looks, covariance_recursion, cv_form, sum_by_target
 from ..problem import Plan
 from .gain_kernels import gains_nb, game_gains_nb, index_pairs_nb, jsfp_step_nb
-from .kernels import chain_pairs_nb, player_positions_nb
+from .kernels import candidate_sets_nb, chain_pairs_nb, player_positions_nb
 
 
 @dataclass
@@ -320,11 +320,7 @@ class GameState:
             pos_xy, tgt, k0, ctx.e, float(prev), bool(prev_ok), float(ctx.problem.headings[i]),
             float(ctx.max_turn[i]), ctx.aim, ctx.xbar_xy, ctx.Cbar, ctx.probabilistic,
             ctx.radar[i], ctx.T - (k0 - 1) * ctx.e)
-        owners = _unique_sorted(c_pair)
-        dups = np.flatnonzero(rep != np.arange(C))
-        contrib = np.union1d(owners, dups) if dups.size else owners
-        gaps = np.flatnonzero(contrib != np.arange(len(contrib)))
-        free = int(gaps[0]) if gaps.size else (len(contrib) if len(contrib) < C else -1)
+        owners, dups, contrib, free = candidate_sets_nb(c_pair, rep)
         if L == 1:
             # Rows of the players of epoch k0 live in one buffer, passed whole to the game.
             buf = self._rows_buf.get(k0)
@@ -400,15 +396,6 @@ class GameState:
 
 
 _NONE = np.zeros(0, dtype=np.int64)
-
-
-def _unique_sorted(c: IntArray) -> IntArray:
-    if c.size == 0:
-        return c
-    keep = np.empty(c.size, dtype=bool)
-    keep[0] = True
-    np.not_equal(c[1:], c[:-1], out=keep[1:])
-    return c[keep]
 
 
 def choose(values: FloatArray, current: int = -1, scale: float | None = None) -> int:

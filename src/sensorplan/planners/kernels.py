@@ -329,3 +329,47 @@ def player_positions_nb(positions: np.ndarray, cand: np.ndarray, parents: np.nda
         dist[x] = np.rint(np.sqrt(dx * dx + dy * dy) * 1e6)
     order = np.argsort(dist, kind="mergesort")
     return keep[:n][order]
+
+
+@njit(cache=True)
+def candidate_sets_nb(c_pair: np.ndarray, rep: np.ndarray) -> tuple:
+    """From :func:`chain_pairs_nb`'s pairs (sorted by candidate) and ``rep``:
+
+    Returns
+    -------
+    owners : candidates holding pairs (sorted)
+    dups : candidates whose pairs equal an earlier candidate's (sorted)
+    contrib : candidates with a look that counts, the union of both (sorted)
+    free : the first candidate without one (-1 if none)
+    """
+    C = rep.shape[0]
+    has = np.zeros(C, dtype=np.bool_)
+    for q in range(c_pair.shape[0]):
+        has[c_pair[q]] = True
+    n_own = 0
+    n_dup = 0
+    for c in range(C):
+        if has[c]:
+            n_own += 1
+        elif rep[c] != c:
+            n_dup += 1
+    owners = np.empty(n_own, dtype=np.int64)
+    dups = np.empty(n_dup, dtype=np.int64)
+    contrib = np.empty(n_own + n_dup, dtype=np.int64)
+    a = b = x = 0
+    free = -1
+    for c in range(C):
+        if has[c]:
+            owners[a] = c
+            a += 1
+        elif rep[c] != c:
+            dups[b] = c
+            b += 1
+        elif free < 0:
+            free = c
+            continue
+        else:
+            continue
+        contrib[x] = c
+        x += 1
+    return owners, dups, contrib, free
