@@ -6,10 +6,13 @@
    paper-scenario states (tracker states of closed-loop runs with the ``random`` planner),
    K = 1..kmax: medians of wall and CPU time over the decisions, the fitted growth exponent
    in K (least squares of log time on log K over K >= 2), and ``pg-refine`` / ``pg``.
-2. The same K = 3 decisions with the pure-numpy backend (does numba pay off?).
-3. Scale: N = 20, M = 50, K = 10 on a 2,000 m map, one ``pg`` decision, time and memory.
-4. Exhaustive search against the game as K grows (SPEC 6 claim 3).
-5. Quality on 200 random tiny problems against the exact optimum (``brute-force``).
+2. The same K = 3 decisions with ``SENSORPLAN_BACKEND=numpy`` (the numpy reference of the
+   potential's recursions and looks; the planning engine's kernels are compiled either way).
+3. Exhaustive search against the game as K grows (SPEC 6 claim 3).
+4. Quality on 200 random tiny problems against the exact optimum (``brute-force``).
+
+The scale cases (N = 20, M = 50, K = 10 and the swarm) are in ``bench_scale.py``, quality
+against a time budget in ``bench_anytime.py``.
 
 CPU time (``time.process_time``) is reported beside wall time because the machines are
 shared: the medians of both are printed, ratios are computed in the same run.
@@ -18,12 +21,10 @@ shared: the medians of both are printed, ratios are computed in the same run.
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import subprocess
 import sys
 import time
-import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -32,9 +33,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 from sensorplan.planners import make_planner  # noqa: E402
-from sensorplan.problem import MapRect, PlanningProblem  # noqa: E402
+from sensorplan.problem import PlanningProblem  # noqa: E402
 from sensorplan.scenario import paper_scenario  # noqa: E402
-from sensorplan.sensors import SensorParams  # noqa: E402
 from sensorplan.simulation import RunSettings, run_episode  # noqa: E402
 
 
@@ -115,37 +115,6 @@ def backend_comparison(args: argparse.Namespace) -> None:
     print(f"numpy / numba (CPU): {out['numpy'][1] / out['numba'][1]:.1f}x")
 
 
-def scale() -> None:
-    rng = np.random.default_rng(0)
-    N, M, K, W = 20, 50, 10, 2000.0
-    means = np.c_[rng.uniform(100, W - 100, (M, 2)), rng.normal(0, 3, (M, 2))]
-    covs = np.tile(np.diag([400.0, 400.0, 4.0, 4.0]), (M, 1, 1))
-    sensors = tuple(SensorParams(altitude=490.0 + 10.0 * (i % 3)) for i in range(N))
-    problem = PlanningProblem(means, covs, rng.uniform(50, W - 50, (N, 2)),
-                              rng.uniform(-math.pi, math.pi, N), sensors, horizon=K,
-                              world=MapRect(W, W))
-    make_planner("pg").plan(PlanningProblem(means[:1], covs[:1], problem.positions[:1],
-                                            problem.headings[:1], sensors[:1], horizon=1,
-                                            world=MapRect(W, W)))
-    tracemalloc.start()
-    c0 = time.process_time()
-    r = make_planner("pg").plan(problem)
-    cpu = time.process_time() - c0
-    peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
-    import resource
-    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    print("\n## Scale: N = 20, M = 50, K = 10, e = 1, 2,000 m map, one pg decision")
-    print(f"wall {r.seconds:.2f} s, CPU {cpu:.2f} s (timed under tracemalloc, which slows "
-          f"allocation-heavy code), peak traced numpy/python memory {peak/2**20:.0f} MiB, "
-          f"process max RSS {rss:.0f} MiB; Phi {r.potential:.2f}, sweeps {r.sweeps}, "
-          f"converged {r.converged}")
-    c0 = time.process_time()
-    r = make_planner("pg").plan(problem)
-    print(f"again without tracemalloc: wall {r.seconds:.2f} s, "
-          f"CPU {time.process_time() - c0:.2f} s")
-
-
 def exhaustive_growth(kmax: int = 4) -> None:
     """SPEC 6 claim 3: exhaustive search grows exponentially in K, the game polynomially."""
     from factories import joint_plan_count
@@ -206,14 +175,13 @@ def main() -> None:
     ap.add_argument("--decisions", type=int, default=20)
     ap.add_argument("--kmax", type=int, default=8)
     ap.add_argument("--quality", type=int, default=200)
-    ap.add_argument("--quick", action="store_true", help="K <= 4, no scale, 50 problems")
+    ap.add_argument("--quick", action="store_true", help="K <= 4, 50 problems")
     args = ap.parse_args()
     if args.quick:
         args.kmax, args.quality = 4, 50
     speed(args)
     backend_comparison(args)
     if not args.quick:
-        scale()
         exhaustive_growth()
     quality(args.quality)
 

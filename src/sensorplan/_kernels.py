@@ -19,56 +19,134 @@ from .radar import P_VIS_MIN, look, range_weight, wrap
 from .sensors import COLUMNS
 
 
-@njit(cache=True, fastmath=False)
-def _logdet4(P: np.ndarray) -> float:
-    # Cholesky of a 4x4 symmetric positive definite matrix; log det = 2 sum log diag.
-    L = np.zeros((4, 4))
+@njit(cache=True, fastmath=False, inline="always")
+def logdet4(P: np.ndarray) -> float:
+    """log det of a 4x4 symmetric positive definite matrix (NaN if not PD).
+
+    Cholesky on the lower triangle, ``log det = 2 sum log diag(L)``; unrolled into scalars
+    (no scratch array), in the order of the textbook column loop.
+    """
+    s = P[0, 0]
+    if s <= 0.0:
+        return np.nan
+    d0 = np.sqrt(s)
     total = 0.0
-    for j in range(4):
-        s = P[j, j]
-        for m in range(j):
-            s -= L[j, m] * L[j, m]
-        if s <= 0.0:
-            return np.nan
-        d = np.sqrt(s)
-        L[j, j] = d
-        total += np.log(d)
-        for r in range(j + 1, 4):
-            t = P[r, j]
-            for m in range(j):
-                t -= L[r, m] * L[j, m]
-            L[r, j] = t / d
+    total += np.log(d0)
+    l10 = P[1, 0] / d0
+    l20 = P[2, 0] / d0
+    l30 = P[3, 0] / d0
+    s = P[1, 1]
+    s -= l10 * l10
+    if s <= 0.0:
+        return np.nan
+    d1 = np.sqrt(s)
+    total += np.log(d1)
+    t = P[2, 1]
+    t -= l20 * l10
+    l21 = t / d1
+    t = P[3, 1]
+    t -= l30 * l10
+    l31 = t / d1
+    s = P[2, 2]
+    s -= l20 * l20
+    s -= l21 * l21
+    if s <= 0.0:
+        return np.nan
+    d2 = np.sqrt(s)
+    total += np.log(d2)
+    t = P[3, 2]
+    t -= l30 * l20
+    t -= l31 * l21
+    l32 = t / d2
+    s = P[3, 3]
+    s -= l30 * l30
+    s -= l31 * l31
+    s -= l32 * l32
+    if s <= 0.0:
+        return np.nan
+    d3 = np.sqrt(s)
+    total += np.log(d3)
     return 2.0 * total
 
 
-@njit(cache=True)
-def _joseph_update(P: np.ndarray, w00: float, w01: float, w11: float, det_w: float,
-                   K: np.ndarray, AP: np.ndarray) -> None:
+@njit(cache=True, inline="always")
+def _joseph_update(P: np.ndarray, w00: float, w01: float, w11: float, det_w: float) -> None:
     """In place: update P with position information W in Joseph form.
 
     With R = W^-1 (the equivalent measurement noise), K = P G^T (G P G^T + R)^-1 and
     P+ = (I - K G) P (I - K G)^T + K R K^T: a sum of PSD terms, accurate also when W C is
     large (the subtractive form loses digits there and the log-det with them).
+
+    Unrolled into scalars (``P`` is symmetric on entry: every update follows a predict),
+    each entry computed as the loops ``K = P[:, :2] S^-1``, ``A = P - K P[:2]``,
+    ``P+ = A - A[:, :2] K^T + K R K^T`` would, in the same order.
     """
     r00, r01, r11 = w11 / det_w, -w01 / det_w, w00 / det_w
-    s00, s01, s11 = P[0, 0] + r00, P[0, 1] + r01, P[1, 1] + r11
+    p00, p01, p02, p03 = P[0, 0], P[0, 1], P[0, 2], P[0, 3]
+    p11, p12, p13 = P[1, 1], P[1, 2], P[1, 3]
+    p22, p23, p33 = P[2, 2], P[2, 3], P[3, 3]
+    s00, s01, s11 = p00 + r00, p01 + r01, p11 + r11
     det_s = s00 * s11 - s01 * s01
     i00, i01, i11 = s11 / det_s, -s01 / det_s, s00 / det_s
-    for r in range(4):
-        K[r, 0] = P[r, 0] * i00 + P[r, 1] * i01
-        K[r, 1] = P[r, 0] * i01 + P[r, 1] * i11
-    for r in range(4):
-        for c in range(4):
-            AP[r, c] = P[r, c] - K[r, 0] * P[0, c] - K[r, 1] * P[1, c]
-    for r in range(4):
-        for c in range(r, 4):
-            v = AP[r, c] - AP[r, 0] * K[c, 0] - AP[r, 1] * K[c, 1]
-            v += (K[r, 0] * (r00 * K[c, 0] + r01 * K[c, 1])
-                  + K[r, 1] * (r01 * K[c, 0] + r11 * K[c, 1]))
-            P[r, c] = v
-    for r in range(4):
-        for c in range(r):
-            P[r, c] = P[c, r]
+    k00 = p00 * i00 + p01 * i01
+    k01 = p00 * i01 + p01 * i11
+    k10 = p01 * i00 + p11 * i01
+    k11 = p01 * i01 + p11 * i11
+    k20 = p02 * i00 + p12 * i01
+    k21 = p02 * i01 + p12 * i11
+    k30 = p03 * i00 + p13 * i01
+    k31 = p03 * i01 + p13 * i11
+    a00 = p00 - k00 * p00 - k01 * p01
+    a01 = p01 - k00 * p01 - k01 * p11
+    a02 = p02 - k00 * p02 - k01 * p12
+    a03 = p03 - k00 * p03 - k01 * p13
+    a10 = p01 - k10 * p00 - k11 * p01
+    a11 = p11 - k10 * p01 - k11 * p11
+    a12 = p12 - k10 * p02 - k11 * p12
+    a13 = p13 - k10 * p03 - k11 * p13
+    a20 = p02 - k20 * p00 - k21 * p01
+    a21 = p12 - k20 * p01 - k21 * p11
+    a22 = p22 - k20 * p02 - k21 * p12
+    a23 = p23 - k20 * p03 - k21 * p13
+    a30 = p03 - k30 * p00 - k31 * p01
+    a31 = p13 - k30 * p01 - k31 * p11
+    a33 = p33 - k30 * p03 - k31 * p13
+    v = a00 - a00 * k00 - a01 * k01
+    v += (k00 * (r00 * k00 + r01 * k01) + k01 * (r01 * k00 + r11 * k01))
+    P[0, 0] = v
+    v = a01 - a00 * k10 - a01 * k11
+    v += (k00 * (r00 * k10 + r01 * k11) + k01 * (r01 * k10 + r11 * k11))
+    P[0, 1] = v
+    P[1, 0] = v
+    v = a02 - a00 * k20 - a01 * k21
+    v += (k00 * (r00 * k20 + r01 * k21) + k01 * (r01 * k20 + r11 * k21))
+    P[0, 2] = v
+    P[2, 0] = v
+    v = a03 - a00 * k30 - a01 * k31
+    v += (k00 * (r00 * k30 + r01 * k31) + k01 * (r01 * k30 + r11 * k31))
+    P[0, 3] = v
+    P[3, 0] = v
+    v = a11 - a10 * k10 - a11 * k11
+    v += (k10 * (r00 * k10 + r01 * k11) + k11 * (r01 * k10 + r11 * k11))
+    P[1, 1] = v
+    v = a12 - a10 * k20 - a11 * k21
+    v += (k10 * (r00 * k20 + r01 * k21) + k11 * (r01 * k20 + r11 * k21))
+    P[1, 2] = v
+    P[2, 1] = v
+    v = a13 - a10 * k30 - a11 * k31
+    v += (k10 * (r00 * k30 + r01 * k31) + k11 * (r01 * k30 + r11 * k31))
+    P[1, 3] = v
+    P[3, 1] = v
+    v = a22 - a20 * k20 - a21 * k21
+    v += (k20 * (r00 * k20 + r01 * k21) + k21 * (r01 * k20 + r11 * k21))
+    P[2, 2] = v
+    v = a23 - a20 * k30 - a21 * k31
+    v += (k20 * (r00 * k30 + r01 * k31) + k21 * (r01 * k30 + r11 * k31))
+    P[2, 3] = v
+    P[3, 2] = v
+    v = a33 - a30 * k30 - a31 * k31
+    v += (k30 * (r00 * k30 + r01 * k31) + k31 * (r01 * k30 + r11 * k31))
+    P[3, 3] = v
 
 
 @njit(cache=True)
@@ -99,15 +177,106 @@ def _woodbury_update(P: np.ndarray, w00: float, w01: float, w11: float,
             P[c, r] = v
 
 
+@njit(cache=True, fastmath=False, inline="always")
+def predict_step(P: np.ndarray, F: np.ndarray, Q: np.ndarray, qb: int, cv: bool, dt: float,
+                 FP: np.ndarray) -> None:
+    """In place: ``P <- F P F^T + Q[qb]``, symmetric (``FP`` is scratch, 4x4).
+
+    ``cv`` says that ``F`` is the CWNA transition with step ``dt``, whose product is then
+    computed in closed form (a quarter of the multiplications).
+    """
+    if cv:
+        # F = [[I, dt I], [0, I]] (state [x, y, vx, vy]): the product in closed form,
+        # P' = [[A + dt (B + B^T) + dt^2 D, B + dt D], [., D]] + Q, new from old (unrolled;
+        # dt2 is the product dt * dt the loop form evaluates first).
+        dt2 = dt * dt
+        p00, p01, p02, p03 = P[0, 0], P[0, 1], P[0, 2], P[0, 3]
+        p10, p11, p12, p13 = P[1, 0], P[1, 1], P[1, 2], P[1, 3]
+        p20, p21, p22, p23 = P[2, 0], P[2, 1], P[2, 2], P[2, 3]
+        p30, p31, p32, p33 = P[3, 0], P[3, 1], P[3, 2], P[3, 3]
+        f00 = p00 + dt * (p02 + p20) + dt2 * p22
+        f01 = p01 + dt * (p03 + p21) + dt2 * p23
+        f02 = p02 + dt * p22
+        f03 = p03 + dt * p23
+        f10 = p10 + dt * (p12 + p30) + dt2 * p32
+        f11 = p11 + dt * (p13 + p31) + dt2 * p33
+        f12 = p12 + dt * p32
+        f13 = p13 + dt * p33
+        f20 = p20 + dt * p22
+        f21 = p21 + dt * p23
+        f22 = p22
+        f23 = p23
+        f30 = p30 + dt * p32
+        f31 = p31 + dt * p33
+        f32 = p32
+        f33 = p33
+        v = 0.5 * (f00 + f00) + Q[qb, 0, 0]
+        P[0, 0] = v
+        v = 0.5 * (f01 + f10) + Q[qb, 0, 1]
+        P[0, 1] = v
+        P[1, 0] = v
+        v = 0.5 * (f02 + f20) + Q[qb, 0, 2]
+        P[0, 2] = v
+        P[2, 0] = v
+        v = 0.5 * (f03 + f30) + Q[qb, 0, 3]
+        P[0, 3] = v
+        P[3, 0] = v
+        v = 0.5 * (f11 + f11) + Q[qb, 1, 1]
+        P[1, 1] = v
+        v = 0.5 * (f12 + f21) + Q[qb, 1, 2]
+        P[1, 2] = v
+        P[2, 1] = v
+        v = 0.5 * (f13 + f31) + Q[qb, 1, 3]
+        P[1, 3] = v
+        P[3, 1] = v
+        v = 0.5 * (f22 + f22) + Q[qb, 2, 2]
+        P[2, 2] = v
+        v = 0.5 * (f23 + f32) + Q[qb, 2, 3]
+        P[2, 3] = v
+        P[3, 2] = v
+        v = 0.5 * (f33 + f33) + Q[qb, 3, 3]
+        P[3, 3] = v
+    else:
+        for r in range(4):
+            for c in range(4):
+                s = 0.0
+                for m in range(4):
+                    s += F[r, m] * P[m, c]
+                FP[r, c] = s
+        for r in range(4):
+            for c in range(r, 4):
+                s = Q[qb, r, c]
+                for m in range(4):
+                    s += FP[r, m] * F[c, m]
+                P[r, c] = s
+                P[c, r] = s
+
+
+@njit(cache=True, fastmath=False, inline="always")
+def update_step(P: np.ndarray, w00: float, w01: float, w11: float, Pc: np.ndarray,
+                FP: np.ndarray) -> None:
+    """In place: add position information ``W = [[w00, w01], [w01, w11]]`` to ``P``.
+
+    Joseph form when ``W`` is well conditioned, the subtractive form when it is nearly
+    singular (see :func:`sensorplan.information.information_update`); ``W = 0`` leaves ``P``
+    unchanged. ``Pc`` (4x2) and ``FP`` (4x4) are scratch.
+    """
+    if w00 != 0.0 or w01 != 0.0 or w11 != 0.0:
+        det_w = w00 * w11 - w01 * w01
+        if det_w > 1e-12 * (w00 + w11) ** 2:     # information.JOSEPH_MIN_DET
+            _joseph_update(P, w00, w01, w11, det_w)
+        else:
+            _woodbury_update(P, w00, w01, w11, Pc)
+
+
 @njit(cache=True, fastmath=False)
 def covariance_recursion_nb(P0: np.ndarray, W: np.ndarray, F: np.ndarray, Q: np.ndarray,
                             need_sum: bool, cv: bool,
                             dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Same contract as :func:`sensorplan.information.covariance_recursion_numpy`.
 
-    ``Q`` is ``(1, 4, 4)`` (shared by every row) or ``(B, 4, 4)`` (one per row). ``cv`` says
-    that ``F`` is the CWNA transition with step ``dt``, whose product is then computed in
-    closed form (a quarter of the multiplications).
+    ``Q`` is ``(1, 4, 4)`` (shared by every row) or ``(B, 4, 4)`` (one per row); ``cv``: see
+    :func:`predict_step`.
     """
     n = P0.shape[0]
     S = W.shape[1]
@@ -124,51 +293,14 @@ def covariance_recursion_nb(P0: np.ndarray, W: np.ndarray, F: np.ndarray, Q: np.
             for c in range(4):
                 P[r, c] = P0[b, r, c]
         for t in range(S):
-            # predict: P = F P F^T + Q
-            if cv:
-                # F = [[I, dt I], [0, I]] (state [x, y, vx, vy]): the product in closed form,
-                # P' = [[A + dt (B + B^T) + dt^2 D, B + dt D], [., D]] + Q, new from old.
-                for r in range(2):
-                    for c in range(2):
-                        FP[r, c] = (P[r, c] + dt * (P[r, c + 2] + P[r + 2, c])
-                                    + dt * dt * P[r + 2, c + 2])
-                        FP[r, c + 2] = P[r, c + 2] + dt * P[r + 2, c + 2]
-                        FP[r + 2, c] = P[r + 2, c] + dt * P[r + 2, c + 2]
-                        FP[r + 2, c + 2] = P[r + 2, c + 2]
-                for r in range(4):
-                    for c in range(r, 4):
-                        v = 0.5 * (FP[r, c] + FP[c, r]) + Q[qb, r, c]
-                        P[r, c] = v
-                        P[c, r] = v
-            else:
-                for r in range(4):
-                    for c in range(4):
-                        s = 0.0
-                        for m in range(4):
-                            s += F[r, m] * P[m, c]
-                        FP[r, c] = s
-                for r in range(4):
-                    for c in range(r, 4):
-                        s = Q[qb, r, c]
-                        for m in range(4):
-                            s += FP[r, m] * F[c, m]
-                        P[r, c] = s
-                        P[c, r] = s
-            w00 = W[b, t, 0, 0]
-            w01 = W[b, t, 0, 1]
-            w11 = W[b, t, 1, 1]
-            if w00 != 0.0 or w01 != 0.0 or w11 != 0.0:
-                det_w = w00 * w11 - w01 * w01
-                if det_w > 1e-12 * (w00 + w11) ** 2:     # information.JOSEPH_MIN_DET
-                    _joseph_update(P, w00, w01, w11, det_w, Pc, FP)
-                else:
-                    _woodbury_update(P, w00, w01, w11, Pc)
+            predict_step(P, F, Q, qb, cv, dt, FP)
+            update_step(P, W[b, t, 0, 0], W[b, t, 0, 1], W[b, t, 1, 1], Pc, FP)
             if need_sum:
-                ld_sum[b] += _logdet4(P)
+                ld_sum[b] += logdet4(P)
         for r in range(4):
             for c in range(4):
                 P_end[b, r, c] = P[r, c]
-        ld_end[b] = _logdet4(P)
+        ld_end[b] = logdet4(P)
     return P_end, ld_end, ld_sum
 
 

@@ -344,16 +344,22 @@ def covariance_recursion(P: FloatArray, W: FloatArray, F: FloatArray, Q: FloatAr
         Q = Q[None]
     if BACKEND == "numpy":
         return covariance_recursion_numpy(P, W, F, Q)
-    key = F.tobytes()
-    if key not in _CV_FORM:
-        dt = float(F[0, 2])
-        _CV_FORM[key] = (bool(np.array_equal(F, cv_matrices(dt, 0.0)[0])), dt)
-    cv, dt = _CV_FORM[key]
+    cv, dt = cv_form(F)
     return covariance_recursion_nb(_c(P), _c(W), F, _c(Q), need_sum, cv, dt)
 
 
 #: Whether a transition matrix (by its bytes) is the CWNA ``F(dt)``, and its ``dt``.
 _CV_FORM: dict[bytes, tuple[bool, float]] = {}
+
+
+def cv_form(F: FloatArray) -> tuple[bool, float]:
+    """Whether ``F`` is the CWNA transition ``F(dt)`` (the kernels then predict in closed
+    form), and its ``dt``."""
+    key = F.tobytes()
+    if key not in _CV_FORM:
+        dt = float(F[0, 2])
+        _CV_FORM[key] = (bool(np.array_equal(F, cv_matrices(dt, 0.0)[0])), dt)
+    return _CV_FORM[key]
 
 
 def covariance_recursion_numpy(P: FloatArray, W: FloatArray, F: FloatArray,

@@ -146,31 +146,19 @@ def _unbounded_lattice(moves_bytes: bytes, K: int) -> Lattice:
 
 def _build_lattice(p0: FloatArray, moves: FloatArray, K: int,
                    world: MapRect | None) -> Lattice:
-    positions = [p0[None, :].copy()]
-    parent_move = [np.full((1, len(moves)), -1, dtype=np.int64)]
+    from ._lattice import lattice_nb             # compiled; imported late (cold start)
+
+    p0 = np.ascontiguousarray(p0, dtype=float)
+    moves = np.ascontiguousarray(moves, dtype=float)
+    bounded = world is not None
+    width = float(world.width) if bounded else 0.0
+    height = float(world.height) if bounded else 0.0
+    flat, start, child_flat, parent_flat = lattice_nb(p0, moves, K, bounded, width, height,
+                                                       POSITION_TOL, _common_step(moves))
+    positions = [flat[start[k]:start[k + 1]] for k in range(K + 1)]
+    parent_move = [parent_flat[start[k]:start[k + 1]] for k in range(K + 1)]
     child: list[IntArray] = [np.zeros((0, len(moves)), dtype=np.int64)]
-    n_moves = len(moves)
-    grid = _common_step(moves)
-    for _ in range(1, K + 1):
-        prev = positions[-1]
-        cand = (prev[:, None, :] + moves[None, :, :]).reshape(-1, 2)    # (n_prev * n_moves, 2)
-        inside = (np.arange(len(cand)) if world is None
-                  else np.flatnonzero(world.contains(cand)))
-        # Same position <=> same offset from p0 on a 1e-6 m grid; keep first-seen order.
-        first, inverse = _first_occurrences(cand[inside] - p0, grid)
-        order = np.argsort(first, kind="stable")
-        rank = np.empty_like(order)
-        rank[order] = np.arange(len(order))
-        pos = cand[inside[first[order]]]
-        ch = np.full(len(prev) * n_moves, -1, dtype=np.int64)
-        ch[inside] = rank[inverse]
-        ch = ch.reshape(len(prev), n_moves)
-        pm = np.full((len(pos), n_moves), -1, dtype=np.int64)
-        qs, ms = np.nonzero(ch >= 0)
-        pm[ch[qs, ms], ms] = qs
-        positions.append(pos)
-        parent_move.append(pm)
-        child.append(ch)
+    child += [child_flat[start[k - 1]:start[k]] for k in range(1, K + 1)]
     return Lattice(positions, parent_move, child, moves)
 
 

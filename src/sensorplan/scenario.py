@@ -197,6 +197,24 @@ def radar_scenario() -> Scenario:
 PRESETS: dict[str, Callable[[], Scenario]] = {"paper": paper_scenario, "radar": radar_scenario}
 
 
+def swarm_scenario(miss_update: str = "negative") -> Scenario:
+    """A swarm: N = 100 sensors and M = 200 targets on a 3,000 x 3,000 m map.
+
+    The paper's scenario scaled up at the paper's densities: the same sensor and target
+    parameters (altitudes 490/500/510 m in turn, 3 ``cv`` to 2 ``dubins`` targets, speeds
+    3-6 m/s, P0), targets uniform in [100, 2900]^2 (2.6e-5 per m^2; the paper's 3.1e-5) and
+    sensors in [50, 2950]^2 (1.2e-5 per m^2, as in the paper). Initial target states and
+    sensor poses are left to each run's seed.
+    """
+    targets = tuple(TargetSpec(kind=("cv", "cv", "cv", "dubins", "dubins")[j % 5])
+                    for j in range(200))
+    sensors = tuple(SensorSpec(SensorParams(altitude=(490.0, 500.0, 510.0)[i % 3]))
+                    for i in range(100))
+    return Scenario(world=MapRect(3000.0, 3000.0), targets=targets, sensors=sensors,
+                    target_box=(100.0, 2900.0), sensor_box=(50.0, 2950.0),
+                    miss_update=miss_update)
+
+
 @dataclass(frozen=True)
 class InitialConditions:
     """One run's drawn initial conditions.

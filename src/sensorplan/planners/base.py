@@ -14,7 +14,6 @@ that naming a planner (the registry, ``sensorplan --help``) does not load the ke
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, ClassVar, Protocol
 
@@ -47,6 +46,8 @@ class PlanResult:
     sweeps : int or None           outer sweeps (``pg``/``pg-refine``), else None
     seconds : float                the planner's own time (s)
     trace : tuple of float         Phi after each sweep (diagnostics)
+    budget_exhausted : bool        the time budget stopped the planner before it finished
+                                   (the plan is then the best complete one it had found)
     """
 
     planner: str
@@ -59,6 +60,7 @@ class PlanResult:
     sweeps: int | None = None
     seconds: float = 0.0
     trace: tuple[float, ...] = field(default=())
+    budget_exhausted: bool = False
 
 
 class Planner(Protocol):
@@ -69,17 +71,45 @@ class Planner(Protocol):
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult: ...
 
 
-def start_clock() -> float:
-    """Warm the compiled kernels, then read the clock: ``seconds`` is the planner's own time.
+def start_clock(engine: bool = False) -> float:
+    """Warm the compiled kernels (and the planning engine's, if ``engine``), then read the
+    clock: ``seconds`` is the planner's own time.
 
     Returns
     -------
-    float   ``time.perf_counter()`` after the warm-up; pass it to :func:`finish`.
+    float   the clock (:data:`sensorplan.planners.anytime.clock`) after the warm-up; pass
+            it to :func:`finish`.
     """
     from .._kernels import warm_up
+    from . import anytime
 
     warm_up()
-    return time.perf_counter()
+    if engine:
+        _warm_engine()
+    return anytime.clock()
+
+
+_ENGINE_WARM = False
+
+
+def _warm_engine() -> None:
+    """Compile (or load from numba's cache) the engine's kernels once, on a tiny decision."""
+    global _ENGINE_WARM
+    if _ENGINE_WARM:
+        return
+    _ENGINE_WARM = True
+    from ..sensors import SensorParams
+    from .engine import GameState
+    from .potential_game import jsfp_epoch
+
+    problem = PlanningProblem(np.array([[300.0, 300.0, 1.0, 0.0]]),
+                              np.diag([400.0, 400.0, 4.0, 4.0])[None], np.array([[0.0, 300.0]]),
+                              np.array([0.0]), (SensorParams(),), horizon=2)
+    state = GameState(prepare(problem))
+    for _ in jsfp_epoch(state, 2, np.random.default_rng(0), 0.3, 0.95, 2):
+        pass
+    pos, tgt = state.player_actions(0, 1)
+    state.chain_gains(0, 1, pos[:, None], tgt[:, None], with_base=True)
 
 
 def make_rng(rng: RngLike, seed: int | None) -> np.random.Generator:
@@ -100,7 +130,7 @@ def prepare(problem: PlanningProblem) -> Context:
 
 def finish(name: str, ctx: Context | PlanningProblem, plan: Plan, start: float,
            converged: bool | None = None, sweeps: int | None = None,
-           trace: tuple[float, ...] = ()) -> PlanResult:
+           trace: tuple[float, ...] = (), budget_exhausted: bool = False) -> PlanResult:
     """Evaluate ``plan`` with the one definition of Phi and wrap it in a :class:`PlanResult`.
 
     Parameters
@@ -110,16 +140,17 @@ def finish(name: str, ctx: Context | PlanningProblem, plan: Plan, start: float,
                              :func:`prepare`'s result, or the problem (prepared here)
     plan : Plan              feasible and complete
     start : float            :func:`start_clock`'s value; ``seconds`` runs until now
-    converged, sweeps, trace : as in :class:`PlanResult`
+    converged, sweeps, trace, budget_exhausted : as in :class:`PlanResult`
     """
     from ..information import evaluate
     from ..information import prepare as _prepare
+    from . import anytime
 
     if isinstance(ctx, PlanningProblem):
         ctx = _prepare(ctx)
     ev = evaluate(ctx, plan)
     return PlanResult(name, plan, ev.potential, ev.information, ev.headings, ev.measurements,
-                      converged, sweeps, time.perf_counter() - start, trace)
+                      converged, sweeps, anytime.clock() - start, trace, budget_exhausted)
 
 
 __all__ = ["PLANNERS", "PlanResult", "Planner", "RngLike", "finish", "make_planner",

@@ -1,43 +1,70 @@
 r"""Fast, exact evaluation of Phi for a batch of changes to one sensor's actions.
 
 The planners change one sensor's actions at a time: one player (i, k) in the game, two
-consecutive epochs in ``pg-refine``'s local search. :meth:`GameState.evaluate_chains` returns
-Phi for a whole batch of such changes in one vectorised pass and reuses everything the change
-cannot touch:
+consecutive epochs in ``pg-refine``'s local search. :meth:`GameState.chain_gains` returns,
+for a whole batch of such changes, each one's gain ``Phi(chain) - Phi(no chain)``, and
+:class:`EpochGame` the utilities of every player of an epoch game at once. Both reuse
+everything a change cannot touch:
 
-* measurements of every other player are summed once per call into ``W_fixed (M, T, 2, 2)``;
-* steps before the first changed epoch are the same for every candidate, so each target's
-  covariance recursion up to step ``s0 = (k0 - 1) e`` is run once (the prefix);
 * a candidate only changes the targets its own chain looks at (its epochs k0.. and, through
   the heading rule, the following assigned epochs of the same sensor); every other target
-  keeps its baseline term, so only (candidate, affected target) pairs are recomputed.
+  keeps its baseline term, so only (candidate, affected target) *pairs* are evaluated, and a
+  pair's term is kept until the other players' information at its target changes;
+* steps before a pair's first look are the baseline's, so its recursion starts there;
+* the other players' information, the baselines and the prefix up to the game's epoch are
+  shared between candidates and players wherever they are the same numbers.
 
 Phi(c) = Phi_base + sum over affected targets j of (term_j(c) - term_j(base)), where "base"
-is the plan with sensor i's changed chain removed. This is the definition of SPEC 4 regrouped,
-and is tested equal to :func:`sensorplan.information.potential` to round-off.
+is the plan with sensor i's changed chain removed. This is the definition of Phi regrouped;
+the compiled kernels (:mod:`~sensorplan.planners.kernels`,
+:mod:`~sensorplan.planners.gain_kernels`) compute every term with the same operations in the
+same order as the plain dense computation, so utilities are bit for bit its values
+(``tests/engine_reference.py``), and equal :func:`sensorplan.information.potential`'s
+differences to round-off.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from itertools import pairwise
 
 import numpy as np
 
 from .._types import FloatArray, IntArray
-from ..information import Context, chain_looks, covariance_recursion, sum_by_target
+from ..information import Context, _c, chain_looks, covariance_recursion, cv_form, sum_by_target
 from ..problem import TIE_TOL, Plan
+from .gain_kernels import gains_nb, game_gains_nb, index_pairs_nb, jsfp_step_nb
+from .kernels import candidate_sets_nb, chain_pairs_nb, player_positions_nb
 
 
 @dataclass
-class _ChainCache:
-    """What :meth:`GameState.chain_gains` keeps between calls for one player."""
+class _Pairs:
+    """One player's candidate chains, as the (candidate, target) pairs whose looks count.
+
+    ``data`` holds each pair's information (w00, w01, w11) from its first non-zero step on
+    (:func:`~sensorplan.planners.kernels.chain_pairs_nb`); ``delta`` its cached term change
+    and ``rows`` the other players' information it was computed with (NaN: never).
+    """
 
     key: tuple
+    n_cand: int
+    lo: int                    # sensor i's removed epochs, 0-based [lo, hi)
+    hi: int
     c_pair: IntArray
     j_pair: IntArray
-    W_add: FloatArray
-    W_rows: FloatArray         # the other players' looks each delta was computed with
+    first: IntArray
+    count: IntArray
+    offset: IntArray
+    data: FloatArray
     delta: FloatArray
+    rows: FloatArray           # (M, T, 3)
+    contrib: IntArray          # candidates with a look that counts (sorted)
+    free: int                  # the first candidate without one (-1 if none)
+    owners: IntArray           # candidates that hold pairs (sorted)
+    dups: IntArray             # candidates whose pairs equal an earlier one's (left out) ...
+    dup_of: IntArray           # ... and that earlier candidate: the same utility, always
+    view: tuple | None = None  # an epoch game's (current action, kept actions, c_loc, ...)
 
 
 class GameState:
@@ -61,9 +88,14 @@ class GameState:
         self.W = np.zeros((N, K, e, 2, 2))
         self._cache: dict = {}
         self._actions: dict = {}
+        self._phi: tuple[int, float] | None = None
+        self.version = 0                    # bumped by every change of an action
+        self._covs = _c(np.array(ctx.problem.covs))        # writable copies for the kernels
+        self._Q = _c(np.array(ctx.Q))
+        self._rows_buf: dict[int, FloatArray] = {}
 
     # ----------------------------------------------------------------- plan access
-    def copy(self) -> "GameState":
+    def copy(self) -> GameState:
         other = GameState.__new__(GameState)
         other.ctx = self.ctx
         other.cumulative = self.cumulative
@@ -71,6 +103,10 @@ class GameState:
         other.heading, other.W = self.heading.copy(), self.W.copy()
         other._cache = {}
         other._actions = self._actions          # depends only on the lattices: share it
+        other._phi = None
+        other.version = 0
+        other._covs, other._Q = self._covs, self._Q
+        other._rows_buf = {}
         return other
 
     def xy(self, i: int, k: int, idx: IntArray | int) -> FloatArray:
@@ -87,7 +123,7 @@ class GameState:
         return Plan(positions, self.tgt.copy())
 
     @classmethod
-    def from_plan(cls, ctx: Context, plan: Plan) -> "GameState":
+    def from_plan(cls, ctx: Context, plan: Plan) -> GameState:
         state = cls(ctx)
         for i in range(ctx.N):
             for k in range(1, ctx.K + 1):
@@ -103,6 +139,10 @@ class GameState:
     def assigned(self, i: int, k: int) -> bool:
         """Whether player (i, k) has an action; epoch 0 (the start pose) always counts."""
         return k == 0 or (1 <= k <= self.ctx.K and self.tgt[i, k - 1] >= 0)
+
+    def complete(self) -> bool:
+        """Whether every player has an action."""
+        return bool(np.all(self.tgt >= 0))
 
     # ----------------------------------------------------------------- updates
     def set_action(self, i: int, k: int, pos_idx: int, target: int) -> None:
@@ -121,6 +161,7 @@ class GameState:
     def refresh(self, i: int) -> None:
         """Recompute sensor i's headings and look information from its actions."""
         ctx = self.ctx
+        self.version += 1
         self.heading[i] = np.nan
         self.W[i] = 0.0
         k = 1
@@ -146,12 +187,16 @@ class GameState:
 
     # ----------------------------------------------------------------- evaluation
     def potential(self) -> float:
-        """Phi of the current (partial) plan."""
+        """Phi of the current (partial) plan (cached until an action changes)."""
+        if self._phi is not None and self._phi[0] == self.version:
+            return self._phi[1]
         ctx = self.ctx
         W_t = sum_by_target(ctx, self.W, self.tgt)
         _, ld_end, ld_sum = covariance_recursion(np.asarray(ctx.problem.covs), W_t, ctx.F, ctx.Q,
                                                  self.cumulative)
-        return float(self._phi_terms(ld_end, ld_sum).sum())
+        phi = float(self._phi_terms(ld_end, ld_sum).sum())
+        self._phi = (self.version, phi)
+        return phi
 
     def _phi_terms(self, ld_end: FloatArray, ld_sum: FloatArray) -> FloatArray:
         ctx = self.ctx
@@ -178,7 +223,8 @@ class GameState:
         return base + gains
 
     def chain_gains(self, i: int, k0: int, cand_pos: IntArray, cand_tgt: IntArray,
-                    with_base: bool = False) -> tuple[FloatArray, float]:
+                    with_base: bool = False, token: tuple | None = None
+                    ) -> tuple[FloatArray, float]:
         """Marginal contribution of each candidate chain: Phi(chain) - Phi(no chain).
 
         "No chain" leaves sensor i's epochs ``k0 ..`` up to the end of the assigned run that
@@ -186,129 +232,112 @@ class GameState:
         candidate, so it is a valid utility for every player whose action the chain holds
         (SPEC 4) and the game's decisions are the same with either.
 
+        ``token`` names the candidate set when the caller knows it (see
+        :meth:`action_token`), so that the cache recognises it without comparing arrays.
+
         Returns
         -------
         gains : (C,)
         base : float    Phi(no chain) if ``with_base``, else NaN
         """
+        entry = self._pairs(i, k0, cand_pos, cand_tgt, token)
+        s0 = (k0 - 1) * self.ctx.e
+        gains, ld_pre, ld_end, ld_sum = self._gains(
+            s0, np.array([i]), np.array([entry.lo]), np.array([entry.hi]),
+            np.array([0, len(entry.c_pair)]), entry.c_pair, entry.j_pair, entry.first,
+            entry.count, entry.offset, entry.data, entry.delta, entry.rows[None],
+            np.array([0, entry.n_cand]), with_base)
+        base = float(self._phi_terms(ld_end, ld_pre + ld_sum).sum()) if with_base else np.nan
+        if entry.dups.size:
+            gains[entry.dups] = gains[entry.dup_of]     # identical pairs, identical sums
+        return gains, base
+
+    def _gains(self, s0: int, sensor: IntArray, lo: IntArray, hi: IntArray,
+               pair_off: IntArray, c_loc: IntArray, j_pair: IntArray, first: IntArray,
+               count: IntArray, offset: IntArray, data: FloatArray, delta: FloatArray,
+               rows: FloatArray, cand_off: IntArray,
+               all_targets: bool) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         ctx = self.ctx
-        C, L = cand_tgt.shape
+        cv, dt = cv_form(ctx.F)
+        return gains_nb(self.W, self.tgt, self._covs, ctx.F, self._Q, cv, dt,
+                        self.cumulative, s0, sensor, lo, hi, pair_off, c_loc, j_pair, first,
+                        count, offset, data, delta, rows, cand_off, all_targets)
+
+    def _pairs(self, i: int, k0: int, cand_pos: IntArray, cand_tgt: IntArray,
+               token: tuple | None) -> _Pairs:
+        """The cached pairs of sensor i's candidate chains from epoch k0 (computed if the
+        chain's context or the candidates changed)."""
+        cands = token if token is not None else (cand_pos.tobytes(), cand_tgt.tobytes())
+        return self._cached_pairs(i, k0, cand_tgt.shape[1], cands,
+                                  lambda: (self.xy_chains(i, k0, cand_pos), cand_tgt))
+
+    def _game_pairs(self, i: int, k: int, cand: IntArray, token: tuple) -> _Pairs:
+        """:meth:`_pairs` of player (i, k)'s actions: positions ``cand`` times every target."""
+        M = self.ctx.M
+
+        def candidates() -> tuple[FloatArray, IntArray]:
+            xy = self.xy(i, k, cand)
+            return np.repeat(xy, M, axis=0)[:, None], np.tile(np.arange(M), len(cand))[:, None]
+
+        return self._cached_pairs(i, k, 1, token, candidates)
+
+    def xy_chains(self, i: int, k0: int, cand_pos: IntArray) -> FloatArray:
+        """Ground positions ``(C, L, 2)`` of candidate chains ``cand_pos (C, L)`` from k0."""
+        out = np.empty(cand_pos.shape + (2,))
+        for l in range(cand_pos.shape[1]):
+            out[:, l] = self.xy(i, k0 + l, cand_pos[:, l])
+        return out
+
+    def _cached_pairs(self, i: int, k0: int, L: int, cands: tuple, candidates) -> _Pairs:
+        ctx = self.ctx
         # The chain continues through the following assigned epochs: their headings change.
         k_last = k0 + L - 1
         k_end = self._run_end(i, k_last + 1) if self.assigned(i, k_last + 1) and k_last < ctx.K \
             else k_last
         prev_ok = self.assigned(i, k0 - 1)
         prev = self.heading[i, k0 - 2] if k0 > 1 and prev_ok else ctx.problem.headings[i]
-
-        mask_tgt = self.tgt.copy()
-        mask_tgt[i, k0 - 1:k_end] = -1
-        W_fixed = sum_by_target(ctx, self.W, mask_tgt)                    # (M, T, 2, 2)
-        s0 = (k0 - 1) * ctx.e
         # The chain's own looks depend only on the chain; a (candidate, target) term depends
         # on them and on the other players' looks at that target. Both are cached, so a call
         # recomputes only the terms of targets whose other looks changed since the last call
         # for this player (in JSFP: the targets the neighbours switched to or from).
-        key = (k0, L, prev_ok, float(prev), cand_pos.tobytes(), cand_tgt.tobytes(),
-               self.pos[i, k_last:k_end].tobytes(), self.tgt[i, k_last:k_end].tobytes())
+        key = (k0, L, prev_ok, float(prev), cands, self.pos[i, k_last:k_end].tobytes(),
+               self.tgt[i, k_last:k_end].tobytes())
         entry = self._cache.get((i, k0, L))
-        if entry is None or entry.key != key:
-            c_pair, j_pair, W_add = self._chain_looks(i, k0, cand_pos, cand_tgt, k_end, prev,
-                                                      prev_ok)
-            entry = _ChainCache(key, c_pair, j_pair, W_add, np.full_like(W_fixed, np.nan),
-                                np.zeros(len(c_pair)))
-            self._cache[(i, k0, L)] = entry
-        stale = np.any(entry.W_rows != W_fixed, axis=(1, 2, 3))           # (M,) NaN != all
-        base = np.nan
-        redo = np.flatnonzero(stale)
-        if with_base:
-            redo = np.arange(ctx.M)
-        if redo.size:
-            covs = np.asarray(ctx.problem.covs)[redo]
-            cum = self.cumulative
-            Q = ctx.Q_rows(redo)
-            P_pre, _, ld_pre = covariance_recursion(covs, W_fixed[redo, :s0], ctx.F, Q, cum)
-            _, ld_end_b, ld_sum_b = covariance_recursion(P_pre, W_fixed[redo, s0:], ctx.F, Q,
-                                                         cum)
-            if with_base:
-                base = float(self._phi_terms(ld_end_b, ld_pre + ld_sum_b).sum())
-            where = np.full(ctx.M, -1)
-            where[redo] = np.arange(redo.size)
-            sel = np.flatnonzero(stale[entry.j_pair])
-            if sel.size:
-                r = where[entry.j_pair[sel]]
-                W_pair = W_fixed[entry.j_pair[sel], s0:] + entry.W_add[sel]
-                _, ld_end, ld_sum = covariance_recursion(P_pre[r], W_pair, ctx.F,
-                                                         ctx.Q_rows(entry.j_pair[sel]), cum)
-                if cum:
-                    entry.delta[sel] = 0.5 * (ld_sum_b[r] - ld_sum)
-                else:
-                    entry.delta[sel] = 0.5 * (ld_end_b[r] - ld_end)
-            entry.W_rows[stale] = W_fixed[stale]
-        return np.bincount(entry.c_pair, weights=entry.delta, minlength=C), base
-
-    def contributing(self, i: int, k0: int, L: int = 1) -> IntArray:
-        """Candidates of the last :meth:`chain_gains` call for (i, k0, L) with a look that counts.
-
-        The others have gain exactly 0 against any other players' actions.
-        """
-        c = self._cache[(i, k0, L)].c_pair                # sorted by candidate
-        return c[np.r_[True, c[1:] != c[:-1]]] if c.size else c
-
-    def restrict(self, i: int, k0: int, keep: IntArray, cand_pos: IntArray,
-                 cand_tgt: IntArray) -> None:
-        """Carry the cache of player (i, k0) over to the candidate subset ``keep``.
-
-        ``cand_pos, cand_tgt`` are the kept candidates, ``(len(keep), 1)``; the next
-        :meth:`chain_gains` call with them then reuses the looks already computed.
-        """
-        entry = self._cache[(i, k0, 1)]
-        remap = np.full(int(keep.max()) + 1 if keep.size else 0, -1, dtype=np.int64)
-        remap[keep] = np.arange(keep.size)
-        inside = entry.c_pair < remap.size
-        inside[inside] = remap[entry.c_pair[inside]] >= 0
-        entry.key = entry.key[:4] + (cand_pos.tobytes(), cand_tgt.tobytes()) + entry.key[6:]
-        entry.c_pair = remap[entry.c_pair[inside]]
-        entry.j_pair = entry.j_pair[inside]
-        entry.W_add = entry.W_add[inside]
-        entry.delta = entry.delta[inside]
-
-    def _chain_looks(self, i: int, k0: int, cand_pos: IntArray, cand_tgt: IntArray,
-                     k_end: int, prev: float,
-                     prev_ok: bool) -> tuple[IntArray, IntArray, FloatArray]:
-        """The information every candidate chain adds to each target it looks at.
-
-        Returns
-        -------
-        c_pair, j_pair : (n,) int   every (candidate, target) pair with a look that counts
-        W_add : (n, T - s0, 2, 2)   that pair's information from step ``s0 + 1`` on
-        """
-        ctx = self.ctx
-        C, L = cand_tgt.shape
-        e, M = ctx.e, ctx.M
+        if entry is not None and entry.key == key:
+            return entry
+        xy, tgt_var = candidates()
+        C = len(tgt_var)
         Lf = k_end - k0 + 1
         pos_xy = np.empty((C, Lf, 2))
         tgt = np.empty((C, Lf), dtype=np.int64)
-        for l in range(L):
-            pos_xy[:, l] = self.xy(i, k0 + l, cand_pos[:, l])
-        tgt[:, :L] = cand_tgt
+        pos_xy[:, :L] = xy
+        tgt[:, :L] = tgt_var
         for l in range(L, Lf):
             kk = k0 + l
             pos_xy[:, l] = self.xy(i, kk, self.pos[i, kk - 1])
             tgt[:, l] = self.tgt[i, kk - 1]
-        _, W_chain, counted = chain_looks(ctx, i, k0, pos_xy, tgt, prev, prev_ok,
-                                          all_headings=False)            # (C, Lf, e, 2, 2)
-        # A look that does not count adds nothing: its target keeps its baseline term.
-        counts = counted.any(axis=2)                                      # (C, Lf)
-        c_idx, l_idx = np.nonzero(counts)
-        if Lf == 1:                     # one look per candidate: pairs are already unique
-            c_pair, j_pair = c_idx, tgt[c_idx, 0]
+        c_pair, j_pair, first, count, offset, data, rep = chain_pairs_nb(
+            pos_xy, tgt, k0, ctx.e, float(prev), bool(prev_ok), float(ctx.problem.headings[i]),
+            float(ctx.max_turn[i]), ctx.aim, ctx.xbar_xy, ctx.Cbar, ctx.probabilistic,
+            ctx.radar[i], ctx.T - (k0 - 1) * ctx.e)
+        owners, dups, contrib, free = candidate_sets_nb(c_pair, rep)
+        if L == 1:
+            # Rows of the players of epoch k0 live in one buffer, passed whole to the game.
+            buf = self._rows_buf.get(k0)
+            if buf is None:
+                buf = self._rows_buf[k0] = np.full((ctx.N, ctx.M, ctx.T, 3), np.nan)
+            rows = buf[i]
+            rows[:] = np.nan
         else:
-            c_pair, j_pair = np.divmod(np.unique(c_idx * M + tgt[c_idx, l_idx]), M)
-        W_add = np.zeros((len(c_pair), ctx.T - (k0 - 1) * e, 2, 2))
-        for l in range(Lf):
-            hit = (tgt[c_pair, l] == j_pair)[:, None, None, None]
-            W_add[:, l * e:(l + 1) * e] = np.where(hit, W_chain[c_pair, l], 0.0)
-        return c_pair, j_pair, W_add
+            rows = np.full((ctx.M, ctx.T, 3), np.nan)
+        entry = _Pairs(key, C, k0 - 1, k_end, c_pair, j_pair, first, count, offset, data,
+                       np.zeros(len(c_pair)), rows, contrib, free, owners, dups, rep[dups])
+        self._cache[(i, k0, L)] = entry
+        return entry
+
+    def forget(self, i: int, k0: int, L: int = 1) -> None:
+        """Drop the cached pairs of (i, k0, L) (e.g. an initialisation set never used again)."""
+        self._cache.pop((i, k0, L), None)
 
     # ----------------------------------------------------------------- player actions
     def player_actions(self, i: int, k: int) -> tuple[IntArray, IntArray]:
@@ -324,36 +353,55 @@ class GameState:
         -------
         pos : (P * M,) int lattice indices in R_k;  tgt : (P * M,) int
         """
-        pred = (0 if k == 1 else int(self.pos[i, k - 2])) if self.assigned(i, k - 1) else -1
-        succ = int(self.pos[i, k]) if k < self.ctx.K and self.assigned(i, k + 1) else -1
-        key = (i, k, pred, succ)
-        if key not in self._actions:
-            self._actions[key] = self._player_actions(i, k)
-        return self._actions[key]
+        cand = self.player_positions(i, k)
+        M = self.ctx.M
+        return np.repeat(cand, M), np.tile(np.arange(M), len(cand))
 
-    def _player_actions(self, i: int, k: int) -> tuple[IntArray, IntArray]:
+    def player_positions(self, i: int, k: int) -> IntArray:
+        """The feasible positions of player (i, k) in tie-break order (lattice indices in
+        ``R_k``); its actions are these positions times every target, position-major."""
+        key = self.action_token(i, k)
+        cand = self._actions.get(key)
+        if cand is None:
+            cand = self._player_positions(i, k)
+            if key[3] >= 0:
+                # Sets after an unassigned predecessor (the initialisation's, up to all of
+                # R_k) are used once: not kept.
+                self._actions[key] = cand
+        return cand
+
+    def action_token(self, i: int, k: int) -> tuple:
+        """A key that determines the feasible actions of player (i, k): ``(i, k, p_{k-1},
+        p_{k+1})`` as lattice indices (-1 when that neighbour is unassigned)."""
+        K = self.ctx.K
+        tgt = self.tgt
+        pred = (0 if k == 1 else int(self.pos[i, k - 2])) if k == 1 or tgt[i, k - 2] >= 0 else -1
+        succ = int(self.pos[i, k]) if k < K and tgt[i, k] >= 0 else -1
+        return ("actions", i, k, pred, succ)
+
+    def _player_positions(self, i: int, k: int) -> IntArray:
         lat = self.ctx.lattices[i]
         if self.assigned(i, k - 1):
             q = 0 if k == 1 else self.pos[i, k - 2]
-            row = lat.child[k][q]
-            cand = row[row >= 0]                         # already in move order
+            cand = lat.child[k][q]                       # in move order; -1 outside the map
+            cand = cand[cand >= 0]
             ref = lat.positions[k - 1][q]
         else:
             cand = np.arange(len(lat.positions[k]))
             ref = lat.positions[0][0]
+        parents, use = _NONE, False
         if k < self.ctx.K and self.assigned(i, k + 1):
-            parents = lat.parent_move[k + 1][self.pos[i, k]]
-            cand = cand[np.isin(cand, parents[parents >= 0])]
-        dist = np.rint(np.linalg.norm(lat.positions[k][cand] - ref, axis=1) * 1e6)
-        cand = cand[np.argsort(dist, kind="stable")]
-        M = self.ctx.M
-        return np.repeat(cand, M), np.tile(np.arange(M), len(cand))
+            parents, use = lat.parent_move[k + 1][self.pos[i, k]], True
+        return player_positions_nb(lat.positions[k], cand, _c(parents, np.int64), use, _c(ref))
+
+
+_NONE = np.zeros(0, dtype=np.int64)
 
 
 def choose(values: FloatArray, current: int = -1, scale: float | None = None) -> int:
     """Index of the best value under SPEC 4's tie rule.
 
-    Values within ``1e-9 max(1, scale)`` of the maximum tie (``scale`` = |Phi|, by default
+    Values within ``TIE_TOL max(1, scale)`` of the maximum tie (``scale`` = |Phi|, by default
     the largest value); the current action wins a tie, then the earliest index (callers
     order actions by distance, move, target).
     """
@@ -363,3 +411,138 @@ def choose(values: FloatArray, current: int = -1, scale: float | None = None) ->
     if current >= 0 and near[current]:
         return current
     return int(np.argmax(near))
+
+
+class EpochGame:
+    """The players (i, k), i = 0..N-1, of one epoch game, batched for the compiled kernels.
+
+    Each player's feasible actions are fixed for the whole game (only epoch k changes), and
+    so are its chain's looks. Actions whose looks never count have utility exactly 0 whatever
+    the others do; only the first of them in tie order (and the current action) can ever be
+    chosen, so the game is played on the rest: same decisions, far fewer candidates.
+
+    Attributes
+    ----------
+    actions : list of (pos, tgt)   each player's kept actions, in tie order
+    cur : (N,) int                 index of each player's current action (-1 unassigned)
+    cand_off : (N + 1,) int        player i's utilities are ``u[cand_off[i]:cand_off[i+1]]``
+    """
+
+    def __init__(self, state: GameState, k: int, check: Callable[[], None] | None = None
+                 ) -> None:
+        self.state, self.k = state, k
+        N = state.ctx.N
+        self.actions: list[tuple[IntArray, IntArray]] = []
+        self.cur = np.full(N, -1, dtype=np.int64)
+        self._init_sets = []
+        entries, c_loc, aliases = [], [], []
+        M = state.ctx.M
+        for i in range(N):
+            if check is not None and i > 0:
+                check()                          # a time budget's safe point
+            token = state.action_token(i, k)
+            cand = state.player_positions(i, k)
+            entry = state._game_pairs(i, k, cand, token)
+            if token[3] < 0 and k > 1:
+                self._init_sets.append(i)
+            cur = -1
+            if state.tgt[i, k - 1] >= 0:
+                q = np.flatnonzero(cand == state.pos[i, k - 1])
+                cur = int(q[0]) * M + int(state.tgt[i, k - 1]) if q.size else -1
+            if entry.view is None or entry.view[0] != cur:
+                # Kept: candidates holding pairs, the first without a counting look, the
+                # current action. A duplicate (same pairs as an earlier candidate) can only
+                # be chosen as the current action; it then takes its original's utility.
+                keep = entry.owners
+                for extra in (entry.free, cur):
+                    if extra >= 0:
+                        at = int(np.searchsorted(keep, extra))
+                        if at == len(keep) or keep[at] != extra:
+                            keep = np.insert(keep, at, extra)
+                cur_loc = int(np.searchsorted(keep, cur)) if cur >= 0 else -1
+                alias = -1
+                if cur >= 0 and entry.dups.size:
+                    d = int(np.searchsorted(entry.dups, cur))
+                    if d < entry.dups.size and entry.dups[d] == cur:
+                        alias = int(np.searchsorted(keep, entry.dup_of[d]))
+                entry.view = (cur, (cand[keep // M], keep % M), cur_loc,
+                              np.searchsorted(keep, entry.c_pair), alias)
+            _, actions, self.cur[i], loc, alias = entry.view
+            self.actions.append(actions)
+            entries.append(entry)
+            c_loc.append(loc)
+            aliases.append(alias)
+        sizes = np.array([len(a[0]) for a in self.actions])
+        self.cand_off = np.r_[0, np.cumsum(sizes)]
+        al = np.array([(self.cand_off[i] + self.cur[i], self.cand_off[i] + a)
+                       for i, a in enumerate(aliases) if a >= 0], dtype=np.int64).reshape(-1, 2)
+        self._alias_dst, self._alias_src = al[:, 0].copy(), al[:, 1].copy()
+        n_pairs = np.array([len(en.c_pair) for en in entries])
+        n_data = np.array([len(en.data) for en in entries])
+        self._pair_off = np.r_[0, np.cumsum(n_pairs)]
+        data_off = np.r_[0, np.cumsum(n_data)]
+        cat = np.concatenate
+        self._c_loc = cat(c_loc)
+        self._j = cat([en.j_pair for en in entries])
+        self._first = cat([en.first for en in entries])
+        self._count = cat([en.count for en in entries])
+        self._offset = cat([en.offset + data_off[i] for i, en in enumerate(entries)])
+        self._data = _c(cat([en.data for en in entries]))
+        self._delta = cat([en.delta for en in entries])
+        self._rows = state._rows_buf[k]          # every entry's rows are views into it
+        self._hi = np.array([en.hi for en in entries])
+        for i, en in enumerate(entries):
+            # The cache keeps working on the game's buffer (views): no copy back needed.
+            en.delta = self._delta[self._pair_off[i]:self._pair_off[i + 1]]
+        ctx = state.ctx
+        self._by_t, self._t_off, self._cp_off = index_pairs_nb(
+            self._pair_off, self._c_loc, self._j, self.cand_off, ctx.M)
+        n = int(self.cand_off[-1])
+        self._gcache = np.zeros(n)
+        self._dirty = np.zeros(n, dtype=bool)
+        self._dlist = np.empty(n, dtype=np.int64)
+        self._seen = np.full((N, ctx.M), -1, dtype=np.int64)
+        self._tot_ver = np.zeros(ctx.M, dtype=np.int64)
+        S = ctx.T - (k - 1) * ctx.e
+        self._shared = np.zeros(1, dtype=bool)
+        self._pre = np.empty((ctx.M, 4, 4))
+        self._tot_rows = np.full((ctx.M, ctx.T, 3), np.nan)
+        self._tot_pred = np.empty((ctx.M, S, 4, 4))
+        self._tot_part = np.empty((ctx.M, S))
+        self._tot_ld = np.empty((ctx.M, 2))
+
+    def utilities(self) -> FloatArray:
+        """Every player's utility of each kept action (marginal contributions), concatenated."""
+        st = self.state
+        cv, dt = cv_form(st.ctx.F)
+        return game_gains_nb(st.W, st.tgt, st._covs, st.ctx.F, st._Q, cv, dt, st.cumulative,
+                             self.k, self._hi, self._c_loc, self._j, self._first, self._count,
+                             self._offset, self._data, self._delta, self._rows, self._by_t,
+                             self._t_off, self._cp_off, self.cand_off, self._gcache,
+                             self._dirty, self._dlist, self._seen, self._shared, self._pre,
+                             self._tot_rows, self._tot_ver, self._tot_pred, self._tot_part,
+                             self._tot_ld, self._alias_dst, self._alias_src)
+
+    def split(self, values: FloatArray) -> list[FloatArray]:
+        """Per-player views of concatenated values."""
+        return [values[a:b] for a, b in pairwise(self.cand_off.tolist())]
+
+    def step(self, u: FloatArray, ubar: FloatArray, t: int,
+             scale: float) -> tuple[bool, FloatArray, IntArray]:
+        """Equilibrium test, running averages and best responses of iteration ``t``.
+
+        The equilibrium: no player can raise its utility ``u`` by more than
+        ``TIE_TOL max(1, scale)``. Otherwise ``ubar <- (t-1)/t ubar + u/t`` and each player's
+        best response is ``argmax ubar`` under the tie rule (see :func:`choose`).
+
+        Returns
+        -------
+        equilibrium : bool;  ubar : new averages (unchanged at an equilibrium);
+        best : (N,) indices into each player's kept actions
+        """
+        return jsfp_step_nb(u, ubar, t, self.cand_off, self.cur, TIE_TOL * max(1.0, scale))
+
+    def close(self) -> None:
+        """Forget the initialisation sets' pairs (their actions are never offered again)."""
+        for i in self._init_sets:
+            self.state.forget(i, self.k)

@@ -8,17 +8,19 @@ players then play joint strategy fictitious play with inertia, everyone else fix
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import ClassVar, Iterator
+from typing import ClassVar
 
 import numpy as np
 
 from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..information import prepare
-from ..problem import TIE_TOL, PlanningProblem
+from ..problem import PlanningProblem
+from .anytime import Anytime, BudgetExhausted, check_budget, complete
 from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
-from .engine import GameState, choose
+from .engine import EpochGame, GameState
 
 
 @dataclass
@@ -54,26 +56,9 @@ def current_index(state: GameState, i: int, k: int, pos: IntArray, tgt: IntArray
     return int(hit[0]) if hit.size else -1
 
 
-def _relevant(contributing: IntArray, n: int, current: int) -> IntArray:
-    """Indices to keep: every action with a counting look, the first without, the current."""
-    keep = np.zeros(n, dtype=bool)
-    keep[contributing] = True
-    if not keep.all():
-        keep[int(np.argmin(keep))] = True
-    if current >= 0:
-        keep[current] = True
-    return np.flatnonzero(keep)
-
-
-def is_best(values: FloatArray, current: int, scale: float) -> bool:
-    """No action raises the utility by more than ``1e-9 max(1, scale)``, scale = |Phi|."""
-    if current < 0:
-        return False
-    return bool(values.max() <= float(values[current]) + TIE_TOL * max(1.0, scale))
-
-
 def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float, beta: float,
-               max_inner: int) -> Iterator[EpochState]:
+               max_inner: int, check: Callable[[], None] | None = None
+               ) -> Iterator[EpochState]:
     """JSFP with inertia among players (i, k), i = 0..N-1 (mutates ``state``).
 
     Each iteration every player computes its utility of every feasible action against the
@@ -82,46 +67,45 @@ def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float,
     ``argmax ubar`` (SPEC tie rule) and each player switches to it with probability
     ``1 - alpha`` (an unassigned player always does); then the loop ends with probability
     ``1 - beta``, or after ``max_inner`` iterations.
+
+    Actions whose looks never count are left out (see :class:`EpochGame`): they have
+    utility 0 whatever the others do and only the first of them can ever be chosen.
+    ``check`` (a time budget's) is called between the players' preparations.
     """
     N = state.ctx.N
-    actions = [state.player_actions(i, k) for i in range(N)]   # fixed within the epoch game
-    ubar = [np.zeros(len(a[0])) for a in actions]
-    for t in range(1, max_inner + 1):
-        # Utilities are marginal contributions: Phi up to a term the player cannot change.
-        u = [state.chain_gains(i, k, actions[i][0][:, None], actions[i][1][:, None])[0]
-             for i in range(N)]
-        scale = abs(state.potential())
-        if t == 1:
-            cur = [current_index(state, i, k, *actions[i]) for i in range(N)]
-            # Actions whose looks never count have utility 0 whatever the others do; only
-            # the first of them in tie order (and the current action) can ever be chosen,
-            # so the game is played on the rest: same decisions, far fewer candidates.
+    game = EpochGame(state, k, check)
+    cur = game.cur
+    ubar = np.zeros(game.cand_off[-1])
+    try:
+        for t in range(1, max_inner + 1):
+            # Utilities are marginal contributions: Phi up to a term the player cannot change.
+            u = game.utilities()
+            scale = abs(state.potential())
+            eq, ubar, best = game.step(u, ubar, t, scale)
+            yield EpochState(t, game.split(u), game.split(ubar), eq)
+            if eq:
+                return
+            switch = rng.random(N) >= alpha                 # switch w.p. 1 - alpha (inertia)
             for i in range(N):
-                keep = _relevant(state.contributing(i, k), len(u[i]), cur[i])
-                actions[i] = (actions[i][0][keep], actions[i][1][keep])
-                state.restrict(i, k, keep, actions[i][0][:, None], actions[i][1][:, None])
-                u[i] = u[i][keep]
-                ubar[i] = ubar[i][keep]
-                cur[i] = current_index(state, i, k, *actions[i])
-        eq = all(is_best(u[i], cur[i], scale) for i in range(N))
-        if not eq:
-            ubar = [(t - 1) / t * ubar[i] + u[i] / t for i in range(N)]
-        yield EpochState(t, u, ubar, eq)
-        if eq:
-            return
-        switch = rng.random(N) >= alpha                 # switch w.p. 1 - alpha (inertia)
-        for i in range(N):
-            best = choose(ubar[i], cur[i], scale)
-            if best != cur[i] and (cur[i] < 0 or switch[i]):
-                state.set_action(i, k, int(actions[i][0][best]), int(actions[i][1][best]))
-                cur[i] = best                  # only this loop changes epoch k's actions
-        if rng.random() >= beta:                        # stop w.p. 1 - beta
-            return
+                if best[i] != cur[i] and (cur[i] < 0 or switch[i]):
+                    pos, tgt = game.actions[i]
+                    state.set_action(i, k, int(pos[best[i]]), int(tgt[best[i]]))
+                    cur[i] = best[i]           # only this loop changes epoch k's actions
+            if rng.random() >= beta:                        # stop w.p. 1 - beta
+                return
+    finally:
+        game.close()
 
 
 def run_sweeps(state: GameState, rng: np.random.Generator, alpha: float, beta: float,
-               max_inner: int, max_outer: int) -> tuple[bool, int, list[float]]:
+               max_inner: int, max_outer: int,
+               anytime: Anytime | None = None) -> tuple[bool, int, list[float]]:
     """Outer sweeps k = K..1 until a sweep changes nothing and ends at equilibria.
+
+    With ``anytime`` (a time budget), every JSFP iteration is a check (the current plan is
+    offered when complete); in the first sweep the partial plan's completion is offered
+    after iterations 1, 2, 4, 8, ... and at the end of each epoch game; ``anytime.sweeps``/``anytime.trace`` follow the progress. Stopping
+    raises :class:`~sensorplan.planners.anytime.BudgetExhausted`.
 
     Returns
     -------
@@ -133,17 +117,33 @@ def run_sweeps(state: GameState, rng: np.random.Generator, alpha: float, beta: f
     trace: list[float] = []
     for sweep in range(1, max_outer + 1):
         changed, all_eq = False, True
+        if anytime is not None:
+            anytime.sweeps += 1
         for k in range(K, 0, -1):
             before = (state.pos[:, k - 1].copy(), state.tgt[:, k - 1].copy())
             last = None
-            for last in jsfp_epoch(state, k, rng, alpha, beta, max_inner):
-                pass
+            check = None
+            if anytime is not None:
+                anytime.check(state)
+                check = anytime.check
+            for last in jsfp_epoch(state, k, rng, alpha, beta, max_inner, check):
+                if anytime is not None:
+                    t = last.iteration
+                    if t > 1 and (t - 1) & (t - 2) == 0 and not state.complete():
+                        # First sweep: offer the completed partial plan after iterations
+                        # 1, 2, 4, 8, ... of each epoch game (a few completions per game).
+                        anytime.offer(complete(state))
+                    anytime.check(state)
+            if anytime is not None and not state.complete():
+                anytime.offer(complete(state))
             # A loop that ended by chance or by max_inner may still sit at an equilibrium
             # reached by its last switch; only a verified equilibrium counts.
             all_eq &= last is not None and last.equilibrium
             changed |= bool(np.any(before[0] != state.pos[:, k - 1])
                             or np.any(before[1] != state.tgt[:, k - 1]))
         trace.append(state.potential())
+        if anytime is not None:
+            anytime.trace.append(trace[-1])
         if not changed and all_eq:
             return True, sweep, trace
     return False, max_outer, trace
@@ -171,6 +171,12 @@ class LearningSettings:
     beta : float       probability that an inner loop continues after an iteration
     max_inner, max_outer : int
     seed : int or None used when ``plan`` gets no ``rng``
+    time_budget : float or None
+        Seconds the planner may use (None: no limit). When they run out it returns the best
+        complete plan found so far (``converged`` False, ``budget_exhausted`` True); see
+        :mod:`sensorplan.planners.anytime`. A budget makes a stopped run's result depend on
+        the machine's speed; without one, or if the run ends in time, the result is the
+        same as without a budget.
     """
 
     alpha: float = 0.3
@@ -178,9 +184,11 @@ class LearningSettings:
     max_inner: int = 50
     max_outer: int = 10
     seed: int | None = 0
+    time_budget: float | None = None
 
     def __post_init__(self) -> None:
         check_learning_params(self.alpha, self.beta, self.max_inner, self.max_outer)
+        check_budget(self.time_budget)
 
     @property
     def learning(self) -> tuple[float, float, int, int]:
@@ -195,9 +203,19 @@ class PotentialGamePlanner(LearningSettings):
     name: ClassVar[str] = "pg"
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
-        start = start_clock()
+        start = start_clock(engine=True)
         gen = make_rng(rng, self.seed)
         ctx = prepare(problem)
         state = GameState(ctx)
-        converged, sweeps, trace = run_sweeps(state, gen, *self.learning)
+        if self.time_budget is None:
+            converged, sweeps, trace = run_sweeps(state, gen, *self.learning)
+            return finish(self.name, ctx, state.to_plan(), start, converged, sweeps,
+                          tuple(trace))
+        anytime = Anytime(self.time_budget, start)
+        anytime.offer(complete(state))                 # the first complete plan, fast
+        try:
+            converged, sweeps, trace = run_sweeps(state, gen, *self.learning, anytime=anytime)
+        except BudgetExhausted:
+            return finish(self.name, ctx, anytime.best_plan(), start, False, anytime.sweeps,
+                          tuple(anytime.trace), budget_exhausted=True)
         return finish(self.name, ctx, state.to_plan(), start, converged, sweeps, tuple(trace))

@@ -25,6 +25,7 @@ import numpy as np
 from .._types import IntArray
 from ..information import prepare
 from ..problem import TIE_TOL, PlanningProblem
+from .anytime import Anytime, BudgetExhausted, complete
 from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
 from .engine import GameState, choose
 from .greedy import sequential_greedy
@@ -32,7 +33,7 @@ from .potential_game import LearningSettings, current_index, run_sweeps
 
 
 def _improves(new: float, old: float, scale: float) -> bool:
-    """``new`` beats ``old`` by more than the tolerance ``1e-9 max(1, |Phi|)`` (SPEC 4)."""
+    """``new`` beats ``old`` by more than the tolerance ``TIE_TOL max(1, |Phi|)`` (SPEC 4)."""
     return bool(new > old + TIE_TOL * max(1.0, scale))
 
 
@@ -56,12 +57,14 @@ def pair_moves(state: GameState, i: int, k: int) -> IntArray:
     return pairs
 
 
-def local_search(state: GameState, max_candidates: int = 2500) -> int:
+def local_search(state: GameState, max_candidates: int = 2500,
+                 anytime: Anytime | None = None) -> int:
     """Improve ``state`` in place until no two-epoch move or single player raises Phi.
 
     A two-epoch move changes one sensor's positions in epochs k and k+1; when the
     ``pairs x M^2`` candidates fit in ``max_candidates`` its targets in both epochs are chosen
     jointly too, otherwise they are kept (SPEC 4's move), which bounds the cost per move.
+    With ``anytime`` (a time budget) every move considered is a check.
 
     Returns the number of rounds.
     """
@@ -75,6 +78,8 @@ def local_search(state: GameState, max_candidates: int = 2500) -> int:
         scale = abs(state.potential())
         for i in range(ctx.N):
             for k in range(1, ctx.K):
+                if anytime is not None:
+                    anytime.check(state)
                 pairs = pair_moves(state, i, k)
                 if len(pairs) * ctx.M**2 <= max_candidates:
                     M = ctx.M
@@ -92,6 +97,8 @@ def local_search(state: GameState, max_candidates: int = 2500) -> int:
                     improved = True
         for k in range(ctx.K, 0, -1):
             for i in range(ctx.N):
+                if anytime is not None:
+                    anytime.check(state)
                 pos, tgt = state.player_actions(i, k)
                 gains = state.chain_gains(i, k, pos[:, None], tgt[:, None])[0]
                 cur = current_index(state, i, k, pos, tgt)
@@ -111,20 +118,41 @@ class RefinedPlanner(LearningSettings):
     name: ClassVar[str] = "pg-refine"
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
-        start = start_clock()
+        start = start_clock(engine=True)
         gen = make_rng(rng, self.seed)
         gen_pg = copy.deepcopy(gen)       # pg's own stream: start 1 is exactly `pg`'s plan
         ctx = prepare(problem)
+        anytime = None
+        if self.time_budget is not None:
+            anytime = Anytime(self.time_budget, start)
+            anytime.offer(complete(GameState(ctx)))    # the first complete plan, fast
+        try:
+            return self._refine(ctx, gen, gen_pg, start, anytime)
+        except BudgetExhausted:
+            assert anytime is not None
+            return finish(self.name, ctx, anytime.best_plan(), start, False, anytime.sweeps,
+                          tuple(anytime.trace), budget_exhausted=True)
+
+    def _refine(self, ctx, gen: np.random.Generator, gen_pg: np.random.Generator,
+                start: float, anytime: Anytime | None) -> PlanResult:
         settings = self.learning
+        # The greedy start first: it is deterministic and fast, so a budgeted run holds a
+        # good plan early (the order of the starts does not change the result).
+        greedy_state = sequential_greedy(ctx, anytime)
+        if anytime is not None:
+            anytime.offer(greedy_state)
         pg_state = GameState(ctx)
-        _, sweeps_pg, trace = run_sweeps(pg_state, gen_pg, *settings)
-        greedy_state = sequential_greedy(ctx)
+        _, sweeps_pg, trace = run_sweeps(pg_state, gen_pg, *settings, anytime=anytime)
+        if anytime is not None:
+            anytime.offer(pg_state)
         continued = greedy_state.copy()
-        _, sweeps_cont, trace_cont = run_sweeps(continued, gen, *settings)
+        _, sweeps_cont, trace_cont = run_sweeps(continued, gen, *settings, anytime=anytime)
+        if anytime is not None:
+            anytime.offer(continued)
         starts = [pg_state, greedy_state, continued]
         values = [s.potential() for s in starts]
         best = starts[int(np.argmax(values))]
-        rounds = local_search(best)
+        rounds = local_search(best, anytime=anytime)
         trace_all = tuple(trace) + tuple(trace_cont) + (best.potential(),)
         return finish(self.name, ctx, best.to_plan(), start, True,
                       sweeps_pg + sweeps_cont + rounds, trace_all)

@@ -67,6 +67,9 @@ P_VIS_MIN = 1e-6
 #: Constants of the clutter factor of detection-aware planning,
 #: q2 = 1 / (1 + b Pd^-c lam^d) (see :func:`clutter_factor`; scripts/irf_fit.py).
 IRF_B, IRF_C, IRF_D = 22.64, 1.134, 1.005
+#: A planned look whose predicted ground range is more than this many standard deviations
+#: outside the range band does not count: its in-band mass is below Ncdf(-6) ~ 1e-9.
+BAND_SIGMAS = 6.0
 
 
 # ------------------------------------------------------------------ scalar kernels
@@ -76,7 +79,9 @@ IRF_B, IRF_C, IRF_D = 22.64, 1.134, 1.005
 def wrap(a: float) -> float:
     """Wrap an angle to (-pi, pi] (as :func:`sensorplan.angles.wrap_angle`)."""
     two_pi = 2.0 * math.pi
-    w = math.pi - ((math.pi - a) % two_pi)
+    x = math.pi - a
+    # x % two_pi is x itself for 0 <= x < two_pi (the usual case): skip the floating modulo.
+    w = math.pi - (x if 0.0 <= x < two_pi else x % two_pi)
     return w + two_pi if w <= -math.pi else w
 
 
@@ -311,9 +316,27 @@ def range_weight(row: np.ndarray, ux: float, uy: float, g: float, c00: float, c0
     gmin, gmax = row[G_MIN], row[G_MAX]
     # More than 6 sd outside the band the mass is below Ncdf(-6) ~ 1e-9, far below
     # P_VIS_MIN: skip the two erfc calls (most looks of a large candidate set are far out).
-    if sd > 0.0 and (g > gmax + 6.0 * sd or g < gmin - 6.0 * sd):
+    if sd > 0.0 and (g > gmax + BAND_SIGMAS * sd or g < gmin - BAND_SIGMAS * sd):
         return 0.0
     return _interval(gmin - g, gmax - g, sd)
+
+
+@njit(cache=True, error_model="numpy")
+def reach(row: np.ndarray, c00: float, c01: float, c11: float, probabilistic: bool) -> float:
+    """A ground range (m) beyond which no planned look at the target can count.
+
+    :func:`range_weight` is 0 for every ground range above it, in any direction, when the
+    target's position covariance has the entries ``c00, c01, c11``: ``g_max + 6 sd`` with
+    ``sd`` the largest standard deviation of that covariance (``probabilistic``), else the
+    band's edge; both with a margin for round-off. Planners use it to skip far candidates
+    without evaluating them.
+    """
+    if probabilistic:
+        lam = 0.5 * (c00 + c11) + math.sqrt(0.25 * (c00 - c11) ** 2 + c01 * c01)
+        edge = row[G_MAX] + BAND_SIGMAS * math.sqrt(max(lam, 0.0) * (1.0 + 1e-9))
+    else:
+        edge = row[G_MAX] + RANGE_TOL
+    return edge * (1.0 + 1e-12) + 1e-9
 
 
 @njit(cache=True, error_model="numpy")
@@ -327,20 +350,47 @@ def look(row: np.ndarray, dx: float, dy: float, heading: float, c00: float, c01:
     mean and the clutter factor (:func:`detection_probability`, :func:`clutter_factor`).
     A look with ``p < P_VIS_MIN`` gives zeros.
     """
-    g2 = dx * dx + dy * dy
-    if g2 == 0.0:
-        return 0.0, 0.0, 0.0, 0.0
-    g = math.sqrt(g2)
-    ux, uy = dx / g, dy / g
-    p = range_weight(row, ux, uy, g, c00, c01, c11, probabilistic)
+    p, g2, g = look_range(row, dx, dy, c00, c01, c11, probabilistic)
     if p < P_VIS_MIN:
         return 0.0, 0.0, 0.0, 0.0
+    return look_in_range(row, dx, dy, g2, g, p, heading, c00, c01, c11, probabilistic)
+
+
+@njit(cache=True, error_model="numpy")
+def look_range(row: np.ndarray, dx: float, dy: float, c00: float, c01: float, c11: float,
+               probabilistic: bool) -> tuple[float, float, float]:
+    """The heading-free first part of :func:`look`: the range factor ``p`` of the weight
+    (:func:`range_weight`; 0 at the nadir), with ``g^2`` and ``g``."""
+    g2 = dx * dx + dy * dy
+    if g2 == 0.0:
+        return 0.0, g2, 0.0
+    g = math.sqrt(g2)
+    return range_weight(row, dx / g, dy / g, g, c00, c01, c11, probabilistic), g2, g
+
+
+@njit(cache=True, error_model="numpy")
+def look_in_range(row: np.ndarray, dx: float, dy: float, g2: float, g: float, p: float,
+                  heading: float, c00: float, c01: float, c11: float,
+                  probabilistic: bool) -> tuple[float, float, float, float]:
+    """The rest of :func:`look` given :func:`look_range`'s ``p >= P_VIS_MIN``, ``g2``, ``g``
+    (a planner computes that part once for looks that differ only in heading)."""
+    return look_at_azimuth(row, dx, dy, g2, g, p, math.atan2(dy, dx), heading, c00, c01, c11,
+                           probabilistic)
+
+
+@njit(cache=True, error_model="numpy")
+def look_at_azimuth(row: np.ndarray, dx: float, dy: float, g2: float, g: float, p: float,
+                    azimuth: float, heading: float, c00: float, c01: float, c11: float,
+                    probabilistic: bool) -> tuple[float, float, float, float]:
+    """:func:`look_in_range` given the azimuth ``atan2(dy, dx)`` (a planner that has just
+    computed the same bearing for the heading rule passes it on)."""
+    ux, uy = dx / g, dy / g
     r2 = g2 + row[ALTITUDE2]
     r = math.sqrt(r2)
     cpsi = cos_psi(row, dx, dy, math.cos(heading), math.sin(heading), r)
     if cpsi <= 0.0:
         return 0.0, 0.0, 0.0, 0.0
-    d = wrap(math.atan2(dy, dx) - heading)
+    d = wrap(azimuth - heading)
     if probabilistic:
         sd_phi = math.sqrt(max(uy * uy * c00 - 2.0 * ux * uy * c01 + ux * ux * c11, 0.0)) / g
         fov = row[FOV]

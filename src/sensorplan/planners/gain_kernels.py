@@ -1,0 +1,490 @@
+"""Compiled kernels of the planning engine: utilities from sparse pairs.
+
+:func:`gains_nb` (one sensor's candidates, the :meth:`GameState.chain_gains` path) and
+:func:`game_gains_nb` (every player of an epoch game, once per JSFP iteration) turn the pairs
+of :func:`sensorplan.planners.kernels.chain_pairs_nb` into utilities: they sum the other
+players' looks, recompute each target's baseline recursion where those looks changed, and
+then the pairs of those targets only. :func:`jsfp_step_nb` does an iteration's bookkeeping.
+
+Both repeat, operation for operation, what the readable path does (a dense covariance
+recursion per pair, ``tests/engine_reference.py``): the same predict and update steps in the
+same order, so every utility is bit for bit the one the dense computation gives. What they
+skip is only work whose result is known exactly (see each function).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .._kernels import logdet4, predict_step, update_step
+
+
+@njit(cache=True, fastmath=False)
+def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q: np.ndarray,
+             cv: bool, dt: float, cum: bool, s0: int, sensor: np.ndarray, lo: np.ndarray,
+             hi: np.ndarray, pair_off: np.ndarray, c_loc: np.ndarray, j_pair: np.ndarray,
+             first: np.ndarray, count: np.ndarray, offset: np.ndarray, data: np.ndarray,
+             delta: np.ndarray, rows: np.ndarray, cand_off: np.ndarray,
+             all_targets: bool) -> tuple:
+    """Utilities of a batch of players, updating their cached pair terms in place.
+
+    Player ``p`` is sensor ``sensor[p]`` with its epochs ``lo[p] .. hi[p] - 1`` (0-based)
+    removed ("no chain"); its pairs are ``pair_off[p] .. pair_off[p + 1] - 1`` (candidate
+    ``c_loc`` among its ``cand_off[p + 1] - cand_off[p]`` candidates). ``rows[p]`` holds, per
+    target and step, the other players' summed information (w00, w01, w11) the cached
+    ``delta`` were computed with (NaN: never); a pair is recomputed only if its target's row
+    changed. ``delta`` of a pair is ``term_j(no chain + pair) - term_j(no chain)``.
+
+    Returns
+    -------
+    gains : (cand_off[-1],)       each candidate's sum of its pairs' delta
+    ld_pre, ld_end, ld_sum : (M,) the "no chain" recursion of each target (all targets when
+                                  ``all_targets``, else only those recomputed for the last
+                                  player): log-dets summed before ``s0``, at the end, and
+                                  summed from ``s0`` on
+    """
+    N, K, e = Wp.shape[0], Wp.shape[1], Wp.shape[2]
+    M = covs.shape[0]
+    T = K * e
+    S = T - s0
+    shared_q = Q.shape[0] == 1
+    gains = np.zeros(cand_off[-1])
+    Wf = np.zeros((M, T, 3))
+    stale = np.zeros(M, dtype=np.bool_)
+    P_pred = np.empty((M, S, 4, 4))
+    part = np.empty((M, S))
+    ld_pre = np.zeros(M)
+    ld_end = np.zeros(M)
+    ld_sum = np.zeros(M)
+    P = np.empty((4, 4))
+    FP = np.empty((4, 4))
+    Pc = np.empty((4, 2))
+    by_t = np.empty(j_pair.shape[0], dtype=np.int64)
+    t_off = np.zeros(M + 1, dtype=np.int64)
+    fill = np.zeros(M, dtype=np.int64)
+    has_pair = np.zeros(M, dtype=np.bool_)
+    for p in range(sensor.shape[0]):
+        i = sensor[p]
+        # The other players' looks, summed by target and step in the order of
+        # information.sum_by_target (sensors, then epochs): bit for bit the same sums.
+        Wf[:] = 0.0
+        for i2 in range(N):
+            for k2 in range(K):
+                j = tgt[i2, k2]
+                if j < 0 or (i2 == i and lo[p] <= k2 < hi[p]):
+                    continue
+                for s in range(e):
+                    t = k2 * e + s
+                    Wf[j, t, 0] += Wp[i2, k2, s, 0, 0]
+                    Wf[j, t, 1] += Wp[i2, k2, s, 0, 1]
+                    Wf[j, t, 2] += Wp[i2, k2, s, 1, 1]
+        has_pair[:] = False
+        for q in range(pair_off[p], pair_off[p + 1]):
+            has_pair[j_pair[q]] = True
+        for j in range(M):
+            stale[j] = False
+            for t in range(T):
+                if (rows[p, j, t, 0] != Wf[j, t, 0] or rows[p, j, t, 1] != Wf[j, t, 1]
+                        or rows[p, j, t, 2] != Wf[j, t, 2]):
+                    stale[j] = True
+                    break
+            # The baseline is needed for targets with a pair, or for every target when the
+            # caller wants Phi(no chain).
+            if not (all_targets or (stale[j] and has_pair[j])):
+                continue
+            # "No chain" recursion of target j: up to s0, then from s0 on, keeping the
+            # predicted covariance and the running log-det sum of every step.
+            qb = 0 if shared_q else j
+            for r in range(4):
+                for c in range(4):
+                    P[r, c] = covs[j, r, c]
+            acc = 0.0
+            for t in range(s0):
+                predict_step(P, F, Q, qb, cv, dt, FP)
+                update_step(P, Wf[j, t, 0], Wf[j, t, 1], Wf[j, t, 2], Pc, FP)
+                if cum:
+                    acc += logdet4(P)
+            ld_pre[j] = acc
+            acc = 0.0
+            for t in range(S):
+                predict_step(P, F, Q, qb, cv, dt, FP)
+                for r in range(4):
+                    for c in range(4):
+                        P_pred[j, t, r, c] = P[r, c]
+                update_step(P, Wf[j, s0 + t, 0], Wf[j, s0 + t, 1], Wf[j, s0 + t, 2], Pc, FP)
+                if cum:
+                    acc += logdet4(P)
+                part[j, t] = acc
+            ld_end[j] = logdet4(P)
+            ld_sum[j] = acc
+        # The pairs of stale targets, grouped by target.
+        a, b = pair_off[p], pair_off[p + 1]
+        for j in range(M + 1):
+            t_off[j] = 0
+        for q in range(a, b):
+            if stale[j_pair[q]]:
+                t_off[j_pair[q] + 1] += 1
+        for j in range(M):
+            t_off[j + 1] += t_off[j]
+            fill[j] = t_off[j]
+        for q in range(a, b):
+            j = j_pair[q]
+            if stale[j]:
+                by_t[fill[j]] = q
+                fill[j] += 1
+        for j in range(M):
+            if t_off[j + 1] > t_off[j]:
+                _deltas(by_t, t_off[j], t_off[j + 1], P_pred, part, ld_end[j], ld_sum[j], Wf,
+                        j, s0, first, count, offset, data, delta, F, Q,
+                        0 if shared_q else j, cv, dt, cum, P, FP, Pc)
+        for q in range(a, b):
+            gains[cand_off[p] + c_loc[q]] += delta[q]
+        for j in range(M):
+            if stale[j]:
+                for t in range(T):
+                    for x in range(3):
+                        rows[p, j, t, x] = Wf[j, t, x]
+    return gains, ld_pre, ld_end, ld_sum
+
+
+
+@njit(cache=True, fastmath=False)
+def _deltas(idx: np.ndarray, a: int, b: int, P_pred: np.ndarray, part: np.ndarray,
+            ld_end_b: float, ld_sum_b: float, Wf: np.ndarray, j: int, s0: int,
+            first: np.ndarray, count: np.ndarray, offset: np.ndarray, data: np.ndarray,
+            delta: np.ndarray, F: np.ndarray, Q: np.ndarray, qb: int, cv: bool, dt: float,
+            cum: bool, P: np.ndarray, FP: np.ndarray, Pc: np.ndarray) -> None:
+    """``delta[q] = term(no chain + pair q) - term(no chain)`` for pairs ``idx[a:b]``, all
+    of target j (one call per target: the per-pair work is a tight loop).
+
+    Up to its first non-zero step ``f`` a pair adds nothing (exact zeros), so its recursion
+    equals the baseline's: it starts from the baseline's predicted covariance at ``f`` and
+    running log-det sum.
+    """
+    S = part.shape[1]
+    for x in range(a, b):
+        q = idx[x]
+        f = first[q]
+        if f >= S:
+            delta[q] = 0.5 * (ld_sum_b - ld_sum_b) if cum else 0.5 * (ld_end_b - ld_end_b)
+            continue
+        cnt = count[q]
+        off = offset[q]
+        for r in range(4):
+            for c in range(4):
+                P[r, c] = P_pred[j, f, r, c]
+        acc = part[j, f - 1] if f > 0 else 0.0
+        for t in range(f, S):
+            if t > f:
+                predict_step(P, F, Q, qb, cv, dt, FP)
+            d = t - f
+            if d < cnt:
+                w00 = Wf[j, s0 + t, 0] + data[off + d, 0]
+                w01 = Wf[j, s0 + t, 1] + data[off + d, 1]
+                w11 = Wf[j, s0 + t, 2] + data[off + d, 2]
+            else:
+                w00 = Wf[j, s0 + t, 0] + 0.0
+                w01 = Wf[j, s0 + t, 1] + 0.0
+                w11 = Wf[j, s0 + t, 2] + 0.0
+            update_step(P, w00, w01, w11, Pc, FP)
+            if cum:
+                acc += logdet4(P)
+        if cum:
+            delta[q] = 0.5 * (ld_sum_b - acc)
+        else:
+            delta[q] = 0.5 * (ld_end_b - logdet4(P))
+
+
+
+@njit(cache=True)
+def index_pairs_nb(pair_off: np.ndarray, c_loc: np.ndarray, j_pair: np.ndarray,
+                   cand_off: np.ndarray, M: int) -> tuple:
+    """Indexes of a game's pairs: by target per player, and by candidate.
+
+    Returns
+    -------
+    by_t : (n,) int       pair indices of player p with target j are
+                          ``by_t[t_off[p, j]:t_off[p, j + 1]]`` (increasing)
+    t_off : (P, M + 1) int
+    cp_off : (n_cand + 1,) int   pairs of global candidate x are ``cp_off[x]:cp_off[x + 1]``
+                          (pairs of a player are sorted by candidate, then target)
+    """
+    P = pair_off.shape[0] - 1
+    n = j_pair.shape[0]
+    by_t = np.empty(n, dtype=np.int64)
+    t_off = np.zeros((P, M + 1), dtype=np.int64)
+    cp_off = np.zeros(cand_off[-1] + 1, dtype=np.int64)
+    fill = np.empty(M, dtype=np.int64)
+    for p in range(P):
+        a, b = pair_off[p], pair_off[p + 1]
+        for q in range(a, b):
+            t_off[p, j_pair[q] + 1] += 1
+            cp_off[cand_off[p] + c_loc[q] + 1] += 1
+        t_off[p, 0] = a
+        for j in range(M):
+            t_off[p, j + 1] += t_off[p, j]
+            fill[j] = t_off[p, j]
+        for q in range(a, b):
+            by_t[fill[j_pair[q]]] = q
+            fill[j_pair[q]] += 1
+    for x in range(cand_off[-1]):
+        cp_off[x + 1] += cp_off[x]
+    return by_t, t_off, cp_off
+
+
+
+@njit(cache=True, fastmath=False)
+def _base(P0: np.ndarray, Wrow: np.ndarray, s0: int, F: np.ndarray, Q: np.ndarray, qb: int,
+          cv: bool, dt: float, cum: bool, P_pred: np.ndarray, part: np.ndarray,
+          P: np.ndarray, FP: np.ndarray, Pc: np.ndarray) -> tuple:
+    """"No chain" recursion of one target from ``s0`` on, from its covariance ``P0`` at
+    ``s0``; keeps the predicted covariance and the running log-det sum of every step.
+
+    Returns ``(log det at the end, log-det sum)``.
+    """
+    S = part.shape[0]
+    for r in range(4):
+        for c in range(4):
+            P[r, c] = P0[r, c]
+    acc = 0.0
+    for t in range(S):
+        predict_step(P, F, Q, qb, cv, dt, FP)
+        for r in range(4):
+            for c in range(4):
+                P_pred[t, r, c] = P[r, c]
+        update_step(P, Wrow[s0 + t, 0], Wrow[s0 + t, 1], Wrow[s0 + t, 2], Pc, FP)
+        if cum:
+            acc += logdet4(P)
+        part[t] = acc
+    return logdet4(P), acc
+
+
+
+@njit(cache=True, fastmath=False)
+def game_gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray,
+                  Q: np.ndarray, cv: bool, dt: float, cum: bool, k: int, hi: np.ndarray,
+                  c_loc: np.ndarray, j_pair: np.ndarray, first: np.ndarray,
+                  count: np.ndarray, offset: np.ndarray, data: np.ndarray, delta: np.ndarray,
+                  rows: np.ndarray, by_t: np.ndarray, t_off: np.ndarray, cp_off: np.ndarray,
+                  cand_off: np.ndarray, gcache: np.ndarray, dirty: np.ndarray,
+                  dlist: np.ndarray, seen: np.ndarray, shared: np.ndarray, pre: np.ndarray,
+                  tot_rows: np.ndarray, tot_ver: np.ndarray, tot_pred: np.ndarray,
+                  tot_part: np.ndarray, tot_ld: np.ndarray, alias_dst: np.ndarray,
+                  alias_src: np.ndarray) -> np.ndarray:
+    """Utilities of the players (p, k), p = 0..N-1, of an epoch game (one call per iteration).
+
+    The same values as :func:`gains_nb` for each player (sensor p's epochs ``k-1 .. hi[p]-1``
+    removed), computed with less work, all of it exact:
+
+    * the other players' information at target j equals the total over every player when
+      player p's own chain adds nothing at j (exact zeros leave a sum unchanged), so those
+      targets share one "no chain" recursion per change of the total (``tot_*``, whose
+      changes ``tot_ver`` counts); only the few targets p's own chain looks at get a
+      private one;
+    * the covariance at step ``s0 = (k-1) e`` depends on epochs before k only, which the game
+      never changes: it is computed once (``pre``, ``shared[0]``);
+    * a candidate's utility is the sum of its pairs' terms in pair order; it is summed again
+      only when one of them changed (``gcache``; ``dirty``/``dlist`` list those); a current
+      action that duplicates an earlier candidate takes its sum (``alias_*``).
+
+    ``rows[p]`` holds the information each of p's cached terms was computed with (NaN:
+    never), ``seen[p, j]`` the version of the total it equals (-1: unknown), ``tot_rows``
+    the total the shared recursions were computed with.
+
+    Returns
+    -------
+    (cand_off[-1],) utilities of every player's candidates, concatenated (a new array).
+    """
+    N, K, e = Wp.shape[0], Wp.shape[1], Wp.shape[2]
+    M = covs.shape[0]
+    T = K * e
+    s0 = (k - 1) * e
+    S = T - s0
+    shared_q = Q.shape[0] == 1
+    P = np.empty((4, 4))
+    FP = np.empty((4, 4))
+    Pc = np.empty((4, 2))
+    # The total information at every target and step, in the order of sum_by_target.
+    Wtot = np.zeros((M, T, 3))
+    for i2 in range(N):
+        for k2 in range(K):
+            j = tgt[i2, k2]
+            if j < 0:
+                continue
+            for s in range(e):
+                t = k2 * e + s
+                Wtot[j, t, 0] += Wp[i2, k2, s, 0, 0]
+                Wtot[j, t, 1] += Wp[i2, k2, s, 0, 1]
+                Wtot[j, t, 2] += Wp[i2, k2, s, 1, 1]
+    first_call = not shared[0]
+    if first_call:
+        for j in range(M):
+            qb = 0 if shared_q else j
+            for r in range(4):
+                for c in range(4):
+                    P[r, c] = covs[j, r, c]
+            for t in range(s0):
+                predict_step(P, F, Q, qb, cv, dt, FP)
+                update_step(P, Wtot[j, t, 0], Wtot[j, t, 1], Wtot[j, t, 2], Pc, FP)
+            for r in range(4):
+                for c in range(4):
+                    pre[j, r, c] = P[r, c]
+        shared[0] = True
+    tot_ok = np.ones(M, dtype=np.bool_)              # shared recursion valid for the total
+    for j in range(M):
+        if not _same_row(tot_rows, j, Wtot, j, T):
+            tot_ver[j] += 1
+            tot_ok[j] = False
+            for t in range(T):
+                for x in range(3):
+                    tot_rows[j, t, x] = Wtot[j, t, x]
+    own = np.zeros(M, dtype=np.bool_)
+    Wown = np.zeros((M, T, 3))
+    own_pred = np.empty((M, S, 4, 4))
+    own_part = np.empty((M, S))
+    own_ld = np.empty((M, 2))
+    n_dirty = 0
+    for p in range(N):
+        lo, h = k - 1, hi[p]
+        for k2 in range(lo, h):
+            j = tgt[p, k2]
+            if j < 0:
+                continue
+            for s in range(e):
+                if Wp[p, k2, s, 0, 0] != 0.0 or Wp[p, k2, s, 0, 1] != 0.0 \
+                        or Wp[p, k2, s, 1, 1] != 0.0:
+                    own[j] = True
+        for j in range(M):
+            if t_off[p, j + 1] == t_off[p, j]:
+                continue                                 # p has no pair at target j
+            qb = 0 if shared_q else j
+            if own[j]:
+                # The other players' information only: the sum without p's chain.
+                for t in range(T):
+                    Wown[j, t, 0] = 0.0
+                    Wown[j, t, 1] = 0.0
+                    Wown[j, t, 2] = 0.0
+                for i2 in range(N):
+                    for k2 in range(K):
+                        if tgt[i2, k2] != j or (i2 == p and lo <= k2 < h):
+                            continue
+                        for s in range(e):
+                            t = k2 * e + s
+                            Wown[j, t, 0] += Wp[i2, k2, s, 0, 0]
+                            Wown[j, t, 1] += Wp[i2, k2, s, 0, 1]
+                            Wown[j, t, 2] += Wp[i2, k2, s, 1, 1]
+                if _same_row(rows[p], j, Wown, j, T):
+                    continue
+                seen[p, j] = -1
+                Wf = Wown
+                own_ld[j, 0], own_ld[j, 1] = _base(pre[j], Wown[j], s0, F, Q, qb, cv, dt, cum,
+                                                   own_pred[j], own_part[j], P, FP, Pc)
+                base_pred, base_part = own_pred, own_part
+                ld_end_b, ld_sum_b = own_ld[j, 0], own_ld[j, 1]
+            else:
+                if seen[p, j] == tot_ver[j]:
+                    continue
+                if _same_row(rows[p], j, Wtot, j, T):
+                    seen[p, j] = tot_ver[j]
+                    continue
+                seen[p, j] = tot_ver[j]
+                Wf = Wtot
+                if not tot_ok[j]:
+                    tot_ld[j, 0], tot_ld[j, 1] = _base(pre[j], Wtot[j], s0, F, Q, qb, cv, dt,
+                                                       cum, tot_pred[j], tot_part[j], P, FP, Pc)
+                    tot_ok[j] = True
+                base_pred, base_part = tot_pred, tot_part
+                ld_end_b, ld_sum_b = tot_ld[j, 0], tot_ld[j, 1]
+            _deltas(by_t, t_off[p, j], t_off[p, j + 1], base_pred, base_part, ld_end_b,
+                    ld_sum_b, Wf, j, s0, first, count, offset, data, delta, F, Q, qb, cv, dt,
+                    cum, P, FP, Pc)
+            for x in range(t_off[p, j], t_off[p, j + 1]):
+                c = cand_off[p] + c_loc[by_t[x]]
+                if not dirty[c]:
+                    dirty[c] = True
+                    dlist[n_dirty] = c
+                    n_dirty += 1
+            for t in range(T):
+                for x in range(3):
+                    rows[p, j, t, x] = Wf[j, t, x]
+        for k2 in range(lo, h):
+            j = tgt[p, k2]
+            if j >= 0:
+                own[j] = False
+    if first_call:                                   # every utility is summed once
+        n_dirty = gcache.shape[0]
+        for c in range(n_dirty):
+            dlist[c] = c
+    for y in range(n_dirty):
+        c = dlist[y]
+        g = 0.0
+        for q in range(cp_off[c], cp_off[c + 1]):
+            g += delta[q]
+        gcache[c] = g
+        dirty[c] = False
+    for x in range(alias_dst.shape[0]):              # a duplicate current action
+        gcache[alias_dst[x]] = gcache[alias_src[x]]
+    return gcache.copy()
+
+
+
+@njit(cache=True)
+def _same_row(A: np.ndarray, a: int, B: np.ndarray, b: int, T: int) -> bool:
+    """Whether rows ``A[a]`` and ``B[b]`` (T, 3) are equal (bit for bit; NaN never is)."""
+    for t in range(T):
+        if A[a, t, 0] != B[b, t, 0] or A[a, t, 1] != B[b, t, 1] or A[a, t, 2] != B[b, t, 2]:
+            return False
+    return True
+
+
+
+@njit(cache=True)
+def jsfp_step_nb(u: np.ndarray, ubar: np.ndarray, t: int, cand_off: np.ndarray,
+                 cur: np.ndarray, tol: float) -> tuple:
+    """One JSFP iteration's bookkeeping for every player, in one pass.
+
+    Whether the current actions are an equilibrium (``vmax <= u[cur] + tol`` for every
+    player); if not, the running averages ``(t-1)/t ubar + u/t`` (a new array, as the numpy
+    expression) and every player's best response under the tie rule.
+
+    Returns
+    -------
+    equilibrium : bool
+    ubar : (n,)   new running averages (``ubar`` itself at an equilibrium)
+    best : (P,)   best responses (-1 at an equilibrium)
+    """
+    P = cur.shape[0]
+    eq = True
+    for p in range(P):
+        if cur[p] < 0:
+            eq = False
+            break
+        a, b = cand_off[p], cand_off[p + 1]
+        vmax = u[a]
+        for x in range(a + 1, b):
+            vmax = max(vmax, u[x])
+        if not vmax <= u[a + cur[p]] + tol:
+            eq = False
+            break
+    best = np.full(P, -1, dtype=np.int64)
+    if eq:
+        return True, ubar, best
+    w = (t - 1) / t
+    new = np.empty_like(ubar)
+    for x in range(u.shape[0]):
+        new[x] = w * ubar[x] + u[x] / t
+    for p in range(P):
+        a, b = cand_off[p], cand_off[p + 1]
+        vmax = new[a]
+        for x in range(a + 1, b):
+            vmax = max(vmax, new[x])
+        floor = vmax - tol
+        if cur[p] >= 0 and new[a + cur[p]] >= floor:
+            best[p] = cur[p]
+            continue
+        for x in range(a, b):
+            if new[x] >= floor:
+                best[p] = x - a
+                break
+    return False, new, best
