@@ -148,8 +148,9 @@ def _build_lattice(p0: FloatArray, moves: FloatArray, K: int,
                    world: MapRect | None) -> Lattice:
     from ._lattice import lattice_nb             # compiled; imported late (cold start)
 
-    p0 = np.ascontiguousarray(p0, dtype=float)
-    moves = np.ascontiguousarray(moves, dtype=float)
+    # Writeable copies: a read-only array is another numba signature, compiled again.
+    p0 = np.array(p0, dtype=float, order="C")
+    moves = np.array(moves, dtype=float, order="C")
     bounded = world is not None
     width = float(world.width) if bounded else 0.0
     height = float(world.height) if bounded else 0.0

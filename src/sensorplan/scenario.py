@@ -197,7 +197,7 @@ def radar_scenario() -> Scenario:
 PRESETS: dict[str, Callable[[], Scenario]] = {"paper": paper_scenario, "radar": radar_scenario}
 
 
-def swarm_scenario(miss_update: str = "negative") -> Scenario:
+def swarm_scenario() -> Scenario:
     """A swarm: N = 100 sensors and M = 200 targets on a 3,000 x 3,000 m map.
 
     The paper's scenario scaled up at the paper's densities: the same sensor and target
@@ -211,8 +211,7 @@ def swarm_scenario(miss_update: str = "negative") -> Scenario:
     sensors = tuple(SensorSpec(SensorParams(altitude=(490.0, 500.0, 510.0)[i % 3]))
                     for i in range(100))
     return Scenario(world=MapRect(3000.0, 3000.0), targets=targets, sensors=sensors,
-                    target_box=(100.0, 2900.0), sensor_box=(50.0, 2950.0),
-                    miss_update=miss_update)
+                    target_box=(100.0, 2900.0), sensor_box=(50.0, 2950.0))
 
 
 @dataclass(frozen=True)

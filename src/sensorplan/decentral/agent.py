@@ -33,8 +33,14 @@ import numpy as np
 
 from ..information import Context
 from ..planners.engine import GameState, choose
-from ..planners.potential_game import _relevant, current_index, is_best
+from ..planners.potential_game import current_index
+from ..problem import TIE_TOL
 from .messages import Message
+
+
+def is_best(u: np.ndarray, cur: int, scale: float) -> bool:
+    """Whether action ``cur`` is a best response to utilities ``u`` within the tie tolerance."""
+    return cur >= 0 and bool(u.max() <= u[cur] + TIE_TOL * max(1.0, scale))
 
 MODES = ("jsfp", "best-response", "sequential")
 
@@ -179,11 +185,8 @@ class Agent:
         u = view.chain_gains(i, k, pos[:, None], tgt[:, None])[0]
         scale = abs(view.potential())
         if t == 1:
-            cur = current_index(view, i, k, pos, tgt)
-            keep = _relevant(view.contributing(i, k), len(u), cur)
-            pos, tgt = self.actions = (pos[keep], tgt[keep])
-            view.restrict(i, k, keep, pos[:, None], tgt[:, None])
-            u, self.ubar = u[keep], self.ubar[keep]
+            # Every feasible action is scored (pg scores one representative of actions with
+            # identical pairs); the first-in-order tie rule makes the choices the same.
             self.cur = current_index(view, i, k, pos, tgt)
         best_now = is_best(u, self.cur, scale)
         ubar = (t - 1) / t * self.ubar + u / t

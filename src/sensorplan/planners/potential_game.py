@@ -163,7 +163,8 @@ def check_learning_params(alpha: float, beta: float, max_inner: int, max_outer: 
 
 @dataclass(frozen=True)
 class LearningSettings:
-    """Settings of the paper's learning algorithm, shared by ``pg`` and ``pg-refine``.
+    """Settings of the paper's learning algorithm, shared by ``pg``, ``pg-refine`` and the
+    decentralized game.
 
     Attributes
     ----------
@@ -171,6 +172,28 @@ class LearningSettings:
     beta : float       probability that an inner loop continues after an iteration
     max_inner, max_outer : int
     seed : int or None used when ``plan`` gets no ``rng``
+    """
+
+    alpha: float = 0.3
+    beta: float = 0.95
+    max_inner: int = 50
+    max_outer: int = 10
+    seed: int | None = 0
+
+    def __post_init__(self) -> None:
+        check_learning_params(self.alpha, self.beta, self.max_inner, self.max_outer)
+
+    @property
+    def learning(self) -> tuple[float, float, int, int]:
+        return self.alpha, self.beta, self.max_inner, self.max_outer
+
+
+@dataclass(frozen=True)
+class BudgetedLearningSettings(LearningSettings):
+    """:class:`LearningSettings` plus a time budget (``pg`` and ``pg-refine``).
+
+    Attributes
+    ----------
     time_budget : float or None
         Seconds the planner may use (None: no limit). When they run out it returns the best
         complete plan found so far (``converged`` False, ``budget_exhausted`` True); see
@@ -179,25 +202,16 @@ class LearningSettings:
         same as without a budget.
     """
 
-    alpha: float = 0.3
-    beta: float = 0.95
-    max_inner: int = 50
-    max_outer: int = 10
-    seed: int | None = 0
     time_budget: float | None = None
 
     def __post_init__(self) -> None:
-        check_learning_params(self.alpha, self.beta, self.max_inner, self.max_outer)
+        super().__post_init__()
         check_budget(self.time_budget)
-
-    @property
-    def learning(self) -> tuple[float, float, int, int]:
-        return self.alpha, self.beta, self.max_inner, self.max_outer
 
 
 @register
 @dataclass(frozen=True)
-class PotentialGamePlanner(LearningSettings):
+class PotentialGamePlanner(BudgetedLearningSettings):
     """``pg``: the paper's Algorithm 1 (SPEC 4). Myopic planning is ``pg`` with K = 1."""
 
     name: ClassVar[str] = "pg"

@@ -29,7 +29,7 @@ from .anytime import Anytime, BudgetExhausted, complete
 from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
 from .engine import GameState, choose
 from .greedy import sequential_greedy
-from .potential_game import LearningSettings, current_index, run_sweeps
+from .potential_game import BudgetedLearningSettings, current_index, run_sweeps
 
 
 def _improves(new: float, old: float, scale: float) -> bool:
@@ -112,7 +112,7 @@ def local_search(state: GameState, max_candidates: int = 2500,
 
 @register
 @dataclass(frozen=True)
-class RefinedPlanner(LearningSettings):
+class RefinedPlanner(BudgetedLearningSettings):
     """``pg-refine`` (SPEC 4, beyond the paper); same settings as ``pg``."""
 
     name: ClassVar[str] = "pg-refine"
