@@ -1094,8 +1094,7 @@ def test_default_measure_draws_only_the_noise_as_before(global_numpy_state):
 
 
 def test_detection_frequencies_match_pd_within_binomial_bounds():
-    params = dict(detection="swerling1", false_alarm_probability=1e-6)
-    radar = _radar(**params)
+    radar = _radar(detection="swerling1", false_alarm_probability=1e-6)
     gen = np.random.default_rng(2024)
     n = 1500
     pds = []
@@ -1325,7 +1324,8 @@ def test_manager_plans_with_planning_detection(rng):
     means, covs, positions, headings = _decision(rng)
     tracks = ss.to_tracks(means, covs, T0)
     t1 = T0 + datetime.timedelta(seconds=1)
-    detection = dict(detection="swerling1", false_alarm_probability=1e-5, clutter_rate=3.0)
+    detection = {"detection": "swerling1", "false_alarm_probability": 1e-5,
+                 "clutter_rate": 3.0}
     results = {}
     for mode in ("aware", "ignore", None):
         platforms = _platforms(positions, headings)
@@ -1349,6 +1349,9 @@ def test_manager_plans_with_planning_detection(rng):
     phi_aware = potential(aware[0], plan)[0]
     phi_ignore = potential(dataclasses.replace(aware[0], planning_detection="ignore"), plan)[0]
     assert 0 < phi_aware < phi_ignore
+    # Brute force is optimal for the objective it was given: the plan made ignoring misses
+    # and clutter is worth no more under the aware objective.
+    assert potential(aware[0], ignore[1].plan)[0] <= phi_aware * (1 + 1e-12)
     assert results["default"][1].potential == aware[1].potential
     with pytest.raises(ConfigError) as err:
         ss.SensorplanManager(platforms=_platforms(positions, headings),
@@ -1359,7 +1362,7 @@ def test_manager_plans_with_planning_detection(rng):
 def test_yaml_keeps_detection_settings(rng):
     from stonesoup.serialise import YAML
 
-    means, covs, positions, headings = _decision(rng)
+    _, _, positions, headings = _decision(rng)
     platforms = _platforms(positions, headings)
     platforms[0].sensors[0].params = SensorParams(altitude=490.0, detection="swerling1",
                                                   false_alarm_probability=1e-4,

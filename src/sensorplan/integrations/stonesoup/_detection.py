@@ -33,8 +33,8 @@ from stonesoup.types.angle import Bearing
 from stonesoup.types.array import StateVector
 from stonesoup.types.detection import Clutter, Detection
 
-from ..._types import FloatArray
 from ... import radar
+from ..._types import FloatArray
 from ...angles import wrap_angle
 from ...sensors import ALTITUDE2, AREA, CLUTTER_RATE, G_MAX, G_MIN, SWERLING
 
