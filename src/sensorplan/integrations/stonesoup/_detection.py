@@ -98,7 +98,7 @@ def draw_clutter(table: FloatArray, sensor_xy: FloatArray, heading: float, gen: 
         # Points outside the region are dropped; their azimuth noise may be infinite.
         h[inside] += np.sqrt(var[inside]) * e[inside]
     phi = wrap_angle(h[:, 1])
-    return {Clutter(StateVector([[h[k, 0]], [Bearing(phi[k])]]), timestamp=timestamp,
+    return {Clutter(StateVector([[float(h[k, 0])], [Bearing(float(phi[k]))]]), timestamp=timestamp,
                     measurement_model=model)
             for k in np.flatnonzero(inside)}
 
