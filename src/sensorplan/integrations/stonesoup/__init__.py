@@ -16,6 +16,13 @@ What is here (``docs/stonesoup.md`` has the full mapping and its limits):
   the SPEC 2 moves inside the map) and :class:`SensorplanRadar` (the radar, mounted on such a
   platform, whose action is *where to look*: an :class:`AimAction` with a ground point; the
   heading then follows the SPEC 2 heading rule from the platform's position).
+- Missed detections and false alarms: a radar whose ``params`` say ``detection="swerling1"``
+  misses a target in view with probability ``1 - Pd``, and one with ``clutter_rate > 0``
+  reports false alarms as Stone Soup ``Clutter`` in its sensing region;
+  :meth:`SensorplanRadar.detection_probability` and
+  :meth:`SensorplanRadar.clutter_spatial_density` give what Stone Soup's ``PDAHypothesiser``
+  needs (``prob_detect``, ``clutter_spatial_density``); :func:`ordered_detections` orders a
+  look's detections for bit-identical runs.
 - :class:`SensorplanManager`: a Stone Soup ``SensorManager`` that turns the tracks and the
   actionables into a :class:`~sensorplan.problem.PlanningProblem`, runs any registered
   planner (rolling horizon: every call plans K epochs and returns the first) and returns
@@ -47,6 +54,7 @@ from ._convert import (STONESOUP_ORDER, from_gaussian_state, from_stonesoup_cov,
                        from_stonesoup_mean, from_tracks, ground_index, ordered_tracks,
                        to_gaussian_state, to_ground_truth_state, to_stonesoup_cov,
                        to_stonesoup_mean, to_tracks)
+from ._detection import ordered_detections
 from ._manager import MutualInformationReward, SensorplanManager, execute
 from ._measurement import RadarMeasurementModel
 from ._serialise import yaml_init
@@ -56,6 +64,7 @@ __all__ = ["DEFAULT_WORLD", "STONESOUP_ORDER", "AimAction", "AimActionGenerator"
            "LatticeMovable", "LatticeMoveAction", "LatticeMoveActionGenerator", "MapRect",
            "MutualInformationReward", "RadarMeasurementModel", "SensorplanManager",
            "SensorplanRadar", "execute", "from_gaussian_state", "from_stonesoup_cov",
-           "from_stonesoup_mean", "from_tracks", "ground_index", "ordered_tracks",
-           "set_aim_candidates", "to_gaussian_state", "to_ground_truth_state",
-           "to_stonesoup_cov", "to_stonesoup_mean", "to_tracks", "yaml_init"]
+           "from_stonesoup_mean", "from_tracks", "ground_index", "ordered_detections",
+           "ordered_tracks", "set_aim_candidates", "to_gaussian_state",
+           "to_ground_truth_state", "to_stonesoup_cov", "to_stonesoup_mean", "to_tracks",
+           "yaml_init"]

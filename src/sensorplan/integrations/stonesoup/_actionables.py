@@ -14,7 +14,7 @@ from stonesoup.movable.action.move_position_action import MovePositionAction
 from stonesoup.sensor.sensor import Sensor
 from stonesoup.sensormanager.action import Action, ActionableProperty, ActionGenerator
 from stonesoup.types.array import StateVector
-from stonesoup.types.detection import TrueDetection
+from stonesoup.types.detection import Clutter, TrueDetection
 from stonesoup.types.state import State
 from stonesoup.types.track import Track
 
@@ -23,9 +23,10 @@ from ...angles import heading_rule
 from ...dynamics import cv_matrices
 from ...problem import POSITION_TOL, move_vectors
 from ... import radar
-from ...sensors import SensorParams, radar_table
+from ...sensors import CLUTTER_RATE, SensorParams, radar_table
 
 from ._convert import _ground_xy, from_tracks, ordered_tracks
+from ._detection import clutter_density, detection_probability, draw_clutter, is_swerling
 from ._measurement import RadarMeasurementModel, noise_source
 from ._world import DEFAULT_WORLD, MapRect, as_world
 
@@ -234,11 +235,21 @@ class SensorplanRadar(Sensor):
     ``fov_half_angle`` of the heading, ``cos psi > 0``, from the one radar model
     (:func:`sensorplan.radar.measure_looks`).
 
-    Randomness, as in Stone Soup: :meth:`measure` draws its noise from ``rng`` when given, else
-    from the radar's own generator when ``seed`` is set (``numpy.random.default_rng(seed)``,
-    one stream for the radar's life), else from NumPy's global state. So
-    ``np.random.seed(1990)`` at the top of a script makes the detections repeatable, like
-    Stone Soup's own sensors and models.
+    Detection (``params.detection``, ``params.clutter_rate``): with ``"swerling1"`` a target
+    in view is detected with probability :meth:`detection_probability` (else nothing is
+    reported for it: a missed detection); with ``clutter_rate > 0`` each :meth:`measure`
+    call (one look) also reports Poisson(``clutter_rate``) false alarms as Stone Soup
+    ``Clutter``, uniform in ground area over the sensing region. :meth:`clutter_spatial_density`
+    gives their density in the measurement space, for Stone Soup's ``PDAHypothesiser``. The
+    defaults (``"ideal"``, no clutter) report every target in view and nothing else, and draw
+    nothing but the measurement noise. Clutter comes from ``params`` (the radar has no Stone
+    Soup ``clutter_model``).
+
+    Randomness, as in Stone Soup: :meth:`measure` draws (noise, detection outcomes, false
+    alarms) from ``rng`` when given, else from the radar's own generator when ``seed`` is set
+    (``numpy.random.default_rng(seed)``, one stream for the radar's life), else from NumPy's
+    global state. So ``np.random.seed(1990)`` at the top of a script makes the detections
+    repeatable, like Stone Soup's own sensors and models.
 
     Truths may have any state layout whose ground x and y sit at ``position_mapping``
     (``(0, 2)`` fits ``[x, vx, y, vy]`` and ``[x, vx, y, vy, z, vz]``); each detection's
@@ -330,27 +341,78 @@ class SensorplanRadar(Sensor):
                                    self.heading)[3]
         return bool(np.all(seen))
 
-    def measure(self, ground_truths: Iterable[Any], noise: Any = True,
-                rng: np.random.Generator | None = None, **kwargs: Any) -> set[TrueDetection]:
-        """Detections of the ground truths in the field of view (noise drawn in the
-        iteration order of ``ground_truths``).
+    def detection_probability(self, state: Any) -> float:
+        """Probability ``Pd`` that a look detects a target at the state's ground position when
+        it is in view, from the radar's current position (1 with ``"ideal"`` detection).
 
-        ``noise``: True draws from ``N(0, R)`` with ``R`` at the true state, from
-        ``rng``, else the radar's own generator (``seed``), else NumPy's global state (see the
-        class docstring); False adds none; an array is added as is (see
-        :meth:`RadarMeasurementModel.scaled_noise`). For reproducible noise pass a list (or a
-        single truth, a dwell on one target) rather than a set.
+        The value :meth:`measure` uses for a truth; at a track's predicted state it is the
+        ``prob_detect`` of Stone Soup's ``PDAHypothesiser``. The field of view is not part of
+        it (see :meth:`is_detectable`).
         """
+        xy = _ground_xy(state, self.position_mapping)
+        if xy.shape[0] != 1:
+            raise ValueError("detection_probability takes one state")
+        return detection_probability(radar_table(self.params), xy[0], self.ground_position)
+
+    def clutter_spatial_density(self, state: Any = None) -> float:
+        r"""Density of the false alarms in the measurement space ``(r, phi)``, 1/(m rad).
+
+        ``clutter_rate`` false alarms uniform in ground area over the sensing region of area
+        ``A = fov_half_angle * (max_ground_range^2 - min_ground_range^2)`` have the density
+        ``rho = clutter_rate * r / A`` at slant range ``r``: at the state's slant range from
+        the radar when ``state`` is given (the ``clutter_spatial_density`` of Stone Soup's
+        ``PDAHypothesiser`` for a track's predicted state), else at the middle slant range
+        ``(r_min + r_max) / 2``, which is the region's average ``clutter_rate /
+        (2 fov_half_angle (r_max - r_min))`` (a constant approximation). 0 without clutter.
+        """
+        r = None
+        if state is not None:
+            xy = _ground_xy(state, self.position_mapping)
+            if xy.shape[0] != 1:
+                raise ValueError("clutter_spatial_density takes one state")
+            r = float(np.hypot(np.hypot(*(xy[0] - self.ground_position)),
+                               float(self.params.altitude)))
+        return clutter_density(radar_table(self.params), r)
+
+    def measure(self, ground_truths: Iterable[Any], noise: Any = True,
+                rng: np.random.Generator | None = None,
+                timestamp: datetime.datetime | None = None,
+                **kwargs: Any) -> set[TrueDetection | Clutter]:
+        """One look: detections of the ground truths in the field of view, and false alarms.
+
+        Draws, in this order (from ``rng``, else the radar's own generator from ``seed``,
+        else NumPy's global state; see the class docstring):
+
+        1. per truth in view, in the iteration order of ``ground_truths``: with
+           ``"swerling1"`` detection one uniform ``u`` (detected iff ``u < Pd``, see
+           :meth:`detection_probability`); then, if detected, its noise ``N(0, R)`` with
+           ``R`` at the true state;
+        2. with ``clutter_rate > 0``: the number of false alarms ``~ Poisson(clutter_rate)``,
+           their positions (uniform in ground area over the sensing region) and their noise
+           (``R`` at each position). Those in the field of view are returned as Stone Soup
+           ``Clutter`` carrying the radar's measurement model, at the first truth's
+           ``timestamp`` (else ``timestamp``, else the radar's last ``act`` time).
+
+        ``noise``: True draws the noise; False adds none (and draws none); an array is added
+        as is to the truths' measurements (see :meth:`RadarMeasurementModel.scaled_noise`)
+        while false alarms draw theirs. With the defaults (``"ideal"``, no clutter) the only
+        draws are the truths' noise. For reproducible draws pass a list (or a single truth,
+        a dwell on one target) rather than a set.
+        """
+        truths = list(ground_truths)
+        table = radar_table(self.params)
+        swerling = is_swerling(table)
         models: dict[int, RadarMeasurementModel] = {}
         gen = noise_source(rng, self.rng)
-        detections: set[TrueDetection] = set()
-        for truth in ground_truths:
+        detections: set[TrueDetection | Clutter] = set()
+        for truth in truths:
             if not self.is_detectable(truth):
                 continue
-            n = int(np.shape(truth.state_vector)[0])
-            if n not in models:
-                models[n] = self.measurement_model_for(n)
-            model = models[n]
+            if swerling:
+                xy = _ground_xy(truth, self.position_mapping)[0]
+                if not gen.random() < detection_probability(table, xy, self.ground_position):
+                    continue                                  # a missed detection
+            model = self._model_of(models, int(np.shape(truth.state_vector)[0]))
             if noise is True:
                 e = model.rvs(state=truth, random_state=gen)
             elif noise is False or noise is None:
@@ -360,7 +422,20 @@ class SensorplanRadar(Sensor):
             z = model.function(truth, noise=False) + e
             detections.add(TrueDetection(z, measurement_model=model, timestamp=truth.timestamp,
                                          groundtruth_path=truth))
+        if table[0, CLUTTER_RATE] > 0.0:
+            ndim = int(np.shape(truths[0].state_vector)[0]) if truths else int(self.ndim_state)
+            when = truths[0].timestamp if truths else (timestamp or self.timestamp)
+            detections |= draw_clutter(table, self.ground_position, self.heading, gen,
+                                       noise is not False and noise is not None,
+                                       self._model_of(models, ndim), when)
         return detections
+
+    def _model_of(self, models: dict[int, RadarMeasurementModel],
+                  ndim: int) -> RadarMeasurementModel:
+        """One measurement model per state dimension within a look."""
+        if ndim not in models:
+            models[ndim] = self.measurement_model_for(ndim)
+        return models[ndim]
 
 
 def set_aim_candidates(radars: Iterable[SensorplanRadar], tracks: Iterable[Track],

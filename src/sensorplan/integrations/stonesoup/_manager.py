@@ -25,6 +25,8 @@ from stonesoup.updater import Updater
 from ..._types import FloatArray
 from ...dynamics import cv_matrices
 from ...planners import PlanResult, make_planner
+from ...errors import ConfigError
+from ...modes import PLANNING_DETECTIONS
 from ...problem import POSITION_TOL, PlanningProblem, move_vectors
 
 from ._actionables import LatticeMovable, SensorplanRadar
@@ -74,6 +76,12 @@ class SensorplanManager(SensorManager):
     :func:`ordered_tracks`). Sensor i of the plan (``sensors[i]`` in error messages) is the
     i-th platform, target j the j-th track in that order.
 
+    Detection: the radars' ``params`` (``detection``, ``false_alarm_probability``,
+    ``clutter_rate``) go into the problem as they are; with ``planning_detection="aware"``
+    (the default) the plan expects missed detections and false alarms (a look counts its
+    detection probability and the information clutter takes away), with ``"ignore"`` only
+    whether the target is in view. Ideal radars without clutter plan the same either way.
+
     Randomness: the planner draws from ``rng`` only (a ``numpy.random.Generator``, or a seed
     for one, used for every call), never from NumPy's global state.
 
@@ -94,6 +102,11 @@ class SensorplanManager(SensorManager):
                                         "match the tracker's ConstantVelocity noise.")
     visibility: str = Property(default="probabilistic", doc="SPEC 4 visibility mode.")
     objective: str = Property(default="terminal", doc="SPEC 4 objective.")
+    planning_detection: str = Property(
+        default="aware", doc="``aware``: planned looks count the radars' detection "
+                             "probability and clutter (``params.detection``, "
+                             "``params.clutter_rate``); ``ignore``: only whether the target "
+                             "is in view.")
     rng: Any = Property(default=0, doc="numpy Generator used for every planning call, or a "
                                        "seed for one (a seed, to save the setup as YAML).")
     position_mapping: Sequence[int] | None = Property(
@@ -108,6 +121,9 @@ class SensorplanManager(SensorManager):
         # Stone Soup's YAML writes the derived set of sensors and reads it back as ruamel's
         # CommentedSet, which lacks the set methods SensorManager uses.
         self._property_sensors = set(self._property_sensors or ())
+        if self.planning_detection not in PLANNING_DETECTIONS:
+            raise ConfigError("planning_detection", f"must be one of {PLANNING_DETECTIONS}, "
+                                                    f"got {self.planning_detection!r}")
         self._planner = make_planner(self.planner, **dict(self.planner_params))
         self._rng = (self.rng if isinstance(self.rng, np.random.Generator)
                      else np.random.default_rng(self.rng))
@@ -195,7 +211,8 @@ class SensorplanManager(SensorManager):
             headings=np.array([r.heading for _, r in pairs]), sensors=sensors,
             horizon=int(self.horizon), steps_per_epoch=int(self.steps_per_epoch),
             dt=float(self.dt), process_noise=float(self.process_noise), world=world.core,
-            visibility=self.visibility, objective=self.objective)
+            visibility=self.visibility, objective=self.objective,
+            planning_detection=self.planning_detection)
         return problem, ordered
 
     def choose_actions(self, tracks: Iterable[Track], timestamp: datetime.datetime,
