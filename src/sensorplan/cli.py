@@ -132,6 +132,12 @@ def simulate(
         "--out", "-o", metavar="DIR",
         help="Directory for episode.npz (every array of the run) and episode.png.")
     ] = Path("out/simulate"),
+    animate: Annotated[bool, typer.Option(
+        "--animate", help="Also write an animation of the run, one frame per step "
+                          "(DIR/episode.gif, or .mp4 with --animation-format mp4).")] = False,
+    animation_format: Annotated[str, typer.Option(
+        "--animation-format", metavar="gif|mp4",
+        help="Format of --animate: gif (always available) or mp4 (needs ffmpeg).")] = "gif",
     **settings: Any,
 ) -> None:
     """Simulate one closed-loop run and summarize it.
@@ -153,6 +159,8 @@ def simulate(
     with _bad_input():
         cfg = load_simulation(config, preset, {**settings, "seed": seed})
         ensure_out_dir(out)
+        if animate:
+            _check_animation_format(animation_format)
 
     from .console import print_summary, run_with_progress
     from .simulation import run_episode
@@ -172,7 +180,25 @@ def simulate(
     from .plotting import plot_episode
 
     plot_episode(episode, cfg.scenario, png)
-    print_summary(episode, cfg, [npz, png, timing])
+    written = [npz, png, timing]
+    if animate:
+        from .animation import animate_episode
+
+        written.append(animate_episode(episode, cfg.scenario,
+                                       out / f"episode.{animation_format}"))
+    print_summary(episode, cfg, written)
+
+
+def _check_animation_format(fmt: str) -> None:
+    """Refuse an unknown animation format, or mp4 without ffmpeg, before any work."""
+    from .animation import FORMATS, ffmpeg_available
+
+    if fmt not in FORMATS:
+        raise ConfigError("--animation-format", f"must be one of {', '.join(FORMATS)}, "
+                          f"got {fmt!r}")
+    if fmt == "mp4" and not ffmpeg_available():
+        raise ConfigError("--animation-format", "mp4 needs ffmpeg on the PATH, which was "
+                          "not found; use gif")
 
 
 def _setting_options(skip: tuple[str, ...] = ()) -> list[inspect.Parameter]:
@@ -435,6 +461,77 @@ def report(
     print(f"report: {written.html}")
     print(f"summary: {written.markdown}")
     print(f"figures: {len(written.figures)} PNG files in {written.html.parent}")
+
+
+# ----------------------------------------------------------------------------- replay
+
+
+@app.command()
+def replay(
+    study_dir: Annotated[Path, typer.Argument(
+        metavar="DIR", show_default=False, help="A study directory (sensorplan study --out).")],
+    run: Annotated[int, typer.Option(
+        "--run", "-r", metavar="R", show_default=False,
+        help="Run index, 0 .. runs-1.")],
+    method: Annotated[str, typer.Option(
+        "--method", "-m", metavar="NAME", show_default=False,
+        help="Method name, as in the study file and the report.")],
+    out: Annotated[Path | None, typer.Option(
+        "--out", "-o", metavar="OUT", show_default=False,
+        help="Where to write the files. [default: DIR/replay/run-R-NAME]")] = None,
+    animate: Annotated[bool, typer.Option(
+        "--animate/--no-animate", help="Write the animation.")] = True,
+    animation_format: Annotated[str, typer.Option(
+        "--animation-format", metavar="gif|mp4",
+        help="gif (always available) or mp4 (needs ffmpeg).")] = "gif",
+) -> None:
+    """Re-simulate one run of one method of a study and draw it.
+
+    Runs method NAME on run R with the study's configuration (DIR/config.resolved.json)
+    and the run's seed, checks that it reproduces what the study stored for that run, and
+    writes what simulate writes (episode.npz, episode.png) plus an animation
+    (episode.gif). The report names the best and worst runs to look at.
+
+    Example: sensorplan replay runs/paper --run 9 --method "paper/OLF pg K=3"
+    """
+    from .io import ensure_out_dir
+    from .replay import check_request, replay_dir_name, replay_run
+
+    with _bad_input():
+        if animate:
+            _check_animation_format(animation_format)
+        check_request(study_dir, run, method)
+        target = out if out is not None else study_dir / "replay" / replay_dir_name(run,
+                                                                                    method)
+        ensure_out_dir(target)                  # before the simulation, not after it
+        rep = replay_run(study_dir, run, method)
+    from types import SimpleNamespace
+
+    from .console import print_summary
+    from .plotting import plot_episode
+
+    npz, png = target / "episode.npz", target / "episode.png"
+    written = [npz, png, rep.episode.save(npz)]
+    plot_episode(rep.episode, rep.study.scenario, png)
+    if animate:
+        from .animation import animate_episode
+
+        written.append(animate_episode(rep.episode, rep.study.scenario,
+                                       target / f"episode.{animation_format}"))
+    cfg = SimpleNamespace(scenario=rep.study.scenario, settings=rep.method.settings,
+                          seed=f"{rep.study.seed}, run {run}")
+    print_summary(rep.episode, cfg, written)
+    if rep.reproduced is None:
+        print(f"run {run} of {method!r} is not stored in {study_dir} yet: nothing to compare")
+    elif rep.reproduced:
+        print(f"identical to the stored run {run} of {method!r} (errors, estimates, NEES, "
+              "sensor poses and looks)")
+    else:
+        worst = max(rep.differences, key=lambda k: rep.differences[k])
+        sys.stdout.flush()
+        sys.stderr.write(f"warning: the replay differs from the stored run (largest: "
+                         f"{worst} by {rep.differences[worst]:.3g}); was the study run "
+                         "with another sensorplan version? (see DIR/meta.json)\n")
 
 
 # ------------------------------------------------------------------------------- demo
