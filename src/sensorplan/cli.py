@@ -158,9 +158,9 @@ def simulate(
 
     with _bad_input():
         cfg = load_simulation(config, preset, {**settings, "seed": seed})
-        ensure_out_dir(out)
         if animate:
             _check_animation_format(animation_format)
+        ensure_out_dir(out)
 
     from .console import print_summary, run_with_progress
     from .simulation import run_episode
