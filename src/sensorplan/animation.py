@@ -42,6 +42,24 @@ def ffmpeg_available() -> bool:
     return shutil.which("ffmpeg") is not None
 
 
+def check_format(fmt: str) -> None:
+    """Refuse an unknown animation format, or mp4 without ffmpeg, before any work.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``--animation-format``.
+    """
+    from .errors import ConfigError
+
+    if fmt not in FORMATS:
+        raise ConfigError("--animation-format", f"must be one of {', '.join(FORMATS)}, "
+                          f"got {fmt!r}")
+    if fmt == "mp4" and not ffmpeg_available():
+        raise ConfigError("--animation-format", "mp4 needs ffmpeg on the PATH, which was "
+                          "not found; use gif")
+
+
 def frame_steps(S: int, every: int = 1) -> list[int]:
     """The steps shown as frames: ``0, every, 2 every, ...`` and always the last, ``S``."""
     steps = list(range(0, S + 1, max(int(every), 1)))
@@ -336,4 +354,4 @@ class _Frames:
                             f"{self.run_title}")
 
 
-__all__ = ["FORMATS", "animate_episode", "ffmpeg_available", "frame_steps"]
+__all__ = ["FORMATS", "animate_episode", "check_format", "ffmpeg_available", "frame_steps"]

@@ -159,7 +159,9 @@ def simulate(
     with _bad_input():
         cfg = load_simulation(config, preset, {**settings, "seed": seed})
         if animate:
-            _check_animation_format(animation_format)
+            from .animation import check_format
+
+            check_format(animation_format)
         ensure_out_dir(out)
 
     from .console import print_summary, run_with_progress
@@ -187,18 +189,6 @@ def simulate(
         written.append(animate_episode(episode, cfg.scenario,
                                        out / f"episode.{animation_format}"))
     print_summary(episode, cfg, written)
-
-
-def _check_animation_format(fmt: str) -> None:
-    """Refuse an unknown animation format, or mp4 without ffmpeg, before any work."""
-    from .animation import FORMATS, ffmpeg_available
-
-    if fmt not in FORMATS:
-        raise ConfigError("--animation-format", f"must be one of {', '.join(FORMATS)}, "
-                          f"got {fmt!r}")
-    if fmt == "mp4" and not ffmpeg_available():
-        raise ConfigError("--animation-format", "mp4 needs ffmpeg on the PATH, which was "
-                          "not found; use gif")
 
 
 def _setting_options(skip: tuple[str, ...] = ()) -> list[inspect.Parameter]:
@@ -494,44 +484,10 @@ def replay(
 
     Example: sensorplan replay runs/paper --run 9 --method "paper/OLF pg K=3"
     """
-    from .io import ensure_out_dir
-    from .replay import check_request, replay_dir_name, replay_run
+    from .replay import replay_command
 
     with _bad_input():
-        if animate:
-            _check_animation_format(animation_format)
-        check_request(study_dir, run, method)
-        target = out if out is not None else study_dir / "replay" / replay_dir_name(run,
-                                                                                    method)
-        ensure_out_dir(target)                  # before the simulation, not after it
-        rep = replay_run(study_dir, run, method)
-    from types import SimpleNamespace
-
-    from .console import print_summary
-    from .plotting import plot_episode
-
-    npz, png = target / "episode.npz", target / "episode.png"
-    written = [npz, png, rep.episode.save(npz)]
-    plot_episode(rep.episode, rep.study.scenario, png)
-    if animate:
-        from .animation import animate_episode
-
-        written.append(animate_episode(rep.episode, rep.study.scenario,
-                                       target / f"episode.{animation_format}"))
-    cfg = SimpleNamespace(scenario=rep.study.scenario, settings=rep.method.settings,
-                          seed=f"{rep.study.seed}, run {run}")
-    print_summary(rep.episode, cfg, written)
-    if rep.reproduced is None:
-        print(f"run {run} of {method!r} is not stored in {study_dir} yet: nothing to compare")
-    elif rep.reproduced:
-        print(f"identical to the stored run {run} of {method!r} (errors, estimates, NEES, "
-              "sensor poses and looks)")
-    else:
-        worst = max(rep.differences, key=lambda k: rep.differences[k])
-        sys.stdout.flush()
-        sys.stderr.write(f"warning: the replay differs from the stored run (largest: "
-                         f"{worst} by {rep.differences[worst]:.3g}); was the study run "
-                         "with another sensorplan version? (see DIR/meta.json)\n")
+        replay_command(study_dir, run, method, out, animate, animation_format)
 
 
 # ------------------------------------------------------------------------------- demo

@@ -201,3 +201,55 @@ def replay_dir_name(run: int, method: str) -> str:
     spelling of the method)."""
     safe = "".join(c if c.isalnum() or c in "-." else "_" for c in method).strip("_")
     return f"run-{run:05d}-{safe or 'method'}"
+
+
+def replay_command(study_dir: Path, run: int, method: str, out: Path | None, animate: bool,
+                   animation_format: str) -> Replay:
+    """``sensorplan replay``: check the request and the output folder, re-simulate, write
+    ``episode.npz``, ``episode.png`` (and the animation), print the run's summary and
+    whether it reproduces the stored run (a warning on stderr if it does not).
+
+    Raises
+    ------
+    ConfigError
+        Bad ``DIR``, ``--run``, ``--method``, ``--out`` or ``--animation-format``, found
+        before the simulation starts.
+    """
+    import sys
+    from types import SimpleNamespace
+
+    from .console import print_summary
+    from .io import ensure_out_dir
+    from .plotting import plot_episode
+
+    if animate:
+        from .animation import check_format
+
+        check_format(animation_format)
+    check_request(study_dir, run, method)
+    target = out if out is not None else study_dir / "replay" / replay_dir_name(run, method)
+    ensure_out_dir(target)                      # before the simulation, not after it
+    rep = replay_run(study_dir, run, method)
+    npz, png = target / "episode.npz", target / "episode.png"
+    written = [npz, png, rep.episode.save(npz)]
+    plot_episode(rep.episode, rep.study.scenario, png)
+    if animate:
+        from .animation import animate_episode
+
+        written.append(animate_episode(rep.episode, rep.study.scenario,
+                                       target / f"episode.{animation_format}"))
+    cfg = SimpleNamespace(scenario=rep.study.scenario, settings=rep.method.settings,
+                          seed=f"{rep.study.seed}, run {run}")
+    print_summary(rep.episode, cfg, written)
+    if rep.reproduced is None:
+        print(f"run {run} of {method!r} is not stored in {study_dir} yet: nothing to compare")
+    elif rep.reproduced:
+        print(f"identical to the stored run {run} of {method!r} (errors, estimates, NEES, "
+              "sensor poses and looks)")
+    else:
+        worst = max(rep.differences, key=lambda k: rep.differences[k])
+        sys.stdout.flush()
+        sys.stderr.write(f"warning: the replay differs from the stored run (largest: "
+                         f"{worst} by {rep.differences[worst]:.3g}); was the study run "
+                         "with another sensorplan version? (see DIR/meta.json)\n")
+    return rep
