@@ -482,7 +482,7 @@ def replay(
     writes what simulate writes (episode.npz, episode.png) plus an animation
     (episode.gif). The report names the best and worst runs to look at.
 
-    Example: sensorplan replay runs/paper --run 9 --method "paper/OLF pg K=3"
+    Example: sensorplan replay runs/paper --run 9 --method ours/olf-pg
     """
     from .replay import replay_command
 
