@@ -127,9 +127,9 @@ def _write_gif(path: Path, images: Iterator[np.ndarray], fps: float) -> None:
     for k, im in enumerate(picks):
         montage.paste(im, (0, k * im.height))
     colours = montage.quantize(colors=216, method=Image.Quantize.FASTOCTREE)
-    greys = [v for g in np.linspace(0, 255, 40).round().astype(int) for v in (g, g, g)]
+    greys = [int(g) for g in np.linspace(0, 255, 40).round() for _ in range(3)]
     palette = Image.new("P", (1, 1))
-    palette.putpalette(colours.getpalette()[:3 * 216] + greys)
+    palette.putpalette((colours.getpalette() or [])[:3 * 216] + greys)
     frames = [im.quantize(palette=palette, dither=Image.Dither.NONE) for im in rgb]
     frames[0].save(path, save_all=True, append_images=frames[1:],
                    duration=int(round(1000 / fps)), loop=0)
@@ -187,7 +187,7 @@ class _Frames:
 
         timeline_h = 0.3 * self.N + 0.7
         fig = Figure(figsize=(11.0, 6.4 + timeline_h + 2.0), dpi=dpi)
-        FigureCanvasAgg(fig)
+        self.canvas = FigureCanvasAgg(fig)
         grid = fig.add_gridspec(3, 2, width_ratios=[2.2, 1.0],
                                 height_ratios=[6.4, timeline_h, 2.0], hspace=0.32,
                                 wspace=0.02, left=0.07, right=0.98, top=0.95, bottom=0.06)
@@ -210,8 +210,12 @@ class _Frames:
         ax.set_ylabel("y (m)")
         ax.grid(True, linewidth=0.4, alpha=0.4)
 
-        self.fov, self.spath, self.smark, self.look, self.cross, self.fa_text = ([] for _ in
-                                                                                range(6))
+        self.fov: list[Any] = []
+        self.spath: list[Any] = []
+        self.smark: list[Any] = []
+        self.look: list[Any] = []
+        self.cross: list[Any] = []
+        self.fa_text: list[Any] = []
         for i in range(self.N):
             color, marker = sensor_style(i)
             params = scenario.sensors[i].params
@@ -230,7 +234,11 @@ class _Frames:
                                       markeredgewidth=2.0, zorder=7)[0])
             self.fa_text.append(ax.text(0, 0, "", fontsize=8, color="k", zorder=7,
                                         clip_on=True))
-        self.track, self.track_est, self.now, self.now_est, self.ell = ([] for _ in range(5))
+        self.track: list[Any] = []
+        self.track_est: list[Any] = []
+        self.now: list[Any] = []
+        self.now_est: list[Any] = []
+        self.ell: list[Any] = []
         for j in range(self.M):
             c = target_color(j)
             self.track.append(ax.add_collection(LineCollection([], linewidths=2.2,
@@ -264,7 +272,7 @@ class _Frames:
         ]
         map_legend(ax, episode, scenario, extra)
         # The legend lives in the right-hand column (frames have a fixed size: no "tight").
-        leg = ax.get_legend()
+        leg: Any = ax.get_legend()
         leg.set_bbox_to_anchor((0.0, 1.0), transform=legend_ax.transAxes)
 
         draw_timeline(ax_time, episode, self.dt)
@@ -288,13 +296,13 @@ class _Frames:
             key=lambda a: a.get_zorder())
         for a in self.moving + [self.title]:
             a.set_animated(True)
-        fig.canvas.draw()
-        self.background = fig.canvas.copy_from_bbox(fig.bbox)
+        self.canvas.draw()
+        self.background = self.canvas.copy_from_bbox(fig.bbox)
 
     def render(self, t: int) -> np.ndarray:
         """The frame of step ``t`` as an ``(h, w, 4) uint8`` RGBA array."""
         self.draw(t)
-        canvas = self.fig.canvas
+        canvas = self.canvas
         canvas.restore_region(self.background)
         for a in self.moving:
             a.axes.draw_artist(a)
@@ -313,14 +321,14 @@ class _Frames:
             self.now[j].set_data([self.truth[t, j, 0]], [self.truth[t, j, 1]])
             self.now_est[j].set_data([self.est[t, j, 0]], [self.est[t, j, 1]])
             self.labels[j].set_position((self.truth[t, j, 0] + 8, self.truth[t, j, 1] + 8))
-            geo = ellipse_geometry(self.cov[t, j], self.limit)
-            ok = geo is not None and bool(np.all(np.isfinite(self.est[t, j])))
+            shape = ellipse_geometry(self.cov[t, j], self.limit)
+            ok = shape is not None and bool(np.all(np.isfinite(self.est[t, j])))
             self.ell[j].set_visible(ok)
-            if ok:
+            if shape is not None and ok:
                 self.ell[j].set_center(tuple(self.est[t, j]))
-                self.ell[j].set_width(geo[0])
-                self.ell[j].set_height(geo[1])
-                self.ell[j].set_angle(geo[2])
+                self.ell[j].set_width(shape[0])
+                self.ell[j].set_height(shape[1])
+                self.ell[j].set_angle(shape[2])
         for i in range(self.N):
             color, _ = sensor_style(i)
             wedge, params = self.fov[i]

@@ -222,9 +222,9 @@ def draw_timeline(ax: "Axes", episode: "Episode", dt: float) -> None:
             clip_on=False, markeredgewidth=0.8)
     fa = np.asarray(episode.false_alarms)
     if fa[1:].any():
-        t, i = np.nonzero(fa[1:])
-        ax.scatter((t + 0.5) * dt, i + 0.25, s=6 + 6 * fa[1:][t, i], color="k", zorder=3,
-                   linewidths=0)
+        when, who = np.nonzero(fa[1:])
+        ax.scatter((when + 0.5) * dt, who + 0.25, s=6 + 6 * fa[1:][when, who], color="k",
+                   zorder=3, linewidths=0)
     ax.set_yticks(range(N), [f"S{i}" for i in range(N)])
     ax.set_ylim(N - 0.5, -0.5)
     ax.set_xlim(0, S * dt)
@@ -365,7 +365,7 @@ def episode_figure(episode: "Episode", scenario: "Scenario") -> "Figure":
                 fov.set_edgecolor(mix(color, 0.55))
         if S > 0:
             # Lighter than the tracks: the lattice paths are context, the tracks the subject.
-            ax.add_collection(LineCollection(segments(spos[:, i]), colors=fade_colors(
+            ax.add_collection(LineCollection(list(segments(spos[:, i])), colors=fade_colors(
                 mix_hex(color, 0.7), ages, None), linewidths=0.8, zorder=2))
         ax.plot(*spos[0, i], marker, color=color, markersize=7, markerfacecolor="white",
                 zorder=4)
@@ -388,10 +388,10 @@ def episode_figure(episode: "Episode", scenario: "Scenario") -> "Figure":
     for j in range(M):
         c = target_color(j)
         if S > 0:
-            ax.add_collection(LineCollection(segments(truth[:, j]),
+            ax.add_collection(LineCollection(list(segments(truth[:, j])),
                                              colors=fade_colors(c, ages, None),
                                              linewidths=2.2, zorder=3))
-            ax.add_collection(LineCollection(segments(est[:, j]),
+            ax.add_collection(LineCollection(list(segments(est[:, j])),
                                              colors=fade_colors(c, ages, None),
                                              linewidths=1.2, linestyles=":", zorder=3))
         ax.plot(*truth[0, j], "o", color=mix(c, 0.5), markersize=6, zorder=4)

@@ -125,7 +125,7 @@ def _fig_scenario(t: StudyTables, path: Path) -> Path:
     for j, kind in enumerate(study.scenario.target_kinds):
         g = steps[steps["target"] == j].sort_values("step")
         color = target_color(j)
-        style = "-" if kind == "cv" else "--"
+        style: Any = "-" if kind == "cv" else "--"
         ax.plot(g["x"], g["y"], style, color=color, linewidth=1.6)
         ax.plot(g["x"].iloc[0], g["y"].iloc[0], "o", color=color, markersize=6)
         ax.plot(g["x"].iloc[-1], g["y"].iloc[-1], "s", color=color, markersize=6)
