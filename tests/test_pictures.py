@@ -256,8 +256,16 @@ def test_mp4_needs_ffmpeg(quick_run, tmp_path: Path, monkeypatch: pytest.MonkeyP
 
     cfg, episode = quick_run
     if animation.ffmpeg_available():
+        import shutil
+        import subprocess
+
         path = animation.animate_episode(episode, cfg.scenario, tmp_path / "run.mp4", dpi=40)
         assert path.stat().st_size > 1000
+        if shutil.which("ffprobe"):
+            probe = subprocess.run(["ffprobe", "-v", "error", "-count_frames", "-show_entries",
+                                    "stream=codec_name,nb_read_frames", "-of", "csv=p=0",
+                                    str(path)], capture_output=True, text=True, check=True)
+            assert probe.stdout.strip() == f"h264,{episode.error.shape[0]}"
     monkeypatch.setattr(animation.shutil, "which", lambda name: None)
     with pytest.raises(ValueError, match="ffmpeg"):
         animation.animate_episode(episode, cfg.scenario, tmp_path / "run.mp4")
