@@ -198,6 +198,21 @@ def test_headline_says_whether_lookahead_paid(lo: float, hi: float, verdict: str
     assert ("docs/results.md (in the sensorplan source)" in no_link) == (verdict != "paid")
 
 
+def test_headline_without_a_lookahead_method_or_interval() -> None:
+    from sensorplan.report.headline import Headline, Interval, headline_paragraphs
+
+    h = Headline(kind="cv", best="A", best_rmse=Interval(10.0, math.nan, math.nan, 1),
+                 runner_up="B", vs_runner_up=Interval(-0.01, math.nan, math.nan, 1),
+                 random=None, vs_random=None, lookahead=None, myopic=None, vs_myopic=None,
+                 small_sample=True)
+    assert h.verdict is None
+    first, second = headline_paragraphs(h, None)
+    assert "over cv targets 10.0 m (95 % t-interval, 1 paired run)" in first
+    assert "+0.0 m against the runner-up, B (no interval)" in first       # never "-0.0"
+    assert "(n < 10: intervals unreliable.)" in first
+    assert "not tested here" in second
+
+
 def test_report_page_starts_with_the_headline_and_contents(report: object) -> None:
     page = report.html.read_text(encoding="utf-8")                 # type: ignore[attr-defined]
     top = page.index('<section id="headline"')

@@ -160,7 +160,7 @@ def headline_paragraphs(h: Headline, link: str | None) -> list[str]:
     over = "all targets" if h.kind == "all" else f"{h.kind} targets"
     n = h.best_rmse.n
     first = (f"**Best method: {h.best}**, mean position RMSE over {over} "
-             f"{h.best_rmse.text()} (95 % t-interval, {n} paired runs).")
+             f"{h.best_rmse.text()} (95 % t-interval, {n} paired run{'' if n == 1 else 's'}).")
     parts = []
     if h.runner_up is not None and h.vs_runner_up is not None:
         parts.append(f"{h.vs_runner_up.text(True)} against the runner-up, {h.runner_up} "
