@@ -433,7 +433,8 @@ def test_simulate_has_an_option_per_declared_setting_with_its_default() -> None:
         assert option.help.endswith(f"[default: {value}]"), option.help
     assert "brute-force" in options["planner"].help            # registered names listed
     assert set(options) == {f.name for _, f, _ in declared} | {"config", "preset", "seed",
-                                                                "out"}
+                                                                "out", "animate",
+                                                                "animation_format"}
 
 
 def test_simulate_file_and_preset_conflict(tmp_path: Path,

@@ -132,6 +132,12 @@ def simulate(
         "--out", "-o", metavar="DIR",
         help="Directory for episode.npz (every array of the run) and episode.png.")
     ] = Path("out/simulate"),
+    animate: Annotated[bool, typer.Option(
+        "--animate", help="Also write an animation of the run, one frame per step "
+                          "(DIR/episode.gif, or .mp4 with --animation-format mp4).")] = False,
+    animation_format: Annotated[str, typer.Option(
+        "--animation-format", metavar="gif|mp4",
+        help="Format of --animate: gif (always available) or mp4 (needs ffmpeg).")] = "gif",
     **settings: Any,
 ) -> None:
     """Simulate one closed-loop run and summarize it.
@@ -152,6 +158,10 @@ def simulate(
 
     with _bad_input():
         cfg = load_simulation(config, preset, {**settings, "seed": seed})
+        if animate:
+            from .animation import check_format
+
+            check_format(animation_format)
         ensure_out_dir(out)
 
     from .console import print_summary, run_with_progress
@@ -172,7 +182,13 @@ def simulate(
     from .plotting import plot_episode
 
     plot_episode(episode, cfg.scenario, png)
-    print_summary(episode, cfg, [npz, png, timing])
+    written = [npz, png, timing]
+    if animate:
+        from .animation import animate_episode
+
+        written.append(animate_episode(episode, cfg.scenario,
+                                       out / f"episode.{animation_format}"))
+    print_summary(episode, cfg, written)
 
 
 def _setting_options(skip: tuple[str, ...] = ()) -> list[inspect.Parameter]:
@@ -435,6 +451,43 @@ def report(
     print(f"report: {written.html}")
     print(f"summary: {written.markdown}")
     print(f"figures: {len(written.figures)} PNG files in {written.html.parent}")
+
+
+# ----------------------------------------------------------------------------- replay
+
+
+@app.command()
+def replay(
+    study_dir: Annotated[Path, typer.Argument(
+        metavar="DIR", show_default=False, help="A study directory (sensorplan study --out).")],
+    run: Annotated[int, typer.Option(
+        "--run", "-r", metavar="R", show_default=False,
+        help="Run index, 0 .. runs-1.")],
+    method: Annotated[str, typer.Option(
+        "--method", "-m", metavar="NAME", show_default=False,
+        help="Method name, as in the study file and the report.")],
+    out: Annotated[Path | None, typer.Option(
+        "--out", "-o", metavar="OUT", show_default=False,
+        help="Where to write the files. [default: DIR/replay/run-R-NAME]")] = None,
+    animate: Annotated[bool, typer.Option(
+        "--animate/--no-animate", help="Write the animation.")] = True,
+    animation_format: Annotated[str, typer.Option(
+        "--animation-format", metavar="gif|mp4",
+        help="gif (always available) or mp4 (needs ffmpeg).")] = "gif",
+) -> None:
+    """Re-simulate one run of one method of a study and draw it.
+
+    Runs method NAME on run R with the study's configuration (DIR/config.resolved.json)
+    and the run's seed, checks that it reproduces what the study stored for that run, and
+    writes what simulate writes (episode.npz, episode.png) plus an animation
+    (episode.gif). The report names the best and worst runs to look at.
+
+    Example: sensorplan replay runs/paper --run 9 --method ours/olf-pg
+    """
+    from .replay import replay_command
+
+    with _bad_input():
+        replay_command(study_dir, run, method, out, animate, animation_format)
 
 
 # ------------------------------------------------------------------------------- demo

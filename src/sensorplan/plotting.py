@@ -1,40 +1,103 @@
 """Figures of saved runs (matplotlib only here, Agg canvas; the CLI imports this lazily).
 
 Plots read what a run recorded (:class:`~sensorplan.simulation.Episode`) and the scenario
-it ran; they compute nothing the run did not record except the drawing geometry.
+it ran; they compute nothing the run did not record except the drawing geometry. Colours
+come from :mod:`sensorplan.colors` (a target has one colour in every figure; sensors are
+greys with distinct markers). :func:`plot_episode` writes the static figure of a run,
+:mod:`sensorplan.animation` its animation; both use the drawing helpers here.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .colors import (BUILDING_EDGE, BUILDING_FACE, mix, mix_hex, sensor_style, target_color,
+                     target_colors)
+
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
     from matplotlib.patches import Wedge
 
     from .scenario import Scenario
     from .simulation import Episode
 
-#: Number of times at which the estimates' 2-sigma ellipses are drawn.
+#: Number of times at which the static figure draws ellipses, fields of view and looks.
 N_ELLIPSES = 5
-#: Chi-square(2) 95 % quantile would be 2.45 sigma; the figure shows the usual 2 sigma.
+#: Chi-square(2) 95 % quantile would be 2.45 sigma; the figures show the usual 2 sigma.
 N_SIGMA = 2.0
+#: Drawn ellipse semi-axes and off-map coordinates are clipped to this many map sizes, so a
+#: diverged track (covariance 1e40) draws as fast as any other.
+CLIP_MAPS = 3.0
+#: Lightest tint of a faded path (its oldest point), as a weight of the full colour.
+FADE_FLOOR = 0.12
+#: Hatch of a missed look in the assignment timeline.
+MISS_HATCH = "////"
 
 
-def _ellipse(ax: "Axes", mean: np.ndarray, C: np.ndarray, color: str, **kw: object) -> None:
-    """Draw the ``N_SIGMA`` ellipse of a 2-D Gaussian with covariance ``C (2, 2)``."""
-    from matplotlib.patches import Ellipse
+# ------------------------------------------------------------------------ geometry
 
-    vals, vecs = np.linalg.eigh(0.5 * (C + C.T))
-    vals = np.clip(vals, 0.0, None)
+
+def ellipse_geometry(C: Any, limit: float) -> tuple[float, float, float] | None:
+    """Width, height (m) and angle (deg) of the ``N_SIGMA`` ellipse of a 2-D covariance.
+
+    Parameters
+    ----------
+    C : (2, 2) float64
+        Position covariance (m^2).
+    limit : float
+        Largest drawn semi-axis (m): larger ones are clipped to it.
+
+    Returns
+    -------
+    ``(width, height, angle)`` with ``width >= height`` (the major axis at ``angle``), or
+    None when ``C`` is not finite.
+    """
+    C = np.asarray(C, dtype=float)
+    if not np.all(np.isfinite(C)):
+        return None
+    try:
+        vals, vecs = np.linalg.eigh(0.5 * C + 0.5 * C.T)     # halves first: no overflow
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(vals)):
+        return None
+    semi = np.minimum(N_SIGMA * np.sqrt(np.clip(vals, 0.0, None)), limit)
     angle = math.degrees(math.atan2(vecs[1, 1], vecs[0, 1]))
-    ax.add_patch(Ellipse(tuple(mean), 2 * N_SIGMA * math.sqrt(vals[1]),
-                         2 * N_SIGMA * math.sqrt(vals[0]), angle=angle, fill=False,
-                         edgecolor=color, **kw))
+    return 2.0 * float(semi[1]), 2.0 * float(semi[0]), angle
+
+
+def map_limit(scenario: "Scenario") -> float:
+    """:data:`CLIP_MAPS` map sizes (m): the clipping bound of drawn geometry."""
+    return CLIP_MAPS * max(scenario.world.width, scenario.world.height)
+
+
+def clip_xy(xy: Any, scenario: "Scenario") -> np.ndarray:
+    """Positions ``(..., 2)`` clipped to the map grown by :func:`map_limit` on every side
+    (only far off-map points move; non-finite ones become NaN, which draws as a gap)."""
+    xy = np.array(xy, dtype=float)
+    lim = map_limit(scenario)
+    xy[~np.isfinite(xy)] = np.nan
+    xy[..., 0] = np.clip(xy[..., 0], -lim, scenario.world.width + lim)
+    xy[..., 1] = np.clip(xy[..., 1], -lim, scenario.world.height + lim)
+    return xy
+
+
+def fov_geometry(xy: Any, heading: float, params: Any) -> dict[str, Any]:
+    """Wedge arguments of a sensor's ground field of view: the range-band annulus sector
+    ``[min_ground_range, max_ground_range]`` of its azimuth wedge ``heading -+
+    fov_half_angle`` (centre, outer radius, angles in degrees, band width)."""
+    g_min = float(params.min_ground_range)
+    g_max = float(params.max_ground_range)
+    half = math.degrees(float(params.fov_half_angle))
+    centre = math.degrees(float(heading))
+    return dict(center=(float(xy[0]), float(xy[1])), r=g_max, theta1=centre - half,
+                theta2=centre + half, width=g_max - g_min)
 
 
 def field_of_view(ax: "Axes", xy: np.ndarray, heading: float, params: object,
@@ -42,14 +105,64 @@ def field_of_view(ax: "Axes", xy: np.ndarray, heading: float, params: object,
     """Ground sensing region: the range-band annulus sector of the azimuth wedge."""
     from matplotlib.patches import Wedge
 
-    g_min = float(params.min_ground_range)      # type: ignore[attr-defined]
-    g_max = float(params.max_ground_range)      # type: ignore[attr-defined]
-    half = math.degrees(float(params.fov_half_angle))  # type: ignore[attr-defined]
-    centre = math.degrees(heading)
-    wedge = Wedge(tuple(xy), g_max, centre - half, centre + half, width=g_max - g_min,
-                  facecolor=color, alpha=alpha, edgecolor=color, linewidth=1.0, linestyle="--")
+    wedge = Wedge(**fov_geometry(xy, heading, params), facecolor=color, alpha=alpha,
+                  edgecolor=color, linewidth=1.0, linestyle="--")
     ax.add_patch(wedge)
     return wedge
+
+
+def fade_colors(color: str, ages: Any, tau: float | None) -> np.ndarray:
+    """RGB ``(n, 3)`` tints of ``color`` for path segments of the given ages (steps before
+    now): full colour now, lighter with age (``exp(-age / tau)``; linear over the whole path
+    when ``tau`` is None and ages are normalised to [0, 1])."""
+    ages = np.asarray(ages, dtype=float)
+    w = 1.0 - ages if tau is None else np.exp(-ages / tau)
+    w = FADE_FLOOR + (1.0 - FADE_FLOOR) * np.clip(w, 0.0, 1.0)
+    return np.array([mix(color, v) for v in w]).reshape(-1, 3)
+
+
+def segments(xy: np.ndarray) -> np.ndarray:
+    """Consecutive point pairs ``(n - 1, 2, 2)`` of a path ``(n, 2)``."""
+    return np.stack([xy[:-1], xy[1:]], axis=1)
+
+
+@dataclass(frozen=True)
+class LookRun:
+    """Consecutive steps ``first..last`` (inclusive) in which ``sensor`` looked at
+    ``target`` with the same outcome (``missed``)."""
+
+    sensor: int
+    target: int
+    missed: bool
+    first: int
+    last: int
+
+
+def look_runs(looked: Any, missed: Any) -> list[LookRun]:
+    """The assignment timeline of a run: runs of equal (target, missed) per sensor over
+    steps ``1..S`` (steps without a look, ``target = -1``, are left out).
+
+    Parameters
+    ----------
+    looked : (S+1, N) int
+    missed : (S+1, N) bool
+    """
+    looked = np.asarray(looked)
+    missed = np.asarray(missed, dtype=bool)
+    out = []
+    for i in range(looked.shape[1]):
+        start = 1
+        for t in range(2, looked.shape[0] + 1):
+            if t == looked.shape[0] or (looked[t, i], missed[t, i]) != \
+                    (looked[start, i], missed[start, i]):
+                if looked[start, i] >= 0:
+                    out.append(LookRun(i, int(looked[start, i]), bool(missed[start, i]),
+                                       start, t - 1))
+                start = t
+    return out
+
+
+# ------------------------------------------------------------------------- drawing
 
 
 def frame_map(ax: "Axes", width: float, height: float, margin: float) -> None:
@@ -63,22 +176,285 @@ def frame_map(ax: "Axes", width: float, height: float, margin: float) -> None:
     ax.grid(True, linewidth=0.4, alpha=0.4)
 
 
-def plot_episode(episode: "Episode", scenario: "Scenario", path: str | Path) -> Path:
-    """Map of one run: true tracks, estimates, sensor paths and fields of view.
+def draw_buildings(ax: "Axes", buildings: Any) -> None:
+    """Buildings ``(x0, y0, x1, y1, height)`` as grey rectangles labelled with their
+    height."""
+    from matplotlib.patches import Rectangle
 
-    Draws the map rectangle; each target's true track (solid) with its start (circle) and
-    end (square); the estimated track (dotted) with ``2 sigma`` position ellipses at
-    ``N_ELLIPSES`` evenly spaced times; each sensor's ground path with its final heading
-    (arrow) and its field of view at the last step (the range-band annulus sector of its
-    azimuth wedge, shaded).
+    for x0, y0, x1, y1, h in buildings:
+        ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor=BUILDING_FACE,
+                               edgecolor=BUILDING_EDGE, linewidth=1.0, zorder=1.5))
+        ax.text(0.5 * (x0 + x1), 0.5 * (y0 + y1), f"{h:g} m", ha="center", va="center",
+                fontsize=7.5, color="#333333", zorder=1.6, clip_on=True)
+
+
+def draw_ellipse(ax: "Axes", mean: Any, C: Any, color: str, limit: float, **kw: Any) -> None:
+    """Draw the ``N_SIGMA`` ellipse of ``C (2, 2)`` around ``mean`` (nothing if not finite)."""
+    from matplotlib.patches import Ellipse
+
+    geo = ellipse_geometry(C, limit)
+    if geo is None or not np.all(np.isfinite(mean)):
+        return
+    ax.add_patch(Ellipse(tuple(mean), geo[0], geo[1], angle=geo[2], fill=False,
+                         edgecolor=color, **kw))
+
+
+def draw_timeline(ax: "Axes", episode: "Episode", dt: float) -> None:
+    """Sensor-to-target assignment: one row per sensor, time on x, a cell per step in the
+    colour of the target looked at (hatched when the look missed), decision times as thin
+    lines, and false alarms (if any) as dots sized by their count."""
+    looked = np.asarray(episode.looked)
+    missed = np.asarray(episode.missed)
+    S, N = looked.shape[0] - 1, looked.shape[1]
+    for run in look_runs(looked, missed):
+        c = target_color(run.target)
+        ax.broken_barh([((run.first - 1) * dt, (run.last - run.first + 1) * dt)],
+                       (run.sensor - 0.38, 0.76),
+                       facecolors=mix(c, 0.45) if run.missed else c,
+                       edgecolor="#222222" if run.missed else "none",
+                       hatch=MISS_HATCH if run.missed else None, linewidth=0.0,
+                       gid=f"look S{run.sensor} T{run.target}" +
+                           (" missed" if run.missed else ""))
+    steps = np.asarray(episode.decision_steps, dtype=float)
+    # Decisions as ticks above the rows (a line per decision would grid over every cell
+    # when the run decides at every step).
+    ax.plot(steps * dt, np.full(steps.shape, -0.62), "|", color="0.35", markersize=5,
+            clip_on=False, markeredgewidth=0.8)
+    fa = np.asarray(episode.false_alarms)
+    if fa[1:].any():
+        when, who = np.nonzero(fa[1:])
+        ax.scatter((when + 0.5) * dt, who + 0.25, s=6 + 6 * fa[1:][when, who], color="k",
+                   zorder=3, linewidths=0)
+    ax.set_yticks(range(N), [f"S{i}" for i in range(N)])
+    ax.set_ylim(N - 0.5, -0.5)
+    ax.set_xlim(0, S * dt)
+    ax.tick_params(axis="y", length=0, pad=16)
+    for i in range(N):
+        color, marker = sensor_style(i)
+        ax.plot(-0.011, i, marker, color=color, transform=ax.get_yaxis_transform(),
+                clip_on=False, markersize=6)
+    ax.set_title("Looks: colour = target looked at, hatched = the look missed (no "
+                 "detection of it), ticks on top = decisions"
+                 + ("; dots = false alarms (size: count)" if fa[1:].any() else ""),
+                 fontsize=9, loc="left", pad=8)
+
+
+def draw_errors(ax: "Axes", episode: "Episode", dt: float) -> None:
+    """Position error of each target over time (log scale) with the filter's own RMS
+    position error ``sqrt(tr P_xy)`` (dotted) and the lost-track threshold."""
+    from .study.metrics import LOST_THRESHOLD
+
+    err = np.asarray(episode.error, dtype=float)
+    cov = np.asarray(episode.cov, dtype=float)
+    with np.errstate(over="ignore", invalid="ignore"):
+        own = np.sqrt(cov[..., 0, 0] + cov[..., 1, 1])
+    time_s = np.arange(err.shape[0]) * dt
+    floor = 0.1
+    for j in range(err.shape[1]):
+        c = target_color(j)
+        ax.plot(time_s, np.clip(err[:, j], floor, None), color=c, linewidth=1.4)
+        ax.plot(time_s, np.clip(own[:, j], floor, 1e9), color=c, linewidth=0.9, linestyle=":")
+    ax.axhline(LOST_THRESHOLD, color="0.3", linestyle="--", linewidth=0.8)
+    ax.text(0.995, LOST_THRESHOLD, f"lost above {LOST_THRESHOLD:g} m", va="bottom",
+            ha="right", fontsize=7.5, color="0.3", transform=ax.get_yaxis_transform())
+    ax.set_yscale("log")
+    top = np.nanmax(np.where(np.isfinite(err), err, np.nan)) if np.isfinite(err).any() else 1
+    ax.set_ylim(max(floor, 0.5 * np.nanmin(np.clip(err[1:], floor, None))),
+                max(2.0 * top, 2.0 * LOST_THRESHOLD))
+    ax.set_xlim(0, (err.shape[0] - 1) * dt)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("position error (m)")
+    ax.grid(True, which="major", linewidth=0.4, alpha=0.5)
+    ax.set_title("Position error per target (solid) and the filter's own RMS error "
+                 "\u221atr P (dotted)", fontsize=9, loc="left")
+
+
+def episode_layout(episode: "Episode", scenario: "Scenario", width: float = 10.5,
+                   map_height: float = 7.0, dpi: float = 110
+                   ) -> tuple["Figure", "Axes", "Axes", "Axes"]:
+    """A bare Agg figure with the map on top, the assignment timeline and the error panel
+    below (sharing the time axis): ``(figure, map, timeline, errors)``."""
+    # The Agg canvas of a bare Figure: no pyplot, so no global backend switch and no figure
+    # registry (safe inside notebooks and worker processes).
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    N = np.asarray(episode.looked).shape[1]
+    timeline_h = 0.32 * N + 0.75
+    error_h = 2.3
+    fig = Figure(figsize=(width, map_height + timeline_h + error_h + 0.6), dpi=dpi)
+    FigureCanvasAgg(fig)
+    grid = fig.add_gridspec(3, 1, height_ratios=[map_height, timeline_h, error_h],
+                            hspace=0.28, left=0.08, right=0.97, top=0.96, bottom=0.05)
+    ax_map = fig.add_subplot(grid[0])
+    ax_time = fig.add_subplot(grid[1])
+    ax_err = fig.add_subplot(grid[2], sharex=ax_time)
+    ax_time.tick_params(labelbottom=False)
+    return fig, ax_map, ax_time, ax_err
+
+
+def map_legend(ax: "Axes", episode: "Episode", scenario: "Scenario",
+               extra: list[Any]) -> None:
+    """Legend right of the map: the targets (colour, kind), the sensors (grey, marker,
+    altitude), buildings, then ``extra`` handles."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    handles: list[Any] = [Patch(facecolor=c, label=f"T{j} ({kind})")
+                          for j, (c, kind) in enumerate(zip(
+                              target_colors(len(episode.target_kinds)), episode.target_kinds))]
+    for i, spec in enumerate(scenario.sensors):
+        color, marker = sensor_style(i)
+        handles.append(Line2D([], [], color=color, marker=marker, linewidth=1.0,
+                              label=f"S{i}, z = {float(spec.params.altitude):g} m"))
+    if scenario.buildings:
+        handles.append(Patch(facecolor=BUILDING_FACE, edgecolor=BUILDING_EDGE,
+                             label="building (height)"))
+    ax.legend(handles=handles + extra, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+              fontsize=8.5, frameon=False)
+
+
+def episode_title(episode: "Episode") -> str:
+    s = episode.settings
+    rmse = np.asarray(episode.rmse())
+    return (f"{s.planner}, K = {s.horizon}, e = {s.steps_per_epoch}, {s.execution.upper()}, "
+            f"{np.asarray(episode.error).shape[0] - 1} steps \u2014 RMSE per target: "
+            + ", ".join(f"{v:.0f}" for v in rmse) + " m")
+
+
+# ---------------------------------------------------------------------- the figure
+
+
+def episode_figure(episode: "Episode", scenario: "Scenario") -> "Figure":
+    """The static figure of a run (see :func:`plot_episode`), not yet saved."""
+    from matplotlib.collections import LineCollection
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch, Rectangle
+
+    truth = clip_xy(np.asarray(episode.truth)[..., :2], scenario)
+    est = clip_xy(np.asarray(episode.estimate)[..., :2], scenario)
+    cov = np.asarray(episode.cov)
+    spos = clip_xy(episode.sensor_positions, scenario)
+    shead = np.asarray(episode.sensor_headings)
+    looked = np.asarray(episode.looked)
+    missed = np.asarray(episode.missed)
+    S, M, N = truth.shape[0] - 1, truth.shape[1], spos.shape[1]
+    W, H = scenario.world.width, scenario.world.height
+    dt = scenario.dt
+    limit = map_limit(scenario)
+    times = np.unique(np.linspace(0, S, N_ELLIPSES).round().astype(int))
+    looks_at = [t for t in times if t >= 1]
+    ages = 1.0 - np.arange(S) / max(S - 1, 1)          # segment s: 1 (oldest) .. 0 (newest)
+
+    fig, ax, ax_time, ax_err = episode_layout(episode, scenario)
+    border = Rectangle((0, 0), W, H, fill=False, edgecolor="0.3", linewidth=1.2)
+    ax.add_patch(border)
+    draw_buildings(ax, scenario.buildings)
+
+    for i in range(N):
+        color, marker = sensor_style(i)
+        params = scenario.sensors[i].params
+        for t in looks_at:
+            last = t == S
+            fov = field_of_view(ax, spos[t, i], float(shead[t, i]), params, color,
+                                alpha=0.10 if last else 0.0)
+            fov.set_clip_path(border)       # the sensing region that matters is on the map
+            if not last:
+                fov.set_linewidth(0.6)
+                fov.set_linestyle(":")
+                fov.set_edgecolor(mix(color, 0.55))
+        if S > 0:
+            # Lighter than the tracks: the lattice paths are context, the tracks the subject.
+            ax.add_collection(LineCollection(list(segments(spos[:, i])), colors=fade_colors(
+                mix_hex(color, 0.7), ages, None), linewidths=0.8, zorder=2))
+        ax.plot(*spos[0, i], marker, color=color, markersize=7, markerfacecolor="white",
+                zorder=4)
+        ax.plot(*spos[-1, i], marker, color=color, markersize=9, zorder=4)
+        arrow = 0.06 * max(W, H)
+        ax.annotate("", xy=(spos[-1, i, 0] + arrow * math.cos(shead[-1, i]),
+                            spos[-1, i, 1] + arrow * math.sin(shead[-1, i])),
+                    xytext=tuple(spos[-1, i]),
+                    arrowprops=dict(arrowstyle="->", color=color, linewidth=1.4))
+        ax.annotate(f"S{i}", tuple(spos[-1, i]), textcoords="offset points", xytext=(7, -13),
+                    color=color, fontsize=9, fontweight="bold")
+        for t in looks_at:
+            j = looked[t, i]
+            if j < 0:
+                continue
+            ax.plot([spos[t, i, 0], truth[t, j, 0]], [spos[t, i, 1], truth[t, j, 1]],
+                    color=target_color(j), linewidth=0.9, zorder=2.5,
+                    linestyle="--" if missed[t, i] else "-", alpha=0.85)
+
+    for j in range(M):
+        c = target_color(j)
+        if S > 0:
+            ax.add_collection(LineCollection(list(segments(truth[:, j])),
+                                             colors=fade_colors(c, ages, None),
+                                             linewidths=2.2, zorder=3))
+            ax.add_collection(LineCollection(list(segments(est[:, j])),
+                                             colors=fade_colors(c, ages, None),
+                                             linewidths=1.2, linestyles=":", zorder=3))
+        ax.plot(*truth[0, j], "o", color=mix(c, 0.5), markersize=6, zorder=4)
+        ax.plot(*truth[-1, j], "s", color=c, markersize=6, zorder=4)
+        for t in times:
+            draw_ellipse(ax, est[t, j], cov[t, j, :2, :2], c, limit, linewidth=1.0,
+                         alpha=0.35 + 0.6 * t / max(S, 1), zorder=3)
+        ax.annotate(f"T{j}", tuple(truth[-1, j]), textcoords="offset points", xytext=(6, 4),
+                    color=c, fontsize=9, fontweight="bold")
+        miss_t = np.nonzero((looked[1:] == j) & missed[1:])[0] + 1
+        if miss_t.size:
+            ax.plot(truth[miss_t, j, 0], truth[miss_t, j, 1], "x", color="k", markersize=5,
+                    markeredgewidth=1.2, zorder=5, linestyle="none")
+
+    when = ", ".join(f"{t * dt:g}" for t in times)
+    extra = [
+        Line2D([], [], color="0.25", linewidth=2.2,
+               label="true track, light \u2192 dark = early \u2192 late (\u25cf start, "
+                     "\u25a0 end)"),
+        Line2D([], [], color="0.25", linestyle=":", linewidth=1.2, label="estimate"),
+        Line2D([], [], color="0.25", marker="o", markerfacecolor="none", linestyle="none",
+               markersize=10, label=f"{N_SIGMA:g}\u03c3 position ellipse (t = {when} s)"),
+        Line2D([], [], color="k", marker="x", linestyle="none", markersize=6,
+               label="a look at the target missed"),
+        Line2D([], [], color="0.25", linewidth=1.0,
+               label="sensor \u2192 looked-at target (dashed: missed), at the ellipse times"),
+        Patch(facecolor="0.5", alpha=0.2, edgecolor="0.3", linestyle="--",
+              label=f"field of view at step {S} (dotted: at the ellipse times)"),
+        Line2D([], [], color="0.25", marker="^", markerfacecolor="white", linestyle="none",
+               markersize=8, label="sensor start (open), end (filled), arrow = heading"),
+    ]
+    map_legend(ax, episode, scenario, extra)
+    frame_map(ax, W, H, 0.03)
+    ax.set_title(episode_title(episode), fontsize=10)
+    draw_timeline(ax_time, episode, dt)
+    draw_errors(ax_err, episode, dt)
+    return fig
+
+
+def plot_episode(episode: "Episode", scenario: "Scenario", path: str | Path) -> Path:
+    """The figure of one run: map, assignment timeline and errors over time.
+
+    - Map: the map rectangle and buildings (grey, labelled with their height); each
+      target's true track (solid) and estimate (dotted) in the target's colour, light to
+      dark from the first to the last step, with its start (circle) and end (square) and
+      ``2 sigma`` position ellipses at ``N_ELLIPSES`` evenly spaced times; a black cross
+      where a look at the target missed; each sensor's ground path (grey, its own marker:
+      open at the start, filled at the end, arrow = final heading); at the ellipse times the
+      line from each sensor to the target it looked at (dashed if the look missed) and its
+      field of view (the range-band annulus sector of its azimuth wedge; shaded at the
+      last step).
+    - Timeline: one row per sensor, one cell per step in the colour of the target it looked
+      at, hatched when the look missed; decisions as thin lines; false alarms as dots.
+    - Errors: each target's position error over time and the filter's own RMS error.
 
     Parameters
     ----------
     episode : Episode
         ``truth, estimate (S+1, M, 4)``, ``cov (S+1, M, 4, 4)``,
-        ``sensor_positions (S+1, N, 2)``, ``sensor_headings (S+1, N)``.
+        ``sensor_positions (S+1, N, 2)``, ``sensor_headings (S+1, N)``, ``looked``,
+        ``missed (S+1, N)``, ``error (S+1, M)``.
     scenario : Scenario
-        The map and the sensors' parameters.
+        The map, the buildings and the sensors' parameters.
     path : path
         Output file; the format follows the suffix (``.png``).
 
@@ -86,85 +462,7 @@ def plot_episode(episode: "Episode", scenario: "Scenario", path: str | Path) -> 
     -------
     Path of the written file.
     """
-    # The Agg canvas of a bare Figure: no pyplot, so no global backend switch and no figure
-    # registry (safe inside notebooks and worker processes).
-    from matplotlib import colormaps
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    from matplotlib.lines import Line2D
-    from matplotlib.patches import Patch, Rectangle
-
-    truth = np.asarray(episode.truth)
-    est = np.asarray(episode.estimate)
-    cov = np.asarray(episode.cov)
-    spos = np.asarray(episode.sensor_positions)
-    shead = np.asarray(episode.sensor_headings)
-    S = truth.shape[0] - 1
-    M, N = truth.shape[1], spos.shape[1]
-    W, H = scenario.world.width, scenario.world.height
-    # Targets and sensors take different tab10 colours (when M + N <= 10) so that a path is
-    # never mistaken for a track.
-    palette = colormaps["tab10"]
-    target_colors = [palette(j % 10) for j in range(M)]
-    sensor_colors = [palette((M + i) % 10) for i in range(N)]
-    times = np.unique(np.linspace(0, S, N_ELLIPSES).round().astype(int))
-
-    fig = Figure(figsize=(9.5, 8.0), dpi=110)
-    FigureCanvasAgg(fig)
-    ax = fig.add_subplot()
-    border = Rectangle((0, 0), W, H, fill=False, edgecolor="0.3", linewidth=1.2)
-    ax.add_patch(border)
-
-    sensor_handles: list[Line2D] = []
-    for i in range(N):
-        c = sensor_colors[i]
-        params = scenario.sensors[i].params
-        fov = field_of_view(ax, spos[-1, i], float(shead[-1, i]), params, c)
-        fov.set_clip_path(border)           # the sensing region that matters is on the map
-        ax.plot(spos[:, i, 0], spos[:, i, 1], "-", color=c, linewidth=1.2, alpha=0.75)
-        ax.plot(*spos[0, i], "o", color=c, markersize=6, markerfacecolor="white")
-        ax.plot(*spos[-1, i], "^", color=c, markersize=9)
-        arrow = 0.06 * max(W, H)
-        ax.annotate("", xy=(spos[-1, i, 0] + arrow * math.cos(shead[-1, i]),
-                            spos[-1, i, 1] + arrow * math.sin(shead[-1, i])),
-                    xytext=tuple(spos[-1, i]),
-                    arrowprops=dict(arrowstyle="->", color=c, linewidth=1.5))
-        ax.annotate(f"S{i}", tuple(spos[-1, i]), textcoords="offset points", xytext=(6, -12),
-                    color=c, fontsize=9, fontweight="bold")
-        sensor_handles.append(Line2D([], [], color=c, linewidth=1.2, marker="^",
-                                     label=f"S{i} path, z = {float(params.altitude):g} m"))
-
-    for j in range(M):
-        c = target_colors[j]
-        ax.plot(truth[:, j, 0], truth[:, j, 1], "-", color=c, linewidth=2.0)
-        ax.plot(*truth[0, j, :2], "o", color=c, markersize=6)
-        ax.plot(*truth[-1, j, :2], "s", color=c, markersize=6)
-        ax.plot(est[:, j, 0], est[:, j, 1], ":", color=c, linewidth=1.4)
-        for t in times:
-            _ellipse(ax, est[t, j, :2], cov[t, j, :2, :2], c, linewidth=1.0, alpha=0.8)
-        ax.annotate(f"T{j} ({episode.target_kinds[j]})", tuple(truth[-1, j, :2]),
-                    textcoords="offset points", xytext=(6, 4), color=c, fontsize=9)
-
-    handles = [
-        Line2D([], [], color="0.2", linewidth=2.0, label="true track (\u25cf start, \u25a0 end)"),
-        Line2D([], [], color="0.2", linestyle=":", linewidth=1.4, label="estimate"),
-        Line2D([], [], color="0.2", marker="o", markerfacecolor="none", linestyle="none",
-               markersize=10, label=f"{N_SIGMA:g}\u03c3 position ellipse (t = "
-                                     f"{', '.join(str(int(t)) for t in times)})"),
-        Line2D([], [], color="0.4", marker="^", linestyle="none", markersize=8,
-               label=f"sensor: \u25cb start, \u25b2 at t = {S}, arrow = heading"),
-        Patch(facecolor="0.5", alpha=0.2, edgecolor="0.4", linestyle="--",
-              label=f"field of view at t = {S}"),
-        *sensor_handles,
-    ]
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9,
-              frameon=False)
-    frame_map(ax, W, H, 0.03)
-    s = episode.settings
-    rmse = np.asarray(episode.rmse())
-    ax.set_title(f"{s.planner}, K = {s.horizon}, e = {s.steps_per_epoch}, "
-                 f"{s.execution.upper()}, {S} steps \u2014 RMSE per target: "
-                 + ", ".join(f"{v:.0f}" for v in rmse) + " m", fontsize=10)
+    fig = episode_figure(episode, scenario)
     path = Path(path)
     fig.savefig(path, bbox_inches="tight")      # keeps the legend outside the axes
     return path

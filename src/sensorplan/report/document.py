@@ -12,6 +12,7 @@ from __future__ import annotations
 import base64
 import html
 import math
+import shlex
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,6 +24,7 @@ from ..study.metrics import (DIVERGED_THRESHOLD, LOST_THRESHOLD, consistency, ki
 from ..study.model import Method
 from ..study.storage import StudyTables, load_study_dir
 from .figures import FIGURES, draw_figures
+from .headline import SMALL_SAMPLE, headline, headline_paragraphs, results_link
 
 
 @dataclass
@@ -77,6 +79,17 @@ class _Doc:
     def figure(self, name: str, path: Path) -> None:
         self.blocks.append(("figure", (name, path)))
 
+    def headline(self, paragraphs: list[str]) -> None:
+        """The boxed summary at the top of the page."""
+        self.blocks.append(("headline", paragraphs))
+
+    def toc(self) -> None:
+        """A table of contents of the level-2 headings (wherever they are added)."""
+        self.blocks.append(("toc", None))
+
+    def _sections(self) -> list[str]:
+        return [b[1] for kind, b in self.blocks if kind == "h" and b[0] == 2]
+
     def markdown(self) -> str:
         out: list[str] = []
         for kind, b in self.blocks:
@@ -84,6 +97,11 @@ class _Doc:
                 out.append("#" * b[0] + " " + b[1])
             elif kind == "p":
                 out.append(b)
+            elif kind == "headline":
+                out.append("\n>\n".join("> " + text for text in b))
+            elif kind == "toc":
+                out.append("**Contents:** " + " \u00b7 ".join(
+                    f"[{t}](#{slug(t)})" for t in self._sections()))
             elif kind == "table":
                 header, rows, caption = b
                 if caption:
@@ -103,9 +121,18 @@ class _Doc:
         body: list[str] = []
         for kind, b in self.blocks:
             if kind == "h":
-                body.append(f"<h{b[0]}>{html.escape(b[1])}</h{b[0]}>")
+                anchor = f' id="{slug(b[1])}"' if b[0] == 2 else ""
+                body.append(f"<h{b[0]}{anchor}>{html.escape(b[1])}</h{b[0]}>")
             elif kind == "p":
                 body.append(f"<p>{_inline(b)}</p>")
+            elif kind == "headline":
+                body.append('<section id="headline" class="headline">'
+                            + "".join(f"<p>{_inline(text)}</p>" for text in b) + "</section>")
+            elif kind == "toc":
+                items = "".join(f'<li><a href="#{slug(t)}">{html.escape(t)}</a></li>'
+                                for t in self._sections())
+                body.append(f'<nav id="contents" class="toc"><strong>Contents</strong>'
+                            f"<ol>{items}</ol></nav>")
             elif kind == "table":
                 header, rows, caption = b
                 cap = f"<caption>{html.escape(caption)}</caption>" if caption else ""
@@ -124,12 +151,22 @@ class _Doc:
 
 
 def _inline(text: str) -> str:
-    """Escape, then render markdown `code` and **bold** spans."""
+    """Escape, then render markdown `code`, **bold** and [link](href) spans."""
     import re
 
     t = html.escape(text)
     t = re.sub(r"`([^`]+)`", r"<code>\1</code>", t)
+    t = re.sub(r"\[([^\]]+)\]\(([^)\s]+)\)",
+               r'<a href="\2">\1</a>', t)                 # both already escaped
     return re.sub(r"\*\*([^*]+)\*\*", r"<strong>\1</strong>", t)
+
+
+def slug(text: str) -> str:
+    """Anchor of a heading, as GitHub spells it (lower case, punctuation dropped, spaces
+    as hyphens), so that the contents links work in the HTML page and in summary.md."""
+    import re
+
+    return re.sub(r"[^\w\- ]", "", text.lower()).replace(" ", "-")
 
 
 _HTML = """<!DOCTYPE html>
@@ -151,6 +188,11 @@ tbody tr:nth-child(even) {{ background: #fafafa; }}
 figure {{ margin: 1.2em 0; }} figure img {{ max-width: 100%; height: auto; }}
 figcaption {{ font-size: 0.9em; color: #444; }}
 code {{ background: #f3f3f3; padding: 0 0.2em; }}
+.headline {{ background: #f4f7fb; border-left: 4px solid #3a5a98; padding: 0.4em 1em;
+            margin: 1em 0; }}
+.headline p {{ margin: 0.5em 0; }}
+.toc {{ font-size: 0.95em; margin: 1em 0 1.5em; }}
+.toc ol {{ margin: 0.3em 0; padding-left: 1.6em; columns: 2; }}
 </style>
 </head>
 <body>
@@ -200,7 +242,14 @@ def write_report(study_dir: str | Path, out: str | Path | None = None) -> Report
     figs = draw_figures(t, out, {"rmse": rmse, "lost": lost, "diffs": diffs, "plan": plan,
                                  "curves": rmse_over_time(t), "nees": nees_over_time(t)})
 
-    doc = _document(t, rmse, lost, diffs, plan, sensing, figs, honest)
+    top = headline(t.study, metrics, rmse, diffs)
+    lines = headline_paragraphs(top, results_link(out))
+    single = _single_runs(metrics, t, top)
+    worst = next((row[3].split()[1] for row in single if row[0] == top.best), None)
+    example = (f"sensorplan replay {shlex.quote(str(study_dir))} --run {worst} --method "
+               f"{shlex.quote(top.best)}") if worst is not None else None
+    doc = _document(t, rmse, lost, diffs, plan, sensing, figs, honest, lines, single,
+                    example)
     title = f"sensorplan study report: {study_dir.name}"
     md = out / "summary.md"
     page = out / "report.html"
@@ -209,11 +258,44 @@ def write_report(study_dir: str | Path, out: str | Path | None = None) -> Report
     return ReportFiles(page, md, figs, t.complete, len(t.runs_done))
 
 
+def _small(rows: Any) -> bool:
+    """Whether summary rows come from few runs: the metrics' ``small_sample`` flag when
+    they carry one, else fewer than :data:`~.headline.SMALL_SAMPLE` runs."""
+    if not len(rows):
+        return False
+    if "small_sample" in rows:
+        return bool(rows["small_sample"].astype(bool).any())
+    return bool((rows["n"] < SMALL_SAMPLE).any())
+
+
+def _caption(label: str, rows: Any) -> str:
+    if not _small(rows):
+        return label
+    return f"{label} (n = {int(rows['n'].min())} runs < {SMALL_SAMPLE}: intervals unreliable)"
+
+
+def _single_runs(metrics: Any, t: StudyTables, top: Any) -> list[list[str]]:
+    """Per method: its best, median and worst run by RMSE over the headline's targets."""
+    m = metrics[metrics["kind"].astype(str) == top.kind]
+    rows = []
+    for name in t.study.method_names:
+        g = m[m["method"] == name].sort_values(["rmse", "run"], kind="stable")
+        if not len(g):
+            continue
+        runs, values = g["run"].to_numpy(), g["rmse"].to_numpy(float)
+        mid = (len(g) - 1) // 2
+        rows.append([name] + [f"run {int(runs[k])} ({values[k]:.1f} m)"
+                              for k in (0, mid, len(g) - 1)])
+    return rows
+
+
 def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensing: Any,
-              figs: dict[str, Path], honest: Any) -> _Doc:
+              figs: dict[str, Path], honest: Any, top: list[str],
+              single: list[list[str]], example: str | None) -> _Doc:
     study, meta = t.study, t.meta
     doc = _Doc()
     doc.h(1, "Study report" + (f": {study.description}" if study.description else ""))
+    doc.headline(top)
     sessions = meta.get("sessions", [])
     wall = meta.get("wall_seconds")
     versions = meta.get("versions", {})
@@ -233,6 +315,7 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
               f"CPUs; sensorplan {versions.get('sensorplan', '?')}, numpy "
               f"{versions.get('numpy', '?')}, Python {versions.get('python', '?')}"
               + (f", git {meta['git']}" if meta.get("git") else "") + ".")
+    doc.toc()
 
     doc.h(2, "Methods")
     refs = references(study)
@@ -252,6 +335,7 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
               + ".")
     doc.p("Every method runs on the same paired runs: identical true trajectories, initial "
           "estimates, sensor starts and measurement noise streams (common random numbers).")
+    doc.figure("scenario", figs["scenario"])
 
     doc.h(2, "Position RMSE and lost tracks")
     doc.p("RMSE of a run (per target kind) = sqrt(mean over steps 1..S and the kind's targets "
@@ -272,10 +356,28 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
                          _ci(b["mean"], b["mean_lo"], b["mean_hi"], pct=True)])
         label = f"{kind} targets" if kind != "all" else "all targets"
         doc.table(["method", "RMSE mean (m)", "RMSE median (m)", "lost target-steps"], rows,
-                  caption=label)
+                  caption=_caption(label, r))
     doc.figure("rmse_time", figs["rmse_time"])
     doc.figure("rmse_overall", figs["rmse_overall"])
     doc.figure("lost_share", figs["lost_share"])
+
+    doc.h(2, "Paired differences")
+    doc.p("Per run: RMSE of the method minus RMSE of the reference on the same run. Mean "
+          "[95 % paired t-interval], median [95 % order-statistic interval], and the share "
+          "of runs in which the method had the lower RMSE. An interval entirely below zero "
+          "means the method is better with 95 % confidence.")
+    for against in ("myopic", "random"):
+        d = diffs[diffs["against"] == against] if len(diffs) else diffs
+        rows = [[r.method, r.reference, str(r.kind), _ci(r.mean, r.mean_lo, r.mean_hi),
+                 _ci(r.median, r.median_lo, r.median_hi), f"{100 * r.better_share:.0f} %"]
+                for r in d.itertuples()] if len(d) else []
+        if rows:
+            doc.table(["method", "reference", "kind", "\u0394 RMSE mean (m)",
+                       "\u0394 RMSE median (m)", "runs better"], rows,
+                      caption=_caption(f"against {against}", d))
+        else:
+            doc.p(f"No method has a {against} reference in this study.")
+    doc.figure("paired_differences", figs["paired_differences"])
 
     doc.h(2, "Track consistency")
     doc.p("Is each filter honest about its own error? NEES = e^T P^-1 e of the full state "
@@ -297,23 +399,15 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
                   caption=label)
     doc.figure("nees_time", figs["nees_time"])
 
-    doc.h(2, "Paired differences")
-    doc.p("Per run: RMSE of the method minus RMSE of the reference on the same run. Mean "
-          "[95 % paired t-interval], median [95 % order-statistic interval], and the share "
-          "of runs in which the method had the lower RMSE. An interval entirely below zero "
-          "means the method is better with 95 % confidence.")
-    for against in ("myopic", "random"):
-        d = diffs[diffs["against"] == against] if len(diffs) else diffs
-        rows = [[r.method, r.reference, str(r.kind), _ci(r.mean, r.mean_lo, r.mean_hi),
-                 _ci(r.median, r.median_lo, r.median_hi), f"{100 * r.better_share:.0f} %"]
-                for r in d.itertuples()] if len(d) else []
-        if rows:
-            doc.table(["method", "reference", "kind", "\u0394 RMSE mean (m)",
-                       "\u0394 RMSE median (m)", "runs better"], rows,
-                      caption=f"against {against}")
-        else:
-            doc.p(f"No method has a {against} reference in this study.")
-    doc.figure("paired_differences", figs["paired_differences"])
+    doc.h(2, "Single runs")
+    doc.p("Each method's best, median and worst run by position RMSE over "
+          + ("all targets" if len(kinds_with_all(study)) > 1 else "the targets")
+          + ". To see one (a map with the tracks, looks and misses, an assignment "
+          "timeline, errors over time and an animation), re-simulate it exactly from this "
+          "study: `sensorplan replay DIR --run R --method NAME`"
+          + (f"; for the worst run of the best method: `{example}`" if example else "")
+          + ".")
+    doc.table(["method", "best run", "median run", "worst run"], single)
 
     doc.h(2, "Planning time and convergence")
     rows = []
@@ -342,7 +436,6 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
                for r in sensing.itertuples()],
               caption="over sensor-steps 1..S; a missed look points at a target that is "
                       "truly outside the field of view")
-    doc.figure("scenario", figs["scenario"])
     doc.p("Files: `config.resolved.json` (the study with every default), `meta.json` "
           "(versions, seed, wall time), `steps.parquet`, `decisions.parquet`, "
           "`sensors.parquet` (tidy tables); regenerate this report with "

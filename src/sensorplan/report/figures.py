@@ -12,7 +12,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..plotting import field_of_view, frame_map
+from ..colors import (MEAN_COLOR, MEDIAN_COLOR, kind_color, kind_marker, method_colors,
+                      mix_hex, sensor_style, target_color)
+from ..plotting import draw_buildings, draw_ellipse, field_of_view, frame_map
 from ..study.metrics import LOST_THRESHOLD, horizon_groups, kinds_with_all
 from ..study.model import Method
 from ..study.storage import StudyTables
@@ -24,8 +26,9 @@ if TYPE_CHECKING:  # pragma: no cover
 #: Figure files, in page order, with their captions.
 FIGURES = {
     "scenario": "Scenario snapshot: the first run's true target tracks (the same for every "
-                "method), the initial estimates, and the sensor paths of one method with "
-                "the fields of view in the first step.",
+                "method; each target in its colour of the run figures), the initial "
+                "estimates with their 2-sigma ellipses, and the sensor paths of one method "
+                "with the fields of view in the first step.",
     "rmse_time": "Position RMSE over time for each target kind; one line per method (one "
                  "line style per planning/tracker configuration), the band is the 95 % "
                  "interval across runs.",
@@ -50,10 +53,6 @@ FIGURES = {
 #: Figures drawn only when the study has what they show.
 OPTIONAL_FIGURES = ("horizon",)
 
-_KIND_COLORS = {"cv": "#1f77b4", "dubins": "#d62728", "all": "#555555"}
-
-
-_KIND_COLORS = {"cv": "#1f77b4", "dubins": "#d62728", "all": "#555555"}
 
 
 def draw_figures(t: StudyTables, out: Path, stats: dict[str, Any]) -> dict[str, Path]:
@@ -82,10 +81,8 @@ def draw_figures(t: StudyTables, out: Path, stats: dict[str, Any]) -> dict[str, 
 
 
 def _method_colors(names: list[str]) -> dict[str, Any]:
-    from matplotlib import colormaps
-
-    cmap = colormaps["tab10" if len(names) <= 10 else "tab20"]
-    return {n: cmap(i % cmap.N) for i, n in enumerate(names)}
+    # Methods have their own palette (not the targets' nor the target kinds').
+    return dict(method_colors(names))
 
 
 def _new_figure(width: float, height: float) -> "Figure":
@@ -105,7 +102,8 @@ def _save(fig: "Figure", path: Path) -> Path:
 
 
 def _fig_scenario(t: StudyTables, path: Path) -> Path:
-    from matplotlib.patches import Rectangle, Wedge
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch, Rectangle
 
     study = t.study
     run = t.runs_done[0]
@@ -116,40 +114,47 @@ def _fig_scenario(t: StudyTables, path: Path) -> Path:
     fig = _new_figure(10.0, 7.0)
     ax = fig.add_subplot()
     W, H = study.scenario.world.width, study.scenario.world.height
-    ax.add_patch(Rectangle((0, 0), W, H, fill=False, edgecolor="0.3", linewidth=1.0))
-    from matplotlib.lines import Line2D
-
-    handles = []
+    border = Rectangle((0, 0), W, H, fill=False, edgecolor="0.3", linewidth=1.0)
+    ax.add_patch(border)
+    draw_buildings(ax, study.scenario.buildings)
+    P0 = np.asarray(study.scenario.initial_cov)[:2, :2]
+    limit = 3.0 * max(W, H)
+    handles: list[Any] = []
+    # Targets in their own colours (the same as in a run's figures); the kind is the
+    # line style.
     for j, kind in enumerate(study.scenario.target_kinds):
         g = steps[steps["target"] == j].sort_values("step")
-        color = _KIND_COLORS.get(kind, "k")
-        style = "-" if kind == "cv" else "--"
+        color = target_color(j)
+        style: Any = "-" if kind == "cv" else "--"
         ax.plot(g["x"], g["y"], style, color=color, linewidth=1.6)
         ax.plot(g["x"].iloc[0], g["y"].iloc[0], "o", color=color, markersize=6)
-        ax.plot(g["x_est"].iloc[0], g["y_est"].iloc[0], "x", color=color, markersize=7)
+        ax.plot(g["x"].iloc[-1], g["y"].iloc[-1], "s", color=color, markersize=6)
+        x0 = np.array([g["x_est"].iloc[0], g["y_est"].iloc[0]])
+        ax.plot(*x0, "x", color=color, markersize=7)
+        draw_ellipse(ax, x0, P0, mix_hex(color, 0.7), limit, linewidth=0.9)
         ax.annotate(f"T{j}", (g["x"].iloc[0], g["y"].iloc[0]), textcoords="offset points",
-                    xytext=(5, 5), fontsize=9, color=color)
-    for kind in dict.fromkeys(study.scenario.target_kinds):
-        handles.append(Line2D([], [], color=_KIND_COLORS.get(kind, "k"),
-                              linestyle="-" if kind == "cv" else "--",
-                              label=f"true track, {kind} target (\u25cf start)"))
+                    xytext=(5, 5), fontsize=9, color=color, fontweight="bold")
+        handles.append(Line2D([], [], color=color, linestyle=style, label=f"T{j} ({kind})"))
+    handles.append(Line2D([], [], color="0.3", marker="o", markersize=5, linewidth=1.2,
+                          label="true track (\u25cf start, \u25a0 end; dashed: dubins)"))
     handles.append(Line2D([], [], color="0.3", marker="x", linestyle="none",
-                          label="initial estimate"))
+                          label="initial estimate with its 2\u03c3 ellipse"))
     for i, spec in enumerate(study.scenario.sensors):
         g = sens[sens["sensor"] == i].sort_values("step")
-        color = f"C{(i + 2) % 10}"
-        ax.plot(g["x"], g["y"], "-", color=color, linewidth=0.9, alpha=0.7)
+        color, marker = sensor_style(i)
+        ax.plot(g["x"], g["y"], "-", color=mix_hex(color, 0.6), linewidth=0.9)
         x0, y0 = g["x"].iloc[0], g["y"].iloc[0]
-        ax.plot(x0, y0, "^", color=color, markersize=9)
+        ax.plot(x0, y0, marker, color=color, markersize=9)
         # The field of view of the first step (after the first decision's move and turn).
         first = g.iloc[min(1, len(g) - 1)]
         x1, y1, h0 = first["x"], first["y"], first["heading"]
         p = spec.params
-        field_of_view(ax, np.array([x1, y1]), float(h0), p, color, alpha=0.12)
-        handles.append(Line2D([], [], color=color, marker="^",
-                              label=f"sensor {i} ({float(p.altitude):g} m): \u25b2 start, path"))
-    handles.append(Wedge((0, 0), 1, 0, 1, facecolor="0.5", alpha=0.2, edgecolor="0.4",
-                         linestyle="--", label="field of view in step 1"))
+        fov = field_of_view(ax, np.array([x1, y1]), float(h0), p, color, alpha=0.08)
+        fov.set_clip_path(border)
+        handles.append(Line2D([], [], color=color, marker=marker,
+                              label=f"sensor {i} ({float(p.altitude):g} m): start, path"))
+    handles.append(Patch(facecolor="0.5", alpha=0.2, edgecolor="0.4", linestyle="--",
+                         label="field of view in step 1"))
     frame_map(ax, W, H, 0.05)
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=8.5,
               frameon=False)
@@ -218,6 +223,7 @@ def _fig_nees_time(curves: Any, t: StudyTables, colors: dict[str, Any], path: Pa
             ax.plot(c["step"].to_numpy() * dt, c["anees"], color=colors[name],
                     linestyle=styles[name], linewidth=1.2, label=name)
         ax.set_yscale("log")
+        _plain_log_labels(ax.yaxis)
         ax.set_title(f"{kind} targets")
         ax.set_xlabel("time (s)")
         ax.grid(True, which="both", linewidth=0.3, alpha=0.5)
@@ -246,10 +252,10 @@ def _fig_rmse_overall(summ: Any, t: StudyTables, path: Path) -> Path:
         s = summ[summ["kind"] == kind].set_index("method").reindex(names)
         mean, med = s["mean"].to_numpy(float), s["median"].to_numpy(float)
         ax.errorbar(mean, y + 0.13, xerr=_xerr(mean, s["mean_lo"], s["mean_hi"]), fmt="o",
-                    color="#1f77b4", capsize=3, markersize=5, label="mean, 95 % t-interval")
+                    color=MEAN_COLOR, capsize=3, markersize=5, label="mean, 95 % t-interval")
         ax.errorbar(med, y - 0.13, xerr=_xerr(med, s["median_lo"], s["median_hi"]),
-                    fmt="D", color="#ff7f0e", capsize=3, markersize=4.5,
-                    label="median, 95 % order-statistic interval")
+                    fmt="D", color=MEDIAN_COLOR, markerfacecolor="white", capsize=3,
+                    markersize=4.5, label="median, 95 % order-statistic interval")
         ax.set_title(f"{kind} targets" if kind != "all" else "all targets")
         ax.set_xlabel("RMSE per run (m)")
         ax.grid(True, axis="x", linewidth=0.4, alpha=0.5)
@@ -277,7 +283,7 @@ def _fig_lost(lost: Any, t: StudyTables, path: Path) -> Path:
         y = _method_axis(ax, names)
         s = lost[lost["kind"] == kind].set_index("method").reindex(names)
         mean = 100 * s["mean"].to_numpy(float)
-        ax.barh(y, mean, color=_KIND_COLORS.get(kind, "0.5"), alpha=0.75, height=0.6)
+        ax.barh(y, mean, color=kind_color(kind), alpha=0.75, height=0.6)
         ax.errorbar(mean, y, xerr=_xerr(mean, 100 * s["mean_lo"], 100 * s["mean_hi"]),
                     fmt="none", ecolor="k", capsize=3, linewidth=1.0)
         ax.set_title(f"{kind} targets" if kind != "all" else "all targets")
@@ -311,7 +317,7 @@ def _fig_paired(diffs: Any, t: StudyTables, path: Path) -> Path:
             s = d[d["kind"] == kind].set_index("method").reindex(rows)
             mean = s["mean"].to_numpy(float)
             ax.errorbar(mean, y + off, xerr=_xerr(mean, s["mean_lo"], s["mean_hi"]),
-                        fmt="o", color=_KIND_COLORS.get(kind, "k"), capsize=3, markersize=5,
+                        fmt=kind_marker(kind), color=kind_color(kind), capsize=3, markersize=5,
                         label=f"{kind} targets" if kind != "all" else "all targets")
         ax.axvline(0.0, color="k", linewidth=0.9)
         ax.set_xlabel("\u0394 RMSE = method \u2212 reference (m)   \u2190 method better")
@@ -374,7 +380,7 @@ def _fig_convergence(plan: Any, t: StudyTables, path: Path) -> Path:
     y = np.arange(len(names))[::-1].astype(float)
     s = p.set_index("method").reindex(names)
     share = 100 * s["converged_share"].to_numpy(float)
-    axes[0].barh(y, share, color="#2ca02c", alpha=0.75, height=0.6)
+    axes[0].barh(y, share, color="0.55", height=0.6)
     for yi, v in zip(y, share):
         axes[0].text(min(v, 100) + 1, yi, f"{v:.1f} %", va="center", fontsize=8.5)
     axes[0].set_xlim(0, 115)
@@ -418,7 +424,7 @@ def _fig_horizon(groups: list[list[Method]], summ: Any, t: StudyTables,
         for kind in kinds:
             s = summ[summ["kind"] == kind].set_index("method").reindex([m.name for m in group])
             mean, med = s["mean"].to_numpy(float), s["median"].to_numpy(float)
-            color = _KIND_COLORS.get(kind, "k")
+            color = kind_color(kind)
             shift = 0.05 * (kinds.index(kind) - 1)
             ax_rmse.errorbar(ks + shift, mean, yerr=_xerr(mean, s["mean_lo"], s["mean_hi"]),
                              marker="o", linestyle=styles[gi % 4], color=color, capsize=3,
@@ -431,10 +437,10 @@ def _fig_horizon(groups: list[list[Method]], summ: Any, t: StudyTables,
                   for m in group]
         # Polynomial growth c K^p is a straight line of slope p on log-log axes.
         p = np.polyfit(np.log(ks), np.log(mean_ms), 1)[0] if len(ks) >= 3 else math.nan
-        ax_time.plot(ks, mean_ms, marker="o", linestyle=styles[gi % 4], color="#9467bd",
+        ax_time.plot(ks, mean_ms, marker="o", linestyle=styles[gi % 4], color=MEAN_COLOR,
                      label=f"mean{tag} (fit: \u221d K^{p:.1f})")
-        ax_time.plot(ks, med_ms, marker="s", linestyle=styles[gi % 4], color="#8c564b",
-                     label=f"median{tag}")
+        ax_time.plot(ks, med_ms, marker="D", markerfacecolor="white",
+                     linestyle=styles[gi % 4], color=MEDIAN_COLOR, label=f"median{tag}")
     all_k = sorted({m.settings.horizon for g in groups for m in g})
     for ax in (ax_rmse, ax_time):
         ax.set_xlabel("horizon K (epochs)")

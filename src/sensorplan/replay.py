@@ -1,0 +1,255 @@
+"""Per-run drill-down of a study (``sensorplan replay``): re-simulate one (run, method).
+
+A study stores tables, not episodes. Every run is a pure function of the study's resolved
+configuration and the run's seed, so :func:`replay_run` rebuilds the study from
+``config.resolved.json``, simulates run ``r`` of the method with seed
+:meth:`Study.run_seed(r) <sensorplan.study.Study.run_seed>` and compares the result with what
+the study stored for that run (errors, estimates, NEES, sensor poses and looks): with the
+same code they agree to the last bit.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import ConfigError
+from .simulation import Episode, run_episode
+from .study.model import FORMAT, Method, Study
+
+#: Stored columns compared with the replay: table -> {column: Episode array (S+1, K)}.
+_STEPS = {"error": "error", "nees": "nees", "x": "truth_x", "y": "truth_y",
+          "x_est": "est_x", "y_est": "est_y"}
+_SENSORS = {"x": "pos_x", "y": "pos_y", "heading": "sensor_headings", "target": "looked",
+            "missed": "missed"}
+
+
+@dataclass(frozen=True)
+class Replay:
+    """One re-simulated (run, method) of a study and how it compares with the stored run.
+
+    Attributes
+    ----------
+    study : Study
+    run : int
+    method : Method
+    episode : Episode
+    stored : bool
+        Whether the study holds this (run, method) (finished), so a comparison was made.
+    differences : dict of str -> float
+        Largest absolute difference per compared column (``steps.error`` in m, ...);
+        empty when nothing is stored.
+    """
+
+    study: Study
+    run: int
+    method: Method
+    episode: Episode
+    stored: bool
+    differences: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def reproduced(self) -> bool | None:
+        """True if every compared column is identical, None if nothing was stored."""
+        if not self.stored:
+            return None
+        return all(v == 0.0 for v in self.differences.values())
+
+
+def load_study_config(study_dir: str | Path) -> Study:
+    """The study of a study directory, from its ``config.resolved.json``.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``DIR``: not a study directory, unreadable, or another layout version.
+    """
+    config = Path(study_dir) / "config.resolved.json"
+    if not config.exists():
+        raise ConfigError("DIR", f"{study_dir} is not a study directory (no "
+                          "config.resolved.json)")
+    try:
+        data = json.loads(config.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise ConfigError("DIR", f"{config} cannot be read ({exc})") from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        got = data.get("format") if isinstance(data, dict) else None
+        raise ConfigError("DIR", f"{study_dir} was written by another sensorplan version "
+                          f"(format {got!r}, this one reads {FORMAT!r})")
+    try:
+        return Study.from_resolved(data)
+    except (ValueError, KeyError, TypeError) as exc:
+        raise ConfigError("DIR", f"{config} cannot be read ({exc})") from None
+
+
+def find_method(study: Study, name: str) -> int:
+    """Index of the method called ``name``; a ConfigError naming ``--method`` otherwise."""
+    names = study.method_names
+    if name in names:
+        return names.index(name)
+    import difflib
+
+    close = difflib.get_close_matches(name, names, n=1)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    raise ConfigError("--method", f"the study has no method {name!r}{hint} (methods: "
+                      + ", ".join(repr(n) for n in names) + ")")
+
+
+def check_request(study_dir: str | Path, run: int, method: str) -> tuple[Study, int]:
+    """The study of ``study_dir`` and the index of ``method``, after checking that run
+    ``run`` and ``method`` exist in it (a ConfigError naming ``DIR``, ``--run`` or
+    ``--method`` otherwise)."""
+    study = load_study_config(study_dir)
+    if isinstance(run, bool) or not isinstance(run, (int, np.integer)) \
+            or not 0 <= run < study.runs:
+        raise ConfigError("--run", f"must be a run index in 0..{study.runs - 1} (the study "
+                          f"has {study.runs} runs), got {run!r}")
+    return study, find_method(study, method)
+
+
+def replay_run(study_dir: str | Path, run: int, method: str) -> Replay:
+    """Re-simulate run ``run`` of method ``method`` of a study directory.
+
+    Parameters
+    ----------
+    study_dir : path
+        Written by :func:`sensorplan.study.run_study` (finished or not).
+    run : int
+        Run index, ``0 <= run < runs``.
+    method : str
+        A method name of the study.
+
+    Returns
+    -------
+    Replay
+        The episode and, if the study holds that (run, method), the largest difference of
+        every stored column (all zero when the run is reproduced exactly).
+
+    Raises
+    ------
+    ConfigError
+        ``DIR``, ``--run`` or ``--method`` is not valid for this study.
+    """
+    study, m = check_request(study_dir, run, method)
+    chosen = study.methods[m]
+    episode = run_episode(study.scenario, chosen.settings, study.run_seed(int(run)))
+    stored = _stored_tables(Path(study_dir), study, int(run), m)
+    if stored is None:
+        return Replay(study, int(run), chosen, episode, False)
+    return Replay(study, int(run), chosen, episode, True, _compare(episode, *stored))
+
+
+def _stored_tables(out: Path, study: Study, run: int, m: int) -> tuple[Any, Any] | None:
+    """The stored ``steps`` and ``sensors`` rows of (run, method m), or None if that pair
+    has not finished."""
+    import pyarrow.parquet as pq
+
+    from .study.storage import part_path
+
+    name = study.methods[m].name
+    frames = []
+    for table in ("steps", "sensors"):
+        part = part_path(out, run, m, table)
+        whole = out / f"{table}.parquet"
+        if part.exists():
+            frames.append(pq.read_table(part).to_pandas())
+        elif whole.exists():
+            frames.append(pq.read_table(whole, filters=[("run", "=", run),
+                                                        ("method", "=", name)]).to_pandas())
+        else:
+            return None
+        if not len(frames[-1]):
+            return None
+    return frames[0], frames[1]
+
+
+def _compare(episode: Episode, steps: Any, sensors: Any) -> dict[str, float]:
+    """Largest absolute difference of each stored column against the episode (inf when
+    the shapes differ)."""
+    ep = {"error": episode.error, "nees": episode.nees,
+          "truth_x": episode.truth[..., 0], "truth_y": episode.truth[..., 1],
+          "est_x": episode.estimate[..., 0], "est_y": episode.estimate[..., 1],
+          "pos_x": episode.sensor_positions[..., 0], "pos_y": episode.sensor_positions[..., 1],
+          "sensor_headings": episode.sensor_headings, "looked": episode.looked,
+          "missed": episode.missed}
+    out: dict[str, float] = {}
+    for table, frame, columns, key in (("steps", steps, _STEPS, "target"),
+                                       ("sensors", sensors, _SENSORS, "sensor")):
+        frame = frame.sort_values(["step", key])
+        for column, name in columns.items():
+            mine = np.asarray(ep[name], dtype=float)
+            theirs = frame[column].to_numpy(dtype=float)
+            if theirs.size != mine.size:
+                out[f"{table}.{column}"] = math.inf
+                continue
+            with np.errstate(invalid="ignore"):
+                d = np.abs(mine.reshape(-1) - theirs)
+            # NaN in both places is equal; NaN in one is a difference.
+            both_nan = np.isnan(mine.reshape(-1)) & np.isnan(theirs)
+            d = np.where(both_nan, 0.0, np.where(np.isnan(d), np.inf, d))
+            out[f"{table}.{column}"] = float(d.max()) if d.size else 0.0
+    return out
+
+
+def replay_dir_name(run: int, method: str) -> str:
+    """Default output folder of a replay: ``run-00007-OLF_pg_K_3`` (a file-name-safe
+    spelling of the method)."""
+    safe = "".join(c if c.isalnum() or c in "-." else "_" for c in method).strip("_")
+    return f"run-{run:05d}-{safe or 'method'}"
+
+
+def replay_command(study_dir: Path, run: int, method: str, out: Path | None, animate: bool,
+                   animation_format: str) -> Replay:
+    """``sensorplan replay``: check the request and the output folder, re-simulate, write
+    ``episode.npz``, ``episode.png`` (and the animation), print the run's summary and
+    whether it reproduces the stored run (a warning on stderr if it does not).
+
+    Raises
+    ------
+    ConfigError
+        Bad ``DIR``, ``--run``, ``--method``, ``--out`` or ``--animation-format``, found
+        before the simulation starts.
+    """
+    import sys
+    from types import SimpleNamespace
+
+    from .console import print_summary
+    from .io import ensure_out_dir
+    from .plotting import plot_episode
+
+    if animate:
+        from .animation import check_format
+
+        check_format(animation_format)
+    check_request(study_dir, run, method)
+    target = out if out is not None else study_dir / "replay" / replay_dir_name(run, method)
+    ensure_out_dir(target)                      # before the simulation, not after it
+    rep = replay_run(study_dir, run, method)
+    npz, png = target / "episode.npz", target / "episode.png"
+    written = [npz, png, rep.episode.save(npz)]
+    plot_episode(rep.episode, rep.study.scenario, png)
+    if animate:
+        from .animation import animate_episode
+
+        written.append(animate_episode(rep.episode, rep.study.scenario,
+                                       target / f"episode.{animation_format}"))
+    cfg = SimpleNamespace(scenario=rep.study.scenario, settings=rep.method.settings,
+                          seed=f"{rep.study.seed}, run {run}")
+    print_summary(rep.episode, cfg, written)
+    if rep.reproduced is None:
+        print(f"run {run} of {method!r} is not stored in {study_dir} yet: nothing to compare")
+    elif rep.reproduced:
+        print(f"identical to the stored run {run} of {method!r} (errors, estimates, NEES, "
+              "sensor poses and looks)")
+    else:
+        worst = max(rep.differences, key=lambda k: rep.differences[k])
+        sys.stdout.flush()
+        sys.stderr.write(f"warning: the replay differs from the stored run (largest: "
+                         f"{worst} by {rep.differences[worst]:.3g}); was the study run "
+                         "with another sensorplan version? (see DIR/meta.json)\n")
+    return rep
