@@ -23,7 +23,7 @@ from sensorplan.decentral import (
 from sensorplan.errors import ConfigError
 from sensorplan.information import prepare
 from sensorplan.planners import make_planner, potential_game
-from sensorplan.planners.base import _warm_engine
+from sensorplan.planners.engine import warm_engine
 from sensorplan.planners.engine import GameState, choose
 from sensorplan.problem import TIE_TOL, check_plan
 
@@ -63,7 +63,7 @@ def test_lossless_jsfp_is_centralized_pg(visibility, objective, monkeypatch):
     JSFP iteration of pg (counted by instrumenting pg's epoch loop) plus the round in which
     the agents announce they are settled."""
     iterations = []
-    _warm_engine()          # its tiny warm-up game would otherwise be counted as pg's
+    warm_engine()          # its tiny warm-up game would otherwise be counted as pg's
     epoch = potential_game.jsfp_epoch
 
     def counted(*args, **kw):

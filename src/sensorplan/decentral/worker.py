@@ -215,10 +215,10 @@ def main(argv: list[str] | None = None) -> int:
     orphaned = False
     try:
         from .._kernels import warm_up
-        from ..planners.base import _warm_engine
+        from ..planners.engine import warm_engine
 
         warm_up()                # load the compiled kernels before saying ready: a first
-        _warm_engine()           # compile would otherwise look like a silent, lost agent
+        warm_engine()           # compile would otherwise look like a silent, lost agent
         proc = AgentProcess(args.dir, args.index, args.agents, args.parent)
         proc.serve()
     except Orphaned:

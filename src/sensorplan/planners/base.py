@@ -85,31 +85,10 @@ def start_clock(engine: bool = False) -> float:
 
     warm_up()
     if engine:
-        _warm_engine()
+        from .engine import warm_engine
+
+        warm_engine()
     return anytime.clock()
-
-
-_ENGINE_WARM = False
-
-
-def _warm_engine() -> None:
-    """Compile (or load from numba's cache) the engine's kernels once, on a tiny decision."""
-    global _ENGINE_WARM
-    if _ENGINE_WARM:
-        return
-    _ENGINE_WARM = True
-    from ..sensors import SensorParams
-    from .engine import GameState
-    from .potential_game import jsfp_epoch
-
-    problem = PlanningProblem(np.array([[300.0, 300.0, 1.0, 0.0]]),
-                              np.diag([400.0, 400.0, 4.0, 4.0])[None], np.array([[0.0, 300.0]]),
-                              np.array([0.0]), (SensorParams(),), horizon=2)
-    state = GameState(prepare(problem))
-    for _ in jsfp_epoch(state, 2, np.random.default_rng(0), 0.3, 0.95, 2):
-        pass
-    pos, tgt = state.player_actions(0, 1)
-    state.chain_gains(0, 1, pos[:, None], tgt[:, None], with_base=True)
 
 
 def make_rng(rng: RngLike, seed: int | None) -> np.random.Generator:

@@ -546,3 +546,36 @@ class EpochGame:
         """Forget the initialisation sets' pairs (their actions are never offered again)."""
         for i in self._init_sets:
             self.state.forget(i, self.k)
+
+
+_ENGINE_WARM = False
+
+
+def warm_engine() -> None:
+    """Compile (or load from numba's cache) the engine's kernels once, on a tiny decision."""
+    global _ENGINE_WARM
+    if _ENGINE_WARM:
+        return
+    _ENGINE_WARM = True
+    from ..information import prepare
+    from ..problem import PlanningProblem
+    from ..sensors import SensorParams
+
+    problem = PlanningProblem(np.array([[300.0, 300.0, 1.0, 0.0]]),
+                              np.diag([400.0, 400.0, 4.0, 4.0])[None], np.array([[0.0, 300.0]]),
+                              np.array([0.0]), (SensorParams(),), horizon=2)
+    state = GameState(prepare(problem))
+    game = EpochGame(state, 2)
+    try:
+        ubar = np.zeros(int(game.cand_off[-1]))
+        for t in (1, 2):            # unassigned, then assigned: both code paths compiled
+            u = game.utilities()
+            _, ubar, best = game.step(u, ubar, t, abs(state.potential()))
+            if best[0] >= 0:
+                pos, tgt = game.actions[0]
+                state.set_action(0, 2, int(pos[best[0]]), int(tgt[best[0]]))
+                game.cur[0] = best[0]
+    finally:
+        game.close()
+    pos, tgt = state.player_actions(0, 1)
+    state.chain_gains(0, 1, pos[:, None], tgt[:, None], with_base=True)
