@@ -351,10 +351,12 @@ def _heading_rule(theta: float, bearing: float, max_turn: float) -> float:
 def chain_looks_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: float,
                    prev_ok: bool, theta0: float, max_turn: float, aim: np.ndarray,
                    xbar: np.ndarray, Cbar: np.ndarray, probabilistic: bool, row: np.ndarray,
-                   all_headings: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                   all_headings: bool, buildings: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Headings and look information of candidate chains (see information.chain_looks).
 
-    ``row`` is the sensor's radar table row. Without ``all_headings`` the heading of a
+    ``row`` is the sensor's radar table row, ``buildings`` the ``(B, 5)`` boxes that can hide a
+    target (:func:`sensorplan.radar.look`). Without ``all_headings`` the heading of a
     chain's last epoch is left NaN when none of its looks can pass the range band (it has no
     other use): most candidates of a large initialisation set are out of range.
     """
@@ -399,9 +401,9 @@ def chain_looks_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
             th[c, l] = h
             for s in range(e):
                 t = (k - 1) * e + 1 + s
-                p, w00, w01, w11 = look(row, xbar[j, t, 0] - px, xbar[j, t, 1] - py, h,
-                                        Cbar[j, t, 0], Cbar[j, t, 1], Cbar[j, t, 2],
-                                        probabilistic)
+                p, w00, w01, w11 = look(row, buildings, px, py, xbar[j, t, 0] - px,
+                                        xbar[j, t, 1] - py, h, Cbar[j, t, 0], Cbar[j, t, 1],
+                                        Cbar[j, t, 2], probabilistic)
                 weight[c, l, s] = p
                 W[c, l, s, 0, 0] = w00
                 W[c, l, s, 0, 1] = w01
@@ -432,7 +434,8 @@ def warm_up() -> None:
         for all_headings in (True, False):
             chain_looks_nb(np.zeros((1, 1, 2)), np.zeros((1, 1), dtype=np.int64), 1, 1, 0.0,
                            True, 0.0, 0.5, np.ones((1, 1, 2)), np.ones((1, 2, 2)),
-                           np.ones((1, 2, 3)), probabilistic, row, all_headings)
+                           np.ones((1, 2, 3)), probabilistic, row, all_headings,
+                           np.zeros((0, 5)))
     sum_by_target_nb(np.zeros((1, 1, 1, 2, 2)), np.zeros((1, 1), dtype=np.int64), 1)
     radar.warm_up()
     _WARM = True

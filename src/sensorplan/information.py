@@ -59,6 +59,7 @@ class Context:
     max_turn : (N,)            turn limit per epoch of each sensor (rad)
     lattices : list of Lattice one per sensor
     xbar_xy : (M, T + 1, 2)    predicted ground positions (contiguous, for the kernels)
+    buildings : (B, 5)         boxes that can hide targets (a writeable copy, for the kernels)
     """
 
     problem: PlanningProblem
@@ -73,6 +74,7 @@ class Context:
     max_turn: FloatArray
     lattices: list[Lattice]
     xbar_xy: FloatArray
+    buildings: FloatArray
 
     @property
     def K(self) -> int:
@@ -130,8 +132,10 @@ def prepare(problem: PlanningProblem) -> Context:
     xbar_xy = np.ascontiguousarray(xbar[..., :2])
     max_turn = np.array([float(s.max_turn) for s in problem.sensors])
     table = radar_table(problem.sensors, aware=problem.planning_detection == "aware")
+    # A writeable copy: the problem's read-only array would be another kernel signature.
+    buildings = np.array(problem.buildings, dtype=float, order="C").reshape(-1, 5)
     return Context(problem, F, Q, xbar, Pbar, ld_bar, Cbar, aim, table, max_turn, lattices,
-                   xbar_xy)
+                   xbar_xy, buildings)
 
 
 def chain_headings(ctx: Context, i: int, k_first: int, positions: FloatArray,
@@ -215,7 +219,7 @@ def chain_looks(ctx: Context, i: int, k_first: int, positions: FloatArray, targe
         _c(positions), _c(targets, np.int64),
         k_first, ctx.e, float(prev_heading), bool(prev_assigned),
         float(ctx.problem.headings[i]), float(ctx.max_turn[i]), ctx.aim, ctx.xbar_xy, ctx.Cbar,
-        ctx.probabilistic, ctx.radar[i], all_headings)
+        ctx.probabilistic, ctx.radar[i], all_headings, ctx.buildings)
     return th, W, weight > 0
 
 
@@ -242,25 +246,27 @@ def chain_information(ctx: Context, i: int, k0: int, positions: FloatArray,
     dy = tpos[..., 1] - positions[:, :, None, 1]
     th = np.broadcast_to(headings[:, :, None], dx.shape)
     C = ctx.Cbar[tj, steps]                                               # (B, L, e, 3)
-    W, weight = look_information(ctx, i, dx, dy, th, C)
+    W, weight = look_information(ctx, i, dx, dy, th, C, positions[:, :, None, :])
     return W, weight > 0
 
 
 def look_information(ctx: Context, i: int, dx: FloatArray, dy: FloatArray, th: FloatArray,
-                     C: FloatArray) -> tuple[FloatArray, FloatArray]:
+                     C: FloatArray, sensor_xy: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Information of looks by sensor ``i`` at ground offsets ``dx, dy`` with heading ``th``.
 
     Parameters
     ----------
     dx, dy, th : (...)
-    C : (..., 3)    predicted position covariance entries (c00, c01, c11) of the target
+    C : (..., 3)          predicted position covariance entries (c00, c01, c11) of the target
+    sensor_xy : (..., 2)  the sensor's ground position (buildings may hide the target)
 
     Returns
     -------
     W : (..., 2, 2)   ``w H'^T R^{-1} H'`` (:func:`sensorplan.radar.look`)
     weight : (...)    w: p_vis (``probabilistic``, 0 below 1e-6) or 0/1 (``mean``)
     """
-    return radar.look_information(ctx.radar[i], dx, dy, th, C, ctx.probabilistic)
+    return radar.look_information(ctx.radar[i], dx, dy, th, C, ctx.probabilistic,
+                                  ctx.buildings, sensor_xy)
 
 
 #: W is inverted (Joseph form) only when det W > this * trace(W)^2, i.e. its condition number

@@ -19,3 +19,6 @@ OBJECTIVES = ("terminal", "cumulative")
 #: ``aware``: a planned look also counts its detection probability and the clutter;
 #: ``ignore``: only whether its target is in view.
 PLANNING_DETECTIONS = ("ignore", "aware")
+#: ``aware``: a planned look counts with the probability that no building hides its target;
+#: ``ignore``: the planner does not know the buildings.
+PLANNING_OCCLUSIONS = ("ignore", "aware")

@@ -200,6 +200,9 @@ class PlanningProblem:
         ``aware``: a planned look's information also counts its detection probability and
         the clutter (:func:`sensorplan.radar.look`); ``ignore``: only whether the target is
         in view.
+    buildings : (B, 5)
+        Boxes ``x0, y0, x1, y1, height`` (m) that can hide targets; a planned look counts
+        with the probability that none does (empty: open ground).
     """
 
     means: FloatArray
@@ -215,11 +218,14 @@ class PlanningProblem:
     visibility: str = "probabilistic"
     objective: str = "terminal"
     planning_detection: str = "aware"
+    buildings: FloatArray = field(default_factory=lambda: np.zeros((0, 5)))
 
     def __post_init__(self) -> None:
         # Read-only copies: planners cannot mutate the caller's arrays (or each other's).
         for name in ("means", "covs", "positions", "headings"):
             object.__setattr__(self, name, _readonly(getattr(self, name)))
+        object.__setattr__(self, "buildings", _readonly(check_buildings(
+            self.buildings, self.world, [float(s.altitude) for s in self.sensors])))
         object.__setattr__(self, "sensors", tuple(self.sensors))
         if np.ndim(self.process_noise) > 0:
             object.__setattr__(self, "process_noise", _readonly(self.process_noise))
@@ -297,6 +303,36 @@ class PlanningProblem:
                 raise ConfigError(f"sensors[{i}].heading", "must be finite")
             if not self.world.contains(self.positions[i]):
                 raise ConfigError(f"sensors[{i}].position", "is outside the map")
+
+
+def check_buildings(buildings: object, world: MapRect, altitudes: object) -> FloatArray:
+    """The buildings as a ``(B, 5)`` array ``x0, y0, x1, y1, height``, checked.
+
+    Each is 5 finite numbers with ``x0 < x1``, ``y0 < y1``, inside the map and ``height > 0``;
+    every sensor flies above the tallest. Raises :class:`ConfigError` naming the field.
+    """
+    rows = [tuple(np.ravel(np.asarray(b, dtype=float))) for b in np.atleast_1d(
+        np.asarray(buildings, dtype=object)) if np.size(b)] if np.size(buildings) else []
+    W, H = world.width, world.height
+    tallest = 0.0
+    for k, b in enumerate(rows):
+        if len(b) != 5 or not all(math.isfinite(v) for v in b):
+            raise ConfigError(f"buildings[{k}]", "must be 5 finite numbers: x0, y0, x1, y1, "
+                              "height")
+        x0, y0, x1, y1, h = b
+        if not (x0 < x1 and y0 < y1):
+            raise ConfigError(f"buildings[{k}].box", "must have x0 < x1 and y0 < y1")
+        if not (0.0 <= x0 and x1 <= W and 0.0 <= y0 and y1 <= H):
+            raise ConfigError(f"buildings[{k}].box", f"must lie inside the map [0, {W:g}] "
+                              f"x [0, {H:g}]")
+        if h <= 0:
+            raise ConfigError(f"buildings[{k}].height", "must be > 0")
+        tallest = max(tallest, h)
+    for i, z in enumerate(np.asarray(altitudes, dtype=float).reshape(-1)):
+        if rows and z <= tallest:
+            raise ConfigError(f"sensors[{i}].altitude", f"must be above every building "
+                              f"(the tallest is {tallest:g} m)")
+    return np.array(rows, dtype=float).reshape(-1, 5)
 
 
 _VALID_SENSORS: set[SensorParams] = set()

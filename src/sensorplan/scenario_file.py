@@ -52,8 +52,8 @@ from .problem import MapRect
 from .scenario import TARGET_KINDS, Scenario, SensorSpec, TargetSpec
 from .sensors import SensorParams
 from .settings import RunSettings, TrackerSettings
-from .validation import (MapModel, Matrix4, Seed, SensorParamsModel, Strict, Vec2, choice,
-                         section_model, validate)
+from .validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict,
+                         Vec2, choice, section_model, validate)
 
 _TS = TargetSpec()
 _SC = Scenario(targets=(TargetSpec(),), sensors=(SensorSpec(),))
@@ -86,13 +86,6 @@ class ScenarioTarget(Strict):
     max_turn_rate: float = _TS.max_turn_rate
 
 
-class ScenarioBuilding(Strict):
-    """One building: its footprint ``box = [x0, y0, x1, y1]`` (m) and its height (m)."""
-
-    box: Annotated[list[float], Field(min_length=4, max_length=4)]
-    height: float
-
-
 class ScenarioSensor(SensorParamsModel):
     position: Vec2 | None = None
     heading: float | None = None
@@ -114,7 +107,7 @@ class ScenarioFile(Strict):
     tracker: TrackerTable = TrackerTable()  # type: ignore[valid-type]
     targets: list[ScenarioTarget]
     sensors: list[ScenarioSensor]
-    buildings: list[ScenarioBuilding] = []
+    buildings: list[BuildingModel] = []
     planning: PlanningTable = PlanningTable()  # type: ignore[valid-type]
     run: RunTable = RunTable()  # type: ignore[valid-type]
 
@@ -138,7 +131,7 @@ class ScenarioFile(Strict):
             speed_range=(ini.speed_range[0], ini.speed_range[1]),
             sensor_box=(ini.sensor_box[0], ini.sensor_box[1]),
             initial_cov=tuple(tuple(row) for row in ini.cov),
-            buildings=tuple((*b.box, b.height) for b in self.buildings))
+            buildings=tuple(b.row() for b in self.buildings))
 
 
 def scenario_from_dict(data: Any) -> Scenario:

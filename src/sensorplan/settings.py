@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .errors import ConfigError
-from .modes import OBJECTIVES, PLANNING_DETECTIONS, VISIBILITY_MODES
+from .modes import OBJECTIVES, PLANNING_DETECTIONS, PLANNING_OCCLUSIONS, VISIBILITY_MODES
 
 EXECUTIONS = ("ol", "olf")
 MISS_UPDATES = ("negative", "none")
@@ -419,6 +419,7 @@ class RunSettings(_Settings):
     visibility : {"probabilistic", "mean"}
     objective : {"terminal", "cumulative"}
     planning_detection : {"aware", "ignore"}
+    planning_occlusion : {"aware", "ignore"}
     steps : int                    simulation steps S (>= 1)
     tracker : TrackerSettings      (a mapping is accepted and converted)
 
@@ -466,6 +467,12 @@ class RunSettings(_Settings):
         help="aware: a planned look's information counts its detection probability and the "
              "clutter (no change for ideal sensors without false alarms); ignore: only "
              "whether the target is in view.")
+    planning_occlusion: str = setting(
+        "aware", section="planning", cli=("--planning-occlusion",), metavar="MODE",
+        label="occlusion in planning", choices=PLANNING_OCCLUSIONS, noun="planning occlusion",
+        help="aware: a planned look counts with the probability that no building hides the "
+             "target (no change without buildings); ignore: the planner does not know the "
+             "buildings.")
     steps: int = setting(
         100, section="run", cli=("--steps", "-n"), metavar="N", ge=1,
         help="Simulation steps of the run.")

@@ -375,6 +375,8 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     target = np.full(N, -1, dtype=np.int64)
     F = tracker.F
 
+    planning_buildings = (scenario.building_array if settings.planning_occlusion == "aware"
+                          else np.zeros((0, 5)))
     try:
         for t in range(1, S + 1):
             if (t - 1) % e == 0:
@@ -384,7 +386,8 @@ def run_episode(scenario: Scenario, settings: RunSettings,
                         sensors=sensor_list, horizon=K, steps_per_epoch=e, dt=scenario.dt,
                         process_noise=tracker.planning_process_noise(), world=scenario.world,
                         visibility=settings.visibility, objective=settings.objective,
-                        planning_detection=settings.planning_detection)
+                        planning_detection=settings.planning_detection,
+                        buildings=planning_buildings)
                     start = time.perf_counter()
                     result = planner.plan(problem, rng=planner_rng)
                     seconds = time.perf_counter() - start

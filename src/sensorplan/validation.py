@@ -70,6 +70,16 @@ class MapModel(Strict):
     height: float = _MAP.height
 
 
+class BuildingModel(Strict):
+    """One building: its footprint ``box = [x0, y0, x1, y1]`` (m) and its height (m)."""
+
+    box: Annotated[list[float], Field(min_length=4, max_length=4)]
+    height: float
+
+    def row(self) -> tuple[float, float, float, float, float]:
+        return (*self.box, self.height)  # type: ignore[return-value]
+
+
 class SensorParamsModel(Strict):
     """Every :class:`~sensorplan.sensors.SensorParams` field, with its default."""
 

@@ -12,7 +12,7 @@ from pydantic import ConfigDict
 from .. import io
 from ..problem import MapRect, PlanningProblem
 from ..settings import RunSettings
-from ..validation import (MapModel, Matrix4, Seed, SensorParamsModel, Strict, Vec2, Vec4,
+from ..validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict, Vec2, Vec4,
                           setting_type, validate)
 from .planners import build_planner, planner_settings
 
@@ -60,6 +60,7 @@ class DecisionFile(Strict):
         RunSettings, "planning_detection") = _problem_default("planning_detection")
     targets: list[DecisionTarget]
     sensors: list[DecisionSensor]
+    buildings: list[BuildingModel] = []
     planner: DecisionPlanner = DecisionPlanner()
 
 
@@ -108,7 +109,8 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
         horizon=model.horizon, steps_per_epoch=model.steps_per_epoch, dt=model.dt,
         process_noise=model.process_noise, world=MapRect(model.map.width, model.map.height),
         visibility=model.visibility, objective=model.objective,
-        planning_detection=model.planning_detection)
+        planning_detection=model.planning_detection,
+        buildings=[b.row() for b in model.buildings])
     params = dict(model.planner.model_extra or {})
     if model.planner.seed is not None:
         params["seed"] = model.planner.seed

@@ -319,7 +319,7 @@ class GameState:
         c_pair, j_pair, first, count, offset, data, rep = chain_pairs_nb(
             pos_xy, tgt, k0, ctx.e, float(prev), bool(prev_ok), float(ctx.problem.headings[i]),
             float(ctx.max_turn[i]), ctx.aim, ctx.xbar_xy, ctx.Cbar, ctx.probabilistic,
-            ctx.radar[i], ctx.T - (k0 - 1) * ctx.e)
+            ctx.radar[i], ctx.T - (k0 - 1) * ctx.e, ctx.buildings)
         owners, dups, contrib, free = candidate_sets_nb(c_pair, rep)
         if L == 1:
             # Rows of the players of epoch k0 live in one buffer, passed whole to the game.

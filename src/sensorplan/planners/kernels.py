@@ -27,7 +27,7 @@ from ..radar import P_VIS_MIN, look_at_azimuth, look_range, reach
 def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: float,
                    prev_ok: bool, theta0: float, max_turn: float, aim: np.ndarray,
                    xbar: np.ndarray, Cbar: np.ndarray, probabilistic: bool, row: np.ndarray,
-                   n_steps: int) -> tuple:
+                   n_steps: int, buildings: np.ndarray) -> tuple:
     """The (candidate, target) pairs of candidate chains with a look that counts.
 
     A chain of sensor ``row`` covers epochs ``k0 .. k0 + L - 1`` (positions ``pos (C, L, 2)``,
@@ -37,6 +37,7 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
     epoch that every candidate shares; the looks of the shared tail of the chain once per
     distinct heading entering it (candidates whose turn is clipped enter it with the same
     heading, bit for bit); and nothing for last-epoch targets out of the radar's reach.
+    ``buildings (B, 5)`` can hide targets (:func:`sensorplan.radar.look_range`).
 
     Returns
     -------
@@ -92,8 +93,9 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
             for s in range(e):
                 t = (k - 1) * e + 1 + s
                 sh_range[l, s, 0], sh_range[l, s, 1], sh_range[l, s, 2] = look_range(
-                    row, xbar[j, t, 0] - pos[0, l, 0], xbar[j, t, 1] - pos[0, l, 1],
-                    Cbar[j, t, 0], Cbar[j, t, 1], Cbar[j, t, 2], probabilistic)
+                    row, buildings, pos[0, l, 0], pos[0, l, 1], xbar[j, t, 0] - pos[0, l, 0],
+                    xbar[j, t, 1] - pos[0, l, 1], Cbar[j, t, 0], Cbar[j, t, 1], Cbar[j, t, 2],
+                    probabilistic)
     # The shared tail: epochs tail .. L-1 are shared; their looks depend only on the
     # heading entering them. Keep the results of a few distinct entering headings.
     tail = L
@@ -174,8 +176,8 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
                         rng_[s, 0] = 0.0
                     else:
                         rng_[s, 0], rng_[s, 1], rng_[s, 2] = look_range(
-                            row, x0, y0, Cbar[j, t1 + s, 0], Cbar[j, t1 + s, 1],
-                            Cbar[j, t1 + s, 2], probabilistic)
+                            row, buildings, px, py, x0, y0, Cbar[j, t1 + s, 0],
+                            Cbar[j, t1 + s, 1], Cbar[j, t1 + s, 2], probabilistic)
                 if rng_[s, 0] >= P_VIS_MIN:
                     any_in = True
             if l == L - 1 and not any_in:

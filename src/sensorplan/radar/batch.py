@@ -108,14 +108,15 @@ def _hidden_batch(buildings: np.ndarray, sxy: np.ndarray, z: np.ndarray,
 
 
 @njit(cache=True, error_model="numpy")
-def _look_batch(row: np.ndarray, dx: np.ndarray, dy: np.ndarray, th: np.ndarray,
-                C: np.ndarray, probabilistic: bool) -> tuple[np.ndarray, np.ndarray]:
+def _look_batch(row: np.ndarray, buildings: np.ndarray, sxy: np.ndarray, dx: np.ndarray,
+                dy: np.ndarray, th: np.ndarray, C: np.ndarray,
+                probabilistic: bool) -> tuple[np.ndarray, np.ndarray]:
     n = dx.shape[0]
     W = np.zeros((n, 2, 2))
     weight = np.zeros(n)
     for b in range(n):
-        p, w00, w01, w11 = look(row, dx[b], dy[b], th[b], C[b, 0], C[b, 1], C[b, 2],
-                                probabilistic)
+        p, w00, w01, w11 = look(row, buildings, sxy[b, 0], sxy[b, 1], dx[b], dy[b], th[b],
+                                C[b, 0], C[b, 1], C[b, 2], probabilistic)
         weight[b] = p
         W[b, 0, 0] = w00
         W[b, 0, 1] = w01
@@ -254,7 +255,8 @@ def detectable_points(table: FloatArray, sensor: IntArray, dx: FloatArray, dy: F
 def _buildings(buildings: FloatArray | None) -> np.ndarray:
     if buildings is None:
         return np.zeros((0, 5))
-    return np.ascontiguousarray(buildings, dtype=float).reshape(-1, 5)
+    # A copy: a read-only array (a frozen problem's) would compile a second kernel.
+    return np.array(buildings, dtype=float, order="C").reshape(-1, 5)
 
 
 def hidden_looks(buildings: FloatArray | None, sensor_xy: FloatArray, altitude: FloatArray,
@@ -296,7 +298,8 @@ def clutter_points(row: FloatArray, sensor_xy: FloatArray, heading: float,
 
 
 def look_information(row: FloatArray, dx: FloatArray, dy: FloatArray, th: FloatArray,
-                     C: FloatArray, probabilistic: bool) -> tuple[FloatArray, FloatArray]:
+                     C: FloatArray, probabilistic: bool, buildings: FloatArray | None = None,
+                     sensor_xy: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
     """Weight and information of planned looks by one sensor (see :func:`look`).
 
     Parameters
@@ -305,6 +308,8 @@ def look_information(row: FloatArray, dx: FloatArray, dy: FloatArray, th: FloatA
     dx, dy, th : (...)  ground offsets of the target's predicted mean (m), headings (rad)
     C : (..., 3)        predicted position covariance entries (c00, c01, c11) (m^2)
     probabilistic : bool
+    buildings : (B, 5), optional   boxes ``x0, y0, x1, y1, height`` that can hide the target
+    sensor_xy : (..., 2), optional the sensor's ground position (needed with buildings)
 
     Returns
     -------
@@ -312,7 +317,13 @@ def look_information(row: FloatArray, dx: FloatArray, dy: FloatArray, th: FloatA
     weight : (...)    ``p`` (0 where the look does not count)
     """
     shape = np.broadcast_shapes(np.shape(dx), np.shape(dy), np.shape(th))
-    W, weight = _look_batch(np.ascontiguousarray(row, dtype=float),
+    blds = _buildings(buildings)
+    if blds.shape[0] and sensor_xy is None:
+        raise ValueError("sensor_xy is needed to test buildings")
+    sxy = np.zeros(shape + (2,)) if sensor_xy is None else np.broadcast_to(sensor_xy,
+                                                                          shape + (2,))
+    W, weight = _look_batch(np.ascontiguousarray(row, dtype=float), blds,
+                            np.ascontiguousarray(sxy, dtype=float).reshape(-1, 2),
                             _flat(np.broadcast_to(dx, shape)), _flat(np.broadcast_to(dy, shape)),
                             _flat(np.broadcast_to(th, shape)),
                             np.ascontiguousarray(np.broadcast_to(C, shape + (3,))).reshape(-1, 3),
@@ -334,4 +345,5 @@ def warm_up() -> None:
                  np.zeros((1, 5)))
     _hidden_batch(np.zeros((1, 5)), np.zeros((1, 2)), z + 1.0, np.ones((1, 2)))
     for probabilistic in (True, False):
-        _look_batch(table[0], z + 1.0, z, z, np.ones((1, 3)), probabilistic)
+        _look_batch(table[0], np.zeros((0, 5)), np.zeros((1, 2)), z + 1.0, z, z,
+                    np.ones((1, 3)), probabilistic)

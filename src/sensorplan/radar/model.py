@@ -183,13 +183,19 @@ def in_sight_probability(buildings: np.ndarray, sx: float, sy: float, z: float, 
     l10 = c01 / l00 if l00 > 0.0 else 0.0
     l11 = math.sqrt(max(c11 - l10 * l10, 0.0))
     total = 0.0
+    n_hidden = 0
     for a in range(3):
         for b in range(3):
             qx = mx + l00 * _GH_NODES[a]
             qy = my + l10 * _GH_NODES[a] + l11 * _GH_NODES[b]
-            if not hidden(buildings, sx, sy, z, qx, qy):
+            if hidden(buildings, sx, sy, z, qx, qy):
+                n_hidden += 1
+            else:
                 total += _GH_WEIGHTS[a] * _GH_WEIGHTS[b]
-    return total
+    # The weights sum to 1 only up to rounding: all in sight is exactly 1, none exactly 0.
+    if n_hidden == 0:
+        return 1.0
+    return total if n_hidden < 9 else 0.0
 
 
 @njit(cache=True, error_model="numpy")
@@ -340,32 +346,41 @@ def reach(row: np.ndarray, c00: float, c01: float, c11: float, probabilistic: bo
 
 
 @njit(cache=True, error_model="numpy")
-def look(row: np.ndarray, dx: float, dy: float, heading: float, c00: float, c01: float,
-         c11: float, probabilistic: bool) -> tuple[float, float, float, float]:
+def look(row: np.ndarray, buildings: np.ndarray, px: float, py: float, dx: float, dy: float,
+         heading: float, c00: float, c01: float, c11: float,
+         probabilistic: bool) -> tuple[float, float, float, float]:
     """Weight ``p`` and information ``p H'^T R^{-1} H'`` (w00, w01, w11) of a planned look.
 
-    ``probabilistic``: ``p = p_vis`` of a target at ``N((dx, dy), C)``, C given by its
-    entries c00, c01, c11; otherwise ``p`` is the 0/1 visibility of the mean. With the
-    row's ``aware`` flag, ``p`` is further multiplied by the detection probability at the
-    mean and the clutter factor (:func:`detection_probability`, :func:`clutter_factor`).
+    The sensor is at ground point ``(px, py)``, the target's predicted mean at offset
+    ``(dx, dy)`` from it. ``probabilistic``: ``p = p_vis`` of a target at ``N((dx, dy), C)``,
+    C given by its entries c00, c01, c11, times the probability that no building hides it
+    (:func:`in_sight_probability`); otherwise ``p`` is the 0/1 visibility of the mean. With
+    the row's ``aware`` flag, ``p`` is further multiplied by the detection probability at
+    the mean and the clutter factor (:func:`detection_probability`, :func:`clutter_factor`).
     A look with ``p < P_VIS_MIN`` gives zeros.
     """
-    p, g2, g = look_range(row, dx, dy, c00, c01, c11, probabilistic)
+    p, g2, g = look_range(row, buildings, px, py, dx, dy, c00, c01, c11, probabilistic)
     if p < P_VIS_MIN:
         return 0.0, 0.0, 0.0, 0.0
     return look_in_range(row, dx, dy, g2, g, p, heading, c00, c01, c11, probabilistic)
 
 
 @njit(cache=True, error_model="numpy")
-def look_range(row: np.ndarray, dx: float, dy: float, c00: float, c01: float, c11: float,
+def look_range(row: np.ndarray, buildings: np.ndarray, px: float, py: float, dx: float,
+               dy: float, c00: float, c01: float, c11: float,
                probabilistic: bool) -> tuple[float, float, float]:
-    """The heading-free first part of :func:`look`: the range factor ``p`` of the weight
-    (:func:`range_weight`; 0 at the nadir), with ``g^2`` and ``g``."""
+    """The heading-free first part of :func:`look`: the range factor of the weight
+    (:func:`range_weight`; 0 at the nadir) times the in-sight probability, with ``g^2`` and
+    ``g``. Buildings are tested only for a look that passes the range test."""
     g2 = dx * dx + dy * dy
     if g2 == 0.0:
         return 0.0, g2, 0.0
     g = math.sqrt(g2)
-    return range_weight(row, dx / g, dy / g, g, c00, c01, c11, probabilistic), g2, g
+    p = range_weight(row, dx / g, dy / g, g, c00, c01, c11, probabilistic)
+    if p >= P_VIS_MIN and buildings.shape[0] > 0:
+        p *= in_sight_probability(buildings, px, py, row[ALTITUDE], px + dx, py + dy, c00,
+                                  c01, c11, probabilistic)
+    return p, g2, g
 
 
 @njit(cache=True, error_model="numpy")
