@@ -112,3 +112,40 @@ def test_bad_time_budget_names_the_field(name, bad):
     with pytest.raises(ConfigError) as err:
         make_planner(name, time_budget=bad)
     assert err.value.field == "planner.time_budget"
+
+
+# ------------------------------------------------------------- the budget in every front end
+
+
+def test_a_budget_reaches_the_planner_from_every_file_and_the_stone_soup_manager(tmp_path):
+    """The plan JSON, a scenario file, a study file and the Stone Soup manager all pass
+    ``time_budget`` to the planner; a planner without budgets refuses it, naming the key."""
+    from sensorplan.config import load_simulation
+    from sensorplan.config.decision import decision_from_dict
+    from sensorplan.study import study_from_dict
+
+    decision = {"horizon": 1, "targets": [{"mean": [300.0, 300.0, 1.0, 0.0],
+                                           "cov": np.diag([400.0, 400.0, 4.0, 4.0]).tolist()}],
+                "sensors": [{"position": [0.0, 300.0], "heading": 0.0}],
+                "planner": {"name": "pg", "time_budget": 0.25}}
+    assert decision_from_dict(decision).make_planner().time_budget == 0.25
+    decision["planner"] = {"name": "random", "time_budget": 0.25}
+    with pytest.raises(ConfigError) as info:
+        decision_from_dict(decision)
+    assert info.value.field == "planner.time_budget"
+
+    sc = tmp_path / "sc.toml"
+    sc.write_text('[planning]\nplanner = "sequential-greedy"\n[planning.planner_params]\n'
+                  'time_budget = 0.5\n[[targets]]\n[[sensors]]\n')
+    assert load_simulation(sc).settings.planner_params["time_budget"] == 0.5
+
+    study = study_from_dict({"runs": 1, "steps": 2, "methods": [
+        {"name": "m", "planner": "pg-refine", "planner_params": {"time_budget": 2}}]})
+    assert study.methods[0].settings.planner_params["time_budget"] == 2
+
+    stonesoup = pytest.importorskip("stonesoup")
+    assert stonesoup
+    from sensorplan.integrations.stonesoup import SensorplanManager
+
+    manager = SensorplanManager(sensors=set(), planner="pg", planner_params={"time_budget": 1.5})
+    assert manager._planner.time_budget == 1.5

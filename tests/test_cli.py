@@ -500,3 +500,23 @@ def test_simulate_options_reach_the_run(tmp_path: Path,
             s.objective, s.tracker.miss_update) == ("random", 2, 2, "ol", 4, "mean",
                                                     "cumulative", "none")
     assert len(ep.target_kinds) == 5 and ep.sensor_positions.shape[1] == 3
+
+
+def test_a_swarm_summary_lists_a_few_rows_and_the_totals(tmp_path, capsys):
+    """30 targets and 25 sensors: the tables show the first 10 of each, say how many more
+    there are, and the totals cover all of them."""
+    from cli_helpers import run
+
+    sc = tmp_path / "many.toml"
+    sc.write_text('[map]\nwidth = 3000.0\nheight = 3000.0\n[initial]\n'
+                  'target_box = [100.0, 2900.0]\nsensor_box = [50.0, 2950.0]\n'
+                  + "[[targets]]\n" * 30 + "[[sensors]]\n" * 25)
+    code, out, err = run(capsys, "simulate", sc, "--planner", "random", "--steps", "3",
+                         "--out", tmp_path / "o")
+    assert code == 0, err
+    flat = " ".join(out.split())
+    assert "targets 0-9 of 30 shown" in flat and "sensors 0-9 of 25 shown" in flat
+    lines = [ln for ln in out.splitlines() if ln.startswith("│ all ") and "│" in ln[6:]]
+    assert lines                                     # the group and sensor totals remain
+    looks = int(out.split("Sensors")[1].split("│ all")[1].split("│")[2])
+    assert looks == 3 * 25                           # random looks every step, every sensor

@@ -21,18 +21,36 @@ def run_with_progress(run_episode: Any, cfg: Any) -> Any:
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, \
         TimeElapsedColumn, TimeRemainingColumn
 
+    import time
+
     console = Console(stderr=True)
     columns = (TextColumn("simulating"), BarColumn(), MofNCompleteColumn(),
                TextColumn("steps"), TimeElapsedColumn(), TimeRemainingColumn())
-    # A bar in a log file is noise: show it only on a terminal.
+    # A bar in a log file is noise: on a terminal a bar, otherwise a plain line about
+    # every 10 % of the steps or every minute, whichever comes first (long runs only).
+    terminal = console.is_terminal
+    start = last = time.monotonic()
     with Progress(*columns, console=console, transient=True,
-                  disable=not console.is_terminal) as progress:
+                  disable=not terminal) as progress:
         task = progress.add_task("simulate", total=cfg.settings.steps)
 
         def report(done: int, total: int) -> None:
+            nonlocal last
             progress.update(task, completed=done, total=total)
+            now = time.monotonic()
+            if terminal or now - start < 10.0:
+                return
+            if now - last >= 60.0 or done == total or done % max(1, total // 10) == 0:
+                last = now
+                eta = (now - start) * (total - done) / max(done, 1)
+                console.print(f"simulated {done}/{total} steps, {now - start:.0f} s "
+                              f"elapsed, ETA {eta:.0f} s", highlight=False)
 
         return run_episode(cfg.scenario, cfg.settings, cfg.seed, progress=report)
+
+
+#: Tables list every target and sensor up to this many; beyond it the first few and a note.
+MAX_ROWS = 20
 
 
 def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
@@ -60,8 +78,16 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
                  "restarts"):
         tracks.add_column(name, justify="left" if name in ("target", "kind") else "right")
     rows = episode_errors(episode)
+    per_target = [r for r in rows if r.target != "all"]
+    if len(per_target) > MAX_ROWS:
+        # A swarm's hundreds of rows drown the totals: the first few, then the groups.
+        rows = per_target[:MAX_ROWS // 2] + [r for r in rows if r.target == "all"]
+        tracks.caption = (f"targets 0-{MAX_ROWS // 2 - 1} of {len(per_target)} shown "
+                          "(episode.npz holds them all); " + str(tracks.caption))
     for i, row in enumerate(rows):
         if i and row.target == "all" and rows[i - 1].target != "all":
+            if len(per_target) > MAX_ROWS:
+                tracks.add_row("...")
             tracks.add_section()                   # per-target rows, then the groups
         tracks.add_row(row.target, row.kind, f"{row.rmse:.1f}", f"{row.mean:.1f}",
                        f"{row.final:.1f}", f"{row.lost_share:.0%}", str(row.measured),
@@ -80,10 +106,19 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
     sensors = Table(title="Sensors (steps 1..S)")
     for name in ("sensor", "altitude (m)", "looks", "measurements", "missed looks"):
         sensors.add_column(name, justify="left" if name == "sensor" else "right")
+    n_sensors = len(cfg.scenario.sensors)
     for i, spec in enumerate(cfg.scenario.sensors):
+        if n_sensors > MAX_ROWS and i == MAX_ROWS // 2:
+            sensors.add_row("...", "", "", "", "")
+            sensors.caption = f"sensors 0-{i - 1} of {n_sensors} shown; all: every sensor"
+            break
         sensors.add_row(str(i), f"{float(spec.params.altitude):g}",
                         str(int((looked[:, i] >= 0).sum())),
                         str(int(measured[:, :, i].sum())), str(int(missed[:, i].sum())))
+    if n_sensors > 1:
+        sensors.add_section()
+        sensors.add_row("all", "", str(int((looked >= 0).sum())), str(int(measured.sum())),
+                        str(int(missed.sum())), style="bold")
     console.print(sensors)
 
     secs = 1e3 * np.asarray(episode.planning_seconds)
