@@ -28,7 +28,7 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
             assert "setting" in f.metadata or issubclass(tp, _Settings), f.name
     paths = [path for _, path, _, _ in DECLARED]
     assert paths == ["planner", "planner_params", "horizon", "steps_per_epoch", "execution",
-                     "visibility", "objective", "planning_detection", "steps",
+                     "visibility", "objective", "planning_detection", "planning_occlusion", "steps",
                      "tracker.miss_update", "tracker.model", "tracker.process_noise",
                      "tracker.mode_process_noise", "tracker.switching", "tracker.gate",
                      "tracker.gate_probability", "tracker.reacquire", "tracker.association",
@@ -119,7 +119,8 @@ def test_values_are_normalised_and_round_trip_through_dicts() -> None:
     tracker = d.pop("tracker")
     assert d == {"planner": "random", "planner_params": {"seed": 2}, "horizon": 3,
                  "steps_per_epoch": 1, "execution": "olf", "visibility": "probabilistic",
-                 "objective": "terminal", "planning_detection": "aware", "steps": 100}
+                 "objective": "terminal", "planning_detection": "aware",
+                 "planning_occlusion": "aware", "steps": 100}
     assert tracker["miss_update"] == "none"
     assert tracker == json.loads(json.dumps(
         {f.name: getattr(TrackerSettings(), f.name)
@@ -140,7 +141,8 @@ def test_file_tables_are_strict() -> None:
              ({"steps_per_epoch": True}, "steps_per_epoch", "must be an integer, got True"),
              ({"horizn": 2}, "horizn", "unknown key (did you mean 'horizon'?); allowed: "
                                        "planner, planner_params, horizon, steps_per_epoch, "
-                                       "execution, visibility, objective, planning_detection"),
+                                       "execution, visibility, objective, planning_detection, "
+                                       "planning_occlusion"),
              ({"planner_params": ["alpha"]}, "planner_params", "must be a table")]
     for data, field, message in cases:
         with pytest.raises(ConfigError) as info:
