@@ -376,7 +376,7 @@ def test_rerun_skips_everything_and_a_changed_grid_is_refused(grid_dir: Path) ->
         run_grid(parse(GOOD.replace("values = [0, 1]", "values = [0, 2]")), grid_dir,
                  workers=1)
     assert info.value.field == "--out" and "different grid" in info.value.message
-    assert "axes[1].values" in info.value.message
+    assert "file.axes[1].values[1] (1 -> 2)" in info.value.message
     with pytest.raises(ConfigError, match="different grid.*runs"):
         run_grid(parse(GOOD.replace("runs = 2", "runs = 3")), grid_dir, workers=1)
     # The description and the comparisons do not change any run: allowed, and recorded.

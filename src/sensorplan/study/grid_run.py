@@ -66,14 +66,12 @@ def grid_resolved(grid: Grid) -> dict[str, Any]:
 
 
 def _identity(resolved: dict[str, Any]) -> dict[str, Any]:
-    """What decides a grid's results: everything but the description, the comparisons
-    (only the report uses them) and the code version."""
+    """What decides a grid's results: the file but its description and comparisons (only
+    the report uses them), and the cells it expands to (their names are directories)."""
     file = {k: v for k, v in resolved.get("file", {}).items()
             if k not in ("description", "comparisons")}
-    return {"format": resolved.get("format"), "design": resolved.get("design"),
-            "axes": resolved.get("axes"), "cells": [c.get("slug") for c in
-                                                    resolved.get("cells", [])],
-            "file": file}
+    return {"format": resolved.get("format"), "file": file,
+            "cells": [c.get("slug") for c in resolved.get("cells", [])]}
 
 
 def read_grid_json(out: str | Path, field: str = "DIR") -> dict[str, Any]:
