@@ -8,7 +8,6 @@ commands that need them so that ``sensorplan plan`` starts fast.
 
 from __future__ import annotations
 
-import inspect
 import os
 import sys
 from collections.abc import Iterator, Sequence
@@ -19,9 +18,9 @@ from typing import Annotated, Any
 import typer
 
 from . import __version__
+from .cli_settings import with_setting_options
 from .errors import ConfigError
 from .planners.registry import BUILTIN
-from .settings import all_settings, default_of, field_type
 
 #: For help texts: the built-in names (no installed plugin is looked up for --help);
 #: validation always asks the registry.
@@ -191,41 +190,7 @@ def simulate(
     print_summary(episode, cfg, written)
 
 
-def _setting_options(skip: tuple[str, ...] = ()) -> list[inspect.Parameter]:
-    """An option of ``simulate`` for every run setting that declares option names (but those
-    in ``skip``), with its help, value placeholder and default from the declaration
-    (sensorplan.settings)."""
-    params = []
-    for cls, _, f, s in all_settings():
-        if not s.cli or f.name in skip:
-            continue
-        # Choices known only at run time cannot be written into the help sentence.
-        if callable(s.choices):
-            text = s.help.removesuffix(".") + f" ({', '.join(s.allowed())})."
-        elif s.names is not None:
-            text = s.help.removesuffix(".") + f" ({', '.join(s.names())}, ...)."
-        else:
-            text = s.help
-        option = typer.Option(*s.cli, metavar=s.metavar, show_default=False,
-                              help=f"{text} [default: {default_of(f)}]")
-        params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=None,
-                                        annotation=Annotated[field_type(cls, f.name) | None,
-                                                             option]))
-    return params
-
-
-def _with_setting_options(command: Any, skip: tuple[str, ...] = ()) -> Any:
-    """``command`` with an option per run setting (but those in ``skip``) after its first
-    two parameters (typer reads a command's options from its signature and calls it with
-    keywords only)."""
-    fixed = [p.replace(kind=inspect.Parameter.KEYWORD_ONLY)
-             for p in inspect.signature(command, eval_str=True).parameters.values()
-             if p.kind is not inspect.Parameter.VAR_KEYWORD]
-    command.__signature__ = inspect.Signature(fixed[:2] + _setting_options(skip) + fixed[2:])
-    return command
-
-
-app.command()(_with_setting_options(simulate))
+app.command()(with_setting_options(simulate))
 
 
 # ----------------------------------------------------------------------------- agents
@@ -314,7 +279,7 @@ def agents(
     print_links(logs)
 
 
-app.command()(_with_setting_options(agents, skip=("planner",)))
+app.command()(with_setting_options(agents, skip=("planner",)))
 
 
 class _Terminated(KeyboardInterrupt):
@@ -421,13 +386,51 @@ def study(
     print(f"next: sensorplan report {out}")
 
 
+@app.command()
+def grid(
+    grid_file: Annotated[Path, typer.Argument(
+        metavar="GRID.toml", show_default=False,
+        help="Grid file: a study file plus design, [[axes]] (feature, values, base) and "
+             "[[comparisons]] (see studies/lookahead_map.toml and docs/studies.md).")],
+    out: Annotated[Path | None, typer.Option(
+        "--out", "-o", metavar="DIR", show_default=False,
+        help="Grid directory (created; an existing one of the same grid is resumed). "
+             "[default: runs/NAME for NAME.toml]")] = None,
+    workers: Annotated[int | None, typer.Option(
+        "--workers", "-j", metavar="N", show_default=False, help=_WORKERS_HELP)] = None,
+    scheduler: Annotated[str | None, typer.Option(
+        "--scheduler", metavar="ADDRESS", show_default=False, help=_SCHEDULER_HELP)] = None,
+) -> None:
+    """Run a grid study: the same methods over scenario variants (cells), to map where one
+    method beats another.
+
+    Each cell varies the file's scenario or settings along the axes (sensor_speed,
+    min_ground_range, town, snr_ref_db, clutter_rate, setting): a star design varies one
+    axis at a time around the base values, a full design takes every combination. Writes
+    DIR/grid.json (the grid with every cell) and runs each cell as a study into DIR/CELL
+    (e.g. DIR/base, DIR/sensor_speed=0.25), one cell after another, all with the same seed
+    and runs. Resumes like a study: run the same command again; a changed grid in DIR is
+    an error. Then sensorplan report DIR draws heat maps of the paired differences.
+
+    Example: sensorplan grid studies/lookahead_map.toml --out runs/lookahead_map -j 2
+    """
+    from .study.grid_run import grid_command
+
+    with _bad_input():
+        code = grid_command(grid_file, out, workers, scheduler)
+    if code:
+        raise typer.Exit(code)
+
+
 # ----------------------------------------------------------------------------- report
 
 
 @app.command()
 def report(
     study_dir: Annotated[Path, typer.Argument(
-        metavar="DIR", show_default=False, help="A study directory (sensorplan study --out).")],
+        metavar="DIR", show_default=False,
+        help="A study directory (sensorplan study --out) or a grid directory (sensorplan "
+             "grid --out).")],
     out: Annotated[Path | None, typer.Option(
         "--out", "-o", metavar="REPORT_DIR", show_default=False,
         help="Where to write the report. [default: DIR/report]")] = None,
@@ -437,7 +440,8 @@ def report(
     Reads only the study directory's files. DIR/report/ gets report.html (figures
     embedded, opens from disk with no network), summary.md (the tables, with links to the
     figures) and the PNG figures. An unfinished study is reported on the runs that every
-    method has finished, and says so.
+    method has finished, and says so. For a grid directory: one heat map, table and
+    verdict per comparison, cells that have not run in grey.
 
     Example: sensorplan report runs/paper
     """

@@ -76,8 +76,9 @@ class _Doc:
     def table(self, header: list[str], rows: list[list[str]], caption: str = "") -> None:
         self.blocks.append(("table", (header, rows, caption)))
 
-    def figure(self, name: str, path: Path) -> None:
-        self.blocks.append(("figure", (name, path)))
+    def figure(self, name: str, path: Path, caption: str | None = None) -> None:
+        """A figure with its caption (default: the study figure's, :data:`FIGURES`)."""
+        self.blocks.append(("figure", (name, path, caption or FIGURES[name])))
 
     def headline(self, paragraphs: list[str]) -> None:
         """The boxed summary at the top of the page."""
@@ -112,8 +113,8 @@ class _Doc:
                                           for i in range(len(header))) + "|")
                 out += ["| " + " | ".join(r) + " |" for r in esc[1:]]
             elif kind == "figure":
-                name, path = b
-                out.append(f"![{FIGURES[name]}]({path.name})\n\n*{FIGURES[name]}*")
+                name, path, caption = b
+                out.append(f"![{caption}]({path.name})\n\n*{caption}*")
             out.append("")
         return "\n".join(out)
 
@@ -142,11 +143,11 @@ class _Doc:
                 body.append(f"<table>{cap}<thead><tr>{head}</tr></thead><tbody>{trs}"
                             "</tbody></table>")
             elif kind == "figure":
-                name, path = b
+                name, path, caption = b
                 data = base64.b64encode(path.read_bytes()).decode("ascii")
                 body.append(f'<figure id="fig-{name}"><img src="data:image/png;base64,{data}" '
-                            f'alt="{html.escape(FIGURES[name])}"><figcaption>'
-                            f"{html.escape(FIGURES[name])}</figcaption></figure>")
+                            f'alt="{html.escape(caption)}"><figcaption>'
+                            f"{html.escape(caption)}</figcaption></figure>")
         return _HTML.format(title=html.escape(title), body="\n".join(body))
 
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -309,39 +309,43 @@ def references(study: Study) -> dict[str, dict[str, str | None]]:
 
 
 def paired_differences(metrics: Any, study: Study, column: str = "rmse",
-                       level: float = LEVEL) -> Any:
+                       level: float = LEVEL,
+                       pairs: Sequence[tuple[str, str]] | None = None) -> Any:
     """Paired differences ``method - reference`` of a run metric, per run, summarized.
 
-    For each method, each of its :func:`references` and each kind: ``d_r = x(method, r) -
-    x(reference, r)`` over the runs both finished; the mean with its paired t-interval, the
-    median with its order-statistic interval, and the share of runs where the method is
-    lower (better).
+    For each method, each of its :func:`references` (or each ``(method, reference)`` of
+    ``pairs``) and each kind: ``d_r = x(method, r) - x(reference, r)`` over the runs both
+    finished; the mean with its paired t-interval, the median with its order-statistic
+    interval, and the share of runs where the method is lower (better).
 
-    Columns: method, against (``myopic`` or ``random``), reference, kind, n, mean, mean_lo,
-    mean_hi, median, median_lo, median_hi, better_share.
+    Columns: method, against (``myopic`` or ``random``; ``given`` for ``pairs``),
+    reference, kind, n, mean, mean_lo, mean_hi, median, median_lo, median_hi, better_share.
     """
     import pandas as pd
 
     wide = metrics.pivot_table(index=["kind", "run"], columns="method", values=column,
                                observed=True)
+    if pairs is None:
+        todo = [(method, against, refs[against]) for method, refs in references(study).items()
+                for against in ("myopic", "random")]
+    else:
+        todo = [(method, "given", ref) for method, ref in pairs]
     rows = []
-    for method, refs in references(study).items():
-        for against in ("myopic", "random"):
-            ref = refs[against]
-            if ref is None or method not in wide or ref not in wide:
+    for method, against, ref in todo:
+        if ref is None or method not in wide or ref not in wide:
+            continue
+        for kind in kinds_with_all(study):
+            if kind not in wide.index.get_level_values(0):
                 continue
-            for kind in kinds_with_all(study):
-                if kind not in wide.index.get_level_values(0):
-                    continue
-                both = wide.loc[kind, [method, ref]].dropna()
-                d = (both[method] - both[ref]).to_numpy(float)
-                mean, lo, hi = t_interval(d, level)
-                med, mlo, mhi = median_interval(d, level)
-                rows.append(dict(method=method, against=against, reference=ref, kind=kind,
-                                 n=d.size, mean=float(mean), mean_lo=float(lo),
-                                 mean_hi=float(hi), median=med, median_lo=mlo,
-                                 median_hi=mhi,
-                                 better_share=float(np.mean(d < 0)) if d.size else math.nan))
+            both = wide.loc[kind, [method, ref]].dropna()
+            d = (both[method] - both[ref]).to_numpy(float)
+            mean, lo, hi = t_interval(d, level)
+            med, mlo, mhi = median_interval(d, level)
+            rows.append(dict(method=method, against=against, reference=ref, kind=kind,
+                             n=d.size, mean=float(mean), mean_lo=float(lo),
+                             mean_hi=float(hi), median=med, median_lo=mlo,
+                             median_hi=mhi,
+                             better_share=float(np.mean(d < 0)) if d.size else math.nan))
     return pd.DataFrame(rows)
 
 
