@@ -24,7 +24,8 @@ first problems of a larger run are those of a smaller one.
 Writes into ``--out``: ``openloop.csv`` (one row per set, problem and method: Phi, the
 reference's Phi, their ratio, and what happened on the links), ``summary.csv`` and
 ``summary.md`` (per set and method: mean ratio with its 95 % t-interval, median with its
-order-statistic interval, shares below and above 1) and ``meta.json``. The raw table is
+order-statistic interval, shares below and above 1; also for the tiny problems with at
+least two platforms) and ``meta.json``. The raw table is
 rewritten after every problem (atomically), so Ctrl-C loses at most the problem under way;
 running the same command again continues where it stopped. The output depends only on
 ``--seed`` and ``--problems``: no wall time is stored.
@@ -174,11 +175,19 @@ def problem_rows(set_name: str, i: int, seed: int) -> list[dict[str, Any]]:
     return [dict(set=set_name, problem=i, **r) for r in rows]
 
 
+#: A subgroup summarized besides the sets: the tiny problems with several platforms (about
+#: half of ``tiny_problem``'s draws have one platform, where there is nothing to negotiate).
+MULTI = "tiny, N >= 2"
+
+
 def summarize(raw: pd.DataFrame) -> pd.DataFrame:
     """Per set and method: the ratio's mean [t-interval], median [order-statistic interval],
-    and the shares of problems below and above 1 (beyond :data:`TIE`)."""
+    and the shares of problems below and above 1 (beyond :data:`TIE`); then the same for
+    the tiny problems with at least two platforms (:data:`MULTI`)."""
+    multi = raw[(raw["set"] == "tiny") & (raw["n_sensors"] >= 2)].assign(set=MULTI)
     out = []
-    for (set_name, method), g in raw.groupby(["set", "method"], sort=False):
+    for (set_name, method), g in pd.concat([raw, multi]).groupby(["set", "method"],
+                                                                  sort=False):
         x = g["ratio"].to_numpy(float)
         ok = x[~np.isnan(x)]
         mean, lo, hi = t_interval(ok)
@@ -196,7 +205,8 @@ def markdown(summary: pd.DataFrame) -> str:
     lines = []
     for set_name, g in summary.groupby("set", sort=False):
         ref = g["reference"].iloc[0]
-        lines += [f"**{set_name}**: Phi / Phi({ref}) over {int(g['n'].max())} problems",
+        lines += [f"**{set_name}**: Phi / Phi({ref}) over {int(g['n'].max())} problems"
+                  + (" (a subgroup of tiny)" if set_name == MULTI else ""),
                   "", "| method | mean [95 % CI] | median [95 % CI] | below 1 | above 1 |",
                   "|---|---|---|---|---|"]
         for r in g.itertuples():
@@ -258,8 +268,14 @@ def save(out: Path, raw: pd.DataFrame, seed: int, problems: int,
 def progress(total: int, done: int) -> Iterator[Callable[[str], None]]:
     """A rich bar on a terminal, a plain line about every 10 % otherwise."""
     from rich.console import Console
-    from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
-                               TimeElapsedColumn, TimeRemainingColumn)
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     console = Console(stderr=True)
     if console.is_terminal:

@@ -309,25 +309,25 @@ def references(study: Study) -> dict[str, dict[str, str | None]]:
 
 
 def paired_differences(metrics: Any, study: Study, column: str = "rmse",
-                       level: float = LEVEL) -> Any:
+                       level: float = LEVEL,
+                       refs: dict[str, dict[str, str | None]] | None = None) -> Any:
     """Paired differences ``method - reference`` of a run metric, per run, summarized.
 
-    For each method, each of its :func:`references` and each kind: ``d_r = x(method, r) -
-    x(reference, r)`` over the runs both finished; the mean with its paired t-interval, the
-    median with its order-statistic interval, and the share of runs where the method is
-    lower (better).
+    For each method, each of its :func:`references` (or of ``refs``: method -> {label:
+    reference method or None}) and each kind: ``d_r = x(method, r) - x(reference, r)`` over
+    the runs both finished; the mean with its paired t-interval, the median with its
+    order-statistic interval, and the share of runs where the method is lower (better).
 
-    Columns: method, against (``myopic`` or ``random``), reference, kind, n, mean, mean_lo,
-    mean_hi, median, median_lo, median_hi, better_share.
+    Columns: method, against (``myopic`` or ``random``, or the labels of ``refs``),
+    reference, kind, n, mean, mean_lo, mean_hi, median, median_lo, median_hi, better_share.
     """
     import pandas as pd
 
     wide = metrics.pivot_table(index=["kind", "run"], columns="method", values=column,
                                observed=True)
     rows = []
-    for method, refs in references(study).items():
-        for against in ("myopic", "random"):
-            ref = refs[against]
+    for method, against_refs in (references(study) if refs is None else refs).items():
+        for against, ref in against_refs.items():
             if ref is None or method not in wide or ref not in wide:
                 continue
             for kind in kinds_with_all(study):
