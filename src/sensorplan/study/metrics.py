@@ -310,26 +310,30 @@ def references(study: Study) -> dict[str, dict[str, str | None]]:
 
 def paired_differences(metrics: Any, study: Study, column: str = "rmse",
                        level: float = LEVEL,
-                       pairs: Sequence[tuple[str, str]] | None = None) -> Any:
+                       pairs: Sequence[tuple[str, str]] | None = None,
+                       refs: dict[str, dict[str, str | None]] | None = None) -> Any:
     """Paired differences ``method - reference`` of a run metric, per run, summarized.
 
     For each method, each of its :func:`references` (or each ``(method, reference)`` of
-    ``pairs``) and each kind: ``d_r = x(method, r) - x(reference, r)`` over the runs both
-    finished; the mean with its paired t-interval, the median with its order-statistic
-    interval, and the share of runs where the method is lower (better).
+    ``pairs``, or of ``refs``: method -> {label: reference method or None}) and each kind:
+    ``d_r = x(method, r) - x(reference, r)`` over the runs both finished; the mean with its
+    paired t-interval, the median with its order-statistic interval, and the share of runs
+    where the method is lower (better).
 
-    Columns: method, against (``myopic`` or ``random``; ``given`` for ``pairs``),
-    reference, kind, n, mean, mean_lo, mean_hi, median, median_lo, median_hi, better_share.
+    Columns: method, against (``myopic`` or ``random``; ``given`` for ``pairs``; the labels
+    of ``refs``), reference, kind, n, mean, mean_lo, mean_hi, median, median_lo, median_hi,
+    better_share.
     """
     import pandas as pd
 
     wide = metrics.pivot_table(index=["kind", "run"], columns="method", values=column,
                                observed=True)
-    if pairs is None:
-        todo = [(method, against, refs[against]) for method, refs in references(study).items()
-                for against in ("myopic", "random")]
-    else:
+    if pairs is not None:
         todo = [(method, "given", ref) for method, ref in pairs]
+    else:
+        table = references(study) if refs is None else refs
+        todo = [(method, against, ref) for method, against_refs in table.items()
+                for against, ref in against_refs.items()]
     rows = []
     for method, against, ref in todo:
         if ref is None or method not in wide or ref not in wide:
