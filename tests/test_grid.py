@@ -544,6 +544,36 @@ def test_heat_map_numbers_match_a_second_computation(grid_dir: Path, tmp_path: P
     assert "## K = 2 vs myopic" in md and "![Paired mean RMSE difference" in md
 
 
+def test_method_statistics_match_a_second_computation(grid_dir: Path, tmp_path: Path) -> None:
+    """Each method's mean RMSE and lost share with scipy's t-interval, the ANEES and the
+    diverged runs, straight from each cell's steps.parquet; and the report draws them."""
+    from sensorplan.study.grid_run import method_statistics
+
+    written = write_report(grid_dir, tmp_path / "report")
+    assert "methods" in written.figures                      # a star design: the lines
+    got = method_statistics(grid_dir)
+    info = json.loads((grid_dir / "grid.json").read_text())
+    assert len(got) == len(info["cells"]) * len(info["methods"])
+    for row in got.itertuples():
+        st = pd.read_parquet(grid_dir / row.cell / "steps.parquet")
+        st = st[(st["step"] >= 1) & (st["method"] == row.method)]
+        per_run = st.groupby("run")
+        rmse = per_run["error"].apply(lambda e: np.sqrt(np.mean(e ** 2))).to_numpy()
+        lost = per_run["error"].apply(lambda e: np.mean(e > 50.0)).to_numpy()
+        for x, (m, lo, hi) in ((rmse, (row.rmse, row.rmse_lo, row.rmse_hi)),
+                               (lost, (row.lost, row.lost_lo, row.lost_hi))):
+            if np.ptp(x) == 0:                                # no spread: a point interval
+                ref = [x.mean()] * 3
+            else:
+                ref = [x.mean(), *stats.t.interval(0.95, x.size - 1, loc=x.mean(),
+                                                   scale=stats.sem(x))]
+            np.testing.assert_allclose([m, lo, hi], ref, rtol=1e-10, atol=1e-12)
+        assert row.anees == pytest.approx(st["nees"].mean(), rel=1e-12)
+        assert row.diverged == int((per_run["error"].max() > 300.0).sum())
+    md = (tmp_path / "report" / "summary.md").read_text()
+    assert "## Methods across the cells" in md and "(methods.png)" in md
+
+
 def _grey_pixels(png: Path) -> int:
     from matplotlib.image import imread
 

@@ -14,10 +14,10 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from ..study.grid_run import grid_statistics
+from ..study.grid_run import grid_statistics, method_statistics
 from ..study.metrics import DIVERGED_THRESHOLD
 from .document import ReportFiles, _ci, _Doc, _f
-from .grid_figures import draw_heatmap, heatmap_panels, heatmap_values
+from .grid_figures import draw_axis_lines, draw_heatmap, heatmap_panels, heatmap_values
 from .headline import SMALL_SAMPLE
 
 VERDICTS = ("better", "worse", "inconclusive", "not run")
@@ -56,7 +56,13 @@ def write_grid_report(grid_dir: str | Path, out: str | Path | None = None) -> Re
                                   out / f"{name}.png")
     stats.assign(label=[info["comparisons"][k]["label"] for k in stats["comparison"]]).to_csv(
         out / "grid_statistics.csv", index=False)
-    doc = _document(info, stats, figs, grid_dir)
+    methods = method_statistics(grid_dir)
+    methods.to_csv(out / "method_statistics.csv", index=False)
+    (out / "methods.png").unlink(missing_ok=True)
+    lines = draw_axis_lines(info, methods, out / "methods.png")
+    if lines is not None:
+        figs["methods"] = lines
+    doc = _document(info, stats, figs, grid_dir, methods)
     md, page = out / "summary.md", out / "report.html"
     md.write_text(doc.markdown(), encoding="utf-8")
     page.write_text(doc.html(f"sensorplan grid report: {grid_dir.name}"), encoding="utf-8")
@@ -92,7 +98,7 @@ def _cell_row(r: Any, runs: int) -> list[str]:
 
 
 def _document(info: dict[str, Any], stats: Any, figs: dict[str, Path],
-              grid_dir: Path) -> _Doc:
+              grid_dir: Path, methods: Any) -> _Doc:
     doc = _Doc()
     doc.h(1, "Grid study report" + (f": {info['description']}" if info["description"] else ""))
     comps = info["comparisons"]
@@ -147,10 +153,27 @@ def _document(info: dict[str, Any], stats: Any, figs: dict[str, Path],
                                                  "intervals unreliable)" if len(small) else ""))
         doc.p(_verdict_text("Verdict", verdicts(rows)))
 
+    doc.h(2, "Methods across the cells")
+    doc.p("Each method on its own, per cell, over all targets: mean position RMSE and share of "
+          "lost target-steps (error above 50 m), each with its 95 % t-interval across runs, "
+          "the ANEES and the runs that diverged.")
+    if "methods" in figs:
+        doc.figure("methods", figs["methods"], "Each method's mean RMSE, lost share and ANEES "
+                   "along each axis, the other axes at their base values; error bars: 95 % "
+                   "t-intervals across runs; dotted: the ANEES of an honest filter (4).")
+    doc.table(["cell", "method", "runs", "RMSE mean (m)", "lost target-steps", "ANEES",
+               "diverged"],
+              [[r.cell, r.method, str(r.n), _ci(r.rmse, r.rmse_lo, r.rmse_hi),
+                _ci(r.lost, max(r.lost_lo, 0.0), min(r.lost_hi, 1.0), pct=True),
+                _f(r.anees, 2),
+                f"{r.diverged} of {r.n}"] for r in methods.itertuples()],
+              caption=f"diverged: runs whose largest error exceeds {DIVERGED_THRESHOLD:g} m")
+
     doc.h(2, "Files")
     doc.p(f"`{grid_dir.name}/grid.json` (the grid with every cell), one study directory per "
-          "cell, `grid_statistics.csv` (the numbers of the tables, one row per comparison "
-          "and cell); regenerate this report with `sensorplan report DIR`.")
+          "cell, `grid_statistics.csv` (one row per comparison and cell) and "
+          "`method_statistics.csv` (one row per cell and method): the numbers of the "
+          "tables; regenerate this report with `sensorplan report DIR`.")
     return doc
 
 

@@ -166,3 +166,65 @@ def draw_heatmap(panels: list[Panel], values: list[dict[str, np.ndarray]], title
     fig.savefig(path, format="png", metadata={"Software": None}, bbox_inches="tight",
                 pad_inches=0.15)
     return path
+
+
+#: The per-method metrics drawn along each axis: column, label, scale.
+AXIS_METRICS = (("rmse", "mean RMSE (m)", 1.0), ("lost", "lost target-steps (%)", 100.0),
+                ("anees", "ANEES (4: honest)", 1.0))
+
+
+def draw_axis_lines(info: dict[str, Any], methods: Any, path: Path) -> Path | None:
+    """Each method's mean RMSE, lost share (both with 95 % t-intervals) and ANEES along
+    every axis of a star design (the other axes at base): one row per axis, one column per
+    metric, one line per method. None for a full design (its heat maps show the cells)."""
+    from matplotlib.figure import Figure
+
+    from ..colors import method_colors
+
+    if info["design"] != "star" or methods.empty:
+        return None
+    by_index = {tuple(c["index"]): c["slug"] for c in info["cells"]}
+    base = tuple(a["base_index"] for a in info["axes"])
+    names = list(dict.fromkeys(methods["method"]))
+    colors = method_colors(names)
+    axes = info["axes"]
+    fig = Figure(figsize=(4.2 * len(AXIS_METRICS), 2.9 * len(axes) + 0.6), dpi=110,
+                 layout="constrained")
+    grid = fig.subplots(len(axes), len(AXIS_METRICS), squeeze=False)
+    for i, a in enumerate(axes):
+        slugs = [by_index.get(base[:i] + (k,) + base[i + 1:]) for k in range(len(a["labels"]))]
+        for c, (col, label, scale) in enumerate(AXIS_METRICS):
+            ax = grid[i, c]
+            for m in names:
+                rows = methods[methods["method"] == m].set_index("cell")
+                x = [k for k, sl in enumerate(slugs) if sl in rows.index]
+                if not x:
+                    continue
+                sel = rows.loc[[slugs[k] for k in x]]
+                y = scale * sel[col].to_numpy(float)
+                err = None
+                if f"{col}_lo" in sel:
+                    lo, hi = sel[f"{col}_lo"].to_numpy(float), sel[f"{col}_hi"].to_numpy(float)
+                    if col == "lost":                  # a share: its interval within [0, 1]
+                        lo, hi = np.clip(lo, 0.0, 1.0), np.clip(hi, 0.0, 1.0)
+                    err = np.vstack([y - scale * lo, scale * hi - y])
+                ax.errorbar(x, y, yerr=err, color=colors[m], marker="o", ms=4, capsize=3,
+                            label=m)
+            if col == "anees":
+                from matplotlib.ticker import ScalarFormatter
+
+                ax.axhline(4.0, color="#555555", ls=":", lw=1)
+                ax.set_yscale("log")
+                ax.yaxis.set_major_formatter(ScalarFormatter())
+                ax.yaxis.set_minor_formatter(ScalarFormatter())
+            ax.set_xticks(range(len(a["labels"])),
+                          [t + (" (base)" if k == a["base_index"] else "")
+                           for k, t in enumerate(a["labels"])], fontsize=8)
+            ax.set_xlabel(a["name"])
+            ax.set_ylabel(label)
+            ax.grid(alpha=0.3)
+    grid[0, 0].legend(fontsize=8)
+    fig.suptitle("Each method along each axis (the other axes at base; 95 % t-intervals)")
+    fig.savefig(path, format="png", metadata={"Software": None}, bbox_inches="tight",
+                pad_inches=0.15)
+    return path

@@ -23,7 +23,7 @@ from ..io import ensure_out_dir
 from .execution import StudyInterrupted, StudyRun, run_study
 from .grid import Grid, load_grid
 from .metrics import (consistency, kinds_with_all, paired_differences, planning_summary,
-                      run_metrics)
+                      run_metrics, summary)
 from .storage import (RESULT_KEYS, differences, done_tasks, git_describe, load_study_dir,
                       locked, now, versions)
 
@@ -310,3 +310,38 @@ def grid_statistics(out: str | Path) -> tuple[dict[str, Any], Any]:
                "ms_reference", "verdict"]
     return info, pd.DataFrame(rows).reindex(columns=columns)
 
+
+
+def method_statistics(out: str | Path) -> Any:
+    """Every method in every cell that has run, over every target: one row each.
+
+    Columns: cell, method, n (runs), rmse, rmse_lo, rmse_hi (mean position RMSE, m, with
+    its 95 % t-interval, :func:`~.metrics.summary`), lost, lost_lo, lost_hi (share of
+    target-steps with error above 50 m, same statistics), anees, diverged
+    (:func:`~.metrics.consistency`).
+    """
+    import pandas as pd
+
+    out = Path(out)
+    info = read_grid_json(out)
+    rows = []
+    for cell in info["cells"]:
+        try:
+            tables = load_study_dir(out / cell["slug"])
+        except ConfigError:
+            continue
+        kind = _kind(tables.study)
+        metrics = run_metrics(tables)
+        rmse = summary(metrics, "rmse")
+        lost = summary(metrics, "lost_share")
+        honest = consistency(tables)
+        for method in tables.study.method_names:
+            def pick(df: Any, m: str = method) -> Any:
+                return df[(df["method"] == m) & (df["kind"] == kind)].iloc[0]
+            r, lo, h = pick(rmse), pick(lost), pick(honest)
+            rows.append({"cell": cell["slug"], "method": method, "n": int(r["n"]),
+                         "rmse": r["mean"], "rmse_lo": r["mean_lo"], "rmse_hi": r["mean_hi"],
+                         "lost": lo["mean"], "lost_lo": lo["mean_lo"], "lost_hi": lo["mean_hi"],
+                         "anees": float(h["anees"]), "diverged": int(h["diverged"])})
+    return pd.DataFrame(rows, columns=["cell", "method", "n", "rmse", "rmse_lo", "rmse_hi",
+                                       "lost", "lost_lo", "lost_hi", "anees", "diverged"])
