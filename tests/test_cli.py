@@ -270,7 +270,7 @@ def test_console_script_in_a_subprocess(tmp_path: Path) -> None:
                           timeout=120)
     assert proc.returncode == 2
     assert proc.stdout == ""
-    assert proc.stderr.splitlines() == ["error: dt: must be > 0"]
+    assert proc.stderr.splitlines() == ["error: dt: must be in [0.001, 3600] s, got -1.0"]
     good = write_json(tmp_path, SPEC7, "good.json")
     proc = subprocess.run([sys.executable, "-m", "sensorplan", "plan", str(good), "--planner",
                            "random"], capture_output=True, text=True, timeout=120)
