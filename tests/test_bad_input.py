@@ -226,6 +226,13 @@ EXTREME_PLANS = [
     (sensor(monopulse_slope=1e-300), "sensors[0].monopulse_slope"),
     (sensor(moves=[20, 18446744073709551616]), "sensors[0].moves"),
     (sensor(altitude=1e300), "sensors[0].altitude"),
+    (sensor(range_resolution=0.01, snr_ref_db=100.0), "sensors[0].range_resolution"),
+    (sensor(range_ref=1e6, snr_ref_db=10.0), "sensors[0].snr_ref_db"),
+    (sensor(min_ground_range=1e-6), "sensors[0].min_ground_range"),
+    (target(cov=[[1e-12, 0, 0, 0], [0, 400, 0, 0], [0, 0, 4, 0], [0, 0, 0, 4]]),
+     "targets[0].cov"),
+    (target(cov=[[400, 0, 0, 0], [0, 400, 0, 0], [0, 0, 1e9, 0], [0, 0, 0, 4]]),
+     "targets[0].cov[2][2]"),
     (sensor(clutter_rate=1e300), "sensors[0].clutter_rate"),
     (sensor(heading=1e300), "sensors[0].heading"),
     (spec7(dt=2e300), "dt"),
@@ -276,17 +283,19 @@ def test_d4_extreme_targets_and_sensors(capsys, tmp_path) -> None:
 
 def test_d4_values_at_the_edges_of_the_ranges_run_cleanly(capsys, tmp_path) -> None:
     # The most extreme accepted values give finite results and no warning.
-    cases = [sensor(range_resolution=1e-3, snr_ref_db=100.0, range_ref=1.0),
-             sensor(snr_ref_db=-100.0, range_ref=1e8, beamwidth=math.pi / 2,
-                    monopulse_slope=1e-3, range_resolution=1e5),
-             sensor(altitude=1e-3, min_ground_range=1e-9, max_ground_range=1e8,
+    cases = [sensor(range_resolution=0.02, snr_ref_db=100.0, range_ref=1.0, altitude=100.0,
+                    min_ground_range=100.0),
+             sensor(snr_ref_db=-100.0, range_ref=1e6, beamwidth=math.pi / 2,
+                    monopulse_slope=0.1, range_resolution=1e4),
+             sensor(altitude=100.0, min_ground_range=20.0, max_ground_range=1e8,
                     fov_half_angle=math.pi, depression=math.pi / 2),
+             sensor(altitude=1e5, range_ref=1e6, snr_ref_db=40.0, range_resolution=1e4,
+                    min_ground_range=1000.0, max_ground_range=1e8),
              spec7(dt=3600.0, process_noise=1e6, horizon=3),
              spec7(dt=1e-3, process_noise=0.0, horizon=3),
-             target(cov=[[1e14, 0, 0, 0], [0, 1e14, 0, 0], [0, 0, 1e14, 0], [0, 0, 0, 1e14]],
+             target(cov=[[1e14, 0, 0, 0], [0, 1e14, 0, 0], [0, 0, 1e8, 0], [0, 0, 0, 1e8]],
                     mean=[1e8, -1e8, 1e4, -1e4]),
-             target(cov=[[1e-300, 0, 0, 0], [0, 1e-300, 0, 0], [0, 0, 1e-300, 0],
-                         [0, 0, 0, 1e-300]])]
+             target(cov=[[1e-9, 0, 0, 0], [0, 1e-9, 0, 0], [0, 0, 1e-9, 0], [0, 0, 0, 1e-9]])]
     for doc in cases:
         for name in ("pg", "brute-force", "random"):
             d = copy.deepcopy(doc)

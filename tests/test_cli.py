@@ -213,7 +213,7 @@ def test_plan_bad_files_and_options(tmp_path: Path, capsys: pytest.CaptureFixtur
     broken.write_text('{"horizon": 3,')
     assert_bad_input(run(capsys, "plan", broken), str(broken))
     top = write_json(tmp_path, [SPEC7], "list.json")
-    assert_bad_input(run(capsys, "plan", top), "(top level)")
+    assert "JSON object" in assert_bad_input(run(capsys, "plan", top), str(top))
     dup = tmp_path / "dup.json"
     dup.write_text('{"horizon": 3, "horizon": 4}')
     assert_bad_input(run(capsys, "plan", dup), "horizon")

@@ -399,3 +399,42 @@ def test_simulate_shows_plain_progress_when_not_on_a_terminal(tmp_path, capsys,
     lines = err.splitlines()
     assert lines and all(ln.startswith("simulating: ") for ln in lines)
     assert lines[-1].startswith("simulating: 20/20 steps done")
+
+
+@pytest.mark.slow
+def test_d15_a_real_cluster_losing_every_worker(tmp_path, capsys) -> None:
+    import threading
+
+    from distributed import LocalCluster
+
+    f = tmp_path / "s.toml"
+    f.write_text(TEXT.replace("runs = 3", "runs = 20").replace("steps = 8", "steps = 30"))
+    study = parse_study(f.read_text())
+    out = tmp_path / "o"
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                           dashboard_address=None)
+    try:
+        def kill_every_worker() -> None:
+            deadline = time.monotonic() + 120
+            while not (out.exists() and studies.done_tasks(out, study)):
+                if time.monotonic() > deadline:
+                    return
+                time.sleep(0.05)
+            for nanny in list(cluster.workers.values()):
+                os.kill(nanny.process.process.pid, signal.SIGKILL)
+
+        killer = threading.Thread(target=kill_every_worker)
+        killer.start()
+        code, stdout, err = run(capsys, "study", f, "--out", out, "--scheduler",
+                                cluster.scheduler_address)
+        killer.join()
+    finally:
+        cluster.close()
+    assert code == 1, err
+    # Progress lines may come first (the cluster took seconds to start); then one line.
+    lines = [ln for ln in err.splitlines() if not ln.startswith("study s: ")]
+    assert len(lines) == 1 and "the Dask cluster lost the study" in lines[0], err
+    assert "run the same command again to resume" in lines[0] and "Traceback" not in err
+    res = run(capsys, "study", f, "--out", out, "--workers", "2")      # resumes
+    assert res[0] == 0, res[2]
+    assert studies.load_study_dir(out).complete

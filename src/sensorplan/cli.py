@@ -134,8 +134,20 @@ def plan(
         decision = load_decision(problem, planner)
         chosen = decision.make_planner()
         result = chosen.plan(decision.problem)
+        _check_finite(result)
         text = dumps_result(result)
     sys.stdout.write(text + "\n")
+
+
+def _check_finite(result: Any) -> None:
+    """A result with a non-finite number is a defect, never printed as a plan."""
+    import numpy as np
+
+    values = [result.potential, *np.ravel(result.information), *np.ravel(result.headings)]
+    if not np.all(np.isfinite(values)):
+        raise RuntimeError(f"planner {result.planner!r} returned non-finite values "
+                           f"(potential {result.potential}); this is a bug: please report it "
+                           "with the input file")
 
 
 # --------------------------------------------------------------------------- simulate
@@ -466,7 +478,7 @@ def report(
         if (study_dir / "config.resolved.json").exists():
             # Checked before the figures are drawn: a file or a read-only place fails now.
             ensure_out_dir(out if out is not None else study_dir / "report")
-        with _writing():
+        with writing(out if out is not None else study_dir / "report"):
             written = write_report(study_dir, out)
     if not written.complete:
         sys.stderr.write(f"warning: {study_dir} is not finished; the report covers "

@@ -142,21 +142,52 @@ RANGES: dict[str, Range] = {
 #: beyond it the measurement noise is so small against the covariances that the
 #: information matrices lose all precision (dB).
 MAX_PEAK_SNR_DB = 120.0
+#: Smallest range (m) and azimuth (rad) noise standard deviation of a radar, at its closest
+#: range: measurements more precise than this make the covariances of planning lose all
+#: precision against the prior uncertainty a target may have.
+MIN_RANGE_SIGMA = 1e-3
+MIN_AZIMUTH_SIGMA = 1e-6
 #: Largest ratio of a given covariance's largest to smallest eigenvalue, and its smallest
 #: eigenvalue (a standard deviation of about 3e-5 m or m/s).
 MAX_CONDITION = 1e12
 MIN_EIGENVALUE = 1e-9
 
 
-def check_peak_snr(snr_ref_db: float, range_ref: float, altitude: float, field: str) -> None:
-    """Refuse a radar whose SNR at the altitude (its closest possible range) exceeds
-    :data:`MAX_PEAK_SNR_DB`: ``snr_ref_db + 40 log10(range_ref / altitude)``."""
+def check_radar_precision(snr_ref_db: float, range_ref: float, altitude: float,
+                          range_resolution: float, beamwidth: float, monopulse_slope: float,
+                          min_ground_range: float, prefix: str) -> None:
+    """Refuse a radar too precise to compute with: its SNR at the altitude (the closest
+    possible range), ``snr_ref_db + 40 log10(range_ref / altitude)``, above
+    :data:`MAX_PEAK_SNR_DB`, or its noise there below :data:`MIN_RANGE_SIGMA` in range
+    (``range_resolution / sqrt(2 SNR)``) or :data:`MIN_AZIMUTH_SIGMA` in azimuth
+    (``beamwidth / monopulse_slope / sqrt(2 SNR)``), or the ground position noise that the
+    azimuth gives at the nearest ground range it sees (``min_ground_range`` times that
+    azimuth noise) below :data:`MIN_RANGE_SIGMA`. Fields are ``prefix.<key>``."""
     peak = snr_ref_db + 40.0 * math.log10(range_ref / altitude)
     if peak > MAX_PEAK_SNR_DB:
-        raise ConfigError(field, f"with range_ref {range_ref:g} m and altitude {altitude:g} m "
-                          f"the SNR at the closest range would be {peak:.4g} dB, above the "
-                          f"limit of {MAX_PEAK_SNR_DB:g} dB (lower snr_ref_db or range_ref, "
-                          "or raise the altitude)")
+        raise ConfigError(f"{prefix}.snr_ref_db", f"with range_ref {range_ref:g} m and "
+                          f"altitude {altitude:g} m the SNR at the closest range would be "
+                          f"{peak:.4g} dB, above the limit of {MAX_PEAK_SNR_DB:g} dB (lower "
+                          "snr_ref_db or range_ref, or raise the altitude)")
+    root = math.sqrt(2.0 * 10.0 ** (peak / 10.0))
+    sigma_r = range_resolution / root
+    if sigma_r < MIN_RANGE_SIGMA:
+        raise ConfigError(f"{prefix}.range_resolution", f"gives a range noise of "
+                          f"{sigma_r:.3g} m at the closest range (SNR {peak:.4g} dB), below "
+                          f"the limit of {MIN_RANGE_SIGMA:g} m")
+    sigma_phi = beamwidth / monopulse_slope / root
+    if sigma_phi < MIN_AZIMUTH_SIGMA:
+        raise ConfigError(f"{prefix}.beamwidth", f"gives an azimuth noise of "
+                          f"{sigma_phi:.3g} rad at the closest range (with monopulse_slope "
+                          f"{monopulse_slope:g}, SNR {peak:.4g} dB), below the limit of "
+                          f"{MIN_AZIMUTH_SIGMA:g} rad")
+    if min_ground_range * sigma_phi < MIN_RANGE_SIGMA:
+        raise ConfigError(f"{prefix}.min_ground_range", f"a target {min_ground_range:g} m "
+                          f"away on the ground would be located to "
+                          f"{min_ground_range * sigma_phi:.3g} m across the line of sight "
+                          f"(azimuth noise {sigma_phi:.3g} rad), below the limit of "
+                          f"{MIN_RANGE_SIGMA:g} m: raise min_ground_range to at least "
+                          f"{MIN_RANGE_SIGMA / sigma_phi:.3g} m")
 
 
 def check_covariance_scale(P: Any, field: str) -> None:

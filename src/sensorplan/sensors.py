@@ -79,10 +79,11 @@ class SensorParams:
 
         Angles are in radians: ``fov_half_angle`` in (0, pi], ``max_turn`` in [0, pi],
         ``depression`` in (0, pi/2], ``beamwidth`` in [1e-6, pi/2]; every other value has
-        the range of :data:`sensorplan.limits.RANGES`, and the SNR at the closest range
-        (the altitude) is at most :data:`sensorplan.limits.MAX_PEAK_SNR_DB`.
+        the range of :data:`sensorplan.limits.RANGES`, and the radar's SNR and noise at
+        its closest range (the altitude) are within
+        :func:`sensorplan.limits.check_radar_precision`'s limits.
         """
-        from .limits import MAX_MOVE_DISTANCES, RANGES, check_count, check_peak_snr
+        from .limits import MAX_MOVE_DISTANCES, RANGES, check_count, check_radar_precision
 
         if self.detection not in DETECTION_MODELS:
             raise ConfigError(f"{prefix}.detection", f"unknown detection model "
@@ -118,9 +119,10 @@ class SensorParams:
                     if name in ANGLE_FIELDS else "")
             for v in np.atleast_1d(np.asarray(getattr(self, name), dtype=float)).ravel():
                 RANGES[kind].check(float(v), f"{prefix}.{name}", hint)
-        for snr, ref, alt in zip(*(np.atleast_1d(np.asarray(getattr(self, n), dtype=float))
-                                   .ravel() for n in ("snr_ref_db", "range_ref", "altitude"))):
-            check_peak_snr(float(snr), float(ref), float(alt), f"{prefix}.snr_ref_db")
+        names = ("snr_ref_db", "range_ref", "altitude", "range_resolution", "beamwidth",
+                 "monopulse_slope", "min_ground_range")
+        for row in np.broadcast(*(np.asarray(getattr(self, n), dtype=float) for n in names)):
+            check_radar_precision(*(float(v) for v in row), prefix)
         if np.any(np.asarray(self.min_ground_range) > np.asarray(self.max_ground_range)):
             raise ConfigError(f"{prefix}.min_ground_range", "must be <= max_ground_range")
         pfa = np.asarray(self.false_alarm_probability)

@@ -59,9 +59,9 @@ def build_planner(name: str, settings: Mapping[str, Any], field: str = "planner"
 
 
 def planner_hint(exc: ConfigError) -> ConfigError:
-    """``exc`` with a suggestion added when it reports an unknown planner name that is part
-    of a known one (``greedy`` -> ``sequential-greedy``), which a close-match search misses.
-    """
+    """``exc`` with a suggestion added when it reports an unknown planner name that is a
+    known one in other letters' case or part of one (``PG`` -> ``pg``, ``greedy`` ->
+    ``sequential-greedy``), which a close-match search misses."""
     import re
 
     from ..planners.registry import planner_names
@@ -69,10 +69,10 @@ def planner_hint(exc: ConfigError) -> ConfigError:
     match = re.match(r"unknown planner '([^']*)'(;| \(did you mean)", exc.message)
     if match is None or match.group(2) != ";":
         return exc
-    name = match.group(1).lower().replace("_", "-")
-    if len(name) < 3:
-        return exc
-    parts = [n for n in planner_names() if name in n or n in name]
+    name = match.group(1).lower().replace("_", "-").strip()
+    names = planner_names()
+    parts = [n for n in names if n == name] or (
+        [n for n in names if name in n or n in name] if len(name) >= 3 else [])
     if not parts:
         return exc
     hint = f" (did you mean {parts[0]!r}?)"
