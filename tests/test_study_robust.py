@@ -78,7 +78,7 @@ def _flip(path: Path, n: int = 16) -> None:
 
 
 DAMAGES = {
-    "flipped bytes": lambda p: _flip(p),
+    "flipped bytes": _flip,
     "truncated": lambda p: p.write_bytes(p.read_bytes()[: p.stat().st_size // 2]),
     "empty": lambda p: p.write_bytes(b""),
     "random bytes": lambda p: p.write_bytes(np.random.default_rng(0).bytes(500)),
@@ -229,7 +229,7 @@ def test_sigterm_stops_the_study_and_every_worker(tmp_path) -> None:
     seen |= _children(proc.pid)
     assert len(seen) >= 3                      # 2 pool workers and the resource tracker
     proc.send_signal(signal.SIGTERM)
-    stdout, stderr = proc.communicate(timeout=120)
+    _, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 143, stderr
     lines = stderr.splitlines()
     assert lines[-1].startswith("interrupted: ") and "run the same command again" in lines[-1]
@@ -390,11 +390,11 @@ def test_progress_lines_wait_for_work_and_time() -> None:
 
 def test_simulate_shows_plain_progress_when_not_on_a_terminal(tmp_path, capsys,
                                                               monkeypatch) -> None:
-    import sensorplan.console as console
+    from sensorplan import console
 
     monkeypatch.setattr(console, "FIRST_LINE_SECONDS", 0.0)
-    code, out, err = run(capsys, "simulate", ROOT / "configs" / "quick.toml", "--steps", "20",
-                         "--out", tmp_path / "o")
+    code, _, err = run(capsys, "simulate", ROOT / "configs" / "quick.toml", "--steps", "20",
+                       "--out", tmp_path / "o")
     assert code == 0, err
     lines = err.splitlines()
     assert lines and all(ln.startswith("simulating: ") for ln in lines)
@@ -425,8 +425,8 @@ def test_d15_a_real_cluster_losing_every_worker(tmp_path, capsys) -> None:
 
         killer = threading.Thread(target=kill_every_worker)
         killer.start()
-        code, stdout, err = run(capsys, "study", f, "--out", out, "--scheduler",
-                                cluster.scheduler_address)
+        code, _, err = run(capsys, "study", f, "--out", out, "--scheduler",
+                           cluster.scheduler_address)
         killer.join()
     finally:
         cluster.close()

@@ -19,8 +19,7 @@ from sensorplan.config import decision_from_dict
 from sensorplan.config.decision import EXAMPLE_PROBLEM
 from sensorplan.errors import ConfigError
 from sensorplan.scenario_file import scenario_from_dict
-from sensorplan.study import METRIC_RANGES, SMALL_SAMPLE, paired_differences, summary
-from sensorplan.study import parse_study
+from sensorplan.study import METRIC_RANGES, SMALL_SAMPLE, paired_differences, parse_study, summary
 
 ROOT = Path(__file__).resolve().parents[1]
 ANGLES = {"max_turn": (0.0, math.pi, False), "fov_half_angle": (0.0, math.pi, True),

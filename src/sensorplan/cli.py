@@ -19,8 +19,8 @@ from typing import Annotated, Any
 import typer
 
 from . import __version__
-from .cli_guards import (Sigterm, Signals, Stopped, check_environment, plot_drawable,
-                         quiet_numerics, writing)
+from .cli_guards import (Sigterm, Signals, Stopped, check_environment, check_finite,
+                         plot_drawable, quiet_numerics, writing)
 from .cli_guards import Terminated as _Terminated
 from .errors import ConfigError, error_line
 from .planners.registry import BUILTIN
@@ -134,20 +134,9 @@ def plan(
         decision = load_decision(problem, planner)
         chosen = decision.make_planner()
         result = chosen.plan(decision.problem)
-        _check_finite(result)
+        check_finite(result)
         text = dumps_result(result)
     sys.stdout.write(text + "\n")
-
-
-def _check_finite(result: Any) -> None:
-    """A result with a non-finite number is a defect, never printed as a plan."""
-    import numpy as np
-
-    values = [result.potential, *np.ravel(result.information), *np.ravel(result.headings)]
-    if not np.all(np.isfinite(values)):
-        raise RuntimeError(f"planner {result.planner!r} returned non-finite values "
-                           f"(potential {result.potential}); this is a bug: please report it "
-                           "with the input file")
 
 
 # --------------------------------------------------------------------------- simulate
@@ -317,7 +306,7 @@ def agents(
     from .decentral import run_agents
 
     try:
-        with _terminate_on_sigterm():
+        with Sigterm():
             episode, logs = run_with_progress(run_agents, cfg)
     except KeyboardInterrupt as exc:
         # run_agents has stopped every agent process on the way out.
@@ -335,21 +324,6 @@ def agents(
 
 
 app.command()(_with_setting_options(agents, skip=("planner",)))
-
-
-@contextmanager
-def _terminate_on_sigterm() -> Iterator[None]:
-    """SIGTERM ends the command as Ctrl-C does: unwinding, so agent processes are stopped."""
-    import signal
-
-    def stop(signum: int, frame: Any) -> None:
-        raise _Terminated
-
-    previous = signal.signal(signal.SIGTERM, stop)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
 
 
 def _write_logs(path: Path, episode: Any, logs: Sequence[Any]) -> None:

@@ -154,3 +154,14 @@ class Signals:
 
         for sig, handler in self._previous.items():
             signal.signal(sig, handler)
+
+
+def check_finite(result: Any) -> None:
+    """A planner's result with a non-finite number is a defect: never printed as a plan."""
+    import numpy as np
+
+    values = [result.potential, *np.ravel(result.information), *np.ravel(result.headings)]
+    if not np.all(np.isfinite(values)):
+        raise RuntimeError(f"planner {result.planner!r} returned non-finite values "
+                           f"(potential {result.potential}); this is a bug: please report it "
+                           "with the input file")
