@@ -369,7 +369,7 @@ def test_d6_huge_covariances_are_drawn_without_hanging(tmp_path) -> None:
 WIDE = "[map]\nwidth = 1000.0\nheight = 400.0\n" + "[[targets]]\n" * 4 + "[[sensors]]\n" * 3
 
 
-@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("seed", [0, 1, 5])   # the audit's seeds 1 and 5 failed
 def test_d7_default_boxes_are_scaled_to_the_map(capsys, tmp_path, seed) -> None:
     code, _, err = simulate(capsys, tmp_path, WIDE, "--steps", "1", "--seed", seed,
                             "--planner", "random")

@@ -127,7 +127,7 @@ def test_fuzz_plan(case: tuple[str, list[str]]) -> None:
     plan_case(*case)
 
 
-@settings(FAST, max_examples=50)
+@settings(FAST, max_examples=30)
 @given(fz.document(fz.SCENARIO_DOC, json_doc=False))
 def test_fuzz_scenario(case: tuple[str, list[str]]) -> None:
     scenario_case(*case)
