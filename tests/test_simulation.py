@@ -323,7 +323,7 @@ class TestRecording:
 def always_visible_scenario() -> Scenario:
     """One cv target and one sensor whose field of view is the whole ground."""
     params = SensorParams(depression=math.pi / 2, fov_half_angle=math.pi,
-                          min_ground_range=1.0, max_ground_range=1e5)
+                          min_ground_range=1e-6, max_ground_range=1e5)
     return Scenario(world=MapRect(), targets=(TargetSpec("cv", position=(300.0, 300.0)),),
                     sensors=(SensorSpec(params, position=(150.0, 150.0), heading=0.0),))
 

@@ -190,6 +190,15 @@ def check_radar_precision(snr_ref_db: float, range_ref: float, altitude: float,
                           f"{MIN_RANGE_SIGMA / sigma_phi:.3g} m")
 
 
+def check_sensor_precision(params: Any, prefix: str) -> None:
+    """:func:`check_radar_precision` of a :class:`~sensorplan.sensors.SensorParams` (scalar
+    fields). Input files (decision, scenario) apply it to every sensor; problems built in
+    Python are not bound by it."""
+    check_radar_precision(*(float(getattr(params, n)) for n in (
+        "snr_ref_db", "range_ref", "altitude", "range_resolution", "beamwidth",
+        "monopulse_slope", "min_ground_range")), prefix)
+
+
 def check_covariance_scale(P: Any, field: str) -> None:
     """Refuse a given covariance ``(4, 4)`` (symmetric and positive definite, checked
     before) with entries above the ``covariance`` range, a velocity variance above the

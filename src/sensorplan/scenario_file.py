@@ -50,6 +50,7 @@ from typing import Annotated, Any
 
 from pydantic import Field, ValidationInfo, field_validator
 
+from .limits import check_sensor_precision
 from .problem import MapRect
 from .scenario import TARGET_KINDS, Scenario, SensorSpec, TargetSpec
 from .sensors import SensorParams
@@ -139,7 +140,7 @@ class ScenarioFile(Strict):
                        heading=s.heading)
             for s in self.sensors)
         ini = self.initial
-        return Scenario(
+        scenario = Scenario(
             world=MapRect(self.map.width, self.map.height), dt=self.dt,
             process_noise=self.process_noise, targets=targets, sensors=sensors,
             target_box=None if ini.target_box is None else (ini.target_box[0],
@@ -149,6 +150,9 @@ class ScenarioFile(Strict):
                                                             ini.sensor_box[1]),
             initial_cov=tuple(tuple(row) for row in ini.cov),
             buildings=tuple((*b.box, b.height) for b in self.buildings))
+        for i, spec in enumerate(scenario.sensors):
+            check_sensor_precision(spec.params, f"sensors[{i}]")
+        return scenario
 
 
 def scenario_from_dict(data: Any) -> Scenario:

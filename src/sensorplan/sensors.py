@@ -79,11 +79,10 @@ class SensorParams:
 
         Angles are in radians: ``fov_half_angle`` in (0, pi], ``max_turn`` in [0, pi],
         ``depression`` in (0, pi/2], ``beamwidth`` in [1e-6, pi/2]; every other value has
-        the range of :data:`sensorplan.limits.RANGES`, and the radar's SNR and noise at
-        its closest range (the altitude) are within
-        :func:`sensorplan.limits.check_radar_precision`'s limits.
+        the range of :data:`sensorplan.limits.RANGES`. (Input files also bound the radar's
+        precision: :func:`sensorplan.limits.check_sensor_precision`.)
         """
-        from .limits import MAX_MOVE_DISTANCES, RANGES, check_count, check_radar_precision
+        from .limits import MAX_MOVE_DISTANCES, RANGES, check_count
 
         if self.detection not in DETECTION_MODELS:
             raise ConfigError(f"{prefix}.detection", f"unknown detection model "
@@ -119,10 +118,6 @@ class SensorParams:
                     if name in ANGLE_FIELDS else "")
             for v in np.atleast_1d(np.asarray(getattr(self, name), dtype=float)).ravel():
                 RANGES[kind].check(float(v), f"{prefix}.{name}", hint)
-        names = ("snr_ref_db", "range_ref", "altitude", "range_resolution", "beamwidth",
-                 "monopulse_slope", "min_ground_range")
-        for row in np.broadcast(*(np.asarray(getattr(self, n), dtype=float) for n in names)):
-            check_radar_precision(*(float(v) for v in row), prefix)
         if np.any(np.asarray(self.min_ground_range) > np.asarray(self.max_ground_range)):
             raise ConfigError(f"{prefix}.min_ground_range", "must be <= max_ground_range")
         pfa = np.asarray(self.false_alarm_probability)

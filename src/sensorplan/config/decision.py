@@ -12,7 +12,7 @@ from pydantic import ConfigDict
 from .. import io
 from ..errors import ConfigError
 from ..limits import (MAX_SENSORS, MAX_TARGETS, RANGES, check_count, check_covariance_scale,
-                      check_decision_size)
+                      check_decision_size, check_sensor_precision)
 from ..problem import MapRect, PlanningProblem, check_covariance
 from ..settings import RunSettings
 from ..validation import (MapModel, Matrix4, Seed, SensorParamsModel, Strict, Vec2, Vec4,
@@ -166,6 +166,8 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
         process_noise=model.process_noise, world=MapRect(model.map.width, model.map.height),
         visibility=model.visibility, objective=model.objective,
         planning_detection=model.planning_detection)
+    for i, s in enumerate(problem.sensors):
+        check_sensor_precision(s, f"sensors[{i}]")
     check_decision_size(problem.horizon, problem.steps_per_epoch, problem.n_targets,
                         [s.moves for s in problem.sensors], problem.world.width,
                         problem.world.height, DECISION_FIELDS)
