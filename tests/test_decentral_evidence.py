@@ -219,7 +219,8 @@ def _direct(steps: pd.DataFrame) -> pd.DataFrame:
         lo, hi = stats.t.interval(0.95, x.size - 1, loc=x.mean(),
                                   scale=x.std(ddof=1) / np.sqrt(x.size))
         diff = x - per_run["pg"].reindex(per_run[method].index).to_numpy(float)
-        out.append(dict(method=method, rmse_mean=x.mean(), rmse_lo=lo, rmse_hi=hi,
+        # An RMSE interval stays at or above zero, where every RMSE lies.
+        out.append(dict(method=method, rmse_mean=x.mean(), rmse_lo=max(lo, 0.0), rmse_hi=hi,
                         rmse_median=np.median(x),
                         diff_pg_mean=math.nan if method == "pg" else diff.mean(),
                         anees=g["nees"].mean(),

@@ -216,8 +216,12 @@ def test_changed_study_in_existing_dir_is_an_error(serial_dir: Path) -> None:
         studies.run_study(changed, serial_dir, workers=1)
     assert info.value.field == "--out"
     assert "different study" in info.value.message
-    assert "runs (3 -> 4)" in info.value.message
+    # More runs alone would be allowed (see test_raising_runs_computes_only_the_new_runs).
+    assert "runs" not in info.value.message.split("changed:")[1].split(")")[0]
     assert "methods[2].horizon (2 -> 3)" in info.value.message
+    with pytest.raises(ConfigError, match=r"runs \(3 -> 2\)"):
+        studies.run_study(tiny_study(TINY.replace("runs = 3", "runs = 2")), serial_dir,
+                          workers=1)
     # A new description alone does not change the results: allowed.
     same = tiny_study('description = "renamed"\n' + TINY)
     assert studies.run_study(same, serial_dir, workers=1).ran == 0

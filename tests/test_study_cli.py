@@ -124,8 +124,9 @@ def test_study_then_resume_then_changed_study(capsys: pytest.CaptureFixture[str]
     assert code == 0, err
     assert "ran 6 of 6 (run, method) pairs" in stdout
     assert f"next: sensorplan report {out}" in stdout
-    # Not a terminal: plain progress lines with an ETA on stderr.
-    assert "ETA" in err and "6/6 done" in err
+    # Not a terminal: plain progress lines only (none for a study this quick; their timing
+    # and ETA are tested in test_study_robust).
+    assert all(ln.startswith("study good: ") for ln in err.splitlines()), err
     assert (out / "config.resolved.json").exists() and (out / "meta.json").exists()
 
     code, stdout, _ = run(capsys, "study", path, "--out", out, "--workers", "2")

@@ -1,6 +1,6 @@
 """``python -m sensorplan``: the same command line as the ``sensorplan`` script."""
 
-from .cli import main
+from ._launch import main
 
 if __name__ == "__main__":
     main()

@@ -18,8 +18,11 @@ from typing import Annotated, Any
 import typer
 
 from . import __version__
+from .cli_guards import (Sigterm, Signals, Stopped, check_environment, check_finite,
+                         plot_drawable, quiet_numerics, usage_error_class, usage_line, writing)
+from .cli_guards import Terminated as _Terminated
 from .cli_settings import with_setting_options
-from .errors import ConfigError
+from .errors import ConfigError, error_line
 from .planners.registry import BUILTIN
 
 #: For help texts: the built-in names (no installed plugin is looked up for --help);
@@ -62,7 +65,7 @@ DEBUG_ENV = "SENSORPLAN_DEBUG"
 
 def _fail(field: str, message: str, code: int = EXIT_BAD_INPUT) -> typer.Exit:
     """Write the one-line error and return the exit to raise."""
-    line = f"error: {field}: {message}".replace("\r", " ").replace("\n", " ")
+    line = error_line(field, message)
     sys.stdout.flush()
     sys.stderr.write(line + "\n")
     sys.stderr.flush()
@@ -75,7 +78,14 @@ def _bad_input() -> Iterator[None]:
     try:
         yield
     except ConfigError as exc:
+        exc = _hinted(exc)
         raise _fail(exc.field, exc.message) from None
+
+
+def _hinted(exc: ConfigError) -> ConfigError:
+    from .config.planners import planner_hint
+
+    return planner_hint(exc)
 
 
 # ------------------------------------------------------------------------------- plan
@@ -83,14 +93,18 @@ def _bad_input() -> Iterator[None]:
 
 @app.command()
 def plan(
-    problem: Annotated[Path, typer.Argument(
+    problem: Annotated[Path | None, typer.Argument(
         metavar="PROBLEM.json", show_default=False,
         help="Single-decision file (SPEC 7): horizon, targets (mean, cov), sensors "
-             "(position, heading, radar parameters), optional planner settings.")],
+             "(position, heading, radar parameters), optional planner settings. "
+             "sensorplan plan --example prints one.")] = None,
     planner: Annotated[str | None, typer.Option(
         "--planner", metavar="NAME", show_default=False,
         help=f"Planner to use instead of the file's planner.name ({_PLANNER_NAMES}). "
              "File settings it does not take are ignored.")] = None,
+    example: Annotated[bool, typer.Option(
+        "--example", help="Print a complete decision file (one target, one sensor, the pg "
+                          "planner) to start from, and exit.")] = False,
 ) -> None:
     """Plan one decision and print the plan as JSON on stdout.
 
@@ -99,16 +113,29 @@ def plan(
     (Phi's term per target), converged and sweeps (pg and pg-refine only) and seconds (the
     planner's own time). Bad input exits with status 2 and one line on stderr.
 
-    Example: sensorplan plan problem.json --planner pg
+    Example: sensorplan plan --example > problem.json; sensorplan plan problem.json
     """
+    if example:
+        from .config.decision import EXAMPLE_PROBLEM
+
+        with _bad_input():
+            if problem is not None or planner is not None:
+                raise ConfigError("--example", "takes no PROBLEM.json and no --planner")
+        sys.stdout.write(EXAMPLE_PROBLEM)
+        return
     from .config import load_decision
     from .io import dumps_result
 
     with _bad_input():
+        if problem is None:
+            raise ConfigError("PROBLEM.json", "is required (sensorplan plan --example prints "
+                              "one to start from)")
         decision = load_decision(problem, planner)
         chosen = decision.make_planner()
         result = chosen.plan(decision.problem)
-    sys.stdout.write(dumps_result(result) + "\n")
+        check_finite(result)
+        text = dumps_result(result)
+    sys.stdout.write(text + "\n")
 
 
 # --------------------------------------------------------------------------- simulate
@@ -177,16 +204,15 @@ def simulate(
         raise _fail(field, exc.message) from None
     npz = out / "episode.npz"
     png = out / "episode.png"
-    timing = episode.save(npz)
-    from .plotting import plot_episode
+    with _bad_input(), writing(out):
+        timing = episode.save(npz)
+        plot_drawable(episode, cfg.scenario, png)
+        written = [npz, png, timing]
+        if animate:
+            from .animation import animate_episode
 
-    plot_episode(episode, cfg.scenario, png)
-    written = [npz, png, timing]
-    if animate:
-        from .animation import animate_episode
-
-        written.append(animate_episode(episode, cfg.scenario,
-                                       out / f"episode.{animation_format}"))
+            written.append(animate_episode(episode, cfg.scenario,
+                                           out / f"episode.{animation_format}"))
     print_summary(episode, cfg, written)
 
 
@@ -257,62 +283,28 @@ def agents(
                           links)
         ensure_out_dir(out)
 
-    from .console import print_links, print_summary, run_with_progress
+    from .console import print_links, print_summary, run_with_progress, write_agent_logs
     from .decentral import run_agents
 
     try:
-        with _terminate_on_sigterm():
+        with Sigterm():
             episode, logs = run_with_progress(run_agents, cfg)
     except KeyboardInterrupt as exc:
         # run_agents has stopped every agent process on the way out.
         term = isinstance(exc, _Terminated)
         sys.stdout.flush()
         sys.stderr.write("error: terminated\n" if term else "error: interrupted\n")
-        raise typer.Exit(143 if term else 130) from None
+        raise Stopped(143 if term else 130) from None
     npz, png, log_file = out / "episode.npz", out / "episode.png", out / "agents.json"
-    timing = episode.save(npz)
-    _write_logs(log_file, episode, logs)
-    from .plotting import plot_episode
-
-    plot_episode(episode, cfg.scenario, png)
+    with _bad_input(), writing(out):
+        timing = episode.save(npz)
+        write_agent_logs(log_file, episode, logs)
+        plot_drawable(episode, cfg.scenario, png)
     print_summary(episode, cfg, [npz, png, timing, log_file])
     print_links(logs)
 
 
 app.command()(with_setting_options(agents, skip=("planner",)))
-
-
-class _Terminated(KeyboardInterrupt):
-    """SIGTERM, raised where the program is, like Ctrl-C's KeyboardInterrupt."""
-
-
-@contextmanager
-def _terminate_on_sigterm() -> Iterator[None]:
-    """SIGTERM ends the command as Ctrl-C does: unwinding, so agent processes are stopped."""
-    import signal
-
-    def stop(signum: int, frame: Any) -> None:
-        raise _Terminated
-
-    previous = signal.signal(signal.SIGTERM, stop)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
-def _write_logs(path: Path, episode: Any, logs: Sequence[Any]) -> None:
-    """agents.json: the decision steps and each decision's :class:`DecisionLog`."""
-    import dataclasses
-    import json
-
-    def plain(v: Any) -> Any:
-        return v.item() if hasattr(v, "item") else str(v)
-
-    steps = json.dumps([int(s) for s in episode.decision_steps])
-    rows = ",\n".join("  " + json.dumps(dataclasses.asdict(log), default=plain) for log in logs)
-    path.write_text(f'{{"decision_steps": {steps},\n "decisions": [\n{rows}\n]}}\n',
-                    encoding="utf-8")
 
 
 # ------------------------------------------------------------------------------ study
@@ -321,22 +313,33 @@ def _write_logs(path: Path, episode: Any, logs: Sequence[Any]) -> None:
 def _run_study_command(study_obj: Any, out: Path, workers: int | None,
                        scheduler: str | None, label: str) -> Any:
     from .console import study_progress
-    from .study import StudyInterrupted, run_study
+    from .study import StudyInterrupted, default_workers, run_study
+    from .study.execution import StudyLost
 
+    parallel = (workers or default_workers()) if scheduler in (None, "local") else 1
+    term = Sigterm()
     try:
-        with _bad_input(), study_progress(label) as progress:
+        with _bad_input(), term, study_progress(label, parallel) as progress:
             return run_study(study_obj, out, workers=workers, scheduler=scheduler,
                              progress=progress)
     except StudyInterrupted as exc:
+        # run_study has stopped the workers; a rerun resumes.
         sys.stdout.flush()
         sys.stderr.write(f"interrupted: {exc.done} of {exc.total} (run, method) pairs are "
                          f"saved in {out}; run the same command again to resume\n")
-        raise typer.Exit(130) from None
+        raise Stopped(143 if term.fired else 130) from None
+    except StudyLost as exc:
+        raise _fail("--scheduler", f"the Dask cluster lost the study: every worker holding "
+                    f"it is gone ({exc.why}); {exc.done} of {exc.total} (run, method) pairs "
+                    f"are saved in {out}; run the same command again to resume",
+                    code=1) from None
 
 
 _WORKERS_HELP = ("Worker processes of the local pool (1 runs in this process). With "
                  "--scheduler local: the LocalCluster's workers. [default: the number of "
                  "cores]")
+_DEMO_WORKERS_HELP = ("Worker processes of the local pool (1 runs in this process). "
+                      "[default: the number of cores]")
 _SCHEDULER_HELP = ("Run on Dask distributed: a scheduler address (tcp://host:8786; its "
                    "workers need sensorplan installed) or 'local' for a LocalCluster "
                    "started here.")
@@ -445,10 +448,18 @@ def report(
 
     Example: sensorplan report runs/paper
     """
+    from .io import ensure_out_dir
     from .report import write_report
 
     with _bad_input():
-        written = write_report(study_dir, out)
+        if not study_dir.is_dir():
+            raise ConfigError("DIR", f"{study_dir}: no such directory" if not
+                              study_dir.exists() else f"{study_dir} is not a directory")
+        if (study_dir / "config.resolved.json").exists():
+            # Checked before the figures are drawn: a file or a read-only place fails now.
+            ensure_out_dir(out if out is not None else study_dir / "report")
+        with writing(out if out is not None else study_dir / "report"):
+            written = write_report(study_dir, out)
     if not written.complete:
         sys.stderr.write(f"warning: {study_dir} is not finished; the report covers "
                          f"{written.runs} run(s)\n")
@@ -502,7 +513,7 @@ def demo(
     out: Annotated[Path, typer.Option(
         "--out", "-o", metavar="DIR", help="Study directory of the demo.")] = Path("out/demo"),
     workers: Annotated[int | None, typer.Option(
-        "--workers", "-j", metavar="N", show_default=False, help=_WORKERS_HELP)] = None,
+        "--workers", "-j", metavar="N", show_default=False, help=_DEMO_WORKERS_HELP)] = None,
 ) -> None:
     """Run a small study (the paper scenario, a few short paired runs, our defaults) and
     write its report; print where the report is.
@@ -520,7 +531,7 @@ def demo(
             raise ConfigError("--workers", f"must be an integer >= 1, got {workers}")
         study_obj = studies.demo_study()
     res = _run_study_command(study_obj, out, workers, None, "demo study")
-    with _bad_input():
+    with _bad_input(), writing(out / "report"):
         written = write_report(out, None)
     what = "already complete" if res.ran == 0 else f"{res.ran} (run, method) pairs in " \
                                                    f"{res.wall:.1f} s"
@@ -533,56 +544,46 @@ def demo(
 # ------------------------------------------------------------------------------- main
 
 
-def _usage_error_class() -> type[BaseException]:
-    # typer raises click's UsageError (vendored in recent typer, the click package in
-    # older ones); reach it through the public BadParameter instead of a private import.
-    return next(c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError")
-
-
-def _usage_line(exc: Any) -> tuple[str, str]:
-    """(field, message) of a command-line usage error."""
-    param = getattr(exc, "param", None)
-    if param is not None:
-        opts = [o for o in getattr(param, "opts", []) if o.startswith("--")]
-        name = getattr(param, "metavar", None) or (param.name or "argument").upper()
-        field = opts[0] if opts else name
-        # A missing argument or option carries no message of its own.
-        return field, getattr(exc, "message", "") or "is required"
-    option = getattr(exc, "option_name", None)
-    if option:
-        message = exc.format_message()
-        prefix = f"No such option: {option}"
-        if message.startswith(prefix):
-            message = "no such option" + message[len(prefix):]
-        return option, message
-    return "usage", exc.format_message()
-
-
 def main(argv: Sequence[str] | None = None) -> None:
     """Console entry point: run the app, map every failure to an exit status and one line.
 
-    Exit status: 0 success, 2 bad input (file or options), 1 an unexpected error (set
-    ``SENSORPLAN_DEBUG=1`` for its traceback), 130 interrupted.
+    Exit status: 0 success, 2 bad input (file, options or environment), 1 an unexpected
+    error (set ``SENSORPLAN_DEBUG=1`` for its traceback) or a Dask cluster that lost a
+    study, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).
     """
     args = list(sys.argv[1:] if argv is None else argv)
     if not args:
         args = ["--help"]
     command = typer.main.get_command(app)
+    signals = Signals()
     try:
-        code = command.main(args=args, prog_name="sensorplan", standalone_mode=False)
-    except _usage_error_class() as exc:
+        with quiet_numerics(DEBUG_ENV), signals:
+            if not {"--help", "-h", "--version"} & set(args):
+                check_environment()
+            code = command.main(args=args, prog_name="sensorplan", standalone_mode=False)
+        if code == 130 and signals.received is not None:
+            # typer turns a KeyboardInterrupt (and so a SIGTERM) into a bare status 130.
+            term = signals.received == "TERM"
+            sys.stdout.flush()
+            sys.stderr.write("error: terminated\n" if term else "error: interrupted\n")
+            code = 143 if term else 130
+    except Stopped as exc:
+        code = exc.code
+    except usage_error_class() as exc:
         try:
-            field, message = _usage_line(exc)
+            field, message = usage_line(exc)
         except Exception:  # noqa: BLE001 - never a traceback for a usage error
             field, message = "usage", str(exc)
         _fail(field, message)
         code = EXIT_BAD_INPUT
     except ConfigError as exc:
+        exc = _hinted(exc)
         _fail(exc.field, exc.message)
         code = EXIT_BAD_INPUT
-    except KeyboardInterrupt:
-        sys.stderr.write("error: interrupted\n")
-        code = 130
+    except KeyboardInterrupt as exc:
+        term = isinstance(exc, _Terminated)
+        sys.stderr.write("error: terminated\n" if term else "error: interrupted\n")
+        code = 143 if term else 130
     except typer.Abort:
         sys.stderr.write("error: aborted\n")
         code = 1

@@ -13,38 +13,127 @@ from typing import Any
 
 from .settings import all_settings
 
+#: A plain progress line (stderr not a terminal) at most this often, besides every 10 %.
+LINE_SECONDS = 60.0
+#: No plain progress line before this many seconds (but the last): a run that fails at
+#: once, or finishes at once, prints no progress.
+FIRST_LINE_SECONDS = 5.0
+
+
+class PlainProgress:
+    """Progress as plain lines on a non-terminal stderr (a log file, a pipe).
+
+    A line about every 10 % of the work or every :data:`LINE_SECONDS`, and at the end if
+    any came before; none before the first unit of work is done nor in the first
+    :data:`FIRST_LINE_SECONDS`, so that a run failing (or done) early prints nothing but
+    its error line (or its results). The ETA leaves out
+    the start-up (worker processes, compiled kernels): it extrapolates from the time since
+    the first unit finished once ``parallel`` more have, before that from the work's own
+    measured time per unit (``seconds``, reported by the workers).
+
+    Parameters
+    ----------
+    label : str           what is running (the line's prefix)
+    unit : str            what is counted ("steps"; "" for none)
+    parallel : int        units running at once (worker processes)
+    write : callable      writes one line (default: to stderr)
+    clock : callable      monotonic seconds (tests pass their own)
+    """
+
+    def __init__(self, label: str, unit: str, parallel: int = 1,
+                 write: Any = None, clock: Any = None) -> None:
+        import time
+
+        self.label, self.unit, self.parallel = label, unit, max(1, int(parallel))
+        self.write = write or _stderr_line
+        self.clock = clock or time.perf_counter
+        self.start = self.clock()
+        self.first: float | None = None       # when the first unit finished
+        self.first_done = 0
+        self.next_share = 0.0
+        self.last = self.start
+        self.seconds: list[float] = []
+        self.lines = 0                        # lines written
+
+    def restart(self) -> None:
+        """Set the clock's origin (the work starts now)."""
+        self.start = self.last = self.clock()
+
+    def __call__(self, done: int, total: int, already: int = 0,
+                 seconds: float | None = None) -> None:
+        now = self.clock()
+        if seconds is not None:
+            self.seconds.append(float(seconds))
+        if done <= 0 or total <= 0:
+            return
+        if self.first is None:
+            self.first, self.first_done = now, done
+        due = done / total + 1e-12 >= self.next_share or now - self.last >= LINE_SECONDS
+        early = now - self.start < FIRST_LINE_SECONDS
+        if done == total and not self.lines:
+            return                      # quick work: no progress was shown, none is due
+        if (not due or early) and done != total:
+            return
+        self.lines += 1
+        self.next_share = done / total + 0.1
+        self.last = now
+        line = (f"{self.label}: {done}/{total}{' ' + self.unit if self.unit else ''} done"
+                + (f" ({already} already done before)" if already else "")
+                + f", {now - self.start:.0f} s elapsed")
+        eta = self.eta(done, total, now)
+        if done < total and eta is not None:
+            line += f", ETA {eta:.0f} s"
+        self.write(line)
+
+    def eta(self, done: int, total: int, now: float) -> float | None:
+        """Seconds left, without the start-up (see the class docstring)."""
+        left = total - done
+        if left <= 0:
+            return 0.0
+        if done - self.first_done >= self.parallel and self.first is not None:
+            rate = (now - self.first) / (done - self.first_done)   # s per unit, warm
+            return left * rate
+        if self.seconds:
+            per_unit = sum(self.seconds) / len(self.seconds)
+            return left * per_unit / min(self.parallel, left)
+        return None
+
+
+def _stderr_line(line: str) -> None:
+    import sys
+
+    sys.stderr.write(line + "\n")
+    sys.stderr.flush()
+
 
 def run_with_progress(run_episode: Any, cfg: Any) -> Any:
-    """``run_episode(cfg.scenario, cfg.settings, cfg.seed, progress=...)`` with a progress
-    bar on stderr when it is a terminal."""
+    """``run_episode(cfg.scenario, cfg.settings, cfg.seed, progress=...)`` with progress on
+    stderr: a bar on a terminal, plain lines otherwise (:class:`PlainProgress`)."""
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, \
-        TimeElapsedColumn, TimeRemainingColumn
-
-    import time
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     console = Console(stderr=True)
+    if not console.is_terminal:
+        lines = PlainProgress("simulating", "steps")
+
+        def plain(done: int, total: int) -> None:
+            lines(done, total)
+
+        return run_episode(cfg.scenario, cfg.settings, cfg.seed, progress=plain)
     columns = (TextColumn("simulating"), BarColumn(), MofNCompleteColumn(),
                TextColumn("steps"), TimeElapsedColumn(), TimeRemainingColumn())
-    # A bar in a log file is noise: on a terminal a bar, otherwise a plain line about
-    # every 10 % of the steps or every minute, whichever comes first (long runs only).
-    terminal = console.is_terminal
-    start = last = time.monotonic()
-    with Progress(*columns, console=console, transient=True,
-                  disable=not terminal) as progress:
+    with Progress(*columns, console=console, transient=True) as progress:
         task = progress.add_task("simulate", total=cfg.settings.steps)
 
         def report(done: int, total: int) -> None:
-            nonlocal last
             progress.update(task, completed=done, total=total)
-            now = time.monotonic()
-            if terminal or now - start < 10.0:
-                return
-            if now - last >= 60.0 or done == total or done % max(1, total // 10) == 0:
-                last = now
-                eta = (now - start) * (total - done) / max(done, 1)
-                console.print(f"simulated {done}/{total} steps, {now - start:.0f} s "
-                              f"elapsed, ETA {eta:.0f} s", highlight=False)
 
         return run_episode(cfg.scenario, cfg.settings, cfg.seed, progress=report)
 
@@ -125,7 +214,7 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
     conv = np.asarray(episode.converged, dtype=float)
     sweeps = np.asarray(episode.sweeps, dtype=float)
     plans = Table(title="Planning per decision",
-                  caption="time: wall time of the planner call (ms)")
+                  caption="time: the planner's own time per decision (ms)")
     for name in ("decisions", "mean ms", "median ms", "max ms", "mean Phi", "converged",
                  "sweeps"):
         plans.add_column(name, justify="right")
@@ -141,15 +230,20 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
     console.print("wrote " + ", ".join(str(p) for p in written), highlight=False)
 
 
-def study_progress(label: str) -> Any:
-    """Context manager yielding a ``progress(done, total, already)`` callback for
-    :func:`sensorplan.study.run_study`: a rich bar with ETA on a terminal, a plain
-    line about every 10 % or every minute (and at the end) otherwise."""
-    import time
-
+def study_progress(label: str, parallel: int = 1) -> Any:
+    """Context manager yielding a ``progress(done, total, already, seconds=None)`` callback
+    for :func:`sensorplan.study.run_study`: a bar with ETA on a terminal (removed when the
+    study stops, so that an error is the only line left), plain lines otherwise
+    (:class:`PlainProgress`; ``parallel``: worker processes, for its first ETA)."""
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, \
-        TimeElapsedColumn, TimeRemainingColumn
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
 
     console = Console(stderr=True)
 
@@ -158,11 +252,12 @@ def study_progress(label: str) -> Any:
         columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                    TextColumn("(run, method) pairs"), TimeElapsedColumn(),
                    TextColumn("ETA"), TimeRemainingColumn())
-        progress = Progress(*columns, console=console, transient=False)
+        progress = Progress(*columns, console=console, transient=True)
         task = progress.add_task(label, total=None)
         started = False
 
-        def report(done: int, total: int, already: int) -> None:
+        def report(done: int, total: int, already: int, seconds: float | None = None
+                   ) -> None:
             nonlocal started
             if not started:
                 # Started on the first report only, so that an error found before any
@@ -180,26 +275,13 @@ def study_progress(label: str) -> Any:
 
     @contextmanager
     def lines() -> Iterator[Any]:
-        state = {"start": time.perf_counter(), "next": 0.0, "last": time.perf_counter()}
+        plain = PlainProgress(label, "", parallel)
 
-        def report(done: int, total: int, already: int) -> None:
-            now = time.perf_counter()
+        def report(done: int, total: int, already: int, seconds: float | None = None
+                   ) -> None:
             if done == 0:
-                state["start"] = state["last"] = now
-                console.print(f"{label}: {total} (run, method) pairs to run"
-                              + (f", {already} already done" if already else ""),
-                              highlight=False)
-                return
-            # A line about every 10 % or every minute, and at the end.
-            if (done / total + 1e-12 < state["next"] and now - state["last"] < 60
-                    and done != total):
-                return
-            state["next"] = done / total + 0.1
-            state["last"] = now
-            elapsed = now - state["start"]
-            eta = elapsed / done * (total - done)
-            console.print(f"{label}: {done}/{total} done, {elapsed:.0f} s elapsed, "
-                          f"ETA {eta:.0f} s", highlight=False)
+                plain.restart()
+            plain(done, total, already, seconds)
         yield report
 
     return bar() if console.is_terminal else lines()
@@ -221,3 +303,17 @@ def print_links(logs: Sequence[Any]) -> None:
           f"{total['out_of_range']} out of range, {total['in_flight']} in flight at a "
           f"decision's end; rounds per decision {rounds_text}; failed agents: "
           f"{', '.join(map(str, failed)) if failed else 'none'}")
+
+
+def write_agent_logs(path: Path, episode: Any, logs: Sequence[Any]) -> None:
+    """agents.json: the decision steps and each decision's :class:`DecisionLog`."""
+    import dataclasses
+    import json
+
+    def plain(v: Any) -> Any:
+        return v.item() if hasattr(v, "item") else str(v)
+
+    steps = json.dumps([int(s) for s in episode.decision_steps])
+    rows = ",\n".join("  " + json.dumps(dataclasses.asdict(log), default=plain) for log in logs)
+    path.write_text(f'{{"decision_steps": {steps},\n "decisions": [\n{rows}\n]}}\n',
+                    encoding="utf-8")

@@ -7,6 +7,7 @@ the file's path, so that the CLI can report it in one line.
 from __future__ import annotations
 
 import json
+import re
 import tomllib
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -23,9 +24,21 @@ GAME_PLANNERS = ("pg", "pg-refine")
 OUTPUT_KEYS = ("planner", "plan", "potential", "information", "converged", "sweeps", "seconds")
 
 
+#: Deepest nesting of lists and tables an input file may have. The file formats need
+#: four levels (a covariance inside a target inside the file); deeper input is refused
+#: before anything recurses through it.
+MAX_DEPTH = 32
+#: Largest input file read (bytes); the example files are about 1 kB.
+MAX_FILE_BYTES = 10_000_000
+
+
 def _read_text(path: str | Path) -> str:
     path = Path(path)
     try:
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES and path.is_file():
+            raise ConfigError(str(path), f"is too large ({size} bytes; at most "
+                              f"{MAX_FILE_BYTES} bytes)")
         return path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise ConfigError(str(path), "no such file") from None
@@ -37,14 +50,68 @@ def _read_text(path: str | Path) -> str:
         raise ConfigError(str(path), f"cannot be read ({exc.strerror or exc})") from None
 
 
+class _Duplicate(dict):  # type: ignore[type-arg]
+    """A JSON object that repeated a key; :func:`check_tree` reports it with its path."""
+
+    duplicate: str = ""
+
+
 def _no_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
     # json.loads would silently keep the last of two equal keys; a typo should not pass.
+    # The hook does not know where the object is, so the object is marked and the walk
+    # that follows the parse names the key with its dotted path.
     out: dict[str, Any] = {}
     for key, value in pairs:
         if key in out:
-            raise ConfigError(key, "duplicate key")
+            marked = _Duplicate(out)
+            marked.duplicate = key
+            return marked
         out[key] = value
     return out
+
+
+_SURROGATE = re.compile("[\ud800-\udfff]")
+
+
+def _has_surrogate(text: str) -> bool:
+    return _SURROGATE.search(text) is not None
+
+
+def _child_path(path: str, key: Any) -> str:
+    if isinstance(key, int):
+        return f"{path}[{key}]"
+    return f"{path}.{key}" if path else str(key)
+
+
+def check_tree(data: Any, source: str) -> None:
+    """Refuse what the strict models cannot name well: nesting deeper than
+    :data:`MAX_DEPTH` (naming the file), repeated keys and text that is not valid Unicode
+    (a lone surrogate, naming the field by its dotted path). Iterative: it never recurses.
+    """
+    stack: list[tuple[Any, str, int]] = [(data, "", 0)]
+    while stack:
+        value, path, depth = stack.pop()
+        if isinstance(value, str):
+            if _has_surrogate(value):
+                raise ConfigError(path or source, "is not valid Unicode text (a lone "
+                                  "surrogate)")
+            continue
+        if not isinstance(value, (dict, list)):
+            continue
+        if depth >= MAX_DEPTH:
+            raise ConfigError(source, f"is nested too deeply (more than {MAX_DEPTH} levels "
+                              "of lists and tables)")
+        if isinstance(value, dict):
+            for key in value:
+                if _has_surrogate(str(key)):
+                    raise ConfigError(_child_path(path, key), "this key is not valid Unicode "
+                                      "text (a lone surrogate)")
+            if isinstance(value, _Duplicate):
+                raise ConfigError(_child_path(path, value.duplicate), "duplicate key")
+            items: Any = value.items()
+        else:
+            items = enumerate(value)
+        stack.extend((v, _child_path(path, k), depth + 1) for k, v in reversed(list(items)))
 
 
 def read_json(path: str | Path) -> Any:
@@ -53,21 +120,53 @@ def read_json(path: str | Path) -> Any:
 
 
 def parse_json(text: str, source: str = "<json>") -> Any:
-    """Parse JSON text (see :func:`read_json`); ``source`` names the input in errors."""
+    """Parse JSON text (see :func:`read_json`); ``source`` names the input in errors.
+
+    Besides syntax errors, refuses integers of more than 4300 digits (Python's limit for
+    converting text to int), nesting deeper than :data:`MAX_DEPTH`, repeated keys and lone
+    surrogates (:func:`check_tree`), each as one :class:`ConfigError`.
+    """
     try:
-        return json.loads(text, object_pairs_hook=_no_duplicates)
+        data = json.loads(text, object_pairs_hook=_no_duplicates)
     except json.JSONDecodeError as exc:
         raise ConfigError(source, f"invalid JSON: {exc.msg} (line {exc.lineno}, "
                           f"column {exc.colno})") from None
+    except RecursionError:
+        raise ConfigError(source, f"invalid JSON: nested too deeply (more than {MAX_DEPTH} "
+                          "levels of lists and objects)") from None
+    except ValueError as exc:
+        raise ConfigError(source, f"invalid JSON: {_number_message(exc)}") from None
+    check_tree(data, source)
+    return data
+
+
+def _number_message(exc: ValueError) -> str:
+    """The parser's ValueError other than a syntax error: an over-long integer."""
+    text = str(exc)
+    if "digits" in text:
+        return "a number has too many digits (integers have at most 4300)"
+    return text
 
 
 def read_toml(path: str | Path) -> dict[str, Any]:
-    """Parse a TOML file; syntax errors raise :class:`ConfigError` naming the file."""
-    text = _read_text(path)
+    """Parse a TOML file; syntax errors raise :class:`ConfigError` naming the file (as do
+    over-long integers, deep nesting and lone surrogates, as for :func:`parse_json`)."""
+    return parse_toml(_read_text(path), str(path))
+
+
+def parse_toml(text: str, source: str = "<toml>") -> dict[str, Any]:
+    """Parse TOML text (see :func:`read_toml`); ``source`` names the input in errors."""
     try:
-        return tomllib.loads(text)
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(str(path), f"invalid TOML: {exc}") from None
+        raise ConfigError(source, f"invalid TOML: {exc}") from None
+    except RecursionError:
+        raise ConfigError(source, f"invalid TOML: nested too deeply (more than {MAX_DEPTH} "
+                          "levels of arrays and tables)") from None
+    except ValueError as exc:
+        raise ConfigError(source, f"invalid TOML: {_number_message(exc)}") from None
+    check_tree(data, source)
+    return data
 
 
 def result_to_dict(result: "PlanResult") -> dict[str, Any]:
@@ -137,11 +236,36 @@ def dumps_result(result: "PlanResult") -> str:
     return "{\n" + ",\n".join(items) + "\n}"
 
 
-def ensure_out_dir(out: Path) -> None:
-    """Create the output directory ``out``; a ConfigError naming ``--out`` if impossible."""
+def ensure_out_dir(out: Path, field: str = "--out") -> None:
+    """Create the output directory ``out`` and check that files can be written in it.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``field``: ``out`` is a file, cannot be created, or is not writable (checked
+        by creating and removing a temporary file, before any work is done).
+    """
+    import tempfile
+
+    out = Path(out)
     if out.exists() and not out.is_dir():
-        raise ConfigError("--out", f"{out} exists and is not a directory")
+        raise ConfigError(field, f"{out} exists and is not a directory")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise ConfigError("--out", f"cannot create {out} ({exc.strerror or exc})") from None
+        raise ConfigError(field, f"cannot create {out} ({exc.strerror or exc})") from None
+    try:
+        with tempfile.TemporaryFile(dir=out, prefix=".sensorplan-write-test-"):
+            pass
+    except OSError as exc:
+        raise ConfigError(field, f"cannot write in {out} ({exc.strerror or exc})") from None
+
+
+def write_failed(exc: OSError, field: str = "--out", where: str | Path | None = None
+                 ) -> ConfigError:
+    """The one-line error of an output file that could not be written (a full disk, a
+    directory where the file should go, lost permissions), naming ``field`` and the file
+    (else ``where``, the place being written)."""
+    target = getattr(exc, "filename", None) or where
+    place = f"{target}: " if target else ""
+    return ConfigError(field, f"cannot write {place}{exc.strerror or exc}")

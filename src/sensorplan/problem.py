@@ -15,6 +15,7 @@ import numpy as np
 
 from ._types import FloatArray, IntArray
 from .errors import ConfigError
+from .limits import RANGES
 from .modes import (OBJECTIVES, PLANNING_DETECTIONS, VISIBILITY_MODES,  # noqa: F401
                     Objective, Visibility)
 from .sensors import SensorParams
@@ -327,6 +328,7 @@ def check_buildings(buildings: object, world: MapRect, altitudes: object) -> Flo
                               f"x [0, {H:g}]")
         if h <= 0:
             raise ConfigError(f"buildings[{k}].height", "must be > 0")
+        RANGES["building_height"].check(h, f"buildings[{k}].height")
         tallest = max(tallest, h)
     for i, z in enumerate(np.asarray(altitudes, dtype=float).reshape(-1)):
         if rows and z <= tallest:

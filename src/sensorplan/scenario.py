@@ -24,6 +24,11 @@ from .truth import TruthModel, inside_buildings
 
 TargetKind = Literal["cv", "dubins"]
 TARGET_KINDS = ("cv", "dubins")
+#: Default start regions as fractions ``(a / n, b / n)`` of each map side: targets in the
+#: middle two thirds, sensors all but the outer twelfths ([100, 500] and [50, 550] m on the
+#: paper's 600 m map).
+TARGET_BOX = (1, 5, 6)
+SENSOR_BOX = (1, 11, 12)
 
 
 @dataclass(frozen=True)
@@ -70,9 +75,13 @@ class Scenario:
     dt : float                       simulation step (s)
     process_noise : float            q (m^2/s^3), filter model and ``cv`` truth
     targets, sensors : tuples of TargetSpec / SensorSpec
-    target_box : (lo, hi)            initial target positions uniform in [lo, hi]^2
+    target_box : (lo, hi) or None    initial target positions uniform in [lo, hi]^2, inside
+                                     the map; None: the middle two thirds of each map side
+                                     (:data:`TARGET_BOX`, [100, 500] on the 600 m map)
     speed_range : (lo, hi)           initial target speeds (m/s)
-    sensor_box : (lo, hi)            initial sensor positions uniform in [lo, hi]^2
+    sensor_box : (lo, hi) or None    initial sensor positions uniform in [lo, hi]^2, inside
+                                     the map; None: all but 1/12 of each side at both ends
+                                     (:data:`SENSOR_BOX`, [50, 550] on the 600 m map)
     initial_cov : (4, 4)             P0: initial estimate = truth + N(0, P0)
     buildings : tuple of (x0, y0, x1, y1, height)
         Buildings: axis-aligned boxes on the ground (m) that hide targets from sensors
@@ -84,9 +93,9 @@ class Scenario:
     process_noise: float = 0.05
     targets: tuple[TargetSpec, ...] = ()
     sensors: tuple[SensorSpec, ...] = ()
-    target_box: tuple[float, float] = (100.0, 500.0)
+    target_box: tuple[float, float] | None = None
     speed_range: tuple[float, float] = (3.0, 6.0)
-    sensor_box: tuple[float, float] = (50.0, 550.0)
+    sensor_box: tuple[float, float] | None = None
     initial_cov: tuple[tuple[float, ...], ...] = (
         (400.0, 0.0, 0.0, 0.0), (0.0, 400.0, 0.0, 0.0), (0.0, 0.0, 4.0, 0.0), (0.0, 0.0, 0.0, 4.0))
     buildings: tuple[tuple[float, float, float, float, float], ...] = ()
@@ -96,7 +105,25 @@ class Scenario:
         object.__setattr__(self, "sensors", tuple(self.sensors))
         object.__setattr__(self, "buildings",
                            tuple(tuple(float(v) for v in b) for b in self.buildings))
+        # On a square map the default boxes are squares like any given box: fill them in,
+        # so that a scenario equals its written-out form.
+        w, h = self.world.width, self.world.height
+        if w == h and math.isfinite(w) and w > 0:
+            for name, (a, b, n) in (("target_box", TARGET_BOX), ("sensor_box", SENSOR_BOX)):
+                if getattr(self, name) is None:
+                    object.__setattr__(self, name, (w * a / n, w * b / n))
         self.validate()
+
+    def start_region(self, which: str) -> tuple[FloatArray, FloatArray]:
+        """Lower and upper corners ``(x, y)`` of the region where ``which`` (``"targets"``
+        or ``"sensors"``) start: the given box squared, else the default fractions of each
+        map side."""
+        box = self.target_box if which == "targets" else self.sensor_box
+        if box is not None:
+            return np.array([box[0], box[0]], float), np.array([box[1], box[1]], float)
+        a, b, n = TARGET_BOX if which == "targets" else SENSOR_BOX
+        side = np.array([self.world.width, self.world.height], float)
+        return side * a / n, side * b / n
 
     @property
     def building_array(self) -> FloatArray:
@@ -108,39 +135,83 @@ class Scenario:
         return tuple(t.kind for t in self.targets)
 
     def validate(self) -> None:
-        """SPEC 7's rules that apply to scenarios; raise ConfigError naming the field."""
+        """SPEC 7's rules that apply to scenarios, and the ranges of
+        :data:`sensorplan.limits.RANGES`; raise ConfigError naming the field."""
+        from .limits import (MAX_SENSORS, MAX_TARGETS, MAX_TURNS_PER_STEP, RANGES, check_count,
+                             check_covariance_scale)
+
         if not (math.isfinite(self.dt) and self.dt > 0):
             raise ConfigError("dt", "must be a finite number > 0")
+        RANGES["dt"].check(self.dt, "dt")
         if not (math.isfinite(self.process_noise) and self.process_noise >= 0):
             raise ConfigError("process_noise", "must be a finite number >= 0")
+        RANGES["process_noise"].check(self.process_noise, "process_noise")
         for name in ("width", "height"):
             v = getattr(self.world, name)
             if not (math.isfinite(v) and v > 0):
                 raise ConfigError(f"map.{name}", "must be a finite number > 0")
+            RANGES["length"].check(v, f"map.{name}")
         if not self.targets:
             raise ConfigError("targets", "at least one target is required")
         if not self.sensors:
             raise ConfigError("sensors", "at least one sensor is required")
+        check_count(len(self.targets), MAX_TARGETS, "targets", "targets")
+        check_count(len(self.sensors), MAX_SENSORS, "sensors", "sensors")
         for name in ("target_box", "speed_range", "sensor_box"):
+            if getattr(self, name) is None:
+                continue
             lo, hi = getattr(self, name)
             if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi):
                 raise ConfigError(f"initial.{name}", "must be finite with lo <= hi")
+        W, H = self.world.width, self.world.height
+        for name in ("target_box", "sensor_box"):
+            box = getattr(self, name)
+            if box is not None and not (0.0 <= box[0] and box[1] <= min(W, H)):
+                raise ConfigError(f"initial.{name}", f"[{box[0]:g}, {box[1]:g}] squared must "
+                                  f"lie inside the map [0, {W:g}] x [0, {H:g}] (leave it out "
+                                  "to scale the default to the map)")
         if self.speed_range[0] < 0:
             raise ConfigError("initial.speed_range", "speeds must be >= 0")
-        check_covariance(np.array(self.initial_cov), "initial.cov")
+        for v in self.speed_range:
+            RANGES["speed"].check(v, "initial.speed_range")
+        P0 = np.array(self.initial_cov, dtype=float)
+        if P0.shape == (4, 4) and np.all(np.isfinite(P0)):
+            for v in P0.ravel():
+                RANGES["covariance"].check(v, "initial.cov")
+        check_covariance(P0, "initial.cov")
+        check_covariance_scale(P0, "initial.cov")
         for j, t in enumerate(self.targets):
             if t.kind not in TARGET_KINDS:
                 raise ConfigError(f"targets[{j}].kind", f"must be one of {TARGET_KINDS}")
-            if t.position is not None and not self.world.contains(np.array(t.position)):
-                raise ConfigError(f"targets[{j}].position", "is outside the map")
+            if t.position is not None and not (np.all(np.isfinite(t.position))
+                                               and self.world.contains(np.array(t.position))):
+                raise ConfigError(f"targets[{j}].position", f"is outside the map [0, {W:g}] "
+                                  f"x [0, {H:g}]")
             if t.turn_hold <= 0 or not math.isfinite(t.turn_hold):
                 raise ConfigError(f"targets[{j}].turn_hold", "must be a finite number > 0")
             if t.max_turn_rate < 0 or not math.isfinite(t.max_turn_rate):
                 raise ConfigError(f"targets[{j}].max_turn_rate", "must be a finite number >= 0")
+            RANGES["turn_hold"].check(t.turn_hold, f"targets[{j}].turn_hold")
+            if t.kind == "dubins" and t.turn_hold * MAX_TURNS_PER_STEP < self.dt:
+                raise ConfigError(f"targets[{j}].turn_hold", f"must be at least dt / "
+                                  f"{MAX_TURNS_PER_STEP} = {self.dt / MAX_TURNS_PER_STEP:g} s "
+                                  f"(at most {MAX_TURNS_PER_STEP} turn-rate draws per step), "
+                                  f"got {t.turn_hold!r}")
+            RANGES["max_turn_rate"].check(t.max_turn_rate, f"targets[{j}].max_turn_rate",
+                                          " (angles are in radians; degrees per second are "
+                                          "written max_turn_rate_deg)")
+            if t.speed is not None:
+                RANGES["speed"].check(t.speed, f"targets[{j}].speed")
+            if t.heading is not None:
+                RANGES["heading"].check(t.heading, f"targets[{j}].heading")
         for i, s in enumerate(self.sensors):
             s.params.validate(f"sensors[{i}]")
-            if s.position is not None and not self.world.contains(np.array(s.position)):
-                raise ConfigError(f"sensors[{i}].position", "is outside the map")
+            if s.position is not None and not (np.all(np.isfinite(s.position))
+                                               and self.world.contains(np.array(s.position))):
+                raise ConfigError(f"sensors[{i}].position", f"is outside the map [0, {W:g}] "
+                                  f"x [0, {H:g}]")
+            if s.heading is not None:
+                RANGES["heading"].check(s.heading, f"sensors[{i}].heading")
         self._validate_buildings()
 
     def _validate_buildings(self) -> None:
@@ -246,14 +317,15 @@ def draw_initial(scenario: Scenario, truth_rng: np.random.Generator,
     M = len(scenario.targets)
     truth = np.empty((M, 4))
     blds = scenario.building_array
+    t_lo, t_hi = scenario.start_region("targets")
     for j, t in enumerate(scenario.targets):
-        pos = truth_rng.uniform(*scenario.target_box, size=2)
+        pos = truth_rng.uniform(t_lo, t_hi)
         # Targets start outside the buildings: redraw (only a scenario with buildings ever
         # draws more than once, so the others keep their streams).
         for _ in range(1000):
             if not (t.position is None and inside_buildings(pos, blds)):
                 break
-            pos = truth_rng.uniform(*scenario.target_box, size=2)
+            pos = truth_rng.uniform(t_lo, t_hi)
         else:
             raise ConfigError("initial.target_box", "is (almost) all inside buildings")
         speed = truth_rng.uniform(*scenario.speed_range)
@@ -265,8 +337,9 @@ def draw_initial(scenario: Scenario, truth_rng: np.random.Generator,
     N = len(scenario.sensors)
     positions = np.empty((N, 2))
     headings = np.empty(N)
+    s_lo, s_hi = scenario.start_region("sensors")
     for i, s in enumerate(scenario.sensors):
-        pos = truth_rng.uniform(*scenario.sensor_box, size=2)
+        pos = truth_rng.uniform(s_lo, s_hi)
         heading = np.pi - truth_rng.uniform(0.0, 2 * np.pi)
         positions[i] = s.position if s.position is not None else pos
         headings[i] = s.heading if s.heading is not None else heading

@@ -1,7 +1,8 @@
 """Scenario files (TOML): their strict model, reading and writing.
 
-Every key is optional except ``targets`` and ``sensors``; angles in radians; defaults are
-SPEC 1-4's (``configs/paper.toml`` spells out every key)::
+Every key is optional except ``targets`` and ``sensors``; angles in radians, or in degrees
+under the same key with ``_deg`` appended (``fov_half_angle_deg = 30``; one of the two);
+defaults are SPEC 1-4's (``configs/paper.toml`` spells out every key)::
 
     dt = 1.0                      # s
     process_noise = 0.05          # q, m^2/s^3
@@ -11,9 +12,10 @@ SPEC 1-4's (``configs/paper.toml`` spells out every key)::
     height = 600.0
 
     [initial]                     # what each run draws (SPEC 1)
-    target_box = [100.0, 500.0]   # initial target positions uniform in [lo, hi]^2
+    target_box = [100.0, 500.0]   # initial target positions uniform in [lo, hi]^2 (inside
+                                  # the map; default: the middle 2/3 of each map side)
     speed_range = [3.0, 6.0]      # m/s
-    sensor_box = [50.0, 550.0]
+    sensor_box = [50.0, 550.0]    # (default: each side without its outer twelfths)
     cov = [[400.0, 0.0, 0.0, 0.0], [0.0, 400.0, 0.0, 0.0],
            [0.0, 0.0, 4.0, 0.0], [0.0, 0.0, 0.0, 4.0]]     # P0
 
@@ -46,14 +48,15 @@ from __future__ import annotations
 import dataclasses
 from typing import Annotated, Any
 
-from pydantic import Field
+from pydantic import Field, ValidationInfo, field_validator
 
+from .limits import check_sensor_precision
 from .problem import MapRect
 from .scenario import TARGET_KINDS, Scenario, SensorSpec, TargetSpec
 from .sensors import SensorParams
 from .settings import RunSettings, TrackerSettings
 from .validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict,
-                         Vec2, choice, section_model, validate)
+                         Vec2, choice, one_spelling, radians_of, section_model, validate)
 
 _TS = TargetSpec()
 _SC = Scenario(targets=(TargetSpec(),), sensors=(SensorSpec(),))
@@ -71,9 +74,9 @@ RunTable = section_model(RunSettings, "run", "RunTable",
 
 
 class InitialModel(Strict):
-    target_box: Vec2 = list(_SC.target_box)
+    target_box: Vec2 | None = None
     speed_range: Vec2 = list(_SC.speed_range)
-    sensor_box: Vec2 = list(_SC.sensor_box)
+    sensor_box: Vec2 | None = None
     cov: Matrix4 = [list(row) for row in _SC.initial_cov]
 
 
@@ -83,7 +86,13 @@ class ScenarioTarget(Strict):
     speed: Annotated[float, Field(ge=0.0)] | None = None
     heading: float | None = None
     turn_hold: float = _TS.turn_hold
-    max_turn_rate: float = _TS.max_turn_rate
+    max_turn_rate: float | None = None
+    max_turn_rate_deg: float | None = None
+
+    @field_validator("max_turn_rate_deg")
+    @classmethod
+    def _one_spelling(cls, value: float | None, info: ValidationInfo) -> float | None:
+        return one_spelling("max_turn_rate", value, info.data.get("max_turn_rate"))
 
 
 class ScenarioSensor(SensorParamsModel):
@@ -116,7 +125,7 @@ class ScenarioFile(Strict):
             TargetSpec(kind=t.kind,
                        position=None if t.position is None else (t.position[0], t.position[1]),
                        speed=t.speed, heading=t.heading, turn_hold=t.turn_hold,
-                       max_turn_rate=t.max_turn_rate)
+                       max_turn_rate=radians_of(t, "max_turn_rate", _TS.max_turn_rate))
             for t in self.targets)
         sensors = tuple(
             SensorSpec(params=s.params(),
@@ -124,14 +133,19 @@ class ScenarioFile(Strict):
                        heading=s.heading)
             for s in self.sensors)
         ini = self.initial
-        return Scenario(
+        scenario = Scenario(
             world=MapRect(self.map.width, self.map.height), dt=self.dt,
             process_noise=self.process_noise, targets=targets, sensors=sensors,
-            target_box=(ini.target_box[0], ini.target_box[1]),
+            target_box=None if ini.target_box is None else (ini.target_box[0],
+                                                            ini.target_box[1]),
             speed_range=(ini.speed_range[0], ini.speed_range[1]),
-            sensor_box=(ini.sensor_box[0], ini.sensor_box[1]),
+            sensor_box=None if ini.sensor_box is None else (ini.sensor_box[0],
+                                                            ini.sensor_box[1]),
             initial_cov=tuple(tuple(row) for row in ini.cov),
             buildings=tuple(b.row() for b in self.buildings))
+        for i, spec in enumerate(scenario.sensors):
+            check_sensor_precision(spec.params, f"sensors[{i}]")
+        return scenario
 
 
 def scenario_from_dict(data: Any) -> Scenario:
@@ -183,9 +197,12 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
     return {
         "dt": float(scenario.dt), "process_noise": float(scenario.process_noise),
         "map": {"width": float(scenario.world.width), "height": float(scenario.world.height)},
-        "initial": {"target_box": [float(v) for v in scenario.target_box],
+        # A box left to the map (None: a non-square map) is left out, as in the file.
+        "initial": {**({} if scenario.target_box is None else
+                       {"target_box": [float(v) for v in scenario.target_box]}),
                     "speed_range": [float(v) for v in scenario.speed_range],
-                    "sensor_box": [float(v) for v in scenario.sensor_box],
+                    **({} if scenario.sensor_box is None else
+                       {"sensor_box": [float(v) for v in scenario.sensor_box]}),
                     "cov": [[float(v) for v in row] for row in scenario.initial_cov]},
         "targets": [target(t) for t in scenario.targets],
         "sensors": [sensor(s) for s in scenario.sensors],

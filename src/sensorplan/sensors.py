@@ -75,7 +75,15 @@ class SensorParams:
     clutter_rate: Any = 0.0
 
     def validate(self, prefix: str = "sensor") -> None:
-        """Raise :class:`ConfigError` naming the field if a value is out of its range."""
+        """Raise :class:`ConfigError` naming the field if a value is out of its range.
+
+        Angles are in radians: ``fov_half_angle`` in (0, pi], ``max_turn`` in [0, pi],
+        ``depression`` in (0, pi/2], ``beamwidth`` in [1e-6, pi/2]; every other value has
+        the range of :data:`sensorplan.limits.RANGES`. (Input files also bound the radar's
+        precision: :func:`sensorplan.limits.check_sensor_precision`.)
+        """
+        from .limits import MAX_MOVE_DISTANCES, RANGES, check_count
+
         if self.detection not in DETECTION_MODELS:
             raise ConfigError(f"{prefix}.detection", f"unknown detection model "
                               f"{self.detection!r}; choose from {', '.join(DETECTION_MODELS)}")
@@ -96,8 +104,20 @@ class SensorParams:
             raise ConfigError(f"{prefix}.moves", "must list at least one move distance")
         if any(m <= 0 for m in self.moves):
             raise ConfigError(f"{prefix}.moves", "move distances must be > 0")
+        check_count(len(self.moves), MAX_MOVE_DISTANCES, f"{prefix}.moves", "move distances")
         if np.any(np.asarray(self.max_turn) < 0):
             raise ConfigError(f"{prefix}.max_turn", "must be >= 0")
+        ranges = {"altitude": "altitude", "moves": "length", "max_turn": "max_turn",
+                  "fov_half_angle": "fov_half_angle", "min_ground_range": "ground_range",
+                  "max_ground_range": "ground_range", "depression": "depression",
+                  "snr_ref_db": "snr_ref_db", "range_ref": "range_ref",
+                  "beamwidth": "beamwidth", "monopulse_slope": "monopulse_slope",
+                  "range_resolution": "range_resolution", "clutter_rate": "clutter_rate"}
+        for name, kind in ranges.items():
+            hint = (f" (angles are in radians; degrees are written {name}_deg)"
+                    if name in ANGLE_FIELDS else "")
+            for v in np.atleast_1d(np.asarray(getattr(self, name), dtype=float)).ravel():
+                RANGES[kind].check(float(v), f"{prefix}.{name}", hint)
         if np.any(np.asarray(self.min_ground_range) > np.asarray(self.max_ground_range)):
             raise ConfigError(f"{prefix}.min_ground_range", "must be <= max_ground_range")
         pfa = np.asarray(self.false_alarm_probability)
@@ -106,6 +126,11 @@ class SensorParams:
                               f"must be in (0, 1), got {self.false_alarm_probability!r}")
         if np.any(np.asarray(self.clutter_rate) < 0):
             raise ConfigError(f"{prefix}.clutter_rate", "must be >= 0")
+
+
+#: Sensor fields that are angles (radians); files may give each in degrees as
+#: ``<name>_deg`` instead.
+ANGLE_FIELDS = ("max_turn", "fov_half_angle", "depression", "beamwidth")
 
 
 #: Columns of a radar table row (:func:`radar_table`), in order. ``snr0`` is the linear SNR

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .errors import ConfigError
+from .limits import MAX_PLAN_STEPS, MAX_Q, MAX_STEPS
 from .modes import OBJECTIVES, PLANNING_DETECTIONS, PLANNING_OCCLUSIONS, VISIBILITY_MODES
 
 EXECUTIONS = ("ol", "olf")
@@ -319,11 +320,17 @@ def _switching_matrix(value: tuple[tuple[float, ...], ...]) -> None:
             raise ValueError(f"row {i} must sum to 1, got {sum(row)!r}")
 
 
+#: Most IMM modes.
+MAX_MODES = 16
+
+
 def _mode_noises(value: tuple[float, ...]) -> None:
     if len(value) < 2:
         raise ValueError(f"must list at least two modes, got {len(value)}")
-    if any(q < 0 for q in value):
-        raise ValueError(f"every mode's q must be >= 0, got {list(value)}")
+    if len(value) > MAX_MODES:
+        raise ValueError(f"must list at most {MAX_MODES} modes, got {len(value)}")
+    if any(q < 0 or q > MAX_Q for q in value):
+        raise ValueError(f"every mode's q must be in [0, {MAX_Q:g}], got {list(value)}")
 
 
 @dataclass(frozen=True)
@@ -349,7 +356,7 @@ class TrackerSettings(_Settings):
              "process_noise) or imm (interacting multiple models: CWNA modes with the q's of "
              "mode_process_noise and Markov switching).")
     process_noise: float = setting(
-        1.0, section="tracker", cli=("--tracker-q",), metavar="Q", label="q", ge=0.0,
+        1.0, section="tracker", cli=("--tracker-q",), metavar="Q", label="q", ge=0.0, le=MAX_Q,
         help="q (m^2/s^3) of the cv filter; the truth's q is the scenario's process_noise.")
     mode_process_noise: tuple[float, ...] = setting(
         (0.05, 5.0), section="tracker", label="IMM q's", check=_mode_noises,
@@ -441,9 +448,11 @@ class RunSettings(_Settings):
              "is an error).")
     horizon: int = setting(
         1, section="planning", cli=("--horizon", "-K"), metavar="K", label="K", ge=1,
+        le=MAX_PLAN_STEPS,
         help="Planning horizon in epochs (1 = myopic).")
     steps_per_epoch: int = setting(
         1, section="planning", cli=("--steps-per-epoch", "-e"), metavar="E", label="e", ge=1,
+        le=MAX_PLAN_STEPS,
         help="Simulation steps per epoch: a decision every E steps.")
     execution: str = setting(
         "olf", section="planning", cli=("--execution",), metavar="MODE",
@@ -474,7 +483,7 @@ class RunSettings(_Settings):
              "target (no change without buildings); ignore: the planner does not know the "
              "buildings.")
     steps: int = setting(
-        100, section="run", cli=("--steps", "-n"), metavar="N", ge=1,
+        100, section="run", cli=("--steps", "-n"), metavar="N", ge=1, le=MAX_STEPS,
         help="Simulation steps of the run.")
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
 

@@ -16,16 +16,27 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import math
 import types
 import typing
 from collections.abc import Mapping
 from typing import Annotated, Any, Union
 
-from pydantic import AfterValidator, BaseModel, ConfigDict, Field, ValidationError, create_model
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    ValidationInfo,
+    create_model,
+    field_validator,
+)
 
 from .errors import ConfigError
+from .limits import RANGES, Range
 from .problem import MapRect
-from .sensors import DETECTION_MODELS, SensorParams
+from .sensors import ANGLE_FIELDS, DETECTION_MODELS, SensorParams
 from .settings import Setting, declared, field_hint, field_type, is_group
 
 # --------------------------------------------------------------------------- field types
@@ -80,27 +91,73 @@ class BuildingModel(Strict):
         return (*self.box, self.height)  # type: ignore[return-value]
 
 
+def _degrees_range(name: str) -> Range:
+    """The range of ``<name>_deg``: the radian range of ``name`` in degrees."""
+    r = RANGES[name]
+    return Range(None if r.lo is None else math.degrees(r.lo),
+                 None if r.hi is None else math.degrees(r.hi), r.unit.replace("rad", "deg"),
+                 r.lo_open, r.hi_open)
+
+
+def one_spelling(name: str, value: float | None, given: Any) -> float | None:
+    """Check ``<name>_deg = value`` (degrees): in range, and not given together with the
+    radian key ``name`` (``given``: its validated value, None if absent)."""
+    if value is None:
+        return None
+    if given is not None:
+        raise ValueError(f"give {name} (radians) or {name}_deg (degrees), not both")
+    r = _degrees_range(name)
+    if not r.contains(value):
+        raise ValueError(f"must be {r.text()}, got {value!r}")
+    return value
+
+
+def radians_of(model: BaseModel, name: str, default: Any) -> Any:
+    """The angle ``name`` of a model in radians: its radian key, else its ``_deg`` key
+    converted, else ``default``."""
+    value = getattr(model, name)
+    if value is not None:
+        return value
+    degrees = getattr(model, name + "_deg")
+    return default if degrees is None else math.radians(degrees)
+
+
 class SensorParamsModel(Strict):
-    """Every :class:`~sensorplan.sensors.SensorParams` field, with its default."""
+    """Every :class:`~sensorplan.sensors.SensorParams` field, with its default; each angle
+    may be given in radians (``fov_half_angle``) or in degrees (``fov_half_angle_deg``),
+    not both."""
 
     altitude: float = _SP.altitude
     moves: list[float] = list(_SP.moves)
-    max_turn: float = _SP.max_turn
-    fov_half_angle: float = _SP.fov_half_angle
+    max_turn: float | None = None
+    fov_half_angle: float | None = None
     min_ground_range: float = _SP.min_ground_range
     max_ground_range: float = _SP.max_ground_range
-    depression: float = _SP.depression
+    depression: float | None = None
     snr_ref_db: float = _SP.snr_ref_db
     range_ref: float = _SP.range_ref
-    beamwidth: float = _SP.beamwidth
+    beamwidth: float | None = None
     monopulse_slope: float = _SP.monopulse_slope
     range_resolution: float = _SP.range_resolution
     detection: Annotated[str, choice(DETECTION_MODELS, "detection model")] = _SP.detection
     false_alarm_probability: float = _SP.false_alarm_probability
     clutter_rate: float = _SP.clutter_rate
+    max_turn_deg: float | None = None
+    fov_half_angle_deg: float | None = None
+    depression_deg: float | None = None
+    beamwidth_deg: float | None = None
+
+    @field_validator(*(f"{name}_deg" for name in ANGLE_FIELDS))
+    @classmethod
+    def _one_spelling(cls, value: float | None, info: ValidationInfo) -> float | None:
+        name = str(info.field_name).removesuffix("_deg")
+        return one_spelling(name, value, info.data.get(name))
 
     def params(self) -> SensorParams:
-        kwargs = {f.name: getattr(self, f.name) for f in dataclasses.fields(SensorParams)}
+        kwargs = {f.name: getattr(self, f.name) for f in dataclasses.fields(SensorParams)
+                  if f.name not in ANGLE_FIELDS}
+        for name in ANGLE_FIELDS:
+            kwargs[name] = radians_of(self, name, getattr(_SP, name))
         kwargs["moves"] = tuple(self.moves)
         return SensorParams(**kwargs)
 
@@ -186,7 +243,9 @@ def given(model: BaseModel | None) -> dict[str, Any]:
 def _dotted(loc: tuple[Any, ...]) -> str:
     out = ""
     for part in loc:
-        out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
+        # An empty key is shown as "" (a key of nothing but a dot would read as no key).
+        name = str(part) if str(part) else '""'
+        out += f"[{part}]" if isinstance(part, int) else (f".{name}" if out else name)
     return out or "(top level)"
 
 

@@ -10,7 +10,10 @@ from typing import TYPE_CHECKING, Any
 from pydantic import ConfigDict
 
 from .. import io
-from ..problem import MapRect, PlanningProblem
+from ..errors import ConfigError
+from ..limits import (MAX_SENSORS, MAX_TARGETS, RANGES, check_count, check_covariance_scale,
+                      check_decision_size, check_sensor_precision)
+from ..problem import MapRect, PlanningProblem, check_covariance
 from ..settings import RunSettings
 from ..validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict, Vec2, Vec4,
                           setting_type, validate)
@@ -18,6 +21,26 @@ from .planners import build_planner, planner_settings
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..planners import Planner
+
+
+#: A complete single-decision file (``sensorplan plan --example`` prints it; the same text
+#: is examples/problem.json and the example of docs/cli.md): one target, one sensor with
+#: every radar parameter at its default, the pg planner with its default settings.
+EXAMPLE_PROBLEM = """\
+{
+  "dt": 1.0, "steps_per_epoch": 1, "horizon": 3,
+  "map": {"width": 600, "height": 600},
+  "process_noise": 0.05, "visibility": "probabilistic", "objective": "terminal",
+  "targets": [{"mean": [300, 200, 4, 1], "cov": [[400,0,0,0],[0,400,0,0],[0,0,4,0],[0,0,0,4]]}],
+  "sensors": [{"position": [100, 100], "altitude": 500, "heading": 0.0,
+               "moves": [20, 40], "max_turn": 0.785398,
+               "fov_half_angle": 0.523599, "min_ground_range": 250, "max_ground_range": 450,
+               "depression": 0.698132, "snr_ref_db": 15, "range_ref": 600,
+               "beamwidth": 0.0523599, "monopulse_slope": 1.6, "range_resolution": 30}],
+  "planner": {"name": "pg", "alpha": 0.3, "beta": 0.95, "max_inner": 50,
+              "max_outer": 10, "seed": 0}
+}
+"""
 
 
 def _problem_default(name: str) -> Any:
@@ -83,6 +106,39 @@ class Decision:
         return build_planner(self.planner, self.settings)
 
 
+#: Field names of a decision file in the size limits' errors.
+DECISION_FIELDS = {"horizon": "horizon", "steps_per_epoch": "steps_per_epoch",
+                   "targets": "targets", "sensors": "sensors", "moves": "sensors[{i}].moves"}
+
+
+def _check_magnitudes(model: DecisionFile) -> None:
+    """The ranges of :data:`sensorplan.limits.RANGES` for what a decision file gives beyond
+    a scenario's keys: the targets' estimates and the sensors' headings."""
+    check_count(len(model.targets), MAX_TARGETS, "targets", "targets")
+    check_count(len(model.sensors), MAX_SENSORS, "sensors", "sensors")
+    for j, t in enumerate(model.targets):
+        for v in t.mean[:2]:
+            RANGES["coordinate"].check(v, f"targets[{j}].mean")
+        for v in t.mean[2:]:
+            RANGES["velocity"].check(v, f"targets[{j}].mean")
+        check_covariance_scale(_pd_or_none(t.cov, f"targets[{j}].cov"), f"targets[{j}].cov")
+    for i, s in enumerate(model.sensors):
+        RANGES["heading"].check(s.heading, f"sensors[{i}].heading")
+    for name in ("dt", "process_noise"):
+        RANGES[name].check(getattr(model, name), name)
+    for name in ("width", "height"):
+        RANGES["length"].check(getattr(model.map, name), f"map.{name}")
+
+
+def _pd_or_none(P: Any, field: str) -> Any:
+    """``P`` after the covariance rules (finite, symmetric, positive definite)."""
+    for row in P:
+        for v in row:
+            RANGES["covariance"].check(v, field)
+    check_covariance(P, field)
+    return P
+
+
 def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
     """Validate a SPEC 7 single-decision object and build the problem and planner settings.
 
@@ -100,6 +156,7 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
         For every bad input of SPEC 7 (the field is a dotted path like ``sensors[1].altitude``).
     """
     model: DecisionFile = validate(DecisionFile, data, "a JSON object")
+    _check_magnitudes(model)
     problem = PlanningProblem(
         means=[t.mean for t in model.targets],
         covs=[t.cov for t in model.targets],
@@ -111,6 +168,11 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
         visibility=model.visibility, objective=model.objective,
         planning_detection=model.planning_detection,
         buildings=[b.row() for b in model.buildings])
+    for i, s in enumerate(problem.sensors):
+        check_sensor_precision(s, f"sensors[{i}]")
+    check_decision_size(problem.horizon, problem.steps_per_epoch, problem.n_targets,
+                        [s.moves for s in problem.sensors], problem.world.width,
+                        problem.world.height, DECISION_FIELDS)
     params = dict(model.planner.model_extra or {})
     if model.planner.seed is not None:
         params["seed"] = model.planner.seed
@@ -126,4 +188,8 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
 
 def load_decision(path: str | Path, planner: str | None = None) -> Decision:
     """:func:`decision_from_dict` on a JSON file."""
-    return decision_from_dict(io.read_json(path), planner)
+    data = io.read_json(path)
+    if not isinstance(data, dict):
+        raise ConfigError(str(path), f"must hold a JSON object ({{...}}) with the decision's "
+                          f"keys, got a {type(data).__name__}")
+    return decision_from_dict(data, planner)

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
+from ..errors import ConfigError
 from ..planners.registry import check_settings, instantiate, planner_class
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -55,3 +56,25 @@ def planner_settings(name: str, params: Mapping[str, Any], name_field: str = "pl
 def build_planner(name: str, settings: Mapping[str, Any], field: str = "planner") -> "Planner":
     """The planner ``name`` with checked ``settings``; failures name ``field``'s keys."""
     return instantiate(planner_class(name, field + ".name"), settings, field)
+
+
+def planner_hint(exc: ConfigError) -> ConfigError:
+    """``exc`` with a suggestion added when it reports an unknown planner name that is a
+    known one in other letters' case or part of one (``PG`` -> ``pg``, ``greedy`` ->
+    ``sequential-greedy``), which a close-match search misses."""
+    import re
+
+    from ..planners.registry import planner_names
+
+    match = re.match(r"unknown planner '([^']*)'(;| \(did you mean)", exc.message)
+    if match is None or match.group(2) != ";":
+        return exc
+    name = match.group(1).lower().replace("_", "-").strip()
+    names = planner_names()
+    parts = [n for n in names if n == name] or (
+        [n for n in names if name in n or n in name] if len(name) >= 3 else [])
+    if not parts:
+        return exc
+    hint = f" (did you mean {parts[0]!r}?)"
+    head = match.group(0)[:-1]
+    return ConfigError(exc.field, head + hint + exc.message[len(head):])

@@ -9,6 +9,7 @@ from typing import Any
 
 from .. import io
 from ..errors import ConfigError
+from ..limits import check_run
 from ..scenario import PRESETS as SCENARIO_PRESETS
 from ..scenario import Scenario
 from ..scenario_file import ScenarioFile, SettingsTables
@@ -22,6 +23,10 @@ PRESETS = tuple(SCENARIO_PRESETS)
 #: Run setting -> (section, key) in a scenario file, and the run's seed.
 FILE_KEYS = {f.name: (s.section, f.name) for _, _, f, s in all_settings()}
 FILE_KEYS["seed"] = ("run", "seed")
+#: Field names of a scenario file in the size limits' errors.
+RUN_FIELDS = {"horizon": "planning.horizon", "steps_per_epoch": "planning.steps_per_epoch",
+              "targets": "targets", "sensors": "sensors", "moves": "sensors[{i}].moves",
+              "steps": "run.steps"}
 #: RunSettings field path -> its path in a scenario file.
 _FILE_PATHS = {path: f"{s.section}.{f.name}" for _, path, f, s in all_settings()}
 
@@ -52,11 +57,37 @@ def _rename(exc: ConfigError, renames: Mapping[str, str]) -> ConfigError:
 
 
 def preset_scenario(name: str | None, field: str) -> Scenario:
-    """The built-in scenario ``name`` (default ``paper``); an unknown name names ``field``."""
-    name = name or "paper"
+    """The built-in scenario ``name`` (None: ``paper``); an unknown name (the empty one
+    too) names ``field``, with the closest preset."""
+    import difflib
+
+    name = "paper" if name is None else name
     if name not in PRESETS:
-        raise ConfigError(field, f"unknown preset {name!r}; choose from {', '.join(PRESETS)}")
+        close = difflib.get_close_matches(name.lower(), PRESETS, n=1, cutoff=0.5)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise ConfigError(field, f"unknown preset {name!r}{hint}; choose from "
+                          f"{', '.join(PRESETS)}")
     return SCENARIO_PRESETS[name]()
+
+
+def read_scenario_file(path: str | Path) -> dict[str, Any]:
+    """Parse a scenario TOML file, with a hint for the usual mix-ups: a missing file named
+    like a preset (``simulate paper``) and a single-decision JSON file."""
+    path = Path(path)
+    if not path.exists() and str(path) in PRESETS:
+        raise ConfigError(str(path), f"no such file (for the built-in scenario, write "
+                          f"--preset {path})")
+    if path.is_file():
+        try:
+            with path.open("rb") as f:
+                start = f.read(512).lstrip()
+        except OSError:
+            start = b""
+        if path.suffix.lower() == ".json" or start.startswith(b"{"):
+            raise ConfigError(str(path), "is a JSON file: a single decision is planned with "
+                              "sensorplan plan; simulate reads a scenario TOML file (see "
+                              "configs/paper.toml)")
+    return io.read_toml(path)
 
 
 def load_simulation(path: str | Path | None = None, preset: str | None = None,
@@ -90,7 +121,7 @@ def load_simulation(path: str | Path | None = None, preset: str | None = None,
         scenario = preset_scenario(preset, "--preset")
         data: dict[str, Any] = {}
     else:
-        data = io.read_toml(path)
+        data = read_scenario_file(path)
     renames: dict[str, str] = {}
     for key, value in given_.items():
         section, name = FILE_KEYS[key]
@@ -105,6 +136,7 @@ def load_simulation(path: str | Path | None = None, preset: str | None = None,
             tables = validate(ScenarioFile, data)
             scenario = tables.scenario()
         settings = _run_settings(tables, planner_overridden="planner" in given_)
+        check_run(scenario, settings, RUN_FIELDS)
     except ConfigError as exc:
         raise _rename(exc, renames) from None
     return SimulationConfig(scenario, settings, tables.run.seed)

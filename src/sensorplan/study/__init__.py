@@ -18,7 +18,8 @@ from .demo import DEMO_STUDY, demo_study
 from .execution import StudyInterrupted, StudyRun, TaskResult, default_workers, run_study, \
     run_task
 from .file import load_study, parse_study, study_from_dict
-from .metrics import (DIVERGED_THRESHOLD, LEVEL, LOST_THRESHOLD, NEES_HIGH, consistency,
+from .metrics import (DIVERGED_THRESHOLD, LEVEL, LOST_THRESHOLD, METRIC_RANGES, NEES_HIGH,
+                      SMALL_SAMPLE, consistency,
                       episode_consistency, episode_errors, horizon_groups, kinds_with_all,
                       median_interval, nees_band, nees_over_time, paired_differences,
                       planning_summary, references, rmse_over_time, run_metrics,
@@ -28,6 +29,7 @@ from .storage import StudyTables, consolidate, done_tasks, load_study_dir, part_
 from .tables import TABLE_DOC, TABLES, episode_tables
 
 __all__ = ["DEMO_STUDY", "DIVERGED_THRESHOLD", "FORMAT", "LEVEL", "LOST_THRESHOLD",
+           "METRIC_RANGES", "SMALL_SAMPLE",
            "NEES_HIGH", "Method", "Study", "consistency", "episode_consistency", "nees_band",
            "nees_over_time",
            "StudyInterrupted", "StudyRun", "StudyTables", "TABLES", "TABLE_DOC", "TaskResult",

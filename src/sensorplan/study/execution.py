@@ -25,11 +25,12 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from ..io import ensure_out_dir
+from ..io import ensure_out_dir, write_failed
 from ..simulation import run_episode
 from .model import Study
-from .storage import (TABLES, clean_temporaries, consolidate, done_tasks, git_describe, locked,
-                      now, prepare, versions, write_meta, write_part)
+from .storage import (check_parts, clean_temporaries, consolidate, git_describe, locked, now,
+                      part_path, prepare, remove_part, tables_intact, versions, write_meta,
+                      write_part)
 from .tables import TaskResult, episode_tables
 
 #: Environment variables that limit BLAS/OpenMP threads in worker processes: with one
@@ -41,6 +42,7 @@ THREAD_LIMITS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
 def run_task(study: Study, run: int, method: int) -> TaskResult:
     """Simulate method ``method`` (index) on run ``run`` and return its tables."""
     m = study.methods[method]
+    _warm()
     wall, cpu = time.perf_counter(), time.process_time()
     try:
         episode = run_episode(study.scenario, m.settings, study.run_seed(run))
@@ -54,6 +56,14 @@ def run_task(study: Study, run: int, method: int) -> TaskResult:
                       time.process_time() - cpu, float(np.sum(episode.planning_seconds)))
 
 
+def _warm() -> None:
+    """Load the compiled kernels (once per process), so that no task's time, and no
+    decision's, includes it."""
+    from .._kernels import warm_up
+
+    warm_up()
+
+
 # ------------------------------------------------------------------------- executors
 
 _WORKER_STUDY: Study | None = None
@@ -63,7 +73,25 @@ def _pool_init(study: Study) -> None:
     global _WORKER_STUDY
     _WORKER_STUDY = study
     # The parent handles Ctrl-C (it stops the pool); workers should not print tracebacks.
+    # (They start with SIGINT ignored already: see _spawning.)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _warm()
+
+
+@contextlib.contextmanager
+def _spawning() -> Iterator[None]:
+    """Ignore Ctrl-C while worker processes are started: a started process inherits the
+    ignored signal, so a Ctrl-C pressed while it imports (before its initializer runs)
+    cannot print its traceback. The parent's own handler is restored right after."""
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:                    # not the main thread: signals are not ours
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _pool_task(run: int, method: int) -> TaskResult:
@@ -105,10 +133,11 @@ def _process_pool(study: Study, tasks: Sequence[tuple[int, int]],
             # results stream back as they finish.
             todo = iter(tasks)
             pending: set[cf.Future[TaskResult]] = set()
-            for r, m in todo:
-                pending.add(pool.submit(_pool_task, r, m))
-                if len(pending) >= 2 * workers:
-                    break
+            with _spawning():                 # the first submit starts the workers
+                for r, m in todo:
+                    pending.add(pool.submit(_pool_task, r, m))
+                    if len(pending) >= 2 * workers:
+                        break
             while pending:
                 done, pending = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
                 for fut in done:
@@ -124,43 +153,93 @@ def _process_pool(study: Study, tasks: Sequence[tuple[int, int]],
             for proc in procs:
                 with contextlib.suppress(Exception):
                     proc.terminate()
+            # Wait for them (and kill the stubborn), so that none outlives the study.
+            for proc in procs:
+                with contextlib.suppress(Exception):
+                    proc.join(5)
+                    if proc.is_alive():
+                        proc.kill()
+                        proc.join(5)
             raise
         else:
             pool.shutdown(wait=True)
 
 
-def _dask(study: Study, tasks: Sequence[tuple[int, int]], scheduler: str, workers: int,
-          processes: bool) -> Iterator[TaskResult]:
+#: Address schemes of Dask's communication layer (``distributed.comm``).
+DASK_SCHEMES = ("tcp", "tls", "inproc", "ucx", "ws", "wss")
+
+
+def _dask_client(scheduler: str, workers: int, processes: bool) -> tuple[Any, Any]:
+    """A Dask client of ``scheduler`` (and the LocalCluster it started, else None);
+    ConfigError naming ``--scheduler`` when it cannot connect."""
     import logging
 
-    from distributed import Client, LocalCluster, as_completed
+    from distributed import Client, LocalCluster
 
-    cluster = None
     with _thread_limits():
         if scheduler == "local":
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
-                                   processes=processes, dashboard_address=None,
-                                   silence_logs=logging.ERROR)
-            client = Client(cluster)
-        else:
-            try:
-                client = Client(scheduler, timeout="30s")
-            except (OSError, TimeoutError) as exc:
-                raise ConfigError("--scheduler", f"cannot connect to {scheduler} "
-                                  f"({exc})") from None
+            with _spawning():
+                cluster = LocalCluster(n_workers=workers, threads_per_worker=1,
+                                       processes=processes, dashboard_address=None,
+                                       silence_logs=logging.ERROR)
+            return Client(cluster), cluster
+        try:
+            return Client(scheduler, timeout="30s"), None
+        except (OSError, TimeoutError, ValueError, TypeError) as exc:
+            raise ConfigError("--scheduler", f"cannot connect to {scheduler} "
+                              f"({exc})") from None
+
+
+class StudyLost(RuntimeError):
+    """The Dask cluster lost the study (every worker holding it died); the finished pairs
+    are on disk and a rerun resumes."""
+
+    def __init__(self, done: int, total: int, why: str) -> None:
+        super().__init__(why)
+        self.done, self.total, self.why = done, total, why
+
+
+def _lost(exc: BaseException) -> str | None:
+    """Why a Dask result failed, if the cluster (not the task) failed: lost workers."""
+    import concurrent.futures
+
+    name = type(exc).__name__
+    if isinstance(exc, concurrent.futures.CancelledError) or name in (
+            "FutureCancelledError", "KilledWorker", "CommClosedError", "CancelledError"):
+        return f"{name}: {exc}" if str(exc) else name
+    return None
+
+
+def _dask(study: Study, tasks: Sequence[tuple[int, int]], client: Any,
+          cluster: Any) -> Iterator[TaskResult]:
+    from distributed import as_completed
+
     futures = []
     try:
         # Ship the study once to every worker instead of once per task.
         study_f = client.scatter(study, broadcast=True)
         futures = [client.submit(run_task, study_f, r, m, pure=False) for r, m in tasks]
         for fut in as_completed(futures):
-            yield fut.result()
+            try:
+                result = fut.result()
+            except Exception as exc:
+                why = _lost(exc)
+                if why is None:
+                    raise
+                raise _DaskLost(why) from None
+            yield result
     finally:
         with contextlib.suppress(Exception):
             client.cancel(futures)
-        client.close()
+        with contextlib.suppress(Exception):
+            client.close()
         if cluster is not None:
-            cluster.close()
+            with contextlib.suppress(Exception):
+                cluster.close()
+
+
+class _DaskLost(Exception):
+    """Raised by :func:`_dask`; :func:`run_study` adds the counts (:class:`StudyLost`)."""
 
 
 def default_workers() -> int:
@@ -301,6 +380,12 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
     if scheduler is not None and scheduler != "local" and "://" not in scheduler:
         raise ConfigError("--scheduler", f"must be 'local' or an address such as "
                           f"tcp://host:8786, got {scheduler!r}")
+    if scheduler is not None and scheduler != "local":
+        scheme = scheduler.split("://", 1)[0].lower()
+        if scheme not in DASK_SCHEMES:
+            raise ConfigError("--scheduler", f"unknown address scheme {scheme!r} in "
+                              f"{scheduler!r}; use {', '.join(DASK_SCHEMES)} (e.g. "
+                              "tcp://host:8786) or 'local'")
     if (workers > 1 and scheduler is None) or (scheduler == "local" and processes):
         script = unguarded_script()
         if script is not None:
@@ -313,9 +398,17 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
 
     start_wall, start_cpu = time.perf_counter(), time.process_time()
     with locked(out):
-        prepare(out, study)
+        grown_from = prepare(out, study)
         clean_temporaries(out)
-        done = done_tasks(out, study)
+        done, damaged = check_parts(out, study)
+        for (r, m), problem in sorted(damaged.items()):
+            # Never trusted and never fatal: its pair runs again with the missing ones.
+            _say(f"warning: {part_path(out, r, m, 'steps').parent.name}/m{m:02d} is damaged "
+                 f"({problem}); running it again")
+            remove_part(out, r, m)
+        if grown_from is not None:
+            _say(f"note: {out} held {grown_from} runs of this study; adding runs "
+                 f"{grown_from}..{study.runs - 1}")
         todo = [t for t in study.tasks() if t not in done]
         if scheduler is not None:
             executor = f"dask {scheduler}" + (f" ({workers} workers)" if scheduler == "local"
@@ -332,10 +425,14 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
             "sensorplan": versions().get("sensorplan"), "git": git_describe()}
         timing = {"compute_wall_seconds": 0.0, "compute_cpu_seconds": 0.0,
                   "planning_seconds": 0.0, "write_seconds": 0.0, "consolidate_seconds": 0.0}
-        complete = not todo and all((out / f"{t}.parquet").exists() for t in TABLES)
-        if complete:
+        if not todo and tables_intact(out, study):
             return StudyRun(out, len(study.tasks()), 0, time.perf_counter() - start_wall)
+        client = cluster = None
+        if todo and scheduler is not None:
+            # Connected before anything is reported: a bad address is the only line.
+            client, cluster = _dask_client(scheduler, workers, processes)
         write_meta(out, study, session, complete=False)
+        with_seconds = progress is not None and _takes_seconds(progress)
         if progress is not None:
             progress(0, len(todo), len(done))
         n = 0
@@ -343,30 +440,48 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
         try:
             if not todo:
                 results: Iterable[TaskResult] = ()
-            elif scheduler is not None:
-                results = _dask(study, todo, scheduler, workers, processes)
+            elif client is not None:
+                results = _dask(study, todo, client, cluster)
             elif executor == "in process":
                 results = _in_process(study, todo)
             else:
                 results = _process_pool(study, todo, workers)
             for res in results:
                 t0 = time.perf_counter()
-                write_part(out, res)
+                try:
+                    write_part(out, res)
+                except OSError as exc:
+                    raise write_failed(exc) from None
                 timing["write_seconds"] += time.perf_counter() - t0
                 timing["compute_wall_seconds"] += res.wall
                 timing["compute_cpu_seconds"] += res.cpu
                 timing["planning_seconds"] += res.planning
                 n += 1
                 if progress is not None:
-                    progress(n, len(todo), len(done))
+                    if with_seconds:
+                        progress(n, len(todo), len(done), seconds=res.wall)
+                    else:
+                        progress(n, len(todo), len(done))
             t0 = time.perf_counter()
-            consolidate(out, study)
+            try:
+                consolidate(out, study)
+            except OSError as exc:
+                raise write_failed(exc) from None
             timing["consolidate_seconds"] = time.perf_counter() - t0
             finished = True
         except KeyboardInterrupt:
             session["interrupted"] = True
             raise StudyInterrupted(len(done) + n, len(study.tasks())) from None
+        except _DaskLost as exc:
+            session["interrupted"] = True
+            raise StudyLost(len(done) + n, len(study.tasks()), str(exc)) from None
         finally:
+            if client is not None:                  # closed already unless never started
+                with contextlib.suppress(Exception):
+                    client.close()
+                if cluster is not None:
+                    with contextlib.suppress(Exception):
+                        cluster.close()
             wall = time.perf_counter() - start_wall
             session.update({k: round(v, 4) for k, v in timing.items()})
             session.update({"finished": now(), "tasks_run": n, "wall_seconds": round(wall, 3),
@@ -374,3 +489,19 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
             with contextlib.suppress(Exception):
                 write_meta(out, study, session, complete=finished)
     return StudyRun(out, len(study.tasks()), n, wall, session)
+
+
+def _takes_seconds(progress: Callable[..., Any]) -> bool:
+    """Whether a progress callback accepts the keyword ``seconds`` (a pair's compute time)."""
+    import inspect
+
+    try:
+        inspect.signature(progress).bind(0, 0, 0, seconds=0.0)
+    except (TypeError, ValueError):
+        return False
+    return True
+
+
+def _say(line: str) -> None:
+    sys.stderr.write(line + "\n")
+    sys.stderr.flush()

@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
-import tomllib
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -48,12 +47,13 @@ from .. import io
 from ..config.planners import RUN_SEED
 from ..config.simulate import preset_scenario
 from ..errors import ConfigError
+from ..limits import check_run, check_study_size
 from ..scenario import Scenario
 from ..scenario_file import scenario_from_dict
 from ..planners.registry import check_settings, instantiate, planner_class, planner_settings_of
 from ..settings import RunSettings, declared, field_type, is_group
 from ..validation import (PositiveInt, Seed, Strict, given, section_model, setting_annotation,
-                          validate)
+                          setting_type, validate)
 from .model import STUDY_KEYS, Method, Study
 
 
@@ -97,7 +97,7 @@ MethodModel = create_model("MethodModel", __base__=MethodSettings,
                            name=(Annotated[str, AfterValidator(_method_name)], ...))
 _STUDY_WIDE = {f.name: (setting_annotation(RunSettings, f, s) | None, None)
                for f, s in declared(RunSettings, "run")}
-_STUDY_WIDE["steps"] = (PositiveInt, ...)
+_STUDY_WIDE["steps"] = (setting_type(RunSettings, "steps"), ...)
 StudyFile = create_model(
     "StudyFile", __base__=Strict, description=(str, ""), runs=(PositiveInt, ...),
     **_STUDY_WIDE, seed=(Seed, 0), scenario=(StudyScenarioModel, StudyScenarioModel()),
@@ -199,6 +199,12 @@ def _unused_defaults(defaults: dict[str, Any], used: set[str], methods: list[Met
                           message + f"; the methods' planners take: {', '.join(takes)}")
 
 
+def _origin_of(method: Any, key: str, i: int) -> str:
+    """Where method ``i``'s ``key`` was written: the method, else ``[defaults]``."""
+    return f"methods[{i}].{key}" if getattr(method, key, None) is not None else \
+        f"defaults.{key}"
+
+
 def study_from_dict(data: Any, base_dir: str | Path | None = None) -> Study:
     """Validate a study table and build the :class:`~sensorplan.study.model.Study`.
 
@@ -230,6 +236,13 @@ def study_from_dict(data: Any, base_dir: str | Path | None = None) -> Study:
         seen[m.name] = i
         methods.append(_method(i, m, defaults, study_wide, used))
     _unused_defaults(defaults, used, methods)
+    for i, m in enumerate(methods):
+        check_run(scenario, m.settings, {
+            "horizon": _origin_of(model.methods[i], "horizon", i),
+            "steps_per_epoch": _origin_of(model.methods[i], "steps_per_epoch", i),
+            "targets": "scenario", "sensors": "scenario", "moves": "scenario",
+            "steps": "steps"})
+    check_study_size(model.runs, len(methods), model.steps, len(scenario.targets))
     return Study(scenario=scenario, runs=model.runs, steps=model.steps, seed=model.seed,
                  methods=tuple(methods), description=model.description,
                  scenario_source=source)
@@ -244,8 +257,4 @@ def load_study(path: str | Path) -> Study:
 def parse_study(text: str, source: str = "<study>", base_dir: str | Path | None = None
                 ) -> Study:
     """:func:`study_from_dict` on TOML text (the built-in demo study)."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(source, f"invalid TOML: {exc}") from None
-    return study_from_dict(data, base_dir=base_dir)
+    return study_from_dict(io.parse_toml(text, source), base_dir=base_dir)

@@ -203,16 +203,20 @@ def run_grid(grid: Grid, out: str | Path, *, workers: int | None = None,
 def grid_command(path: Path, out: Path | None, workers: int | None,
                  scheduler: str | None) -> int:
     """``sensorplan grid``: load, run with a progress report on stderr, say what was done;
-    the exit status (130 when interrupted)."""
+    the exit status (130 when interrupted, 143 when terminated)."""
+    from ..cli_guards import Sigterm
     from ..console import study_progress
+    from .execution import default_workers
 
     grid = load_grid(path)
     if workers is not None and workers < 1:
         raise ConfigError("--workers", f"must be an integer >= 1, got {workers}")
     out = out if out is not None else Path("runs") / path.stem
     label = f"grid {path.stem} ({len(grid.cells)} cells)"
+    parallel = (workers or default_workers()) if scheduler in (None, "local") else 1
+    term = Sigterm()
     try:
-        with study_progress(label) as progress:
+        with term, study_progress(label, parallel) as progress:
             res = run_grid(grid, out, workers=workers, scheduler=scheduler,
                            progress=progress)
     except GridInterrupted as exc:
@@ -220,7 +224,7 @@ def grid_command(path: Path, out: Path | None, workers: int | None,
         sys.stderr.write(f"interrupted in cell {exc.cell}: {exc.done} of {exc.total} (run, "
                          f"method) pairs are saved in {out}; run the same command again to "
                          "resume\n")
-        return 130
+        return 143 if term.fired else 130
     if res.ran == 0:
         print(f"{out}: grid already complete ({len(grid.cells)} cells, {res.total} (run, "
               "method) pairs); nothing to run")

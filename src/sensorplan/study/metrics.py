@@ -250,22 +250,44 @@ def nees_over_time(tables: StudyTables) -> Any:
     return out[["method", "kind", "step", "anees", "band_lo", "band_hi", "n"]]
 
 
-def summary(metrics: Any, column: str = "rmse", level: float = LEVEL) -> Any:
+#: Fewer runs than this make an interval unreliable: summaries flag them (``small_sample``).
+SMALL_SAMPLE = 10
+#: The values each run metric can take: its intervals are clipped to them (a t-interval
+#: of a few runs can reach below zero, where no RMSE lies).
+METRIC_RANGES: dict[str, tuple[float | None, float | None]] = {
+    "rmse": (0.0, None), "mean_error": (0.0, None), "lost_share": (0.0, 1.0),
+    "measured_share": (0.0, 1.0), "negative_share": (0.0, 1.0)}
+
+
+def _clip(values: Any, bounds: tuple[float | None, float | None]) -> Any:
+    lo, hi = bounds
+    return np.clip(np.asarray(values, dtype=float), lo, hi) if (lo, hi) != (None, None) \
+        else values
+
+
+def summary(metrics: Any, column: str = "rmse", level: float = LEVEL,
+            bounds: tuple[float | None, float | None] | None = None) -> Any:
     """Across-run statistics of a run metric per (method, kind).
 
     Columns: method, kind, n (runs), mean, mean_lo, mean_hi (t-interval), median,
-    median_lo, median_hi (order-statistic interval).
+    median_lo, median_hi (order-statistic interval), small_sample (n <
+    :data:`SMALL_SAMPLE`: the intervals rest on too few runs to be trusted).
+
+    The interval bounds are clipped to ``bounds``, by default the metric's range in
+    :data:`METRIC_RANGES` (an RMSE interval never goes below 0).
     """
     import pandas as pd
 
+    rng = bounds if bounds is not None else METRIC_RANGES.get(column, (None, None))
     rows = []
     for (method, kind), g in metrics.groupby(["method", "kind"], observed=True, sort=True):
         x = g[column].to_numpy(float)
         mean, lo, hi = t_interval(x, level)
         med, mlo, mhi = median_interval(x, level)
+        lo, hi, mlo, mhi = (float(_clip(v, rng)) for v in (lo, hi, mlo, mhi))
         rows.append(dict(method=method, kind=kind, n=x.size, mean=float(mean),
-                         mean_lo=float(lo), mean_hi=float(hi), median=med, median_lo=mlo,
-                         median_hi=mhi))
+                         mean_lo=lo, mean_hi=hi, median=med, median_lo=mlo,
+                         median_hi=mhi, small_sample=bool(x.size < SMALL_SAMPLE)))
     return pd.DataFrame(rows)
 
 
@@ -322,7 +344,9 @@ def paired_differences(metrics: Any, study: Study, column: str = "rmse",
 
     Columns: method, against (``myopic`` or ``random``; ``given`` for ``pairs``; the labels
     of ``refs``), reference, kind, n, mean, mean_lo, mean_hi, median, median_lo, median_hi,
-    better_share.
+    better_share, small_sample (n < :data:`SMALL_SAMPLE`). A difference of two values in
+    ``[lo, hi]`` (:data:`METRIC_RANGES`) lies in ``[lo - hi, hi - lo]``: the intervals are
+    clipped to it.
     """
     import pandas as pd
 
@@ -345,11 +369,16 @@ def paired_differences(metrics: Any, study: Study, column: str = "rmse",
             d = (both[method] - both[ref]).to_numpy(float)
             mean, lo, hi = t_interval(d, level)
             med, mlo, mhi = median_interval(d, level)
+            vlo, vhi = METRIC_RANGES.get(column, (None, None))
+            if vlo is not None and vhi is not None:
+                lo, hi, mlo, mhi = (float(_clip(v, (vlo - vhi, vhi - vlo)))
+                                    for v in (lo, hi, mlo, mhi))
             rows.append(dict(method=method, against=against, reference=ref, kind=kind,
                              n=d.size, mean=float(mean), mean_lo=float(lo),
                              mean_hi=float(hi), median=med, median_lo=mlo,
                              median_hi=mhi,
-                             better_share=float(np.mean(d < 0)) if d.size else math.nan))
+                             better_share=float(np.mean(d < 0)) if d.size else math.nan,
+                             small_sample=bool(d.size < SMALL_SAMPLE)))
     return pd.DataFrame(rows)
 
 

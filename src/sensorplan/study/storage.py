@@ -9,10 +9,12 @@ recomputes what is done; the directory layout and the resume rules are in docs/s
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
 import platform
 import subprocess
+import sys
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -22,7 +24,6 @@ from typing import Any
 from ..errors import ConfigError
 from .model import FORMAT, Study
 from .tables import TABLES, TaskResult, arrow_table
-
 
 #: Keys of config.resolved.json that decide the results (a resumed study must match them).
 RESULT_KEYS = ("format", "runs", "steps", "seed", "scenario", "methods")
@@ -74,20 +75,114 @@ def _write_json(path: Path, data: Any) -> None:
     _atomic_write(path, write)
 
 
-def write_part(out: Path, result: TaskResult) -> None:
+def _parquet_bytes(table: Any) -> bytes:
+    import pyarrow as pa
     import pyarrow.parquet as pq
 
-    for table in TABLES:                   # "steps" last: its presence marks the part done
-        path = part_path(out, result.run, result.method, table)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tab = arrow_table(result.tables[table])
-        _atomic_write(path, lambda tmp, tab=tab: pq.write_table(tab, tmp))
+    sink = pa.BufferOutputStream()
+    pq.write_table(table, sink)
+    return sink.getvalue().to_pybytes()
+
+
+def _digest(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
+
+
+def _write_bytes(path: Path, data: bytes) -> None:
+    _atomic_write(path, lambda tmp: tmp.write_bytes(data))
+
+
+def sums_path(out: Path, run: int, method: int) -> Path:
+    """The checksums of one (run, method)'s files: ``parts/run-00007/m03.sha256``."""
+    return Path(out) / "parts" / f"run-{run:05d}" / f"m{method:02d}.sha256"
+
+
+def write_part(out: Path, result: TaskResult) -> None:
+    """Write one (run, method)'s tables, each atomically, with their SHA-256 checksums.
+
+    The checksums (``mNN.sha256``) are written before the ``steps`` file, whose presence
+    marks the part done: a done part can always be verified.
+    """
+    path = part_path(out, result.run, result.method, TABLES[0])
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = {t: _parquet_bytes(arrow_table(result.tables[t])) for t in TABLES}
+    sums = {t: _digest(b) for t, b in data.items()}
+    for table in TABLES[:-1]:
+        _write_bytes(part_path(out, result.run, result.method, table), data[table])
+    _write_json(sums_path(out, result.run, result.method), sums)
+    _write_bytes(part_path(out, result.run, result.method, TABLES[-1]), data[TABLES[-1]])
+
+
+def _read_sums(path: Path) -> dict[str, str] | None:
+    try:
+        sums = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(sums, dict) or not all(isinstance(sums.get(t), str) for t in TABLES):
+        return None
+    return sums
+
+
+def part_problem(out: Path, run: int, method: int) -> str | None:
+    """What is wrong with a part whose ``steps`` file exists (None: it is intact).
+
+    A part with checksums is intact when every file matches its checksum; a part written
+    before checksums existed when pyarrow can read every file.
+    """
+    sums_file = sums_path(out, run, method)
+    if not sums_file.exists():
+        import pyarrow.parquet as pq
+
+        for table in TABLES:
+            path = part_path(out, run, method, table)
+            try:
+                pq.read_metadata(path)
+            except Exception as exc:  # noqa: BLE001 - any failure to read is damage
+                return f"{path.name} cannot be read ({type(exc).__name__})"
+        return None
+    sums = _read_sums(sums_file)
+    if sums is None:
+        return f"{sums_file.name} is damaged"
+    for table in TABLES:
+        path = part_path(out, run, method, table)
+        try:
+            data = path.read_bytes()
+        except OSError as exc:
+            return f"{path.name} cannot be read ({exc.strerror or exc})"
+        if _digest(data) != sums[table]:
+            return f"{path.name} does not match its checksum"
+    return None
+
+
+def check_parts(out: Path, study: Study) -> tuple[set[tuple[int, int]],
+                                                  dict[tuple[int, int], str]]:
+    """The intact done (run, method) pairs, and the damaged ones with what is wrong.
+
+    A pair without its ``steps`` file is neither (it is still to run).
+    """
+    done: set[tuple[int, int]] = set()
+    damaged: dict[tuple[int, int], str] = {}
+    for r, m in study.tasks():
+        if not part_path(out, r, m, TABLES[-1]).exists():
+            continue
+        problem = part_problem(out, r, m)
+        if problem is None:
+            done.add((r, m))
+        else:
+            damaged[(r, m)] = problem
+    return done, damaged
+
+
+def remove_part(out: Path, run: int, method: int) -> None:
+    """Delete one (run, method)'s files (a damaged part, before it is run again)."""
+    for path in [part_path(out, run, method, t) for t in TABLES] + [sums_path(out, run, method)]:
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
 
 
 def done_tasks(out: Path, study: Study) -> set[tuple[int, int]]:
-    """(run, method) pairs whose files are all on disk."""
-    return {(r, m) for r, m in study.tasks()
-            if part_path(out, r, m, TABLES[-1]).exists()}
+    """(run, method) pairs whose files are all on disk and intact (:func:`check_parts`)."""
+    return check_parts(out, study)[0]
 
 
 def versions() -> dict[str, str]:
@@ -148,24 +243,44 @@ def _read_resolved(config: Path, field: str, fix: str) -> Any:
     return data
 
 
-def prepare(out: Path, study: Study) -> None:
-    """Create ``out`` or check that it holds this study; raise ConfigError otherwise."""
+def prepare(out: Path, study: Study) -> int | None:
+    """Create ``out`` or check that it holds this study; raise ConfigError otherwise.
+
+    The study may have more runs than the one in ``out`` (and nothing else changed): the
+    directory then becomes the larger study (its finished runs are kept; run seeds do not
+    depend on the number of runs) and the previous number of runs is returned, else None.
+    """
     resolved = study.resolved()
     config = out / "config.resolved.json"
     if config.exists():
         old = _read_resolved(config, "--out", "use another --out or delete it")
-        diffs = differences({k: old.get(k) for k in RESULT_KEYS},
-                            {k: resolved.get(k) for k in RESULT_KEYS})
+        before = {k: old.get(k) for k in RESULT_KEYS}
+        after = {k: resolved.get(k) for k in RESULT_KEYS}
+        grown = (isinstance(before["runs"], int) and not isinstance(before["runs"], bool)
+                 and after["runs"] > before["runs"])
+        if grown:
+            before["runs"] = after["runs"]
+        diffs = differences(before, after)
         if diffs:
             shown = "; ".join(diffs[:3]) + ("; ..." if len(diffs) > 3 else "")
             raise ConfigError("--out", f"{out} holds results of a different study "
-                              f"(changed: {shown}); use another --out or delete it")
-        return
+                              f"(changed: {shown}); use another --out or delete it (only "
+                              "runs may be raised)")
+        if not grown:
+            return None
+        # The tables of fewer runs are not this study's: remove them before the new
+        # configuration is written, so that no moment leaves them looking complete.
+        for path in [out / f"{t}.parquet" for t in TABLES] + [out / TABLE_SUMS]:
+            with contextlib.suppress(FileNotFoundError):
+                path.unlink()
+        _write_json(config, {**old, "runs": resolved["runs"]})
+        return int(old["runs"])
     others = [p.name for p in out.iterdir() if p.name != ".lock"]
     if others:
         raise ConfigError("--out", f"{out} is not empty and is not a study directory "
                           f"(no config.resolved.json)")
     _write_json(config, resolved)
+    return None
 
 
 def _read_meta(out: Path) -> dict[str, Any]:
@@ -191,15 +306,68 @@ def write_meta(out: Path, study: Study, session: dict[str, Any], complete: bool)
     _write_json(out / "meta.json", meta)
 
 
-def consolidate(out: Path, study: Study) -> None:
-    """Write ``steps/decisions/sensors.parquet`` from the parts, in (run, method) order."""
+#: Checksums of the consolidated tables (and the runs they hold).
+TABLE_SUMS = "tables.sha256"
+
+
+class DamagedPart(ConfigError):
+    """A part changed after it was written (found while reading it back)."""
+
+
+def _read_part(out: Path, run: int, method: int, table: str, sums: dict[str, str] | None
+               ) -> Any:
+    """One part's table, verified against its checksum when it has one."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    tasks = study.tasks()
+    path = part_path(out, run, method, table)
+    data = path.read_bytes()
+    if sums is not None and _digest(data) != sums.get(table):
+        raise DamagedPart("--out", f"{path} changed after it was written (checksum "
+                          "mismatch); run the same command again to recompute it")
+    return pq.read_table(pa.BufferReader(data))
+
+
+def read_parts(out: Path, tasks: list[tuple[int, int]]) -> dict[str, Any]:
+    """The tables of ``tasks`` (run, method) from their parts, verified, in that order."""
+    import pyarrow as pa
+
+    sums = {(r, m): _read_sums(sums_path(out, r, m)) for r, m in tasks}
+    return {t: pa.concat_tables([_read_part(out, r, m, t, sums[(r, m)]) for r, m in tasks])
+            for t in TABLES}
+
+
+def consolidate(out: Path, study: Study) -> None:
+    """Write ``steps/decisions/sensors.parquet`` from the verified parts, in (run, method)
+    order, and their checksums (``tables.sha256``)."""
+    tables = read_parts(out, study.tasks())
+    with contextlib.suppress(FileNotFoundError):
+        (out / TABLE_SUMS).unlink()
+    sums: dict[str, Any] = {"runs": study.runs}
     for table in TABLES:
-        tab = pa.concat_tables([pq.read_table(part_path(out, r, m, table)) for r, m in tasks])
-        _atomic_write(out / f"{table}.parquet", lambda tmp, tab=tab: pq.write_table(tab, tmp))
+        data = _parquet_bytes(tables[table])
+        sums[table] = _digest(data)
+        _write_bytes(out / f"{table}.parquet", data)
+    _write_json(out / TABLE_SUMS, sums)
+
+
+def tables_intact(out: Path, study: Study) -> bool:
+    """Whether the consolidated tables exist, hold ``study``'s runs and match their
+    checksums."""
+    try:
+        sums = json.loads((out / TABLE_SUMS).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    if not isinstance(sums, dict) or sums.get("runs") != study.runs:
+        return False
+    for table in TABLES:
+        try:
+            data = (out / f"{table}.parquet").read_bytes()
+        except OSError:
+            return False
+        if _digest(data) != sums.get(table):
+            return False
+    return True
 
 
 def clean_temporaries(out: Path) -> None:
@@ -240,7 +408,6 @@ def load_study_dir(out: str | Path) -> StudyTables:
         ``out`` is not a study directory or holds no finished run.
     """
     import pandas as pd
-    import pyarrow as pa
     import pyarrow.parquet as pq
 
     out = Path(out)
@@ -253,19 +420,27 @@ def load_study_dir(out: str | Path) -> StudyTables:
     except (ValueError, KeyError, TypeError) as exc:
         raise ConfigError("DIR", f"{config} cannot be read ({exc})") from None
     meta = _read_meta(out)
-    complete = all((out / f"{t}.parquet").exists() for t in TABLES)
-    if complete:
+    if tables_intact(out, study):
+        complete = True
         frames = {t: pq.read_table(out / f"{t}.parquet").to_pandas() for t in TABLES}
         runs_done = list(range(study.runs))
     else:
-        done = done_tasks(out, study)
+        # Unfinished, or tables that are damaged or older than checksums: the parts.
+        done, damaged = check_parts(out, study)
+        for (r, m), problem in sorted(damaged.items()):
+            sys.stderr.write(f"warning: {part_path(out, r, m, 'steps').parent.name}/m{m:02d} "
+                             f"of {out} is damaged ({problem}); its run is left out (run the "
+                             "study command again to recompute it)\n")
         runs_done = [r for r in range(study.runs)
                      if all((r, m) in done for m in range(len(study.methods)))]
         if not runs_done:
             raise ConfigError("DIR", f"{out} holds no run finished by every method yet")
+        complete = len(runs_done) == study.runs
         tasks = [(r, m) for r in runs_done for m in range(len(study.methods))]
-        frames = {t: pa.concat_tables([pq.read_table(part_path(out, r, m, t))
-                                       for r, m in tasks]).to_pandas() for t in TABLES}
+        try:
+            frames = {t: tab.to_pandas() for t, tab in read_parts(out, tasks).items()}
+        except DamagedPart as exc:
+            raise ConfigError("DIR", exc.message) from None
     order = pd.CategoricalDtype(study.method_names, ordered=True)
     for df in frames.values():
         df["method"] = df["method"].astype(order)

@@ -1,0 +1,195 @@
+"""What the command line guards against around its commands: signals, unwritable outputs,
+numeric warnings, a bad environment, and figures of runs whose estimates blew up.
+
+Kept apart from :mod:`sensorplan.cli` (the commands themselves) and as light to import:
+only the standard library at import time.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+from .errors import ConfigError
+
+#: Environment variables the command line checks before it runs a command: name -> the
+#: values it may have.
+ENVIRONMENT = {"SENSORPLAN_BACKEND": ("numba", "numpy")}
+
+
+def check_environment() -> None:
+    """Refuse (ConfigError naming the variable) an environment variable of
+    :data:`ENVIRONMENT` set to a value it cannot have."""
+    for name, allowed in ENVIRONMENT.items():
+        value = os.environ.get(name)
+        if value is not None and value not in allowed:
+            raise ConfigError(name, f"unknown value {value!r} of this environment variable; "
+                              f"choose from {', '.join(allowed)} (or unset it)")
+
+
+@contextmanager
+def quiet_numerics(debug_env: str) -> Iterator[None]:
+    """Floating-point RuntimeWarnings (overflow, invalid value) stay off stderr: results
+    are checked where they matter, and stderr holds only the one error line on failure.
+    Worker processes inherit the filter (``PYTHONWARNINGS``); setting ``debug_env`` shows
+    them again."""
+    import warnings
+
+    if os.environ.get(debug_env):
+        yield
+        return
+    saved = os.environ.get("PYTHONWARNINGS")
+    extra = "ignore::RuntimeWarning"
+    os.environ["PYTHONWARNINGS"] = f"{saved},{extra}" if saved else extra
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            yield
+    finally:
+        if saved is None:
+            os.environ.pop("PYTHONWARNINGS", None)
+        else:
+            os.environ["PYTHONWARNINGS"] = saved
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the program is, like Ctrl-C's KeyboardInterrupt."""
+
+
+class Sigterm:
+    """While active, SIGTERM (``kill``, ``timeout``, a batch system) unwinds the command as
+    Ctrl-C does (:class:`Terminated`): workers are stopped and finished work is kept.
+    ``fired`` tells whether it came."""
+
+    def __init__(self) -> None:
+        self.fired = False
+        self._previous: Any = None
+
+    def __enter__(self) -> Sigterm:
+        import signal
+
+        def stop(signum: int, frame: Any) -> None:
+            self.fired = True
+            raise Terminated
+
+        try:
+            self._previous = signal.signal(signal.SIGTERM, stop)
+        except ValueError:                 # not the main thread
+            self._previous = None
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        import signal
+
+        if self._previous is not None:
+            signal.signal(signal.SIGTERM, self._previous)
+
+
+@contextmanager
+def writing(where: Path | None = None, field: str = "--out") -> Iterator[None]:
+    """An output file that cannot be written (a full disk, a directory in its place) is a
+    :class:`ConfigError` naming ``field`` and the file (else ``where``)."""
+    from .io import write_failed
+
+    try:
+        yield
+    except OSError as exc:
+        raise write_failed(exc, field, where) from None
+
+
+def plot_drawable(episode: Any, scenario: Any, path: Path) -> None:
+    """``plot_episode`` of what can be drawn: covariances and fields of view far larger than
+    the map are capped first (:mod:`sensorplan.drawing`), so a run whose covariances grew
+    huge, or a radar reaching far beyond the map, is drawn at once instead of hanging the
+    renderer."""
+    from .drawing import drawable, drawable_scenario
+    from .plotting import plot_episode
+
+    plot_episode(drawable(episode, scenario.world), drawable_scenario(scenario), path)
+
+
+class Stopped(Exception):
+    """A command that was interrupted and has said so on stderr; ``code`` is its exit
+    status (130 for Ctrl-C, 143 for SIGTERM). An exception and not ``typer.Exit``, so that
+    the entry point can tell it from an interruption nobody reported."""
+
+    def __init__(self, code: int) -> None:
+        super().__init__(code)
+        self.code = code
+
+
+class Signals:
+    """While active (the whole of a command): Ctrl-C raises KeyboardInterrupt as usual and
+    SIGTERM raises :class:`Terminated`; ``received`` is the last one (``"INT"``, ``"TERM"``
+    or None), so that the entry point can report an interruption that typer turned into a
+    bare exit status 130."""
+
+    def __init__(self) -> None:
+        self.received: str | None = None
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> Signals:
+        import signal
+
+        def interrupt(signum: int, frame: Any) -> None:
+            self.received = "INT"
+            raise KeyboardInterrupt
+
+        def terminate(signum: int, frame: Any) -> None:
+            self.received = "TERM"
+            raise Terminated
+
+        try:
+            for sig, handler in ((signal.SIGINT, interrupt), (signal.SIGTERM, terminate)):
+                self._previous[sig] = signal.signal(sig, handler)
+        except ValueError:                 # not the main thread: signals are not ours
+            pass
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        import signal
+
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+
+
+def check_finite(result: Any) -> None:
+    """A planner's result with a non-finite number is a defect: never printed as a plan."""
+    import numpy as np
+
+    values = [result.potential, *np.ravel(result.information), *np.ravel(result.headings)]
+    if not np.all(np.isfinite(values)):
+        raise RuntimeError(f"planner {result.planner!r} returned non-finite values "
+                           f"(potential {result.potential}); this is a bug: please report it "
+                           "with the input file")
+
+
+def usage_error_class() -> type[BaseException]:
+    """The class of command-line usage errors."""
+    import typer
+
+    # typer raises click's UsageError (vendored in recent typer, the click package in
+    # older ones); reach it through the public BadParameter instead of a private import.
+    return next(c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError")
+
+
+def usage_line(exc: Any) -> tuple[str, str]:
+    """(field, message) of a command-line usage error."""
+    param = getattr(exc, "param", None)
+    if param is not None:
+        opts = [o for o in getattr(param, "opts", []) if o.startswith("--")]
+        name = getattr(param, "metavar", None) or (param.name or "argument").upper()
+        field = opts[0] if opts else name
+        # A missing argument or option carries no message of its own.
+        return field, getattr(exc, "message", "") or "is required"
+    option = getattr(exc, "option_name", None)
+    if option:
+        message = exc.format_message()
+        prefix = f"No such option: {option}"
+        if message.startswith(prefix):
+            message = "no such option" + message[len(prefix):]
+        return option, message
+    return "usage", exc.format_message()

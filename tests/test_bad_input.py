@@ -1,0 +1,589 @@
+"""Regression tests of the bad-input and fault audit: one per defect class (D1-D17), each
+through the command line, plus the size limits and value ranges behind them.
+
+Every case is an input the audit found to end in an internal error, a hang, a traceback, a
+second stderr line or a silently wrong run; each must now be exit 2 with one line naming
+the field (or the file), or a correct run.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from cli_helpers import SPEC7, assert_bad_input, run
+from sensorplan import limits
+from sensorplan.drawing import cap_position_covariances
+from sensorplan.errors import error_line
+from sensorplan.limits import RANGES, lattice_sizes
+from sensorplan.problem import MapRect, build_lattice, move_vectors
+
+ROOT = Path(__file__).resolve().parents[1]
+QUICK = ROOT / "configs" / "quick.toml"
+
+
+def spec7(**changes: Any) -> dict[str, Any]:
+    d = copy.deepcopy(SPEC7)
+    d["horizon"] = 1
+    d.update(changes)
+    return d
+
+
+def sensor(**changes: Any) -> dict[str, Any]:
+    d = spec7()
+    d["sensors"][0].update(changes)
+    return d
+
+
+def target(**changes: Any) -> dict[str, Any]:
+    d = spec7()
+    d["targets"][0].update(changes)
+    return d
+
+
+def plan_text(capsys: pytest.CaptureFixture[str], tmp_path: Path, text: str
+              ) -> tuple[int, str, str]:
+    f = tmp_path / "problem.json"
+    f.write_text(text)
+    return run(capsys, "plan", f)
+
+
+def plan(capsys: pytest.CaptureFixture[str], tmp_path: Path, doc: Any) -> tuple[int, str, str]:
+    return plan_text(capsys, tmp_path, json.dumps(doc))
+
+
+def simulate(capsys: pytest.CaptureFixture[str], tmp_path: Path, toml: str,
+             *args: Any) -> tuple[int, str, str]:
+    f = tmp_path / "scenario.toml"
+    f.write_text(toml)
+    return run(capsys, "simulate", f, "--out", tmp_path / "out", *args)
+
+
+ONE = "[[targets]]\n[[sensors]]\n"
+
+
+@contextmanager
+def time_limit(seconds: int) -> Iterator[None]:
+    """A guard against hangs (not a speed test): fail if the block runs past ``seconds``."""
+    def expire(signum: int, frame: object) -> None:
+        raise AssertionError(f"still running after {seconds} s")
+
+    previous = signal.signal(signal.SIGALRM, expire)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+# ---------------------------------------------------------------- D1, D2: parsing
+
+
+@pytest.mark.parametrize("depth", [33, 1000, 100_000])
+def test_d1_deep_json_names_the_file(capsys, tmp_path, depth) -> None:
+    line = assert_bad_input(plan_text(capsys, tmp_path, "[" * depth + "]" * depth),
+                            str(tmp_path / "problem.json"))
+    assert "nested too deeply" in line
+
+
+def test_d1_deep_json_inside_a_field_and_deep_toml(capsys, tmp_path) -> None:
+    d = spec7()
+    text = json.dumps(d).replace('"horizon": 1', '"horizon": ' + "[" * 990 + "1" + "]" * 990)
+    assert "nested too deeply" in assert_bad_input(plan_text(capsys, tmp_path, text),
+                                                   str(tmp_path / "problem.json"))
+    toml = "dt = " + "[" * 600 + "1" + "]" * 600 + "\n" + ONE
+    line = assert_bad_input(simulate(capsys, tmp_path, toml), str(tmp_path / "scenario.toml"))
+    assert "nested too deeply" in line
+    study = tmp_path / "s.toml"
+    study.write_text("runs = 1\nsteps = " + "[" * 500 + "2" + "]" * 500 + "\n")
+    assert "nested too deeply" in assert_bad_input(run(capsys, "study", study, "--out",
+                                                       tmp_path / "o"), str(study))
+
+
+def test_d2_integers_over_4300_digits_name_the_file(capsys, tmp_path) -> None:
+    text = json.dumps(spec7()).replace('"horizon": 1', '"horizon": 1' + "1" * 4300)
+    line = assert_bad_input(plan_text(capsys, tmp_path, text), str(tmp_path / "problem.json"))
+    assert "4300" in line
+    line = assert_bad_input(simulate(capsys, tmp_path, "dt = 1" + "1" * 4300 + "\n" + ONE),
+                            str(tmp_path / "scenario.toml"))
+    assert "4300" in line
+    # 4300 digits parse; the value is then out of range, named as a field.
+    text = json.dumps(spec7()).replace('"horizon": 1', '"horizon": 1' + "0" * 4299)
+    assert_bad_input(plan_text(capsys, tmp_path, text), "horizon")
+
+
+# --------------------------------------------------------------- D3: request size
+
+
+@pytest.mark.parametrize("horizon", [1001, 10_000, 10**6, 10**9, 10**18, 10**30])
+def test_d3_a_huge_horizon_is_refused_at_once(capsys, tmp_path, horizon) -> None:
+    with time_limit(60):
+        assert_bad_input(plan(capsys, tmp_path, spec7(horizon=horizon)), "horizon")
+
+
+def test_d3_joint_size_limits_name_the_field(capsys, tmp_path) -> None:
+    with time_limit(120):
+        # A look-ahead within each bound but too long together.
+        line = assert_bad_input(plan(capsys, tmp_path, spec7(horizon=50, steps_per_epoch=50)),
+                                "horizon")
+        assert "1000" in line
+        line = assert_bad_input(plan(capsys, tmp_path, spec7(horizon=1, steps_per_epoch=5000)),
+                                "steps_per_epoch")
+        # Thousands of move distances, and many on a fine grid.
+        moves = [1.0 + 0.5 * i for i in range(2000)]
+        assert_bad_input(plan(capsys, tmp_path, sensor(moves=moves)), "sensors[0].moves")
+        # 16 distances on a 1 mm grid: fine for one epoch, not for ten.
+        fine = sensor(moves=[0.001 * i + 1.0 for i in range(1, 17)])
+        assert plan(capsys, tmp_path, fine)[0] == 0
+        fine["horizon"] = 10
+        line = assert_bad_input(plan(capsys, tmp_path, fine), "horizon")
+        assert "reachable positions" in line
+        # Horizon 300: fine alone, too much work with many targets and sensors.
+        big = spec7(horizon=300)
+        big["targets"] = big["targets"] * 20
+        big["sensors"] = [dict(big["sensors"][0], position=[100 + 20 * i, 100])
+                          for i in range(10)]
+        line = assert_bad_input(plan(capsys, tmp_path, big), "horizon")
+        assert "work" in line
+        assert_bad_input(simulate(capsys, tmp_path, ONE, "--steps", "3", "--horizon",
+                                  "1000000"), "--horizon")
+        assert_bad_input(simulate(capsys, tmp_path, ONE, "--steps", "1000000000000"),
+                         "--steps")
+        assert_bad_input(simulate(capsys, tmp_path, ONE + "[run]\nsteps = 100001\n"),
+                         "run.steps")
+
+
+def test_d3_study_sizes_name_the_field(capsys, tmp_path) -> None:
+    f = tmp_path / "s.toml"
+    with time_limit(60):
+        f.write_text('runs = 1\nsteps = 2\n[[methods]]\nname = "a"\nplanner = "pg"\n'
+                     "horizon = 9223372036854775807\n")
+        assert_bad_input(run(capsys, "study", f, "--out", tmp_path / "o"), "methods[0].horizon")
+        f.write_text('runs = 1\nsteps = 2\n[defaults]\nhorizon = 1001\n[[methods]]\nname = "a"\n'
+                     'planner = "pg"\n')
+        assert_bad_input(run(capsys, "study", f, "--out", tmp_path / "o"), "defaults.horizon")
+        f.write_text('runs = 1\nsteps = 1000000000000\n[[methods]]\nname = "a"\n'
+                     'planner = "random"\n')
+        assert_bad_input(run(capsys, "study", f, "--out", tmp_path / "o"), "steps")
+        f.write_text('runs = 90000\nsteps = 1000\n[[methods]]\nname = "a"\nplanner = "random"\n')
+        line = assert_bad_input(run(capsys, "study", f, "--out", tmp_path / "o"), "runs")
+        assert "table rows" in line
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("moves,K,size", [((20.0, 40.0), 6, 600.0), ((10.0,), 9, 100.0),
+                                          ((20.0, 30.0), 4, 5000.0), ((7.5, 20.0), 5, 200.0)])
+def test_lattice_size_bound_holds(moves, K, size) -> None:
+    # The limits' estimate never undercounts the reachable sets, from any start.
+    bound = lattice_sizes(moves, K, size, size)
+    for p0 in ([size / 2, size / 2], [0.0, 0.0], [size / 3, size]):
+        lat = build_lattice(np.array(p0), move_vectors(moves), K, MapRect(size, size))
+        assert all(len(r) <= b for r, b in zip(lat.positions, bound))
+    # Far from the walls the bound is exact on a common grid for one move distance.
+    if len(moves) == 1:
+        lat = build_lattice(np.array([size / 2] * 2), move_vectors(moves), 2,
+                            MapRect(size, size))
+        assert [len(r) for r in lat.positions] == lattice_sizes(moves, 2, size, size)
+
+
+def test_documented_limits_are_the_code() -> None:
+    doc = (ROOT / "docs" / "cli.md").read_text()
+    for value in (limits.MAX_PLAN_STEPS, limits.MAX_STEPS, limits.MAX_MOVE_DISTANCES,
+                  limits.MAX_TARGETS, limits.MAX_SENSORS, limits.MAX_RUNS):
+        assert f"{value:,}" in doc, value
+    for value in (limits.MAX_LATTICE_ENTRIES, limits.MAX_DECISION_WORK,
+                  limits.MAX_STUDY_ROWS):
+        assert f"{value:.0e}".replace("e+0", "e") in doc, value
+    for name, r in RANGES.items():
+        assert f"`{name}`" in doc and r.text() in doc, name
+
+
+# ------------------------------------------------------------- D4, D5: extreme numbers
+
+EXTREME_PLANS = [
+    (sensor(range_resolution=1e-16), "sensors[0].range_resolution"),
+    (sensor(snr_ref_db=1e300), "sensors[0].snr_ref_db"),
+    (sensor(snr_ref_db=-1e300), "sensors[0].snr_ref_db"),
+    (sensor(range_ref=1e300), "sensors[0].range_ref"),
+    (sensor(range_ref=1e-300), "sensors[0].range_ref"),
+    (sensor(beamwidth=1e-300), "sensors[0].beamwidth"),
+    (sensor(monopulse_slope=1e300), "sensors[0].monopulse_slope"),
+    (sensor(monopulse_slope=1e-300), "sensors[0].monopulse_slope"),
+    (sensor(moves=[20, 18446744073709551616]), "sensors[0].moves"),
+    (sensor(altitude=1e300), "sensors[0].altitude"),
+    (sensor(range_resolution=0.01, snr_ref_db=100.0), "sensors[0].range_resolution"),
+    (sensor(range_ref=1e6, snr_ref_db=10.0), "sensors[0].snr_ref_db"),
+    (sensor(min_ground_range=1e-6), "sensors[0].min_ground_range"),
+    (target(cov=[[1e-12, 0, 0, 0], [0, 400, 0, 0], [0, 0, 4, 0], [0, 0, 0, 4]]),
+     "targets[0].cov"),
+    (target(cov=[[400, 0, 0, 0], [0, 400, 0, 0], [0, 0, 1e9, 0], [0, 0, 0, 4]]),
+     "targets[0].cov[2][2]"),
+    (sensor(clutter_rate=1e300), "sensors[0].clutter_rate"),
+    (sensor(heading=1e300), "sensors[0].heading"),
+    (spec7(dt=2e300), "dt"),
+    (spec7(dt=1e-110), "dt"),
+    (spec7(process_noise=1e300), "process_noise"),
+    (spec7(map={"width": 1e300, "height": 600}), "map.width"),
+    (target(cov=[[400, 0, 0, 0], [0, 400, 0, 0], [0, 0, 1e308, 0], [0, 0, 0, 4]]),
+     "targets[0].cov"),
+    (target(cov=[[400, 0, 0, 0], [0, 400, 0, 0], [0, 0, 4, 0], [0, 0, 0, -1e308]]),
+     "targets[0].cov"),
+    (target(mean=[300, 200, 1e308, 1]), "targets[0].mean"),
+    (target(mean=[1e300, 200, 1, 1]), "targets[0].mean"),
+]
+
+
+@pytest.mark.parametrize("doc,field", EXTREME_PLANS)
+def test_d4_d5_extreme_values_are_refused_in_one_line(capsys, tmp_path, doc, field) -> None:
+    for planner in ("pg", "brute-force"):
+        d = copy.deepcopy(doc)
+        d["planner"] = {"name": planner}
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")          # none may even be raised
+            assert_bad_input(plan(capsys, tmp_path, d), field)
+
+
+EXTREME_SCENARIOS = [
+    ("dt = 1e-110\n", "dt"), ("dt = 1e300\n", "dt"), ("dt = 3601.0\n", "dt"),
+    ("process_noise = 1e30\n", "process_noise"),
+    (("[initial]\ncov = [[1e40, 0.0, 0.0, 0.0], [0.0, 1e40, 0.0, 0.0], [0.0, 0.0, 1e40, 0.0], "
+      "[0.0, 0.0, 0.0, 1e40]]\n"), "initial.cov"),
+]
+
+
+@pytest.mark.parametrize("head,field", EXTREME_SCENARIOS)
+def test_d4_extreme_scenario_values(capsys, tmp_path, head, field) -> None:
+    assert_bad_input(simulate(capsys, tmp_path, head + ONE, "--steps", "2"), field)
+
+
+def test_d4_extreme_targets_and_sensors(capsys, tmp_path) -> None:
+    for body, field in [
+            ('[[targets]]\nkind = "dubins"\nspeed = 1e300\n[[sensors]]\n', "targets[0].speed"),
+            ('[[targets]]\nturn_hold = 1e-300\n[[sensors]]\n', "targets[0].turn_hold"),
+            ('[[targets]]\n[[sensors]]\naltitude = 1e300\n', "sensors[0].altitude"),
+            ('[[targets]]\n[[sensors]]\nrange_resolution = 1e-16\n',
+             "sensors[0].range_resolution")]:
+        assert_bad_input(simulate(capsys, tmp_path, body, "--steps", "2"), field)
+
+
+def test_d4_values_at_the_edges_of_the_ranges_run_cleanly(capsys, tmp_path) -> None:
+    # The most extreme accepted values give finite results and no warning.
+    cases = [sensor(range_resolution=0.02, snr_ref_db=100.0, range_ref=1.0, altitude=100.0,
+                    min_ground_range=100.0),
+             sensor(snr_ref_db=-100.0, range_ref=1e6, beamwidth=math.pi / 2,
+                    monopulse_slope=0.1, range_resolution=1e4),
+             sensor(altitude=100.0, min_ground_range=20.0, max_ground_range=1e8,
+                    fov_half_angle=math.pi, depression=math.pi / 2),
+             sensor(altitude=1e5, range_ref=1e6, snr_ref_db=40.0, range_resolution=1e4,
+                    min_ground_range=1000.0, max_ground_range=1e8),
+             spec7(dt=3600.0, process_noise=1e6, horizon=3),
+             spec7(dt=1e-3, process_noise=0.0, horizon=3),
+             target(cov=[[1e14, 0, 0, 0], [0, 1e14, 0, 0], [0, 0, 1e8, 0], [0, 0, 0, 1e8]],
+                    mean=[1e8, -1e8, 1e4, -1e4]),
+             target(cov=[[1e-9, 0, 0, 0], [0, 1e-9, 0, 0], [0, 0, 1e-9, 0], [0, 0, 0, 1e-9]])]
+    for doc in cases:
+        for name in ("pg", "brute-force", "random"):
+            d = copy.deepcopy(doc)
+            d["planner"] = {"name": name}
+            code, out, err = plan(capsys, tmp_path, d)
+            assert code in (0, 2), err
+            if code == 0:
+                assert err == ""
+                result = json.loads(out, parse_constant=lambda c: pytest.fail(c))
+                assert math.isfinite(result["potential"])
+            else:
+                assert_bad_input((code, out, err), "planner.max_plans")
+
+
+def test_d5_runtime_warnings_never_reach_stderr(capsys, tmp_path, monkeypatch) -> None:
+    import sensorplan.io as sio
+
+    original = sio.dumps_result
+
+    def noisy(result: Any) -> str:
+        np.float64(1e308) * 10                        # RuntimeWarning: overflow
+        warnings.warn("invalid value encountered", RuntimeWarning, stacklevel=1)
+        return original(result)
+
+    monkeypatch.setattr(sio, "dumps_result", noisy)
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")               # what an interpreter shows by default
+        code, out, err = plan(capsys, tmp_path, spec7())
+    assert (code, err) == (0, "")
+    assert json.loads(out)["potential"] > 0
+
+
+# ----------------------------------------------------------------------- D6: drawing
+
+
+def test_d6_capped_covariances_keep_directions_and_small_ones() -> None:
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(5, 4, 4))
+    P = A @ np.swapaxes(A, 1, 2) + 4 * np.eye(4)
+    theta = 0.7
+    R = np.array([[math.cos(theta), -math.sin(theta)], [math.sin(theta), math.cos(theta)]])
+    P[0, :2, :2] = R @ np.diag([1e12, 50.0]) @ R.T                # one axis above the cap
+    P[1, :2, :2] = 1e30 * np.eye(2)                               # both above
+    P[2, 0, 0] = np.inf                                           # not finite
+    out = cap_position_covariances(P, 100.0)
+    np.testing.assert_allclose(out[0, :2, :2], R @ np.diag([1e4, 50.0]) @ R.T, rtol=0,
+                               atol=1e-3)
+    np.testing.assert_allclose(out[1, :2, :2], 1e4 * np.eye(2), rtol=1e-12)
+    np.testing.assert_array_equal(out[2, :2, :2], 1e4 * np.eye(2))
+    np.testing.assert_array_equal(out[3:], P[3:])                 # below the cap: as is
+    np.testing.assert_array_equal(out[:, 2:, :], P[:, 2:, :])     # only the position block
+
+
+def test_d6_huge_covariances_are_drawn_without_hanging(tmp_path) -> None:
+    import dataclasses
+
+    from sensorplan.cli_guards import plot_drawable
+    from sensorplan.config import load_simulation
+    from sensorplan.simulation import run_episode
+
+    cfg = load_simulation(QUICK, None, {"steps": 3})
+    ep = run_episode(cfg.scenario, cfg.settings, 0)
+    huge = dataclasses.replace(ep, cov=ep.cov * 1e36)         # ellipses 1e18 maps across
+    with time_limit(120):
+        plot_drawable(huge, cfg.scenario, tmp_path / "episode.png")
+    assert (tmp_path / "episode.png").stat().st_size > 0
+
+
+# ------------------------------------------------------------------ D7: start boxes
+
+WIDE = "[map]\nwidth = 1000.0\nheight = 400.0\n" + "[[targets]]\n" * 4 + "[[sensors]]\n" * 3
+
+
+@pytest.mark.parametrize("seed", [0, 1, 5])   # the audit's seeds 1 and 5 failed
+def test_d7_default_boxes_are_scaled_to_the_map(capsys, tmp_path, seed) -> None:
+    code, _, err = simulate(capsys, tmp_path, WIDE, "--steps", "1", "--seed", seed,
+                            "--planner", "random")
+    assert code == 0, err
+    ep = np.load(tmp_path / "out" / "episode.npz")
+    truth, sensors = ep["truth"][0], ep["sensor_positions"][0]
+    # Targets start in the middle two thirds of each side, sensors all but the twelfths.
+    assert np.all((truth[:, 0] >= 1000 / 6) & (truth[:, 0] <= 5000 / 6))
+    assert np.all((truth[:, 1] >= 400 / 6) & (truth[:, 1] <= 2000 / 6))
+    assert np.all((sensors[:, 0] >= 1000 / 12) & (sensors[:, 0] <= 11000 / 12))
+    assert np.all((sensors[:, 1] >= 400 / 12) & (sensors[:, 1] <= 4400 / 12))
+
+
+def test_d7_given_boxes_are_checked_against_the_map(capsys, tmp_path) -> None:
+    for key in ("sensor_box", "target_box"):
+        body = WIDE + f"[initial]\n{key} = [50.0, 550.0]\n"
+        line = assert_bad_input(simulate(capsys, tmp_path, body), f"initial.{key}")
+        assert "[0, 1000] x [0, 400]" in line
+
+
+def test_d7_square_maps_keep_their_draws() -> None:
+    # The 600 m map's scaled defaults are the former fixed boxes, so its runs are unchanged.
+    from sensorplan.scenario import Scenario, SensorSpec, TargetSpec
+
+    s = Scenario(targets=(TargetSpec(),), sensors=(SensorSpec(),))
+    assert (s.target_box, s.sensor_box) == ((100.0, 500.0), (50.0, 550.0))
+    wide = Scenario(world=MapRect(1000.0, 400.0), targets=(TargetSpec(),),
+                    sensors=(SensorSpec(),))
+    assert wide.target_box is None and wide.sensor_box is None
+
+
+# --------------------------------------------------------- D8, D17: keys and messages
+
+
+def test_d8_a_lone_surrogate_key_is_named(capsys, tmp_path) -> None:
+    text = json.dumps(spec7())[:-1] + ', "\\ud800": 1}'
+    line = assert_bad_input(plan_text(capsys, tmp_path, text), "\\ud800")
+    assert "surrogate" in line
+    text = json.dumps(spec7()).replace('"pg"', '"p\\udc00g"')
+    assert_bad_input(plan_text(capsys, tmp_path, text), "planner.name")
+    assert_bad_input(plan_text(capsys, tmp_path, '{"horizon": 1, "\\ud800": 1}'), "\\ud800")
+
+
+def test_d17_duplicate_keys_are_named_with_their_path(capsys, tmp_path) -> None:
+    text = json.dumps(spec7()).replace('"heading": 0.0', '"heading": 0.0, "heading": 1.0')
+    line = assert_bad_input(plan_text(capsys, tmp_path, text), "sensors[0].heading")
+    assert line.endswith("duplicate key")
+    text = json.dumps(spec7())[:-1] + ', "dt": 2.0}'
+    assert_bad_input(plan_text(capsys, tmp_path, text), "dt")
+
+
+def test_d17_control_characters_are_escaped_and_long_values_cut(capsys, tmp_path) -> None:
+    d = spec7()
+    d["a\u001b[31mb\u0007"] = 1
+    line = assert_bad_input(plan(capsys, tmp_path, d), "a\\x1b[31mb\\x07")
+    assert "\x1b" not in line and "\x07" not in line
+    line = assert_bad_input(plan(capsys, tmp_path, spec7(visibility="x" * 100_000)),
+                            "visibility")
+    assert len(line) < 600 and line.endswith("...")
+    d = spec7()
+    d["k" * 5000] = 1
+    code, _, err = plan(capsys, tmp_path, d)
+    assert code == 2 and err.startswith("error: kkk") and len(err) < 600 and "..." in err
+
+
+def test_error_line_escapes_and_cuts() -> None:
+    assert error_line("a\x1bb", "x\ny") == "error: a\\x1bb: x y"
+    assert error_line("\ud800", "m") == "error: \\ud800: m"
+    line = error_line("f", "v" * 10_000)
+    assert len(line) == len("error: f: ") + 400 and line.endswith("...")
+
+
+def test_d17_a_bad_backend_variable_is_refused(capsys, tmp_path, monkeypatch) -> None:
+    monkeypatch.setenv("SENSORPLAN_BACKEND", "bogus")
+    line = assert_bad_input(plan(capsys, tmp_path, spec7()), "SENSORPLAN_BACKEND")
+    assert "numba, numpy" in line
+    assert run(capsys, "--help")[0] == 0                       # help still works
+    monkeypatch.setenv("SENSORPLAN_BACKEND", "numpy")
+    assert plan(capsys, tmp_path, spec7())[0] == 0
+
+
+def test_d17_a_document_that_is_not_an_object_names_the_file(capsys, tmp_path) -> None:
+    for text in ("[]", "1", '"x"', "null"):
+        assert_bad_input(plan_text(capsys, tmp_path, text), str(tmp_path / "problem.json"))
+    d = spec7()
+    d[""] = 1
+    assert_bad_input(plan(capsys, tmp_path, d), '""')
+
+
+# -------------------------------------------------------------------- D9, D10, D11
+
+
+def _study(tmp_path: Path, text: str) -> Path:
+    f = tmp_path / "s.toml"
+    f.write_text(text)
+    return f
+
+
+TINY_STUDY = 'runs = 1\nsteps = 2\n[[methods]]\nname = "r"\nplanner = "random"\n'
+
+
+def test_d9_an_unknown_scheduler_scheme_is_bad_input(capsys, tmp_path) -> None:
+    f = _study(tmp_path, TINY_STUDY)
+    line = assert_bad_input(run(capsys, "study", f, "--out", tmp_path / "o", "--scheduler",
+                                "foo://bar"), "--scheduler")
+    assert "'foo'" in line and "tcp" in line
+
+
+def test_d10_an_empty_preset_is_refused(capsys, tmp_path) -> None:
+    f = _study(tmp_path, TINY_STUDY + '[scenario]\npreset = ""\n')
+    assert_bad_input(run(capsys, "study", f, "--out", tmp_path / "o"), "scenario.preset")
+    assert_bad_input(run(capsys, "simulate", "--preset", ""), "--preset")
+
+
+def test_d11_an_error_after_the_study_starts_is_the_only_line(capsys, tmp_path) -> None:
+    f = _study(tmp_path, 'runs = 1\nsteps = 2\n[[methods]]\nname = "r"\nplanner = "random"\n'
+                         '[[methods]]\nname = "bf"\nplanner = "brute-force"\nhorizon = 1\n'
+                         '[methods.planner_params]\nmax_plans = 10\n')
+    line = assert_bad_input(run(capsys, "study", f, "--out", tmp_path / "o", "--workers", "1"),
+                            "methods[1].planner_params.max_plans")
+    assert "max_plans=10" in line
+
+
+# ------------------------------------------------------------------ D12: output places
+
+
+def test_d12_report_out_a_file(capsys, tmp_path) -> None:
+    f = _study(tmp_path, TINY_STUDY)
+    assert run(capsys, "study", f, "--out", tmp_path / "st", "--workers", "1")[0] == 0
+    (tmp_path / "afile").write_text("x")
+    assert_bad_input(run(capsys, "report", tmp_path / "st", "--out", tmp_path / "afile"),
+                     "--out")
+    line = assert_bad_input(run(capsys, "report", tmp_path / "nothing"), "DIR")
+    assert "no such directory" in line
+    assert not (tmp_path / "nothing").exists()
+
+
+@pytest.mark.skipif(not Path("/proc/self").is_dir(), reason="needs Linux /proc")
+def test_d12_an_unwritable_out_fails_before_the_work(capsys, tmp_path) -> None:
+    # /proc/self is a directory nobody (root included) can create files in.
+    start = time.monotonic()
+    line = assert_bad_input(run(capsys, "simulate", "--preset", "paper", "--steps", "50",
+                                "--out", "/proc/self"), "--out")
+    assert "cannot write" in line
+    f = _study(tmp_path, TINY_STUDY)
+    assert_bad_input(run(capsys, "study", f, "--out", "/proc/self"), "--out")
+    assert time.monotonic() - start < 60
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+def test_d12_a_full_disk_and_a_directory_in_the_way(capsys, tmp_path) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "episode.npz").symlink_to("/dev/full")
+    line = assert_bad_input(run(capsys, "simulate", QUICK, "--steps", "2", "--out", out),
+                            "--out")
+    assert "No space left on device" in line
+    (out / "episode.npz").unlink()
+    (out / "episode.npz").mkdir()
+    assert_bad_input(run(capsys, "simulate", QUICK, "--steps", "2", "--out", out), "--out")
+
+
+# -------------------------------------------------------------------- D16: Ctrl-C
+
+
+def _interrupt_after(args: list[str], delay: float, cwd: Path) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    proc = subprocess.Popen([sys.executable, "-m", "sensorplan", *args], cwd=cwd, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    time.sleep(delay)
+    try:
+        os.killpg(proc.pid, signal.SIGINT)          # a terminal's Ctrl-C: the whole group
+    except ProcessLookupError:
+        pass                                        # it had finished
+    out, err = proc.communicate(timeout=120)
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+
+
+@pytest.mark.parametrize("delay", [0.05, 0.3, 0.8])
+def test_d16_ctrl_c_while_starting_prints_no_traceback(tmp_path, delay) -> None:
+    res = _interrupt_after(["simulate", "--preset", "paper", "--steps", "200", "--out",
+                            str(tmp_path / "o")], delay, tmp_path)
+    assert "Traceback" not in res.stderr, res.stderr
+    if res.returncode != 0:
+        # -2: killed by SIGINT, which a shell shows as 130 too. CPython ends that way after
+        # our handler when the Ctrl-C landed in code an extension module ran through
+        # PyRun_String (it then flags the interrupt as unhandled).
+        assert res.returncode in (130, -signal.SIGINT), res.stderr
+        assert res.stderr.splitlines() == ["error: interrupted"], res.stderr
+
+
+def test_d16_ctrl_c_while_pool_workers_start(tmp_path) -> None:
+    f = tmp_path / "s.toml"
+    f.write_text('runs = 4\nsteps = 30\n[[methods]]\nname = "p"\nplanner = "pg"\n')
+    for delay in (0.8, 1.5):
+        res = _interrupt_after(["study", str(f), "--out", str(tmp_path / f"o{delay}"),
+                                "--workers", "2"], delay, tmp_path)
+        assert "Traceback" not in res.stderr, res.stderr
+        assert res.returncode in (0, 130, -signal.SIGINT), res.stderr
+        if res.returncode != 0:
+            assert res.stderr.splitlines()[-1].startswith(("interrupted: ", "error: interrupted")), \
+                res.stderr
+
+
+@pytest.mark.xfail(strict=True, reason="the compiled covariance recursion loses all precision "
+                   "on this input (NaN) where the numpy one does not; see tests/data/README.md")
+def test_compiled_recursion_agrees_with_numpy_on_a_precise_look() -> None:
+    from sensorplan import information
+
+    d = np.load(ROOT / "tests" / "data" / "recursion_precision.npz")
+    args = (d["P"], d["W"], d["F"], d["Q"])
+    _, ld_np, _ = information.covariance_recursion_numpy(*args)
+    assert np.isfinite(ld_np).all()
+    assert information.BACKEND == "numba"
+    _, ld_nb, _ = information.covariance_recursion(*args, need_sum=bool(d["need_sum"]))
+    np.testing.assert_allclose(ld_nb, ld_np, rtol=1e-9, atol=1e-9)
