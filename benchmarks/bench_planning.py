@@ -35,6 +35,7 @@ import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -75,12 +76,12 @@ def preset_problems(preset: str, n: int, seed: int = 0) -> list[PlanningProblem]
     from sensorplan import simulation
     from sensorplan.config.simulate import load_simulation
 
-    cfg = load_simulation(preset=preset, overrides=dict(planner="random", steps_per_epoch=2,
-                                                        steps=60))
+    cfg = load_simulation(preset=preset, overrides={"planner": "random",
+                                                         "steps_per_epoch": 2, "steps": 60})
     built: list[PlanningProblem] = []
     real = simulation.PlanningProblem
 
-    def record(*args, **kwargs):  # noqa: ANN002, ANN003, ANN202
+    def record(*args, **kwargs):
         built.append(real(*args, **kwargs))
         return built[-1]
 
@@ -104,7 +105,9 @@ def _plan_times(problem: PlanningProblem) -> tuple[float, float, int]:
     return r.seconds, time.process_time() - c0, r.sweeps
 
 
-def mode_cost(label: str, preset: str, variants, args: argparse.Namespace) -> None:  # noqa: ANN001
+def mode_cost(label: str, preset: str,
+              variants: Callable[[PlanningProblem], dict[str, PlanningProblem]],
+              args: argparse.Namespace) -> None:
     """Time ``pg`` under the ``aware`` and ``ignore`` variants of the same problems.
 
     ``variants(problem)`` returns ``{"aware": problem, "ignore": problem}``. Each problem is
@@ -136,9 +139,9 @@ def mode_cost(label: str, preset: str, variants, args: argparse.Namespace) -> No
                     got[m]["wall"].append(w)
                     got[m]["cpu"].append(c)
                     got[m]["sweeps"].append(sw)
-            for m in got:
-                for key in got[m]:
-                    med[m][key].append(float(np.median(got[m][key])))
+            for m, times in got.items():
+                for key, values in times.items():
+                    med[m][key].append(float(np.median(values)))
             plans = [make_planner("pg").plan(pair[m], rng=0).plan for m in ("aware", "ignore")]
             same += all(np.array_equal(getattr(plans[0], f), getattr(plans[1], f))
                         for f in ("positions", "targets"))

@@ -85,9 +85,10 @@ def main() -> None:
     args = ap.parse_args()
 
     # What `sensorplan simulate --preset NAME --planner ... -K ... -e ... --steps ...` runs.
-    config = load_simulation(preset=args.preset, overrides=dict(
-        planner=args.planner, horizon=args.horizon, steps_per_epoch=args.steps_per_epoch,
-        steps=args.steps, miss_update=args.miss_update))
+    config = load_simulation(preset=args.preset, overrides={
+        "planner": args.planner, "horizon": args.horizon,
+        "steps_per_epoch": args.steps_per_epoch, "steps": args.steps,
+        "miss_update": args.miss_update})
     scenario, settings = config.scenario, config.settings
     clock = _DecisionClock()
     clock.install()

@@ -48,10 +48,13 @@ def swarm_run(steps: int) -> None:
                 "--steps", str(steps), "--out", out]
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         start = time.perf_counter()
-        subprocess.run(args, check=True, stdout=subprocess.DEVNULL)
+        done = subprocess.run(args, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                              text=True, check=False)     # stderr: the progress lines
         wall = time.perf_counter() - start
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+        if done.returncode != 0:
+            raise SystemExit(f"{' '.join(args[1:])} failed:\n{done.stderr}")
         seconds = json.loads((Path(out) / "episode.timing.json").read_text())[
             "planning_seconds"]
     print(f"## sensorplan simulate --preset swarm --steps {steps} (one process)")
@@ -66,8 +69,8 @@ def swarm_run(steps: int) -> None:
     from sensorplan.config.simulate import load_simulation
     from sensorplan.simulation import run_episode
 
-    cfg = load_simulation(preset="swarm", overrides=dict(steps=steps))
-    warm = load_simulation(preset="swarm", overrides=dict(steps=2))
+    cfg = load_simulation(preset="swarm", overrides={"steps": steps})
+    warm = load_simulation(preset="swarm", overrides={"steps": 2})
     run_episode(warm.scenario, warm.settings, warm.seed)         # imports, kernels, caches
     w0, c0 = time.perf_counter(), time.process_time()
     ep = run_episode(cfg.scenario, cfg.settings, cfg.seed)
