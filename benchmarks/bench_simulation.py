@@ -8,11 +8,14 @@ comes first (imports, compiled kernels, caches).
 
     .venv/bin/python benchmarks/bench_simulation.py [--preset paper|radar|urban|swarm]
         [--steps 100] [--repeats 20] [--miss-update negative|none] [--profile]
+        [--set KEY=VALUE ...]
 
 ``--preset`` picks a built-in scenario with the run settings ``sensorplan simulate --preset
 NAME`` gives it (tracker, association, planning modes), with this script's planner, K, e,
 steps and miss update on top: ``radar`` is Swerling 1 detection with clutter and the PDA
-tracker, ``urban`` the paper's scenario among buildings.
+tracker, ``urban`` the paper's scenario among buildings. ``--set`` overrides any other run
+setting as ``simulate``'s options do (``--set model=cv --set known_map=false``), to see
+what a part of the tracker costs.
 
 Targets: <= 1 ms per step on the paper preset, <= 1.5 ms on the radar preset, so that
 studies are bound by planning, not by simulation.
@@ -22,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import json
 import platform
 import pstats
 import statistics
@@ -82,13 +86,22 @@ def main() -> None:
     ap.add_argument("--miss-update", choices=("negative", "none"), default="negative")
     ap.add_argument("--seed", type=int, default=0, help="seed of the first repetition")
     ap.add_argument("--profile", action="store_true", help="print a cProfile of all runs")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="another run setting (value read as JSON if it parses, else text)")
     args = ap.parse_args()
+    extra = {}
+    for item in args.set:
+        key, _, text = item.partition("=")
+        try:
+            extra[key] = json.loads(text)
+        except json.JSONDecodeError:
+            extra[key] = text
 
     # What `sensorplan simulate --preset NAME --planner ... -K ... -e ... --steps ...` runs.
     config = load_simulation(preset=args.preset, overrides={
         "planner": args.planner, "horizon": args.horizon,
         "steps_per_epoch": args.steps_per_epoch, "steps": args.steps,
-        "miss_update": args.miss_update})
+        "miss_update": args.miss_update, **extra})
     scenario, settings = config.scenario, config.settings
     clock = _DecisionClock()
     clock.install()
@@ -113,14 +126,15 @@ def main() -> None:
           f"e={args.steps_per_epoch}, miss_update={settings.tracker.miss_update}, "
           f"{args.steps} steps x {args.repeats} runs "
           f"(python {platform.python_version()}, numpy {np.__version__})")
-    if args.preset != "paper":
+    if args.preset != "paper" or extra:
         s0 = scenario.sensors[0].params
         print(f"N={len(scenario.sensors)}, M={len(scenario.targets)}, "
               f"buildings={len(scenario.buildings)}, detection={s0.detection}, "
               f"clutter_rate={s0.clutter_rate}, tracker={settings.tracker.model}, "
               f"association={settings.tracker.association}, "
               f"planning_detection={settings.planning_detection}, "
-              f"planning_occlusion={settings.planning_occlusion}")
+              f"planning_occlusion={settings.planning_occlusion}"
+              + "".join(f", {k}={v}" for k, v in extra.items()))
     for name, tot, pl in (("wall", wall, plan_wall), ("cpu ", cpu, plan_cpu)):
         sim = [a - b for a, b in zip(tot, pl)]
         print(f"{name} median ms per step: {med(tot):.3f}  (planning {med(pl):.3f}, "
