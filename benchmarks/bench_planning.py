@@ -1,6 +1,8 @@
 """Planning speed and quality (issue 4's benchmarks). Run on purpose, not in CI:
 
     .venv/bin/python benchmarks/bench_planning.py [--decisions 20] [--kmax 8] [--quick]
+    .venv/bin/python benchmarks/bench_planning.py --detection [--occlusion] [--decisions 20]
+        [--repeats 3]
 
 1. ``pg``, ``pg-refine`` and ``sequential-greedy`` per decision at N = 3, M = 5, e = 2 on
    paper-scenario states (tracker states of closed-loop runs with the ``random`` planner),
@@ -10,6 +12,13 @@
    potential's recursions and looks; the planning engine's kernels are compiled either way).
 3. Exhaustive search against the game as K grows (SPEC 6 claim 3).
 4. Quality on 200 random tiny problems against the exact optimum (``brute-force``).
+
+``--detection`` and ``--occlusion`` run only what the planning modes cost (target: aware
+<= 1.2x ignore): planning problems built exactly as closed-loop runs build them (random
+planner, e = 2; the ``radar`` preset for detection, ``urban`` for occlusion), each planned
+by ``pg`` (K = 1 and 3) under ``aware`` and under ``ignore`` in alternation on the same
+problem, so that the machine's load hits both alike; medians per decision, the ratio of
+the medians and the median of the per-problem ratios.
 
 The scale cases (N = 20, M = 50, K = 10 and the swarm) are in ``bench_scale.py``, quality
 against a time budget in ``bench_anytime.py``.
@@ -21,10 +30,12 @@ shared: the medians of both are printed, ratios are computed in the same run.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -52,6 +63,117 @@ def paper_states(n: int, seed: int = 0) -> list[dict]:
         run += 1
     sensors = tuple(s.params for s in scenario.sensors)
     return [dict(s, sensors=sensors) for s in states[:n]]
+
+
+def preset_problems(preset: str, n: int, seed: int = 0) -> list[PlanningProblem]:
+    """Planning problems of closed-loop runs of a preset, as the simulation builds them.
+
+    What ``sensorplan simulate --preset NAME --planner random -e 2 --steps 60`` runs, with
+    every ``PlanningProblem`` it builds recorded (the tracker's means, covariances and
+    planning q, the poses, the run's planning modes and the buildings); the decisions at
+    t = 10, 20, ..., 50 of each run are kept.
+    """
+    from sensorplan import simulation
+    from sensorplan.config.simulate import load_simulation
+
+    cfg = load_simulation(preset=preset, overrides={"planner": "random",
+                                                         "steps_per_epoch": 2, "steps": 60})
+    built: list[PlanningProblem] = []
+    real = simulation.PlanningProblem
+
+    def record(*args, **kwargs):
+        built.append(real(*args, **kwargs))
+        return built[-1]
+
+    problems: list[PlanningProblem] = []
+    simulation.PlanningProblem = record
+    try:
+        run = 0
+        while len(problems) < n:
+            built.clear()
+            run_episode(cfg.scenario, cfg.settings, np.random.SeedSequence([seed, run]))
+            problems += built[5::5]                  # decisions fall at t - 1 = 0, 2, 4, ...
+            run += 1
+    finally:
+        simulation.PlanningProblem = real
+    return problems[:n]
+
+
+def _plan_times(problem: PlanningProblem) -> tuple[float, float, int]:
+    c0 = time.process_time()
+    r = make_planner("pg").plan(problem, rng=0)
+    return r.seconds, time.process_time() - c0, r.sweeps
+
+
+def mode_cost(label: str, preset: str,
+              variants: Callable[[PlanningProblem], dict[str, PlanningProblem]],
+              args: argparse.Namespace) -> None:
+    """Time ``pg`` under the ``aware`` and ``ignore`` variants of the same problems.
+
+    ``variants(problem)`` returns ``{"aware": problem, "ignore": problem}``. Each problem is
+    planned ``args.repeats`` times in each mode, alternating and swapping the order every
+    time (aware, ignore, ignore, aware, ...); a problem's time in a mode is the median of
+    its repeats.
+    """
+    base = preset_problems(preset, args.decisions)
+    print(f"\n## {label}: pg, {preset} preset, N = {base[0].n_sensors}, "
+          f"M = {base[0].n_targets}, e = 2, {len(base)} decisions x {args.repeats} "
+          f"repeats per mode, interleaved (load {os.getloadavg()[0]:.1f})")
+    print("| K | aware wall ms | ignore wall ms | aware CPU ms | ignore CPU ms "
+          "| ratio of medians (CPU) | ratio of medians (wall) | median per-problem ratio "
+          "(CPU) [min, max] | sweeps aware / ignore | per sweep: ratio of medians (CPU) "
+          "| same plan |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for K in (1, 3):
+        pairs = [variants(dataclasses.replace(p, horizon=K)) for p in base]
+        for mode in ("aware", "ignore"):
+            _plan_times(pairs[0][mode])              # warm-up: caches, this mode's kernels
+        med = {m: {"wall": [], "cpu": [], "sweeps": []} for m in ("aware", "ignore")}
+        same = 0
+        for i, pair in enumerate(pairs):
+            got = {m: {"wall": [], "cpu": [], "sweeps": []} for m in pair}
+            for r in range(args.repeats):
+                order = ("aware", "ignore") if (i + r) % 2 == 0 else ("ignore", "aware")
+                for m in order:
+                    w, c, sw = _plan_times(pair[m])
+                    got[m]["wall"].append(w)
+                    got[m]["cpu"].append(c)
+                    got[m]["sweeps"].append(sw)
+            for m, times in got.items():
+                for key, values in times.items():
+                    med[m][key].append(float(np.median(values)))
+            plans = [make_planner("pg").plan(pair[m], rng=0).plan for m in ("aware", "ignore")]
+            same += all(np.array_equal(getattr(plans[0], f), getattr(plans[1], f))
+                        for f in ("positions", "targets"))
+        a, g = med["aware"], med["ignore"]
+        per = np.array(a["cpu"]) / np.array(g["cpu"])
+        # The modes can converge in different numbers of sweeps: the cost of one sweep
+        # separates the price of the looks from the game's path.
+        sweep_ratio = (np.median(np.array(a["cpu"]) / np.array(a["sweeps"]))
+                       / np.median(np.array(g["cpu"]) / np.array(g["sweeps"])))
+        print(f"| {K} | {np.median(a['wall'])*1e3:.2f} | {np.median(g['wall'])*1e3:.2f} "
+              f"| {np.median(a['cpu'])*1e3:.2f} | {np.median(g['cpu'])*1e3:.2f} "
+              f"| {np.median(a['cpu']) / np.median(g['cpu']):.3f} "
+              f"| {np.median(a['wall']) / np.median(g['wall']):.3f} "
+              f"| {np.median(per):.3f} [{per.min():.2f}, {per.max():.2f}] "
+              f"| {np.mean(a['sweeps']):.2f} / {np.mean(g['sweeps']):.2f} "
+              f"| {sweep_ratio:.3f} "
+              f"| {same}/{len(pairs)} |")
+
+
+def detection_cost(args: argparse.Namespace) -> None:
+    """``planning_detection`` aware against ignore on the radar preset's decisions."""
+    mode_cost("Detection in planning", "radar", lambda p: {
+        m: dataclasses.replace(p, planning_detection=m) for m in ("aware", "ignore")}, args)
+
+
+def occlusion_cost(args: argparse.Namespace) -> None:
+    """``planning_occlusion`` aware (the buildings) against ignore (none) on the urban
+    preset's decisions (what the simulation passes for each setting)."""
+    def variants(p: PlanningProblem) -> dict[str, PlanningProblem]:
+        assert len(p.buildings) > 0, "the urban preset's problems carry its buildings"
+        return {"aware": p, "ignore": dataclasses.replace(p, buildings=np.zeros((0, 5)))}
+    mode_cost("Occlusion in planning", "urban", variants, args)
 
 
 def time_planner(name: str, problems: list[PlanningProblem]) -> tuple[float, float, float]:
@@ -176,7 +298,19 @@ def main() -> None:
     ap.add_argument("--kmax", type=int, default=8)
     ap.add_argument("--quality", type=int, default=200)
     ap.add_argument("--quick", action="store_true", help="K <= 4, 50 problems")
+    ap.add_argument("--detection", action="store_true",
+                    help="only: planning_detection aware vs ignore (radar preset)")
+    ap.add_argument("--occlusion", action="store_true",
+                    help="only: planning_occlusion aware vs ignore (urban preset)")
+    ap.add_argument("--repeats", type=int, default=3,
+                    help="plans per problem and mode for --detection / --occlusion")
     args = ap.parse_args()
+    if args.detection or args.occlusion:
+        if args.detection:
+            detection_cost(args)
+        if args.occlusion:
+            occlusion_cost(args)
+        return
     if args.quick:
         args.kmax, args.quality = 4, 50
     speed(args)

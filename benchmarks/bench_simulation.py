@@ -3,18 +3,29 @@
 Prints the median over repetitions of the time per simulation step (total run time /
 steps, planning included) and its split into planning (building the planning problem and
 the planner's call) and everything else, both in wall-clock time and in this process's CPU
-time (``time.process_time``; robust when other jobs share the machine).
+time (``time.process_time``; robust when other jobs share the machine). One untimed run
+comes first (imports, compiled kernels, caches).
 
-    .venv/bin/python benchmarks/bench_simulation.py [--steps 100] [--repeats 20]
-        [--miss-update negative|none] [--profile]
+    .venv/bin/python benchmarks/bench_simulation.py [--preset paper|radar|urban|swarm]
+        [--steps 100] [--repeats 20] [--miss-update negative|none] [--profile]
+        [--set KEY=VALUE ...]
 
-Target: <= 1 ms per step, so that studies are bound by planning, not by simulation.
+``--preset`` picks a built-in scenario with the run settings ``sensorplan simulate --preset
+NAME`` gives it (tracker, association, planning modes), with this script's planner, K, e,
+steps and miss update on top: ``radar`` is Swerling 1 detection with clutter and the PDA
+tracker, ``urban`` the paper's scenario among buildings. ``--set`` overrides any other run
+setting as ``simulate``'s options do (``--set model=cv --set known_map=false``), to see
+what a part of the tracker costs.
+
+Targets: <= 1 ms per step on the paper preset, <= 1.5 ms on the radar preset, so that
+studies are bound by planning, not by simulation.
 """
 
 from __future__ import annotations
 
 import argparse
 import cProfile
+import json
 import platform
 import pstats
 import statistics
@@ -22,10 +33,9 @@ import time
 
 import numpy as np
 
-from sensorplan.scenario import paper_scenario
 from sensorplan import simulation
-from sensorplan.settings import TrackerSettings
-from sensorplan.simulation import RunSettings, run_episode
+from sensorplan.config.simulate import PRESETS, load_simulation
+from sensorplan.simulation import run_episode
 
 
 class _DecisionClock:
@@ -66,6 +76,8 @@ class _Timed:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--preset", choices=PRESETS, default="paper",
+                    help="built-in scenario, with the run settings simulate gives it")
     ap.add_argument("--steps", type=int, default=100)
     ap.add_argument("--repeats", type=int, default=20)
     ap.add_argument("--planner", default="random")
@@ -74,12 +86,23 @@ def main() -> None:
     ap.add_argument("--miss-update", choices=("negative", "none"), default="negative")
     ap.add_argument("--seed", type=int, default=0, help="seed of the first repetition")
     ap.add_argument("--profile", action="store_true", help="print a cProfile of all runs")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="another run setting (value read as JSON if it parses, else text)")
     args = ap.parse_args()
+    extra = {}
+    for item in args.set:
+        key, _, text = item.partition("=")
+        try:
+            extra[key] = json.loads(text)
+        except json.JSONDecodeError:
+            extra[key] = text
 
-    scenario = paper_scenario()
-    settings = RunSettings(planner=args.planner, horizon=args.horizon,
-                           steps_per_epoch=args.steps_per_epoch, steps=args.steps,
-                           tracker=TrackerSettings(miss_update=args.miss_update))
+    # What `sensorplan simulate --preset NAME --planner ... -K ... -e ... --steps ...` runs.
+    config = load_simulation(preset=args.preset, overrides={
+        "planner": args.planner, "horizon": args.horizon,
+        "steps_per_epoch": args.steps_per_epoch, "steps": args.steps,
+        "miss_update": args.miss_update, **extra})
+    scenario, settings = config.scenario, config.settings
     clock = _DecisionClock()
     clock.install()
     run_episode(scenario, settings, args.seed)  # warm-up: imports, caches
@@ -99,10 +122,19 @@ def main() -> None:
         plan_wall.append(1e3 * clock.wall / args.steps)
         plan_cpu.append(1e3 * clock.cpu / args.steps)
     med = statistics.median
-    print(f"paper preset, planner={args.planner}, K={args.horizon}, "
+    print(f"{args.preset} preset, planner={args.planner}, K={args.horizon}, "
           f"e={args.steps_per_epoch}, miss_update={settings.tracker.miss_update}, "
           f"{args.steps} steps x {args.repeats} runs "
           f"(python {platform.python_version()}, numpy {np.__version__})")
+    if args.preset != "paper" or extra:
+        s0 = scenario.sensors[0].params
+        print(f"N={len(scenario.sensors)}, M={len(scenario.targets)}, "
+              f"buildings={len(scenario.buildings)}, detection={s0.detection}, "
+              f"clutter_rate={s0.clutter_rate}, tracker={settings.tracker.model}, "
+              f"association={settings.tracker.association}, "
+              f"planning_detection={settings.planning_detection}, "
+              f"planning_occlusion={settings.planning_occlusion}"
+              + "".join(f", {k}={v}" for k, v in extra.items()))
     for name, tot, pl in (("wall", wall, plan_wall), ("cpu ", cpu, plan_cpu)):
         sim = [a - b for a, b in zip(tot, pl)]
         print(f"{name} median ms per step: {med(tot):.3f}  (planning {med(pl):.3f}, "
