@@ -535,11 +535,27 @@ def test_d12_a_full_disk_and_a_directory_in_the_way(capsys, tmp_path) -> None:
 # -------------------------------------------------------------------- D16: Ctrl-C
 
 
+def _wait_until_importing(pid: int, timeout: float = 60.0) -> None:
+    """Until the child runs our imports (numpy is mapped): a Ctrl-C inside the interpreter's
+    own start-up, before any code of ours runs, is CPython's to report, and on a loaded
+    machine a fixed delay from the spawn can land there."""
+    maps = Path(f"/proc/{pid}/maps")
+    end = time.monotonic() + timeout
+    while maps.exists() and time.monotonic() < end:
+        try:
+            if "numpy" in maps.read_text():
+                return
+        except OSError:
+            return                                  # it has ended
+        time.sleep(0.002)
+
+
 def _interrupt_after(args: list[str], delay: float, cwd: Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
     proc = subprocess.Popen([sys.executable, "-m", "sensorplan", *args], cwd=cwd, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
+    _wait_until_importing(proc.pid)
     time.sleep(delay)
     try:
         os.killpg(proc.pid, signal.SIGINT)          # a terminal's Ctrl-C: the whole group
