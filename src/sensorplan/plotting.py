@@ -206,6 +206,8 @@ def draw_timeline(ax: "Axes", episode: "Episode", dt: float) -> None:
     looked = np.asarray(episode.looked)
     missed = np.asarray(episode.missed)
     S, N = looked.shape[0] - 1, looked.shape[1]
+    # The limits are set below; autoscaling after every bar would cost O(bars^2).
+    ax.set_autoscale_on(False)
     for run in look_runs(looked, missed):
         c = target_color(run.target)
         ax.broken_barh([((run.first - 1) * dt, (run.last - run.first + 1) * dt)],
