@@ -199,7 +199,7 @@ def summary_legend(ax: "Axes", kinds: tuple[str, ...], scenario: "Scenario",
     if len(kinds) > LEGEND_ITEMS:
         count = ", ".join(f"{n} {k}" for k, n in Counter(kinds).items())
         entries.append((tuple(Patch(facecolor=c) for c in TARGET_PALETTE),
-                        f"T0\u2013T{len(kinds) - 1} ({count}); colours repeat every "
+                        f"T0\u2013T{len(kinds) - 1} ({count}),\ncolours repeat every "
                         f"{len(TARGET_PALETTE)} targets"))
     else:
         entries += [(Patch(facecolor=target_color(j)), f"T{j} ({kind})")
@@ -210,7 +210,7 @@ def summary_legend(ax: "Axes", kinds: tuple[str, ...], scenario: "Scenario",
         entries.append((tuple(Line2D([], [], color=sensor_style(i)[0], linestyle="none",
                                      marker=sensor_style(i)[1], markersize=6)
                               for i in range(3)),
-                        f"S0\u2013S{len(z) - 1}, z = {span} (greys and markers repeat)"))
+                        f"S0\u2013S{len(z) - 1}, z = {span},\ngreys and markers repeat"))
     else:
         entries += [(Line2D([], [], color=sensor_style(i)[0], marker=sensor_style(i)[1],
                             linewidth=1.0), f"S{i}, z = {zi:g} m") for i, zi in enumerate(z)]
