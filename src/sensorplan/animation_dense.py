@@ -41,8 +41,8 @@ def faded_chunks(xy: np.ndarray, rgb: np.ndarray, t: int,
     segments older than :data:`FADE_CUTOFF` ``tau`` form one chunk at the oldest tint."""
     if t < 1:
         return [], np.zeros((0, 3))
-    cutoff = max(int(math.ceil(FADE_CUTOFF * tau)), 1)
-    step = max(FADE_STEP, int(math.ceil(cutoff / MAX_TINTS)))
+    cutoff = max(math.ceil(FADE_CUTOFF * tau), 1)
+    step = max(FADE_STEP, math.ceil(cutoff / MAX_TINTS))
     old = max(t - cutoff, 0)                 # points 0..old: the oldest chunk
     chunks = []                              # (first point, last point, mean age)
     end = t
@@ -66,22 +66,23 @@ class DenseTargets:
     """All targets' moving artists: true tracks and estimates so far (fading), current
     positions and estimates, ellipses."""
 
-    def __init__(self, ax: "Axes", truth: np.ndarray, est: np.ndarray, cov: np.ndarray,
+    def __init__(self, ax: Axes, truth: np.ndarray, est: np.ndarray, cov: np.ndarray,
                  limit: float, tau: float) -> None:
         from matplotlib.collections import EllipseCollection, LineCollection
 
         self.truth, self.est, self.cov, self.limit, self.tau = truth, est, cov, limit, tau
         M = truth.shape[1]
         self.rgb = target_rgb(np.arange(M))
-        self.track = ax.add_collection(LineCollection([], linewidths=1.6, zorder=3),
-                                       autolim=False)
-        self.track_est = ax.add_collection(LineCollection([], linewidths=0.9, linestyles=":",
-                                                          zorder=3), autolim=False)
+        # Any: matplotlib's stubs type add_collection's result as a bare Collection.
+        self.track: Any = ax.add_collection(LineCollection([], linewidths=1.6, zorder=3),
+                                            autolim=False)
+        self.track_est: Any = ax.add_collection(LineCollection(
+            [], linewidths=0.9, linestyles=":", zorder=3), autolim=False)
         self.now = ax.scatter(truth[0, :, 0], truth[0, :, 1], s=5 ** 2, c=self.rgb,
                               marker="o", linewidths=0, zorder=5)
         self.now_est = ax.scatter(est[0, :, 0], est[0, :, 1], s=6 ** 2, c=self.rgb,
                                   marker="+", linewidths=1.2, zorder=5)
-        self.ell = ax.add_collection(EllipseCollection(
+        self.ell: Any = ax.add_collection(EllipseCollection(
             np.zeros(M), np.zeros(M), np.zeros(M), units="xy", offsets=np.zeros((M, 2)),
             offset_transform=ax.transData, facecolors="none", edgecolors=self.rgb,
             linewidths=1.0, zorder=4), autolim=False)
@@ -108,7 +109,7 @@ class DenseSensors:
     """All sensors' moving artists: fields of view, paths so far (fading), positions, the
     line to the target each looks at (dashed, with a cross at the target, when missed)."""
 
-    def __init__(self, ax: "Axes", scenario: "Scenario", spos: np.ndarray, shead: np.ndarray,
+    def __init__(self, ax: Axes, scenario: Scenario, spos: np.ndarray, shead: np.ndarray,
                  looked: np.ndarray, missed: np.ndarray, truth: np.ndarray, tau: float,
                  border: Any) -> None:
         from matplotlib.collections import LineCollection, PatchCollection
@@ -119,20 +120,20 @@ class DenseSensors:
         styles = [sensor_style(i) for i in range(N)]
         greys = [c for c, _ in styles]
         self.path_rgb = np.array([mix(mix_hex(c, 0.5), 1.0) for c in greys])
-        self.fov = ax.add_collection(PatchCollection(
+        self.fov: Any = ax.add_collection(PatchCollection(
             self._wedges(0), facecolors=greys, edgecolors=greys, alpha=0.10, linewidths=1.0,
             linestyles="--", zorder=1.8), autolim=False)
         self.fov.set_clip_path(border)
-        self.path = ax.add_collection(LineCollection([], linewidths=0.7, zorder=2),
-                                      autolim=False)
+        self.path: Any = ax.add_collection(LineCollection([], linewidths=0.7, zorder=2),
+                                           autolim=False)
         self.marks: list[tuple[list[int], Any]] = []
         for marker in sorted({m for _, m in styles}, key=SENSOR_MARKERS.index):
             who = [i for i in range(N) if styles[i][1] == marker]
             self.marks.append((who, ax.scatter(spos[0, who, 0], spos[0, who, 1], s=6 ** 2,
                                                marker=marker, c=[greys[i] for i in who],
                                                linewidths=0, zorder=6)))
-        self.look = ax.add_collection(LineCollection([], linewidths=1.0, zorder=4),
-                                      autolim=False)
+        self.look: Any = ax.add_collection(LineCollection([], linewidths=1.0, zorder=4),
+                                           autolim=False)
         self.cross = ax.scatter(np.zeros(0), np.zeros(0), s=6 ** 2, marker="x", c="k",
                                 linewidths=1.5, zorder=7)
         self.artists: list[Any] = [self.fov, self.path, self.look, self.cross] + [

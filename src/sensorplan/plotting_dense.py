@@ -18,8 +18,16 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .colors import (BUILDING_EDGE, BUILDING_FACE, SENSOR_MARKERS, TARGET_PALETTE, mix,
-                     mix_hex, sensor_style, target_color)
+from .colors import (
+    BUILDING_EDGE,
+    BUILDING_FACE,
+    SENSOR_MARKERS,
+    TARGET_PALETTE,
+    mix,
+    mix_hex,
+    sensor_style,
+    target_color,
+)
 from .plotting import LEGEND_ITEMS, N_SIGMA, RunView, fade_colors, fov_geometry, segments
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -43,14 +51,14 @@ def target_rgb(indices: Any, weight: float = 1.0) -> np.ndarray:
 
 
 def faded_paths(xy: np.ndarray, colors: list[str], ages: np.ndarray,
-                tau: float | None) -> tuple[np.ndarray, np.ndarray]:
+                tau: float | None) -> tuple[list[np.ndarray], np.ndarray]:
     """Segments ``(K * (n - 1), 2, 2)`` of ``K`` paths ``xy (n, K, 2)`` and their faded
     colours (each path's own colour, :func:`~sensorplan.plotting.fade_colors`)."""
     if xy.shape[0] < 2 or xy.shape[1] == 0:
-        return np.zeros((0, 2, 2)), np.zeros((0, 3))
+        return [], np.zeros((0, 3))
     segs = np.concatenate([segments(xy[:, k]) for k in range(xy.shape[1])])
     cols = np.concatenate([fade_colors(c, ages, tau) for c in colors])
-    return segs, cols
+    return list(segs), cols
 
 
 def ellipse_arrays(cov: np.ndarray, limit: float) -> tuple[np.ndarray, ...]:
@@ -67,7 +75,7 @@ def ellipse_arrays(cov: np.ndarray, limit: float) -> tuple[np.ndarray, ...]:
     return 2.0 * semi[:, 1], 2.0 * semi[:, 0], angle, ok
 
 
-def fov_patches(xy: np.ndarray, heading: np.ndarray, scenario: "Scenario") -> list[Any]:
+def fov_patches(xy: np.ndarray, heading: np.ndarray, scenario: Scenario) -> list[Any]:
     """One ``Wedge`` (ground field of view) per sensor at positions ``xy (N, 2)``."""
     from matplotlib.patches import Wedge
 
@@ -75,7 +83,7 @@ def fov_patches(xy: np.ndarray, heading: np.ndarray, scenario: "Scenario") -> li
             for i in range(xy.shape[0])]
 
 
-def draw_sensors(ax: "Axes", run: RunView, scenario: "Scenario", border: Any) -> None:
+def draw_sensors(ax: Axes, run: RunView, scenario: Scenario, border: Any) -> None:
     """All sensors in a few artists: fields of view and looks at the last step, paths,
     start (open) and end (filled) markers."""
     from matplotlib.collections import LineCollection, PatchCollection
@@ -86,13 +94,13 @@ def draw_sensors(ax: "Axes", run: RunView, scenario: "Scenario", border: Any) ->
     if S >= 1:
         fov = PatchCollection(fov_patches(spos[S], run.shead[S], scenario),
                               facecolors=greys, edgecolors=greys, alpha=0.10,
-                              linewidths=1.0, linestyles="--", zorder=1)
+                              linewidths=1.0, linestyles="--", zorder=1, gid="fields of view")
         fov.set_clip_path(border)           # the sensing region that matters is on the map
         ax.add_collection(fov, autolim=False)
     # Lighter and smaller than a few sensors' (a hundred markers would hide the tracks).
     segs, cols = faded_paths(spos, [mix_hex(c, 0.5) for c in greys], run.ages, None)
-    ax.add_collection(LineCollection(segs, colors=cols, linewidths=0.6, zorder=2),
-                      autolim=False)
+    ax.add_collection(LineCollection(segs, colors=cols, linewidths=0.6, zorder=2,
+                                     gid="sensor paths"), autolim=False)
     for marker in sorted({m for _, m in styles}, key=SENSOR_MARKERS.index):
         who = [i for i in range(N) if styles[i][1] == marker]
         c = [greys[i] for i in who]
@@ -103,23 +111,24 @@ def draw_sensors(ax: "Axes", run: RunView, scenario: "Scenario", border: Any) ->
     if S >= 1:
         i = np.nonzero(run.looked[S] >= 0)[0]
         j = run.looked[S, i]
-        looks = LineCollection(np.stack([spos[S, i], run.truth[S, j]], axis=1),
+        looks = LineCollection(list(np.stack([spos[S, i], run.truth[S, j]], axis=1)),
                                colors=target_rgb(j), linewidths=0.9, alpha=0.85, zorder=2.5,
-                               linestyles=["--" if m else "-" for m in run.missed[S, i]])
+                               linestyles=["--" if m else "-" for m in run.missed[S, i]],
+                               gid="looks")
         ax.add_collection(looks, autolim=False)
 
 
-def draw_targets(ax: "Axes", run: RunView) -> None:
+def draw_targets(ax: Axes, run: RunView) -> None:
     """All targets in a few artists: true tracks and estimates, start and end markers,
     ellipses at the last step and the missed looks."""
     from matplotlib.collections import EllipseCollection, LineCollection
 
     truth, est, S, M = run.truth, run.est, run.S, run.M
     colors = [target_color(j) for j in range(M)]
-    for xy, width, style in ((truth, 1.6, "-"), (est, 0.9, ":")):
+    for xy, width, style, gid in ((truth, 1.6, "-", "tracks"), (est, 0.9, ":", "estimates")):
         segs, cols = faded_paths(xy, colors, run.ages, None)
         ax.add_collection(LineCollection(segs, colors=cols, linewidths=width,
-                                         linestyles=style, zorder=3), autolim=False)
+                                         linestyles=style, zorder=3, gid=gid), autolim=False)
     ax.scatter(truth[0, :, 0], truth[0, :, 1], s=4 ** 2, marker="o",
                c=target_rgb(np.arange(M), 0.5), linewidths=0, zorder=4)
     ax.scatter(truth[-1, :, 0], truth[-1, :, 1], s=4 ** 2, marker="s",
@@ -129,15 +138,16 @@ def draw_targets(ax: "Axes", run: RunView) -> None:
     ax.add_collection(EllipseCollection(w[ok], h[ok], angle[ok], units="xy",
                                         offsets=est[S][ok], offset_transform=ax.transData,
                                         facecolors="none", edgecolors=target_rgb(
-                                            np.nonzero(ok)[0]), linewidths=1.0, zorder=3),
+                                            np.nonzero(ok)[0]), linewidths=1.0, zorder=3,
+                                        gid="ellipses"),
                       autolim=False)
     t, i = np.nonzero((run.looked[1:] >= 0) & run.missed[1:])
     j = run.looked[1:][t, i]
     ax.scatter(truth[t + 1, j, 0], truth[t + 1, j, 1], s=4 ** 2, marker="x", c="k",
-               linewidths=1.0, zorder=5)
+               linewidths=1.0, zorder=5, gid="missed looks")
 
 
-def draw_look_image(ax: "Axes", looked: np.ndarray, missed: np.ndarray, dt: float) -> None:
+def draw_look_image(ax: Axes, looked: np.ndarray, missed: np.ndarray, dt: float) -> None:
     """The assignment timeline as one image: row ``i``, column ``t - 1`` in the colour of
     the target sensor ``i`` looked at in step ``t`` (a light tint with a black dot when the
     look missed; white: no look)."""
@@ -156,10 +166,10 @@ def draw_look_image(ax: "Axes", looked: np.ndarray, missed: np.ndarray, dt: floa
         ax.hlines(np.arange(N - 1) + 0.5, 0, S * dt, colors="white", linewidth=0.6,
                   zorder=1.5)
     i, t = np.nonzero(miss)
-    ax.scatter((t + 0.5) * dt, i, s=2.5, c="k", linewidths=0, zorder=2)
+    ax.scatter((t + 0.5) * dt, i, s=2.5, c="k", linewidths=0, zorder=2, gid="missed looks")
 
 
-def label_rows(ax: "Axes", N: int) -> None:
+def label_rows(ax: Axes, N: int) -> None:
     """Row labels ``S0, S10, ...`` of the timeline image (about ten, at round numbers)."""
     from matplotlib.ticker import FuncFormatter, MaxNLocator
 
@@ -168,7 +178,7 @@ def label_rows(ax: "Axes", N: int) -> None:
                                                if 0 <= v < N else ""))
 
 
-def draw_error_bundle(ax: "Axes", time_s: np.ndarray, err: np.ndarray, own: np.ndarray,
+def draw_error_bundle(ax: Axes, time_s: np.ndarray, err: np.ndarray, own: np.ndarray,
                       floor: float) -> None:
     """Every target's position error as one collection of thin lines in its colour, the
     median over targets (black) and the median of the filter's own RMS error (dotted)."""
@@ -177,8 +187,8 @@ def draw_error_bundle(ax: "Axes", time_s: np.ndarray, err: np.ndarray, own: np.n
     M = err.shape[1]
     lines = np.stack([np.broadcast_to(time_s[:, None], err.shape),
                       np.clip(err, floor, None)], axis=-1).swapaxes(0, 1)   # (M, S+1, 2)
-    ax.add_collection(LineCollection(lines, colors=target_rgb(np.arange(M)), linewidths=0.6,
-                                     alpha=0.45, zorder=2), autolim=False)
+    ax.add_collection(LineCollection(list(lines), colors=target_rgb(np.arange(M)), linewidths=0.6,
+                                     alpha=0.45, zorder=2, gid="errors"), autolim=False)
     with np.errstate(all="ignore"):
         ax.plot(time_s, np.clip(np.nanmedian(err, axis=1), floor, None), color="k",
                 linewidth=1.6, zorder=3)
@@ -186,7 +196,7 @@ def draw_error_bundle(ax: "Axes", time_s: np.ndarray, err: np.ndarray, own: np.n
                 linewidth=1.1, linestyle=":", zorder=3)
 
 
-def summary_legend(ax: "Axes", kinds: tuple[str, ...], scenario: "Scenario",
+def summary_legend(ax: Axes, kinds: tuple[str, ...], scenario: Scenario,
                    extra: list[Any]) -> None:
     """:func:`~sensorplan.plotting.map_legend` with more than ``LEGEND_ITEMS`` targets or
     sensors: each group that large is one entry (its colours or markers side by side, its
@@ -198,9 +208,9 @@ def summary_legend(ax: "Axes", kinds: tuple[str, ...], scenario: "Scenario",
     entries: list[tuple[Any, str]] = []
     if len(kinds) > LEGEND_ITEMS:
         count = ", ".join(f"{n} {k}" for k, n in Counter(kinds).items())
-        entries.append((tuple(Patch(facecolor=c) for c in TARGET_PALETTE),
-                        f"T0\u2013T{len(kinds) - 1} ({count}),\ncolours repeat every "
-                        f"{len(TARGET_PALETTE)} targets"))
+        label = (f"T0\u2013T{len(kinds) - 1} ({count}),\ncolours repeat every "
+                 f"{len(TARGET_PALETTE)} targets")
+        entries.append((tuple(Patch(facecolor=c) for c in TARGET_PALETTE), label))
     else:
         entries += [(Patch(facecolor=target_color(j)), f"T{j} ({kind})")
                     for j, kind in enumerate(kinds)]
