@@ -5,7 +5,8 @@ colour, fading with age; the estimates' 2-sigma ellipses; every sensor's field o
 recent path and a line to the target it looks at (dashed, with a cross at the target, when
 the look missed); false alarms as a count beside the sensor; buildings. Below, the run's
 assignment timeline and errors (as in :func:`sensorplan.plotting.plot_episode`) with the
-future greyed out. Colours are those of :mod:`sensorplan.colors`.
+future greyed out. Colours are those of :mod:`sensorplan.colors`. Many sensors or targets
+move as a few collections (:mod:`sensorplan.animation_dense`).
 """
 
 from __future__ import annotations

@@ -569,6 +569,10 @@ def plot_episode(episode: "Episode", scenario: "Scenario", path: str | Path) -> 
       at, hatched when the look missed; decisions as thin lines; false alarms as dots.
     - Errors: each target's position error over time and the filter's own RMS error.
 
+    Runs with more than :data:`DENSE_SENSORS` sensors or :data:`DENSE_TARGETS` targets are
+    drawn condensed (:mod:`sensorplan.plotting_dense`), and the legend and title summarise
+    more than :data:`LEGEND_ITEMS` of either.
+
     Parameters
     ----------
     episode : Episode
