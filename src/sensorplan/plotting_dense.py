@@ -152,6 +152,8 @@ def draw_look_image(ax: Axes, looked: np.ndarray, missed: np.ndarray, dt: float)
     the target sensor ``i`` looked at in step ``t`` (a light tint with a black dot when the
     look missed; white: no look)."""
     S, N = looked.shape[0] - 1, looked.shape[1]
+    if S < 1:
+        return
     cells = np.ones((N, S, 3))
     who = looked[1:].T                                   # (N, S)
     seen = who >= 0
