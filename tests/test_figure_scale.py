@@ -251,7 +251,7 @@ def test_faded_chunks_cover_each_path_once(t: int, rng: np.random.Generator) -> 
     """The chunks of a path are its segments, each once, in tints that get lighter with
     age and stop at the oldest tint."""
     from sensorplan.animation_dense import FADE_CUTOFF, faded_chunks
-    from sensorplan.plotting import FADE_FLOOR
+    from sensorplan.plotting_parts import FADE_FLOOR
 
     K, tau = 3, 4.0
     xy = rng.normal(size=(t + 1, K, 2))

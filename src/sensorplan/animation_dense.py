@@ -1,8 +1,8 @@
 """The moving artists of an animation of many sensors or targets, as a few collections.
 
 :mod:`sensorplan.animation` updates one set of artists per target and per sensor for every
-frame; above :data:`~sensorplan.plotting.DENSE_TARGETS` targets or
-:data:`~sensorplan.plotting.DENSE_SENSORS` sensors that is over a thousand artists and
+frame; above :data:`~sensorplan.plotting_parts.DENSE_TARGETS` targets or
+:data:`~sensorplan.plotting_parts.DENSE_SENSORS` sensors that is over a thousand artists and
 half a second a frame. Here all targets (sensors) share one collection per kind of thing,
 updated in place, as the static figure's condensed drawing does
 (:mod:`sensorplan.plotting_dense`): no names, and a path fades in steps of a few segments
@@ -17,8 +17,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .colors import SENSOR_MARKERS, mix, mix_hex, sensor_style
-from .plotting import FADE_FLOOR, fov_geometry
 from .plotting_dense import ellipse_arrays, target_rgb
+from .plotting_parts import FADE_FLOOR, fov_geometry
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -37,7 +37,7 @@ def faded_chunks(xy: np.ndarray, rgb: np.ndarray, t: int,
                  tau: float) -> tuple[list[np.ndarray], np.ndarray]:
     """Polylines of paths ``xy[:t + 1] (t + 1, K, 2)`` cut into chunks of a few segments
     and each chunk's tint of ``rgb (K, 3)`` at its mean age (steps before ``t``;
-    ``exp(-age / tau)`` above the floor tint, as :func:`~sensorplan.plotting.fade_colors`);
+    ``exp(-age / tau)`` above the floor tint, as :func:`~sensorplan.plotting_parts.fade_colors`);
     segments older than :data:`FADE_CUTOFF` ``tau`` form one chunk at the oldest tint."""
     if t < 1:
         return [], np.zeros((0, 3))

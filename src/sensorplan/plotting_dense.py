@@ -1,8 +1,8 @@
 """Condensed drawing of runs with many sensors or targets (a swarm), for
 :mod:`sensorplan.plotting` and :mod:`sensorplan.animation`.
 
-Above :data:`~sensorplan.plotting.DENSE_SENSORS` sensors or
-:data:`~sensorplan.plotting.DENSE_TARGETS` targets, one artist per sensor, target, ellipse or
+Above :data:`~sensorplan.plotting_parts.DENSE_SENSORS` sensors or
+:data:`~sensorplan.plotting_parts.DENSE_TARGETS` targets, one artist per sensor, target, ellipse or
 look costs matplotlib tens of seconds (a 100-sensor, 200-target run had over ten thousand)
 and draws a picture nobody can read. Here each kind of thing is one collection (all
 sensors' paths one ``LineCollection``, all fields of view one ``PatchCollection``, all
@@ -28,7 +28,7 @@ from .colors import (
     sensor_style,
     target_color,
 )
-from .plotting import LEGEND_ITEMS, N_SIGMA, RunView, fade_colors, fov_geometry, segments
+from .plotting_parts import LEGEND_ITEMS, N_SIGMA, RunView, fade_colors, fov_geometry, segments
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -53,7 +53,7 @@ def target_rgb(indices: Any, weight: float = 1.0) -> np.ndarray:
 def faded_paths(xy: np.ndarray, colors: list[str], ages: np.ndarray,
                 tau: float | None) -> tuple[list[np.ndarray], np.ndarray]:
     """Segments ``(K * (n - 1), 2, 2)`` of ``K`` paths ``xy (n, K, 2)`` and their faded
-    colours (each path's own colour, :func:`~sensorplan.plotting.fade_colors`)."""
+    colours (each path's own colour, :func:`~sensorplan.plotting_parts.fade_colors`)."""
     if xy.shape[0] < 2 or xy.shape[1] == 0:
         return [], np.zeros((0, 3))
     segs = np.concatenate([segments(xy[:, k]) for k in range(xy.shape[1])])
