@@ -10,7 +10,9 @@
    planning times (the planner's own clock, from the run's ``episode.timing.json``). Then
    the same run (same settings and seed) in this process, ``run_episode`` alone after a
    two-step warm-up run: the closed loop's own time per step, without start-up, the
-   summary and the figure.
+   summary and the figure. Then that run's figure, ``episode.png`` as ``simulate`` draws it
+   (the first figure of this process, so matplotlib's import is counted), and the figure
+   of a paper-preset run of as many steps (5 targets, 3 sensors), drawn after it.
 2. Cold start, from ``bench_startup.py``: ``sensorplan --help`` and the first plan,
    ``sensorplan plan examples/problem.json``, as whole processes (median of ``--runs``
    after one untimed run, kernel cache warm).
@@ -33,6 +35,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -82,6 +85,28 @@ def swarm_run(steps: int) -> None:
     print("|---|---|---|---|---|---|")
     print(f"| {w:.1f} | {c:.1f} | {1e3 * w / steps:.0f} | {1e3 * c / steps:.0f} "
           f"| {1e3 * statistics.median(plan):.0f} | {plan.sum() / w:.0%} |", flush=True)
+    figures(ep, cfg.scenario, steps)
+
+
+def figures(episode: Any, scenario: Any, steps: int) -> None:
+    """Wall and CPU time of ``episode.png`` of the swarm run (matplotlib's import included)
+    and of a paper-preset run of ``steps`` steps."""
+    from sensorplan.cli_guards import plot_drawable
+    from sensorplan.config.simulate import load_simulation
+    from sensorplan.simulation import run_episode
+
+    paper = load_simulation(preset="paper", overrides={"steps": steps})
+    cases = [("swarm (N = 100, M = 200), matplotlib's import included", episode, scenario),
+             ("paper preset (N = 3, M = 5), same steps and seed",
+              run_episode(paper.scenario, paper.settings, paper.seed), paper.scenario)]
+    print(f"\nThe run's figure (episode.png, {steps} steps, as simulate draws it):")
+    print("| figure | wall s | CPU s |\n|---|---|---|")
+    with tempfile.TemporaryDirectory() as out:
+        for label, ep, sc in cases:
+            w0, c0 = time.perf_counter(), time.process_time()
+            plot_drawable(ep, sc, Path(out) / "episode.png")
+            w, c = time.perf_counter() - w0, time.process_time() - c0
+            print(f"| {label} | {w:.2f} | {c:.2f} |", flush=True)
 
 
 def cold_start(runs: int) -> None:

@@ -5,7 +5,8 @@ colour, fading with age; the estimates' 2-sigma ellipses; every sensor's field o
 recent path and a line to the target it looks at (dashed, with a cross at the target, when
 the look missed); false alarms as a count beside the sensor; buildings. Below, the run's
 assignment timeline and errors (as in :func:`sensorplan.plotting.plot_episode`) with the
-future greyed out. Colours are those of :mod:`sensorplan.colors`.
+future greyed out. Colours are those of :mod:`sensorplan.colors`. Many sensors or targets
+move as a few collections (:mod:`sensorplan.animation_dense`).
 """
 
 from __future__ import annotations
@@ -20,9 +21,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .colors import mix_hex, sensor_style, target_color
-from .plotting import (N_SIGMA, clip_xy, draw_buildings, draw_errors, draw_timeline,
-                       ellipse_geometry, episode_title, fade_colors, fov_geometry, map_legend,
-                       map_limit, segments)
+from .plotting import (DENSE_SENSORS, DENSE_TARGETS, N_SIGMA, clip_xy, draw_buildings,
+                       draw_errors, draw_timeline, ellipse_geometry, episode_title, fade_colors,
+                       fov_geometry, map_legend, map_limit, segments, timeline_height)
 
 if TYPE_CHECKING:  # pragma: no cover
     from .scenario import Scenario
@@ -185,7 +186,7 @@ class _Frames:
         self.limit = map_limit(scenario)
         W, H = scenario.world.width, scenario.world.height
 
-        timeline_h = 0.3 * self.N + 0.7
+        timeline_h = timeline_height(self.N, 0.3) + 0.7
         fig = Figure(figsize=(11.0, 6.4 + timeline_h + 2.0), dpi=dpi)
         self.canvas = FigureCanvasAgg(fig)
         grid = fig.add_gridspec(3, 2, width_ratios=[2.2, 1.0],
@@ -216,7 +217,14 @@ class _Frames:
         self.look: list[Any] = []
         self.cross: list[Any] = []
         self.fa_text: list[Any] = []
-        for i in range(self.N):
+        # Many sensors or targets: a few collections instead (no names, no counts).
+        self.dense: list[Any] = []
+        if self.N > DENSE_SENSORS:
+            from .animation_dense import DenseSensors
+
+            self.dense.append(DenseSensors(ax, scenario, self.spos, self.shead, self.looked,
+                                           self.missed, self.truth, tail, border))
+        for i in range(0 if self.dense else self.N):
             color, marker = sensor_style(i)
             params = scenario.sensors[i].params
             wedge = Wedge(**fov_geometry(self.spos[0, i], self.shead[0, i], params),
@@ -239,7 +247,13 @@ class _Frames:
         self.now: list[Any] = []
         self.now_est: list[Any] = []
         self.ell: list[Any] = []
-        for j in range(self.M):
+        many = self.M > DENSE_TARGETS
+        if many:
+            from .animation_dense import DenseTargets
+
+            self.dense.append(DenseTargets(ax, self.truth, self.est, self.cov, self.limit,
+                                           tail))
+        for j in range(0 if many else self.M):
             c = target_color(j)
             self.track.append(ax.add_collection(LineCollection([], linewidths=2.2,
                                                                zorder=3)))
@@ -253,7 +267,7 @@ class _Frames:
             self.ell.append(ell)
         self.labels = [ax.text(0, 0, f"T{j}", color=target_color(j), fontsize=9,
                                fontweight="bold", zorder=6, clip_on=True)
-                       for j in range(self.M)]
+                       for j in range(0 if many else self.M)]
 
         extra = [
             Line2D([], [], color="0.25", linewidth=2.2, marker="o",
@@ -292,7 +306,8 @@ class _Frames:
         self.moving: list[Any] = sorted(
             [w for w, _ in self.fov] + self.spath + self.look + self.track + self.track_est
             + self.ell + self.now + self.now_est + self.smark + self.cross + self.labels
-            + self.fa_text + [a for pair in self.future for a in pair],
+            + self.fa_text + [a for pair in self.future for a in pair]
+            + [a for group in self.dense for a in group.artists],
             key=lambda a: a.get_zorder())
         for a in self.moving + [self.title]:
             a.set_animated(True)
@@ -312,7 +327,9 @@ class _Frames:
     def draw(self, t: int) -> None:
         """Update every moving artist to step ``t``."""
         ages = (t - 1 - np.arange(t)).astype(float)     # segment s ends at point s + 1
-        for j in range(self.M):
+        for group in self.dense:
+            group.update(t)
+        for j in range(len(self.track)):
             c = target_color(j)
             self.track[j].set_segments(segments(self.truth[:t + 1, j]) if t else [])
             self.track[j].set_color(fade_colors(c, ages, self.tail) if t else c)
@@ -329,7 +346,7 @@ class _Frames:
                 self.ell[j].set_width(shape[0])
                 self.ell[j].set_height(shape[1])
                 self.ell[j].set_angle(shape[2])
-        for i in range(self.N):
+        for i in range(len(self.fov)):
             color, _ = sensor_style(i)
             wedge, params = self.fov[i]
             geo = fov_geometry(self.spos[t, i], self.shead[t, i], params)
@@ -362,8 +379,10 @@ class _Frames:
             veil.set_x(t * self.dt)
             veil.set_width(max(self.S - t, 0) * self.dt + 1e-9)
             cursor.set_xdata([t * self.dt, t * self.dt])
+        n_false = int(self.false[t].sum())
         self.title.set_text(f"t = {t * self.dt:g} s (step {t} of {self.S})   "
-                            f"{self.run_title}")
+                            f"{self.run_title}" + (f"\n{n_false} false alarms in this step"
+                                                   if n_false and not self.fov else ""))
 
 
 __all__ = ["FORMATS", "animate_episode", "check_format", "ffmpeg_available", "frame_steps"]

@@ -18,6 +18,9 @@ import numpy as np
 
 from .colors import (BUILDING_EDGE, BUILDING_FACE, mix, mix_hex, sensor_style, target_color,
                      target_colors)
+from .plotting_parts import (DENSE_SENSORS, DENSE_TARGETS, LEGEND_ITEMS, N_SIGMA,
+                             TIMELINE_IMAGE_HEIGHT, RunView, fade_colors, fov_geometry,
+                             segments)
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -29,15 +32,13 @@ if TYPE_CHECKING:  # pragma: no cover
 
 #: Number of times at which the static figure draws ellipses, fields of view and looks.
 N_ELLIPSES = 5
-#: Chi-square(2) 95 % quantile would be 2.45 sigma; the figures show the usual 2 sigma.
-N_SIGMA = 2.0
 #: Drawn ellipse semi-axes and off-map coordinates are clipped to this many map sizes, so a
 #: diverged track (covariance 1e40) draws as fast as any other.
 CLIP_MAPS = 3.0
-#: Lightest tint of a faded path (its oldest point), as a weight of the full colour.
-FADE_FLOOR = 0.12
 #: Hatch of a missed look in the assignment timeline.
 MISS_HATCH = "////"
+#: How a missed look shows in the timeline image.
+MISSED_DOT = "light with a black dot"
 
 
 # ------------------------------------------------------------------------ geometry
@@ -88,18 +89,6 @@ def clip_xy(xy: Any, scenario: "Scenario") -> np.ndarray:
     return xy
 
 
-def fov_geometry(xy: Any, heading: float, params: Any) -> dict[str, Any]:
-    """Wedge arguments of a sensor's ground field of view: the range-band annulus sector
-    ``[min_ground_range, max_ground_range]`` of its azimuth wedge ``heading -+
-    fov_half_angle`` (centre, outer radius, angles in degrees, band width)."""
-    g_min = float(params.min_ground_range)
-    g_max = float(params.max_ground_range)
-    half = math.degrees(float(params.fov_half_angle))
-    centre = math.degrees(float(heading))
-    return dict(center=(float(xy[0]), float(xy[1])), r=g_max, theta1=centre - half,
-                theta2=centre + half, width=g_max - g_min)
-
-
 def field_of_view(ax: "Axes", xy: np.ndarray, heading: float, params: object,
                   color: str, alpha: float = 0.15) -> "Wedge":
     """Ground sensing region: the range-band annulus sector of the azimuth wedge."""
@@ -109,21 +98,6 @@ def field_of_view(ax: "Axes", xy: np.ndarray, heading: float, params: object,
                   edgecolor=color, linewidth=1.0, linestyle="--")
     ax.add_patch(wedge)
     return wedge
-
-
-def fade_colors(color: str, ages: Any, tau: float | None) -> np.ndarray:
-    """RGB ``(n, 3)`` tints of ``color`` for path segments of the given ages (steps before
-    now): full colour now, lighter with age (``exp(-age / tau)``; linear over the whole path
-    when ``tau`` is None and ages are normalised to [0, 1])."""
-    ages = np.asarray(ages, dtype=float)
-    w = 1.0 - ages if tau is None else np.exp(-ages / tau)
-    w = FADE_FLOOR + (1.0 - FADE_FLOOR) * np.clip(w, 0.0, 1.0)
-    return np.array([mix(color, v) for v in w]).reshape(-1, 3)
-
-
-def segments(xy: np.ndarray) -> np.ndarray:
-    """Consecutive point pairs ``(n - 1, 2, 2)`` of a path ``(n, 2)``."""
-    return np.stack([xy[:-1], xy[1:]], axis=1)
 
 
 @dataclass(frozen=True)
@@ -202,11 +176,20 @@ def draw_ellipse(ax: "Axes", mean: Any, C: Any, color: str, limit: float, **kw: 
 def draw_timeline(ax: "Axes", episode: "Episode", dt: float) -> None:
     """Sensor-to-target assignment: one row per sensor, time on x, a cell per step in the
     colour of the target looked at (hatched when the look missed), decision times as thin
-    lines, and false alarms (if any) as dots sized by their count."""
+    lines, and false alarms (if any) as dots sized by their count. Above
+    :data:`DENSE_SENSORS` sensors the cells are one image, a missed look a light cell with a
+    black dot, and every tenth row or so is labelled."""
     looked = np.asarray(episode.looked)
     missed = np.asarray(episode.missed)
     S, N = looked.shape[0] - 1, looked.shape[1]
-    for run in look_runs(looked, missed):
+    many = N > DENSE_SENSORS
+    # The limits are set below; autoscaling after every bar would cost O(bars^2).
+    ax.set_autoscale_on(False)
+    if many:
+        from .plotting_dense import draw_look_image
+
+        draw_look_image(ax, looked, missed, dt)
+    for run in ([] if many else look_runs(looked, missed)):
         c = target_color(run.target)
         ax.broken_barh([((run.first - 1) * dt, (run.last - run.first + 1) * dt)],
                        (run.sensor - 0.38, 0.76),
@@ -225,16 +208,21 @@ def draw_timeline(ax: "Axes", episode: "Episode", dt: float) -> None:
         when, who = np.nonzero(fa[1:])
         ax.scatter((when + 0.5) * dt, who + 0.25, s=6 + 6 * fa[1:][when, who], color="k",
                    zorder=3, linewidths=0)
-    ax.set_yticks(range(N), [f"S{i}" for i in range(N)])
+    if many:
+        from .plotting_dense import label_rows
+
+        label_rows(ax, N)
+    else:
+        ax.set_yticks(range(N), [f"S{i}" for i in range(N)])
     ax.set_ylim(N - 0.5, -0.5)
     ax.set_xlim(0, S * dt)
-    ax.tick_params(axis="y", length=0, pad=16)
-    for i in range(N):
+    ax.tick_params(axis="y", length=0, pad=4 if many else 16)
+    for i in range(0 if many else N):
         color, marker = sensor_style(i)
         ax.plot(-0.011, i, marker, color=color, transform=ax.get_yaxis_transform(),
                 clip_on=False, markersize=6)
-    ax.set_title("Looks: colour = target looked at, hatched = the look missed (no "
-                 "detection of it), ticks on top = decisions"
+    ax.set_title(f"Looks: colour = target looked at, {MISSED_DOT if many else 'hatched'} = "
+                 "the look missed (no detection of it), ticks on top = decisions"
                  + ("; dots = false alarms (size: count)" if fa[1:].any() else ""),
                  fontsize=9, loc="left", pad=8)
 
@@ -250,7 +238,12 @@ def draw_errors(ax: "Axes", episode: "Episode", dt: float) -> None:
         own = np.sqrt(cov[..., 0, 0] + cov[..., 1, 1])
     time_s = np.arange(err.shape[0]) * dt
     floor = 0.1
-    for j in range(err.shape[1]):
+    many = err.shape[1] > DENSE_TARGETS
+    if many:
+        from .plotting_dense import draw_error_bundle
+
+        draw_error_bundle(ax, time_s, err, own, floor)
+    for j in range(0 if many else err.shape[1]):
         c = target_color(j)
         ax.plot(time_s, np.clip(err[:, j], floor, None), color=c, linewidth=1.4)
         ax.plot(time_s, np.clip(own[:, j], floor, 1e9), color=c, linewidth=0.9, linestyle=":")
@@ -265,8 +258,11 @@ def draw_errors(ax: "Axes", episode: "Episode", dt: float) -> None:
     ax.set_xlabel("time (s)")
     ax.set_ylabel("position error (m)")
     ax.grid(True, which="major", linewidth=0.4, alpha=0.5)
-    ax.set_title("Position error per target (solid) and the filter's own RMS error "
-                 "\u221atr P (dotted)", fontsize=9, loc="left")
+    ax.set_title((f"Position error of each of the {err.shape[1]} targets (thin), their "
+                  "median (black) and the median of the filter's own RMS error \u221atr P "
+                  "(dotted)") if many else
+                 ("Position error per target (solid) and the filter's own RMS error "
+                  "\u221atr P (dotted)"), fontsize=9, loc="left")
 
 
 def episode_layout(episode: "Episode", scenario: "Scenario", width: float = 10.5,
@@ -280,7 +276,7 @@ def episode_layout(episode: "Episode", scenario: "Scenario", width: float = 10.5
     from matplotlib.figure import Figure
 
     N = np.asarray(episode.looked).shape[1]
-    timeline_h = 0.32 * N + 0.75
+    timeline_h = timeline_height(N, 0.32) + 0.75
     error_h = 2.3
     fig = Figure(figsize=(width, map_height + timeline_h + error_h + 0.6), dpi=dpi)
     FigureCanvasAgg(fig)
@@ -296,13 +292,19 @@ def episode_layout(episode: "Episode", scenario: "Scenario", width: float = 10.5
 def map_legend(ax: "Axes", episode: "Episode", scenario: "Scenario",
                extra: list[Any]) -> None:
     """Legend right of the map: the targets (colour, kind), the sensors (grey, marker,
-    altitude), buildings, then ``extra`` handles."""
+    altitude), buildings, then ``extra`` handles; more than :data:`LEGEND_ITEMS` targets
+    (sensors) are one summary entry."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
+    kinds = tuple(episode.target_kinds)
+    if len(kinds) > LEGEND_ITEMS or len(scenario.sensors) > LEGEND_ITEMS:
+        from .plotting_dense import summary_legend
+
+        summary_legend(ax, kinds, scenario, extra)
+        return
     handles: list[Any] = [Patch(facecolor=c, label=f"T{j} ({kind})")
-                          for j, (c, kind) in enumerate(zip(
-                              target_colors(len(episode.target_kinds)), episode.target_kinds))]
+                          for j, (c, kind) in enumerate(zip(target_colors(len(kinds)), kinds))]
     for i, spec in enumerate(scenario.sensors):
         color, marker = sensor_style(i)
         handles.append(Line2D([], [], color=color, marker=marker, linewidth=1.0,
@@ -315,43 +317,49 @@ def map_legend(ax: "Axes", episode: "Episode", scenario: "Scenario",
 
 
 def episode_title(episode: "Episode") -> str:
+    """Planner, horizon, steps and the targets' RMSE (each one's up to
+    :data:`LEGEND_ITEMS` targets, else their median and worst)."""
     s = episode.settings
     rmse = np.asarray(episode.rmse())
-    return (f"{s.planner}, K = {s.horizon}, e = {s.steps_per_epoch}, {s.execution.upper()}, "
-            f"{np.asarray(episode.error).shape[0] - 1} steps \u2014 RMSE per target: "
-            + ", ".join(f"{v:.0f}" for v in rmse) + " m")
+    head = (f"{s.planner}, K = {s.horizon}, e = {s.steps_per_epoch}, {s.execution.upper()}, "
+            f"{np.asarray(episode.error).shape[0] - 1} steps \u2014 ")
+    if rmse.size > LEGEND_ITEMS:
+        from .plotting_dense import rmse_summary
+
+        return head + rmse_summary(rmse)
+    return head + "RMSE per target: " + ", ".join(f"{v:.0f}" for v in rmse) + " m"
+
+
+def timeline_height(N: int, row: float) -> float:
+    """Height (inches) of the timeline's rows: ``row`` per sensor, at most
+    :data:`TIMELINE_IMAGE_HEIGHT` when the timeline is an image."""
+    return min(row * N, TIMELINE_IMAGE_HEIGHT) if N > DENSE_SENSORS else row * N
 
 
 # ---------------------------------------------------------------------- the figure
 
 
-def episode_figure(episode: "Episode", scenario: "Scenario") -> "Figure":
-    """The static figure of a run (see :func:`plot_episode`), not yet saved."""
-    from matplotlib.collections import LineCollection
-    from matplotlib.lines import Line2D
-    from matplotlib.patches import Patch, Rectangle
-
+def run_view(episode: "Episode", scenario: "Scenario") -> RunView:
+    """The :class:`RunView` of a run on its scenario."""
     truth = clip_xy(np.asarray(episode.truth)[..., :2], scenario)
-    est = clip_xy(np.asarray(episode.estimate)[..., :2], scenario)
-    cov = np.asarray(episode.cov)
-    spos = clip_xy(episode.sensor_positions, scenario)
-    shead = np.asarray(episode.sensor_headings)
-    looked = np.asarray(episode.looked)
-    missed = np.asarray(episode.missed)
-    S, M, N = truth.shape[0] - 1, truth.shape[1], spos.shape[1]
+    S = truth.shape[0] - 1
+    return RunView(truth=truth, est=clip_xy(np.asarray(episode.estimate)[..., :2], scenario),
+                   cov=np.asarray(episode.cov), spos=clip_xy(episode.sensor_positions, scenario),
+                   shead=np.asarray(episode.sensor_headings),
+                   looked=np.asarray(episode.looked), missed=np.asarray(episode.missed),
+                   times=np.unique(np.linspace(0, S, N_ELLIPSES).round().astype(int)),
+                   ages=1.0 - np.arange(S) / max(S - 1, 1), limit=map_limit(scenario))
+
+
+def draw_sensors(ax: "Axes", run: RunView, scenario: "Scenario", border: Any) -> None:
+    """Each sensor's fields of view and looks at the ellipse times, its path, markers,
+    final heading and name (one set of artists per sensor)."""
+    from matplotlib.collections import LineCollection
+
+    spos, shead, truth, S = run.spos, run.shead, run.truth, run.S
     W, H = scenario.world.width, scenario.world.height
-    dt = scenario.dt
-    limit = map_limit(scenario)
-    times = np.unique(np.linspace(0, S, N_ELLIPSES).round().astype(int))
-    looks_at = [t for t in times if t >= 1]
-    ages = 1.0 - np.arange(S) / max(S - 1, 1)          # segment s: 1 (oldest) .. 0 (newest)
-
-    fig, ax, ax_time, ax_err = episode_layout(episode, scenario)
-    border = Rectangle((0, 0), W, H, fill=False, edgecolor="0.3", linewidth=1.2)
-    ax.add_patch(border)
-    draw_buildings(ax, scenario.buildings)
-
-    for i in range(N):
+    looks_at = [t for t in run.times if t >= 1]
+    for i in range(run.N):
         color, marker = sensor_style(i)
         params = scenario.sensors[i].params
         for t in looks_at:
@@ -366,7 +374,7 @@ def episode_figure(episode: "Episode", scenario: "Scenario") -> "Figure":
         if S > 0:
             # Lighter than the tracks: the lattice paths are context, the tracks the subject.
             ax.add_collection(LineCollection(list(segments(spos[:, i])), colors=fade_colors(
-                mix_hex(color, 0.7), ages, None), linewidths=0.8, zorder=2))
+                mix_hex(color, 0.7), run.ages, None), linewidths=0.8, zorder=2))
         ax.plot(*spos[0, i], marker, color=color, markersize=7, markerfacecolor="white",
                 zorder=4)
         ax.plot(*spos[-1, i], marker, color=color, markersize=9, zorder=4)
@@ -378,56 +386,99 @@ def episode_figure(episode: "Episode", scenario: "Scenario") -> "Figure":
         ax.annotate(f"S{i}", tuple(spos[-1, i]), textcoords="offset points", xytext=(7, -13),
                     color=color, fontsize=9, fontweight="bold")
         for t in looks_at:
-            j = looked[t, i]
+            j = run.looked[t, i]
             if j < 0:
                 continue
             ax.plot([spos[t, i, 0], truth[t, j, 0]], [spos[t, i, 1], truth[t, j, 1]],
                     color=target_color(j), linewidth=0.9, zorder=2.5,
-                    linestyle="--" if missed[t, i] else "-", alpha=0.85)
+                    linestyle="--" if run.missed[t, i] else "-", alpha=0.85)
 
-    for j in range(M):
+
+def draw_targets(ax: "Axes", run: RunView) -> None:
+    """Each target's true and estimated track, start and end, ellipses at the ellipse
+    times, name and missed looks (one set of artists per target)."""
+    from matplotlib.collections import LineCollection
+
+    truth, est, S = run.truth, run.est, run.S
+    for j in range(run.M):
         c = target_color(j)
         if S > 0:
             ax.add_collection(LineCollection(list(segments(truth[:, j])),
-                                             colors=fade_colors(c, ages, None),
+                                             colors=fade_colors(c, run.ages, None),
                                              linewidths=2.2, zorder=3))
             ax.add_collection(LineCollection(list(segments(est[:, j])),
-                                             colors=fade_colors(c, ages, None),
+                                             colors=fade_colors(c, run.ages, None),
                                              linewidths=1.2, linestyles=":", zorder=3))
         ax.plot(*truth[0, j], "o", color=mix(c, 0.5), markersize=6, zorder=4)
         ax.plot(*truth[-1, j], "s", color=c, markersize=6, zorder=4)
-        for t in times:
-            draw_ellipse(ax, est[t, j], cov[t, j, :2, :2], c, limit, linewidth=1.0,
+        for t in run.times:
+            draw_ellipse(ax, est[t, j], run.cov[t, j, :2, :2], c, run.limit, linewidth=1.0,
                          alpha=0.35 + 0.6 * t / max(S, 1), zorder=3)
         ax.annotate(f"T{j}", tuple(truth[-1, j]), textcoords="offset points", xytext=(6, 4),
                     color=c, fontsize=9, fontweight="bold")
-        miss_t = np.nonzero((looked[1:] == j) & missed[1:])[0] + 1
+        miss_t = np.nonzero((run.looked[1:] == j) & run.missed[1:])[0] + 1
         if miss_t.size:
             ax.plot(truth[miss_t, j, 0], truth[miss_t, j, 1], "x", color="k", markersize=5,
                     markeredgewidth=1.2, zorder=5, linestyle="none")
 
-    when = ", ".join(f"{t * dt:g}" for t in times)
-    extra = [
+
+def map_handles(run: RunView, dt: float) -> list[Any]:
+    """Legend entries of the map's line and shape kinds (after targets and sensors)."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    many_s, many_t = run.N > DENSE_SENSORS, run.M > DENSE_TARGETS
+    when = ", ".join(f"{t * dt:g}" for t in run.times)
+    last = f"{run.S * dt:g}"
+    if many_s:
+        looks, fov = f"at step {run.S}", f"field of view at step {run.S}"
+    else:
+        looks = f"at t = {when} s" if many_t else "at the ellipse times"
+        fov = f"field of view at step {run.S} (dotted: {looks})"
+    return [
         Line2D([], [], color="0.25", linewidth=2.2,
                label="true track, light \u2192 dark = early \u2192 late (\u25cf start, "
                      "\u25a0 end)"),
         Line2D([], [], color="0.25", linestyle=":", linewidth=1.2, label="estimate"),
         Line2D([], [], color="0.25", marker="o", markerfacecolor="none", linestyle="none",
-               markersize=10, label=f"{N_SIGMA:g}\u03c3 position ellipse (t = {when} s)"),
+               markersize=10, label=f"{N_SIGMA:g}\u03c3 position ellipse "
+                                    f"(t = {last if many_t else when} s)"),
         Line2D([], [], color="k", marker="x", linestyle="none", markersize=6,
                label="a look at the target missed"),
         Line2D([], [], color="0.25", linewidth=1.0,
-               label="sensor \u2192 looked-at target (dashed: missed), at the ellipse times"),
-        Patch(facecolor="0.5", alpha=0.2, edgecolor="0.3", linestyle="--",
-              label=f"field of view at step {S} (dotted: at the ellipse times)"),
+               label=f"sensor \u2192 looked-at target (dashed: missed), {looks}"),
+        Patch(facecolor="0.5", alpha=0.2, edgecolor="0.3", linestyle="--", label=fov),
         Line2D([], [], color="0.25", marker="^", markerfacecolor="white", linestyle="none",
-               markersize=8, label="sensor start (open), end (filled), arrow = heading"),
+               markersize=8, label="sensor start (open), end (filled)"
+                                   + ("" if many_s else ", arrow = heading")),
     ]
-    map_legend(ax, episode, scenario, extra)
+
+
+def episode_figure(episode: "Episode", scenario: "Scenario") -> "Figure":
+    """The static figure of a run (see :func:`plot_episode`), not yet saved."""
+    from matplotlib.patches import Rectangle
+
+    from . import plotting_dense as dense
+
+    run = run_view(episode, scenario)
+    W, H = scenario.world.width, scenario.world.height
+    fig, ax, ax_time, ax_err = episode_layout(episode, scenario)
+    border = Rectangle((0, 0), W, H, fill=False, edgecolor="0.3", linewidth=1.2)
+    ax.add_patch(border)
+    draw_buildings(ax, scenario.buildings)
+    if run.N > DENSE_SENSORS:
+        dense.draw_sensors(ax, run, scenario, border)
+    else:
+        draw_sensors(ax, run, scenario, border)
+    if run.M > DENSE_TARGETS:
+        dense.draw_targets(ax, run)
+    else:
+        draw_targets(ax, run)
+    map_legend(ax, episode, scenario, map_handles(run, scenario.dt))
     frame_map(ax, W, H, 0.03)
     ax.set_title(episode_title(episode), fontsize=10)
-    draw_timeline(ax_time, episode, dt)
-    draw_errors(ax_err, episode, dt)
+    draw_timeline(ax_time, episode, scenario.dt)
+    draw_errors(ax_err, episode, scenario.dt)
     return fig
 
 
@@ -446,6 +497,10 @@ def plot_episode(episode: "Episode", scenario: "Scenario", path: str | Path) -> 
     - Timeline: one row per sensor, one cell per step in the colour of the target it looked
       at, hatched when the look missed; decisions as thin lines; false alarms as dots.
     - Errors: each target's position error over time and the filter's own RMS error.
+
+    Runs with more than :data:`DENSE_SENSORS` sensors or :data:`DENSE_TARGETS` targets are
+    drawn condensed (:mod:`sensorplan.plotting_dense`), and the legend and title summarise
+    more than :data:`LEGEND_ITEMS` of either.
 
     Parameters
     ----------
