@@ -1,4 +1,4 @@
-"""Stone Soup interop (issue 7): converters, measurement model, EKF, manager, reward, example.
+"""Stone Soup interop: converters, measurement model, EKF, manager, reward, example.
 
 Skipped cleanly where Stone Soup is not installed (the ``stonesoup`` extra).
 """

@@ -1,4 +1,4 @@
-"""Reading input files and writing the single-decision result (SPEC 7).
+"""Reading input files and writing the single-decision result.
 
 Every failure to read a file becomes a :class:`~sensorplan.errors.ConfigError` whose field is
 the file's path, so that the CLI can report it in one line.
@@ -17,10 +17,10 @@ from .errors import ConfigError
 if TYPE_CHECKING:  # pragma: no cover
     from .planners import PlanResult
 
-#: Planners whose result carries ``converged`` and ``sweeps`` (SPEC 7).
+#: Planners whose result carries ``converged`` and ``sweeps``.
 GAME_PLANNERS = ("pg", "pg-refine")
 
-#: Output keys in SPEC 7 order.
+#: Output keys in their documented order (docs/cli.md).
 OUTPUT_KEYS = ("planner", "plan", "potential", "information", "converged", "sweeps", "seconds")
 
 
@@ -170,7 +170,7 @@ def parse_toml(text: str, source: str = "<toml>") -> dict[str, Any]:
 
 
 def result_to_dict(result: "PlanResult") -> dict[str, Any]:
-    """A planner's result as the SPEC 7 output object.
+    """A planner's result as the output object of ``sensorplan plan``.
 
     Parameters
     ----------

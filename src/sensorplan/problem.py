@@ -1,4 +1,4 @@
-"""One planning decision (SPEC 4): the problem value, plans, moves and reachable sets.
+"""One planning decision: the problem value, plans, moves and reachable sets.
 
 A :class:`PlanningProblem` holds everything a planner receives; a :class:`Plan` holds every
 player's action as arrays ``positions (N, K, 2)`` and ``targets (N, K)`` (``-1`` and NaN for
@@ -20,7 +20,7 @@ from .modes import (OBJECTIVES, PLANNING_DETECTIONS, VISIBILITY_MODES,  # noqa: 
                     Objective, Visibility)
 from .sensors import SensorParams
 
-#: The 8 lattice directions in SPEC order.
+#: The 8 lattice directions in move order.
 DIRECTIONS = np.array([(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)],
                       dtype=float)
 #: Positions closer than this (m) are the same position.
@@ -32,7 +32,7 @@ TIE_TOL = 1e-9
 
 
 def move_vectors(distances: tuple[float, ...] | list[float]) -> FloatArray:
-    """The moves in SPEC order: stay, then ``s * d`` for each distance s and direction d.
+    """The moves in order: stay, then ``s * d`` for each distance s and direction d.
 
     Returns
     -------
@@ -63,7 +63,7 @@ class Lattice:
     Attributes
     ----------
     positions : list of (n_k, 2) arrays
-        ``R_k`` in breadth-first order (parents in order, moves in SPEC order).
+        ``R_k`` in breadth-first order (parents in order, moves in order).
     parent_move : list of (n_k, n_moves) int arrays
         ``parent_move[k][p, m]``: index in ``R_{k-1}`` of ``R_k[p] - move_m``, or -1.
     child : list of (n_{k-1}, n_moves) int arrays
@@ -172,7 +172,7 @@ def _readonly(a: object, dtype: type = float) -> np.ndarray:
 
 @dataclass(frozen=True)
 class PlanningProblem:
-    """Everything one planning decision needs (SPEC 4 inputs).
+    """Everything one planning decision needs.
 
     Attributes
     ----------
@@ -248,7 +248,7 @@ class PlanningProblem:
         return self.horizon * self.steps_per_epoch
 
     def validate(self) -> None:
-        """Check SPEC 7's semantic rules; raise :class:`ConfigError` naming the field."""
+        """Check the semantic rules of a decision; raise :class:`ConfigError` naming the field."""
         M = len(self.means)
         if M < 1:
             raise ConfigError("targets", "at least one target is required")
@@ -411,7 +411,7 @@ class Plan:
 
 
 def check_plan(problem: PlanningProblem, plan: Plan, complete: bool = True) -> None:
-    """Raise ``ValueError`` unless ``plan`` is feasible for ``problem`` (SPEC 4).
+    """Raise ``ValueError`` unless ``plan`` is feasible for ``problem``.
 
     Checks shapes, that targets exist, that every position lies in the map and in ``R_k``
     and differs from the previous assigned position by a move (from ``p_0`` at k = 1).

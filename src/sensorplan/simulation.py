@@ -1,4 +1,4 @@
-"""Closed-loop simulation (SPEC 5): truth, sensors, trackers and a planner in the loop.
+"""Closed-loop simulation: truth, sensors, trackers and a planner in the loop.
 
 One run (:func:`run_episode`) alternates decisions and execution:
 
@@ -13,7 +13,7 @@ One run (:func:`run_episode`) alternates decisions and execution:
 - Every step: the targets move; the filters predict; every sensor whose target is truly in
   its field of view measures it (the radar model of :mod:`sensorplan.radar` at the true
   position: its noise-free measurement plus noise with ``R`` at the true position);
-  a look that misses feeds the ``negative`` miss update (SPEC 3) when enabled, for all
+  a look that misses feeds the ``negative`` miss update when enabled, for all
   missed looks in sensor order before the measurement updates, which are also applied in
   sensor order. Looks at distinct tracks are independent, so they are batched into one
   call (``ekf.update_rounds``); a track looked at by several sensors is updated once per
@@ -299,7 +299,7 @@ def _miss_update_kernel() -> Callable[..., tuple[FloatArray, FloatArray, BoolArr
 def run_episode(scenario: Scenario, settings: RunSettings,
                 seed: int | np.random.SeedSequence,
                 progress: Callable[[int, int], None] | None = None) -> Episode:
-    """Simulate one closed-loop run (SPEC 5).
+    """Simulate one closed-loop run.
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-r"""Ground-truth target motion (SPEC 1), batched over targets.
+r"""Ground-truth target motion, batched over targets.
 
 Two kinds of truth, both mirrored at the walls of the map ``[0, W] x [0, H]``:
 

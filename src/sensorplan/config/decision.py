@@ -1,4 +1,4 @@
-"""The single-decision file (JSON, SPEC 7) of ``sensorplan plan``."""
+"""The single-decision file (JSON) of ``sensorplan plan`` (docs/cli.md)."""
 
 from __future__ import annotations
 
@@ -68,7 +68,7 @@ class DecisionPlanner(Strict):
 
 
 class DecisionFile(Strict):
-    """SPEC 7's single-decision file."""
+    """The single-decision file."""
 
     dt: float = _problem_default("dt")
     steps_per_epoch: int = _problem_default("steps_per_epoch")
@@ -140,7 +140,7 @@ def _pd_or_none(P: Any, field: str) -> Any:
 
 
 def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
-    """Validate a SPEC 7 single-decision object and build the problem and planner settings.
+    """Validate a single-decision object and build the problem and planner settings.
 
     Parameters
     ----------
@@ -153,7 +153,7 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
     Raises
     ------
     ConfigError
-        For every bad input of SPEC 7 (the field is a dotted path like ``sensors[1].altitude``).
+        For every bad input (the field is a dotted path like ``sensors[1].altitude``).
     """
     model: DecisionFile = validate(DecisionFile, data, "a JSON object")
     _check_magnitudes(model)
