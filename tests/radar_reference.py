@@ -40,7 +40,7 @@ _SCALAR_FIELDS = tuple(f.name for f in fields(SensorParams)
                        if f.name not in ("moves", "detection"))
 
 
-def stack_params(params: "list[SensorParams] | tuple[SensorParams, ...]") -> SensorParams:
+def stack_params(params: list[SensorParams] | tuple[SensorParams, ...]) -> SensorParams:
     """One :class:`SensorParams` whose scalar fields are ``(N,)`` arrays, one per sensor."""
     kwargs = {name: np.array([getattr(p, name) for p in params], dtype=float)
               for name in _SCALAR_FIELDS}
@@ -125,11 +125,13 @@ def noise_std(r: FloatArray, cos_psi: FloatArray,
     root = np.sqrt(2.0 * snr)
     sigma_r = np.asarray(params.range_resolution) / root
     with np.errstate(divide="ignore"):
-        sigma_phi = (np.asarray(params.beamwidth) / cos_psi) / (np.asarray(params.monopulse_slope) * root)
+        sigma_phi = ((np.asarray(params.beamwidth) / cos_psi)
+                     / (np.asarray(params.monopulse_slope) * root))
     return sigma_r, sigma_phi
 
 
-def noise_cov(x: FloatArray, sensor_xy: FloatArray, heading: Any, params: SensorParams) -> FloatArray:
+def noise_cov(x: FloatArray, sensor_xy: FloatArray, heading: Any,
+              params: SensorParams) -> FloatArray:
     """Measurement noise covariance ``R`` ``(..., 2, 2)`` at target states or positions."""
     dx, dy = ground_offset(np.asarray(x)[..., :2], sensor_xy)
     r = np.sqrt(dx * dx + dy * dy + np.asarray(params.altitude, dtype=float) ** 2)

@@ -277,7 +277,7 @@ def test_empty_plan_has_zero_potential(rng, problem_factory, backend):
 def test_probabilistic_tends_to_mean_for_tiny_covariances(rng, problem_factory, plan_factory,
                                                           backend):
     differ = 0
-    for case in range(20):
+    for _ in range(20):
         covs = np.broadcast_to(np.eye(4) * 1e-6, (3, 4, 4))
         kw = dict(n_sensors=2, n_targets=3, horizon=2, steps_per_epoch=2, process_noise=0.0,
                   covs=covs)

@@ -395,7 +395,7 @@ def test_p_vis_at_a_range_edge_is_half_the_azimuth_factor():
     heading = -2.9
     sd = 5.0
     C = sd**2 * np.eye(2)
-    for edge, sign in [(DEF.max_ground_range, +1), (DEF.min_ground_range, -1)]:
+    for edge in (DEF.max_ground_range, DEF.min_ground_range):
         for off in (0.0, 0.3, -0.5, 0.52):
             mean = _point(s, edge, heading + off)
             g = math.hypot(*(mean - s))

@@ -1,4 +1,6 @@
-r"""Mutual-information potential of a plan (docs/planning.md, section 1) and the batched kernels behind it.
+r"""Mutual-information potential of a plan and the batched kernels behind it.
+
+The definition is stated in docs/planning.md, section 1.
 
 Everything here is covariance-only: the means are predicted without updates,
 ``xbar_j(t) = F^t x_j(0)``, and measurements enter through their information in the

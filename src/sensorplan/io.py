@@ -50,7 +50,7 @@ def _read_text(path: str | Path) -> str:
         raise ConfigError(str(path), f"cannot be read ({exc.strerror or exc})") from None
 
 
-class _Duplicate(dict):  # type: ignore[type-arg]
+class _Duplicate(dict):
     """A JSON object that repeated a key; :func:`check_tree` reports it with its path."""
 
     duplicate: str = ""
@@ -169,7 +169,7 @@ def parse_toml(text: str, source: str = "<toml>") -> dict[str, Any]:
     return data
 
 
-def result_to_dict(result: "PlanResult") -> dict[str, Any]:
+def result_to_dict(result: PlanResult) -> dict[str, Any]:
     """A planner's result as the output object of ``sensorplan plan``.
 
     Parameters
@@ -216,7 +216,7 @@ def result_to_dict(result: "PlanResult") -> dict[str, Any]:
     return out
 
 
-def dumps_result(result: "PlanResult") -> str:
+def dumps_result(result: PlanResult) -> str:
     """:func:`result_to_dict` as JSON text, one plan entry per line (no trailing newline).
 
     Non-finite numbers raise ``ValueError``: they are not JSON.

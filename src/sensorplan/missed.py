@@ -252,7 +252,7 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
     means = np.asarray(means, dtype=float)
     covs = np.asarray(covs, dtype=float)
     heading = np.asarray(heading, dtype=float)
-    chol = np.linalg.cholesky(covs)
+    chol = np.asarray(np.linalg.cholesky(covs), dtype=float)      # (typed float64, no copy)
     inside = _inside(means, chol, x, np.asarray(sensor_xy, dtype=float), heading, table,
                      sensor, buildings)
 

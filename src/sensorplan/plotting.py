@@ -72,12 +72,12 @@ def ellipse_geometry(C: Any, limit: float) -> tuple[float, float, float] | None:
     return 2.0 * float(semi[1]), 2.0 * float(semi[0]), angle
 
 
-def map_limit(scenario: "Scenario") -> float:
+def map_limit(scenario: Scenario) -> float:
     """:data:`CLIP_MAPS` map sizes (m): the clipping bound of drawn geometry."""
     return CLIP_MAPS * max(scenario.world.width, scenario.world.height)
 
 
-def clip_xy(xy: Any, scenario: "Scenario") -> np.ndarray:
+def clip_xy(xy: Any, scenario: Scenario) -> np.ndarray:
     """Positions ``(..., 2)`` clipped to the map grown by :func:`map_limit` on every side
     (only far off-map points move; non-finite ones become NaN, which draws as a gap)."""
     xy = np.array(xy, dtype=float)
@@ -100,8 +100,8 @@ def fov_geometry(xy: Any, heading: float, params: Any) -> dict[str, Any]:
                 theta2=centre + half, width=g_max - g_min)
 
 
-def field_of_view(ax: "Axes", xy: np.ndarray, heading: float, params: object,
-                  color: str, alpha: float = 0.15) -> "Wedge":
+def field_of_view(ax: Axes, xy: np.ndarray, heading: float, params: object,
+                  color: str, alpha: float = 0.15) -> Wedge:
     """Ground sensing region: the range-band annulus sector of the azimuth wedge."""
     from matplotlib.patches import Wedge
 
@@ -165,7 +165,7 @@ def look_runs(looked: Any, missed: Any) -> list[LookRun]:
 # ------------------------------------------------------------------------- drawing
 
 
-def frame_map(ax: "Axes", width: float, height: float, margin: float) -> None:
+def frame_map(ax: Axes, width: float, height: float, margin: float) -> None:
     """Equal-aspect map axes in metres, with ``margin`` (a fraction of the map) around it."""
     pad = margin * max(width, height)
     ax.set_xlim(-pad, width + pad)
@@ -176,7 +176,7 @@ def frame_map(ax: "Axes", width: float, height: float, margin: float) -> None:
     ax.grid(True, linewidth=0.4, alpha=0.4)
 
 
-def draw_buildings(ax: "Axes", buildings: Any) -> None:
+def draw_buildings(ax: Axes, buildings: Any) -> None:
     """Buildings ``(x0, y0, x1, y1, height)`` as grey rectangles labelled with their
     height."""
     from matplotlib.patches import Rectangle
@@ -188,7 +188,7 @@ def draw_buildings(ax: "Axes", buildings: Any) -> None:
                 fontsize=7.5, color="#333333", zorder=1.6, clip_on=True)
 
 
-def draw_ellipse(ax: "Axes", mean: Any, C: Any, color: str, limit: float, **kw: Any) -> None:
+def draw_ellipse(ax: Axes, mean: Any, C: Any, color: str, limit: float, **kw: Any) -> None:
     """Draw the ``N_SIGMA`` ellipse of ``C (2, 2)`` around ``mean`` (nothing if not finite)."""
     from matplotlib.patches import Ellipse
 
@@ -199,7 +199,7 @@ def draw_ellipse(ax: "Axes", mean: Any, C: Any, color: str, limit: float, **kw: 
                          edgecolor=color, **kw))
 
 
-def draw_timeline(ax: "Axes", episode: "Episode", dt: float) -> None:
+def draw_timeline(ax: Axes, episode: Episode, dt: float) -> None:
     """Sensor-to-target assignment: one row per sensor, time on x, a cell per step in the
     colour of the target looked at (hatched when the look missed), decision times as thin
     lines, and false alarms (if any) as dots sized by their count."""
@@ -239,7 +239,7 @@ def draw_timeline(ax: "Axes", episode: "Episode", dt: float) -> None:
                  fontsize=9, loc="left", pad=8)
 
 
-def draw_errors(ax: "Axes", episode: "Episode", dt: float) -> None:
+def draw_errors(ax: Axes, episode: Episode, dt: float) -> None:
     """Position error of each target over time (log scale) with the filter's own RMS
     position error ``sqrt(tr P_xy)`` (dotted) and the lost-track threshold."""
     from .study.metrics import LOST_THRESHOLD
@@ -269,9 +269,9 @@ def draw_errors(ax: "Axes", episode: "Episode", dt: float) -> None:
                  "\u221atr P (dotted)", fontsize=9, loc="left")
 
 
-def episode_layout(episode: "Episode", scenario: "Scenario", width: float = 10.5,
+def episode_layout(episode: Episode, scenario: Scenario, width: float = 10.5,
                    map_height: float = 7.0, dpi: float = 110
-                   ) -> tuple["Figure", "Axes", "Axes", "Axes"]:
+                   ) -> tuple[Figure, Axes, Axes, Axes]:
     """A bare Agg figure with the map on top, the assignment timeline and the error panel
     below (sharing the time axis): ``(figure, map, timeline, errors)``."""
     # The Agg canvas of a bare Figure: no pyplot, so no global backend switch and no figure
@@ -293,7 +293,7 @@ def episode_layout(episode: "Episode", scenario: "Scenario", width: float = 10.5
     return fig, ax_map, ax_time, ax_err
 
 
-def map_legend(ax: "Axes", episode: "Episode", scenario: "Scenario",
+def map_legend(ax: Axes, episode: Episode, scenario: Scenario,
                extra: list[Any]) -> None:
     """Legend right of the map: the targets (colour, kind), the sensors (grey, marker,
     altitude), buildings, then ``extra`` handles."""
@@ -314,7 +314,7 @@ def map_legend(ax: "Axes", episode: "Episode", scenario: "Scenario",
               fontsize=8.5, frameon=False)
 
 
-def episode_title(episode: "Episode") -> str:
+def episode_title(episode: Episode) -> str:
     s = episode.settings
     rmse = np.asarray(episode.rmse())
     return (f"{s.planner}, K = {s.horizon}, e = {s.steps_per_epoch}, {s.execution.upper()}, "
@@ -325,7 +325,7 @@ def episode_title(episode: "Episode") -> str:
 # ---------------------------------------------------------------------- the figure
 
 
-def episode_figure(episode: "Episode", scenario: "Scenario") -> "Figure":
+def episode_figure(episode: Episode, scenario: Scenario) -> Figure:
     """The static figure of a run (see :func:`plot_episode`), not yet saved."""
     from matplotlib.collections import LineCollection
     from matplotlib.lines import Line2D
@@ -431,7 +431,7 @@ def episode_figure(episode: "Episode", scenario: "Scenario") -> "Figure":
     return fig
 
 
-def plot_episode(episode: "Episode", scenario: "Scenario", path: str | Path) -> Path:
+def plot_episode(episode: Episode, scenario: Scenario, path: str | Path) -> Path:
     """The figure of one run: map, assignment timeline and errors over time.
 
     - Map: the map rectangle and buildings (grey, labelled with their height); each

@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -153,8 +154,8 @@ def _build_lattice(p0: FloatArray, moves: FloatArray, K: int,
     p0 = np.array(p0, dtype=float, order="C")
     moves = np.array(moves, dtype=float, order="C")
     bounded = world is not None
-    width = float(world.width) if bounded else 0.0
-    height = float(world.height) if bounded else 0.0
+    width = float(world.width) if world is not None else 0.0
+    height = float(world.height) if world is not None else 0.0
     flat, start, child_flat, parent_flat = lattice_nb(p0, moves, K, bounded, width, height,
                                                        POSITION_TOL, _common_step(moves))
     positions = [flat[start[k]:start[k + 1]] for k in range(K + 1)]
@@ -165,7 +166,7 @@ def _build_lattice(p0: FloatArray, moves: FloatArray, K: int,
 
 
 def _readonly(a: object, dtype: type = float) -> np.ndarray:
-    arr = np.array(a, dtype=dtype)
+    arr: np.ndarray = np.array(a, dtype=dtype)
     arr.setflags(write=False)
     return arr
 
@@ -284,7 +285,8 @@ class PlanningProblem:
         if int(self.steps_per_epoch) != self.steps_per_epoch or self.steps_per_epoch < 1:
             raise ConfigError("steps_per_epoch", "must be an integer >= 1")
         if self.visibility not in VISIBILITY_MODES:
-            raise ConfigError("visibility", f"must be one of {VISIBILITY_MODES}, got {self.visibility!r}")
+            raise ConfigError("visibility",
+                              f"must be one of {VISIBILITY_MODES}, got {self.visibility!r}")
         if self.objective not in OBJECTIVES:
             raise ConfigError("objective", f"must be one of {OBJECTIVES}, got {self.objective!r}")
         if self.planning_detection not in PLANNING_DETECTIONS:
@@ -306,7 +308,7 @@ class PlanningProblem:
                 raise ConfigError(f"sensors[{i}].position", "is outside the map")
 
 
-def check_buildings(buildings: object, world: MapRect, altitudes: object) -> FloatArray:
+def check_buildings(buildings: Any, world: MapRect, altitudes: object) -> FloatArray:
     """The buildings as a ``(B, 5)`` array ``x0, y0, x1, y1, height``, checked.
 
     Each is 5 finite numbers with ``x0 < x1``, ``y0 < y1``, inside the map and ``height > 0``;
@@ -405,7 +407,7 @@ class Plan:
         return self.targets >= 0
 
     @classmethod
-    def empty(cls, n_sensors: int, horizon: int) -> "Plan":
+    def empty(cls, n_sensors: int, horizon: int) -> Plan:
         return cls(np.full((n_sensors, horizon, 2), np.nan),
                    np.full((n_sensors, horizon), -1, dtype=np.int64))
 

@@ -247,7 +247,8 @@ def radar_scenario() -> Scenario:
     return paper_scenario(**RADAR_DETECTION)
 
 
-def town_buildings(half_size: float = 30.0) -> tuple[tuple[float, ...], ...]:
+def town_buildings(half_size: float = 30.0
+                   ) -> tuple[tuple[float, float, float, float, float], ...]:
     """A town centre on the paper's 600 x 600 m map: a 3 x 3 grid of square buildings
     centred at 160, 300 and 440 m on each axis (the target area's middle), ``2 half_size``
     m wide, 150 m tall in the centre, 90 m at the middle of each side and 45 m at the

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
 from pydantic import ConfigDict
 
 from .. import io
@@ -15,8 +16,8 @@ from ..limits import (MAX_SENSORS, MAX_TARGETS, RANGES, check_count, check_covar
                       check_decision_size, check_sensor_precision)
 from ..problem import MapRect, PlanningProblem, check_covariance
 from ..settings import RunSettings
-from ..validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict, Vec2, Vec4,
-                          setting_type, validate)
+from ..validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict,
+                          Vec2, Vec4, setting_type, validate)
 from .planners import build_planner, planner_settings
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -102,7 +103,7 @@ class Decision:
     planner: str
     settings: Mapping[str, Any]
 
-    def make_planner(self) -> "Planner":
+    def make_planner(self) -> Planner:
         return build_planner(self.planner, self.settings)
 
 
@@ -158,16 +159,16 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
     model: DecisionFile = validate(DecisionFile, data, "a JSON object")
     _check_magnitudes(model)
     problem = PlanningProblem(
-        means=[t.mean for t in model.targets],
-        covs=[t.cov for t in model.targets],
-        positions=[s.position for s in model.sensors],
-        headings=[s.heading for s in model.sensors],
+        means=np.array([t.mean for t in model.targets], dtype=float),
+        covs=np.array([t.cov for t in model.targets], dtype=float),
+        positions=np.array([s.position for s in model.sensors], dtype=float),
+        headings=np.array([s.heading for s in model.sensors], dtype=float),
         sensors=tuple(s.params() for s in model.sensors),
         horizon=model.horizon, steps_per_epoch=model.steps_per_epoch, dt=model.dt,
         process_noise=model.process_noise, world=MapRect(model.map.width, model.map.height),
         visibility=model.visibility, objective=model.objective,
         planning_detection=model.planning_detection,
-        buildings=[b.row() for b in model.buildings])
+        buildings=np.array([b.row() for b in model.buildings], dtype=float))
     for i, s in enumerate(problem.sensors):
         check_sensor_precision(s, f"sensors[{i}]")
     check_decision_size(problem.horizon, problem.steps_per_epoch, problem.n_targets,

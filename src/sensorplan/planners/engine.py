@@ -170,7 +170,7 @@ class GameState:
                 k += 1
                 continue
             k_end = self._run_end(i, k)
-            ks = np.arange(k, k_end + 1)
+            ks = range(k, k_end + 1)
             pos = np.stack([self.xy(i, kk, self.pos[i, kk - 1]) for kk in ks])[None]
             tgt = self.tgt[i, k - 1:k_end][None]
             th, W, _ = chain_looks(ctx, i, k, pos, tgt, ctx.problem.headings[i], k == 1)

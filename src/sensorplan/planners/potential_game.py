@@ -104,8 +104,9 @@ def run_sweeps(state: GameState, rng: np.random.Generator, alpha: float, beta: f
 
     With ``anytime`` (a time budget), every JSFP iteration is a check (the current plan is
     offered when complete); in the first sweep the partial plan's completion is offered
-    after iterations 1, 2, 4, 8, ... and at the end of each epoch game; ``anytime.sweeps``/``anytime.trace`` follow the progress. Stopping
-    raises :class:`~sensorplan.planners.anytime.BudgetExhausted`.
+    after iterations 1, 2, 4, 8, ... and at the end of each epoch game;
+    ``anytime.sweeps``/``anytime.trace`` follow the progress. Stopping raises
+    :class:`~sensorplan.planners.anytime.BudgetExhausted`.
 
     Returns
     -------

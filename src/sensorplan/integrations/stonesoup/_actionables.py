@@ -119,7 +119,7 @@ class LatticeMovable(FixedMovable):
     world: MapRect = Property(default=DEFAULT_WORLD,
                               doc="The map in world coordinates; default [0, 600] x [0, 600].")
 
-    @world.setter
+    @world.setter  # type: ignore[no-redef]  # Stone Soup's Property idiom
     def world(self, value: Any) -> None:
         self._property_world = as_world(value)
 
@@ -273,7 +273,7 @@ class SensorplanRadar(Sensor):
                           "the generator); None: NumPy's global state (seed it with "
                           "np.random.seed), as in Stone Soup.")
 
-    @seed.setter
+    @seed.setter  # type: ignore[no-redef, union-attr]  # Stone Soup's Property idiom
     def seed(self, value: int | None) -> None:
         self._property_seed = value
         #: The radar's own generator (from ``seed``), or None: NumPy's global state.
@@ -284,7 +284,7 @@ class SensorplanRadar(Sensor):
         self._pending = False
         self.aim_target: Any = None
 
-    @heading.getter
+    @heading.getter  # type: ignore[no-redef, attr-defined]  # Stone Soup's Property idiom
     def heading(self) -> float:
         self._resolve()
         return self._property_heading
@@ -299,8 +299,8 @@ class SensorplanRadar(Sensor):
             return
         xy = self.ground_position
         bearing = math.atan2(aim[1] - xy[1], aim[0] - xy[0])
-        self._property_heading = float(heading_rule(self._property_heading, bearing,
-                                                    self.params.max_turn))
+        self._property_heading: float = float(heading_rule(self._property_heading, bearing,
+                                                           self.params.max_turn))
 
     @property
     def ground_position(self) -> FloatArray:

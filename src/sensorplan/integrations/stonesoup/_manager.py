@@ -120,7 +120,7 @@ class SensorplanManager(SensorManager):
         super().__init__(*args, **kwargs)
         # Stone Soup's YAML writes the derived set of sensors and reads it back as ruamel's
         # CommentedSet, which lacks the set methods SensorManager uses.
-        self._property_sensors = set(self._property_sensors or ())
+        self._property_sensors: set[Any] = set(self._property_sensors or ())
         if self.planning_detection not in PLANNING_DETECTIONS:
             raise ConfigError("planning_detection", f"must be one of {PLANNING_DETECTIONS}, "
                                                     f"got {self.planning_detection!r}")
