@@ -20,7 +20,10 @@ demo: $(STAMP)
 browser:
 	-@bash scripts/ensure_chromium.sh
 
+# Lint and type-check first (fast), then the suite; any failure stops it.
 test: $(STAMP) browser
+	$(BIN)/python -m ruff check src tests scripts benchmarks examples
+	$(BIN)/python -m mypy src
 	$(BIN)/python -m pytest
 
 test-slow: $(STAMP)

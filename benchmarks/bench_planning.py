@@ -217,13 +217,13 @@ def speed(args: argparse.Namespace) -> None:
 
 def backend_comparison(args: argparse.Namespace) -> None:
     code = (
-        "import sys, numpy as np; sys.argv=['x']; sys.path.insert(0, %r);"
+        "import sys, numpy as np; sys.argv=['x']; sys.path.insert(0, {!r});"
         "import bench_planning as b;"
         "from sensorplan.problem import PlanningProblem;"
-        "s=b.paper_states(%d);"
+        "s=b.paper_states({:d});"
         "ps=[PlanningProblem(horizon=3, steps_per_epoch=2, **x) for x in s];"
-        "w,c,_=b.time_planner('pg', ps); print(w, c)") % (str(ROOT / "benchmarks"),
-                                                             args.decisions)
+        "w,c,_=b.time_planner('pg', ps); print(w, c)").format(str(ROOT / "benchmarks"),
+                                                                 args.decisions)
     out = {}
     for backend in ("numba", "numpy"):
         env = dict(os.environ, SENSORPLAN_BACKEND=backend)

@@ -35,7 +35,7 @@ from sensorplan.integrations.stonesoup import (LatticeMovable, MapRect, Sensorpl
 from sensorplan.sensors import SensorParams
 
 START = datetime.datetime(2024, 1, 1)
-Q = 0.05                                     # m^2/s^3, truth and filter (SPEC 1)
+Q = 0.05                                     # m^2/s^3, truth and filter
 P0 = np.diag([400.0, 4.0, 400.0, 4.0])       # Stone Soup order [x, vx, y, vy]
 
 

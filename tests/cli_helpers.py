@@ -1,4 +1,4 @@
-"""Helpers shared by the command-line tests: the SPEC 7 example and running the CLI."""
+"""Helpers shared by the command-line tests: the documented decision example and running the CLI."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 
 from sensorplan.cli import main
 
-#: The example of SPEC 7, verbatim.
+#: The documented decision example, verbatim (docs/cli.md).
 SPEC7_TEXT = """
 {
   "dt": 1.0, "steps_per_epoch": 1, "horizon": 3,

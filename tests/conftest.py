@@ -19,6 +19,21 @@ from factories import make_problem, random_plan
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
+@pytest.fixture(scope="session", autouse=True)
+def warm_kernels() -> None:
+    """Compile (or load from numba's disk cache) every compiled kernel once per session.
+
+    Without it the first test that plans pays the one-off cost (seconds on a fresh clone),
+    which makes that test look slow and its timing-sensitive checks flaky. Both warm-ups
+    remember that they ran, so the planners' own calls to them are free afterwards.
+    """
+    from sensorplan._kernels import warm_up
+    from sensorplan.planners.engine import warm_engine
+
+    warm_up()           # covariance recursion, looks, the radar's batched kernels
+    warm_engine()       # the planning engine's chain, gain and JSFP kernels
+
+
 @pytest.fixture
 def rng() -> np.random.Generator:
     """The suite's seeded generator (a fresh one per test)."""

@@ -66,7 +66,7 @@ def make_problem(rng: np.random.Generator, n_sensors: int = 2, n_targets: int = 
         Move distances of every sensor (m).
     vary_sensors : bool
         Draw per-sensor parameters (altitude in {490, 500, 510}, fov, range band, max_turn,
-        depression, SNR) around the SPEC defaults.
+        depression, SNR) around the defaults.
     world : MapRect, default 600 x 600
     covs : (M, 4, 4), optional
         Covariances; random (see :func:`random_covariance`) if omitted.

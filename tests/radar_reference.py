@@ -40,7 +40,7 @@ _SCALAR_FIELDS = tuple(f.name for f in fields(SensorParams)
                        if f.name not in ("moves", "detection"))
 
 
-def stack_params(params: "list[SensorParams] | tuple[SensorParams, ...]") -> SensorParams:
+def stack_params(params: list[SensorParams] | tuple[SensorParams, ...]) -> SensorParams:
     """One :class:`SensorParams` whose scalar fields are ``(N,)`` arrays, one per sensor."""
     kwargs = {name: np.array([getattr(p, name) for p in params], dtype=float)
               for name in _SCALAR_FIELDS}
@@ -114,7 +114,7 @@ def cos_boresight(dx: FloatArray, dy: FloatArray, heading: Any, params: SensorPa
 
 def noise_std(r: FloatArray, cos_psi: FloatArray,
               params: SensorParams) -> tuple[FloatArray, FloatArray]:
-    r"""Range (m) and azimuth (rad) noise standard deviations (SPEC 2, SNR model).
+    r"""Range (m) and azimuth (rad) noise standard deviations (SNR model).
 
     .. math::
         \mathrm{SNR} = 10^{\mathrm{snr_{ref}}/10} (r_{ref}/r)^4,\quad
@@ -125,11 +125,13 @@ def noise_std(r: FloatArray, cos_psi: FloatArray,
     root = np.sqrt(2.0 * snr)
     sigma_r = np.asarray(params.range_resolution) / root
     with np.errstate(divide="ignore"):
-        sigma_phi = (np.asarray(params.beamwidth) / cos_psi) / (np.asarray(params.monopulse_slope) * root)
+        sigma_phi = ((np.asarray(params.beamwidth) / cos_psi)
+                     / (np.asarray(params.monopulse_slope) * root))
     return sigma_r, sigma_phi
 
 
-def noise_cov(x: FloatArray, sensor_xy: FloatArray, heading: Any, params: SensorParams) -> FloatArray:
+def noise_cov(x: FloatArray, sensor_xy: FloatArray, heading: Any,
+              params: SensorParams) -> FloatArray:
     """Measurement noise covariance ``R`` ``(..., 2, 2)`` at target states or positions."""
     dx, dy = ground_offset(np.asarray(x)[..., :2], sensor_xy)
     r = np.sqrt(dx * dx + dy * dy + np.asarray(params.altitude, dtype=float) ** 2)
@@ -141,7 +143,7 @@ def noise_cov(x: FloatArray, sensor_xy: FloatArray, heading: Any, params: Sensor
 
 
 def visible_offset(dx: FloatArray, dy: FloatArray, heading: Any, params: SensorParams) -> BoolArray:
-    """Field-of-view test on ground offsets (bounds inclusive; SPEC 2)."""
+    """Field-of-view test on ground offsets (bounds inclusive)."""
     g = np.hypot(dx, dy)
     in_band = (g >= np.asarray(params.min_ground_range) - RANGE_TOL) & (
         g <= np.asarray(params.max_ground_range) + RANGE_TOL)
@@ -160,7 +162,7 @@ def detection_probability(mean_xy: FloatArray, C: FloatArray, sensor_xy: FloatAr
                           heading: Any, params: SensorParams) -> FloatArray:
     r"""Probability ``p_vis`` that a target with ground position ``N(mean, C)`` is visible.
 
-    Linearised at the mean, with ground range and azimuth treated as independent (SPEC 4):
+    Linearised at the mean, with ground range and azimuth treated as independent:
 
     .. math::
         p = [\Phi(\tfrac{g_{max}-\bar g}{s_g}) - \Phi(\tfrac{g_{min}-\bar g}{s_g})]

@@ -1,4 +1,4 @@
-"""wrap_angle and the heading rule (SPEC 2)."""
+"""wrap_angle and the heading rule."""
 
 from __future__ import annotations
 

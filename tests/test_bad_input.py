@@ -587,8 +587,8 @@ def test_d16_ctrl_c_while_pool_workers_start(tmp_path) -> None:
         assert "Traceback" not in res.stderr, res.stderr
         assert res.returncode in (0, 130, -signal.SIGINT), res.stderr
         if res.returncode != 0:
-            assert res.stderr.splitlines()[-1].startswith(("interrupted: ", "error: interrupted")), \
-                res.stderr
+            last = res.stderr.splitlines()[-1]
+            assert last.startswith(("interrupted: ", "error: interrupted")), res.stderr
 
 
 @pytest.mark.xfail(strict=True, reason="the compiled covariance recursion loses all precision "

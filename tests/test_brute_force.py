@@ -1,4 +1,4 @@
-"""The ``brute-force`` planner against an explicit, independent enumeration (SPEC 4).
+"""The ``brute-force`` planner against an explicit, independent enumeration.
 
 The reference enumerates every sensor's move sequences with ``itertools.product`` (in-map
 check done here, not with the library's lattice), every target sequence, and every joint

@@ -1,4 +1,4 @@
-"""The command line: SPEC 7's `plan`, `simulate`, exit codes and the one-line errors."""
+"""The command line: `plan`, `simulate`, exit codes and the one-line errors."""
 
 from __future__ import annotations
 
@@ -110,7 +110,7 @@ def test_result_to_dict_layout() -> None:
         "potential": 3.25, "information": [1.0, 2.25], "converged": True, "sweeps": 2,
         "seconds": 0.004}
     assert result_to_dict(result) == expected
-    assert list(result_to_dict(result)) == list(expected)       # SPEC 7 key order
+    assert list(result_to_dict(result)) == list(expected)       # documented key order
     assert json.loads(dumps_result(result)) == expected
     random_result = PlanResult("random", plan, 3.25, np.array([1.0, 2.25]),
                                np.array([[0.5, -0.25]]), np.array([[1, 0]]))
@@ -134,7 +134,7 @@ def _delete(key: str) -> Callable[[dict[str, Any]], None]:
 ASYM = [[400, 1, 0, 0], [0, 400, 0, 0], [0, 0, 4, 0], [0, 0, 0, 4]]
 NOT_PD = [[400, 0, 0, 0], [0, -400, 0, 0], [0, 0, 4, 0], [0, 0, 0, 4]]
 
-#: (id, mutation of the SPEC 7 example, field named in the error)
+#: (id, mutation of the documented example, field named in the error)
 BAD_JSON = [
     ("unknown key", _set("foo", 1), "foo"),
     ("unknown nested key", _set("sensors.0.altitud", 500), "sensors[0].altitud"),

@@ -1,4 +1,4 @@
-"""Input files: the single-decision JSON (SPEC 7) and the scenario TOML, with their errors."""
+"""Input files: the single-decision JSON and the scenario TOML, with their errors."""
 
 from __future__ import annotations
 
@@ -64,7 +64,7 @@ def test_spec7_example_builds_the_problem() -> None:
 
 
 def test_defaults_are_spec_values() -> None:
-    """Omitted keys take SPEC 1, 2, 4 and 7 defaults (checked against literal values)."""
+    """Omitted keys take the documented defaults (checked against literal values)."""
     d = decision_from_dict(MINIMAL, planner="random")
     p = d.problem
     assert (p.dt, p.steps_per_epoch, p.process_noise) == (1.0, 1, 0.05)

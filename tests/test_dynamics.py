@@ -1,4 +1,4 @@
-"""The filter's CWNA motion model (SPEC 1)."""
+"""The filter's CWNA motion model."""
 
 from __future__ import annotations
 

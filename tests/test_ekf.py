@@ -40,7 +40,7 @@ def random_covariance(rng: np.random.Generator, pos_sd=(5.0, 30.0), vel_sd=(0.5,
 
 
 def varied_params(rng: np.random.Generator, n: int) -> SensorParams:
-    """Stacked ``(n,)`` parameters drawn around the SPEC defaults."""
+    """Stacked ``(n,)`` parameters drawn around the defaults."""
     return stack_params([SensorParams(
         altitude=float(rng.uniform(400, 600)), depression=float(rng.uniform(0.4, 0.9)),
         snr_ref_db=float(rng.uniform(10, 20)), range_ref=float(rng.uniform(500, 700)),

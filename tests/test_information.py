@@ -1,7 +1,7 @@
-"""The mutual-information potential (SPEC 4) against an independent computation.
+"""The mutual-information potential against an independent computation.
 
 The reference here shares no code with ``sensorplan.information``: it rebuilds the headings,
-H, R and p_vis from SPEC 2/4 with scalar maths, and evaluates the information with the
+H, R and p_vis from their definitions with scalar maths, and evaluates the information with the
 paper's joint-Gaussian conditional-covariance formula (Lemma 1): the joint covariance of the
 target state and every measurement of the plan, conditioned by a Schur complement.
 """
@@ -20,7 +20,7 @@ from sensorplan.information import (covariance_recursion, evaluate, information_
 from sensorplan.problem import Plan, PlanningProblem
 from sensorplan.sensors import SensorParams
 
-RTOL = 1e-9          # SPEC: information compared at 1e-9 relative
+RTOL = 1e-9          # information is compared at 1e-9 relative
 ATOL = 1e-12         # nats; for terms that are (almost) zero
 
 
@@ -52,7 +52,7 @@ def spec_Q(dt: float, q: float) -> np.ndarray:
 
 
 class Reference:
-    """Everything SPEC 4 defines for one problem, computed naively."""
+    """Everything a decision defines for one problem, computed naively."""
 
     def __init__(self, problem: PlanningProblem):
         self.pr = problem
@@ -277,7 +277,7 @@ def test_empty_plan_has_zero_potential(rng, problem_factory, backend):
 def test_probabilistic_tends_to_mean_for_tiny_covariances(rng, problem_factory, plan_factory,
                                                           backend):
     differ = 0
-    for case in range(20):
+    for _ in range(20):
         covs = np.broadcast_to(np.eye(4) * 1e-6, (3, 4, 4))
         kw = dict(n_sensors=2, n_targets=3, horizon=2, steps_per_epoch=2, process_noise=0.0,
                   covs=covs)

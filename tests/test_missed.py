@@ -1,6 +1,6 @@
-"""Tests of the missed-look update (SPEC 3, ``miss_update = "negative"``).
+"""Tests of the missed-look update (``miss_update = "negative"``).
 
-The sensing region is re-implemented here from SPEC 2 in polar form (ground range band and
+The sensing region is re-implemented here from its definition in polar form (ground range band and
 azimuth wedge; ``cos psi > 0`` never binds for a wedge narrower than 90 degrees), so that
 the counts and the Monte Carlo do not go through the library's radar model.
 """
@@ -26,7 +26,7 @@ IU = np.triu_indices(4)
 
 def in_region(xy: np.ndarray, sensor_xy: np.ndarray, heading: float,
               params: SensorParams = PARAMS) -> np.ndarray:
-    """SPEC 2 field of view on ground positions ``(..., 2)``, written independently."""
+    """The field of view on ground positions ``(..., 2)``, written independently."""
     d = xy - sensor_xy
     g = np.hypot(d[..., 0], d[..., 1])
     bearing = np.arctan2(d[..., 1], d[..., 0])
@@ -205,7 +205,7 @@ def _bisect(make, lo, hi, target, width=1e-6):
     return lo, hi
 
 
-#: SPEC 3: inflate when f >= 0.95; with 512 points that is 487 or more inside.
+#: Inflate when f >= 0.95; with 512 points that is 487 or more inside.
 K_INFLATE = 487
 
 

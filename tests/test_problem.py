@@ -1,4 +1,4 @@
-"""Moves, reachable sets, plans and the problem value (SPEC 2, 4, 7)."""
+"""Moves, reachable sets, plans and the problem value."""
 
 from __future__ import annotations
 

@@ -152,7 +152,7 @@ def test_jacobian_matches_central_differences(rng):
     np.testing.assert_allclose(
         H[:, :, :2], position_jacobian(x[:, 0] - sensor[:, 0], x[:, 1] - sensor[:, 1], alt),
         rtol=0, atol=0)
-    # SPEC closed form
+    # the closed form, written out
     dx, dy = x[:, 0] - sensor[:, 0], x[:, 1] - sensor[:, 1]
     r = np.sqrt(dx**2 + dy**2 + alt**2)
     np.testing.assert_allclose(H[:, 0, 0], dx / r, rtol=1e-14)
@@ -321,7 +321,7 @@ def test_table_rows_equal_per_sensor_calls(rng):
 # --------------------------------------------------------------------------- p_vis
 
 def _linearised(mean, C, s, heading, p):
-    """gbar, sd_g, d, sd_phi per SPEC 4, written out independently."""
+    """gbar, sd_g, d, sd_phi per their definition, written out independently."""
     dx, dy = float(mean[0] - s[0]), float(mean[1] - s[1])
     g = math.hypot(dx, dy)
     u = np.array([dx, dy]) / g
@@ -395,7 +395,7 @@ def test_p_vis_at_a_range_edge_is_half_the_azimuth_factor():
     heading = -2.9
     sd = 5.0
     C = sd**2 * np.eye(2)
-    for edge, sign in [(DEF.max_ground_range, +1), (DEF.min_ground_range, -1)]:
+    for edge in (DEF.max_ground_range, DEF.min_ground_range):
         for off in (0.0, 0.3, -0.5, 0.52):
             mean = _point(s, edge, heading + off)
             g = math.hypot(*(mean - s))

@@ -156,7 +156,7 @@ def test_file_tables_are_strict() -> None:
 
 @dataclasses.dataclass(frozen=True)
 class _Tracker(_Settings):
-    """A tracker with two settings of the kinds the next issues add."""
+    """A tracker with two settings of the kinds later work may add."""
 
     miss_update: str = setting(
         "negative", section="tracker", choices=("negative", "none"), noun="miss update",

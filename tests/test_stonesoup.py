@@ -1,4 +1,4 @@
-"""Stone Soup interop (issue 7): converters, measurement model, EKF, manager, reward, example.
+"""Stone Soup interop: converters, measurement model, EKF, manager, reward, example.
 
 Skipped cleanly where Stone Soup is not installed (the ``stonesoup`` extra).
 """
@@ -543,7 +543,8 @@ def _stonesoup_episode(seed: int, steps: int, settings: RunSettings):
 def test_stonesoup_loop_with_our_manager_reproduces_run_episode(horizon, e):
     steps = 8
     settings = RunSettings(planner="pg", horizon=horizon, steps_per_epoch=e, steps=steps,
-                           tracker=TrackerSettings(miss_update="none", model="cv", process_noise=0.05, gate=False,
+                           tracker=TrackerSettings(miss_update="none", model="cv",
+                                                   process_noise=0.05, gate=False,
                                                    reacquire=False, known_map=False))
     episode = run_episode(paper_scenario(), settings, seed=11)
     got = _stonesoup_episode(11, steps, settings)

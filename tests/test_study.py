@@ -391,7 +391,7 @@ def _settings(study: studies.Study) -> dict[str, tuple[Any, ...]]:
             for m in study.methods}
 
 
-def test_paper_study_is_the_issue_6_list() -> None:
+def test_paper_study_lists_the_paper_methods() -> None:
     study = load_study(STUDIES / "paper.toml")
     assert (study.runs, study.steps) == (100, 100)
     assert study.scenario == load_study(STUDIES / "demo.toml").scenario

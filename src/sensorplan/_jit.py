@@ -73,7 +73,7 @@ def ensure_cache() -> str | None:
         return None
     fallback = _private_dir(tempfile.gettempdir())
     if fallback is not None:
-        setattr(numba.config, "CACHE_DIR", fallback)
+        setattr(numba.config, "CACHE_DIR", fallback)  # noqa: B010 - numba.config is untyped
         os.environ["NUMBA_CACHE_DIR"] = fallback
         notice = (f"{NOTICE}cannot write numba's kernel cache ({', '.join(places)}); caching "
                   f"the compiled kernels in {fallback} (set NUMBA_CACHE_DIR to choose)")

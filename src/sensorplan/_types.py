@@ -7,4 +7,6 @@ import numpy.typing as npt
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
+#: Integers of any width (counts are stored as int16).
+IntegerArray = npt.NDArray[np.integer]
 BoolArray = npt.NDArray[np.bool_]

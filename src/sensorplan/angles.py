@@ -1,4 +1,4 @@
-"""Angle wrapping and the platform heading rule (SPEC 2)."""
+"""Angle wrapping and the platform heading rule (docs/model.md, section 2)."""
 
 from __future__ import annotations
 

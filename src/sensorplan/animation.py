@@ -69,7 +69,7 @@ def frame_steps(S: int, every: int = 1) -> list[int]:
     return steps
 
 
-def animate_episode(episode: "Episode", scenario: "Scenario", path: str | Path, *,
+def animate_episode(episode: Episode, scenario: Scenario, path: str | Path, *,
                     fps: float = FPS, every: int = 1, tail: float = TAIL,
                     dpi: float = 72) -> Path:
     """Write an animation of a run: one frame per step (see the module docstring).
@@ -163,7 +163,7 @@ def _write_mp4(path: Path, images: Iterator[np.ndarray], fps: float) -> None:
 class _Frames:
     """The figure of an animation and its moving artists, updated in place per frame."""
 
-    def __init__(self, episode: "Episode", scenario: "Scenario", tail: float,
+    def __init__(self, episode: Episode, scenario: Scenario, tail: float,
                  dpi: float) -> None:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.collections import LineCollection

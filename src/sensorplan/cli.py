@@ -57,7 +57,7 @@ def _options(
     games, Lee, Park & Choi)."""
 
 
-#: Exit status for bad input (SPEC 7).
+#: Exit status for bad input.
 EXIT_BAD_INPUT = 2
 #: Set this environment variable to see the traceback of an unexpected error.
 DEBUG_ENV = "SENSORPLAN_DEBUG"
@@ -95,7 +95,7 @@ def _hinted(exc: ConfigError) -> ConfigError:
 def plan(
     problem: Annotated[Path | None, typer.Argument(
         metavar="PROBLEM.json", show_default=False,
-        help="Single-decision file (SPEC 7): horizon, targets (mean, cov), sensors "
+        help="Single-decision file: horizon, targets (mean, cov), sensors "
              "(position, heading, radar parameters), optional planner settings. "
              "sensorplan plan --example prints one.")] = None,
     planner: Annotated[str | None, typer.Option(
@@ -148,7 +148,7 @@ def simulate(
              "is used.")] = None,
     preset: Annotated[str | None, typer.Option(
         "--preset", metavar="NAME", show_default=False,
-        help="Built-in scenario instead of a file: 'paper' (SPEC 1: 5 targets, 3 sensors, "
+        help="Built-in scenario instead of a file: 'paper' (5 targets, 3 sensors, "
              "random start each run). The default when no file is given.")] = None,
     seed: Annotated[int | None, typer.Option(
         "--seed", metavar="S", show_default=False,
@@ -168,7 +168,7 @@ def simulate(
 ) -> None:
     """Simulate one closed-loop run and summarize it.
 
-    Runs the planner in closed loop (SPEC 5) on a scenario file or preset, prints tables
+    Runs the planner in closed loop on a scenario file or preset, prints tables
     (RMSE per target and per target kind, measurements and missed looks per sensor,
     planning time per decision) and writes the run's arrays (DIR/episode.npz, readable with
     sensorplan.simulation.Episode.load) and a figure (DIR/episode.png).

@@ -63,7 +63,7 @@ def drawable(episode: Episode, world: MapRect) -> Episode:
     return dataclasses.replace(episode, cov=capped)
 
 
-def drawable_scenario(scenario: "Scenario") -> "Scenario":
+def drawable_scenario(scenario: Scenario) -> Scenario:
     """``scenario`` with each sensor's ground-range band capped at :data:`MAX_RANGE_MAPS`
     map diagonals (the scenario itself when nothing needs capping)."""
     limit = MAX_RANGE_MAPS * float(np.hypot(scenario.world.width, scenario.world.height))

@@ -1,4 +1,4 @@
-r"""The filter's motion model (SPEC 1): continuous white-noise acceleration.
+r"""The filter's motion model: continuous white-noise acceleration.
 
 State order is ``[x, y, vx, vy]``; arrays are row vectors shaped ``(..., 4)``.
 """

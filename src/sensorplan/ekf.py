@@ -1,8 +1,9 @@
-r"""Extended Kalman filtering of the targets (SPEC 3), batched over targets.
+r"""Extended Kalman filtering of the targets, batched over targets.
 
-One EKF per target with the filter model of SPEC 1 (CWNA, no walls) and the range/azimuth
-measurement of SPEC 2. Functions take leading batch axes; :class:`sensorplan.tracker.Tracker` is the stateful
-wrapper holding every target's track.
+One EKF per target with the filter model of :mod:`sensorplan.dynamics` (CWNA, no walls)
+and the range/azimuth measurement of :mod:`sensorplan.radar`. Functions take leading batch
+axes; :class:`sensorplan.tracker.Tracker` is the stateful wrapper holding every target's
+track.
 
 Update (per measurement, Joseph form):
 
@@ -23,7 +24,6 @@ import numpy as np
 from . import radar
 from ._types import FloatArray, IntArray
 from .angles import wrap_angle
-from .dynamics import cv_matrices
 
 _EYE4 = np.eye(4)
 

@@ -1,4 +1,6 @@
-r"""Mutual-information potential of a plan (SPEC 4) and the batched kernels behind it.
+r"""Mutual-information potential of a plan and the batched kernels behind it.
+
+The definition is stated in docs/planning.md, section 1.
 
 Everything here is covariance-only: the means are predicted without updates,
 ``xbar_j(t) = F^t x_j(0)``, and measurements enter through their information in the
@@ -151,7 +153,7 @@ def chain_headings(ctx: Context, i: int, k_first: int, positions: FloatArray,
         Heading in epoch ``k_first - 1`` (``theta_0`` when ``k_first = 1``).
     prev_assigned : bool
         Whether epoch ``k_first - 1`` is assigned (True when ``k_first = 1``). If not,
-        the first epoch turns from ``theta_0`` by at most ``k_first * max_turn`` (SPEC 4).
+        the first epoch turns from ``theta_0`` by at most ``k_first * max_turn``.
 
     Returns
     -------
@@ -189,7 +191,7 @@ def epoch_information(ctx: Context, i: int, k: int, positions: FloatArray,
         Position information of the look at each step of the epoch (zero if it does not
         count).
     counted : (B, e) bool
-        Whether each look counts in Phi (SPEC 4 visibility mode).
+        Whether each look counts in Phi (per the visibility mode).
     """
     W, counted = chain_information(ctx, i, k, positions[:, None], headings[:, None],
                                    targets[:, None])
@@ -469,7 +471,7 @@ def evaluate(ctx: Context, plan: Plan) -> PlanEvaluation:
 
 
 def potential(problem: PlanningProblem, plan: Plan) -> tuple[float, FloatArray]:
-    r"""The potential Phi of a plan, in nats (SPEC 4): the definition planners are held to.
+    r"""The potential Phi of a plan, in nats: the definition planners are held to.
 
     .. math::
         \Phi(a) = \sum_j \tfrac12 \log\det \bar P_j(T) - \tfrac12 \log\det P_j(T \mid Z_j(a))

@@ -1,4 +1,4 @@
-"""Reading input files and writing the single-decision result (SPEC 7).
+"""Reading input files and writing the single-decision result.
 
 Every failure to read a file becomes a :class:`~sensorplan.errors.ConfigError` whose field is
 the file's path, so that the CLI can report it in one line.
@@ -17,10 +17,10 @@ from .errors import ConfigError
 if TYPE_CHECKING:  # pragma: no cover
     from .planners import PlanResult
 
-#: Planners whose result carries ``converged`` and ``sweeps`` (SPEC 7).
+#: Planners whose result carries ``converged`` and ``sweeps``.
 GAME_PLANNERS = ("pg", "pg-refine")
 
-#: Output keys in SPEC 7 order.
+#: Output keys in their documented order (docs/cli.md).
 OUTPUT_KEYS = ("planner", "plan", "potential", "information", "converged", "sweeps", "seconds")
 
 
@@ -50,7 +50,7 @@ def _read_text(path: str | Path) -> str:
         raise ConfigError(str(path), f"cannot be read ({exc.strerror or exc})") from None
 
 
-class _Duplicate(dict):  # type: ignore[type-arg]
+class _Duplicate(dict):
     """A JSON object that repeated a key; :func:`check_tree` reports it with its path."""
 
     duplicate: str = ""
@@ -169,8 +169,8 @@ def parse_toml(text: str, source: str = "<toml>") -> dict[str, Any]:
     return data
 
 
-def result_to_dict(result: "PlanResult") -> dict[str, Any]:
-    """A planner's result as the SPEC 7 output object.
+def result_to_dict(result: PlanResult) -> dict[str, Any]:
+    """A planner's result as the output object of ``sensorplan plan``.
 
     Parameters
     ----------
@@ -216,7 +216,7 @@ def result_to_dict(result: "PlanResult") -> dict[str, Any]:
     return out
 
 
-def dumps_result(result: "PlanResult") -> str:
+def dumps_result(result: PlanResult) -> str:
     """:func:`result_to_dict` as JSON text, one plan entry per line (no trailing newline).
 
     Non-finite numbers raise ``ValueError``: they are not JSON.

@@ -194,9 +194,10 @@ def check_sensor_precision(params: Any, prefix: str) -> None:
     """:func:`check_radar_precision` of a :class:`~sensorplan.sensors.SensorParams` (scalar
     fields). Input files (decision, scenario) apply it to every sensor; problems built in
     Python are not bound by it."""
-    check_radar_precision(*(float(getattr(params, n)) for n in (
-        "snr_ref_db", "range_ref", "altitude", "range_resolution", "beamwidth",
-        "monopulse_slope", "min_ground_range")), prefix)
+    p = params
+    check_radar_precision(float(p.snr_ref_db), float(p.range_ref), float(p.altitude),
+                          float(p.range_resolution), float(p.beamwidth),
+                          float(p.monopulse_slope), float(p.min_ground_range), prefix)
 
 
 def check_covariance_scale(P: Any, field: str) -> None:
@@ -346,7 +347,8 @@ def check_study_size(runs: int, n_methods: int, steps: int, n_targets: int) -> N
 def check_run(scenario: Any, settings: Any, fields: dict[str, str]) -> None:
     """:func:`check_decision_size` for the decisions of a run of ``settings``
     (:class:`~sensorplan.settings.RunSettings`) on ``scenario``
-    (:class:`~sensorplan.scenario.Scenario`; sensors anywhere on the map) and :func:`check_run_size` for its steps.
+    (:class:`~sensorplan.scenario.Scenario`; sensors anywhere on the map) and
+    :func:`check_run_size` for its steps.
 
     ``fields`` names the fields as :func:`check_decision_size` wants, plus ``steps``.
     """

@@ -2,7 +2,7 @@ r"""Negative information from missed looks (``miss_update = "negative"``).
 
 A sensor that looked for a target and did not detect it learns that the target is
 probably not in its sensing region :math:`A` (range band, azimuth wedge around the heading,
-:math:`\cos\psi > 0`; SPEC 2). The predicted track :math:`N(m, P)` is replaced by the
+:math:`\cos\psi > 0`). The predicted track :math:`N(m, P)` is replaced by the
 Gaussian with the first two moments of its restriction to the outside of :math:`A`,
 
 .. math::
@@ -43,11 +43,11 @@ from . import radar
 from ._types import FloatArray, IntArray
 from .sensors import G_MAX, G_MIN, SensorParams, radar_table
 
-#: Number of quadrature points (SPEC 3).
+#: Number of quadrature points.
 N_POINTS = 512
 #: Seed of the scrambled Sobol sequence behind the default point set.
 SOBOL_SEED = 20250305
-#: Inside fraction at or above which the track is inflated instead of truncated (SPEC 3).
+#: Inside fraction at or above which the track is inflated instead of truncated.
 INFLATE_FRACTION = 0.95
 #: Fewest points kept for a truncation: d + 1 points are needed for a full-rank 4-D
 #: covariance. Fewer fall back to inflation; with S = 512 and f < 0.95 at least 26 remain,
@@ -187,7 +187,7 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
                 points: FloatArray | None = None, gate_probability: float = 1.0,
                 buildings: FloatArray | None = None,
                 return_fraction: bool = False) -> tuple[FloatArray, ...]:
-    r"""Update tracks with a missed look (SPEC 3, ``negative``), batched over tracks.
+    r"""Update tracks with a missed look (``negative``), batched over tracks.
 
     Each track :math:`N(m, P)` is replaced by the moments of its restriction to the outside
     of the sensing region of a sensor at ``sensor_xy`` heading ``heading`` (see the module
@@ -252,7 +252,7 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
     means = np.asarray(means, dtype=float)
     covs = np.asarray(covs, dtype=float)
     heading = np.asarray(heading, dtype=float)
-    chol = np.linalg.cholesky(covs)
+    chol = np.asarray(np.linalg.cholesky(covs), dtype=float)      # (typed float64, no copy)
     inside = _inside(means, chol, x, np.asarray(sensor_xy, dtype=float), heading, table,
                      sensor, buildings)
 

@@ -73,12 +73,12 @@ def ellipse_geometry(C: Any, limit: float) -> tuple[float, float, float] | None:
     return 2.0 * float(semi[1]), 2.0 * float(semi[0]), angle
 
 
-def map_limit(scenario: "Scenario") -> float:
+def map_limit(scenario: Scenario) -> float:
     """:data:`CLIP_MAPS` map sizes (m): the clipping bound of drawn geometry."""
     return CLIP_MAPS * max(scenario.world.width, scenario.world.height)
 
 
-def clip_xy(xy: Any, scenario: "Scenario") -> np.ndarray:
+def clip_xy(xy: Any, scenario: Scenario) -> np.ndarray:
     """Positions ``(..., 2)`` clipped to the map grown by :func:`map_limit` on every side
     (only far off-map points move; non-finite ones become NaN, which draws as a gap)."""
     xy = np.array(xy, dtype=float)
@@ -89,8 +89,8 @@ def clip_xy(xy: Any, scenario: "Scenario") -> np.ndarray:
     return xy
 
 
-def field_of_view(ax: "Axes", xy: np.ndarray, heading: float, params: object,
-                  color: str, alpha: float = 0.15) -> "Wedge":
+def field_of_view(ax: Axes, xy: np.ndarray, heading: float, params: object,
+                  color: str, alpha: float = 0.15) -> Wedge:
     """Ground sensing region: the range-band annulus sector of the azimuth wedge."""
     from matplotlib.patches import Wedge
 
@@ -139,7 +139,7 @@ def look_runs(looked: Any, missed: Any) -> list[LookRun]:
 # ------------------------------------------------------------------------- drawing
 
 
-def frame_map(ax: "Axes", width: float, height: float, margin: float) -> None:
+def frame_map(ax: Axes, width: float, height: float, margin: float) -> None:
     """Equal-aspect map axes in metres, with ``margin`` (a fraction of the map) around it."""
     pad = margin * max(width, height)
     ax.set_xlim(-pad, width + pad)
@@ -150,7 +150,7 @@ def frame_map(ax: "Axes", width: float, height: float, margin: float) -> None:
     ax.grid(True, linewidth=0.4, alpha=0.4)
 
 
-def draw_buildings(ax: "Axes", buildings: Any) -> None:
+def draw_buildings(ax: Axes, buildings: Any) -> None:
     """Buildings ``(x0, y0, x1, y1, height)`` as grey rectangles labelled with their
     height."""
     from matplotlib.patches import Rectangle
@@ -162,7 +162,7 @@ def draw_buildings(ax: "Axes", buildings: Any) -> None:
                 fontsize=7.5, color="#333333", zorder=1.6, clip_on=True)
 
 
-def draw_ellipse(ax: "Axes", mean: Any, C: Any, color: str, limit: float, **kw: Any) -> None:
+def draw_ellipse(ax: Axes, mean: Any, C: Any, color: str, limit: float, **kw: Any) -> None:
     """Draw the ``N_SIGMA`` ellipse of ``C (2, 2)`` around ``mean`` (nothing if not finite)."""
     from matplotlib.patches import Ellipse
 
@@ -173,7 +173,7 @@ def draw_ellipse(ax: "Axes", mean: Any, C: Any, color: str, limit: float, **kw: 
                          edgecolor=color, **kw))
 
 
-def draw_timeline(ax: "Axes", episode: "Episode", dt: float) -> None:
+def draw_timeline(ax: Axes, episode: Episode, dt: float) -> None:
     """Sensor-to-target assignment: one row per sensor, time on x, a cell per step in the
     colour of the target looked at (hatched when the look missed), decision times as thin
     lines, and false alarms (if any) as dots sized by their count. Above
@@ -227,7 +227,7 @@ def draw_timeline(ax: "Axes", episode: "Episode", dt: float) -> None:
                  fontsize=9, loc="left", pad=8)
 
 
-def draw_errors(ax: "Axes", episode: "Episode", dt: float) -> None:
+def draw_errors(ax: Axes, episode: Episode, dt: float) -> None:
     """Position error of each target over time (log scale) with the filter's own RMS
     position error ``sqrt(tr P_xy)`` (dotted) and the lost-track threshold."""
     from .study.metrics import LOST_THRESHOLD
@@ -265,9 +265,9 @@ def draw_errors(ax: "Axes", episode: "Episode", dt: float) -> None:
                   "\u221atr P (dotted)"), fontsize=9, loc="left")
 
 
-def episode_layout(episode: "Episode", scenario: "Scenario", width: float = 10.5,
+def episode_layout(episode: Episode, scenario: Scenario, width: float = 10.5,
                    map_height: float = 7.0, dpi: float = 110
-                   ) -> tuple["Figure", "Axes", "Axes", "Axes"]:
+                   ) -> tuple[Figure, Axes, Axes, Axes]:
     """A bare Agg figure with the map on top, the assignment timeline and the error panel
     below (sharing the time axis): ``(figure, map, timeline, errors)``."""
     # The Agg canvas of a bare Figure: no pyplot, so no global backend switch and no figure
@@ -289,7 +289,7 @@ def episode_layout(episode: "Episode", scenario: "Scenario", width: float = 10.5
     return fig, ax_map, ax_time, ax_err
 
 
-def map_legend(ax: "Axes", episode: "Episode", scenario: "Scenario",
+def map_legend(ax: Axes, episode: Episode, scenario: Scenario,
                extra: list[Any]) -> None:
     """Legend right of the map: the targets (colour, kind), the sensors (grey, marker,
     altitude), buildings, then ``extra`` handles; more than :data:`LEGEND_ITEMS` targets
@@ -316,7 +316,7 @@ def map_legend(ax: "Axes", episode: "Episode", scenario: "Scenario",
               fontsize=8.5, frameon=False)
 
 
-def episode_title(episode: "Episode") -> str:
+def episode_title(episode: Episode) -> str:
     """Planner, horizon, steps and the targets' RMSE (each one's up to
     :data:`LEGEND_ITEMS` targets, else their median and worst)."""
     s = episode.settings
@@ -339,7 +339,7 @@ def timeline_height(N: int, row: float) -> float:
 # ---------------------------------------------------------------------- the figure
 
 
-def run_view(episode: "Episode", scenario: "Scenario") -> RunView:
+def run_view(episode: Episode, scenario: Scenario) -> RunView:
     """The :class:`RunView` of a run on its scenario."""
     truth = clip_xy(np.asarray(episode.truth)[..., :2], scenario)
     S = truth.shape[0] - 1
@@ -351,7 +351,7 @@ def run_view(episode: "Episode", scenario: "Scenario") -> RunView:
                    ages=1.0 - np.arange(S) / max(S - 1, 1), limit=map_limit(scenario))
 
 
-def draw_sensors(ax: "Axes", run: RunView, scenario: "Scenario", border: Any) -> None:
+def draw_sensors(ax: Axes, run: RunView, scenario: Scenario, border: Any) -> None:
     """Each sensor's fields of view and looks at the ellipse times, its path, markers,
     final heading and name (one set of artists per sensor)."""
     from matplotlib.collections import LineCollection
@@ -394,7 +394,7 @@ def draw_sensors(ax: "Axes", run: RunView, scenario: "Scenario", border: Any) ->
                     linestyle="--" if run.missed[t, i] else "-", alpha=0.85)
 
 
-def draw_targets(ax: "Axes", run: RunView) -> None:
+def draw_targets(ax: Axes, run: RunView) -> None:
     """Each target's true and estimated track, start and end, ellipses at the ellipse
     times, name and missed looks (one set of artists per target)."""
     from matplotlib.collections import LineCollection
@@ -454,7 +454,7 @@ def map_handles(run: RunView, dt: float) -> list[Any]:
     ]
 
 
-def episode_figure(episode: "Episode", scenario: "Scenario") -> "Figure":
+def episode_figure(episode: Episode, scenario: Scenario) -> Figure:
     """The static figure of a run (see :func:`plot_episode`), not yet saved."""
     from matplotlib.patches import Rectangle
 
@@ -482,7 +482,7 @@ def episode_figure(episode: "Episode", scenario: "Scenario") -> "Figure":
     return fig
 
 
-def plot_episode(episode: "Episode", scenario: "Scenario", path: str | Path) -> Path:
+def plot_episode(episode: Episode, scenario: Scenario, path: str | Path) -> Path:
     """The figure of one run: map, assignment timeline and errors over time.
 
     - Map: the map rectangle and buildings (grey, labelled with their height); each

@@ -1,4 +1,4 @@
-"""One planning decision (SPEC 4): the problem value, plans, moves and reachable sets.
+"""One planning decision: the problem value, plans, moves and reachable sets.
 
 A :class:`PlanningProblem` holds everything a planner receives; a :class:`Plan` holds every
 player's action as arrays ``positions (N, K, 2)`` and ``targets (N, K)`` (``-1`` and NaN for
@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -20,7 +21,7 @@ from .modes import (OBJECTIVES, PLANNING_DETECTIONS, VISIBILITY_MODES,  # noqa: 
                     Objective, Visibility)
 from .sensors import SensorParams
 
-#: The 8 lattice directions in SPEC order.
+#: The 8 lattice directions in move order.
 DIRECTIONS = np.array([(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)],
                       dtype=float)
 #: Positions closer than this (m) are the same position.
@@ -32,7 +33,7 @@ TIE_TOL = 1e-9
 
 
 def move_vectors(distances: tuple[float, ...] | list[float]) -> FloatArray:
-    """The moves in SPEC order: stay, then ``s * d`` for each distance s and direction d.
+    """The moves in order: stay, then ``s * d`` for each distance s and direction d.
 
     Returns
     -------
@@ -63,7 +64,7 @@ class Lattice:
     Attributes
     ----------
     positions : list of (n_k, 2) arrays
-        ``R_k`` in breadth-first order (parents in order, moves in SPEC order).
+        ``R_k`` in breadth-first order (parents in order, moves in order).
     parent_move : list of (n_k, n_moves) int arrays
         ``parent_move[k][p, m]``: index in ``R_{k-1}`` of ``R_k[p] - move_m``, or -1.
     child : list of (n_{k-1}, n_moves) int arrays
@@ -153,8 +154,8 @@ def _build_lattice(p0: FloatArray, moves: FloatArray, K: int,
     p0 = np.array(p0, dtype=float, order="C")
     moves = np.array(moves, dtype=float, order="C")
     bounded = world is not None
-    width = float(world.width) if bounded else 0.0
-    height = float(world.height) if bounded else 0.0
+    width = float(world.width) if world is not None else 0.0
+    height = float(world.height) if world is not None else 0.0
     flat, start, child_flat, parent_flat = lattice_nb(p0, moves, K, bounded, width, height,
                                                        POSITION_TOL, _common_step(moves))
     positions = [flat[start[k]:start[k + 1]] for k in range(K + 1)]
@@ -165,14 +166,14 @@ def _build_lattice(p0: FloatArray, moves: FloatArray, K: int,
 
 
 def _readonly(a: object, dtype: type = float) -> np.ndarray:
-    arr = np.array(a, dtype=dtype)
+    arr: np.ndarray = np.array(a, dtype=dtype)
     arr.setflags(write=False)
     return arr
 
 
 @dataclass(frozen=True)
 class PlanningProblem:
-    """Everything one planning decision needs (SPEC 4 inputs).
+    """Everything one planning decision needs.
 
     Attributes
     ----------
@@ -248,7 +249,7 @@ class PlanningProblem:
         return self.horizon * self.steps_per_epoch
 
     def validate(self) -> None:
-        """Check SPEC 7's semantic rules; raise :class:`ConfigError` naming the field."""
+        """Check the semantic rules of a decision; raise :class:`ConfigError` naming the field."""
         M = len(self.means)
         if M < 1:
             raise ConfigError("targets", "at least one target is required")
@@ -284,7 +285,8 @@ class PlanningProblem:
         if int(self.steps_per_epoch) != self.steps_per_epoch or self.steps_per_epoch < 1:
             raise ConfigError("steps_per_epoch", "must be an integer >= 1")
         if self.visibility not in VISIBILITY_MODES:
-            raise ConfigError("visibility", f"must be one of {VISIBILITY_MODES}, got {self.visibility!r}")
+            raise ConfigError("visibility",
+                              f"must be one of {VISIBILITY_MODES}, got {self.visibility!r}")
         if self.objective not in OBJECTIVES:
             raise ConfigError("objective", f"must be one of {OBJECTIVES}, got {self.objective!r}")
         if self.planning_detection not in PLANNING_DETECTIONS:
@@ -306,7 +308,7 @@ class PlanningProblem:
                 raise ConfigError(f"sensors[{i}].position", "is outside the map")
 
 
-def check_buildings(buildings: object, world: MapRect, altitudes: object) -> FloatArray:
+def check_buildings(buildings: Any, world: MapRect, altitudes: object) -> FloatArray:
     """The buildings as a ``(B, 5)`` array ``x0, y0, x1, y1, height``, checked.
 
     Each is 5 finite numbers with ``x0 < x1``, ``y0 < y1``, inside the map and ``height > 0``;
@@ -405,13 +407,13 @@ class Plan:
         return self.targets >= 0
 
     @classmethod
-    def empty(cls, n_sensors: int, horizon: int) -> "Plan":
+    def empty(cls, n_sensors: int, horizon: int) -> Plan:
         return cls(np.full((n_sensors, horizon, 2), np.nan),
                    np.full((n_sensors, horizon), -1, dtype=np.int64))
 
 
 def check_plan(problem: PlanningProblem, plan: Plan, complete: bool = True) -> None:
-    """Raise ``ValueError`` unless ``plan`` is feasible for ``problem`` (SPEC 4).
+    """Raise ``ValueError`` unless ``plan`` is feasible for ``problem``.
 
     Checks shapes, that targets exist, that every position lies in the map and in ``R_k``
     and differs from the previous assigned position by a move (from ``p_0`` at k = 1).

@@ -1,7 +1,7 @@
 """Scenario values: the world, the targets' truth models and the sensors.
 
 A scenario may fix initial target states and sensor poses or leave them to be drawn from a
-run's seed (the paper draws them anew in every run, SPEC 1): a field left ``None`` is drawn.
+run's seed (the paper draws them anew in every run): a field left ``None`` is drawn.
 How a run plans and tracks is not part of the scenario: see :mod:`sensorplan.settings`.
 Scenario files are read and written by :mod:`sensorplan.scenario_file`.
 """
@@ -67,7 +67,7 @@ class SensorSpec:
 
 @dataclass(frozen=True)
 class Scenario:
-    """World, targets and sensors (SPEC 1-2).
+    """World, targets and sensors.
 
     Attributes
     ----------
@@ -135,7 +135,7 @@ class Scenario:
         return tuple(t.kind for t in self.targets)
 
     def validate(self) -> None:
-        """SPEC 7's rules that apply to scenarios, and the ranges of
+        """The decision file's rules that apply to scenarios, and the ranges of
         :data:`sensorplan.limits.RANGES`; raise ConfigError naming the field."""
         from .limits import (MAX_SENSORS, MAX_TARGETS, MAX_TURNS_PER_STEP, RANGES, check_count,
                              check_covariance_scale)
@@ -247,7 +247,8 @@ def radar_scenario() -> Scenario:
     return paper_scenario(**RADAR_DETECTION)
 
 
-def town_buildings(half_size: float = 30.0) -> tuple[tuple[float, ...], ...]:
+def town_buildings(half_size: float = 30.0
+                   ) -> tuple[tuple[float, float, float, float, float], ...]:
     """A town centre on the paper's 600 x 600 m map: a 3 x 3 grid of square buildings
     centred at 160, 300 and 440 m on each axis (the target area's middle), ``2 half_size``
     m wide, 150 m tall in the centre, 90 m at the middle of each side and 45 m at the

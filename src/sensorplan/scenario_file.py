@@ -2,7 +2,7 @@
 
 Every key is optional except ``targets`` and ``sensors``; angles in radians, or in degrees
 under the same key with ``_deg`` appended (``fov_half_angle_deg = 30``; one of the two);
-defaults are SPEC 1-4's (``configs/paper.toml`` spells out every key)::
+defaults as below (``configs/paper.toml`` spells out every key)::
 
     dt = 1.0                      # s
     process_noise = 0.05          # q, m^2/s^3
@@ -11,7 +11,7 @@ defaults are SPEC 1-4's (``configs/paper.toml`` spells out every key)::
     width = 600.0                 # m
     height = 600.0
 
-    [initial]                     # what each run draws (SPEC 1)
+    [initial]                     # what each run draws
     target_box = [100.0, 500.0]   # initial target positions uniform in [lo, hi]^2 (inside
                                   # the map; default: the middle 2/3 of each map side)
     speed_range = [3.0, 6.0]      # m/s

@@ -23,7 +23,7 @@ DETECTION_MODELS = ("ideal", "swerling1")
 
 @dataclass(frozen=True)
 class SensorParams:
-    """Platform and radar parameters of one sensor (SPEC 2 defaults).
+    """Platform and radar parameters of one sensor (defaults: docs/model.md, section 2).
 
     Attributes
     ----------

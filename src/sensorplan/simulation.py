@@ -1,4 +1,4 @@
-"""Closed-loop simulation (SPEC 5): truth, sensors, trackers and a planner in the loop.
+"""Closed-loop simulation: truth, sensors, trackers and a planner in the loop.
 
 One run (:func:`run_episode`) alternates decisions and execution:
 
@@ -13,7 +13,7 @@ One run (:func:`run_episode`) alternates decisions and execution:
 - Every step: the targets move; the filters predict; every sensor whose target is truly in
   its field of view measures it (the radar model of :mod:`sensorplan.radar` at the true
   position: its noise-free measurement plus noise with ``R`` at the true position);
-  a look that misses feeds the ``negative`` miss update (SPEC 3) when enabled, for all
+  a look that misses feeds the ``negative`` miss update when enabled, for all
   missed looks in sensor order before the measurement updates, which are also applied in
   sensor order. Looks at distinct tracks are independent, so they are batched into one
   call (``ekf.update_rounds``); a track looked at by several sensors is updated once per
@@ -42,7 +42,7 @@ from typing import Any
 
 import numpy as np
 
-from ._types import BoolArray, FloatArray, IntArray
+from ._types import BoolArray, FloatArray, IntArray, IntegerArray
 from .angles import heading_rule, wrap_angle
 from .ekf import nees
 from .tracker import Tracker
@@ -124,10 +124,10 @@ class Episode:
     gated_out: BoolArray
     restarted: BoolArray
     map_corrected: BoolArray
-    detections: IntArray
-    false_alarms: IntArray
-    used: IntArray
-    discarded: IntArray
+    detections: IntegerArray
+    false_alarms: IntegerArray
+    used: IntegerArray
+    discarded: IntegerArray
     sensor_positions: FloatArray
     sensor_headings: FloatArray
     decision_steps: IntArray
@@ -170,7 +170,7 @@ class Episode:
         return sidecar
 
     @classmethod
-    def load(cls, path: str | Path) -> "Episode":
+    def load(cls, path: str | Path) -> Episode:
         """Read an episode written by :meth:`save` (timings NaN if the sidecar is missing)."""
         path = Path(path)
         with np.load(path, allow_pickle=False) as data:
@@ -248,7 +248,7 @@ class _DetectionDraws:
         self.u = np.stack([np.random.default_rng(c).random(S)
                            for c in streams["detection"].spawn(N)], axis=1)   # (S, N)
         self.counts = np.zeros((S, N), dtype=np.int64)
-        self.points: list[list[FloatArray]] = []
+        self.points: list[list[tuple[FloatArray, FloatArray]]] = []
         for i, c in enumerate(streams["clutter"].spawn(N)):
             rng = np.random.default_rng(c)
             lam = table[i, CLUTTER_RATE]
@@ -266,7 +266,7 @@ class _DetectionDraws:
         return self.u[t - 1] < pd
 
     def looks(self, t: int, seen: BoolArray, z: FloatArray, pos: FloatArray, head: FloatArray,
-              assigned: BoolArray) -> tuple[list[FloatArray], IntArray]:
+              assigned: BoolArray) -> tuple[list[FloatArray], IntegerArray]:
         """Each sensor's detections at step t (its target's if seen, then its false alarms
         in the sensing region), and its number of false alarms."""
         sets, false = [], np.zeros(len(self.table), dtype=np.int16)
@@ -290,7 +290,7 @@ class _DetectionDraws:
         return zc[inside]
 
 
-def _miss_update_kernel() -> Callable[..., tuple[FloatArray, FloatArray, BoolArray]]:
+def _miss_update_kernel() -> Callable[..., tuple[FloatArray, ...]]:
     from .missed import miss_update  # lazy: only runs with ``negative`` need it
 
     return miss_update
@@ -299,7 +299,7 @@ def _miss_update_kernel() -> Callable[..., tuple[FloatArray, FloatArray, BoolArr
 def run_episode(scenario: Scenario, settings: RunSettings,
                 seed: int | np.random.SeedSequence,
                 progress: Callable[[int, int], None] | None = None) -> Episode:
-    """Simulate one closed-loop run (SPEC 5).
+    """Simulate one closed-loop run.
 
     Parameters
     ----------
@@ -372,7 +372,8 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     head = init.headings.copy()
     sensor_index = np.arange(N)
     epochs_per_plan = K if settings.execution == "ol" else 1
-    plan_targets = plan_positions = None
+    # Replaced at the first step, which is always a decision.
+    plan_targets, plan_positions = np.full((N, 0), -1, dtype=np.int64), np.zeros((N, 0, 2))
     epoch = epochs_per_plan
     target = np.full(N, -1, dtype=np.int64)
     F = tracker.F
@@ -440,7 +441,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
                 negative[t], inflated[t] = tracker.miss(i, target[i], pos[i], head[i],
                                                         kernel=miss_update)
 
-            if sets is not None:
+            if sets is not None and n_false is not None:
                 i = sensor_index[assigned & ~empty]
                 if i.size:
                     res = tracker.update_sets(i, target[i], [sets[n] for n in i], pos[i],
@@ -494,7 +495,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
 
 def _entropy(ss: np.random.SeedSequence) -> Any:
     """The sequence's entropy: an int (a list of ints if it was built from one)."""
-    e = ss.entropy
+    e: Any = ss.entropy
     return int(e) if _is_int(e) or isinstance(e, int) else [int(v) for v in e]
 
 

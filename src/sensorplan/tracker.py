@@ -33,7 +33,9 @@ With every option off (one mode, no gate, no map) the tracker is the plain EKF.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -246,7 +248,7 @@ class Tracker:
         if self.world is None:
             return np.zeros(M, dtype=bool)
         m, P, applied, log_mass = map_constraint(self.mode_means, self.mode_covs, *self.world)
-        hit = applied.any(axis=1)
+        hit = np.asarray(applied.any(axis=1))
         if hit.any():
             self.mode_means, self.mode_covs = m, P
             idx = np.flatnonzero(hit)
@@ -256,7 +258,8 @@ class Tracker:
 
     # ---------------------------------------------------------------- missed looks
     def miss(self, sensors: IntArray, targets: IntArray, sensor_xy: FloatArray,
-             heading: FloatArray, kernel: object = None) -> tuple[BoolArray, BoolArray]:
+             heading: FloatArray, kernel: Callable[..., Any] | None = None
+             ) -> tuple[BoolArray, BoolArray]:
         """Negative information of L missed looks, applied in the given (sensor) order.
 
         Parameters
@@ -271,7 +274,9 @@ class Tracker:
         inflated : (M,) bool    tracks that got the inflation instead (any mode)
         """
         if kernel is None:
-            from .missed import miss_update as kernel          # only runs that miss need it
+            from .missed import miss_update                    # only runs that miss need it
+
+            kernel = miss_update
         M = len(self.means)
         negative = np.zeros(M, dtype=bool)
         inflated = np.zeros(M, dtype=bool)
@@ -279,7 +284,7 @@ class Tracker:
             i, j = sensors[rnd], targets[rnd]
             # A detection outside the gate would not have been used: the look says "no
             # gated detection" (with no gate the kernel's own rule, Pg = 1).
-            gate_kw: dict[str, object] = {} if self.gate is None else {
+            gate_kw: dict[str, Any] = {} if self.gate is None else {
                 "gate_probability": self.gate_probability}
             if self.buildings is not None:
                 gate_kw["buildings"] = self.buildings
@@ -344,7 +349,7 @@ class Tracker:
 
     def update_sets(self, sensors: IntArray, targets: IntArray, detections: list[FloatArray],
                     sensor_xy: FloatArray, heading: FloatArray,
-                    kernel: object = None) -> SetResults:
+                    kernel: Callable[..., Any] | None = None) -> SetResults:
         """Apply L looks that each returned a set of detections (the target's, false alarms).
 
         Looks are processed one at a time, in the given (sensor) order. A look's detections
@@ -412,7 +417,7 @@ class Tracker:
         return SetResults(used, discarded, restarted, negative, self.apply_map())
 
     def _miss_one(self, i: int, j: int, sxy: FloatArray, hd: float,
-                  kernel: object) -> tuple[BoolArray, BoolArray]:
+                  kernel: Callable[..., Any] | None) -> tuple[BoolArray, BoolArray]:
         return self.miss(np.array([i]), np.array([j]), np.asarray(sxy)[None],
                          np.array([hd]), kernel=kernel)
 
@@ -427,7 +432,8 @@ class Tracker:
                                      np.full(R * m, hd), self.table, np.full(R * m, i))
         d2 = mahalanobis2(nu, S).reshape(R, m)
         logdet = np.linalg.slogdet(S)[1].reshape(R, m)
-        pg = self.gate_probability if self.gate is not None else 1.0
+        pg = (self.gate_probability
+              if self.gate is not None and self.gate_probability is not None else 1.0)
         # Pd at each mode's predicted position; clutter density in (r, phi) at each detection.
         pd = detection_probabilities(self.table, np.full(R, i), x[:, :2], np.tile(sxy, (R, 1)))
         rho = self.table[i, CLUTTER_RATE] * Z[:, 0] / self.table[i, AREA]     # (m,)
@@ -463,9 +469,9 @@ class Tracker:
             R = self.n_modes
             x = self.mode_means[j].reshape(-1, 4)
             P = self.mode_covs[j].reshape(-1, 4, 4)
-            rep = (np.repeat(a, R, axis=0) for a in (z[idx], sensor_xy[idx], heading[idx],
-                                                     sensors[idx]))
-            zr, sxy, hd, sr = rep
+            zr, sxy, hd = (np.repeat(a, R, axis=0) for a in (z[idx], sensor_xy[idx],
+                                                             heading[idx]))
+            sr = np.repeat(sensors[idx], R, axis=0)
             nu, S, Hp, var = innovations(x, P, zr, sxy, hd, self.table, sr)
             # Mode likelihoods N(nu; 0, S), in logs.
             logl = -0.5 * mahalanobis2(nu, S) - 0.5 * np.linalg.slogdet(S)[1] \

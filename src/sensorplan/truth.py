@@ -1,4 +1,4 @@
-r"""Ground-truth target motion (SPEC 1), batched over targets.
+r"""Ground-truth target motion, batched over targets.
 
 Two kinds of truth, both mirrored at the walls of the map ``[0, W] x [0, H]``:
 
@@ -71,7 +71,7 @@ def mirror(p: FloatArray, length: float | FloatArray) -> tuple[FloatArray, BoolA
 
 
 def dubins_arc(xy: FloatArray, speed: FloatArray, heading: FloatArray, turn_rate: FloatArray,
-               tau: FloatArray) -> tuple[FloatArray, FloatArray]:
+               tau: FloatArray | float) -> tuple[FloatArray, FloatArray]:
     r"""Exact constant-speed, constant-turn-rate motion for a time ``tau``.
 
     With :math:`a = \omega \tau / 2`,
@@ -214,9 +214,9 @@ class TruthModel:
                  max_turn_rate: Sequence[float] | FloatArray,
                  world_size: Sequence[float] | FloatArray, dt: float,
                  process_noise: float, buildings: FloatArray | None = None) -> None:
-        kinds = np.asarray(kinds, dtype=str).reshape(-1)
+        kind = np.asarray(kinds, dtype=str).reshape(-1)
         states = np.array(initial_states, dtype=float)
-        M = len(kinds)
+        M = len(kind)
         if states.shape != (M, 4):
             raise ValueError(f"initial_states must have shape ({M}, 4), got {states.shape}")
         hold = np.asarray(turn_hold, dtype=float).reshape(-1)
@@ -233,8 +233,8 @@ class TruthModel:
         _, Q1 = cv_matrices(self.dt, 1.0)
         self.L = np.sqrt(process_noise) * np.linalg.cholesky(Q1)
         self._rngs = rng.spawn(M)
-        self.cv = np.flatnonzero(kinds == "cv")
-        self.dub = np.flatnonzero(kinds == "dubins")
+        self.cv = np.flatnonzero(kind == "cv")
+        self.dub = np.flatnonzero(kind == "dubins")
         self._noise = np.empty((len(self.cv), NOISE_BLOCK, 4))
         self._noise_at = NOISE_BLOCK
         d = self.dub
@@ -285,7 +285,7 @@ class TruthModel:
                                                self.turn_rate, tau)
             self.time_left = np.where(due, self.turn_hold, self.time_left - tau)
             for n in np.flatnonzero(due):
-                self.turn_rate[n] = self._draw_turn_rate(n)
+                self.turn_rate[n] = self._draw_turn_rate(int(n))
             remaining = np.where(due, remaining - tau, 0.0)
             remaining[remaining <= tol] = 0.0
             if not remaining.any():

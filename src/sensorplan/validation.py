@@ -192,7 +192,10 @@ def setting_annotation(cls: type, f: dataclasses.Field[Any], s: Setting) -> Any:
 def _file_list(hint: Any) -> Any:
     """A list type of a file for a ``tuple[X, ...]`` setting (nested for a matrix)."""
     inner = typing.get_args(hint)[0]
-    return list[_file_list(inner)] if typing.get_origin(inner) is tuple else list[inner]
+    # types.GenericAlias(list, (x,)) is list[x], spelled so that a type checker accepts a
+    # runtime value as the item type.
+    item = _file_list(inner) if typing.get_origin(inner) is tuple else inner
+    return types.GenericAlias(list, (item,))
 
 
 def setting_type(cls: type, name: str) -> Any:

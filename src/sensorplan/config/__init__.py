@@ -1,6 +1,6 @@
 """Validated input of ``sensorplan plan`` and ``sensorplan simulate``.
 
-- :mod:`.decision`: the single-decision JSON (SPEC 7);
+- :mod:`.decision`: the single-decision JSON of ``sensorplan plan``;
 - :mod:`.simulate`: a scenario file or preset with command-line overrides;
 - :mod:`.planners`: checking a planner's settings from a file, and building it.
 

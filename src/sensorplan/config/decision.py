@@ -1,4 +1,4 @@
-"""The single-decision file (JSON, SPEC 7) of ``sensorplan plan``."""
+"""The single-decision file (JSON) of ``sensorplan plan`` (docs/cli.md)."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
 from pydantic import ConfigDict
 
 from .. import io
@@ -15,8 +16,8 @@ from ..limits import (MAX_SENSORS, MAX_TARGETS, RANGES, check_count, check_covar
                       check_decision_size, check_sensor_precision)
 from ..problem import MapRect, PlanningProblem, check_covariance
 from ..settings import RunSettings
-from ..validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict, Vec2, Vec4,
-                          setting_type, validate)
+from ..validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict,
+                          Vec2, Vec4, setting_type, validate)
 from .planners import build_planner, planner_settings
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -68,7 +69,7 @@ class DecisionPlanner(Strict):
 
 
 class DecisionFile(Strict):
-    """SPEC 7's single-decision file."""
+    """The single-decision file."""
 
     dt: float = _problem_default("dt")
     steps_per_epoch: int = _problem_default("steps_per_epoch")
@@ -102,7 +103,7 @@ class Decision:
     planner: str
     settings: Mapping[str, Any]
 
-    def make_planner(self) -> "Planner":
+    def make_planner(self) -> Planner:
         return build_planner(self.planner, self.settings)
 
 
@@ -140,7 +141,7 @@ def _pd_or_none(P: Any, field: str) -> Any:
 
 
 def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
-    """Validate a SPEC 7 single-decision object and build the problem and planner settings.
+    """Validate a single-decision object and build the problem and planner settings.
 
     Parameters
     ----------
@@ -153,21 +154,21 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
     Raises
     ------
     ConfigError
-        For every bad input of SPEC 7 (the field is a dotted path like ``sensors[1].altitude``).
+        For every bad input (the field is a dotted path like ``sensors[1].altitude``).
     """
     model: DecisionFile = validate(DecisionFile, data, "a JSON object")
     _check_magnitudes(model)
     problem = PlanningProblem(
-        means=[t.mean for t in model.targets],
-        covs=[t.cov for t in model.targets],
-        positions=[s.position for s in model.sensors],
-        headings=[s.heading for s in model.sensors],
+        means=np.array([t.mean for t in model.targets], dtype=float),
+        covs=np.array([t.cov for t in model.targets], dtype=float),
+        positions=np.array([s.position for s in model.sensors], dtype=float),
+        headings=np.array([s.heading for s in model.sensors], dtype=float),
         sensors=tuple(s.params() for s in model.sensors),
         horizon=model.horizon, steps_per_epoch=model.steps_per_epoch, dt=model.dt,
         process_noise=model.process_noise, world=MapRect(model.map.width, model.map.height),
         visibility=model.visibility, objective=model.objective,
         planning_detection=model.planning_detection,
-        buildings=[b.row() for b in model.buildings])
+        buildings=np.array([b.row() for b in model.buildings], dtype=float))
     for i, s in enumerate(problem.sensors):
         check_sensor_precision(s, f"sensors[{i}]")
     check_decision_size(problem.horizon, problem.steps_per_epoch, problem.n_targets,

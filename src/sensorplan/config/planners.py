@@ -53,7 +53,7 @@ def planner_settings(name: str, params: Mapping[str, Any], name_field: str = "pl
     return check_settings(cls, params, params_field, strict=strict, exclude=exclude)
 
 
-def build_planner(name: str, settings: Mapping[str, Any], field: str = "planner") -> "Planner":
+def build_planner(name: str, settings: Mapping[str, Any], field: str = "planner") -> Planner:
     """The planner ``name`` with checked ``settings``; failures name ``field``'s keys."""
     return instantiate(planner_class(name, field + ".name"), settings, field)
 

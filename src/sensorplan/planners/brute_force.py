@@ -2,7 +2,7 @@ r"""The ``brute-force`` baseline: the exact maximum of Phi over every feasible j
 
 A sensor's *options* are its feasible position chains ``p_1 .. p_K`` (each step one move
 inside the map) times the ``M^K`` target sequences; the joint space is the product of the
-sensors' options (SPEC 4 baselines).
+sensors' options.
 
 Why it is fast. A sensor's headings and looks depend only on its own option, so every
 option's position information ``W`` (per epoch and step) is computed once, batched; in fact
@@ -24,9 +24,9 @@ computed per chunk for the combinations that occur in it (``np.unique``).
 
 Enumeration order (this fixes ties). Joint plans are enumerated with sensor 0's option
 varying slowest. A sensor's options are ordered by chain, the chains lexicographically by
-their move indices (SPEC move order, ``stay`` first, epoch 1 slowest), then by target
+their move indices (the move order, ``stay`` first, epoch 1 slowest), then by target
 sequence lexicographically (epoch 1 slowest). The planner returns the *first* plan in this
-order whose Phi is within ``1e-9 max(1, |Phi*|)`` of the maximum ``Phi*`` (SPEC 4 tie
+order whose Phi is within ``1e-9 max(1, |Phi*|)`` of the maximum ``Phi*`` (the tie
 tolerance), so rounding differences between equal-valued plans cannot change the choice.
 """
 
@@ -108,7 +108,7 @@ def _ancestors(parent: list[IntArray], K: int) -> list[IntArray]:
 def enumerate_chains(lattice: Lattice, K: int) -> IntArray:
     """Every feasible chain as position indices ``(n_chains, K)`` (column k-1 indexes R_k).
 
-    Ordered lexicographically by move index (SPEC move order), epoch 1 slowest.
+    Ordered lexicographically by move index (the move order), epoch 1 slowest.
     """
     last, parent = _chain_tree(lattice, K)
     anc = _ancestors(parent, K)
@@ -295,7 +295,7 @@ class _TargetTerm:
 @register
 @dataclass(frozen=True)
 class BruteForcePlanner:
-    """Exact maximiser of Phi by enumerating every feasible joint plan (SPEC 4 baselines).
+    """Exact maximiser of Phi by enumerating every feasible joint plan.
 
     Parameters
     ----------

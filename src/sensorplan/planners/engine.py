@@ -170,7 +170,7 @@ class GameState:
                 k += 1
                 continue
             k_end = self._run_end(i, k)
-            ks = np.arange(k, k_end + 1)
+            ks = range(k, k_end + 1)
             pos = np.stack([self.xy(i, kk, self.pos[i, kk - 1]) for kk in ks])[None]
             tgt = self.tgt[i, k - 1:k_end][None]
             th, W, _ = chain_looks(ctx, i, k, pos, tgt, ctx.problem.headings[i], k == 1)
@@ -230,7 +230,7 @@ class GameState:
         "No chain" leaves sensor i's epochs ``k0 ..`` up to the end of the assigned run that
         follows unassigned. The gain differs from Phi by a term that does not depend on the
         candidate, so it is a valid utility for every player whose action the chain holds
-        (SPEC 4) and the game's decisions are the same with either.
+        and the game's decisions are the same with either.
 
         ``token`` names the candidate set when the caller knows it (see
         :meth:`action_token`), so that the cache recognises it without comparing arrays.
@@ -341,7 +341,7 @@ class GameState:
 
     # ----------------------------------------------------------------- player actions
     def player_actions(self, i: int, k: int) -> tuple[IntArray, IntArray]:
-        """Feasible actions of player (i, k) in tie-break order (SPEC 4).
+        """Feasible actions of player (i, k) in tie-break order.
 
         Positions lie in ``R_k``, one move from ``p_{k-1}`` when (i, k-1) is assigned (or
         k = 1) and one move before ``p_{k+1}`` when (i, k+1) is assigned. Order: Euclidean
@@ -399,7 +399,7 @@ _NONE = np.zeros(0, dtype=np.int64)
 
 
 def choose(values: FloatArray, current: int = -1, scale: float | None = None) -> int:
-    """Index of the best value under SPEC 4's tie rule.
+    """Index of the best value under the tie rule.
 
     Values within ``TIE_TOL max(1, scale)`` of the maximum tie (``scale`` = |Phi|, by default
     the largest value); the current action wins a tie, then the earliest index (callers

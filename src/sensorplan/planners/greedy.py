@@ -1,4 +1,4 @@
-"""The ``sequential-greedy`` baseline (SPEC 4)."""
+"""The ``sequential-greedy`` baseline."""
 
 from __future__ import annotations
 

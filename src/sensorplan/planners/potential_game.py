@@ -1,4 +1,4 @@
-"""The paper's planner (Algorithm 1, SPEC 4): JSFP with inertia over (sensor, epoch) players.
+"""The paper's planner (Algorithm 1): JSFP with inertia over (sensor, epoch) players.
 
 Sweeps run over epochs k = K, K-1, ..., 1. The first sweep is the initialisation (the paper's
 dynamic-programming-like pass): every player starts unassigned, so player (i, K) chooses within
@@ -64,7 +64,7 @@ def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float,
     Each iteration every player computes its utility of every feasible action against the
     others' current actions; if the current actions are a pure Nash equilibrium of the epoch
     game the loop ends. Otherwise ``ubar = (t-1)/t ubar + u/t``, the best response is
-    ``argmax ubar`` (SPEC tie rule) and each player switches to it with probability
+    ``argmax ubar`` (tie rule) and each player switches to it with probability
     ``1 - alpha`` (an unassigned player always does); then the loop ends with probability
     ``1 - beta``, or after ``max_inner`` iterations.
 
@@ -104,8 +104,9 @@ def run_sweeps(state: GameState, rng: np.random.Generator, alpha: float, beta: f
 
     With ``anytime`` (a time budget), every JSFP iteration is a check (the current plan is
     offered when complete); in the first sweep the partial plan's completion is offered
-    after iterations 1, 2, 4, 8, ... and at the end of each epoch game; ``anytime.sweeps``/``anytime.trace`` follow the progress. Stopping
-    raises :class:`~sensorplan.planners.anytime.BudgetExhausted`.
+    after iterations 1, 2, 4, 8, ... and at the end of each epoch game;
+    ``anytime.sweeps``/``anytime.trace`` follow the progress. Stopping raises
+    :class:`~sensorplan.planners.anytime.BudgetExhausted`.
 
     Returns
     -------
@@ -212,7 +213,7 @@ class BudgetedLearningSettings(LearningSettings):
 @register
 @dataclass(frozen=True)
 class PotentialGamePlanner(BudgetedLearningSettings):
-    """``pg``: the paper's Algorithm 1 (SPEC 4). Myopic planning is ``pg`` with K = 1."""
+    """``pg``: the paper's Algorithm 1. Myopic planning is ``pg`` with K = 1."""
 
     name: ClassVar[str] = "pg"
 

@@ -15,7 +15,7 @@ from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
 @register
 @dataclass(frozen=True)
 class RandomPlanner:
-    """Uniform random feasible plan (SPEC 4 baselines), seeded."""
+    """Uniform random feasible plan (a baseline), seeded."""
 
     name: ClassVar[str] = "random"
     seed: int | None = 0

@@ -1,4 +1,4 @@
-"""``pg-refine``: the paper's game with several starts and a two-epoch local search (SPEC 4).
+"""``pg-refine``: the paper's game with several starts and a two-epoch local search.
 
 The paper's players are (sensor, epoch), so its equilibria are only stable against one
 epoch's change at a time; where a sensor's positions are tightly chained by its moves they
@@ -33,7 +33,7 @@ from .potential_game import BudgetedLearningSettings, current_index, run_sweeps
 
 
 def _improves(new: float, old: float, scale: float) -> bool:
-    """``new`` beats ``old`` by more than the tolerance ``TIE_TOL max(1, |Phi|)`` (SPEC 4)."""
+    """``new`` beats ``old`` by more than the tolerance ``TIE_TOL max(1, |Phi|)``."""
     return bool(new > old + TIE_TOL * max(1.0, scale))
 
 
@@ -63,7 +63,7 @@ def local_search(state: GameState, max_candidates: int = 2500,
 
     A two-epoch move changes one sensor's positions in epochs k and k+1; when the
     ``pairs x M^2`` candidates fit in ``max_candidates`` its targets in both epochs are chosen
-    jointly too, otherwise they are kept (SPEC 4's move), which bounds the cost per move.
+    jointly too, otherwise they are kept (the plain move), which bounds the cost per move.
     With ``anytime`` (a time budget) every move considered is a check.
 
     Returns the number of rounds.
@@ -113,7 +113,7 @@ def local_search(state: GameState, max_candidates: int = 2500,
 @register
 @dataclass(frozen=True)
 class RefinedPlanner(BudgetedLearningSettings):
-    """``pg-refine`` (SPEC 4, beyond the paper); same settings as ``pg``."""
+    """``pg-refine`` (beyond the paper); same settings as ``pg``."""
 
     name: ClassVar[str] = "pg-refine"
 

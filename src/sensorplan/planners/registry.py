@@ -251,8 +251,9 @@ def planner_settings_of(cls: Any) -> dict[str, Any]:
         names = [p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)
                  and not p.name.startswith("_")]
     try:
+        # getattr: mypy refuses ``cls.__init__`` on a type (unsound in general).
         hints = typing.get_type_hints(cls if dataclasses.is_dataclass(cls)
-                                      else getattr(cls, "__init__"))
+                                      else getattr(cls, "__init__"))  # noqa: B009
     except Exception:  # noqa: BLE001 - unresolvable annotations: the constructor checks
         hints = {}
     return {n: hints.get(n, Any) for n in names}

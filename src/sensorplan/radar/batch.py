@@ -132,8 +132,8 @@ def _flat(a: np.ndarray, dtype: type = np.float64) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=dtype).ravel()
 
 
-def measure_looks(table: FloatArray, sensor: IntArray, target_xy: FloatArray,
-                  sensor_xy: FloatArray, heading: FloatArray
+def measure_looks(table: FloatArray, sensor: IntArray | int, target_xy: FloatArray,
+                  sensor_xy: FloatArray, heading: FloatArray | float
                   ) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray]:
     """Measurement model of a batch of looks, one compiled call.
 

@@ -85,13 +85,13 @@ def _method_colors(names: list[str]) -> dict[str, Any]:
     return dict(method_colors(names))
 
 
-def _new_figure(width: float, height: float) -> "Figure":
+def _new_figure(width: float, height: float) -> Figure:
     from matplotlib.figure import Figure
 
     return Figure(figsize=(width, height), dpi=110, layout="constrained")
 
 
-def _save(fig: "Figure", path: Path) -> Path:
+def _save(fig: Figure, path: Path) -> Path:
     # "tight" keeps legends placed outside the axes inside the image.
     fig.savefig(path, format="png", metadata={"Software": None}, bbox_inches="tight",
                 pad_inches=0.15)
@@ -235,7 +235,7 @@ def _fig_nees_time(curves: Any, t: StudyTables, colors: dict[str, Any], path: Pa
     return _save(fig, path)
 
 
-def _method_axis(ax: "Axes", names: list[str]) -> np.ndarray:
+def _method_axis(ax: Axes, names: list[str]) -> np.ndarray:
     y = np.arange(len(names))[::-1].astype(float)
     ax.set_yticks(y, names)
     ax.set_ylim(-0.7, len(names) - 0.3)

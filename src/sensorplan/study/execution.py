@@ -20,7 +20,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard, cast
 
 import numpy as np
 
@@ -279,7 +279,7 @@ class StudyRun:
     timing: dict[str, Any] = field(default_factory=dict)
 
 
-def _is_main_guard(node: ast.AST) -> bool:
+def _is_main_guard(node: ast.AST) -> TypeGuard[ast.If]:
     """``if __name__ == "__main__":`` (either operand order)."""
     if not (isinstance(node, ast.If) and isinstance(node.test, ast.Compare)
             and len(node.test.ops) == 1 and isinstance(node.test.ops[0], ast.Eq)):
@@ -459,7 +459,9 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
                 n += 1
                 if progress is not None:
                     if with_seconds:
-                        progress(n, len(todo), len(done), seconds=res.wall)
+                        # a callback that takes it (checked by _takes_seconds)
+                        cast(Callable[..., None], progress)(n, len(todo), len(done),
+                                                            seconds=res.wall)
                     else:
                         progress(n, len(todo), len(done))
             t0 = time.perf_counter()

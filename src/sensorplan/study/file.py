@@ -95,14 +95,15 @@ MethodSettings = section_model(RunSettings, "planning", "MethodSettings",
                                **_groups(RunSettings))
 MethodModel = create_model("MethodModel", __base__=MethodSettings,
                            name=(Annotated[str, AfterValidator(_method_name)], ...))
-_STUDY_WIDE = {f.name: (setting_annotation(RunSettings, f, s) | None, None)
-               for f, s in declared(RunSettings, "run")}
+_STUDY_WIDE: dict[str, Any] = {f.name: (setting_annotation(RunSettings, f, s) | None, None)
+                               for f, s in declared(RunSettings, "run")}
 _STUDY_WIDE["steps"] = (setting_type(RunSettings, "steps"), ...)
 StudyFile = create_model(
     "StudyFile", __base__=Strict, description=(str, ""), runs=(PositiveInt, ...),
     **_STUDY_WIDE, seed=(Seed, 0), scenario=(StudyScenarioModel, StudyScenarioModel()),
     defaults=(MethodSettings, MethodSettings()),
-    methods=(Annotated[list[MethodModel], AfterValidator(_non_empty)], ...))
+    # A model built at run time is a valid item type for pydantic, not for a type checker.
+    methods=(Annotated[list[MethodModel], AfterValidator(_non_empty)], ...))  # type: ignore[valid-type, arg-type]
 
 
 def _inherit(cls: type, own: dict[str, Any], inherited: dict[str, Any], own_at: str,

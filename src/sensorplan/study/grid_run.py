@@ -340,8 +340,8 @@ def method_statistics(out: str | Path) -> Any:
         lost = summary(metrics, "lost_share")
         honest = consistency(tables)
         for method in tables.study.method_names:
-            def pick(df: Any, m: str = method) -> Any:
-                return df[(df["method"] == m) & (df["kind"] == kind)].iloc[0]
+            def pick(df: Any, m: str = method, k: str = kind) -> Any:
+                return df[(df["method"] == m) & (df["kind"] == k)].iloc[0]
             r, lo, h = pick(rmse), pick(lost), pick(honest)
             rows.append({"cell": cell["slug"], "method": method, "n": int(r["n"]),
                          "rmse": r["mean"], "rmse_lo": r["mean_lo"], "rmse_hi": r["mean_hi"],

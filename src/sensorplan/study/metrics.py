@@ -79,10 +79,10 @@ class ErrorRow:
     restarts: int = 0
 
 
-def episode_errors(episode: "Episode") -> list[ErrorRow]:
+def episode_errors(episode: Episode) -> list[ErrorRow]:
     """Per target, then per target kind (and all targets when there are several kinds)."""
     err = np.asarray(episode.error)[1:]                                # (S, M)
-    measured = np.asarray(episode.measured)[1:].any(axis=2)            # (S, M)
+    measured = np.any(np.asarray(episode.measured)[1:], axis=2)       # (S, M)
     nees = np.asarray(episode.nees)[1:]
     restarted = np.asarray(episode.restarted)[1:]
     kinds = list(episode.target_kinds)
@@ -100,7 +100,7 @@ def episode_errors(episode: "Episode") -> list[ErrorRow]:
     return rows
 
 
-def episode_consistency(episode: "Episode") -> dict[str, float]:
+def episode_consistency(episode: Episode) -> dict[str, float]:
     """ANEES over steps 1..S and targets, its band, the share above :data:`NEES_HIGH`, and
     the track restarts and map corrections of one episode."""
     nees = np.asarray(episode.nees)[1:]
@@ -282,9 +282,9 @@ def summary(metrics: Any, column: str = "rmse", level: float = LEVEL,
     rows = []
     for (method, kind), g in metrics.groupby(["method", "kind"], observed=True, sort=True):
         x = g[column].to_numpy(float)
-        mean, lo, hi = t_interval(x, level)
+        mean, t_lo, t_hi = t_interval(x, level)
         med, mlo, mhi = median_interval(x, level)
-        lo, hi, mlo, mhi = (float(_clip(v, rng)) for v in (lo, hi, mlo, mhi))
+        lo, hi, mlo, mhi = (float(_clip(v, rng)) for v in (t_lo, t_hi, mlo, mhi))
         rows.append(dict(method=method, kind=kind, n=x.size, mean=float(mean),
                          mean_lo=lo, mean_hi=hi, median=med, median_lo=mlo,
                          median_hi=mhi, small_sample=bool(x.size < SMALL_SAMPLE)))
@@ -307,17 +307,20 @@ def references(study: Study) -> dict[str, dict[str, str | None]]:
     for m in study.methods:
         s = m.settings
 
-        def first(pred: Callable[[RunSettings], bool], m: Method = m) -> str | None:
+        def first(pred: Callable[[RunSettings, RunSettings], bool], m: Method = m
+                  ) -> str | None:
+            """The first other method whose settings ``o`` satisfy ``pred(o, s)``, ``s``
+            being ``m``'s settings."""
             for other in study.methods:
-                if other.name != m.name and pred(other.settings):
+                if other.name != m.name and pred(other.settings, m.settings):
                     return other.name
             return None
 
-        rnd = first(lambda o: o.planner == "random" and o.tracker == s.tracker
+        rnd = first(lambda o, s: o.planner == "random" and o.tracker == s.tracker
                     and o.steps_per_epoch == s.steps_per_epoch)
         if rnd is None:
-            rnd = first(lambda o: o.planner == "random" and o.tracker == s.tracker)
-        myo = first(lambda o: o.planner == "pg" and o.horizon == 1
+            rnd = first(lambda o, s: o.planner == "random" and o.tracker == s.tracker)
+        myo = first(lambda o, s: o.planner == "pg" and o.horizon == 1
                     and o.visibility == s.visibility and o.objective == s.objective
                     and o.tracker == s.tracker
                     and o.steps_per_epoch == s.steps_per_epoch)
@@ -352,6 +355,7 @@ def paired_differences(metrics: Any, study: Study, column: str = "rmse",
 
     wide = metrics.pivot_table(index=["kind", "run"], columns="method", values=column,
                                observed=True)
+    todo: list[tuple[str, str, str | None]]
     if pairs is not None:
         todo = [(method, "given", ref) for method, ref in pairs]
     else:
@@ -367,7 +371,8 @@ def paired_differences(metrics: Any, study: Study, column: str = "rmse",
                 continue
             both = wide.loc[kind, [method, ref]].dropna()
             d = (both[method] - both[ref]).to_numpy(float)
-            mean, lo, hi = t_interval(d, level)
+            mean, t_lo, t_hi = t_interval(d, level)
+            lo, hi = float(t_lo), float(t_hi)
             med, mlo, mhi = median_interval(d, level)
             vlo, vhi = METRIC_RANGES.get(column, (None, None))
             if vlo is not None and vhi is not None:

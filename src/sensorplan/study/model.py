@@ -102,7 +102,7 @@ class Study:
                 "methods": [m.to_dict() for m in self.methods]}
 
     @classmethod
-    def from_resolved(cls, data: Mapping[str, Any]) -> "Study":
+    def from_resolved(cls, data: Mapping[str, Any]) -> Study:
         """Inverse of :meth:`resolved` (the report rebuilds the study from its directory)."""
         shared = {k: data[k] for k in STUDY_KEYS}
         methods = []

@@ -17,7 +17,7 @@ import subprocess
 import sys
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -53,7 +53,7 @@ def part_path(out: Path, run: int, method: int, table: str) -> Path:
     return Path(out) / "parts" / f"run-{run:05d}" / f"m{method:02d}.{table}.parquet"
 
 
-def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
+def _atomic_write(path: Path, write: Callable[[Path], object]) -> None:
     """Write through a temporary name in the same directory, then rename.
 
     ``os.replace`` is atomic on POSIX, so readers (and a resumed study) see either the whole
@@ -207,7 +207,7 @@ def git_describe() -> str | None:
 
 
 def now() -> str:
-    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+    return datetime.now(UTC).isoformat(timespec="seconds")
 
 
 @contextlib.contextmanager
@@ -255,7 +255,7 @@ def prepare(out: Path, study: Study) -> int | None:
     if config.exists():
         old = _read_resolved(config, "--out", "use another --out or delete it")
         before = {k: old.get(k) for k in RESULT_KEYS}
-        after = {k: resolved.get(k) for k in RESULT_KEYS}
+        after: dict[str, Any] = {k: resolved.get(k) for k in RESULT_KEYS}
         grown = (isinstance(before["runs"], int) and not isinstance(before["runs"], bool)
                  and after["runs"] > before["runs"])
         if grown:

@@ -8,14 +8,14 @@ What is here (``docs/stonesoup.md`` has the full mapping and its limits):
   sensorplan ``[x, y, vx, vy]``; :func:`to_stonesoup_mean`, :func:`to_stonesoup_cov`,
   :func:`to_gaussian_state`, :func:`to_tracks` and their inverses permute entries, nothing
   else.
-- :class:`RadarMeasurementModel`: the radar of SPEC 2 as a Stone Soup measurement model
+- :class:`RadarMeasurementModel`: sensorplan's radar as a Stone Soup measurement model
   (slant range with altitude, azimuth, SNR-dependent noise): ``function``, an analytic
   ``jacobian`` and ``covar`` evaluated at a state, so Stone Soup's ``ExtendedKalmanUpdater``
   runs on it.
 - Actionables: :class:`LatticeMovable` (a platform movement controller whose actions are
-  the SPEC 2 moves inside the map) and :class:`SensorplanRadar` (the radar, mounted on such a
+  the lattice moves inside the map) and :class:`SensorplanRadar` (the radar, mounted on such a
   platform, whose action is *where to look*: an :class:`AimAction` with a ground point; the
-  heading then follows the SPEC 2 heading rule from the platform's position).
+  heading then follows the heading rule from the platform's position).
 - Missed detections and false alarms: a radar whose ``params`` say ``detection="swerling1"``
   misses a target in view with probability ``1 - Pd``, and one with ``clutter_rate > 0``
   reports false alarms as Stone Soup ``Clutter`` in its sensing region;

@@ -31,18 +31,18 @@ from ._measurement import RadarMeasurementModel, noise_source
 from ._world import DEFAULT_WORLD, MapRect, as_world
 
 # --------------------------------------------------------------------------------------------
-# Platform movement: the SPEC 2 moves
+# Platform movement: the lattice moves
 # --------------------------------------------------------------------------------------------
 
 
 class LatticeMoveAction(MovePositionAction):
-    """Move the platform to ``target_value``: move ``move_index`` of SPEC 2's move order."""
+    """Move the platform to ``target_value``: move ``move_index`` of the move order."""
 
     move_index: int = Property(default=0, doc="Index of the move (0 = stay).")
 
 
 class LatticeMoveActionGenerator(ActionGenerator):
-    """The SPEC 2 moves (stay, then 8 directions per distance) that end inside the map."""
+    """The lattice moves (stay, then 8 directions per distance) that end inside the map."""
 
     move_distances: Sequence[float] = Property(default=(20.0, 40.0),
                                                doc="Move distances s (m).")
@@ -102,7 +102,7 @@ def _float_vector(v: Any) -> StateVector:
 
 
 class LatticeMovable(FixedMovable):
-    """A platform movement controller whose actions are the SPEC 2 moves inside the map.
+    """A platform movement controller whose actions are the lattice moves inside the map.
 
     Use it as the ``movement_controller`` of a Stone Soup ``FixedPlatform``. The position is
     3-D ``[x, y, z]`` by default (``position_mapping=(0, 1, 2)``); moves change x and y. A
@@ -115,11 +115,11 @@ class LatticeMovable(FixedMovable):
     """
 
     move_distances: Sequence[float] = Property(default=(20.0, 40.0),
-                                               doc="Move distances s (m), SPEC 2.")
+                                               doc="Move distances s (m).")
     world: MapRect = Property(default=DEFAULT_WORLD,
                               doc="The map in world coordinates; default [0, 600] x [0, 600].")
 
-    @world.setter
+    @world.setter  # type: ignore[no-redef]  # Stone Soup's Property idiom
     def world(self, value: Any) -> None:
         self._property_world = as_world(value)
 
@@ -217,7 +217,7 @@ class AimActionGenerator(ActionGenerator):
 
 
 class SensorplanRadar(Sensor):
-    r"""The SPEC 2 radar as an actionable Stone Soup sensor.
+    r"""sensorplan's radar as an actionable Stone Soup sensor.
 
     Mount it on a Stone Soup platform (a ``FixedPlatform`` with a :class:`LatticeMovable` to
     let :class:`SensorplanManager` move it); its ground position is the platform's x, y and
@@ -225,11 +225,11 @@ class SensorplanRadar(Sensor):
 
     Pointing. The actionable property is :attr:`aim`, a ground point. When the radar acts on
     a new :class:`AimAction` it turns toward that point by at most ``params.max_turn``
-    (SPEC 2 heading rule), from the heading it had, *seen from the platform's position at the
+    (the heading rule), from the heading it had, *seen from the platform's position at the
     time of the first use after the act* (a measurement, or reading :attr:`heading`). The turn
     is resolved lazily because Stone Soup acts platforms and sensors in no fixed order: in a
     loop that acts every actionable before measuring, the turn is seen from the new position,
-    as SPEC 5 executes it. The heading then stays fixed until the next aim action.
+    as sensorplan's closed loop executes it. The heading then stays fixed until the next aim action.
 
     Field of view: ground range in ``[min_ground_range, max_ground_range]``, azimuth within
     ``fov_half_angle`` of the heading, ``cos psi > 0``, from the one radar model
@@ -273,7 +273,7 @@ class SensorplanRadar(Sensor):
                           "the generator); None: NumPy's global state (seed it with "
                           "np.random.seed), as in Stone Soup.")
 
-    @seed.setter
+    @seed.setter  # type: ignore[no-redef, union-attr]  # Stone Soup's Property idiom
     def seed(self, value: int | None) -> None:
         self._property_seed = value
         #: The radar's own generator (from ``seed``), or None: NumPy's global state.
@@ -284,7 +284,7 @@ class SensorplanRadar(Sensor):
         self._pending = False
         self.aim_target: Any = None
 
-    @heading.getter
+    @heading.getter  # type: ignore[no-redef, attr-defined]  # Stone Soup's Property idiom
     def heading(self) -> float:
         self._resolve()
         return self._property_heading
@@ -299,8 +299,8 @@ class SensorplanRadar(Sensor):
             return
         xy = self.ground_position
         bearing = math.atan2(aim[1] - xy[1], aim[0] - xy[0])
-        self._property_heading = float(heading_rule(self._property_heading, bearing,
-                                                    self.params.max_turn))
+        self._property_heading: float = float(heading_rule(self._property_heading, bearing,
+                                                           self.params.max_turn))
 
     @property
     def ground_position(self) -> FloatArray:
@@ -335,7 +335,7 @@ class SensorplanRadar(Sensor):
                                      heading=self.heading, params=self.params)
 
     def is_detectable(self, state: Any, measurement_model: Any = None) -> bool:
-        """Whether the state's ground position is in the field of view (SPEC 2)."""
+        """Whether the state's ground position is in the field of view."""
         xy = _ground_xy(state, self.position_mapping)
         seen = radar.measure_looks(radar_table(self.params), 0, xy, self.ground_position,
                                    self.heading)[3]
@@ -444,7 +444,7 @@ def set_aim_candidates(radars: Iterable[SensorplanRadar], tracks: Iterable[Track
     """Offer every track as an aim to each radar, for Stone Soup's own sensor managers.
 
     The aim point is the track's mean predicted one step ``dt`` ahead (the point our
-    planners aim at in the first step of an epoch, SPEC 4). The candidate's target is the
+    planners aim at in the first step of an epoch). The candidate's target is the
     Track itself. The mappings locate the ground position and velocity in the tracks' states
     (see :func:`ground_index`; 4-D and 6-D constant-velocity states need none).
     """

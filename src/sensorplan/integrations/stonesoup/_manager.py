@@ -45,7 +45,7 @@ class SensorplanManager(SensorManager):
     from the tracks (means and covariances at their common time ``t0``) and the managed
     platforms (position, heading, radar parameters, moves, map), runs the planner for
     ``horizon`` epochs of ``steps_per_epoch`` steps of ``dt`` seconds, and returns the first
-    epoch as Stone Soup actions (rolling horizon, SPEC 5 ``olf``):
+    epoch as Stone Soup actions (rolling horizon, ``olf``):
 
     - each platform: a :class:`LatticeMoveAction` to its planned position of epoch 1;
     - each radar: an :class:`AimAction` at its planned target's mean predicted one step
@@ -100,8 +100,8 @@ class SensorplanManager(SensorManager):
     process_noise: float = Property(default=0.05,
                                     doc="q (m^2/s^3) of the CWNA model the planner assumes; "
                                         "match the tracker's ConstantVelocity noise.")
-    visibility: str = Property(default="probabilistic", doc="SPEC 4 visibility mode.")
-    objective: str = Property(default="terminal", doc="SPEC 4 objective.")
+    visibility: str = Property(default="probabilistic", doc="Visibility mode.")
+    objective: str = Property(default="terminal", doc="Objective.")
     planning_detection: str = Property(
         default="aware", doc="``aware``: planned looks count the radars' detection "
                              "probability and clutter (``params.detection``, "
@@ -120,7 +120,7 @@ class SensorplanManager(SensorManager):
         super().__init__(*args, **kwargs)
         # Stone Soup's YAML writes the derived set of sensors and reads it back as ruamel's
         # CommentedSet, which lacks the set methods SensorManager uses.
-        self._property_sensors = set(self._property_sensors or ())
+        self._property_sensors: set[Any] = set(self._property_sensors or ())
         if self.planning_detection not in PLANNING_DETECTIONS:
             raise ConfigError("planning_detection", f"must be one of {PLANNING_DETECTIONS}, "
                                                     f"got {self.planning_detection!r}")
@@ -320,7 +320,7 @@ class MutualInformationReward(RewardFunction):
     where ``P_j^-`` is track j predicted to ``metric_time`` by ``predictor`` and ``P_j^+``
     the same after ``updater`` applies every look at j (each acted :class:`SensorplanRadar`
     whose aim target is j) whose predicted mean lies in the radar's field of view, with a
-    noise-free measurement at that mean. This is SPEC 4's potential with K = e = 1 and
+    noise-free measurement at that mean. This is sensorplan's potential with K = e = 1 and
     ``visibility = "mean"`` (tested equal to :func:`sensorplan.information.potential`).
 
     Works with configurations of platforms (their mounted radars look with their current

@@ -44,7 +44,7 @@ def noise_source(rng: Any, own: Any) -> Any:
 
 
 class RadarMeasurementModel(MeasurementModel, GaussianModel, ReversibleModel):
-    r"""The SPEC 2 radar as a Stone Soup measurement model: ``z = [r, phi]``.
+    r"""sensorplan's radar as a Stone Soup measurement model: ``z = [r, phi]``.
 
     .. math::
         r = \sqrt{dx^2 + dy^2 + z_i^2},\quad \phi = \operatorname{atan2}(dy, dx),\quad
@@ -59,8 +59,8 @@ class RadarMeasurementModel(MeasurementModel, GaussianModel, ReversibleModel):
     ``R`` depends on the target's state. :meth:`covar` evaluates it at ``state`` when given,
     otherwise at the state of the latest :meth:`jacobian` call, which is where Stone Soup's
     ``ExtendedKalmanUpdater`` linearises (it calls ``jacobian(prediction)`` before every
-    ``covar()``): the filter's ``R`` is therefore taken at its predicted state, as SPEC 2
-    says.
+    ``covar()``): the filter's ``R`` is therefore taken at its predicted state, as in
+    sensorplan's own filter.
 
     The model works on any state layout whose ground x and y sit at ``mapping`` (4-D
     ``[x, vx, y, vy]``, 6-D ``[x, vx, y, vy, z, vz]``, ...): :meth:`jacobian` has one column

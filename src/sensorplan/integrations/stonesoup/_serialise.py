@@ -42,7 +42,8 @@ def _params_to_yaml(representer: Any, params: SensorParams) -> Any:
 def _params_from_yaml(constructor: Any, node: Any) -> SensorParams:
     constructor.deep_construct = True
     (values,) = list(constructor.construct_yaml_omap(node))
-    kwargs = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+    kwargs: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v
+                              for k, v in values.items()}
     try:
         return SensorParams(**kwargs)
     except TypeError as e:
