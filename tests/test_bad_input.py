@@ -364,6 +364,24 @@ def test_d6_huge_covariances_are_drawn_without_hanging(tmp_path) -> None:
     assert (tmp_path / "episode.png").stat().st_size > 0
 
 
+def test_d6_huge_covariances_are_animated_without_hanging(tmp_path) -> None:
+    import dataclasses
+
+    from PIL import Image
+
+    from sensorplan.cli_guards import animate_drawable
+    from sensorplan.config import load_simulation
+    from sensorplan.simulation import run_episode
+
+    cfg = load_simulation(QUICK, None, {"steps": 3})
+    ep = run_episode(cfg.scenario, cfg.settings, 0)
+    huge = dataclasses.replace(ep, cov=ep.cov * 1e36)
+    with time_limit(120):
+        path = animate_drawable(huge, cfg.scenario, tmp_path / "episode.gif")
+    with Image.open(path) as im:
+        assert im.n_frames == 4                               # steps 0..3
+
+
 # ------------------------------------------------------------------ D7: start boxes
 
 WIDE = "[map]\nwidth = 1000.0\nheight = 400.0\n" + "[[targets]]\n" * 4 + "[[sensors]]\n" * 3

@@ -18,8 +18,9 @@ from typing import Annotated, Any
 import typer
 
 from . import __version__
-from .cli_guards import (Sigterm, Signals, Stopped, check_environment, check_finite,
-                         plot_drawable, quiet_numerics, usage_error_class, usage_line, writing)
+from .cli_guards import (Sigterm, Signals, Stopped, animate_drawable, check_environment,
+                         check_finite, plot_drawable, quiet_numerics, usage_error_class,
+                         usage_line, writing)
 from .cli_guards import Terminated as _Terminated
 from .cli_settings import with_setting_options
 from .errors import ConfigError, error_line
@@ -209,10 +210,8 @@ def simulate(
         plot_drawable(episode, cfg.scenario, png)
         written = [npz, png, timing]
         if animate:
-            from .animation import animate_episode
-
-            written.append(animate_episode(episode, cfg.scenario,
-                                           out / f"episode.{animation_format}"))
+            written.append(animate_drawable(episode, cfg.scenario,
+                                            out / f"episode.{animation_format}"))
     print_summary(episode, cfg, written)
 
 

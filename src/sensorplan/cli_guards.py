@@ -111,6 +111,16 @@ def plot_drawable(episode: Any, scenario: Any, path: Path) -> None:
     plot_episode(drawable(episode, scenario.world), drawable_scenario(scenario), path)
 
 
+def animate_drawable(episode: Any, scenario: Any, path: Path) -> Path:
+    """``animate_episode`` of what can be drawn, capped as in :func:`plot_drawable`; the
+    animation's path."""
+    from .animation import animate_episode
+    from .drawing import drawable, drawable_scenario
+
+    return Path(animate_episode(drawable(episode, scenario.world),
+                                drawable_scenario(scenario), path))
+
+
 class Stopped(Exception):
     """A command that was interrupted and has said so on stderr; ``code`` is its exit
     status (130 for Ctrl-C, 143 for SIGTERM). An exception and not ``typer.Exit``, so that

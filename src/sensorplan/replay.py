@@ -220,7 +220,7 @@ def replay_command(study_dir: Path, run: int, method: str, out: Path | None, ani
 
     from .console import print_summary
     from .io import ensure_out_dir
-    from .plotting import plot_episode
+    from .cli_guards import animate_drawable, plot_drawable
 
     if animate:
         from .animation import check_format
@@ -232,12 +232,10 @@ def replay_command(study_dir: Path, run: int, method: str, out: Path | None, ani
     rep = replay_run(study_dir, run, method)
     npz, png = target / "episode.npz", target / "episode.png"
     written = [npz, png, rep.episode.save(npz)]
-    plot_episode(rep.episode, rep.study.scenario, png)
+    plot_drawable(rep.episode, rep.study.scenario, png)
     if animate:
-        from .animation import animate_episode
-
-        written.append(animate_episode(rep.episode, rep.study.scenario,
-                                       target / f"episode.{animation_format}"))
+        written.append(animate_drawable(rep.episode, rep.study.scenario,
+                                        target / f"episode.{animation_format}"))
     cfg = SimpleNamespace(scenario=rep.study.scenario, settings=rep.method.settings,
                           seed=f"{rep.study.seed}, run {run}")
     print_summary(rep.episode, cfg, written)
