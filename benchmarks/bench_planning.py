@@ -1,4 +1,4 @@
-"""Planning speed and quality (issue 4's benchmarks). Run on purpose, not in CI:
+"""Planning speed and quality (the planning benchmarks of docs/benchmarks.md). Run on purpose, not in CI:
 
     .venv/bin/python benchmarks/bench_planning.py [--decisions 20] [--kmax 8] [--quick]
     .venv/bin/python benchmarks/bench_planning.py --detection [--occlusion] [--decisions 20]
@@ -10,7 +10,7 @@
    in K (least squares of log time on log K over K >= 2), and ``pg-refine`` / ``pg``.
 2. The same K = 3 decisions with ``SENSORPLAN_BACKEND=numpy`` (the numpy reference of the
    potential's recursions and looks; the planning engine's kernels are compiled either way).
-3. Exhaustive search against the game as K grows (SPEC 6 claim 3).
+3. Exhaustive search against the game as K grows (the paper's third claim).
 4. Quality on 200 random tiny problems against the exact optimum (``brute-force``).
 
 ``--detection`` and ``--occlusion`` run only what the planning modes cost (target: aware
@@ -238,7 +238,7 @@ def backend_comparison(args: argparse.Namespace) -> None:
 
 
 def exhaustive_growth(kmax: int = 4) -> None:
-    """SPEC 6 claim 3: exhaustive search grows exponentially in K, the game polynomially."""
+    """The paper's third claim: exhaustive search grows exponentially in K, the game polynomially."""
     from factories import joint_plan_count
     states = paper_states(3)
     print("\n## Exhaustive search vs the game in K (one sensor, M = 3, e = 2; "

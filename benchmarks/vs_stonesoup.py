@@ -1,4 +1,4 @@
-"""Benchmark: sensorplan planners against Stone Soup's sensor managers (issue 7, item 6).
+"""Benchmark: sensorplan planners against Stone Soup's sensor managers (docs/benchmarks.md, "Against Stone Soup").
 
 Both parts run in one process on the same scenario: the paper's world (600 m map, 17 moves of
 20/40 m, radars at 490/500/510 m, M = 5 targets), Stone Soup's own tracking types, our radar
@@ -107,7 +107,7 @@ def make_platforms(positions: np.ndarray, headings: np.ndarray) -> list[FixedPla
 
 
 def stonesoup_filter() -> tuple[ExtendedKalmanPredictor, ExtendedKalmanUpdater]:
-    """Stone Soup's EKF with the SPEC 1 CWNA model."""
+    """Stone Soup's EKF with the CWNA motion model of docs/model.md."""
     transition = CombinedLinearGaussianTransitionModel([ConstantVelocity(Q),
                                                         ConstantVelocity(Q)])
     return ExtendedKalmanPredictor(transition), ExtendedKalmanUpdater(None, use_joseph_cov=True)

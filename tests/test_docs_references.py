@@ -27,8 +27,8 @@ ROOT = Path(__file__).resolve().parents[1]
 SPEC_WORD = re.compile(r"\bSPEC\b")
 ISSUE_NUMBER = re.compile(r"\bissues?\s*#?\s*\d", re.IGNORECASE)
 
-#: Folders (and single files) whose text users read. benchmarks/ is left out for now.
-SHIPPED = ("README.md", "docs", "src", "examples", "scripts", "configs", "studies")
+#: Folders (and single files) whose text users read.
+SHIPPED = ("README.md", "docs", "src", "examples", "scripts", "benchmarks", "configs", "studies")
 TEXT_SUFFIXES = {".md", ".py", ".toml", ".json", ".txt", ".rst", ".sh", ".html", ".css",
                  ".js", ".cfg", ".ini", ".yaml", ".yml", ""}
 
