@@ -1,4 +1,4 @@
-"""Benchmark: exact brute force over the myopic joint space (the brute-force speed target of docs/benchmarks.md).
+"""Benchmark: exact brute force over the myopic joint space (docs/benchmarks.md, its target).
 
 Paper-like decision (``tests/factories.py:paper_problem``): 600 m map, N = 3 sensors at
 altitudes 490/500/510 placed so that all 17 moves stay inside the map, M = 5 targets in

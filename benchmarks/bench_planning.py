@@ -1,4 +1,4 @@
-"""Planning speed and quality (the planning benchmarks of docs/benchmarks.md). Run on purpose, not in CI:
+"""Planning speed and quality (docs/benchmarks.md). Run on purpose, not in CI:
 
     .venv/bin/python benchmarks/bench_planning.py [--decisions 20] [--kmax 8] [--quick]
     .venv/bin/python benchmarks/bench_planning.py --detection [--occlusion] [--decisions 20]
@@ -238,7 +238,8 @@ def backend_comparison(args: argparse.Namespace) -> None:
 
 
 def exhaustive_growth(kmax: int = 4) -> None:
-    """The paper's third claim: exhaustive search grows exponentially in K, the game polynomially."""
+    """The paper's third claim: exhaustive search grows exponentially in K, the game
+    polynomially."""
     from factories import joint_plan_count
     states = paper_states(3)
     print("\n## Exhaustive search vs the game in K (one sensor, M = 3, e = 2; "

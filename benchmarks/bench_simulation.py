@@ -1,4 +1,4 @@
-"""Simulation speed: the paper preset, ``random`` planner, e = 2, K = 1 (the simulation target of docs/benchmarks.md).
+"""Simulation speed: a preset, ``random`` planner, e = 2, K = 1 (docs/benchmarks.md).
 
 Prints the median over repetitions of the time per simulation step (total run time /
 steps, planning included) and its split into planning (building the planning problem and

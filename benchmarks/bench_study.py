@@ -1,4 +1,4 @@
-"""Study throughput (the study targets of docs/benchmarks.md, 2 workers): the paper's three methods plus ``random``
+"""Study throughput (docs/benchmarks.md, 2 workers): the paper's three methods plus ``random``
 over 100 runs in <= 3 minutes, the full ``studies/paper.toml`` in <= 10 minutes.
 
 Runs each study from scratch into a temporary directory with the local process pool and

@@ -1,4 +1,4 @@
-"""Benchmark: sensorplan planners against Stone Soup's sensor managers (docs/benchmarks.md, "Against Stone Soup").
+"""Benchmark: sensorplan planners against Stone Soup's sensor managers (docs/benchmarks.md).
 
 Both parts run in one process on the same scenario: the paper's world (600 m map, 17 moves of
 20/40 m, radars at 490/500/510 m, M = 5 targets), Stone Soup's own tracking types, our radar

@@ -210,9 +210,9 @@ def _json(v: Any) -> Any:
 def run_streams(seed: int | np.random.SeedSequence) -> dict[str, np.random.SeedSequence]:
     """The run's independent seed sequences, named as in :data:`STREAMS`.
 
-    Equal to ``SeedSequence(seed).spawn(len(STREAMS))`` but without mutating a given sequence, so the
-    same ``SeedSequence`` passed to several runs (e.g. one per method) gives every run the
-    same streams.
+    Equal to ``SeedSequence(seed).spawn(len(STREAMS))`` but without mutating a given
+    sequence, so the same ``SeedSequence`` passed to several runs (e.g. one per method)
+    gives every run the same streams.
     """
     if isinstance(seed, np.random.SeedSequence):
         ss = seed
