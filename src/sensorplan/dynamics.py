@@ -5,6 +5,8 @@ State order is ``[x, y, vx, vy]``; arrays are row vectors shaped ``(..., 4)``.
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ._types import FloatArray
@@ -28,10 +30,20 @@ def cv_matrices(dt: float, q: float) -> tuple[FloatArray, FloatArray]:
     -------
     F, Q : (4, 4) float64
     """
+    F, unit_Q = _cv_templates(float(dt))
+    return F.copy(), q * unit_Q
+
+
+@functools.lru_cache(maxsize=64)
+def _cv_templates(dt: float) -> tuple[FloatArray, FloatArray]:
+    """``F(dt)`` and ``Q(dt)`` for ``q = 1`` (read-only): built once per step length, as
+    every decision and filter step asks for the same ones."""
     eye = np.eye(2)
     F = np.block([[eye, dt * eye], [np.zeros((2, 2)), eye]])
-    Q = q * np.block([[dt**3 / 3 * eye, dt**2 / 2 * eye], [dt**2 / 2 * eye, dt * eye]])
-    return F, Q
+    unit_Q = np.block([[dt**3 / 3 * eye, dt**2 / 2 * eye], [dt**2 / 2 * eye, dt * eye]])
+    F.flags.writeable = False
+    unit_Q.flags.writeable = False
+    return F, unit_Q
 
 
 def predict_means(x0: FloatArray, F: FloatArray, steps: int) -> FloatArray:

@@ -157,7 +157,10 @@ def measure_looks(table: FloatArray, sensor: IntArray | int, target_xy: FloatArr
     dx = target_xy[..., 0] - sensor_xy[..., 0]
     dy = target_xy[..., 1] - sensor_xy[..., 1]
     shape = np.broadcast_shapes(dx.shape, np.shape(heading), np.shape(sensor))
-    b = [np.broadcast_to(a, shape) for a in (dx, dy, heading, sensor)]
+    # Broadcast only what needs it: most calls pass equal shapes, and broadcast_to's
+    # overhead dominates these tiny batches.
+    b = [a if np.shape(a) == shape else np.broadcast_to(a, shape)
+         for a in (dx, dy, heading, sensor)]
     h, H, var, seen = _measure_batch(np.ascontiguousarray(table, dtype=float),
                                      _flat(b[3], np.int64), _flat(b[0]), _flat(b[1]),
                                      _flat(b[2]))
