@@ -63,11 +63,12 @@ def truncated_normal_moments(alpha: FloatArray, beta: FloatArray
     la, lb = log_ndtr(a), log_ndtr(b)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         log_mass = lb + np.log1p(-np.exp(la - lb))
-        pa = np.where(np.isfinite(a), np.exp(-0.5 * a * a - _LOG_SQRT_2PI - log_mass), 0.0)
-        pb = np.where(np.isfinite(b), np.exp(-0.5 * b * b - _LOG_SQRT_2PI - log_mass), 0.0)
+        fa, fb = np.isfinite(a), np.isfinite(b)
+        pa = np.where(fa, np.exp(-0.5 * a * a - _LOG_SQRT_2PI - log_mass), 0.0)
+        pb = np.where(fb, np.exp(-0.5 * b * b - _LOG_SQRT_2PI - log_mass), 0.0)
         mean = pa - pb
-        a_pa = np.where(np.isfinite(a), a * pa, 0.0)
-        b_pb = np.where(np.isfinite(b), b * pb, 0.0)
+        a_pa = np.where(fa, a * pa, 0.0)
+        b_pb = np.where(fb, b * pb, 0.0)
         var = 1.0 + a_pa - b_pb - mean * mean
     # Cancellation far in a tail can leave a tiny or negative variance: keep it in (0, 1].
     var = np.clip(var, 1e-12, 1.0)

@@ -98,6 +98,13 @@ def _position_keys(offsets: FloatArray) -> np.ndarray:
 
 def _common_step(moves: FloatArray) -> int:
     """Largest step (in 1e-6 m units) of which every move component is a multiple; 0 if none."""
+    # A sensor's moves are the same at every decision: compute once per move set.
+    return _common_step_of(np.ascontiguousarray(moves, dtype=float).tobytes())
+
+
+@functools.lru_cache(maxsize=64)
+def _common_step_of(moves_bytes: bytes) -> int:
+    moves = np.frombuffer(moves_bytes, dtype=float)
     q = np.rint(np.abs(moves) / POSITION_TOL).astype(np.int64).ravel()
     if not np.allclose(q * POSITION_TOL, np.abs(moves).ravel(), rtol=0, atol=1e-9):
         return 0
