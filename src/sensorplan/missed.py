@@ -142,11 +142,16 @@ def _inside(means: FloatArray, chol: FloatArray, x: FloatArray, sensor_xy: Float
     batch = dx.shape[:-1]
     S = x.shape[0]
     sxy = None if buildings is None else np.broadcast_to(sensor_xy, batch + (2,)).reshape(-1, 2)
-    inside = radar.detectable_points(table, np.broadcast_to(sensor, batch).reshape(-1),
-                                     dx.reshape(-1, S), dy.reshape(-1, S),
-                                     np.broadcast_to(heading, batch).reshape(-1), sxy,
+    inside = radar.detectable_points(table, _flat_batch(sensor, batch), dx.reshape(-1, S),
+                                     dy.reshape(-1, S), _flat_batch(heading, batch), sxy,
                                      buildings)
     return inside.reshape(batch + (S,))
+
+
+def _flat_batch(a: np.ndarray, batch: tuple[int, ...]) -> np.ndarray:
+    """``a`` broadcast to ``batch`` and flattened (no broadcast_to call when it has the
+    shape already: its overhead dominates these tiny batches)."""
+    return (a if a.shape == batch else np.broadcast_to(a, batch)).reshape(-1)
 
 
 def _rows(table: FloatArray | SensorParams, sensor: IntArray | int | None,
