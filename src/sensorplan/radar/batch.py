@@ -6,6 +6,8 @@ batch in one compiled call; the wrappers broadcast and reshape numpy arrays arou
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .._jit import njit
@@ -128,7 +130,7 @@ def _look_batch(row: np.ndarray, buildings: np.ndarray, sxy: np.ndarray, dx: np.
 # ------------------------------------------------------------------ numpy-facing wrappers
 
 
-def _flat(a: np.ndarray, dtype: type = np.float64) -> np.ndarray:
+def _flat(a: Any, dtype: type = np.float64) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=dtype).ravel()
 
 
