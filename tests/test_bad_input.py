@@ -605,3 +605,16 @@ def test_compiled_recursion_agrees_with_numpy_on_a_precise_look() -> None:
     assert information.BACKEND == "numba"
     _, ld_nb, _ = information.covariance_recursion(*args, need_sum=bool(d["need_sum"]))
     np.testing.assert_allclose(ld_nb, ld_np, rtol=1e-9, atol=1e-9)
+
+
+# ------------------------------------------------- found by a later, fresh fuzz pass
+
+
+@pytest.mark.parametrize("box", [[100, 100, 200], [100, 100, 200, 200, 300], []])
+def test_a_building_box_of_the_wrong_length_reads_like_the_other_lists(capsys, tmp_path,
+                                                                        box) -> None:
+    line = assert_bad_input(plan(capsys, tmp_path, spec7(buildings=[{"box": box,
+                                                                     "height": 20}])),
+                            "buildings[0].box")
+    assert line.endswith(f"must be a list of 4 numbers: x0, y0, x1, y1, got {len(box)} "
+                         "item(s)"), line
