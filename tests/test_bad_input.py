@@ -618,3 +618,47 @@ def test_a_building_box_of_the_wrong_length_reads_like_the_other_lists(capsys, t
                             "buildings[0].box")
     assert line.endswith(f"must be a list of 4 numbers: x0, y0, x1, y1, got {len(box)} "
                          "item(s)"), line
+
+
+def _small_buildings(n: int) -> list[dict[str, Any]]:
+    # 1 m boxes on a 2 m grid in the map's top band, away from the targets and sensors.
+    return [{"box": [2.0 * (k % 290), 500.0 + 2.0 * (k // 290), 2.0 * (k % 290) + 1.0,
+                     501.0 + 2.0 * (k // 290)], "height": 10.0} for k in range(n)]
+
+
+def test_more_buildings_than_the_limit_is_one_line(capsys, tmp_path) -> None:
+    line = assert_bad_input(plan(capsys, tmp_path, spec7(
+        buildings=_small_buildings(limits.MAX_BUILDINGS + 1))), "buildings")
+    assert f"at most {limits.MAX_BUILDINGS} buildings" in line
+
+
+def test_buildings_count_in_the_work_of_a_decision(capsys, tmp_path, monkeypatch) -> None:
+    # One sensor with moves [20, 40] and K = 1 reaches 17 positions: 17 units of work for
+    # one target, times 1 + B / 100 with B buildings (each look tests every building).
+    monkeypatch.setattr(limits, "MAX_DECISION_WORK", 1000)
+    doc = spec7(buildings=_small_buildings(5000))          # 17 x 51 = 867: planned
+    code, out, err = plan(capsys, tmp_path, doc)
+    assert code == 0, err
+    doc = spec7(buildings=_small_buildings(6000))          # 17 x 61 = 1037: refused
+    line = assert_bad_input(plan(capsys, tmp_path, doc), "buildings")
+    assert "6000 buildings" in line and "1.04e+03 units" in line, line
+
+
+def test_many_buildings_are_one_collection_and_few_are_labelled() -> None:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from sensorplan.plotting import MAX_LABELLED_BUILDINGS, draw_buildings
+
+    for n in (MAX_LABELLED_BUILDINGS, MAX_LABELLED_BUILDINGS + 1, 10_000):
+        rows = [(b["box"][0], b["box"][1], b["box"][2], b["box"][3], 10.0 + k)
+                for k, b in enumerate(_small_buildings(n))]
+        fig, ax = plt.subplots()
+        draw_buildings(ax, rows)
+        (coll,) = ax.collections
+        assert len(coll.get_paths()) == n
+        labels = [t.get_text() for t in ax.texts]
+        assert labels == ([f"{10 + k:g} m" for k in range(n)] if n <= MAX_LABELLED_BUILDINGS
+                          else [])
+        plt.close(fig)
