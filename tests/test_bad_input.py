@@ -662,3 +662,23 @@ def test_many_buildings_are_one_collection_and_few_are_labelled() -> None:
         assert labels == ([f"{10 + k:g} m" for k in range(n)] if n <= MAX_LABELLED_BUILDINGS
                           else [])
         plt.close(fig)
+
+
+def test_the_bus_transport_refuses_more_agents_than_its_limit(capsys, tmp_path) -> None:
+    # One process per sensor: 100 sensors (the swarm) started 100 processes, several GB,
+    # and their start-up outlasted the bus's start timeout (an internal error).
+    n = limits.MAX_BUS_AGENTS + 1
+    limits.check_bus_agents(limits.MAX_BUS_AGENTS, "x")             # the limit itself is fine
+    sc = tmp_path / "s.toml"
+    sc.write_text("[[targets]]\n" + "[[sensors]]\n" * n)
+    line = assert_bad_input(run(capsys, "agents", sc, "--steps", "1", "--transport", "bus",
+                                "--out", tmp_path / "o"), "--transport")
+    assert f"at most {limits.MAX_BUS_AGENTS} sensors, got {n}" in line
+    assert not (tmp_path / "o").exists()                             # refused before the run
+    sc.write_text('[planning]\nplanner = "dec-jsfp"\n[planning.planner_params]\n'
+                  'transport = "bus"\n[[targets]]\n' + "[[sensors]]\n" * n)
+    assert_bad_input(run(capsys, "agents", sc, "--steps", "1", "--out", tmp_path / "o"),
+                     "planning.planner_params.transport")
+    doc = spec7(planner={"name": "dec-jsfp", "transport": "bus"})
+    doc["sensors"] = [dict(doc["sensors"][0], position=[100 + 20 * i, 100]) for i in range(n)]
+    assert_bad_input(plan(capsys, tmp_path, doc), "planner.transport")

@@ -51,6 +51,9 @@ MAX_TURNS_PER_STEP = 1_000
 MAX_RUNS = 100_000
 #: Most buildings of a decision or scenario.
 MAX_BUILDINGS = 10_000
+#: Most agent processes of the decentralized planners' ``bus`` transport (one per sensor;
+#: about 100 MB and a few seconds of start-up each).
+MAX_BUS_AGENTS = 16
 #: Buildings that cost a planned look as much as the rest of it does: a look tests its line
 #: of sight against every building (measured: 10,000 buildings make a decision about 100
 #: times slower).
@@ -372,3 +375,12 @@ def check_run(scenario: Any, settings: Any, fields: dict[str, str]) -> None:
                         [s.params.moves for s in scenario.sensors], scenario.world.width,
                         scenario.world.height, fields, len(scenario.buildings))
     check_run_size(settings.steps, M, N, fields["steps"])
+
+
+def check_bus_agents(n_agents: int, field: str) -> None:
+    """Refuse more than :data:`MAX_BUS_AGENTS` agent processes on the ``bus`` transport
+    (``field`` names the transport setting)."""
+    if n_agents > MAX_BUS_AGENTS:
+        raise ConfigError(field, f"the bus transport runs one process per sensor (about 100 "
+                          f"MB and a few seconds of start-up each): at most {MAX_BUS_AGENTS} "
+                          f"sensors, got {n_agents}; use transport \"inproc\" for more")
