@@ -682,3 +682,62 @@ def test_the_bus_transport_refuses_more_agents_than_its_limit(capsys, tmp_path) 
     doc = spec7(planner={"name": "dec-jsfp", "transport": "bus"})
     doc["sensors"] = [dict(doc["sensors"][0], position=[100 + 20 * i, 100]) for i in range(n)]
     assert_bad_input(plan(capsys, tmp_path, doc), "planner.transport")
+
+
+GRID_HEAD = """runs = 1
+steps = 2
+design = "{design}"
+[[methods]]
+name = "r"
+planner = "random"
+[[methods]]
+name = "g"
+planner = "sequential-greedy"
+[[comparisons]]
+method = "g"
+reference = "r"
+"""
+
+
+def _axis(feature: str, values: list[Any], base: Any = None, key: str | None = None) -> str:
+    text = f"[[axes]]\nfeature = \"{feature}\"\nvalues = {json.dumps(values)}\n"
+    text += "" if base is None else f"base = {json.dumps(base)}\n"
+    return text + ("" if key is None else f"key = \"{key}\"\n")
+
+
+@pytest.mark.parametrize("design,axes,cells", [
+    # full: the product of the axes' sizes; star: 1 + the sum of (size - 1)
+    ("full", [("clutter_rate", 11), ("snr_ref_db", 10), ("town", 10)], 1100),
+    ("star", [("clutter_rate", 600), ("snr_ref_db", 402)], 1001),
+])
+def test_a_grid_of_too_many_cells_is_refused_before_it_is_built(capsys, tmp_path, design, axes,
+                                                                cells) -> None:
+    # 200,000 values once took minutes before anything was said.
+    text = GRID_HEAD.format(design=design) + "".join(
+        _axis(f, list(range(n)), 0) for f, n in axes)
+    f = tmp_path / "g.toml"
+    f.write_text(text)
+    line = assert_bad_input(run(capsys, "grid", f, "--out", tmp_path / "o", "--workers", "1"),
+                            "axes")
+    assert f"has {cells:,} cells, above the limit of {limits.MAX_GRID_CELLS:,}" in line
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_grid_cell_name_too_long_for_a_directory_is_one_line(capsys, tmp_path) -> None:
+    # A full design names each cell by every axis: this one by 9 axes, 290 bytes (the
+    # directory could not be made: an internal error).
+    text = GRID_HEAD.format(design="full") + "".join([
+        _axis("sensor_speed", [0.30000000000000004]),
+        _axis("min_ground_range", [249.00000000000003]),
+        _axis("town", [29.000000000000004]), _axis("snr_ref_db", [15.000000000000002]),
+        _axis("clutter_rate", [0.30000000000000004]),
+        _axis("setting", [0.9990000000000001], key="tracker.gate_probability"),
+        _axis("setting", [1.0000000000000002], key="tracker.process_noise"),
+        _axis("setting", ["negative"], key="tracker.miss_update"),
+        _axis("setting", ["cumulative"], key="objective")])
+    f = tmp_path / "g.toml"
+    f.write_text(text)
+    line = assert_bad_input(run(capsys, "grid", f, "--out", tmp_path / "o", "--workers", "1"),
+                            "axes")
+    assert "would be 290 bytes, above the 255" in line
+    assert not (tmp_path / "o").exists()

@@ -51,6 +51,10 @@ MAX_TURNS_PER_STEP = 1_000
 MAX_RUNS = 100_000
 #: Most buildings of a decision or scenario.
 MAX_BUILDINGS = 10_000
+#: Most cells of a grid study.
+MAX_GRID_CELLS = 1_000
+#: Longest name of a grid cell (bytes): its study directory's name.
+MAX_CELL_NAME = 255
 #: Most agent processes of the decentralized planners' ``bus`` transport (one per sensor;
 #: about 100 MB and a few seconds of start-up each).
 MAX_BUS_AGENTS = 16
