@@ -741,3 +741,21 @@ def test_a_grid_cell_name_too_long_for_a_directory_is_one_line(capsys, tmp_path)
                             "axes")
     assert "would be 290 bytes, above the 255" in line
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "+0", " 0 "])
+def test_a_thread_count_numba_refuses_is_one_line(capsys, tmp_path, monkeypatch,
+                                                 value) -> None:
+    # numba raised at import: an internal error for plan and study, and simulate blamed
+    # --planner (the planner's import failed).
+    monkeypatch.setenv("NUMBA_NUM_THREADS", value)
+    assert_bad_input(plan(capsys, tmp_path, spec7()), "NUMBA_NUM_THREADS")
+    assert_bad_input(simulate(capsys, tmp_path, "[[targets]]\n[[sensors]]\n", "--planner",
+                              "random"), "NUMBA_NUM_THREADS")
+
+
+def test_thread_counts_numba_accepts_or_ignores_run(capsys, tmp_path, monkeypatch) -> None:
+    for value in ("1", "3", "x", ""):
+        monkeypatch.setenv("NUMBA_NUM_THREADS", value)
+        code, out, err = plan(capsys, tmp_path, spec7())
+        assert code == 0, err
