@@ -438,3 +438,39 @@ def test_d15_a_real_cluster_losing_every_worker(tmp_path, capsys) -> None:
     res = run(capsys, "study", f, "--out", out, "--workers", "2")      # resumes
     assert res[0] == 0, res[2]
     assert studies.load_study_dir(out).complete
+
+
+# ------------------------------------------- damaged places that cannot be rewritten
+
+
+def test_a_directory_in_place_of_a_part_file_is_one_line(reference, tmp_path, capsys
+                                                          ) -> None:
+    out = _copy(reference, tmp_path / "study")
+    for t in ("steps", "decisions", "sensors"):
+        (out / f"{t}.parquet").unlink()
+    bad = sums_path(out, 1, 0)
+    bad.unlink()
+    bad.mkdir()                                           # cannot be removed as a file
+    study_file = tmp_path / "s.toml"
+    study_file.write_text(TEXT)
+    line = assert_bad_input(run(capsys, "study", study_file, "--out", out, "--workers", "1"),
+                            "--out")
+    assert str(bad) in line and "delete it" in line
+    bad.rmdir()                                           # as the line says: then resume
+    code, stdout, err = run(capsys, "study", study_file, "--out", out, "--workers", "1")
+    assert code == 0, err
+    assert "ran 1 of 6" in stdout
+    assert_same(frames(out), frames(reference))
+
+
+def test_a_directory_in_place_of_meta_json_is_one_line(reference, tmp_path, capsys) -> None:
+    out = _copy(reference, tmp_path / "study")
+    (out / "steps.parquet").unlink()                      # so that the study has work to do
+    (out / "meta.json").unlink()
+    (out / "meta.json").mkdir()
+    study_file = tmp_path / "s.toml"
+    study_file.write_text(TEXT)
+    line = assert_bad_input(run(capsys, "study", study_file, "--out", out, "--workers", "1"),
+                            "--out")
+    # Named by the file meant, not by the temporary name it is written through.
+    assert f"cannot write {out / 'meta.json'}: " in line

@@ -553,10 +553,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = list(sys.argv[1:] if argv is None else argv)
     if not args:
         args = ["--help"]
-    command = typer.main.get_command(app)
     signals = Signals()
     try:
         with quiet_numerics(DEBUG_ENV), signals:
+            command = typer.main.get_command(app)      # a Ctrl-C here: one line too
             if not {"--help", "-h", "--version"} & set(args):
                 check_environment()
             code = command.main(args=args, prog_name="sensorplan", standalone_mode=False)

@@ -28,6 +28,12 @@ def check_environment() -> None:
         if value is not None and value not in allowed:
             raise ConfigError(name, f"unknown value {value!r} of this environment variable; "
                               f"choose from {', '.join(allowed)} (or unset it)")
+    # numba refuses a thread count below 1 when it is imported, wherever that happens
+    # (other values it cannot read, it ignores).
+    threads = os.environ.get("NUMBA_NUM_THREADS", "").strip()
+    if threads.lstrip("+-").isdigit() and int(threads) < 1:
+        raise ConfigError("NUMBA_NUM_THREADS", f"must be a number of threads >= 1 (numba's), "
+                          f"got {threads!r} (or unset it)")
 
 
 @contextmanager

@@ -49,6 +49,19 @@ MAX_Q = 1e6
 MAX_TURNS_PER_STEP = 1_000
 #: Most runs of a study.
 MAX_RUNS = 100_000
+#: Most buildings of a decision or scenario.
+MAX_BUILDINGS = 10_000
+#: Most cells of a grid study.
+MAX_GRID_CELLS = 1_000
+#: Longest name of a grid cell (bytes): its study directory's name.
+MAX_CELL_NAME = 255
+#: Most agent processes of the decentralized planners' ``bus`` transport (one per sensor;
+#: about 100 MB and a few seconds of start-up each).
+MAX_BUS_AGENTS = 16
+#: Buildings that cost a planned look as much as the rest of it does: a look tests its line
+#: of sight against every building (measured: 10,000 buildings make a decision about 100
+#: times slower).
+BUILDINGS_PER_LOOK = 100
 
 
 @dataclass(frozen=True)
@@ -265,7 +278,7 @@ def lattice_sizes(moves: Sequence[float], horizon: int, width: float,
 
 def check_decision_size(horizon: int, steps_per_epoch: int, n_targets: int,
                         moves: Sequence[Sequence[float]], width: float, height: float,
-                        fields: dict[str, str]) -> None:
+                        fields: dict[str, str], n_buildings: int = 0) -> None:
     """Refuse a decision (or a run's decisions) too large to plan (see the module limits).
 
     Parameters
@@ -278,6 +291,10 @@ def check_decision_size(horizon: int, steps_per_epoch: int, n_targets: int,
         The names of the fields in the caller's input: keys ``horizon``,
         ``steps_per_epoch``, ``targets``, ``sensors`` and ``moves`` (a format string with
         ``{i}``, e.g. ``"sensors[{i}].moves"``).
+    n_buildings : int
+        Buildings that can hide a target: each planned look tests them all, so the work
+        grows by ``1 + n_buildings / BUILDINGS_PER_LOOK`` (named ``buildings`` when they
+        tip it over the limit).
 
     Raises
     ------
@@ -312,6 +329,13 @@ def check_decision_size(horizon: int, steps_per_epoch: int, n_targets: int,
         raise ConfigError(field, f"one decision would take about {work:.3g} units of work "
                           f"(sensors x targets x look-ahead steps x reachable positions), "
                           f"above the limit of {MAX_DECISION_WORK:.3g}")
+    slower = 1.0 + n_buildings / BUILDINGS_PER_LOOK
+    if work * slower > MAX_DECISION_WORK:
+        raise ConfigError("buildings", f"{n_buildings} buildings make one decision about "
+                          f"{slower:.3g} times the work ({work * slower:.3g} units: sensors x "
+                          f"targets x look-ahead steps x reachable positions x (1 + buildings "
+                          f"/ {BUILDINGS_PER_LOOK})), above the limit of "
+                          f"{MAX_DECISION_WORK:.3g}")
 
 
 def run_bytes(steps: int, n_targets: int, n_sensors: int) -> float:
@@ -355,5 +379,14 @@ def check_run(scenario: Any, settings: Any, fields: dict[str, str]) -> None:
     M, N = len(scenario.targets), len(scenario.sensors)
     check_decision_size(settings.horizon, settings.steps_per_epoch, M,
                         [s.params.moves for s in scenario.sensors], scenario.world.width,
-                        scenario.world.height, fields)
+                        scenario.world.height, fields, len(scenario.buildings))
     check_run_size(settings.steps, M, N, fields["steps"])
+
+
+def check_bus_agents(n_agents: int, field: str) -> None:
+    """Refuse more than :data:`MAX_BUS_AGENTS` agent processes on the ``bus`` transport
+    (``field`` names the transport setting)."""
+    if n_agents > MAX_BUS_AGENTS:
+        raise ConfigError(field, f"the bus transport runs one process per sensor (about 100 "
+                          f"MB and a few seconds of start-up each): at most {MAX_BUS_AGENTS} "
+                          f"sensors, got {n_agents}; use transport \"inproc\" for more")

@@ -16,7 +16,7 @@ import numpy as np
 
 from ._types import FloatArray, IntArray
 from .errors import ConfigError
-from .limits import RANGES
+from .limits import MAX_BUILDINGS, RANGES, check_count
 from .modes import (OBJECTIVES, PLANNING_DETECTIONS, VISIBILITY_MODES,  # noqa: F401
                     Objective, Visibility)
 from .sensors import SensorParams
@@ -323,6 +323,7 @@ def check_buildings(buildings: Any, world: MapRect, altitudes: object) -> FloatA
     """
     rows = [tuple(np.ravel(np.asarray(b, dtype=float))) for b in np.atleast_1d(
         np.asarray(buildings, dtype=object)) if np.size(b)] if np.size(buildings) else []
+    check_count(len(rows), MAX_BUILDINGS, "buildings", "buildings")
     W, H = world.width, world.height
     tallest = 0.0
     for k, b in enumerate(rows):

@@ -84,7 +84,7 @@ class MapModel(Strict):
 class BuildingModel(Strict):
     """One building: its footprint ``box = [x0, y0, x1, y1]`` (m) and its height (m)."""
 
-    box: Annotated[list[float], Field(min_length=4, max_length=4)]
+    box: Annotated[list[float], _length(4, "a list of 4 numbers: x0, y0, x1, y1")]
     height: float
 
     def row(self) -> tuple[float, float, float, float, float]:

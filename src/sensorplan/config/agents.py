@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError
+from ..limits import check_bus_agents
 from ..planners.registry import check_settings
 from .simulate import SimulationConfig, load_simulation
 
@@ -66,5 +67,8 @@ def load_agents(path: str | Path | None = None, preset: str | None = None,
         key = exc.field.removeprefix("planner.")
         field = AGENT_OPTIONS[key] if key in given else f"planning.planner_params.{key}"
         raise ConfigError(field, exc.message) from None
+    if params.get("transport") == "bus":                    # checked before anything runs
+        check_bus_agents(len(cfg.scenario.sensors), "--transport" if "transport" in given
+                         else "planning.planner_params.transport")
     return dataclasses.replace(cfg, settings=dataclasses.replace(settings,
                                                                  planner_params=params))

@@ -173,7 +173,7 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
         check_sensor_precision(s, f"sensors[{i}]")
     check_decision_size(problem.horizon, problem.steps_per_epoch, problem.n_targets,
                         [s.moves for s in problem.sensors], problem.world.width,
-                        problem.world.height, DECISION_FIELDS)
+                        problem.world.height, DECISION_FIELDS, len(problem.buildings))
     params = dict(model.planner.model_extra or {})
     if model.planner.seed is not None:
         params["seed"] = model.planner.seed

@@ -127,8 +127,10 @@ class _Agents:
         return DecentralResult(**base, log=got.log, timing=got.timing)
 
     def _bus(self, n_agents: int) -> Any:
+        from ..limits import check_bus_agents
         from .bus import Bus  # lazy: only the bus transport needs pyzmq
 
+        check_bus_agents(n_agents, "planner.transport")
         bus = self._runtime.get("bus")
         if bus is None or bus.closed or bus.n_agents != n_agents:
             if bus is not None:

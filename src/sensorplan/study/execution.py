@@ -403,9 +403,10 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
         done, damaged = check_parts(out, study)
         for (r, m), problem in sorted(damaged.items()):
             # Never trusted and never fatal: its pair runs again with the missing ones.
+            # Removed first: a part that cannot be removed is then the only line.
+            remove_part(out, r, m)
             _say(f"warning: {part_path(out, r, m, 'steps').parent.name}/m{m:02d} is damaged "
                  f"({problem}); running it again")
-            remove_part(out, r, m)
         if grown_from is not None:
             _say(f"note: {out} held {grown_from} runs of this study; adding runs "
                  f"{grown_from}..{study.runs - 1}")
@@ -431,7 +432,10 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
         if todo and scheduler is not None:
             # Connected before anything is reported: a bad address is the only line.
             client, cluster = _dask_client(scheduler, workers, processes)
-        write_meta(out, study, session, complete=False)
+        try:
+            write_meta(out, study, session, complete=False)
+        except OSError as exc:
+            raise write_failed(exc) from None
         with_seconds = progress is not None and _takes_seconds(progress)
         if progress is not None:
             progress(0, len(todo), len(done))

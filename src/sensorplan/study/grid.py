@@ -39,6 +39,7 @@ from pydantic import AfterValidator, create_model
 
 from .. import io
 from ..errors import ConfigError
+from ..limits import MAX_CELL_NAME, MAX_GRID_CELLS
 from ..validation import Strict, choice, validate
 from .features import FEATURES, SCENARIO_FEATURES, check_setting_key, setting
 from .file import StudyFile, study_from_dict
@@ -309,6 +310,13 @@ def grid_from_dict(data: Any, base_dir: str | Path | None = None) -> Grid:
         ``comparisons[k].method``, ...
     """
     model: Any = validate(GridFile, data)
+    # Counted before anything is built: a million values would take hours to check.
+    sizes = [len(m.values) for m in model.axes]
+    n_cells = math.prod(sizes) if model.design == "full" else 1 + sum(n - 1 for n in sizes)
+    if n_cells > MAX_GRID_CELLS:
+        raise ConfigError("axes", f"the {model.design} design has {n_cells:,} cells, above the "
+                          f"limit of {MAX_GRID_CELLS:,} (values per axis: "
+                          f"{', '.join(map(str, sizes))})")
     study = study_from_dict({k: v for k, v in data.items() if k not in GRID_KEYS},
                             base_dir=base_dir)
     axes = _axes(model.axes, model.design, study)
@@ -320,6 +328,11 @@ def grid_from_dict(data: Any, base_dir: str | Path | None = None) -> Grid:
     cells = []
     for index in cell_indices(axes, model.design):
         slug = cell_slug(axes, index, model.design)
+        if len(slug.encode()) > MAX_CELL_NAME:
+            raise ConfigError("axes", f"cell {slug[:60]}...: its name (the cell's directory) "
+                              f"would be {len(slug.encode())} bytes, above the "
+                              f"{MAX_CELL_NAME} a file system allows; vary fewer axes in a "
+                              "full design, or write shorter values")
         try:
             cell_study, notes = _apply(study, axes, index)
         except ConfigError as exc:

@@ -63,9 +63,13 @@ def _atomic_write(path: Path, write: Callable[[Path], object]) -> None:
     try:
         write(tmp)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             tmp.unlink()
+        if isinstance(exc, OSError) and exc.errno is not None:
+            # Named by the file meant (a directory in its place, a full disk), not the
+            # temporary name.
+            raise OSError(exc.errno, exc.strerror, str(path)) from None
         raise
 
 
@@ -176,8 +180,14 @@ def check_parts(out: Path, study: Study) -> tuple[set[tuple[int, int]],
 def remove_part(out: Path, run: int, method: int) -> None:
     """Delete one (run, method)'s files (a damaged part, before it is run again)."""
     for path in [part_path(out, run, method, t) for t in TABLES] + [sums_path(out, run, method)]:
-        with contextlib.suppress(FileNotFoundError):
+        try:
             path.unlink()
+        except FileNotFoundError:
+            pass
+        except OSError as exc:                  # a directory in its place, no permission
+            raise ConfigError("--out", f"cannot remove the damaged part file {path} "
+                              f"({exc.strerror or exc}); delete it and run the same command "
+                              "again") from None
 
 
 def done_tasks(out: Path, study: Study) -> set[tuple[int, int]]:
