@@ -343,6 +343,11 @@ _SCHEDULER_HELP = ("Run on Dask distributed: a scheduler address (tcp://host:878
                    "workers need sensorplan installed) or 'local' for a LocalCluster "
                    "started here.")
 
+#: The pool and scheduler options of the commands that run studies.
+_WorkersOption = Annotated[int | None, typer.Option(
+    "--workers", "-j", metavar="N", show_default=False, help=_WORKERS_HELP)]
+_SchedulerOption = Annotated[str | None, typer.Option(
+    "--scheduler", metavar="ADDRESS", show_default=False, help=_SCHEDULER_HELP)]
 
 @app.command()
 def study(
@@ -354,10 +359,8 @@ def study(
         "--out", "-o", metavar="DIR", show_default=False,
         help="Study directory (created; an existing one of the same study is resumed). "
              "[default: runs/NAME for NAME.toml]")] = None,
-    workers: Annotated[int | None, typer.Option(
-        "--workers", "-j", metavar="N", show_default=False, help=_WORKERS_HELP)] = None,
-    scheduler: Annotated[str | None, typer.Option(
-        "--scheduler", metavar="ADDRESS", show_default=False, help=_SCHEDULER_HELP)] = None,
+    workers: _WorkersOption = None,
+    scheduler: _SchedulerOption = None,
 ) -> None:
     """Run a Monte Carlo study: every method on the same paired runs.
 
@@ -398,10 +401,8 @@ def grid(
         "--out", "-o", metavar="DIR", show_default=False,
         help="Grid directory (created; an existing one of the same grid is resumed). "
              "[default: runs/NAME for NAME.toml]")] = None,
-    workers: Annotated[int | None, typer.Option(
-        "--workers", "-j", metavar="N", show_default=False, help=_WORKERS_HELP)] = None,
-    scheduler: Annotated[str | None, typer.Option(
-        "--scheduler", metavar="ADDRESS", show_default=False, help=_SCHEDULER_HELP)] = None,
+    workers: _WorkersOption = None,
+    scheduler: _SchedulerOption = None,
 ) -> None:
     """Run a grid study: the same methods over scenario variants (cells), to map where one
     method beats another.
