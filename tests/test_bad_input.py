@@ -796,3 +796,52 @@ def test_thread_counts_numba_accepts_or_ignores_run(capsys, tmp_path, monkeypatc
         monkeypatch.setenv("NUMBA_NUM_THREADS", value)
         code, out, err = plan(capsys, tmp_path, spec7())
         assert code == 0, err
+
+
+#: A valid decision at the edges of the ranges (a covariance of condition 2.4e10, a radar at
+#: -100 dB): its one look gains next to nothing, and the two log-dets of Phi's term differed
+#: by round-off to -5e-8 nats, printed as a negative potential.
+ROUNDOFF_PROBLEM = (
+    "{\"dt\": 12.518567162641354, \"steps_per_epoch\": 2, \"horizon\": 3, "
+    "\"map\": {\"width\": 100000000.0, \"height\": 600.0}, "
+    "\"process_noise\": 4.569247205305562e-05, \"visibility\": \"probabilistic\", "
+    "\"objective\": \"terminal\", \"planning_detection\": \"ignore\", "
+    "\"targets\": [{\"mean\": [1149521.7790409962, 177.96643513701977, "
+    "-8.452676720877298e-08, -1182.4906347073904], \"cov\": [[1546.5035987788558, 0.0, "
+    "0.0, 0.0], [0.0, 0.00011912857546212522, 0.0, 0.0], [0.0, 0.0, 2833691.178355767, "
+    "0.0], [0.0, 0.0, 0.0, 587724.286215334]]}], "
+    "\"sensors\": [{\"altitude\": 19385.09369238692, \"moves\": [9.999999999999999e-05, 20.0], "
+    "\"min_ground_range\": 0.0008555145404523224, \"max_ground_range\": 100000000.0, "
+    "\"snr_ref_db\": -100.0, \"range_ref\": 207.07860646932969, "
+    "\"monopulse_slope\": 5.417502845824926, \"range_resolution\": 10000.0, "
+    "\"detection\": \"ideal\", \"false_alarm_probability\": 5.141943344750572e-69, "
+    "\"clutter_rate\": 28.000921767823186, \"max_turn\": 3.141592653589793, "
+    "\"fov_half_angle\": 3.141592653589793, \"depression\": 1.5707963267948965e-12, "
+    "\"beamwidth\": 0.013181970086359986, \"position\": [50206475.18772748, "
+    "430.1857364025437], \"heading\": -482.3461938448125}, {\"altitude\": 1.0, "
+    "\"moves\": [20.0, 1.1536769904769788, 7.5], \"min_ground_range\": 250.0, "
+    "\"max_ground_range\": 450.0, \"snr_ref_db\": -100.0, \"range_ref\": 23734.195204845873, "
+    "\"monopulse_slope\": 0.1, \"range_resolution\": 24.248718027163054, "
+    "\"detection\": \"ideal\", \"false_alarm_probability\": 1.1915676895419201e-192, "
+    "\"clutter_rate\": 1000.0, \"max_turn\": 6.469345087136949e-11, "
+    "\"fov_half_angle\": 3.141592653589793, \"depression\": 1.5707963267948966, "
+    "\"beamwidth_deg\": 2.608315157297567, \"position\": [77933291.67756236, "
+    "189.0875102659028], \"heading\": 0.004609355039338609}, {\"moves\": [20.0, 40.0], "
+    "\"min_ground_range\": 770.7308082410995, \"max_ground_range\": 100000000.0, "
+    "\"monopulse_slope\": 0.185971350259907, \"detection\": \"swerling1\", "
+    "\"false_alarm_probability\": 3.477877147131932e-135, "
+    "\"clutter_rate\": 5.723776543209204e-05, \"max_turn\": 2.9410544001335934e-09, "
+    "\"fov_half_angle\": 3.141592653589793e-12, \"depression\": 0.009328590093166486, "
+    "\"position\": [91315945.61337057, 333.1350590561147], "
+    "\"heading\": -6961.607506165455}], \"buildings\": [], \"planner\": {\"name\": \"pg-refine\", "
+    "\"seed\": 2, \"alpha\": 0.6719763092197772, \"beta\": 0.5387509677213832, \"max_inner\": 7, "
+    "\"max_outer\": 5}}")
+
+
+def test_a_gain_below_round_off_is_never_a_negative_potential(capsys, tmp_path) -> None:
+    code, out, err = plan_text(capsys, tmp_path, ROUNDOFF_PROBLEM)
+    assert code == 0, err
+    result = json.loads(out)
+    assert any(a["measurements"] for row in result["plan"] for a in row)   # it does look
+    assert all(v >= 0.0 for v in result["information"])
+    assert result["potential"] == sum(result["information"]) >= 0.0

@@ -449,7 +449,9 @@ def target_information(ctx: Context, W_target: FloatArray) -> FloatArray:
     else:
         info = 0.5 * (ctx.ld_bar[:, -1] - ld_end)
     # An unmeasured target's term is exactly 0 (the two log-dets above differ by round-off).
-    return np.where(np.any(W_target != 0.0, axis=(1, 2, 3)), info, 0.0)
+    # A measurement never increases the log-det, so a measured target's term below 0 is
+    # round-off too (about eps x the covariance's condition number, up to 1e12 in inputs).
+    return np.where(np.any(W_target != 0.0, axis=(1, 2, 3)), np.maximum(info, 0.0), 0.0)
 
 
 def sum_by_target(ctx: Context, W: FloatArray, targets: IntArray) -> FloatArray:
