@@ -845,3 +845,25 @@ def test_a_gain_below_round_off_is_never_a_negative_potential(capsys, tmp_path) 
     assert any(a["measurements"] for row in result["plan"] for a in row)   # it does look
     assert all(v >= 0.0 for v in result["information"])
     assert result["potential"] == sum(result["information"]) >= 0.0
+
+
+@pytest.mark.parametrize("sensor", [
+    # a radar whose range noise (1e14 m and more) puts detections at negative ranges
+    "snr_ref_db = -100.0\nrange_ref = 1.0\nrange_resolution = 10000.0\nclutter_rate = 10.0\n",
+    # a sensing region of zero area (min_ground_range = max_ground_range) with clutter
+    "min_ground_range = 300.0\nmax_ground_range = 300.0\nclutter_rate = 5.0\n"
+    "fov_half_angle = 3.141592653589793\n[[sensors]]\nclutter_rate = 5.0\n",
+])
+def test_the_clutter_filter_stays_finite_at_the_edges(capsys, tmp_path, sensor) -> None:
+    # Both made the PDA's normaliser negative or zero (a negative clutter density, or
+    # every likelihood underflowing with Pd = 1 and no gate): NaN mode probabilities, then
+    # "error: process_noise: must be a finite number" at the next decision.
+    from sensorplan.simulation import Episode
+
+    toml = ("[tracker]\ngate = false\nreacquire = false\n[run]\nsteps = 10\n"
+            "[[targets]]\n[[targets]]\n[[sensors]]\n" + sensor)
+    code, out, err = simulate(capsys, tmp_path, toml)
+    assert code == 0, err
+    ep = Episode.load(tmp_path / "out" / "episode.npz")
+    assert np.isfinite(ep.estimate).all() and np.isfinite(ep.cov).all()
+    assert np.isfinite(ep.error[1:]).all()

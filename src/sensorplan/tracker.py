@@ -44,7 +44,7 @@ from .dynamics import cv_matrices
 from .ekf import innovations, mahalanobis2, position_update, predict, update, update_rounds
 from .known_map import map_constraint
 from .radar import detection_probabilities, inverse_looks
-from .sensors import AREA, CLUTTER_RATE
+from .sensors import ALTITUDE2, AREA, CLUTTER_RATE, G_MAX, G_MIN
 
 #: Ways to associate a look's detections with its track when false alarms are on.
 ASSOCIATIONS = ("pda", "nearest")
@@ -436,12 +436,36 @@ class Tracker:
               if self.gate is not None and self.gate_probability is not None else 1.0)
         # Pd at each mode's predicted position; clutter density in (r, phi) at each detection.
         pd = detection_probabilities(self.table, np.full(R, i), x[:, :2], np.tile(sxy, (R, 1)))
-        rho = self.table[i, CLUTTER_RATE] * Z[:, 0] / self.table[i, AREA]     # (m,)
-        lik = pd[:, None] * np.exp(-0.5 * d2 - 0.5 * logdet) / (2.0 * math.pi) / rho[None]
-        none = 1.0 - pd * pg
-        den = none + lik.sum(axis=1)                                     # (R,)
-        beta = lik / den[:, None]                                        # (R, m)
-        beta0 = none / den
+        row = self.table[i]
+        rho = row[CLUTTER_RATE] * Z[:, 0] / row[AREA]                    # (m,)
+        with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+            lik = pd[:, None] * np.exp(-0.5 * d2 - 0.5 * logdet) / (2.0 * math.pi) / rho[None]
+            none = 1.0 - pd * pg
+            den = none + lik.sum(axis=1)                                 # (R,)
+        if np.all(rho > 0.0) and np.all(np.isfinite(den)) and np.all(den > 0.0):
+            beta = lik / den[:, None]                                    # (R, m)
+            beta0 = none / den
+            log_den = np.log(den)
+        else:
+            # The direct form failed at an edge of the valid ranges: a very noisy radar
+            # measured a range below the sensing region's (a clutter density <= 0), or every
+            # likelihood under- or overflowed (Pd = 1, no gate, detections far off). Redo it
+            # in logs with the density taken at the region's slant ranges; ratios survive.
+            # Kept as a fallback so that every run the direct form handles stays bit for bit.
+            r = np.clip(Z[:, 0], math.sqrt(row[ALTITUDE2] + row[G_MIN] ** 2),
+                        math.sqrt(row[ALTITUDE2] + row[G_MAX] ** 2))
+            with np.errstate(divide="ignore"):
+                log_rho = np.log(row[CLUTTER_RATE] * r / row[AREA])              # (m,)
+                log_lik = (np.log(pd)[:, None] - 0.5 * d2 - 0.5 * logdet
+                           - math.log(2.0 * math.pi) - log_rho[None])           # (R, m)
+                log_none = np.log(1.0 - pd * pg)
+            log_den = np.logaddexp(log_none, np.logaddexp.reduce(log_lik, axis=1))
+            if not np.all(np.isfinite(log_den)):
+                # The model gives these detections no probability at all (a sensing region
+                # of zero area, a singular innovation): they carry no usable information.
+                return
+            beta = np.exp(log_lik - log_den[:, None])
+            beta0 = np.exp(log_none - log_den)
         nu = nu.reshape(R, m, 2)
         nu_c = np.einsum("rm,rmk->rk", beta, nu)                         # combined innovation
         Hp0, var0 = Hp.reshape(R, m, 2, 2)[:, 0], var.reshape(R, m, 2)[:, 0]
@@ -455,7 +479,7 @@ class Tracker:
             + K @ spread @ np.swapaxes(K, -1, -2)
         self.mode_means[j] = xc
         self.mode_covs[j] = 0.5 * (Pn + np.swapaxes(Pn, -1, -2))
-        self._reweight(np.array([j]), np.log(den)[None])
+        self._reweight(np.array([j]), log_den[None])
         self._combine(np.array([j]))
 
     def _update_modes(self, idx: IntArray, sensors: IntArray, targets: IntArray, z: FloatArray,
