@@ -255,7 +255,7 @@ def test_the_paper_configuration_reproduces_the_tracks_bit_for_bit(seed):
 
     golden = np.load(Path(__file__).parent / "data" / "paper_rows_golden.npz")
     s = RunSettings(planner="pg", horizon=3, steps_per_epoch=2, execution="olf", steps=40,
-                    visibility="mean",
+                    visibility="mean", objective="terminal",
                     tracker=TrackerSettings(miss_update="none", model="cv", process_noise=0.05,
                                             gate=False, reacquire=False, known_map=False))
     ep = run_episode(paper_scenario(), s, seed)

@@ -204,7 +204,9 @@ class PlanningProblem:
         tracker's effective q).
     world : MapRect
     visibility : {"probabilistic", "mean"}
-    objective : {"terminal", "cumulative"}
+    objective : {"cumulative", "terminal"}
+        ``cumulative`` (default): information summed over the horizon's steps;
+        ``terminal``: at the horizon's end (the paper's).
     planning_detection : {"ignore", "aware"}
         ``aware``: a planned look's information also counts its detection probability and
         the clutter (:func:`sensorplan.radar.look`); ``ignore``: only whether the target is
@@ -225,7 +227,7 @@ class PlanningProblem:
     process_noise: float | FloatArray = 0.05
     world: MapRect = field(default_factory=MapRect)
     visibility: str = "probabilistic"
-    objective: str = "terminal"
+    objective: str = "cumulative"
     planning_detection: str = "aware"
     buildings: FloatArray = field(default_factory=lambda: np.zeros((0, 5)))
 

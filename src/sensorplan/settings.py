@@ -424,7 +424,7 @@ class RunSettings(_Settings):
     execution : {"ol", "olf"}      ``ol`` executes all K epochs before replanning, ``olf``
                                    only the first
     visibility : {"probabilistic", "mean"}
-    objective : {"terminal", "cumulative"}
+    objective : {"cumulative", "terminal"}  summed over the horizon (default) or at its end
     planning_detection : {"aware", "ignore"}
     planning_occlusion : {"aware", "ignore"}
     steps : int                    simulation steps S (>= 1)
@@ -466,10 +466,11 @@ class RunSettings(_Settings):
              "by the chance the target is in view) or mean (the paper's: iff the predicted "
              "mean is in view).")
     objective: str = setting(
-        "terminal", section="planning", cli=("--objective",), metavar="NAME",
+        "cumulative", section="planning", cli=("--objective",), metavar="NAME",
         choices=OBJECTIVES, noun="objective",
-        help="terminal (information at the end of the horizon, the paper's) or cumulative "
-             "(summed over its steps).")
+        help="cumulative (information summed over the horizon's steps; the default, chosen "
+             "by the lookahead map in docs/results.md) or terminal (at the horizon's end, "
+             "the paper's).")
     planning_detection: str = setting(
         "aware", section="planning", cli=("--planning-detection",), metavar="MODE",
         label="detection in planning", choices=PLANNING_DETECTIONS, noun="planning detection",

@@ -31,7 +31,7 @@ EXAMPLE_PROBLEM = """\
 {
   "dt": 1.0, "steps_per_epoch": 1, "horizon": 3,
   "map": {"width": 600, "height": 600},
-  "process_noise": 0.05, "visibility": "probabilistic", "objective": "terminal",
+  "process_noise": 0.05, "visibility": "probabilistic", "objective": "cumulative",
   "targets": [{"mean": [300, 200, 4, 1], "cov": [[400,0,0,0],[0,400,0,0],[0,0,4,0],[0,0,0,4]]}],
   "sensors": [{"position": [100, 100], "altitude": 500, "heading": 0.0,
                "moves": [20, 40], "max_turn": 0.785398,

@@ -101,7 +101,9 @@ class SensorplanManager(SensorManager):
                                     doc="q (m^2/s^3) of the CWNA model the planner assumes; "
                                         "match the tracker's ConstantVelocity noise.")
     visibility: str = Property(default="probabilistic", doc="Visibility mode.")
-    objective: str = Property(default="terminal", doc="Objective.")
+    objective: str = Property(
+        default="cumulative", doc="``cumulative`` (information summed over the horizon's "
+                                  "steps) or ``terminal`` (at its end, the paper's).")
     planning_detection: str = Property(
         default="aware", doc="``aware``: planned looks count the radars' detection "
                              "probability and clutter (``params.detection``, "
