@@ -83,7 +83,7 @@ def swarm_like(n_sensors: int, n_targets: int, seed: int = 0):
     covs = np.tile(np.array(sc.initial_cov), (n_targets, 1, 1))
     return PlanningProblem(ini.estimate, covs, ini.positions, ini.headings,
                            tuple(s.params for s in sc.sensors), horizon=5, dt=sc.dt,
-                           process_noise=sc.process_noise, world=sc.world)
+                           process_noise=sc.process_noise, world=sc.world, objective="terminal")
 
 
 def growth(quick: bool) -> None:

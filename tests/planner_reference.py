@@ -25,7 +25,8 @@ from sensorplan.sensors import SensorParams
 
 def scale_problem(n_sensors: int = 20, n_targets: int = 50, horizon: int = 10,
                   width: float = 2000.0, seed: int = 0) -> PlanningProblem:
-    """The planning benchmark's scale case (``benchmarks/bench_planning.py``)."""
+    """The planning benchmark's scale case (``benchmarks/bench_planning.py``), with the
+    terminal objective its references and figures were recorded with."""
     rng = np.random.default_rng(seed)
     W = width
     means = np.c_[rng.uniform(100, W - 100, (n_targets, 2)), rng.normal(0, 3, (n_targets, 2))]
@@ -33,7 +34,7 @@ def scale_problem(n_sensors: int = 20, n_targets: int = 50, horizon: int = 10,
     sensors = tuple(SensorParams(altitude=490.0 + 10.0 * (i % 3)) for i in range(n_sensors))
     return PlanningProblem(means, covs, rng.uniform(50, W - 50, (n_sensors, 2)),
                            rng.uniform(-math.pi, math.pi, n_sensors), sensors, horizon=horizon,
-                           world=MapRect(W, W))
+                           world=MapRect(W, W), objective="terminal")
 
 
 def swarm_problem(horizon: int = 5, steps_per_epoch: int = 1, seed: int = 0,
@@ -51,7 +52,8 @@ def swarm_problem(horizon: int = 5, steps_per_epoch: int = 1, seed: int = 0,
     return PlanningProblem(ini.estimate[:M], covs, ini.positions[:N], ini.headings[:N],
                            tuple(s.params for s in sc.sensors[:N]), horizon=horizon,
                            steps_per_epoch=steps_per_epoch, dt=sc.dt,
-                           process_noise=sc.process_noise, world=sc.world)
+                           process_noise=sc.process_noise, world=sc.world,
+                           objective="terminal")
 
 
 def _paper(seed: int, **kw) -> PlanningProblem:
@@ -62,7 +64,7 @@ def _per_target_q(seed: int) -> PlanningProblem:
     p = _paper(seed, horizon=3)
     q = np.random.default_rng(seed + 1).uniform(0.01, 2.0, p.n_targets)
     return PlanningProblem(p.means, p.covs, p.positions, p.headings, p.sensors, horizon=3,
-                           steps_per_epoch=2, process_noise=q)
+                           steps_per_epoch=2, process_noise=q, objective="terminal")
 
 
 def _with(p: PlanningProblem, **kw) -> PlanningProblem:

@@ -69,7 +69,7 @@ def test_defaults_are_spec_values() -> None:
     p = d.problem
     assert (p.dt, p.steps_per_epoch, p.process_noise) == (1.0, 1, 0.05)
     assert (p.world.width, p.world.height) == (600.0, 600.0)
-    assert (p.visibility, p.objective) == ("probabilistic", "terminal")
+    assert (p.visibility, p.objective) == ("probabilistic", "cumulative")
     s = p.sensors[0]
     assert s.altitude == 500.0
     assert s.moves == (20.0, 40.0)

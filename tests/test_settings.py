@@ -119,7 +119,7 @@ def test_values_are_normalised_and_round_trip_through_dicts() -> None:
     tracker = d.pop("tracker")
     assert d == {"planner": "random", "planner_params": {"seed": 2}, "horizon": 3,
                  "steps_per_epoch": 1, "execution": "olf", "visibility": "probabilistic",
-                 "objective": "terminal", "planning_detection": "aware",
+                 "objective": "cumulative", "planning_detection": "aware",
                  "planning_occlusion": "aware", "steps": 100}
     assert tracker["miss_update"] == "none"
     assert tracker == json.loads(json.dumps(
