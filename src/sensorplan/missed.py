@@ -133,18 +133,19 @@ def _inside(means: FloatArray, chol: FloatArray, x: FloatArray, sensor_xy: Float
     ``(..., S)``: its detection probability inside the sensing region, 0 outside (exactly
     0 or 1 with ideal detection)."""
     # L is lower triangular, so the ground position of a point depends on its first two
-    # whitened coordinates and the 2x2 position block of L only.
-    # Written out elementwise: a broadcast matmul of (S, 2) by (..., 2, 2) is slower.
+    # whitened coordinates and the 2x2 position block of L only; the compiled call forms
+    # the points' offsets itself (a dozen numpy calls over (..., S) arrays otherwise).
     base = means[..., :2] - sensor_xy                                        # (..., 2)
-    l00, l10, l11 = (chol[..., i, j, None] for i, j in ((0, 0), (1, 0), (1, 1)))
-    dx = base[..., 0, None] + l00 * x[:, 0]
-    dy = base[..., 1, None] + l10 * x[:, 0] + l11 * x[:, 1]
-    batch = dx.shape[:-1]
+    batch = base.shape[:-1]
+    if chol.shape[:-2] != batch:
+        batch = np.broadcast_shapes(batch, chol.shape[:-2])
+        base = np.broadcast_to(base, batch + (2,))
+        chol = np.broadcast_to(chol, batch + (4, 4))
     S = x.shape[0]
     sxy = None if buildings is None else np.broadcast_to(sensor_xy, batch + (2,)).reshape(-1, 2)
-    inside = radar.detectable_points(table, _flat_batch(sensor, batch), dx.reshape(-1, S),
-                                     dy.reshape(-1, S), _flat_batch(heading, batch), sxy,
-                                     buildings)
+    inside = radar.detectable_quadrature(table, _flat_batch(sensor, batch), base.reshape(-1, 2),
+                                         chol.reshape(-1, 4, 4), x, _flat_batch(heading, batch),
+                                         sxy, buildings)
     return inside.reshape(batch + (S,))
 
 

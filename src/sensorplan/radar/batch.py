@@ -100,6 +100,30 @@ def _detect_grid(table: np.ndarray, idx: np.ndarray, dx: np.ndarray, dy: np.ndar
 
 
 @njit(cache=True, error_model="numpy")
+def _detect_quadrature(table: np.ndarray, idx: np.ndarray, base: np.ndarray,
+                       chol: np.ndarray, x: np.ndarray, heading: np.ndarray, sxy: np.ndarray,
+                       buildings: np.ndarray) -> np.ndarray:
+    """:func:`_detect_grid` at the ground offsets ``base_b + L_b x_s`` of quadrature points
+    (``L_b`` lower triangular, so only its position block and ``x_s[:2]`` matter), formed
+    here in the order numpy formed them: ``dx = b0 + l00 x0``, ``dy = b1 + l10 x0 + l11 x1``."""
+    B, S = base.shape[0], x.shape[0]
+    out = np.zeros((B, S))
+    for b in range(B):
+        row = table[idx[b]]
+        b0, b1 = base[b, 0], base[b, 1]
+        l00, l10, l11 = chol[b, 0, 0], chol[b, 1, 0], chol[b, 1, 1]
+        for s in range(S):
+            dx = b0 + l00 * x[s, 0]
+            dy = b1 + l10 * x[s, 0] + l11 * x[s, 1]
+            if visible(row, dx, dy, heading[b]) and (
+                    buildings.shape[0] == 0
+                    or not hidden(buildings, sxy[b, 0], sxy[b, 1], row[ALTITUDE],
+                                  sxy[b, 0] + dx, sxy[b, 1] + dy)):
+                out[b, s] = detection_probability(row, dx * dx + dy * dy + row[ALTITUDE2])
+    return out
+
+
+@njit(cache=True, error_model="numpy")
 def _hidden_batch(buildings: np.ndarray, sxy: np.ndarray, z: np.ndarray,
                   qxy: np.ndarray) -> np.ndarray:
     n = sxy.shape[0]
@@ -257,6 +281,37 @@ def detectable_points(table: FloatArray, sensor: IntArray, dx: FloatArray, dy: F
                         np.ascontiguousarray(heading, dtype=float), sxy, blds)
 
 
+def detectable_quadrature(table: FloatArray, sensor: IntArray, base: FloatArray,
+                          chol: FloatArray, points: FloatArray, heading: FloatArray,
+                          sensor_xy: FloatArray | None = None,
+                          buildings: FloatArray | None = None) -> FloatArray:
+    """:func:`detectable_points` at quadrature points ``m + L x_s`` of B Gaussians, the
+    ground offsets formed in the compiled call (the same values as numpy forms them).
+
+    Parameters
+    ----------
+    table : (N, C); sensor : (B,) int
+    base : (B, 2)        ground offset of each Gaussian's mean from its look's sensor (m)
+    chol : (B, 4, 4)     lower Cholesky factors of the covariances
+    points : (S, 4)      whitened points x_s
+    heading : (B,);  sensor_xy : (B, 2), optional;  buildings : (K, 5), optional
+
+    Returns
+    -------
+    (B, S) float64 in [0, 1]
+    """
+    blds = _buildings(buildings)
+    B = len(base)
+    sxy = np.zeros((B, 2)) if sensor_xy is None else np.ascontiguousarray(
+        sensor_xy, dtype=float).reshape(-1, 2)
+    return _detect_quadrature(np.ascontiguousarray(table, dtype=float),
+                              np.ascontiguousarray(sensor, dtype=np.int64),
+                              np.ascontiguousarray(base, dtype=float),
+                              np.ascontiguousarray(chol, dtype=float),
+                              np.ascontiguousarray(points, dtype=float),
+                              np.ascontiguousarray(heading, dtype=float), sxy, blds)
+
+
 def _buildings(buildings: FloatArray | None) -> np.ndarray:
     if buildings is None:
         return np.zeros((0, 5))
@@ -348,6 +403,8 @@ def warm_up() -> None:
     _visible_grid(table, i, np.ones((1, 1)), np.zeros((1, 1)), z)
     _detect_grid(table, i, np.ones((1, 1)), np.zeros((1, 1)), z, np.zeros((1, 2)),
                  np.zeros((1, 5)))
+    _detect_quadrature(table, i, np.ones((1, 2)), np.eye(4)[None], np.zeros((1, 4)), z,
+                       np.zeros((1, 2)), np.zeros((1, 5)))
     _hidden_batch(np.zeros((1, 5)), np.zeros((1, 2)), z + 1.0, np.ones((1, 2)))
     for probabilistic in (True, False):
         _look_batch(table[0], np.zeros((0, 5)), np.zeros((1, 2)), z + 1.0, z, z,
