@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from ._imm import combine_rows
 from ._types import BoolArray, FloatArray, IntArray
 from .dynamics import cv_matrices
 from .ekf import innovations, mahalanobis2, position_update, predict, update, update_rounds
@@ -177,6 +178,7 @@ class Tracker:
             buildings, dtype=float).reshape(-1, 5)
         self.restart_velocity_var = np.asarray(restart_velocity_var, dtype=float)
         self.means, self.covs = means, covs
+        self._all_rows = np.arange(M)
 
     @property
     def n_modes(self) -> int:
@@ -184,19 +186,15 @@ class Tracker:
 
     # ---------------------------------------------------------------- combination
     def _combine(self, targets: IntArray | slice = slice(None)) -> None:
-        """Moment-match the modes of ``targets`` into their tracks."""
+        """Moment-match the modes of ``targets`` into their tracks (a slice: all of them)."""
         if self.n_modes == 1:
             self.means[targets] = self.mode_means[targets, 0]
             self.covs[targets] = self.mode_covs[targets, 0]
             return
-        mu = self.mode_probs[targets]
-        x = self.mode_means[targets]
-        m = np.einsum("br,brd->bd", mu, x)
-        d = x - m[:, None]
-        P = np.einsum("br,brde->bde", mu, self.mode_covs[targets]
-                      + d[..., :, None] * d[..., None, :])
-        self.means[targets] = m
-        self.covs[targets] = 0.5 * (P + np.swapaxes(P, -1, -2))
+        rows = self._all_rows if isinstance(targets, slice) else np.asarray(targets,
+                                                                            dtype=np.int64)
+        combine_rows(self.mode_probs, self.mode_means, self.mode_covs, rows, self.means,
+                     self.covs)
 
     def _reweight(self, targets: IntArray, log_likelihood: FloatArray) -> None:
         """Multiply mode probabilities by likelihoods ``(B, R)`` (log), renormalised."""
