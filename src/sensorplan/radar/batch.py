@@ -182,6 +182,14 @@ def measure_looks(table: FloatArray, sensor: IntArray | int, target_xy: FloatArr
     sensor_xy = np.asarray(sensor_xy, dtype=float)
     dx = target_xy[..., 0] - sensor_xy[..., 0]
     dy = target_xy[..., 1] - sensor_xy[..., 1]
+    if (dx.ndim == 1 and type(heading) is np.ndarray and type(sensor) is np.ndarray
+            and heading.shape == sensor.shape == dx.shape and heading.dtype == np.float64
+            and sensor.dtype == np.int64 and type(table) is np.ndarray
+            and table.dtype == np.float64):
+        # The tracker's and the simulator's calls: one flat batch, nothing to broadcast
+        # (the wrapper's checks cost several times the compiled call on a few looks).
+        return _measure_batch(np.ascontiguousarray(table), np.ascontiguousarray(sensor),
+                              dx, dy, np.ascontiguousarray(heading))
     shape = np.broadcast_shapes(dx.shape, np.shape(heading), np.shape(sensor))
     # Broadcast only what needs it: most calls pass equal shapes, and broadcast_to's
     # overhead dominates these tiny batches.
