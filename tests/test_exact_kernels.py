@@ -1,0 +1,135 @@
+"""The tracker's compiled kernels give the numpy expressions' results bit for bit.
+
+Each kernel replaced numpy code for speed only; the numpy code lives on here as the
+reference, and every comparison is exact (``assert_array_equal``), not to a tolerance.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.special import log_ndtr
+
+from sensorplan import radar
+from sensorplan._imm import combine_rows
+from sensorplan.known_map import map_constraint
+from sensorplan.missed import standard_points
+from sensorplan.sensors import SensorParams, radar_table
+
+_LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
+
+
+def _moments_numpy(alpha, beta):
+    flip = alpha > -beta
+    a = np.where(flip, -beta, alpha)
+    b = np.where(flip, -alpha, beta)
+    la, lb = log_ndtr(a), log_ndtr(b)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        log_mass = lb + np.log1p(-np.exp(la - lb))
+        fa, fb = np.isfinite(a), np.isfinite(b)
+        pa = np.where(fa, np.exp(-0.5 * a * a - _LOG_SQRT_2PI - log_mass), 0.0)
+        pb = np.where(fb, np.exp(-0.5 * b * b - _LOG_SQRT_2PI - log_mass), 0.0)
+        mean = pa - pb
+        var = 1.0 + np.where(fa, a * pa, 0.0) - np.where(fb, b * pb, 0.0) - mean * mean
+    var = np.clip(var, 1e-12, 1.0)
+    mean = np.clip(mean, a, b)
+    return np.where(flip, -mean, mean), var, log_mass
+
+
+def _axis_numpy(means, covs, k, lo, hi):
+    s2 = covs[:, k, k]
+    s = np.sqrt(s2)
+    mu, var, log_mass = _moments_numpy((lo - means[:, k]) / s, (hi - means[:, k]) / s)
+    u = covs[:, :, k] / s2[:, None]
+    new_means = means + u * (s * mu)[:, None]
+    new_covs = covs - (s2 * (1.0 - var))[:, None, None] * u[:, :, None] * u[:, None, :]
+    return new_means, 0.5 * (new_covs + np.swapaxes(new_covs, -1, -2)), log_mass
+
+
+def _map_numpy(m, P, W, H):
+    m, P = m.copy(), P.copy()
+    sx, sy = 3.0 * np.sqrt(P[:, 0, 0]), 3.0 * np.sqrt(P[:, 1, 1])
+    hit = ((m[:, 0] - sx < 0.0) | (m[:, 0] + sx > W) | (m[:, 1] - sy < 0.0)
+           | (m[:, 1] + sy > H))
+    log_mass = np.zeros(len(m))
+    mh, Ph, lx = _axis_numpy(m[hit], P[hit], 0, 0.0, W)
+    mh, Ph, ly = _axis_numpy(mh, Ph, 1, 0.0, H)
+    mh[:, 0] = np.clip(mh[:, 0], 0.0, W)
+    mh[:, 1] = np.clip(mh[:, 1], 0.0, H)
+    m[hit], P[hit], log_mass[hit] = mh, Ph, lx + ly
+    return m, P, hit, log_mass
+
+
+def _random_tracks(rng, n, spread=1.0):
+    A = rng.normal(size=(n, 4, 4)) * np.array([30.0, 30.0, 2.0, 2.0])[:, None] * spread
+    P = A @ np.swapaxes(A, -1, -2) + np.diag([1.0, 1.0, 0.1, 0.1])
+    m = np.column_stack([rng.uniform(-200, 800, (n, 2)), rng.normal(0, 3, (n, 2))])
+    return m, P
+
+
+@pytest.mark.parametrize("spread", [0.01, 1.0, 30.0])
+def test_map_constraint_is_the_numpy_formula_bit_for_bit(rng, spread):
+    m, P = _random_tracks(rng, 400, spread)
+    got = map_constraint(m, P, 600.0, 600.0)
+    want = _map_numpy(m, P, 600.0, 600.0)
+    assert want[2].sum() > 100
+    for g, w in zip(got, want):
+        np.testing.assert_array_equal(g, w)
+
+
+@pytest.mark.parametrize("R", [1, 2, 3])
+def test_moment_matching_is_the_einsum_formula_bit_for_bit(rng, R):
+    M = 7
+    mu = rng.dirichlet(np.ones(R), M)
+    x = rng.normal(size=(M, R, 4)) * 100.0
+    _, P = _random_tracks(rng, M * R)
+    P = P.reshape(M, R, 4, 4)
+    rows = np.array([5, 0, 3])
+    means, covs = np.zeros((M, 4)), np.zeros((M, 4, 4))
+    combine_rows(mu, x, P, rows, means, covs)
+    m = np.einsum("br,brd->bd", mu[rows], x[rows])
+    d = x[rows] - m[:, None]
+    C = np.einsum("br,brde->bde", mu[rows], P[rows] + d[..., :, None] * d[..., None, :])
+    np.testing.assert_array_equal(means[rows], m)
+    np.testing.assert_array_equal(covs[rows], 0.5 * (C + np.swapaxes(C, -1, -2)))
+    assert not np.delete(means, rows, axis=0).any()
+
+
+@pytest.mark.parametrize("fov", [0.3, math.pi / 6, 1.5, 3.0, math.pi])
+def test_quadrature_detection_is_the_pointwise_model(rng, fov):
+    """The wedge shortcut never changes a point's detection probability, also at the
+    wedge's edges and for wedges of half-angle pi/2 and more."""
+    table = radar_table([SensorParams(fov_half_angle=fov),
+                         SensorParams(fov_half_angle=fov, detection="swerling1")])
+    x = standard_points()
+    B = 60
+    sensor = rng.integers(0, 2, B)
+    heading = rng.uniform(-4.0, 4.0, B)
+    # Means at random places, some exactly on a wedge edge, spread from 1 m to 300 m.
+    g = rng.uniform(0.0, 800.0, B)
+    edge = heading + np.where(rng.random(B) < 0.5, -fov, fov)
+    ang = np.where(rng.random(B) < 0.5, edge, rng.uniform(-4.0, 4.0, B))
+    base = np.column_stack([g * np.cos(ang), g * np.sin(ang)])
+    _, P = _random_tracks(rng, B, 0.3)
+    chol = np.linalg.cholesky(P * rng.uniform(0.001, 30.0, B)[:, None, None])
+    got = radar.detectable_quadrature(table, sensor, base, chol, x, heading)
+    dx = base[:, 0, None] + chol[:, 0, 0, None] * x[:, 0]
+    dy = base[:, 1, None] + chol[:, 1, 0, None] * x[:, 0] + chol[:, 1, 1, None] * x[:, 1]
+    want = radar.detectable_points(table, sensor, dx, dy, heading)
+    assert 0.0 < np.count_nonzero(want) < want.size
+    np.testing.assert_array_equal(got, want)
+
+
+def test_measure_looks_flat_path_equals_the_broadcasting_path(rng):
+    table = radar_table([SensorParams(), SensorParams(altitude=300.0)])
+    B = 9
+    sensor = rng.integers(0, 2, B)
+    txy, sxy = rng.uniform(0, 600, (B, 2)), rng.uniform(0, 600, (B, 2))
+    heading = rng.uniform(-4, 4, B)
+    flat = radar.measure_looks(table, sensor, txy, sxy, heading)
+    column = radar.measure_looks(table, sensor[:, None], txy[:, None], sxy[:, None],
+                                 heading[:, None])
+    for f, c in zip(flat, column):
+        np.testing.assert_array_equal(f, c[:, 0])
