@@ -133,3 +133,51 @@ def test_measure_looks_flat_path_equals_the_broadcasting_path(rng):
                                  heading[:, None])
     for f, c in zip(flat, column):
         np.testing.assert_array_equal(f, c[:, 0])
+
+
+def _miss_numpy(means, covs, sxy, heading, table, sensor, gate):
+    from sensorplan.missed import INFLATE_FRACTION, MIN_OUTSIDE, _inside, _point_set
+    from sensorplan.sensors import G_MAX, G_MIN
+
+    x, xx = _point_set(None)
+    S = x.shape[0]
+    chol = np.linalg.cholesky(covs)
+    w = 1.0 - gate * _inside(means, chol, x, sxy, heading, table, sensor)
+    n_out = w.sum(axis=-1)
+    inflated = ((S - n_out) / S >= INFLATE_FRACTION) | (n_out < MIN_OUTSIDE)
+    n = np.where(inflated, S, n_out).astype(float)
+    mu = (w @ x) / n[..., None]
+    second = (w @ xx).reshape(w.shape[:-1] + (4, 4)) / n[..., None, None]
+    C = second - mu[..., :, None] * mu[..., None, :]
+    new_means = means + (chol @ mu[..., :, None])[..., 0]
+    new_covs = chol @ C @ np.swapaxes(chol, -1, -2)
+    span = table[sensor, G_MAX] - table[sensor, G_MIN]
+    grow = np.zeros(np.shape(span) + (4, 4))
+    grow[..., 0, 0] = grow[..., 1, 1] = 0.25 * span * span
+    new_means = np.where(inflated[..., None], means, new_means)
+    new_covs = np.where(inflated[..., None, None], covs + grow, new_covs)
+    new_covs = 0.5 * (new_covs + np.swapaxes(new_covs, -1, -2))
+    return new_means, new_covs, inflated, (S - n_out) / S
+
+
+@pytest.mark.parametrize("gate", [1.0, 0.999])
+def test_miss_update_is_the_numpy_formula_bit_for_bit(rng, gate):
+    from sensorplan.missed import miss_update
+
+    table = radar_table([SensorParams(), SensorParams(detection="swerling1")])
+    L, R = 40, 2
+    heading = rng.uniform(-3.0, 3.0, (L, 1))
+    sxy = rng.uniform(0.0, 600.0, (L, 1, 2))
+    g = rng.uniform(150.0, 350.0, (L, R))
+    means = np.zeros((L, R, 4))
+    means[..., 0] = sxy[..., 0] + g * np.cos(heading + rng.normal(0, 0.5, (L, R)))
+    means[..., 1] = sxy[..., 1] + g * np.sin(heading + rng.normal(0, 0.5, (L, R)))
+    _, P = _random_tracks(rng, L * R, 0.5)
+    covs = P.reshape(L, R, 4, 4) * rng.choice([0.01, 1.0, 10.0], (L, R))[..., None, None]
+    sensor = np.repeat(rng.integers(0, 2, (L, 1)), R, axis=1)
+    got = miss_update(means, covs, sxy, heading, table, sensor, gate_probability=gate,
+                      return_fraction=True)
+    want = _miss_numpy(means, covs, sxy, heading, table, sensor, gate)
+    assert 0 < want[2].sum() < want[2].size
+    for a, b in zip(got, want):
+        np.testing.assert_array_equal(a, b)
