@@ -181,3 +181,23 @@ def test_miss_update_is_the_numpy_formula_bit_for_bit(rng, gate):
     assert 0 < want[2].sum() < want[2].size
     for a, b in zip(got, want):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("R", [2, 3, 4])
+def test_imm_mixing_is_the_einsum_formula_bit_for_bit(rng, R):
+    from sensorplan._imm import mix
+
+    M = 6
+    mu = rng.dirichlet(np.ones(R), M)
+    Pi = rng.dirichlet(np.ones(R) * 3.0, R)
+    c = np.maximum(mu @ Pi, 1e-300)
+    x = rng.normal(size=(M, R, 4)) * 100.0
+    _, P = _random_tracks(rng, M * R)
+    P = P.reshape(M, R, 4, 4)
+    w = mu[:, :, None] * Pi[None] / c[:, None, :]
+    x0 = np.einsum("mij,mid->mjd", w, x)
+    d = x[:, :, None, :] - x0[:, None, :, :]
+    P0 = np.einsum("mij,mijde->mjde", w, P[:, :, None] + d[..., :, None] * d[..., None, :])
+    got_x0, got_P0 = mix(mu, Pi, c, x, P)
+    np.testing.assert_array_equal(got_x0, x0)
+    np.testing.assert_array_equal(got_P0, P0)

@@ -55,4 +55,48 @@ def combine_rows(mu: np.ndarray, x: np.ndarray, P: np.ndarray, rows: np.ndarray,
                 covs[b, i, j] = 0.5 * (C[i, j] + C[j, i])
 
 
-__all__ = ["combine_rows"]
+@njit(cache=True, error_model="numpy")
+def mix(mu: np.ndarray, switching: np.ndarray, c: np.ndarray, x: np.ndarray, P: np.ndarray
+        ) -> tuple[np.ndarray, np.ndarray]:
+    """The IMM's mixed initial conditions of every mode.
+
+    Parameters
+    ----------
+    mu : (M, R) mode probabilities;  switching : (R, R) ``Pi``
+    c : (M, R)     predicted mode probabilities ``mu Pi`` (floored)
+    x : (M, R, 4), P : (M, R, 4, 4)   mode means and covariances
+
+    Returns
+    -------
+    x0 : (M, R, 4), P0 : (M, R, 4, 4)
+        ``x0_j = sum_i w_ij x_i``, ``P0_j = sum_i w_ij (P_i + d_ij d_ij^T)`` with
+        ``w_ij = mu_i Pi_ij / c_j`` and ``d_ij = x_i - x0_j``.
+    """
+    M, R = mu.shape
+    x0 = np.empty((M, R, 4))
+    P0 = np.empty((M, R, 4, 4))
+    w = np.empty((R, R))
+    d = np.empty((R, 4))
+    for m in range(M):
+        for i in range(R):
+            for j in range(R):
+                w[i, j] = mu[m, i] * switching[i, j] / c[m, j]
+        for j in range(R):
+            for k in range(4):
+                acc = 0.0
+                for i in range(R):
+                    acc += w[i, j] * x[m, i, k]
+                x0[m, j, k] = acc
+            for i in range(R):
+                for k in range(4):
+                    d[i, k] = x[m, i, k] - x0[m, j, k]
+            for a in range(4):
+                for b in range(4):
+                    acc = 0.0
+                    for i in range(R):
+                        acc += w[i, j] * (P[m, i, a, b] + d[i, a] * d[i, b])
+                    P0[m, j, a, b] = acc
+    return x0, P0
+
+
+__all__ = ["combine_rows", "mix"]

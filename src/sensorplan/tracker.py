@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from ._imm import combine_rows
+from ._imm import combine_rows, mix
 from ._types import BoolArray, FloatArray, IntArray
 from .dynamics import cv_matrices
 from .ekf import innovations, mahalanobis2, position_update, predict, update, update_rounds
@@ -226,12 +226,7 @@ class Tracker:
         else:
             mu, Pi = self.mode_probs, self.switching
             c = np.maximum(mu @ Pi, 1e-300)                                  # (M, R)
-            w = mu[:, :, None] * Pi[None] / c[:, None, :]                    # (M, i, j)
-            x, P = self.mode_means, self.mode_covs
-            x0 = np.einsum("mij,mid->mjd", w, x)
-            d = x[:, :, None, :] - x0[:, None, :, :]                         # (M, i, j, 4)
-            P0 = np.einsum("mij,mijde->mjde", w,
-                           P[:, :, None] + d[..., :, None] * d[..., None, :])
+            x0, P0 = mix(mu, Pi, c, self.mode_means, self.mode_covs)         # (M, R, ...)
             Fm = self.F
             xp = x0 @ Fm.T
             Pp = Fm @ P0 @ Fm.T + self.Q_modes[None]
