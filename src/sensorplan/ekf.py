@@ -95,7 +95,7 @@ def position_update(x: FloatArray, P: FloatArray, innovation: FloatArray, Hp: Fl
     K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, -1, -2)), -1, -2)  # (B, 4, 2)
     x_new = x + K[:, :, 0] * innovation[:, 0:1] + K[:, :, 1] * innovation[:, 1:2]
     # Joseph form (see joseph_update for why): A = I - K H touches the position columns.
-    A = np.tile(_EYE4, (len(x), 1, 1))
+    A = np.repeat(_EYE4[None], len(x), axis=0)
     A[:, :, :2] -= K @ Hp
     Kv = K * var[:, None, :]
     P_new = A @ P @ np.swapaxes(A, -1, -2) + Kv @ np.swapaxes(K, -1, -2)
