@@ -201,3 +201,24 @@ def test_imm_mixing_is_the_einsum_formula_bit_for_bit(rng, R):
     got_x0, got_P0 = mix(mu, Pi, c, x, P)
     np.testing.assert_array_equal(got_x0, x0)
     np.testing.assert_array_equal(got_P0, P0)
+
+
+@pytest.mark.parametrize("m", [1, 2, 5, 9])
+def test_pda_sums_are_the_einsum_formulas_bit_for_bit(rng, m):
+    from sensorplan._imm import pda_covariances, pda_spread
+
+    R = 3
+    beta = rng.dirichlet(np.ones(m + 1), R)[:, :m]
+    nu = rng.normal(size=(R, m, 2)) * np.array([5.0, 0.01])
+    nu_c, spread = pda_spread(beta, nu)
+    want_c = np.einsum("rm,rmk->rk", beta, nu)
+    np.testing.assert_array_equal(nu_c, want_c)
+    np.testing.assert_array_equal(
+        spread, np.einsum("rm,rmk,rml->rkl", beta, nu, nu) - want_c[:, :, None] * want_c[:, None])
+    _, P = _random_tracks(rng, 3 * R)
+    P, Pc, KSK = P.reshape(3, R, 4, 4)
+    beta0 = 1.0 - beta.sum(axis=1)
+    Pn = beta0[:, None, None] * P + (1.0 - beta0)[:, None, None] * Pc + KSK
+    out = P.copy()
+    pda_covariances(out, Pc, KSK, beta0, out)                 # in place, as the tracker calls it
+    np.testing.assert_array_equal(out, 0.5 * (Pn + np.swapaxes(Pn, -1, -2)))

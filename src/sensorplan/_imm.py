@@ -99,4 +99,52 @@ def mix(mu: np.ndarray, switching: np.ndarray, c: np.ndarray, x: np.ndarray, P: 
     return x0, P0
 
 
-__all__ = ["combine_rows", "mix"]
+@njit(cache=True, error_model="numpy")
+def pda_spread(beta: np.ndarray, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Combined innovation and spread of innovations of PDA, per mode.
+
+    Parameters
+    ----------
+    beta : (R, m) association probabilities;  nu : (R, m, 2) innovations
+
+    Returns
+    -------
+    nu_c : (R, 2)      ``sum_i beta_i nu_i``
+    spread : (R, 2, 2) ``sum_i beta_i nu_i nu_i^T - nu_c nu_c^T``
+    """
+    R, m = beta.shape
+    nu_c = np.empty((R, 2))
+    spread = np.empty((R, 2, 2))
+    for r in range(R):
+        for k in range(2):
+            acc = 0.0
+            for i in range(m):
+                acc += beta[r, i] * nu[r, i, k]
+            nu_c[r, k] = acc
+        for k in range(2):
+            for l in range(2):
+                acc = 0.0
+                for i in range(m):
+                    acc += beta[r, i] * nu[r, i, k] * nu[r, i, l]
+                spread[r, k, l] = acc - nu_c[r, k] * nu_c[r, l]
+    return nu_c, spread
+
+
+@njit(cache=True, error_model="numpy")
+def pda_covariances(P: np.ndarray, Pc: np.ndarray, KSK: np.ndarray, beta0: np.ndarray,
+                    out: np.ndarray) -> None:
+    """PDA's covariance per mode, ``b0 P + (1 - b0) P_c + K spread K^T``, symmetrised into
+    ``out`` ``(R, 4, 4)`` (which may be ``P`` itself)."""
+    X = np.empty((4, 4))
+    for r in range(P.shape[0]):
+        b = beta0[r]
+        c = 1.0 - b
+        for i in range(4):
+            for j in range(4):
+                X[i, j] = b * P[r, i, j] + c * Pc[r, i, j] + KSK[r, i, j]
+        for i in range(4):
+            for j in range(4):
+                out[r, i, j] = 0.5 * (X[i, j] + X[j, i])
+
+
+__all__ = ["combine_rows", "mix", "pda_covariances", "pda_spread"]

@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from ._imm import combine_rows, mix
+from ._imm import combine_rows, mix, pda_covariances, pda_spread
 from ._types import BoolArray, FloatArray, IntArray
 from .dynamics import cv_matrices
 from .ekf import innovations, mahalanobis2, position_update, predict, update, update_rounds
@@ -462,18 +462,16 @@ class Tracker:
             beta = np.exp(log_lik - log_den[:, None])
             beta0 = np.exp(log_none - log_den)
         nu = nu.reshape(R, m, 2)
-        nu_c = np.einsum("rm,rmk->rk", beta, nu)                         # combined innovation
+        # Combined innovation and spread of innovations (the einsums' sums, compiled).
+        nu_c, spread = pda_spread(beta, nu)
         Hp0, var0 = Hp.reshape(R, m, 2, 2)[:, 0], var.reshape(R, m, 2)[:, 0]
         xc, Pc = position_update(x, P, nu_c, Hp0, var0)                  # Joseph, P_c
         # Gain K = P H'^T S^-1 at the mode's linearisation (the same for every detection).
         S0 = S.reshape(R, m, 2, 2)[:, 0]
         PHt = P[:, :, :2] @ np.swapaxes(Hp0, -1, -2)
         K = np.swapaxes(np.linalg.solve(S0, np.swapaxes(PHt, -1, -2)), -1, -2)   # (R, 4, 2)
-        spread = np.einsum("rm,rmk,rml->rkl", beta, nu, nu) - nu_c[:, :, None] * nu_c[:, None]
-        Pn = beta0[:, None, None] * P + (1.0 - beta0)[:, None, None] * Pc \
-            + K @ spread @ np.swapaxes(K, -1, -2)
         self.mode_means[j] = xc
-        self.mode_covs[j] = 0.5 * (Pn + np.swapaxes(Pn, -1, -2))
+        pda_covariances(P, Pc, K @ spread @ np.swapaxes(K, -1, -2), beta0, self.mode_covs[j])
         self._reweight(np.array([j]), log_den[None])
         self._combine(np.array([j]))
 
