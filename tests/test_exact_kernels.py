@@ -222,3 +222,27 @@ def test_pda_sums_are_the_einsum_formulas_bit_for_bit(rng, m):
     out = P.copy()
     pda_covariances(out, Pc, KSK, beta0, out)                 # in place, as the tracker calls it
     np.testing.assert_array_equal(out, 0.5 * (Pn + np.swapaxes(Pn, -1, -2)))
+
+
+@pytest.mark.parametrize("R", [2, 3, 7])
+def test_mode_reweighting_is_the_numpy_formula_bit_for_bit(rng, R):
+    from sensorplan._imm import floored_rows, normalise_rows, shifted_by_max
+
+    M = 9
+    probs = rng.dirichlet(np.ones(R), M)
+    probs[0, 0] = 0.0                                        # floored to 1e-300
+    L = rng.normal(size=(5, R)) * 30.0
+    L[1, :] = -np.inf                                        # all modes impossible: NaN
+    L[2, 0] = np.inf
+    rows = np.array([0, 4, 2, 8, 6])
+    with np.errstate(invalid="ignore"):
+        logw = np.log(np.maximum(probs[rows], 1e-300)) + L
+        logw -= logw.max(axis=1, keepdims=True)
+        w = np.exp(logw)
+        want = probs.copy()
+        want[rows] = w / w.sum(axis=1, keepdims=True)
+        got_w = np.exp(shifted_by_max(np.log(floored_rows(probs, rows, 1e-300)), L))
+    np.testing.assert_array_equal(got_w, w)
+    got = probs.copy()
+    normalise_rows(got_w, got, rows)
+    np.testing.assert_array_equal(got, want)

@@ -147,4 +147,52 @@ def pda_covariances(P: np.ndarray, Pc: np.ndarray, KSK: np.ndarray, beta0: np.nd
                 out[r, i, j] = 0.5 * (X[i, j] + X[j, i])
 
 
-__all__ = ["combine_rows", "mix", "pda_covariances", "pda_spread"]
+#: numpy sums fewer than 8 terms one after the other (more: pairwise, in blocks of 8);
+#: :func:`normalise_rows` sums in order, so it is used for fewer modes than this.
+SEQUENTIAL_SUM = 8
+
+
+@njit(cache=True, error_model="numpy")
+def floored_rows(p: np.ndarray, rows: np.ndarray, floor: float) -> np.ndarray:
+    """``np.maximum(p[rows], floor)`` (NaN kept)."""
+    out = np.empty((rows.shape[0], p.shape[1]))
+    for h in range(rows.shape[0]):
+        for r in range(p.shape[1]):
+            v = p[rows[h], r]
+            out[h, r] = v if v >= floor or np.isnan(v) else floor
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def shifted_by_max(logp: np.ndarray, log_likelihood: np.ndarray) -> np.ndarray:
+    """``logw - max(logw)`` per row, ``logw = logp + log_likelihood`` (NaN propagates)."""
+    B, R = logp.shape
+    out = np.empty((B, R))
+    for b in range(B):
+        top = -np.inf
+        for r in range(R):
+            v = logp[b, r] + log_likelihood[b, r]
+            out[b, r] = v
+            if np.isnan(v) or np.isnan(top):
+                top = np.nan
+            elif v > top:
+                top = v
+        for r in range(R):
+            out[b, r] = out[b, r] - top
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def normalise_rows(w: np.ndarray, probs: np.ndarray, rows: np.ndarray) -> None:
+    """``probs[rows] = w / w.sum(axis=1)`` with the sum taken in order (fewer than
+    :data:`SEQUENTIAL_SUM` modes, where numpy's sum is the same)."""
+    for h in range(rows.shape[0]):
+        acc = 0.0
+        for r in range(w.shape[1]):
+            acc += w[h, r]
+        for r in range(w.shape[1]):
+            probs[rows[h], r] = w[h, r] / acc
+
+
+__all__ = ["SEQUENTIAL_SUM", "combine_rows", "floored_rows", "mix", "normalise_rows",
+           "pda_covariances", "pda_spread", "shifted_by_max"]

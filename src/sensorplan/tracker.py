@@ -39,7 +39,8 @@ from typing import Any
 
 import numpy as np
 
-from ._imm import combine_rows, mix, pda_covariances, pda_spread
+from ._imm import (SEQUENTIAL_SUM, combine_rows, floored_rows, mix, normalise_rows,
+                   pda_covariances, pda_spread, shifted_by_max)
 from ._types import BoolArray, FloatArray, IntArray
 from .dynamics import cv_matrices
 from .ekf import innovations, mahalanobis2, position_update, predict, update, update_rounds
@@ -200,10 +201,15 @@ class Tracker:
         """Multiply mode probabilities by likelihoods ``(B, R)`` (log), renormalised."""
         if self.n_modes == 1:
             return
-        logw = np.log(np.maximum(self.mode_probs[targets], 1e-300)) + log_likelihood
-        logw -= logw.max(axis=1, keepdims=True)
-        w = np.exp(logw)
-        self.mode_probs[targets] = w / w.sum(axis=1, keepdims=True)
+        # log(max(mu, 1e-300)) + L, minus its row maximum; then exp and normalise. The
+        # elementwise steps are compiled, in numpy's order; log and exp stay numpy's.
+        rows = np.asarray(targets, dtype=np.int64)
+        w = np.exp(shifted_by_max(np.log(floored_rows(self.mode_probs, rows, 1e-300)),
+                                  log_likelihood))
+        if self.n_modes < SEQUENTIAL_SUM:
+            normalise_rows(w, self.mode_probs, rows)
+        else:
+            self.mode_probs[rows] = w / w.sum(axis=1, keepdims=True)
 
     def planning_process_noise(self) -> float | FloatArray:
         """q the planner should predict with: the filter's q, or per target ``(M,)`` the
