@@ -246,3 +246,29 @@ def test_mode_reweighting_is_the_numpy_formula_bit_for_bit(rng, R):
     got = probs.copy()
     normalise_rows(got_w, got, rows)
     np.testing.assert_array_equal(got, want)
+
+
+def test_pda_likelihoods_are_the_numpy_formula_bit_for_bit(rng):
+    from sensorplan._imm import pda_likelihoods, pda_weights
+
+    R, m = 3, 4
+    pd = rng.uniform(0.2, 1.0, R)
+    density = np.exp(-rng.uniform(0.0, 40.0, (R, m)))
+    ranges = rng.uniform(100.0, 900.0, m)
+    rate, area, pg = 1.3, 2.5e5, 0.999
+    rho = rate * ranges / area
+    lik = pd[:, None] * density / (2.0 * math.pi) / rho[None]
+    none = 1.0 - pd * pg
+    den = none + lik.sum(axis=1)
+    got_lik, got_none, positive = pda_likelihoods(pd, density, ranges, rate, area, pg)
+    np.testing.assert_array_equal(got_lik, lik)
+    np.testing.assert_array_equal(got_none, none)
+    assert positive
+    got_den, beta, beta0, ok = pda_weights(got_lik, got_none, got_lik.sum(axis=1))
+    np.testing.assert_array_equal(got_den, den)
+    np.testing.assert_array_equal(beta, lik / den[:, None])
+    np.testing.assert_array_equal(beta0, none / den)
+    assert ok
+    ranges[1] = -5.0                                          # a range below the region's
+    assert not pda_likelihoods(pd, density, ranges, rate, area, pg)[2]
+    assert not pda_weights(lik, np.zeros(R), np.zeros(R))[3]  # den = 0

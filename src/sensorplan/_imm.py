@@ -147,6 +147,58 @@ def pda_covariances(P: np.ndarray, Pc: np.ndarray, KSK: np.ndarray, beta0: np.nd
                 out[r, i, j] = 0.5 * (X[i, j] + X[j, i])
 
 
+@njit(cache=True, error_model="numpy")
+def pda_likelihoods(pd: np.ndarray, density: np.ndarray, ranges: np.ndarray, rate: float,
+                    area: float, pg: float) -> tuple[np.ndarray, np.ndarray, bool]:
+    """PDA's detection likelihoods against clutter, per mode and detection.
+
+    Parameters
+    ----------
+    pd : (R,) detection probabilities;  density : (R, m) ``exp(-d2/2 - logdet/2)``
+    ranges : (m,) measured ranges (m);  rate, area : the sensor's clutter rate and the
+    sensing region's ground area;  pg : gate probability
+
+    Returns
+    -------
+    lik : (R, m)  ``pd density / (2 pi) / rho``, ``rho = rate r / area`` the clutter density
+    none : (R,)   ``1 - pd pg``
+    rho_positive : bool   every clutter density > 0
+    """
+    R, m = density.shape
+    rho = np.empty(m)
+    positive = True
+    for i in range(m):
+        rho[i] = rate * ranges[i] / area
+        positive = positive and rho[i] > 0.0
+    lik = np.empty((R, m))
+    none = np.empty(R)
+    for r in range(R):
+        for i in range(m):
+            lik[r, i] = pd[r] * density[r, i] / (2.0 * np.pi) / rho[i]
+        none[r] = 1.0 - pd[r] * pg
+    return lik, none, positive
+
+
+@njit(cache=True, error_model="numpy")
+def pda_weights(lik: np.ndarray, none: np.ndarray, total: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+    """Association probabilities ``beta = lik / den``, ``beta0 = none / den`` with
+    ``den = none + total`` (``total`` the row sums of ``lik``), and whether every ``den``
+    is finite and positive."""
+    R, m = lik.shape
+    den = np.empty(R)
+    beta = np.empty((R, m))
+    beta0 = np.empty(R)
+    ok = True
+    for r in range(R):
+        den[r] = none[r] + total[r]
+        ok = ok and np.isfinite(den[r]) and den[r] > 0.0
+        for i in range(m):
+            beta[r, i] = lik[r, i] / den[r]
+        beta0[r] = none[r] / den[r]
+    return den, beta, beta0, ok
+
+
 #: numpy sums fewer than 8 terms one after the other (more: pairwise, in blocks of 8);
 #: :func:`normalise_rows` sums in order, so it is used for fewer modes than this.
 SEQUENTIAL_SUM = 8
@@ -195,4 +247,5 @@ def normalise_rows(w: np.ndarray, probs: np.ndarray, rows: np.ndarray) -> None:
 
 
 __all__ = ["SEQUENTIAL_SUM", "combine_rows", "floored_rows", "mix", "normalise_rows",
-           "pda_covariances", "pda_spread", "shifted_by_max"]
+           "pda_covariances", "pda_likelihoods", "pda_spread", "pda_weights",
+           "shifted_by_max"]

@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from ._imm import (SEQUENTIAL_SUM, combine_rows, floored_rows, mix, normalise_rows,
-                   pda_covariances, pda_spread, shifted_by_max)
+                   pda_covariances, pda_likelihoods, pda_spread, pda_weights, shifted_by_max)
 from ._types import BoolArray, FloatArray, IntArray
 from .dynamics import cv_matrices
 from .ekf import innovations, mahalanobis2, position_update, predict, update, update_rounds
@@ -438,14 +438,14 @@ class Tracker:
         # Pd at each mode's predicted position; clutter density in (r, phi) at each detection.
         pd = detection_probabilities(self.table, np.full(R, i), x[:, :2], sxy_rows[:R])
         row = self.table[i]
-        rho = row[CLUTTER_RATE] * Z[:, 0] / row[AREA]                    # (m,)
         with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-            lik = pd[:, None] * np.exp(-0.5 * d2 - 0.5 * logdet) / (2.0 * math.pi) / rho[None]
-            none = 1.0 - pd * pg
-            den = none + lik.sum(axis=1)                                 # (R,)
-        if np.all(rho > 0.0) and np.all(np.isfinite(den)) and np.all(den > 0.0):
-            beta = lik / den[:, None]                                    # (R, m)
-            beta0 = none / den
+            # lik = pd exp(-d2/2 - logdet/2) / (2 pi) / rho, rho = rate r / area per
+            # detection; none = 1 - pd pg (compiled; exp and the row sums numpy's).
+            lik, none, rho_positive = pda_likelihoods(
+                pd, np.exp(-0.5 * d2 - 0.5 * logdet), np.ascontiguousarray(Z[:, 0]),
+                row[CLUTTER_RATE], row[AREA], pg)
+            den, beta, beta0, den_ok = pda_weights(lik, none, lik.sum(axis=1))   # (R,), (R, m)
+        if rho_positive and den_ok:
             log_den = np.log(den)
         else:
             # The direct form failed at an edge of the valid ranges: a very noisy radar
