@@ -272,3 +272,28 @@ def test_pda_likelihoods_are_the_numpy_formula_bit_for_bit(rng):
     ranges[1] = -5.0                                          # a range below the region's
     assert not pda_likelihoods(pd, density, ranges, rate, area, pg)[2]
     assert not pda_weights(lik, np.zeros(R), np.zeros(R))[3]  # den = 0
+
+
+def test_position_update_is_the_numpy_formula_bit_for_bit(rng):
+    from sensorplan.ekf import position_update
+
+    B = 6
+    _, P = _random_tracks(rng, B)
+    x = rng.normal(size=(B, 4)) * 100.0
+    inn = rng.normal(size=(B, 2)) * np.array([3.0, 0.01])
+    # Every other row of a larger array: the strided views PDA passes.
+    Hp = (rng.normal(size=(2 * B, 2, 2)) * 0.5)[::2]
+    var = rng.uniform(0.1, 10.0, (2 * B, 2))[::2] * np.array([1.0, 1e-5])
+    PHt = P[:, :, :2] @ np.swapaxes(Hp, -1, -2)
+    S = Hp @ PHt[:, :2, :]
+    S[:, 0, 0] += var[:, 0]
+    S[:, 1, 1] += var[:, 1]
+    K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, -1, -2)), -1, -2)
+    x_new = x + K[:, :, 0] * inn[:, 0:1] + K[:, :, 1] * inn[:, 1:2]
+    A = np.tile(np.eye(4), (B, 1, 1))
+    A[:, :, :2] -= K @ Hp
+    Kv = K * var[:, None, :]
+    P_new = A @ P @ np.swapaxes(A, -1, -2) + Kv @ np.swapaxes(K, -1, -2)
+    got_x, got_P = position_update(x, P, inn, Hp, var)
+    np.testing.assert_array_equal(got_x, x_new)
+    np.testing.assert_array_equal(got_P, 0.5 * (P_new + np.swapaxes(P_new, -1, -2)))
