@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import radar
+from ._jit import njit
 from ._types import FloatArray, IntArray
 from .angles import wrap_angle
 
@@ -90,16 +91,50 @@ def position_update(x: FloatArray, P: FloatArray, innovation: FloatArray, Hp: Fl
     """
     PHt = P[:, :, :2] @ np.swapaxes(Hp, -1, -2)                         # (B, 4, 2)
     S = Hp @ PHt[:, :2, :]
-    S[:, 0, 0] += var[:, 0]
-    S[:, 1, 1] += var[:, 1]
+    _add_variances(S, var)
     K = np.swapaxes(np.linalg.solve(S, np.swapaxes(PHt, -1, -2)), -1, -2)  # (B, 4, 2)
-    x_new = x + K[:, :, 0] * innovation[:, 0:1] + K[:, :, 1] * innovation[:, 1:2]
     # Joseph form (see joseph_update for why): A = I - K H touches the position columns.
-    A = np.tile(_EYE4, (len(x), 1, 1))
-    A[:, :, :2] -= K @ Hp
-    Kv = K * var[:, None, :]
-    P_new = A @ P @ np.swapaxes(A, -1, -2) + Kv @ np.swapaxes(K, -1, -2)
-    return x_new, 0.5 * (P_new + np.swapaxes(P_new, -1, -2))
+    # The elementwise steps are compiled (numpy's order); the products stay numpy's.
+    x_new, A, Kv = _gain_terms(x, K, innovation, K @ Hp, var)
+    return x_new, _sum_symmetrised(A @ P @ np.swapaxes(A, -1, -2), Kv @ np.swapaxes(K, -1, -2))
+
+
+@njit(cache=True, error_model="numpy")
+def _add_variances(S: np.ndarray, var: np.ndarray) -> None:
+    """``S[:, 0, 0] += var[:, 0]``, ``S[:, 1, 1] += var[:, 1]`` (in place)."""
+    for b in range(S.shape[0]):
+        S[b, 0, 0] = S[b, 0, 0] + var[b, 0]
+        S[b, 1, 1] = S[b, 1, 1] + var[b, 1]
+
+
+@njit(cache=True, error_model="numpy")
+def _gain_terms(x: np.ndarray, K: np.ndarray, innovation: np.ndarray, KH: np.ndarray,
+                var: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``x + K nu`` (as ``x + K0 nu0 + K1 nu1``), ``A = I - [K H' 0]`` and ``K diag(var)``."""
+    B = x.shape[0]
+    x_new = np.empty((B, 4))
+    A = np.empty((B, 4, 4))
+    Kv = np.empty((B, 4, 2))
+    for b in range(B):
+        for i in range(4):
+            x_new[b, i] = x[b, i] + K[b, i, 0] * innovation[b, 0] + K[b, i, 1] * innovation[b, 1]
+            for j in range(4):
+                eye = 1.0 if i == j else 0.0
+                A[b, i, j] = eye - KH[b, i, j] if j < 2 else eye
+            Kv[b, i, 0] = K[b, i, 0] * var[b, 0]
+            Kv[b, i, 1] = K[b, i, 1] * var[b, 1]
+    return x_new, A, Kv
+
+
+@njit(cache=True, error_model="numpy")
+def _sum_symmetrised(U: np.ndarray, V: np.ndarray) -> np.ndarray:
+    """``0.5 (W + W^T)`` of ``W = U + V``, batched ``(B, 4, 4)``."""
+    out = np.empty(U.shape)
+    for b in range(U.shape[0]):
+        for i in range(4):
+            for j in range(4):
+                out[b, i, j] = 0.5 * ((U[b, i, j] + V[b, i, j]) + (U[b, j, i] + V[b, j, i]))
+    return out
 
 
 def innovations(x: FloatArray, P: FloatArray, z: FloatArray, sensor_xy: FloatArray,
@@ -120,8 +155,7 @@ def innovations(x: FloatArray, P: FloatArray, z: FloatArray, sensor_xy: FloatArr
     nu = z - h
     nu[:, 1] = wrap_angle(nu[:, 1])
     S = Hp @ P[:, :2, :2] @ np.swapaxes(Hp, -1, -2)
-    S[:, 0, 0] += var[:, 0]
-    S[:, 1, 1] += var[:, 1]
+    _add_variances(S, var)
     return nu, S, Hp, var
 
 

@@ -23,6 +23,12 @@ the y step on the moment-matched result; a strong x-y correlation can then leave
 little outside in x, in which case the mean (only) is projected onto the map. The constraint
 is applied only when the mean or its 3-sigma box leaves the map, so tracks well inside are
 never touched.
+
+The elementwise arithmetic runs in small compiled kernels; the transcendental functions
+(``log_ndtr``, ``exp``, ``log1p``) stay numpy's and scipy's, so the results are the ones
+the plain numpy formulas give, bit for bit (numba's ``exp`` would round differently from
+numpy's vectorised one). A track's truncation is a few hundred flops spread over a
+hundred numpy calls otherwise, and the tracker applies the map twice a step.
 """
 
 from __future__ import annotations
@@ -32,12 +38,199 @@ import math
 import numpy as np
 from scipy.special import log_ndtr
 
+from ._jit import njit
 from ._types import BoolArray, FloatArray
 
 #: Extent (in standard deviations per axis) that must stay inside the map for a track to be
 #: left untouched.
 N_SIGMA = 3.0
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
+
+
+# ------------------------------------------------------------------ compiled kernels
+# Every formula is written in the order of the numpy expression it replaces (the comments
+# give it), so that the rounding is the same.
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _clip(x: float, lo: float, hi: float) -> float:
+    """``np.clip`` of one float: NaN passes through, ties keep the bound."""
+    if not np.isnan(x):
+        x = x if x > lo else lo
+    if not np.isnan(x):
+        x = x if x < hi else hi
+    return x
+
+
+@njit(cache=True, error_model="numpy")
+def _mirror(alpha: np.ndarray, beta: np.ndarray
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Bounds mirrored to the lower half-line: ``a, b, flip``."""
+    n = alpha.shape[0]
+    a, b = np.empty(n), np.empty(n)
+    flip = np.empty(n, dtype=np.bool_)
+    for r in range(n):
+        f = alpha[r] > -beta[r]                      # interval mostly above 0: mirror it
+        flip[r] = f
+        a[r] = -beta[r] if f else alpha[r]
+        b[r] = -alpha[r] if f else beta[r]
+    return a, b, flip
+
+
+@njit(cache=True, error_model="numpy")
+def _standardise(means: np.ndarray, covs: np.ndarray, k: int, lo: float, hi: float
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Mirrored standardised bounds ``(lo - m_k)/s, (hi - m_k)/s`` of rows ``(B, 4)``."""
+    n = means.shape[0]
+    alpha, beta = np.empty(n), np.empty(n)
+    for r in range(n):
+        s = np.sqrt(covs[r, k, k])
+        alpha[r] = (lo - means[r, k]) / s
+        beta[r] = (hi - means[r, k]) / s
+    return _mirror(alpha, beta)
+
+
+@njit(cache=True, error_model="numpy")
+def _density_args(a: np.ndarray, b: np.ndarray, log_mass: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Logs of the density-to-mass ratios at the bounds (``-0.5 a a - c - log_mass``)."""
+    n = a.shape[0]
+    ea, eb = np.empty(n), np.empty(n)
+    for r in range(n):
+        ea[r] = -0.5 * a[r] * a[r] - _LOG_SQRT_2PI - log_mass[r]
+        eb[r] = -0.5 * b[r] * b[r] - _LOG_SQRT_2PI - log_mass[r]
+    return ea, eb
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _moments_at(a: float, b: float, flip: bool, pa: float, pb: float) -> tuple[float, float]:
+    """Mean and variance of one truncated standard normal from its boundary ratios."""
+    fa, fb = np.isfinite(a), np.isfinite(b)
+    pa = pa if fa else 0.0
+    pb = pb if fb else 0.0
+    mean = pa - pb
+    a_pa = a * pa if fa else 0.0
+    b_pb = b * pb if fb else 0.0
+    var = 1.0 + a_pa - b_pb - mean * mean
+    # Cancellation far in a tail can leave a tiny or negative variance: keep it in (0, 1].
+    var = _clip(var, 1e-12, 1.0)
+    mean = _clip(mean, a, b)
+    return (-mean if flip else mean), var
+
+
+@njit(cache=True, error_model="numpy")
+def _moments(a: np.ndarray, b: np.ndarray, flip: np.ndarray, pa: np.ndarray, pb: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    n = a.shape[0]
+    mean, var = np.empty(n), np.empty(n)
+    for r in range(n):
+        mean[r], var[r] = _moments_at(a[r], b[r], flip[r], pa[r], pb[r])
+    return mean, var
+
+
+@njit(cache=True, error_model="numpy")
+def _shift(means: np.ndarray, covs: np.ndarray, k: int, a: np.ndarray, b: np.ndarray,
+           flip: np.ndarray, pa: np.ndarray, pb: np.ndarray) -> None:
+    """Condition rows ``(B, 4)``, ``(B, 4, 4)`` on their truncation along axis k, in place:
+    ``m + u s mu``, ``sym(P - s2 (1 - var) u u^T)``, ``u = P[:, k] / s2``."""
+    u = np.empty(4)
+    N = np.empty((4, 4))
+    for r in range(means.shape[0]):
+        mu, var = _moments_at(a[r], b[r], flip[r], pa[r], pb[r])
+        s2 = covs[r, k, k]
+        s = np.sqrt(s2)
+        for i in range(4):
+            u[i] = covs[r, i, k] / s2
+        d = s * mu
+        shrink = s2 * (1.0 - var)                                    # P_kk - v_t >= 0
+        for i in range(4):
+            means[r, i] = means[r, i] + u[i] * d
+            for j in range(4):
+                N[i, j] = covs[r, i, j] - shrink * u[i] * u[j]
+        for i in range(4):
+            for j in range(4):
+                covs[r, i, j] = 0.5 * (N[i, j] + N[j, i])
+
+
+@njit(cache=True, error_model="numpy")
+def _outside_rows(means: np.ndarray, covs: np.ndarray, width: float, height: float,
+                  n_sigma: float) -> np.ndarray:
+    n = means.shape[0]
+    hit = np.empty(n, dtype=np.bool_)
+    for r in range(n):
+        sx = n_sigma * np.sqrt(covs[r, 0, 0])
+        sy = n_sigma * np.sqrt(covs[r, 1, 1])
+        x, y = means[r, 0], means[r, 1]
+        hit[r] = (x - sx < 0.0) | (x + sx > width) | (y - sy < 0.0) | (y + sy > height)
+    return hit
+
+
+@njit(cache=True, error_model="numpy")
+def _scatter(means: np.ndarray, covs: np.ndarray, rows: np.ndarray, mh: np.ndarray,
+             Ph: np.ndarray, lx: np.ndarray, ly: np.ndarray, width: float, height: float
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Copies of the tracks with the truncated rows put back (means projected on the map)
+    and the log-mass of each track (0 where not truncated)."""
+    m, P = means.copy(), covs.copy()
+    log_mass = np.zeros(means.shape[0])
+    for h in range(rows.shape[0]):
+        r = rows[h]
+        m[r, :] = mh[h]
+        # Correlation can move x back out a little during the y step: project the mean.
+        m[r, 0] = _clip(mh[h, 0], 0.0, width)
+        m[r, 1] = _clip(mh[h, 1], 0.0, height)
+        P[r] = Ph[h]
+        log_mass[r] = lx[h] + ly[h]
+    return m, P, log_mass
+
+
+@njit(cache=True, error_model="numpy")
+def _select(means: np.ndarray, covs: np.ndarray, width: float, height: float,
+            n_sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                     np.ndarray, np.ndarray, np.ndarray]:
+    """The tracks that leave the map (mask and rows), copies of their rows and the
+    mirrored bounds of their x truncation (one call instead of five)."""
+    hit = _outside_rows(means, covs, width, height, n_sigma)
+    rows = np.flatnonzero(hit)
+    mh = np.empty((rows.shape[0], 4))
+    Ph = np.empty((rows.shape[0], 4, 4))
+    for h in range(rows.shape[0]):
+        mh[h] = means[rows[h]]
+        Ph[h] = covs[rows[h]]
+    a, b, flip = _standardise(mh, Ph, 0, 0.0, width)
+    return hit, rows, mh, Ph, a, b, flip
+
+
+@njit(cache=True, error_model="numpy")
+def _shift_x_then_standardise_y(mh: np.ndarray, Ph: np.ndarray, a: np.ndarray,
+                                b: np.ndarray, flip: np.ndarray, pa: np.ndarray,
+                                pb: np.ndarray, height: float
+                                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    _shift(mh, Ph, 0, a, b, flip, pa, pb)
+    return _standardise(mh, Ph, 1, 0.0, height)
+
+
+@njit(cache=True, error_model="numpy")
+def _shift_y_then_scatter(means: np.ndarray, covs: np.ndarray, rows: np.ndarray,
+                          mh: np.ndarray, Ph: np.ndarray, a: np.ndarray, b: np.ndarray,
+                          flip: np.ndarray, pa: np.ndarray, pb: np.ndarray, lx: np.ndarray,
+                          ly: np.ndarray, width: float, height: float
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    _shift(mh, Ph, 1, a, b, flip, pa, pb)
+    return _scatter(means, covs, rows, mh, Ph, lx, ly, width, height)
+
+
+def _tails(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Log-mass of ``[a, b]`` (``a <= -b``) and the density-to-mass ratios at its bounds
+    (call with floating-point errors ignored)."""
+    # Ncdf(b) is the larger term and not in the far upper tail.
+    la, lb = log_ndtr(a), log_ndtr(b)
+    log_mass = lb + np.log1p(-np.exp(la - lb))
+    ea, eb = _density_args(a, b, log_mass)
+    return log_mass, np.exp(ea), np.exp(eb)
+
+
+# ------------------------------------------------------------------ public functions
 
 
 def truncated_normal_moments(alpha: FloatArray, beta: FloatArray
@@ -54,26 +247,15 @@ def truncated_normal_moments(alpha: FloatArray, beta: FloatArray
     var : (...)       in (0, 1]
     log_mass : (...)  log(Ncdf(beta) - Ncdf(alpha))
     """
-    alpha = np.asarray(alpha, dtype=float)
-    beta = np.asarray(beta, dtype=float)
-    flip = alpha > -beta                         # interval mostly above 0: mirror it
-    a = np.where(flip, -beta, alpha)
-    b = np.where(flip, -alpha, beta)
-    # Now a <= -b, so Ncdf(b) is the larger term and not in the far upper tail.
-    la, lb = log_ndtr(a), log_ndtr(b)
+    alpha, beta = np.broadcast_arrays(np.asarray(alpha, dtype=float),
+                                      np.asarray(beta, dtype=float))
+    shape = alpha.shape
+    a, b, flip = _mirror(np.ascontiguousarray(alpha).reshape(-1),
+                         np.ascontiguousarray(beta).reshape(-1))
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        log_mass = lb + np.log1p(-np.exp(la - lb))
-        fa, fb = np.isfinite(a), np.isfinite(b)
-        pa = np.where(fa, np.exp(-0.5 * a * a - _LOG_SQRT_2PI - log_mass), 0.0)
-        pb = np.where(fb, np.exp(-0.5 * b * b - _LOG_SQRT_2PI - log_mass), 0.0)
-        mean = pa - pb
-        a_pa = np.where(fa, a * pa, 0.0)
-        b_pb = np.where(fb, b * pb, 0.0)
-        var = 1.0 + a_pa - b_pb - mean * mean
-    # Cancellation far in a tail can leave a tiny or negative variance: keep it in (0, 1].
-    var = np.clip(var, 1e-12, 1.0)
-    mean = np.clip(mean, a, b)
-    return np.where(flip, -mean, mean), var, log_mass
+        log_mass, pa, pb = _tails(a, b)
+    mean, var = _moments(a, b, flip, pa, pb)
+    return mean.reshape(shape), var.reshape(shape), log_mass.reshape(shape)
 
 
 def truncate_axis(means: FloatArray, covs: FloatArray, axis: int, lo: float, hi: float
@@ -85,24 +267,23 @@ def truncate_axis(means: FloatArray, covs: FloatArray, axis: int, lo: float, hi:
     means : (B, 4), covs : (B, 4, 4) (symmetrised), log_mass : (B,) the log of the
     probability mass inside.
     """
-    s2 = covs[:, axis, axis]
-    s = np.sqrt(s2)
-    m = means[:, axis]
-    mu, var, log_mass = truncated_normal_moments((lo - m) / s, (hi - m) / s)
-    u = covs[:, :, axis] / s2[:, None]                                   # (B, 4)
-    new_means = means + u * (s * mu)[:, None]
-    shrink = s2 * (1.0 - var)                                            # P_kk - v_t >= 0
-    new_covs = covs - shrink[:, None, None] * u[:, :, None] * u[:, None, :]
-    return new_means, 0.5 * (new_covs + np.swapaxes(new_covs, -1, -2)), log_mass
+    means = np.array(means, dtype=float, order="C")
+    covs = np.array(covs, dtype=float, order="C")
+    a, b, flip = _standardise(means, covs, axis, float(lo), float(hi))
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        log_mass, pa, pb = _tails(a, b)
+    _shift(means, covs, axis, a, b, flip, pa, pb)
+    return means, covs, log_mass
 
 
 def outside(means: FloatArray, covs: FloatArray, width: float, height: float,
             n_sigma: float = N_SIGMA) -> BoolArray:
     """Tracks whose mean or ``n_sigma`` box (per axis) leaves ``[0, W] x [0, H]``."""
-    sx = n_sigma * np.sqrt(covs[..., 0, 0])
-    sy = n_sigma * np.sqrt(covs[..., 1, 1])
-    x, y = means[..., 0], means[..., 1]
-    return (x - sx < 0.0) | (x + sx > width) | (y - sy < 0.0) | (y + sy > height)
+    means = np.asarray(means, dtype=float)
+    m = np.ascontiguousarray(means).reshape(-1, 4)
+    P = np.ascontiguousarray(covs, dtype=float).reshape(-1, 4, 4)
+    return _outside_rows(m, P, float(width), float(height), float(n_sigma)).reshape(
+        means.shape[:-1])
 
 
 def map_constraint(means: FloatArray, covs: FloatArray, width: float, height: float,
@@ -123,19 +304,21 @@ def map_constraint(means: FloatArray, covs: FloatArray, width: float, height: fl
     log_mass : (...)           log-probability (under the input track) that the target is
                                on the map: 0 where not applied
     """
-    means = np.array(means, dtype=float)
-    covs = np.array(covs, dtype=float)
+    means = np.asarray(means, dtype=float)
     shape = means.shape[:-1]
-    m = means.reshape(-1, 4)
-    P = covs.reshape(-1, 4, 4)
-    hit = outside(m, P, width, height, n_sigma)
-    log_mass = np.zeros(len(m))
-    if hit.any():
-        mh, Ph, lx = truncate_axis(m[hit], P[hit], 0, 0.0, width)
-        mh, Ph, ly = truncate_axis(mh, Ph, 1, 0.0, height)
-        # Correlation can move x back out a little during the y step: project the mean.
-        mh[:, 0] = np.clip(mh[:, 0], 0.0, width)
-        mh[:, 1] = np.clip(mh[:, 1], 0.0, height)
-        m[hit], P[hit], log_mass[hit] = mh, Ph, lx + ly
+    m = np.ascontiguousarray(means).reshape(-1, 4)
+    P = np.ascontiguousarray(covs, dtype=float).reshape(-1, 4, 4)
+    width, height = float(width), float(height)
+    hit, rows, mh, Ph, a, b, flip = _select(m, P, width, height, float(n_sigma))
+    if rows.size:
+        # The x step, then the y step on its result (truncate_axis twice, fewer calls).
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            lx, pa, pb = _tails(a, b)
+            a, b, flip = _shift_x_then_standardise_y(mh, Ph, a, b, flip, pa, pb, height)
+            ly, pa, pb = _tails(a, b)
+        m, P, log_mass = _shift_y_then_scatter(m, P, rows, mh, Ph, a, b, flip, pa, pb, lx, ly,
+                                               width, height)
+    else:
+        m, P, log_mass = m.copy(), P.copy(), np.zeros(len(m))
     return m.reshape(shape + (4,)), P.reshape(shape + (4, 4)), hit.reshape(shape), \
         log_mass.reshape(shape)

@@ -40,6 +40,7 @@ from scipy.special import ndtri
 from scipy.stats import qmc
 
 from . import radar
+from ._jit import njit
 from ._types import FloatArray, IntArray
 from .sensors import G_MAX, G_MIN, SensorParams, radar_table
 
@@ -133,18 +134,19 @@ def _inside(means: FloatArray, chol: FloatArray, x: FloatArray, sensor_xy: Float
     ``(..., S)``: its detection probability inside the sensing region, 0 outside (exactly
     0 or 1 with ideal detection)."""
     # L is lower triangular, so the ground position of a point depends on its first two
-    # whitened coordinates and the 2x2 position block of L only.
-    # Written out elementwise: a broadcast matmul of (S, 2) by (..., 2, 2) is slower.
+    # whitened coordinates and the 2x2 position block of L only; the compiled call forms
+    # the points' offsets itself (a dozen numpy calls over (..., S) arrays otherwise).
     base = means[..., :2] - sensor_xy                                        # (..., 2)
-    l00, l10, l11 = (chol[..., i, j, None] for i, j in ((0, 0), (1, 0), (1, 1)))
-    dx = base[..., 0, None] + l00 * x[:, 0]
-    dy = base[..., 1, None] + l10 * x[:, 0] + l11 * x[:, 1]
-    batch = dx.shape[:-1]
+    batch = base.shape[:-1]
+    if chol.shape[:-2] != batch:
+        batch = np.broadcast_shapes(batch, chol.shape[:-2])
+        base = np.broadcast_to(base, batch + (2,))
+        chol = np.broadcast_to(chol, batch + (4, 4))
     S = x.shape[0]
     sxy = None if buildings is None else np.broadcast_to(sensor_xy, batch + (2,)).reshape(-1, 2)
-    inside = radar.detectable_points(table, _flat_batch(sensor, batch), dx.reshape(-1, S),
-                                     dy.reshape(-1, S), _flat_batch(heading, batch), sxy,
-                                     buildings)
+    inside = radar.detectable_quadrature(table, _flat_batch(sensor, batch), base.reshape(-1, 2),
+                                         chol.reshape(-1, 4, 4), x, _flat_batch(heading, batch),
+                                         sxy, buildings)
     return inside.reshape(batch + (S,))
 
 
@@ -267,22 +269,82 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
     # dropped.
     w = 1.0 - gate_probability * inside
     n_out = w.sum(axis=-1)
-    inflated = ((S - n_out) / S >= INFLATE_FRACTION) | (n_out < MIN_OUTSIDE)
-    # Inflated rows are discarded below; any n > 0 keeps their arithmetic finite.
-    n = np.where(inflated, S, n_out).astype(float)
-
-    mu = (w @ x) / n[..., None]                                              # (..., 4)
-    second = (w @ xx).reshape(w.shape[:-1] + (4, 4)) / n[..., None, None]
-    C = second - mu[..., :, None] * mu[..., None, :]
-    new_means = means + (chol @ mu[..., :, None])[..., 0]
-    new_covs = chol @ C @ np.swapaxes(chol, -1, -2)
-
-    span = table[sensor, G_MAX] - table[sensor, G_MIN]
-    grow = np.zeros(np.shape(span) + (4, 4))
-    grow[..., 0, 0] = grow[..., 1, 1] = 0.25 * span * span
-    new_means = np.where(inflated[..., None], means, new_means)
-    new_covs = np.where(inflated[..., None, None], covs + grow, new_covs)
-    new_covs = 0.5 * (new_covs + np.swapaxes(new_covs, -1, -2))
+    batch = n_out.shape
+    # The elementwise steps run compiled, in numpy's order; the matrix products stay numpy's.
+    mu, C, inflated, fraction = _weighted_moments((w @ x).reshape(-1, 4),
+                                                  (w @ xx).reshape(-1, 16),
+                                                  n_out.reshape(-1), S)
+    mu, C = mu.reshape(batch + (4,)), C.reshape(batch + (4, 4))
+    shift = (chol @ mu[..., :, None])[..., 0]
+    spread = chol @ C @ np.swapaxes(chol, -1, -2)
+    new_means, new_covs = _miss_result(
+        _flat_rows(means, batch, (4,)), _flat_rows(covs, batch, (4, 4)),
+        shift.reshape(-1, 4), spread.reshape(-1, 4, 4), inflated, table,
+        _flat_batch(sensor, batch))
+    new_means, new_covs = new_means.reshape(batch + (4,)), new_covs.reshape(batch + (4, 4))
+    inflated = inflated.reshape(batch)
     if return_fraction:
-        return new_means, new_covs, inflated, (S - n_out) / S
+        return new_means, new_covs, inflated, fraction.reshape(batch)
     return new_means, new_covs, inflated
+
+
+def _flat_rows(a: np.ndarray, batch: tuple[int, ...], row: tuple[int, ...]) -> np.ndarray:
+    """``a`` broadcast to ``batch + row``, as contiguous ``(-1,) + row``."""
+    shape = batch + row
+    return np.ascontiguousarray(a if a.shape == shape else np.broadcast_to(a, shape)
+                                ).reshape((-1,) + row)
+
+
+@njit(cache=True, error_model="numpy")
+def _weighted_moments(wx: np.ndarray, wxx: np.ndarray, n_out: np.ndarray, S: int
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Moments of the weighted points: ``mu = w x / n``, ``C = w x x^T / n - mu mu^T``
+    (``n`` the kept weight, or S for an inflated track), the inflation rule and the
+    fraction ``(S - n) / S`` of the weight the look removed."""
+    B = n_out.shape[0]
+    mu = np.empty((B, 4))
+    C = np.empty((B, 4, 4))
+    inflated = np.empty(B, dtype=np.bool_)
+    fraction = np.empty(B)
+    for b in range(B):
+        f = (S - n_out[b]) / S
+        fraction[b] = f
+        infl = (f >= INFLATE_FRACTION) | (n_out[b] < MIN_OUTSIDE)
+        inflated[b] = infl
+        # Inflated rows are discarded below; any n > 0 keeps their arithmetic finite.
+        n = float(S) if infl else n_out[b]
+        for i in range(4):
+            mu[b, i] = wx[b, i] / n
+        for i in range(4):
+            for j in range(4):
+                C[b, i, j] = wxx[b, 4 * i + j] / n - mu[b, i] * mu[b, j]
+    return mu, C, inflated, fraction
+
+
+@njit(cache=True, error_model="numpy")
+def _miss_result(means: np.ndarray, covs: np.ndarray, shift: np.ndarray, spread: np.ndarray,
+                 inflated: np.ndarray, table: np.ndarray, sensor: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """``m + L mu`` and ``L C L^T``, or for an inflated track ``m`` and ``P`` with
+    ``(g_max - g_min)^2 / 4`` added to both position variances; symmetrised."""
+    B = means.shape[0]
+    new_means = np.empty((B, 4))
+    new_covs = np.empty((B, 4, 4))
+    X = np.empty((4, 4))
+    for b in range(B):
+        if inflated[b]:
+            span = table[sensor[b], G_MAX] - table[sensor[b], G_MIN]
+            grow = 0.25 * span * span
+            for i in range(4):
+                new_means[b, i] = means[b, i]
+                for j in range(4):
+                    X[i, j] = covs[b, i, j] + (grow if i == j and i < 2 else 0.0)
+        else:
+            for i in range(4):
+                new_means[b, i] = means[b, i] + shift[b, i]
+                for j in range(4):
+                    X[i, j] = spread[b, i, j]
+        for i in range(4):
+            for j in range(4):
+                new_covs[b, i, j] = 0.5 * (X[i, j] + X[j, i])
+    return new_means, new_covs

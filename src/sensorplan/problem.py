@@ -39,8 +39,22 @@ def move_vectors(distances: tuple[float, ...] | list[float]) -> FloatArray:
     -------
     (1 + 8 * len(distances), 2) float64; diagonal moves are ``s * sqrt(2)`` long.
     """
+    if isinstance(distances, tuple):
+        # A sensor's moves are the same at every decision: build them once (read-only).
+        return _move_vectors_of(distances)
+    return _move_vectors(distances)
+
+
+def _move_vectors(distances: tuple[float, ...] | list[float]) -> FloatArray:
     out = [np.zeros((1, 2))] + [s * DIRECTIONS for s in distances]
     return np.concatenate(out, axis=0)
+
+
+@functools.lru_cache(maxsize=64)
+def _move_vectors_of(distances: tuple[float, ...]) -> FloatArray:
+    moves = _move_vectors(distances)
+    moves.flags.writeable = False
+    return moves
 
 
 @dataclass(frozen=True)
@@ -139,8 +153,11 @@ def build_lattice(p0: FloatArray, moves: FloatArray, K: int, world: MapRect) -> 
     p0 = np.asarray(p0, dtype=float)
     moves = np.asarray(moves, dtype=float)
     reach = K * float(np.abs(moves).max(initial=0.0))
-    corners = p0 + reach * np.array([[-1.0, -1.0], [1.0, 1.0]])
-    if world.contains(corners).all():
+    # Whether the corners p0 -/+ reach lie in the map (MapRect.contains on floats: the
+    # same comparisons without a dozen array calls).
+    (x, y), tol = p0.tolist(), POSITION_TOL
+    if all(-tol <= c <= w + tol for c, w in ((x - reach, world.width), (y - reach, world.height),
+                                             (x + reach, world.width), (y + reach, world.height))):
         # No K-step path can leave the map: the sets are the unbounded lattice's, shifted.
         base = _unbounded_lattice(moves.tobytes(), K)
         return Lattice([p0 + x for x in base.positions], base.parent_move, base.child, moves)

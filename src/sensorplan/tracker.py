@@ -39,6 +39,8 @@ from typing import Any
 
 import numpy as np
 
+from ._imm import (SEQUENTIAL_SUM, combine_rows, floored_rows, mix, normalise_rows,
+                   pda_covariances, pda_likelihoods, pda_spread, pda_weights, shifted_by_max)
 from ._types import BoolArray, FloatArray, IntArray
 from .dynamics import cv_matrices
 from .ekf import innovations, mahalanobis2, position_update, predict, update, update_rounds
@@ -177,6 +179,7 @@ class Tracker:
             buildings, dtype=float).reshape(-1, 5)
         self.restart_velocity_var = np.asarray(restart_velocity_var, dtype=float)
         self.means, self.covs = means, covs
+        self._all_rows = np.arange(M)
 
     @property
     def n_modes(self) -> int:
@@ -184,28 +187,29 @@ class Tracker:
 
     # ---------------------------------------------------------------- combination
     def _combine(self, targets: IntArray | slice = slice(None)) -> None:
-        """Moment-match the modes of ``targets`` into their tracks."""
+        """Moment-match the modes of ``targets`` into their tracks (a slice: all of them)."""
         if self.n_modes == 1:
             self.means[targets] = self.mode_means[targets, 0]
             self.covs[targets] = self.mode_covs[targets, 0]
             return
-        mu = self.mode_probs[targets]
-        x = self.mode_means[targets]
-        m = np.einsum("br,brd->bd", mu, x)
-        d = x - m[:, None]
-        P = np.einsum("br,brde->bde", mu, self.mode_covs[targets]
-                      + d[..., :, None] * d[..., None, :])
-        self.means[targets] = m
-        self.covs[targets] = 0.5 * (P + np.swapaxes(P, -1, -2))
+        rows = self._all_rows if isinstance(targets, slice) else np.asarray(targets,
+                                                                            dtype=np.int64)
+        combine_rows(self.mode_probs, self.mode_means, self.mode_covs, rows, self.means,
+                     self.covs)
 
     def _reweight(self, targets: IntArray, log_likelihood: FloatArray) -> None:
         """Multiply mode probabilities by likelihoods ``(B, R)`` (log), renormalised."""
         if self.n_modes == 1:
             return
-        logw = np.log(np.maximum(self.mode_probs[targets], 1e-300)) + log_likelihood
-        logw -= logw.max(axis=1, keepdims=True)
-        w = np.exp(logw)
-        self.mode_probs[targets] = w / w.sum(axis=1, keepdims=True)
+        # log(max(mu, 1e-300)) + L, minus its row maximum; then exp and normalise. The
+        # elementwise steps are compiled, in numpy's order; log and exp stay numpy's.
+        rows = np.asarray(targets, dtype=np.int64)
+        w = np.exp(shifted_by_max(np.log(floored_rows(self.mode_probs, rows, 1e-300)),
+                                  log_likelihood))
+        if self.n_modes < SEQUENTIAL_SUM:
+            normalise_rows(w, self.mode_probs, rows)
+        else:
+            self.mode_probs[rows] = w / w.sum(axis=1, keepdims=True)
 
     def planning_process_noise(self) -> float | FloatArray:
         """q the planner should predict with: the filter's q, or per target ``(M,)`` the
@@ -228,12 +232,7 @@ class Tracker:
         else:
             mu, Pi = self.mode_probs, self.switching
             c = np.maximum(mu @ Pi, 1e-300)                                  # (M, R)
-            w = mu[:, :, None] * Pi[None] / c[:, None, :]                    # (M, i, j)
-            x, P = self.mode_means, self.mode_covs
-            x0 = np.einsum("mij,mid->mjd", w, x)
-            d = x[:, :, None, :] - x0[:, None, :, :]                         # (M, i, j, 4)
-            P0 = np.einsum("mij,mijde->mjde", w,
-                           P[:, :, None] + d[..., :, None] * d[..., None, :])
+            x0, P0 = mix(mu, Pi, c, self.mode_means, self.mode_covs)         # (M, R, ...)
             Fm = self.F
             xp = x0 @ Fm.T
             Pp = Fm @ P0 @ Fm.T + self.Q_modes[None]
@@ -428,23 +427,25 @@ class Tracker:
         P = self.mode_covs[j]                                            # (R, 4, 4)
         xr = np.repeat(x, m, 0)
         Pr = np.repeat(P, m, 0)
-        nu, S, Hp, var = innovations(xr, Pr, np.tile(Z, (R, 1)), np.tile(sxy, (R * m, 1)),
+        # (np.repeat / concatenate rather than np.tile: the same arrays, a fifth of the cost)
+        sxy_rows = np.repeat(np.asarray(sxy, dtype=float)[None], R * m, axis=0)
+        nu, S, Hp, var = innovations(xr, Pr, np.concatenate((Z,) * R), sxy_rows,
                                      np.full(R * m, hd), self.table, np.full(R * m, i))
         d2 = mahalanobis2(nu, S).reshape(R, m)
         logdet = np.linalg.slogdet(S)[1].reshape(R, m)
         pg = (self.gate_probability
               if self.gate is not None and self.gate_probability is not None else 1.0)
         # Pd at each mode's predicted position; clutter density in (r, phi) at each detection.
-        pd = detection_probabilities(self.table, np.full(R, i), x[:, :2], np.tile(sxy, (R, 1)))
+        pd = detection_probabilities(self.table, np.full(R, i), x[:, :2], sxy_rows[:R])
         row = self.table[i]
-        rho = row[CLUTTER_RATE] * Z[:, 0] / row[AREA]                    # (m,)
         with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-            lik = pd[:, None] * np.exp(-0.5 * d2 - 0.5 * logdet) / (2.0 * math.pi) / rho[None]
-            none = 1.0 - pd * pg
-            den = none + lik.sum(axis=1)                                 # (R,)
-        if np.all(rho > 0.0) and np.all(np.isfinite(den)) and np.all(den > 0.0):
-            beta = lik / den[:, None]                                    # (R, m)
-            beta0 = none / den
+            # lik = pd exp(-d2/2 - logdet/2) / (2 pi) / rho, rho = rate r / area per
+            # detection; none = 1 - pd pg (compiled; exp and the row sums numpy's).
+            lik, none, rho_positive = pda_likelihoods(
+                pd, np.exp(-0.5 * d2 - 0.5 * logdet), np.ascontiguousarray(Z[:, 0]),
+                row[CLUTTER_RATE], row[AREA], pg)
+            den, beta, beta0, den_ok = pda_weights(lik, none, lik.sum(axis=1))   # (R,), (R, m)
+        if rho_positive and den_ok:
             log_den = np.log(den)
         else:
             # The direct form failed at an edge of the valid ranges: a very noisy radar
@@ -467,18 +468,16 @@ class Tracker:
             beta = np.exp(log_lik - log_den[:, None])
             beta0 = np.exp(log_none - log_den)
         nu = nu.reshape(R, m, 2)
-        nu_c = np.einsum("rm,rmk->rk", beta, nu)                         # combined innovation
+        # Combined innovation and spread of innovations (the einsums' sums, compiled).
+        nu_c, spread = pda_spread(beta, nu)
         Hp0, var0 = Hp.reshape(R, m, 2, 2)[:, 0], var.reshape(R, m, 2)[:, 0]
         xc, Pc = position_update(x, P, nu_c, Hp0, var0)                  # Joseph, P_c
         # Gain K = P H'^T S^-1 at the mode's linearisation (the same for every detection).
         S0 = S.reshape(R, m, 2, 2)[:, 0]
         PHt = P[:, :, :2] @ np.swapaxes(Hp0, -1, -2)
         K = np.swapaxes(np.linalg.solve(S0, np.swapaxes(PHt, -1, -2)), -1, -2)   # (R, 4, 2)
-        spread = np.einsum("rm,rmk,rml->rkl", beta, nu, nu) - nu_c[:, :, None] * nu_c[:, None]
-        Pn = beta0[:, None, None] * P + (1.0 - beta0)[:, None, None] * Pc \
-            + K @ spread @ np.swapaxes(K, -1, -2)
         self.mode_means[j] = xc
-        self.mode_covs[j] = 0.5 * (Pn + np.swapaxes(Pn, -1, -2))
+        pda_covariances(P, Pc, K @ spread @ np.swapaxes(K, -1, -2), beta0, self.mode_covs[j])
         self._reweight(np.array([j]), log_den[None])
         self._combine(np.array([j]))
 

@@ -10,8 +10,9 @@ all call them. The slow numpy version of the same model lives in the tests
 (``tests/radar_reference.py``) as the independent second computation.
 """
 
-from .batch import (clutter_points, detectable_points, detection_probabilities, hidden_looks,
-                    inverse_looks, look_information, measure_looks, visible_points, warm_up)
+from .batch import (clutter_points, detectable_points, detectable_quadrature,
+                    detection_probabilities, hidden_looks, inverse_looks, look_information,
+                    measure_looks, visible_points, warm_up)
 from .model import (ANGLE_TOL, BAND_SIGMAS, IRF_B, IRF_C, IRF_D, P_VIS_MIN, RANGE_TOL,
                     clutter_factor, cos_psi, detection_probability, hidden, in_band,
                     in_sight_probability, in_wedge, inverse, look, look_at_azimuth,
@@ -20,7 +21,8 @@ from .model import (ANGLE_TOL, BAND_SIGMAS, IRF_B, IRF_C, IRF_D, P_VIS_MIN, RANG
 
 __all__ = ["ANGLE_TOL", "BAND_SIGMAS", "IRF_B", "IRF_C", "IRF_D", "P_VIS_MIN", "RANGE_TOL",
            "clutter_factor", "clutter_points", "cos_psi", "detectable_points",
-           "detection_probabilities", "detection_probability", "hidden", "hidden_looks",
+           "detectable_quadrature", "detection_probabilities", "detection_probability",
+           "hidden", "hidden_looks",
            "in_band", "in_sight_probability", "in_wedge", "inverse", "inverse_looks", "look",
            "look_at_azimuth", "look_in_range", "look_information", "look_range", "measure",
            "measure_looks", "noise_variances", "range_weight", "reach", "visible",

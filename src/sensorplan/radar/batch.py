@@ -6,6 +6,7 @@ batch in one compiled call; the wrappers broadcast and reshape numpy arrays arou
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -13,7 +14,7 @@ import numpy as np
 from .._jit import njit
 from .._types import BoolArray, FloatArray, IntArray
 from ..sensors import ALTITUDE, ALTITUDE2, COLUMNS, FOV, G_MAX, G_MIN
-from .model import detection_probability, hidden, inverse, look, measure, visible
+from .model import ANGLE_TOL, detection_probability, hidden, inverse, look, measure, visible
 
 
 # ------------------------------------------------------------------ batched kernels
@@ -99,6 +100,48 @@ def _detect_grid(table: np.ndarray, idx: np.ndarray, dx: np.ndarray, dy: np.ndar
     return out
 
 
+#: Margin on the cosine of the wedge's half-angle below which a point is certainly outside
+#: the wedge: many orders of magnitude above the rounding of either test.
+_WEDGE_MARGIN = 1e-9
+
+
+@njit(cache=True, error_model="numpy")
+def _detect_quadrature(table: np.ndarray, idx: np.ndarray, base: np.ndarray,
+                       chol: np.ndarray, x: np.ndarray, heading: np.ndarray, sxy: np.ndarray,
+                       buildings: np.ndarray) -> np.ndarray:
+    """:func:`_detect_grid` at the ground offsets ``base_b + L_b x_s`` of quadrature points
+    (``L_b`` lower triangular, so only its position block and ``x_s[:2]`` matter), formed
+    here in the order numpy formed them: ``dx = b0 + l00 x0``, ``dy = b1 + l10 x0 + l11 x1``.
+
+    Most points of a missed look lie in the range band but off the azimuth wedge, where
+    :func:`visible` pays an ``atan2``. A point whose direction is off the boresight by
+    clearly more than the wedge's half-angle ``w`` (``cos`` of the angle below
+    ``cos w - 1e-9``, i.e. at least about 1e-9 rad beyond the edge, far above the rounding
+    of either test) is skipped without it; every other point gets the full test. So the
+    result is the one :func:`visible` gives, point for point.
+    """
+    B, S = base.shape[0], x.shape[0]
+    out = np.zeros((B, S))
+    for b in range(B):
+        row = table[idx[b]]
+        b0, b1 = base[b, 0], base[b, 1]
+        l00, l10, l11 = chol[b, 0, 0], chol[b, 1, 0], chol[b, 1, 1]
+        half = row[FOV] + ANGLE_TOL
+        cut = math.cos(half) - _WEDGE_MARGIN if half < math.pi else -2.0
+        ch, sh = math.cos(heading[b]), math.sin(heading[b])
+        for s in range(S):
+            dx = b0 + l00 * x[s, 0]
+            dy = b1 + l10 * x[s, 0] + l11 * x[s, 1]
+            if dx * ch + dy * sh < math.sqrt(dx * dx + dy * dy) * cut:
+                continue                                 # certainly outside the wedge
+            if visible(row, dx, dy, heading[b]) and (
+                    buildings.shape[0] == 0
+                    or not hidden(buildings, sxy[b, 0], sxy[b, 1], row[ALTITUDE],
+                                  sxy[b, 0] + dx, sxy[b, 1] + dy)):
+                out[b, s] = detection_probability(row, dx * dx + dy * dy + row[ALTITUDE2])
+    return out
+
+
 @njit(cache=True, error_model="numpy")
 def _hidden_batch(buildings: np.ndarray, sxy: np.ndarray, z: np.ndarray,
                   qxy: np.ndarray) -> np.ndarray:
@@ -158,6 +201,14 @@ def measure_looks(table: FloatArray, sensor: IntArray | int, target_xy: FloatArr
     sensor_xy = np.asarray(sensor_xy, dtype=float)
     dx = target_xy[..., 0] - sensor_xy[..., 0]
     dy = target_xy[..., 1] - sensor_xy[..., 1]
+    if (dx.ndim == 1 and type(heading) is np.ndarray and type(sensor) is np.ndarray
+            and heading.shape == sensor.shape == dx.shape and heading.dtype == np.float64
+            and sensor.dtype == np.int64 and type(table) is np.ndarray
+            and table.dtype == np.float64):
+        # The tracker's and the simulator's calls: one flat batch, nothing to broadcast
+        # (the wrapper's checks cost several times the compiled call on a few looks).
+        return _measure_batch(np.ascontiguousarray(table), np.ascontiguousarray(sensor),
+                              dx, dy, np.ascontiguousarray(heading))
     shape = np.broadcast_shapes(dx.shape, np.shape(heading), np.shape(sensor))
     # Broadcast only what needs it: most calls pass equal shapes, and broadcast_to's
     # overhead dominates these tiny batches.
@@ -257,6 +308,37 @@ def detectable_points(table: FloatArray, sensor: IntArray, dx: FloatArray, dy: F
                         np.ascontiguousarray(heading, dtype=float), sxy, blds)
 
 
+def detectable_quadrature(table: FloatArray, sensor: IntArray, base: FloatArray,
+                          chol: FloatArray, points: FloatArray, heading: FloatArray,
+                          sensor_xy: FloatArray | None = None,
+                          buildings: FloatArray | None = None) -> FloatArray:
+    """:func:`detectable_points` at quadrature points ``m + L x_s`` of B Gaussians, the
+    ground offsets formed in the compiled call (the same values as numpy forms them).
+
+    Parameters
+    ----------
+    table : (N, C); sensor : (B,) int
+    base : (B, 2)        ground offset of each Gaussian's mean from its look's sensor (m)
+    chol : (B, 4, 4)     lower Cholesky factors of the covariances
+    points : (S, 4)      whitened points x_s
+    heading : (B,);  sensor_xy : (B, 2), optional;  buildings : (K, 5), optional
+
+    Returns
+    -------
+    (B, S) float64 in [0, 1]
+    """
+    blds = _buildings(buildings)
+    B = len(base)
+    sxy = np.zeros((B, 2)) if sensor_xy is None else np.ascontiguousarray(
+        sensor_xy, dtype=float).reshape(-1, 2)
+    return _detect_quadrature(np.ascontiguousarray(table, dtype=float),
+                              np.ascontiguousarray(sensor, dtype=np.int64),
+                              np.ascontiguousarray(base, dtype=float),
+                              np.ascontiguousarray(chol, dtype=float),
+                              np.ascontiguousarray(points, dtype=float),
+                              np.ascontiguousarray(heading, dtype=float), sxy, blds)
+
+
 def _buildings(buildings: FloatArray | None) -> np.ndarray:
     if buildings is None:
         return np.zeros((0, 5))
@@ -348,6 +430,8 @@ def warm_up() -> None:
     _visible_grid(table, i, np.ones((1, 1)), np.zeros((1, 1)), z)
     _detect_grid(table, i, np.ones((1, 1)), np.zeros((1, 1)), z, np.zeros((1, 2)),
                  np.zeros((1, 5)))
+    _detect_quadrature(table, i, np.ones((1, 2)), np.eye(4)[None], np.zeros((1, 4)), z,
+                       np.zeros((1, 2)), np.zeros((1, 5)))
     _hidden_batch(np.zeros((1, 5)), np.zeros((1, 2)), z + 1.0, np.ones((1, 2)))
     for probabilistic in (True, False):
         _look_batch(table[0], np.zeros((0, 5)), np.zeros((1, 2)), z + 1.0, z, z,
