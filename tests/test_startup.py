@@ -153,3 +153,30 @@ def test_a_writable_place_changes_nothing(monkeypatch: pytest.MonkeyPatch,
 
     monkeypatch.setattr(_jit, "cache_places", lambda: [str(tmp_path / "cache")])
     assert _jit.ensure_cache() is None
+
+
+def _import_jit(env_extra: dict[str, str]) -> str:
+    env = {k: v for k, v in os.environ.items() if k != "SENSORPLAN_FIRST_RUN_NOTED"}
+    done = subprocess.run([sys.executable, "-c", "import sensorplan._jit"],
+                          env={**env, "PYTHONPATH": str(SRC), **env_extra},
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    return done.stderr
+
+
+def test_a_fresh_cache_says_once_that_the_kernels_are_being_compiled(tmp_path: Path) -> None:
+    cold = tmp_path / "cold"
+    err = _import_jit({"NUMBA_CACHE_DIR": str(cold)})
+    assert err.splitlines() == ["note: first run: compiling the numerical kernels once (about "
+                                "a minute); they are cached for every later run"]
+    # Child processes (study workers, agents) inherit the note as given.
+    assert _import_jit({"NUMBA_CACHE_DIR": str(cold), "SENSORPLAN_FIRST_RUN_NOTED": "1"}) == ""
+    # Another package's cached kernels do not count; this package's do.
+    other = tmp_path / "warm" / "elsewhere" / "otherpkg"
+    other.mkdir(parents=True)
+    (other / "mod.f-1.py311.nbi").write_bytes(b"")
+    assert _import_jit({"NUMBA_CACHE_DIR": str(tmp_path / "warm")}) != ""
+    ours = tmp_path / "warm" / "src" / "sensorplan"
+    ours.mkdir(parents=True)
+    (ours / "radar.f-1.py311.nbi").write_bytes(b"")
+    assert _import_jit({"NUMBA_CACHE_DIR": str(tmp_path / "warm")}) == ""

@@ -89,6 +89,44 @@ def ensure_cache() -> str | None:
     return notice
 
 
-ensure_cache()
+def _has_kernels(root: str, mine: bool) -> bool:
+    """Whether ``root`` holds a numba cache index of this package (``mine``: every index
+    under ``root`` is this package's)."""
+    for dirpath, _, files in os.walk(root):
+        if (mine or "sensorplan" in dirpath) and any(f.endswith(".nbi") for f in files):
+            return True
+    return False
 
-__all__ = ["NOTICE", "cache_places", "ensure_cache", "njit"]
+
+def first_run_notice() -> str | None:
+    """Say once, on stderr, that the kernels are being compiled when no cached kernel of this
+    package exists yet (a fresh clone or install): the first command then spends about a
+    minute compiling before its own work, which would otherwise look like a hang.
+
+    Returns
+    -------
+    str or None   the notice written, or None when kernels are cached (or already noted)
+    """
+    if os.environ.get("SENSORPLAN_FIRST_RUN_NOTED"):
+        return None
+    cache_dir = getattr(numba.config, "CACHE_DIR", "")
+    package = os.path.dirname(os.path.abspath(__file__))
+    if cache_dir:
+        cold = not _has_kernels(cache_dir, mine=False)
+    else:
+        cold = not (_has_kernels(package, mine=True)
+                    or _has_kernels(cache_places()[-1], mine=False))
+    os.environ["SENSORPLAN_FIRST_RUN_NOTED"] = "1"      # children (workers) stay quiet
+    if not cold:
+        return None
+    notice = (f"{NOTICE}first run: compiling the numerical kernels once (about a minute); "
+              "they are cached for every later run")
+    sys.stderr.write(notice + "\n")
+    sys.stderr.flush()
+    return notice
+
+
+if ensure_cache() is None or os.environ.get("NUMBA_CACHE_DIR"):
+    first_run_notice()              # not when nothing can be cached: every run compiles then
+
+__all__ = ["NOTICE", "cache_places", "ensure_cache", "first_run_notice", "njit"]
