@@ -550,6 +550,24 @@ def test_d12_a_full_disk_and_a_directory_in_the_way(capsys, tmp_path) -> None:
     assert_bad_input(run(capsys, "simulate", QUICK, "--steps", "2", "--out", out), "--out")
 
 
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+def test_d12_replay_on_a_full_disk_is_one_line(capsys, tmp_path) -> None:
+    # replay writes the same files as simulate, and the same failures must read the same
+    f = _study(tmp_path, TINY_STUDY)
+    assert run(capsys, "study", f, "--out", tmp_path / "st", "--workers", "1")[0] == 0
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "episode.npz").symlink_to("/dev/full")
+    args = ("replay", tmp_path / "st", "--run", "0", "--method", "r", "--no-animate",
+            "--out", out)
+    line = assert_bad_input(run(capsys, *args), "--out")
+    assert "No space left on device" in line
+    (out / "episode.npz").unlink()
+    (out / "episode.png").mkdir()
+    line = assert_bad_input(run(capsys, *args), "--out")
+    assert "episode.png" in line
+
+
 # -------------------------------------------------------------------- D16: Ctrl-C
 
 

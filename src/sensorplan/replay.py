@@ -220,7 +220,7 @@ def replay_command(study_dir: Path, run: int, method: str, out: Path | None, ani
 
     from .console import print_summary
     from .io import ensure_out_dir
-    from .cli_guards import animate_drawable, plot_drawable
+    from .cli_guards import animate_drawable, plot_drawable, writing
 
     if animate:
         from .animation import check_format
@@ -231,11 +231,12 @@ def replay_command(study_dir: Path, run: int, method: str, out: Path | None, ani
     ensure_out_dir(target)                      # before the simulation, not after it
     rep = replay_run(study_dir, run, method)
     npz, png = target / "episode.npz", target / "episode.png"
-    written = [npz, png, rep.episode.save(npz)]
-    plot_drawable(rep.episode, rep.study.scenario, png)
-    if animate:
-        written.append(animate_drawable(rep.episode, rep.study.scenario,
-                                        target / f"episode.{animation_format}"))
+    with writing(target):          # a full disk or lost permissions: one line naming --out
+        written = [npz, png, rep.episode.save(npz)]
+        plot_drawable(rep.episode, rep.study.scenario, png)
+        if animate:
+            written.append(animate_drawable(rep.episode, rep.study.scenario,
+                                            target / f"episode.{animation_format}"))
     cfg = SimpleNamespace(scenario=rep.study.scenario, settings=rep.method.settings,
                           seed=f"{rep.study.seed}, run {run}")
     print_summary(rep.episode, cfg, written)
