@@ -550,6 +550,29 @@ def test_d12_a_full_disk_and_a_directory_in_the_way(capsys, tmp_path) -> None:
     assert_bad_input(run(capsys, "simulate", QUICK, "--steps", "2", "--out", out), "--out")
 
 
+def test_d12_a_file_name_too_long_for_the_system_names_its_option(capsys, tmp_path) -> None:
+    # Path.exists() raises on a name the system cannot look up (ENAMETOOLONG), which took
+    # every command to an internal error wherever the path was first used.
+    f = _study(tmp_path, TINY_STUDY)
+    assert run(capsys, "study", f, "--out", tmp_path / "st", "--workers", "1")[0] == 0
+    long = tmp_path / ("o" * 300)
+    cases = [(("simulate", "--preset", "paper", "--steps", "1", "--out", long), "--out"),
+             (("agents", "--preset", "paper", "--steps", "1", "--out", long), "--out"),
+             (("demo", "--out", long), "--out"),
+             (("study", f, "--out", long / "x"), "--out"),
+             (("grid", long / "g.toml"), "GRID.toml"),
+             (("plan", tmp_path / ("p" * 300 + ".json")), "PROBLEM.json"),
+             (("report", long), "DIR"),
+             (("report", tmp_path / "st", "--out", long), "--out"),
+             (("replay", long, "--run", "0", "--method", "r"), "DIR"),
+             (("replay", tmp_path / "st", "--run", "0", "--method", "r", "--out", long),
+              "--out")]
+    for args, field in cases:
+        line = assert_bad_input(run(capsys, *args), field)
+        assert "too long" in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml", "st"]
+
+
 @pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
 def test_d12_replay_on_a_full_disk_is_one_line(capsys, tmp_path) -> None:
     # replay writes the same files as simulate, and the same failures must read the same

@@ -94,6 +94,34 @@ class Sigterm:
             signal.signal(signal.SIGTERM, self._previous)
 
 
+def guard_paths(command: Any) -> Any:
+    """Check every path argument and option of ``command``'s subcommands as it is parsed: a
+    name the system cannot even look up (too long, a directory without permission on the
+    way) is a usage error naming the option, not an internal error wherever it is first
+    used. Missing files and directories stay the commands' own business."""
+    import errno
+
+    import typer
+
+    def check(ctx: Any, param: Any, value: Any, then: Any = None) -> Any:
+        if isinstance(value, Path):
+            try:
+                os.stat(value)
+            except OSError as exc:
+                if exc.errno not in (errno.ENOENT, errno.ENOTDIR):
+                    raise typer.BadParameter(f"{value}: {exc.strerror or exc}",
+                                             param=param) from None
+        return value if then is None else then(ctx, param, value)
+
+    for sub in getattr(command, "commands", {}).values():
+        for param in sub.params:
+            if getattr(getattr(param, "type_descriptor", None), "annotation", None) is Path:
+                then = param.callback
+                param.callback = (check if then is None else
+                                  lambda c, p, v, then=then: check(c, p, v, then))
+    return command
+
+
 @contextmanager
 def writing(where: Path | None = None, field: str = "--out") -> Iterator[None]:
     """An output file that cannot be written (a full disk, a directory in its place) is a
