@@ -34,6 +34,44 @@ def check_environment() -> None:
     if threads.lstrip("+-").isdigit() and int(threads) < 1:
         raise ConfigError("NUMBA_NUM_THREADS", f"must be a number of threads >= 1 (numba's), "
                           f"got {threads!r} (or unset it)")
+    quiet_matplotlib_dirs()
+
+
+def _could_write(path: str) -> bool:
+    """Whether ``path`` is, or could be made, a directory this process can write in (looked
+    up without creating anything)."""
+    probe = path
+    while not os.path.lexists(probe):
+        parent = os.path.dirname(probe)
+        if parent == probe:
+            return False
+        probe = parent
+    return os.path.isdir(probe) and os.access(probe, os.W_OK)
+
+
+def quiet_matplotlib_dirs() -> None:
+    """Give matplotlib a private configuration directory when its usual ones cannot be
+    written (a read-only home): matplotlib would make a temporary one anyway, but with two
+    warning lines on stderr at every figure, and a new font cache each time."""
+    import sys
+    import tempfile
+
+    if os.environ.get("MPLCONFIGDIR") or not sys.platform.startswith(("linux", "freebsd")):
+        return
+    home = os.path.expanduser("~")
+    usual = [os.path.join(os.environ.get(var) or os.path.join(home, sub), "matplotlib")
+             for var, sub in (("XDG_CONFIG_HOME", ".config"), ("XDG_CACHE_HOME", ".cache"))]
+    if all(_could_write(p) for p in usual):
+        return
+    private = os.path.join(tempfile.gettempdir(), f"sensorplan-matplotlib-{os.getuid()}")
+    try:
+        os.makedirs(private, mode=0o700, exist_ok=True)
+        st = os.lstat(private)
+    except OSError:
+        return                          # matplotlib's own fallback, warnings and all
+    if os.path.isdir(private) and not os.path.islink(private) and st.st_uid == os.getuid() \
+            and os.access(private, os.W_OK):
+        os.environ["MPLCONFIGDIR"] = private
 
 
 @contextmanager
