@@ -216,11 +216,19 @@ class Signals:
     def __enter__(self) -> Signals:
         import signal
 
+        from ._launch import deliver_later, lands_unraisable
+
         def interrupt(signum: int, frame: Any) -> None:
+            if lands_unraisable(frame):        # it would be printed and lost: not there
+                deliver_later(signum)
+                return
             self.received = "INT"
             raise KeyboardInterrupt
 
         def terminate(signum: int, frame: Any) -> None:
+            if lands_unraisable(frame):
+                deliver_later(signum)
+                return
             self.received = "TERM"
             raise Terminated
 
