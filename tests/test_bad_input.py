@@ -976,3 +976,26 @@ def test_the_clutter_filter_stays_finite_at_the_edges(capsys, tmp_path, sensor) 
     ep = Episode.load(tmp_path / "out" / "episode.npz")
     assert np.isfinite(ep.estimate).all() and np.isfinite(ep.cov).all()
     assert np.isfinite(ep.error[1:]).all()
+
+
+def test_an_integer_no_float_can_hold_in_planner_settings_is_one_line(capsys, tmp_path
+                                                                      ) -> None:
+    # A float setting of a planner given as a 400-digit integer reached float() unchecked
+    # (exit 1, OverflowError); elsewhere in the files such a literal is "must be a number".
+    huge = "1" + "0" * 400
+    doc = spec7()
+    doc["planner"] = {"name": "dec-jsfp", "comm_range": 10 ** 400}
+    line = assert_bad_input(plan(capsys, tmp_path, doc), "planner.comm_range")
+    assert "must be a number" in line
+    f = tmp_path / "s.toml"
+    f.write_text('[planning]\nplanner = "dec-sequential"\n[planning.planner_params]\n'
+                 f'p_loss = {huge}\n[[targets]]\n[[sensors]]\n')
+    assert_bad_input(run(capsys, "simulate", f, "--steps", "1", "--out", tmp_path / "o"),
+                     "planning.planner_params.p_loss")
+    f = _study(tmp_path, TINY_STUDY + '[[methods]]\nname = "d"\nplanner = "dec-jsfp"\n'
+               f'[methods.planner_params]\ncomm_range = -{huge}\n')
+    assert_bad_input(run(capsys, "study", f, "--out", tmp_path / "st"),
+                     "methods[1].planner_params.comm_range")
+    # an integer that fits is still a number of its own
+    doc["planner"] = {"name": "dec-jsfp", "comm_range": 10 ** 300, "rounds": 2}
+    assert plan(capsys, tmp_path, doc)[0] == 0
