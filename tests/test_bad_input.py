@@ -663,8 +663,8 @@ def test_d16_a_ctrl_c_inside_a_finalizer_is_delivered_after_it() -> None:
     code = textwrap.dedent("""
         import signal
         import time
-        from sensorplan import _launch
-        signal.signal(signal.SIGINT, _launch._interrupt)
+        from sensorplan import cli_guards
+        signal.signal(signal.SIGINT, cli_guards.interrupt)
 
         class Finalized:
             def __del__(self):
@@ -692,7 +692,7 @@ def test_d16_the_import_lock_callback_is_recognised() -> None:
 
     import _frozen_importlib
 
-    from sensorplan._launch import lands_unraisable
+    from sensorplan.cli_guards import lands_unraisable
 
     codes = [c for c in _frozen_importlib._get_module_lock.__code__.co_consts
              if getattr(c, "co_name", None) == "cb"]

@@ -193,6 +193,41 @@ def animate_drawable(episode: Any, scenario: Any, path: Path) -> Path:
                                 drawable_scenario(scenario), path))
 
 
+def lands_unraisable(frame: Any) -> bool:
+    """Whether an exception raised by a signal handler in ``frame`` would be lost: CPython
+    runs an import lock's weakref callback (and ``__del__`` finalizers) where no exception
+    can propagate, prints ``Exception ignored in ...`` with a traceback, and goes on. True
+    when such a callback is anywhere on the stack (the exception would end there)."""
+    while frame is not None:
+        code = getattr(frame, "f_code", None)
+        if code is not None and (code.co_name == "__del__" or (
+                code.co_name == "cb" and code.co_filename.startswith("<frozen importlib"))):
+            return True
+        frame = getattr(frame, "f_back", None)
+    return False
+
+
+def deliver_later(signum: int) -> None:
+    """Deliver ``signum`` to this process's handler again in 10 ms, from a helper thread:
+    by then the callback has returned (else the handler defers once more). Not at once: a
+    signal raised here would run its handler here, still inside the callback."""
+    import _thread
+    import threading
+
+    timer = threading.Timer(0.01, _thread.interrupt_main, args=(signum,))
+    timer.daemon = True
+    timer.start()
+
+
+def interrupt(signum: int, frame: Any) -> None:
+    """SIGINT handler while the command line starts: KeyboardInterrupt, except where it
+    would be lost (:func:`lands_unraisable`)."""
+    if lands_unraisable(frame):
+        deliver_later(signum)
+        return
+    raise KeyboardInterrupt
+
+
 class Stopped(Exception):
     """A command that was interrupted and has said so on stderr; ``code`` is its exit
     status (130 for Ctrl-C, 143 for SIGTERM). An exception and not ``typer.Exit``, so that
@@ -215,8 +250,6 @@ class Signals:
 
     def __enter__(self) -> Signals:
         import signal
-
-        from ._launch import deliver_later, lands_unraisable
 
         def interrupt(signum: int, frame: Any) -> None:
             if lands_unraisable(frame):        # it would be printed and lost: not there
