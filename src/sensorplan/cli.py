@@ -422,7 +422,7 @@ def grid(
     with _bad_input():
         code = grid_command(grid_file, out, workers, scheduler)
     if code:
-        raise typer.Exit(code)
+        raise Stopped(code)           # it said what is saved: not typer's bare 130 status
 
 
 # ----------------------------------------------------------------------------- report
