@@ -8,6 +8,7 @@ the field (or the file), or a correct run.
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import json
 import math
@@ -654,6 +655,34 @@ def test_d16_ctrl_c_while_starting_prints_no_traceback(tmp_path, delay) -> None:
     # PyRun_String (it then flags the interrupt as unhandled).
     assert res.returncode in (130, -signal.SIGINT), res.stderr
     assert res.stderr.splitlines() == ["error: interrupted"], res.stderr
+
+
+def test_d16_a_signal_after_the_command_leaves_its_status_alone(tmp_path) -> None:
+    # Once a command has written its results the interpreter still tears down its modules
+    # (a second or so with numba, pandas and pyarrow loaded). A Ctrl-C or SIGTERM then ended
+    # the process by the signal (status -2 / -15) with no line, after a complete run.
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    problem = ROOT / "examples" / "problem.json"
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        proc = subprocess.Popen([sys.executable, "-m", "sensorplan", "plan", str(problem)],
+                                cwd=tmp_path, env=env, stdout=subprocess.PIPE,
+                                stderr=subprocess.PIPE, start_new_session=True)
+        assert proc.stdout is not None
+        out = b""
+        while True:                        # stdout (a pipe) is flushed in the tear-down
+            chunk = proc.stdout.read1(65536)
+            assert chunk, proc.stderr.read() if proc.stderr else ""
+            out += chunk
+            try:
+                json.loads(out)
+                break
+            except ValueError:
+                continue
+        time.sleep(0.05)
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, sig)
+        rest, err = proc.communicate(timeout=120)
+        assert (proc.returncode, err, rest) == (0, b"", b""), err
 
 
 def test_d16_a_ctrl_c_inside_a_finalizer_is_delivered_after_it() -> None:
