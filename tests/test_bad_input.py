@@ -552,6 +552,30 @@ def test_d12_a_full_disk_and_a_directory_in_the_way(capsys, tmp_path) -> None:
     assert_bad_input(run(capsys, "simulate", QUICK, "--steps", "2", "--out", out), "--out")
 
 
+def test_d14_replay_of_a_damaged_stored_run_warns_and_still_draws(capsys, tmp_path) -> None:
+    # replay read the stored part with pyarrow and no checksum: a flipped bit ended in an
+    # internal error (ArrowInvalid), or went unnoticed.
+    f = _study(tmp_path, TINY_STUDY)
+    assert run(capsys, "study", f, "--out", tmp_path / "st", "--workers", "1")[0] == 0
+    part = tmp_path / "st" / "parts" / "run-00000" / "m00.sensors.parquet"
+    data = bytearray(part.read_bytes())
+    data[len(data) // 2] ^= 0x10
+    part.write_bytes(bytes(data))
+    code, out, err = run(capsys, "replay", tmp_path / "st", "--run", "0", "--method", "r",
+                         "--no-animate", "--out", tmp_path / "o")
+    assert code == 0, err
+    assert err.splitlines() == [
+        f"warning: run-00000/m00 of {tmp_path / 'st'} is damaged (m00.sensors.parquet does "
+        "not match its checksum); nothing to compare the replay with (run the study command "
+        "again to recompute it)"]
+    assert "is damaged in" in out and (tmp_path / "o" / "episode.png").stat().st_size > 0
+    # rerunning the study repairs it, and the replay then compares again
+    assert run(capsys, "study", f, "--out", tmp_path / "st", "--workers", "1")[0] == 0
+    code, out, err = run(capsys, "replay", tmp_path / "st", "--run", "0", "--method", "r",
+                         "--no-animate", "--out", tmp_path / "o")
+    assert (code, err) == (0, "") and "identical to the stored run 0" in out
+
+
 def test_d12_a_file_name_too_long_for_the_system_names_its_option(capsys, tmp_path) -> None:
     # Path.exists() raises on a name the system cannot look up (ENAMETOOLONG), which took
     # every command to an internal error wherever the path was first used.
