@@ -486,6 +486,31 @@ def test_grid_command_interrupted_says_what_is_saved(capsys: pytest.CaptureFixtu
                    f"saved in {tmp_path / 'o'}; run the same command again to resume\n")
 
 
+def test_grid_command_stopped_by_a_real_ctrl_c_prints_one_line(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # Through the signal handler, as from a terminal: the command's own line said what is
+    # saved, and the entry point then added "error: interrupted" (two lines).
+    import signal
+
+    from sensorplan.study import grid_run
+
+    def interrupted(*args: Any, **kwargs: Any) -> Any:
+        try:
+            signal.raise_signal(signal.SIGINT)
+        except KeyboardInterrupt:
+            raise GridInterrupted(0, 18, "base") from None
+        raise AssertionError("the Ctrl-C did not interrupt")
+    monkeypatch.setattr(grid_run, "run_grid", interrupted)
+    path = tmp_path / "g.toml"
+    path.write_text(GOOD)
+    code, stdout, err = run(capsys, "grid", path, "--out", tmp_path / "o")
+    assert code == 130 and stdout == ""
+    assert err.splitlines() == [f"interrupted in cell base: 0 of 18 (run, method) pairs are "
+                                f"saved in {tmp_path / 'o'}; run the same command again to "
+                                "resume"]
+
+
 def test_bad_options(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     path = tmp_path / "g.toml"
     path.write_text(GOOD)

@@ -180,3 +180,37 @@ def test_a_fresh_cache_says_once_that_the_kernels_are_being_compiled(tmp_path: P
     ours.mkdir(parents=True)
     (ours / "radar.f-1.py311.nbi").write_bytes(b"")
     assert _import_jit({"NUMBA_CACHE_DIR": str(tmp_path / "warm")}) == ""
+
+
+def test_a_read_only_home_gives_matplotlib_a_private_directory_quietly(tmp_path: Path
+                                                                       ) -> None:
+    # matplotlib, left alone, prints two warning lines at every figure when it cannot
+    # write its configuration and cache directories (a read-only home).
+    blocker = tmp_path / "blocker"                    # a file: nothing can be made under it
+    blocker.write_text("")
+    temp = tmp_path / "tmp"
+    temp.mkdir()
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("MPLCONFIGDIR", "XDG_CONFIG_HOME", "XDG_CACHE_HOME")}
+    env.update({"PYTHONPATH": str(SRC), "HOME": str(blocker / "home"), "TMPDIR": str(temp)})
+    done = subprocess.run([sys.executable, "-m", "sensorplan", "simulate", "--preset", "paper",
+                           "--steps", "2", "--out", str(tmp_path / "o")], env=env,
+                          capture_output=True, text=True, timeout=600, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert "matplotlib" not in done.stderr.lower() and "warning" not in done.stderr.lower()
+    assert (tmp_path / "o" / "episode.png").stat().st_size > 0
+    private = temp / f"sensorplan-matplotlib-{os.getuid()}"
+    assert private.is_dir() and stat.S_IMODE(private.stat().st_mode) == 0o700
+
+
+def test_a_writable_home_leaves_matplotlib_alone(monkeypatch: pytest.MonkeyPatch,
+                                                 tmp_path: Path) -> None:
+    from sensorplan.cli_guards import quiet_matplotlib_dirs
+
+    monkeypatch.delenv("MPLCONFIGDIR", raising=False)
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))       # not there yet: can be made
+    monkeypatch.delenv("XDG_CONFIG_HOME", raising=False)
+    monkeypatch.delenv("XDG_CACHE_HOME", raising=False)
+    quiet_matplotlib_dirs()
+    assert "MPLCONFIGDIR" not in os.environ
+    assert not (tmp_path / "home").exists()                  # nothing made by looking

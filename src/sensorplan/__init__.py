@@ -5,11 +5,16 @@ the table libraries load when first used, so the names below other than ``Config
 ``__version__`` are imported on first access.
 """
 
-from typing import TYPE_CHECKING, Any
+from __future__ import annotations
 
 from .errors import ConfigError
 
+# Not typing's: ``python -m sensorplan`` imports this package before the command line can
+# catch a Ctrl-C, so it imports nothing it can do without (typing costs ~10-20 ms).
+TYPE_CHECKING = False
 if TYPE_CHECKING:  # pragma: no cover
+    from typing import Any
+
     from .information import potential
     from .problem import MapRect, Plan, PlanningProblem
     from .sensors import SensorParams

@@ -13,11 +13,24 @@ import sys
 
 def main() -> None:
     try:
+        import signal
+        import threading  # noqa: F401 - loaded before a handler may need it (deliver_later)
+
+        from .cli_guards import interrupt
+
+        signal.signal(signal.SIGINT, interrupt)
         from .cli import main as cli_main
     except KeyboardInterrupt:
         sys.stderr.write("error: interrupted\n")
         sys.exit(130)
-    cli_main()
+    try:
+        cli_main()
+    finally:
+        # The command is over: its results are written and its status set. A Ctrl-C or a
+        # SIGTERM now could only cut the interpreter's tear-down short (a second or so with
+        # the numerical stack loaded) and end the process by the signal, without a word.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -20,7 +20,7 @@ import typer
 from . import __version__
 from .cli_guards import (Sigterm, Signals, Stopped, animate_drawable, check_environment,
                          check_finite, plot_drawable, quiet_numerics, usage_error_class,
-                         usage_line, writing)
+                         usage_line, writing, guard_paths)
 from .cli_guards import Terminated as _Terminated
 from .cli_settings import with_setting_options
 from .errors import ConfigError, error_line
@@ -422,7 +422,7 @@ def grid(
     with _bad_input():
         code = grid_command(grid_file, out, workers, scheduler)
     if code:
-        raise typer.Exit(code)
+        raise Stopped(code)           # it said what is saved: not typer's bare 130 status
 
 
 # ----------------------------------------------------------------------------- report
@@ -557,7 +557,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     signals = Signals()
     try:
         with quiet_numerics(DEBUG_ENV), signals:
-            command = typer.main.get_command(app)      # a Ctrl-C here: one line too
+            command = guard_paths(typer.main.get_command(app))  # Ctrl-C here: one line
             if not {"--help", "-h", "--version"} & set(args):
                 check_environment()
             code = command.main(args=args, prog_name="sensorplan", standalone_mode=False)

@@ -34,6 +34,44 @@ def check_environment() -> None:
     if threads.lstrip("+-").isdigit() and int(threads) < 1:
         raise ConfigError("NUMBA_NUM_THREADS", f"must be a number of threads >= 1 (numba's), "
                           f"got {threads!r} (or unset it)")
+    quiet_matplotlib_dirs()
+
+
+def _could_write(path: str) -> bool:
+    """Whether ``path`` is, or could be made, a directory this process can write in (looked
+    up without creating anything)."""
+    probe = path
+    while not os.path.lexists(probe):
+        parent = os.path.dirname(probe)
+        if parent == probe:
+            return False
+        probe = parent
+    return os.path.isdir(probe) and os.access(probe, os.W_OK)
+
+
+def quiet_matplotlib_dirs() -> None:
+    """Give matplotlib a private configuration directory when its usual ones cannot be
+    written (a read-only home): matplotlib would make a temporary one anyway, but with two
+    warning lines on stderr at every figure, and a new font cache each time."""
+    import sys
+    import tempfile
+
+    if os.environ.get("MPLCONFIGDIR") or not sys.platform.startswith(("linux", "freebsd")):
+        return
+    home = os.path.expanduser("~")
+    usual = [os.path.join(os.environ.get(var) or os.path.join(home, sub), "matplotlib")
+             for var, sub in (("XDG_CONFIG_HOME", ".config"), ("XDG_CACHE_HOME", ".cache"))]
+    if all(_could_write(p) for p in usual):
+        return
+    private = os.path.join(tempfile.gettempdir(), f"sensorplan-matplotlib-{os.getuid()}")
+    try:
+        os.makedirs(private, mode=0o700, exist_ok=True)
+        st = os.lstat(private)
+    except OSError:
+        return                          # matplotlib's own fallback, warnings and all
+    if os.path.isdir(private) and not os.path.islink(private) and st.st_uid == os.getuid() \
+            and os.access(private, os.W_OK):
+        os.environ["MPLCONFIGDIR"] = private
 
 
 @contextmanager
@@ -94,6 +132,34 @@ class Sigterm:
             signal.signal(signal.SIGTERM, self._previous)
 
 
+def guard_paths(command: Any) -> Any:
+    """Check every path argument and option of ``command``'s subcommands as it is parsed: a
+    name the system cannot even look up (too long, a directory without permission on the
+    way) is a usage error naming the option, not an internal error wherever it is first
+    used. Missing files and directories stay the commands' own business."""
+    import errno
+
+    import typer
+
+    def check(ctx: Any, param: Any, value: Any, then: Any = None) -> Any:
+        if isinstance(value, Path):
+            try:
+                os.stat(value)
+            except OSError as exc:
+                if exc.errno not in (errno.ENOENT, errno.ENOTDIR):
+                    raise typer.BadParameter(f"{value}: {exc.strerror or exc}",
+                                             param=param) from None
+        return value if then is None else then(ctx, param, value)
+
+    for sub in getattr(command, "commands", {}).values():
+        for param in sub.params:
+            if getattr(getattr(param, "type_descriptor", None), "annotation", None) is Path:
+                then = param.callback
+                param.callback = (check if then is None else
+                                  lambda c, p, v, then=then: check(c, p, v, then))
+    return command
+
+
 @contextmanager
 def writing(where: Path | None = None, field: str = "--out") -> Iterator[None]:
     """An output file that cannot be written (a full disk, a directory in its place) is a
@@ -127,6 +193,41 @@ def animate_drawable(episode: Any, scenario: Any, path: Path) -> Path:
                                 drawable_scenario(scenario), path))
 
 
+def lands_unraisable(frame: Any) -> bool:
+    """Whether an exception raised by a signal handler in ``frame`` would be lost: CPython
+    runs an import lock's weakref callback (and ``__del__`` finalizers) where no exception
+    can propagate, prints ``Exception ignored in ...`` with a traceback, and goes on. True
+    when such a callback is anywhere on the stack (the exception would end there)."""
+    while frame is not None:
+        code = getattr(frame, "f_code", None)
+        if code is not None and (code.co_name == "__del__" or (
+                code.co_name == "cb" and code.co_filename.startswith("<frozen importlib"))):
+            return True
+        frame = getattr(frame, "f_back", None)
+    return False
+
+
+def deliver_later(signum: int) -> None:
+    """Deliver ``signum`` to this process's handler again in 10 ms, from a helper thread:
+    by then the callback has returned (else the handler defers once more). Not at once: a
+    signal raised here would run its handler here, still inside the callback."""
+    import _thread
+    import threading
+
+    timer = threading.Timer(0.01, _thread.interrupt_main, args=(signum,))
+    timer.daemon = True
+    timer.start()
+
+
+def interrupt(signum: int, frame: Any) -> None:
+    """SIGINT handler while the command line starts: KeyboardInterrupt, except where it
+    would be lost (:func:`lands_unraisable`)."""
+    if lands_unraisable(frame):
+        deliver_later(signum)
+        return
+    raise KeyboardInterrupt
+
+
 class Stopped(Exception):
     """A command that was interrupted and has said so on stderr; ``code`` is its exit
     status (130 for Ctrl-C, 143 for SIGTERM). An exception and not ``typer.Exit``, so that
@@ -151,10 +252,16 @@ class Signals:
         import signal
 
         def interrupt(signum: int, frame: Any) -> None:
+            if lands_unraisable(frame):        # it would be printed and lost: not there
+                deliver_later(signum)
+                return
             self.received = "INT"
             raise KeyboardInterrupt
 
         def terminate(signum: int, frame: Any) -> None:
+            if lands_unraisable(frame):
+                deliver_later(signum)
+                return
             self.received = "TERM"
             raise Terminated
 

@@ -44,6 +44,8 @@ class Replay:
     differences : dict of str -> float
         Largest absolute difference per compared column (``steps.error`` in m, ...);
         empty when nothing is stored.
+    damaged : str or None
+        What is wrong with the stored (run, method) when it is damaged (then not compared).
     """
 
     study: Study
@@ -52,6 +54,7 @@ class Replay:
     episode: Episode
     stored: bool
     differences: dict[str, float] = field(default_factory=dict)
+    damaged: str | None = None
 
     @property
     def reproduced(self) -> bool | None:
@@ -139,32 +142,50 @@ def replay_run(study_dir: str | Path, run: int, method: str) -> Replay:
     chosen = study.methods[m]
     episode = run_episode(study.scenario, chosen.settings, study.run_seed(int(run)))
     stored = _stored_tables(Path(study_dir), study, int(run), m)
-    if stored is None:
-        return Replay(study, int(run), chosen, episode, False)
+    if stored is None or isinstance(stored, str):
+        return Replay(study, int(run), chosen, episode, False, damaged=stored)
     return Replay(study, int(run), chosen, episode, True, _compare(episode, *stored))
 
 
-def _stored_tables(out: Path, study: Study, run: int, m: int) -> tuple[Any, Any] | None:
-    """The stored ``steps`` and ``sensors`` rows of (run, method m), or None if that pair
-    has not finished."""
+def _stored_tables(out: Path, study: Study, run: int, m: int
+                   ) -> tuple[Any, Any] | str | None:
+    """The stored ``steps`` and ``sensors`` rows of (run, method m); None if that pair has
+    not finished; what is wrong with it if it is damaged (a warning on stderr says so too:
+    the replay is still drawn, without the comparison)."""
+    import sys
+
     import pyarrow.parquet as pq
 
-    from .study.storage import part_path
+    from .study.storage import part_path, part_problem
 
     name = study.methods[m].name
+    problem = part_problem(out, run, m) if part_path(out, run, m, "steps").exists() else None
     frames = []
     for table in ("steps", "sensors"):
         part = part_path(out, run, m, table)
         whole = out / f"{table}.parquet"
-        if part.exists():
-            frames.append(pq.read_table(part).to_pandas())
-        elif whole.exists():
-            frames.append(pq.read_table(whole, filters=[("run", "=", run),
-                                                        ("method", "=", name)]).to_pandas())
-        else:
-            return None
+        try:
+            if problem is not None:
+                break
+            if part.exists():
+                frames.append(pq.read_table(part).to_pandas())
+            elif whole.exists():
+                frames.append(pq.read_table(whole, filters=[("run", "=", run),
+                                                            ("method", "=", name)]).to_pandas())
+            else:
+                return None
+        except Exception as exc:  # noqa: BLE001 - any failure to read is damage
+            problem = f"{(part if part.exists() else whole).name} cannot be read " \
+                      f"({type(exc).__name__})"
+            break
         if not len(frames[-1]):
             return None
+    if problem is not None:
+        sys.stdout.flush()
+        sys.stderr.write(f"warning: {part.parent.name}/m{m:02d} of {out} is damaged "
+                         f"({problem}); nothing to compare the replay with (run the study "
+                         "command again to recompute it)\n")
+        return problem
     return frames[0], frames[1]
 
 
@@ -220,7 +241,7 @@ def replay_command(study_dir: Path, run: int, method: str, out: Path | None, ani
 
     from .console import print_summary
     from .io import ensure_out_dir
-    from .cli_guards import animate_drawable, plot_drawable
+    from .cli_guards import animate_drawable, plot_drawable, writing
 
     if animate:
         from .animation import check_format
@@ -231,15 +252,18 @@ def replay_command(study_dir: Path, run: int, method: str, out: Path | None, ani
     ensure_out_dir(target)                      # before the simulation, not after it
     rep = replay_run(study_dir, run, method)
     npz, png = target / "episode.npz", target / "episode.png"
-    written = [npz, png, rep.episode.save(npz)]
-    plot_drawable(rep.episode, rep.study.scenario, png)
-    if animate:
-        written.append(animate_drawable(rep.episode, rep.study.scenario,
-                                        target / f"episode.{animation_format}"))
+    with writing(target):          # a full disk or lost permissions: one line naming --out
+        written = [npz, png, rep.episode.save(npz)]
+        plot_drawable(rep.episode, rep.study.scenario, png)
+        if animate:
+            written.append(animate_drawable(rep.episode, rep.study.scenario,
+                                            target / f"episode.{animation_format}"))
     cfg = SimpleNamespace(scenario=rep.study.scenario, settings=rep.method.settings,
                           seed=f"{rep.study.seed}, run {run}")
     print_summary(rep.episode, cfg, written)
-    if rep.reproduced is None:
+    if rep.damaged is not None:
+        print(f"run {run} of {method!r} is damaged in {study_dir}: nothing to compare")
+    elif rep.reproduced is None:
         print(f"run {run} of {method!r} is not stored in {study_dir} yet: nothing to compare")
     elif rep.reproduced:
         print(f"identical to the stored run {run} of {method!r} (errors, estimates, NEES, "

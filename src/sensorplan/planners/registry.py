@@ -281,6 +281,11 @@ def _value_error(hint: Any, value: Any) -> str:
         return "" if isinstance(value, int) and not is_bool else f"must be an integer, got {got}"
     if hint is float:
         ok = isinstance(value, (int, float)) and not is_bool
+        if ok and isinstance(value, int):
+            try:
+                float(value)
+            except OverflowError:          # an integer literal no float can hold, as in files
+                ok = False
         return "" if ok else f"must be a number, got {got}"
     if hint is str:
         return "" if isinstance(value, str) else f"must be a string, got {got}"
