@@ -2,9 +2,11 @@
 
 Measures ``import sensorplan``, ``sensorplan --help``, ``sensorplan --version`` and
 ``sensorplan plan examples/problem.json`` end to end with a warm kernel cache (one untimed
-run first), plus the floors they stand on: the interpreter, numpy, numba, and loading
-numba's compiler target with the cached kernels. Prints wall time and CPU time (user + sys
-of the child): on a loaded machine wall time includes waiting for a core, CPU time does not.
+run first; it builds the ahead-of-time kernels if they are missing), the same plan with
+numba's kernels (``SENSORPLAN_AOT=0``), plus the floors they stand on: the interpreter,
+numpy, numba, and loading numba's compiler target with the cached kernels. Prints wall
+time and CPU time (user + sys of the child): on a loaded machine wall time includes waiting
+for a core, CPU time does not.
 
     PYTHONPATH=src .venv/bin/python benchmarks/bench_startup.py [--runs 15] [--src DIR ...]
 
@@ -28,16 +30,21 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 PROBLEM = ROOT / "examples" / "problem.json"
 
-CASES = [
-    ("python -c pass", ["-c", "pass"]),
-    ("import numpy", ["-c", "import numpy"]),
-    ("import numba", ["-c", "import numba"]),
+NUMBA_ONLY = {"SENSORPLAN_AOT": "0"}
+PLAN = "sensorplan plan examples/problem.json"
+PLAN_NUMBA = f"{PLAN} (numba's kernels)"
+#: (label, arguments of python, extra environment)
+CASES: list[tuple[str, list[str], dict[str, str]]] = [
+    ("python -c pass", ["-c", "pass"], {}),
+    ("import numpy", ["-c", "import numpy"], {}),
+    ("import numba", ["-c", "import numba"], {}),
     ("numba target + cached kernels",
-     ["-c", "from sensorplan._kernels import warm_up; warm_up()"]),
-    ("import sensorplan", ["-c", "import sensorplan"]),
-    ("sensorplan --version", ["-m", "sensorplan", "--version"]),
-    ("sensorplan --help", ["-m", "sensorplan", "--help"]),
-    ("sensorplan plan examples/problem.json", ["-m", "sensorplan", "plan", str(PROBLEM)]),
+     ["-c", "from sensorplan._kernels import warm_up; warm_up()"], NUMBA_ONLY),
+    ("import sensorplan", ["-c", "import sensorplan"], {}),
+    ("sensorplan --version", ["-m", "sensorplan", "--version"], {}),
+    ("sensorplan --help", ["-m", "sensorplan", "--help"], {}),
+    (PLAN, ["-m", "sensorplan", "plan", str(PROBLEM)], {}),
+    (PLAN_NUMBA, ["-m", "sensorplan", "plan", str(PROBLEM)], NUMBA_ONLY),
 ]
 
 
@@ -70,13 +77,13 @@ def main() -> None:
         print(f"[{i}] {s}")
     print(f"median of {opts.runs} processes per case; wall s / cpu s")
     print(f"{'case':40s}" + "".join(f"{f'[{i}] wall':>10s}{'cpu':>7s}" for i in range(len(srcs))))
-    for label, args in CASES:
+    for label, args, extra in CASES:
         results: list[list[tuple[float, float]]] = [[] for _ in srcs]
-        ok = [run_once(args, env) is not None for env in envs]      # warm-up run
+        ok = [run_once(args, {**env, **extra}) is not None for env in envs]     # warm-up run
         for _ in range(opts.runs):
             for i, env in enumerate(envs):
                 if ok[i]:
-                    res = run_once(args, env)
+                    res = run_once(args, {**env, **extra})
                     if res is not None:
                         results[i].append(res)
         cells = []

@@ -111,12 +111,12 @@ def figures(episode: Any, scenario: Any, steps: int) -> None:
 
 def cold_start(runs: int) -> None:
     """``sensorplan --help`` and the first plan, as whole processes."""
-    env = dict(os.environ)
     cases = [c for c in bench_startup.CASES if c[0] in (
-        "sensorplan --help", "sensorplan plan examples/problem.json")]
+        "sensorplan --help", bench_startup.PLAN, bench_startup.PLAN_NUMBA)]
     print(f"\n## Cold start (median of {runs} processes, kernel cache warm)")
     print("| command | wall s | CPU s |\n|---|---|---|")
-    for label, args in cases:
+    for label, args, extra in cases:
+        env = {**os.environ, **extra}
         if bench_startup.run_once(args, env) is None:          # untimed; fails loudly below
             raise SystemExit(f"{label} failed")
         times = [t for t in (bench_startup.run_once(args, env) for _ in range(runs)) if t]

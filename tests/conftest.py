@@ -8,13 +8,19 @@
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
-import numpy as np
-import pytest
+# The suite runs numba's kernels (in this process and in the commands it starts), as every
+# command but ``plan`` does; tests/test_aot.py runs the ahead-of-time ones and checks that
+# they give the same plans. Without this the first ``plan`` a test starts would build them.
+os.environ.setdefault("SENSORPLAN_AOT", "0")
 
-from factories import make_problem, random_plan
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from factories import make_problem, random_plan  # noqa: E402
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 

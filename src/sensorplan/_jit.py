@@ -1,132 +1,175 @@
-"""Where numba caches the compiled kernels, and what happens when nowhere is writable.
+"""The compiled kernels: numba's just-in-time ones, or ahead-of-time ones when they are built.
 
-The kernels are compiled once and cached on disk (``@njit(cache=True)``). numba writes the
-cache to the first writable place of: ``NUMBA_CACHE_DIR`` if set, the package's own
-``__pycache__`` directory, the user's cache directory (``~/.cache/numba`` on Linux). When
-none is writable (a read-only install and a read-only home), numba refuses at import with
-a traceback. :func:`ensure_cache`, run before the first kernel is defined (the radar
-module imports :data:`njit` from here), checks those places first; when none is writable it
-caches in a private directory under the system's temporary directory, and when even that
-fails it compiles without a cache. Either way it says so in one line on stderr, and child
-processes (study workers, agents) inherit the choice through ``NUMBA_CACHE_DIR``.
+Every kernel of the package is written once, as a Python function decorated with
+:func:`njit` (this module's, with numba's options). Calling it runs compiled code from one
+of two places, the same source compiled by the same compiler:
+
+* **ahead of time** (:mod:`sensorplan._aot`): an extension module holding the kernels the
+  planners call, for the argument types they are called with. It needs numpy only, so a
+  process that finds every call there (``sensorplan plan``) never imports numba: it starts
+  in a fraction of a second instead of about one. It is built once (``sensorplan plan``
+  builds it the first time, in about a minute) and cached next to numba's cache.
+* **just in time**: numba's dispatcher, for every other kernel or argument type. The first
+  such call imports numba (about a second with a warm cache) and from then on every kernel
+  of the process runs numba's, as before the ahead-of-time build existed.
+
+Both give the same numbers bit for bit (the planner reference tests run under each).
+
+numba's on-disk cache, and what happens when nowhere is writable:
+:mod:`sensorplan._kernel_cache`.
 """
 
 from __future__ import annotations
 
 import os
-import stat
 import sys
-import tempfile
+from collections.abc import Callable
+from typing import Any
 
-import numba
-from numba import njit
+import numpy as np
 
-#: The notice's prefix, on stderr.
-NOTICE = "note: "
+from ._kernel_cache import ensure_cache, first_run_notice
 
-
-def _writable(path: str) -> bool:
-    """Whether ``path`` is (or can be made) a directory this process can write in."""
-    try:
-        os.makedirs(path, exist_ok=True)
-        tempfile.TemporaryFile(dir=path).close()
-        return True
-    except OSError:
-        return False
+_KERNELS: list[Kernel] = []
+_NUMBA_GLOBALS: dict[str, Callable[[], dict[str, Any]]] = {}
+_ACTIVE = False
+_UNSET: Any = object()
 
 
-def _private_dir(base: str) -> str | None:
-    """``base/sensorplan-numba-<uid>``, owned by this user and not a link, or a fresh
-    directory under ``base``; None if ``base`` is not writable."""
-    path = os.path.join(base, f"sensorplan-numba-{os.getuid() if hasattr(os, 'getuid') else 0}")
-    try:
-        os.makedirs(path, mode=0o700, exist_ok=True)
-        st = os.lstat(path)
-        mine = not hasattr(os, "getuid") or st.st_uid == os.getuid()
-        if stat.S_ISDIR(st.st_mode) and mine and _writable(path):
-            return path
-        return tempfile.mkdtemp(prefix="sensorplan-numba-", dir=base)
-    except OSError:
-        return None
+def arg_key(args: tuple) -> tuple | None:
+    """The argument types of a call as the ahead-of-time tables name them, or None for a
+    type they never hold (the call then goes to numba).
 
-
-def cache_places() -> list[str]:
-    """Where numba would cache this package's kernels, in numba's order of preference."""
-    from numba.misc.appdirs import AppDirs
-
-    cache_dir = getattr(numba.config, "CACHE_DIR", "")
-    places = [cache_dir] if cache_dir else []
-    places.append(os.path.join(os.path.dirname(os.path.abspath(__file__)), "__pycache__"))
-    places.append(AppDirs(appname="numba", appauthor=False).user_cache_dir)
-    return places
-
-
-def ensure_cache() -> str | None:
-    """Make sure numba can cache the kernels (see the module docstring).
-
-    Returns
-    -------
-    str or None   the notice written to stderr, or None when a usual place is writable
+    Arrays: ``(dtype char, ndim)`` of aligned, C-contiguous arrays (numba's
+    ``Array(dtype, ndim, 'C')``), ``(dtype char, ndim, "r")`` if read-only; scalars:
+    ``"b"`` (bool), ``"i"`` (int64), ``"f"`` (float64), as numba types them.
     """
-    places = cache_places()
-    if any(_writable(p) for p in places):
-        return None
-    fallback = _private_dir(tempfile.gettempdir())
-    if fallback is not None:
-        setattr(numba.config, "CACHE_DIR", fallback)  # noqa: B010 - numba.config is untyped
-        os.environ["NUMBA_CACHE_DIR"] = fallback
-        notice = (f"{NOTICE}cannot write numba's kernel cache ({', '.join(places)}); caching "
-                  f"the compiled kernels in {fallback} (set NUMBA_CACHE_DIR to choose)")
-    else:
-        # No directory at all: compile in every process. Dispatchers then keep numba's
-        # null cache instead of failing on cache=True.
-        numba.core.dispatcher.Dispatcher.enable_caching = lambda self: None  # type: ignore
-        notice = (f"{NOTICE}no writable directory for numba's kernel cache ({', '.join(places)}, "
-                  f"{tempfile.gettempdir()}); compiling the kernels in this process, without "
-                  "a cache (set NUMBA_CACHE_DIR to a writable directory)")
-    sys.stderr.write(notice + "\n")
-    sys.stderr.flush()
-    return notice
+    key: list = []
+    for a in args:
+        t = type(a)
+        if t is np.ndarray:
+            f = a.flags
+            if not (f.c_contiguous and f.aligned and a.dtype.isnative):
+                return None
+            key.append((a.dtype.char, a.ndim) if f.writeable else (a.dtype.char, a.ndim, "r"))
+        elif t is bool or t is np.bool_:
+            key.append("b")
+        elif t is float or t is np.float64:
+            key.append("f")
+        elif t is int:
+            if not -(2 ** 63) <= a < 2 ** 63:
+                return None
+            key.append("i")
+        elif t is np.int64:
+            key.append("i")
+        else:
+            return None
+    return tuple(key)
 
 
-def _has_kernels(root: str, mine: bool) -> bool:
-    """Whether ``root`` holds a numba cache index of this package (``mine``: every index
-    under ``root`` is this package's)."""
-    for dirpath, _, files in os.walk(root):
-        if (mine or "sensorplan" in dirpath) and any(f.endswith(".nbi") for f in files):
-            return True
-    return False
+class Kernel:
+    """A compiled kernel: the ahead-of-time build when it holds the call's argument types,
+    numba's dispatcher otherwise (see the module docstring)."""
+
+    def __init__(self, py_func: Callable, options: dict[str, Any]) -> None:
+        self.py_func = py_func
+        self.options = options
+        self.__name__ = py_func.__name__
+        self.__qualname__ = py_func.__qualname__
+        self.__module__ = py_func.__module__
+        self.__doc__ = py_func.__doc__
+        self.__wrapped__ = py_func
+        self._aot: dict | None = _UNSET
+        self._dispatcher: Any = None
+
+    def __call__(self, *args: Any) -> Any:
+        aot = self._aot
+        if aot is _UNSET:
+            from . import _aot
+
+            _aot.attach(_KERNELS)
+            aot = self._aot
+        if aot:
+            fn = aot.get(arg_key(args))
+            if fn is not None:
+                return fn(*args)
+        return self.dispatcher(*args)
+
+    @property
+    def dispatcher(self) -> Any:
+        """numba's dispatcher of this kernel (imports numba on first use)."""
+        if self._dispatcher is None:
+            activate()
+        return self._dispatcher
+
+    def __repr__(self) -> str:
+        return f"<kernel {self.__module__}.{self.__qualname__}>"
 
 
-def first_run_notice() -> str | None:
-    """Say once, on stderr, that the kernels are being compiled when no cached kernel of this
-    package exists yet (a fresh clone or install): the first command then spends about a
-    minute compiling before its own work, which would otherwise look like a hang.
+def njit(*args: Any, **options: Any) -> Any:
+    """``numba.njit`` for the package's kernels: ``@njit`` or ``@njit(**options)``.
 
-    Returns
-    -------
-    str or None   the notice written, or None when kernels are cached (or already noted)
+    Before numba is loaded it returns a :class:`Kernel`; afterwards numba's dispatcher.
     """
-    if os.environ.get("SENSORPLAN_FIRST_RUN_NOTED"):
-        return None
-    cache_dir = getattr(numba.config, "CACHE_DIR", "")
-    package = os.path.dirname(os.path.abspath(__file__))
-    if cache_dir:
-        cold = not _has_kernels(cache_dir, mine=False)
-    else:
-        cold = not (_has_kernels(package, mine=True)
-                    or _has_kernels(cache_places()[-1], mine=False))
-    os.environ["SENSORPLAN_FIRST_RUN_NOTED"] = "1"      # children (workers) stay quiet
-    if not cold:
-        return None
-    notice = (f"{NOTICE}first run: compiling the numerical kernels once (about a minute); "
-              "they are cached for every later run")
-    sys.stderr.write(notice + "\n")
-    sys.stderr.flush()
-    return notice
+    def wrap(py_func: Callable) -> Any:
+        if _ACTIVE:
+            import numba
+
+            return numba.njit(**options)(py_func)
+        kernel = Kernel(py_func, options)
+        _KERNELS.append(kernel)
+        return kernel
+
+    if args and callable(args[0]):
+        return wrap(args[0])
+    return wrap
 
 
-if ensure_cache() is None or os.environ.get("NUMBA_CACHE_DIR"):
-    first_run_notice()              # not when nothing can be cached: every run compiles then
+def numba_globals(module: str, make: Callable[[], dict[str, Any]]) -> None:
+    """Names that ``module``'s kernels use from numba (types, typed containers): ``make()``
+    is set into the module's namespace when numba is loaded, before any kernel compiles."""
+    _NUMBA_GLOBALS[module] = make
+    if _ACTIVE:
+        vars(sys.modules[module]).update(make())
 
-__all__ = ["NOTICE", "cache_places", "ensure_cache", "first_run_notice", "njit"]
+
+def activate(patch: bool = True) -> None:
+    """Load numba and give every kernel its dispatcher (once per process).
+
+    The package's modules then hold the dispatchers themselves in place of the
+    :class:`Kernel` objects (``patch``), so that Python calls go straight to numba. With
+    ``patch`` False they keep the kernels (whose calls can then be watched, as
+    ``scripts/aot_signatures.py`` does) and numba types a kernel as its dispatcher.
+    """
+    global _ACTIVE
+    if _ACTIVE:
+        return
+    import numba
+
+    if ensure_cache() is None or os.environ.get("NUMBA_CACHE_DIR"):
+        first_run_notice()          # not when nothing can be cached: every run compiles then
+    _ACTIVE = True
+    for owner, make in _NUMBA_GLOBALS.items():
+        vars(sys.modules[owner]).update(make())
+    for kernel in _KERNELS:
+        kernel._dispatcher = numba.njit(**kernel.options)(kernel.py_func)
+        kernel._aot = None
+    if not patch:
+        from numba.core.typing.typeof import typeof_impl
+
+        typeof_impl.register(Kernel)(lambda val, c: typeof_impl(val._dispatcher, c))
+        return
+    for name, module in list(sys.modules.items()):
+        if name == "sensorplan" or name.startswith("sensorplan."):
+            space = vars(module)
+            for attr, value in list(space.items()):
+                if isinstance(value, Kernel):
+                    space[attr] = value._dispatcher
+
+
+def is_active() -> bool:
+    """Whether numba is loaded and the kernels run numba's dispatchers."""
+    return _ACTIVE
+
+
+__all__ = ["Kernel", "activate", "arg_key", "is_active", "njit", "numba_globals"]

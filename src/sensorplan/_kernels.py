@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from ._jit import njit
 
 from . import radar
 from .radar import P_VIS_MIN, look, range_weight, wrap

@@ -8,11 +8,25 @@ round to the same point of a 1e-6 m grid.
 
 from __future__ import annotations
 
-import numpy as np
-from numba import njit, types
-from numba.typed import Dict
+from typing import Any
 
-_KEY = types.UniTuple(types.int64, 2)
+import numpy as np
+
+from ._jit import njit, numba_globals
+
+
+def _numba_names() -> dict[str, Any]:
+    """numba's typed dictionary, for the sets on a fine grid (set when numba loads)."""
+    from numba import types
+    from numba.typed import Dict
+
+    return {"Dict": Dict, "types": types, "_KEY": types.UniTuple(types.int64, 2)}
+
+
+Dict: Any = None                    # numba's names, set by _numba_names when numba loads
+types: Any = None
+_KEY: Any = None
+numba_globals(__name__, _numba_names)
 
 
 @njit(cache=True)
@@ -87,7 +101,7 @@ def lattice_nb(p0: np.ndarray, moves: np.ndarray, K: int, bounded: bool, width: 
                 else:
                     key = (np.int64(np.rint((x - p0[0]) / tol)),
                            np.int64(np.rint((y - p0[1]) / tol)))
-                    idx = seen.get(key, -1)
+                    idx = seen[key] if key in seen else -1   # not .get: AOT-compilable
                 if idx < 0:
                     idx = n - start[k]
                     if dense:

@@ -124,16 +124,16 @@ def plan(
                 raise ConfigError("--example", "takes no PROBLEM.json and no --planner")
         sys.stdout.write(EXAMPLE_PROBLEM)
         return
+    from ._aot import ensure_built
     from .config import load_decision
     from .io import dumps_result
 
     with _bad_input():
         if problem is None:
-            raise ConfigError("PROBLEM.json", "is required (sensorplan plan --example prints "
-                              "one to start from)")
+            raise ConfigError("PROBLEM.json", "is required (--example prints one to start from)")
         decision = load_decision(problem, planner)
-        chosen = decision.make_planner()
-        result = chosen.plan(decision.problem)
+        ensure_built()          # a first plan compiles the planning kernels ahead of time
+        result = decision.make_planner().plan(decision.problem)
         check_finite(result)
         text = dumps_result(result)
     sys.stdout.write(text + "\n")

@@ -15,7 +15,7 @@ skip is only work whose result is known exactly (see each function).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from .._jit import njit
 
 from .._kernels import logdet4, predict_step, update_step
 

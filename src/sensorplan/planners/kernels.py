@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from .._jit import njit
 
 from .._kernels import _heading_rule
 from ..radar import P_VIS_MIN, look_at_azimuth, look_range, reach

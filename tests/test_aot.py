@@ -1,0 +1,178 @@
+"""The planners' kernels compiled ahead of time: same plans bit for bit, no numba in a plan.
+
+The module is built once (``sensorplan._aot.ensure_built``, about a minute, then cached with
+numba's kernels) by the ``built`` fixture; the rest of the suite runs numba's kernels
+(``conftest.py`` sets ``SENSORPLAN_AOT=0``), so each comparison here is between the two.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from sensorplan import _aot, _jit
+
+ROOT = Path(__file__).resolve().parents[1]
+SRC = ROOT / "src"
+PROBLEM = ROOT / "examples" / "problem.json"
+
+
+def _env(**extra: str) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k != "SENSORPLAN_AOT"}
+    return {**env, "PYTHONPATH": f"{SRC}{os.pathsep}{ROOT / 'tests'}", **extra}
+
+
+@pytest.fixture(scope="module")
+def built() -> Path:
+    if shutil.which("cc") is None and shutil.which("gcc") is None:
+        pytest.skip("no C compiler: the ahead-of-time build needs one to link")
+    old = os.environ.pop("SENSORPLAN_AOT", None)
+    try:
+        path = _aot.ensure_built()
+    finally:
+        if old is not None:
+            os.environ["SENSORPLAN_AOT"] = old
+    assert path is not None and path.is_file(), "the ahead-of-time build failed"
+    return path
+
+
+# ------------------------------------------------------------------ argument types
+
+_ARRAYS = st.sampled_from([np.float64, np.int64, np.bool_, np.float32, np.int32])
+
+
+@st.composite
+def _args(draw: st.DrawFn) -> object:
+    kind = draw(st.sampled_from(["array", "view", "readonly", "bool", "int", "float",
+                                 "npint", "npfloat", "npbool", "tuple", "bigint"]))
+    if kind in ("array", "view", "readonly"):
+        shape = tuple(draw(st.lists(st.integers(1, 3), min_size=1, max_size=4)))
+        a = np.zeros(shape, dtype=draw(_ARRAYS))
+        if kind == "view":
+            a = np.zeros(shape + (2,), dtype=a.dtype)[..., 0]
+        if kind == "readonly":
+            a.flags.writeable = False
+        return a
+    return {"bool": True, "int": 3, "float": 2.5, "npint": np.int64(4),
+            "npfloat": np.float64(1.5), "npbool": np.bool_(False), "tuple": (1, 2),
+            "bigint": 2 ** 70}[kind]
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(_args(), min_size=1, max_size=5))
+def test_argument_keys_name_the_types_numba_gives(args: list) -> None:
+    import numba
+
+    key = _jit.arg_key(tuple(args))
+    supported = (np.float64, np.int64, np.bool_)
+    typable = all(
+        (isinstance(a, np.ndarray) and a.dtype.type in supported and a.flags.c_contiguous)
+        or isinstance(a, bool | float | np.bool_ | np.float64 | np.int64)
+        or (type(a) is int and abs(a) < 2 ** 62) for a in args)
+    if not typable:
+        return                                  # a key may or may not exist; numba decides
+    assert key is not None
+    for a, item in zip(args, key, strict=True):
+        assert _aot._numba_type(item) == numba.typeof(a)
+
+
+def test_other_layouts_and_types_go_to_numba() -> None:
+    a = np.zeros((3, 4))
+    assert _jit.arg_key((a.T,)) is None                # Fortran order
+    assert _jit.arg_key((a[:, ::2],)) is None          # strided
+    assert _jit.arg_key(((1, 2),)) is None
+    assert _jit.arg_key((2 ** 70,)) is None
+    assert _jit.arg_key((a.astype(">f8"),)) is None    # byte-swapped
+
+
+# ------------------------------------------------------------------ the build
+
+
+def test_the_tag_follows_the_kernels_source_only(tmp_path: Path,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    copy = tmp_path / "sensorplan"
+    shutil.copytree(SRC / "sensorplan", copy, ignore=shutil.ignore_patterns("__pycache__"))
+    monkeypatch.setattr(_aot, "PACKAGE", copy)
+    before = _aot.tag()
+    (copy / "colors.py").write_text((copy / "colors.py").read_text() + "\n# a comment\n")
+    assert _aot.tag() == before                 # no kernel there: the build still holds
+    kernel = copy / "planners" / "gain_kernels.py"
+    kernel.write_text(kernel.read_text() + "\n# a comment\n")
+    assert _aot.tag() != before                 # a kernel's source: a new build
+
+
+def test_a_failed_build_is_said_once_and_numba_does_the_work(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    monkeypatch.delenv("SENSORPLAN_AOT")
+    monkeypatch.setattr(_aot, "places", lambda: [tmp_path / "aot"])
+    monkeypatch.setattr(_aot, "tag", lambda: "0123456789abcdef")
+    monkeypatch.setattr(sys, "executable", shutil.which("false") or "/bin/false")
+    assert _aot.ensure_built() is None
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 2 and err[0].startswith("note: first plan: compiling")
+    assert err[1].startswith("note: could not compile the planning kernels ahead of time")
+    assert (tmp_path / "aot" / "failed-0123456789abcdef.txt").is_file()
+    assert _aot.ensure_built() is None          # remembered: no second try, no second word
+    assert capsys.readouterr().err == ""
+    monkeypatch.setenv("SENSORPLAN_AOT", "0")
+    assert _aot.load() is None
+
+
+def test_the_plans_are_those_of_numba_bit_for_bit(built: Path) -> None:
+    from planner_reference import CASES
+    from sensorplan.planners import make_planner
+
+    code = """
+import json, sys
+from planner_reference import CASES
+from sensorplan.planners import make_planner
+out = {}
+for case, (build, names, seed) in CASES.items():
+    problem = build()
+    for name in names:
+        r = make_planner(name).plan(problem, rng=seed)
+        out[f"{case}/{name}"] = [r.plan.targets.tolist(), r.plan.positions.tolist(),
+                                 float(r.potential).hex(), r.sweeps, r.converged]
+print(json.dumps({"plans": out, "numba": "numba" in sys.modules}))
+"""
+    done = subprocess.run([sys.executable, "-c", code], env=_env(), capture_output=True,
+                          text=True, timeout=600, cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    ahead = json.loads(done.stdout)
+    assert ahead["numba"] is False              # every call found its compiled kernel
+    for case, (build, names, seed) in CASES.items():
+        problem = build()
+        for name in names:
+            r = make_planner(name).plan(problem, rng=seed)
+            targets, positions, phi, sweeps, converged = ahead["plans"][f"{case}/{name}"]
+            np.testing.assert_array_equal(np.array(targets), r.plan.targets)
+            np.testing.assert_array_equal(np.array(positions, dtype=float), r.plan.positions)
+            assert phi == float(r.potential).hex(), f"{case}/{name}"
+            assert (sweeps, converged) == (r.sweeps, r.converged)
+
+
+def test_the_plan_command_does_not_load_numba(built: Path) -> None:
+    code = ("import sys\nfrom sensorplan.cli import main\ntry:\n    main(sys.argv[1:])\n"
+            "except SystemExit as e:\n    assert not e.code, e.code\n"
+            "sys.stderr.write('NUMBA %s\\n' % ('numba' in sys.modules))")
+    outs = []
+    for aot in ("1", "0"):
+        done = subprocess.run([sys.executable, "-c", code, "plan", str(PROBLEM)],
+                              env=_env(SENSORPLAN_AOT=aot), capture_output=True, text=True,
+                              timeout=600, cwd=ROOT)
+        assert done.returncode == 0, done.stderr
+        assert done.stderr.splitlines()[-1] == f"NUMBA {aot == '0'}"
+        result = json.loads(done.stdout)
+        result.pop("seconds")
+        outs.append(result)
+    assert outs[0] == outs[1]
