@@ -176,3 +176,28 @@ def test_the_plan_command_does_not_load_numba(built: Path) -> None:
         result.pop("seconds")
         outs.append(result)
     assert outs[0] == outs[1]
+
+
+def test_threads_that_load_numba_together_all_get_a_kernel() -> None:
+    # The first calls of a process race to load numba: none may see a half-made dispatcher.
+    code = """
+import threading
+import numpy as np
+from sensorplan.radar import wrap
+from sensorplan._kernels import sum_by_target_nb
+out, errors = [], []
+def call():
+    try:
+        out.append((float(wrap(4.0)), sum_by_target_nb(np.ones((1, 1, 1, 2, 2)),
+                                                         np.zeros((1, 1), dtype=np.int64), 1).sum()))
+    except Exception as e:
+        errors.append(repr(e))
+threads = [threading.Thread(target=call) for _ in range(8)]
+for t in threads: t.start()
+for t in threads: t.join()
+assert not errors, errors
+assert out == [(4.0 - 2 * np.pi, 4.0)] * 8, out
+"""
+    done = subprocess.run([sys.executable, "-c", code], env=_env(SENSORPLAN_AOT="0"),
+                          capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert done.returncode == 0, done.stderr

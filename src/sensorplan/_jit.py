@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -33,6 +34,7 @@ from ._kernel_cache import ensure_cache, first_run_notice
 _KERNELS: list[Kernel] = []
 _NUMBA_GLOBALS: dict[str, Callable[[], dict[str, Any]]] = {}
 _ACTIVE = False
+_LOCK = threading.Lock()
 _UNSET: Any = object()
 
 
@@ -144,27 +146,30 @@ def activate(patch: bool = True) -> None:
     global _ACTIVE
     if _ACTIVE:
         return
-    import numba
+    with _LOCK:                     # threads of one process (a threaded Dask worker)
+        if _ACTIVE:
+            return
+        import numba
 
-    if ensure_cache() is None or os.environ.get("NUMBA_CACHE_DIR"):
-        first_run_notice()          # not when nothing can be cached: every run compiles then
-    _ACTIVE = True
-    for owner, make in _NUMBA_GLOBALS.items():
-        vars(sys.modules[owner]).update(make())
-    for kernel in _KERNELS:
-        kernel._dispatcher = numba.njit(**kernel.options)(kernel.py_func)
-        kernel._aot = None
-    if not patch:
-        from numba.core.typing.typeof import typeof_impl
+        if ensure_cache() is None or os.environ.get("NUMBA_CACHE_DIR"):
+            first_run_notice()      # not when nothing can be cached: every run compiles then
+        for owner, make in _NUMBA_GLOBALS.items():
+            vars(sys.modules[owner]).update(make())
+        for kernel in _KERNELS:
+            kernel._dispatcher = numba.njit(**kernel.options)(kernel.py_func)
+            kernel._aot = None
+        _ACTIVE = True              # only now: every kernel has its dispatcher
+        if not patch:
+            from numba.core.typing.typeof import typeof_impl
 
-        typeof_impl.register(Kernel)(lambda val, c: typeof_impl(val._dispatcher, c))
-        return
-    for name, module in list(sys.modules.items()):
-        if name == "sensorplan" or name.startswith("sensorplan."):
-            space = vars(module)
-            for attr, value in list(space.items()):
-                if isinstance(value, Kernel):
-                    space[attr] = value._dispatcher
+            typeof_impl.register(Kernel)(lambda val, c: typeof_impl(val._dispatcher, c))
+            return
+        for name, module in list(sys.modules.items()):
+            if name == "sensorplan" or name.startswith("sensorplan."):
+                space = vars(module)
+                for attr, value in list(space.items()):
+                    if isinstance(value, Kernel):
+                        space[attr] = value._dispatcher
 
 
 def is_active() -> bool:
