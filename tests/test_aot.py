@@ -188,8 +188,8 @@ from sensorplan._kernels import sum_by_target_nb
 out, errors = [], []
 def call():
     try:
-        out.append((float(wrap(4.0)), sum_by_target_nb(np.ones((1, 1, 1, 2, 2)),
-                                                         np.zeros((1, 1), dtype=np.int64), 1).sum()))
+        W, tgt = np.ones((1, 1, 1, 2, 2)), np.zeros((1, 1), dtype=np.int64)
+        out.append((float(wrap(4.0)), sum_by_target_nb(W, tgt, 1).sum()))
     except Exception as e:
         errors.append(repr(e))
 threads = [threading.Thread(target=call) for _ in range(8)]
