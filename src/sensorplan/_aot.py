@@ -186,6 +186,7 @@ def build(dest: Path | None = None) -> Path:
 
     import llvmlite.binding as llvm
     import numba.pycc.compiler as pycc_compiler
+    from numba.core.codegen import AOTCPUCodegen
     from numba.pycc import CC
 
     from ._aot_signatures import SIGNATURES
@@ -215,6 +216,10 @@ def build(dest: Path | None = None) -> Path:
         return original(typing_ctx, target_ctx, func, args, return_type, flags,
                         locals=locals, library=library, **kw)
 
+    # pycc gives LLVM the CPU's name only, and LLVM then assumes every feature of that
+    # model; numba's jit passes the features this CPU reports (a virtual machine may mask
+    # some). Use the latter: code that runs here, the same code numba's jit makes.
+    original_features = AOTCPUCodegen._customize_tm_features
     with tempfile.TemporaryDirectory(dir=dest) as work:
         cc = CC(module_name(tag_))
         cc.output_dir = work
@@ -223,10 +228,13 @@ def build(dest: Path | None = None) -> Path:
             args = tuple(_numba_type(item) for item in key)
             cc.export(f"k{n}", args)(kernels[(mod, fname)].py_func)
         setattr(pycc_compiler, "compile_extra", compile_extra)  # noqa: B010 - untyped
+        setattr(AOTCPUCodegen, "_customize_tm_features",  # noqa: B010
+                lambda self: self._get_host_cpu_features())
         try:
             cc.compile()
         finally:
             setattr(pycc_compiler, "compile_extra", original)  # noqa: B010
+            setattr(AOTCPUCodegen, "_customize_tm_features", original_features)  # noqa: B010
         built = Path(work) / (module_name(tag_) + _suffix())
         target = dest / built.name
         os.replace(built, target)
