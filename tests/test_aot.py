@@ -201,3 +201,31 @@ assert out == [(4.0 - 2 * np.pi, 4.0)] * 8, out
     done = subprocess.run([sys.executable, "-c", code], env=_env(SENSORPLAN_AOT="0"),
                           capture_output=True, text=True, timeout=600, cwd=ROOT)
     assert done.returncode == 0, done.stderr
+
+
+def test_a_read_only_install_finds_them_in_its_private_temp_dir(built: Path,
+                                                                 tmp_path: Path) -> None:
+    from test_startup import _read_only_copy
+
+    pkg = _read_only_copy(tmp_path)
+    blocker = tmp_path / "blocker"                    # a file: nothing can be made under it
+    blocker.write_text("")
+    temp = tmp_path / "tmp"
+    place = temp / f"sensorplan-numba-{os.getuid()}" / "sensorplan-aot"
+    place.mkdir(parents=True)
+    shutil.copy(built, place)          # the same sources, so the same name (tag)
+    env = {**_env(), "PYTHONPATH": str(pkg), "PYTHONDONTWRITEBYTECODE": "1",
+           "HOME": str(blocker / "home"), "XDG_CACHE_HOME": str(blocker / "cache"),
+           "NUMBA_CACHE_DIR": str(blocker / "numba"), "TMPDIR": str(temp)}
+    code = ("import sys\nfrom sensorplan.cli import main\ntry:\n    main(sys.argv[1:])\n"
+            "except SystemExit as e:\n    assert not e.code, e.code\n"
+            "assert 'numba' not in sys.modules")
+    try:
+        done = subprocess.run([sys.executable, "-c", code, "plan", str(PROBLEM)], env=env,
+                              capture_output=True, text=True, timeout=600, cwd=tmp_path)
+    finally:
+        for p in [pkg, *pkg.rglob("*")]:
+            p.chmod(p.stat().st_mode | 0o200)
+    assert done.returncode == 0, done.stderr
+    assert done.stderr == ""                          # found: nothing to build, nothing to say
+    assert json.loads(done.stdout)["planner"] == "pg"
