@@ -39,8 +39,12 @@ from ._kernel_cache import NOTICE, _private_dir, _writable, cache_places
 PACKAGE = Path(__file__).resolve().parent
 SUBDIR = "sensorplan-aot"
 #: The child process that builds the module (numba's dispatchers first: the exported
-#: kernels call others, which numba must see as its own).
+#: kernels call others, which numba must see as its own). It reads numba's disk cache but
+#: writes nothing to it: the kernels it compiles on the way are not all a later command
+#: needs, and a cache holding some would hide that command's "first run" note.
 BUILD = ("import sys; sys.path.insert(0, sys.argv[1]); from pathlib import Path; "
+         "from numba.core.caching import Cache; "
+         "Cache.save_overload = lambda self, sig, data: None; "
          "from sensorplan._jit import activate; activate(); "
          "from sensorplan._aot import build; print(build(Path(sys.argv[2])))")
 
