@@ -471,6 +471,16 @@ def test_d17_a_bad_backend_variable_is_refused(capsys, tmp_path, monkeypatch) ->
     assert plan(capsys, tmp_path, spec7())[0] == 0
 
 
+def test_a_switch_of_the_ahead_of_time_kernels_that_is_not_0_or_1_is_refused(
+        capsys, tmp_path, monkeypatch) -> None:
+    for value in ("false", "no", "off", ""):       # each would have read as "on"
+        monkeypatch.setenv("SENSORPLAN_AOT", value)
+        line = assert_bad_input(plan(capsys, tmp_path, spec7()), "SENSORPLAN_AOT")
+        assert "0, 1" in line
+    monkeypatch.setenv("SENSORPLAN_AOT", "0")
+    assert plan(capsys, tmp_path, spec7())[0] == 0
+
+
 def test_d17_a_document_that_is_not_an_object_names_the_file(capsys, tmp_path) -> None:
     for text in ("[]", "1", '"x"', "null"):
         assert_bad_input(plan_text(capsys, tmp_path, text), str(tmp_path / "problem.json"))

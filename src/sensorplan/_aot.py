@@ -50,7 +50,8 @@ BUILD = ("import sys; sys.path.insert(0, sys.argv[1]); from pathlib import Path;
 
 
 def enabled() -> bool:
-    """Whether ahead-of-time kernels may be used (``SENSORPLAN_AOT`` is not ``0``)."""
+    """Whether ahead-of-time kernels may be used (``SENSORPLAN_AOT`` is not ``0``; the
+    command line refuses any value but ``0`` and ``1``)."""
     return os.environ.get("SENSORPLAN_AOT", "1").strip() != "0"
 
 

@@ -17,7 +17,7 @@ from .errors import ConfigError
 
 #: Environment variables the command line checks before it runs a command: name -> the
 #: values it may have.
-ENVIRONMENT = {"SENSORPLAN_BACKEND": ("numba", "numpy")}
+ENVIRONMENT = {"SENSORPLAN_BACKEND": ("numba", "numpy"), "SENSORPLAN_AOT": ("0", "1")}
 
 
 def check_environment() -> None:
