@@ -229,3 +229,22 @@ def test_a_read_only_install_finds_them_in_its_private_temp_dir(built: Path,
     assert done.returncode == 0, done.stderr
     assert done.stderr == ""                          # found: nothing to build, nothing to say
     assert json.loads(done.stdout)["planner"] == "pg"
+
+
+def test_old_builds_are_pruned_and_used_ones_kept(tmp_path: Path) -> None:
+    import time
+
+    now = time.time()
+    suffix = _aot._suffix()
+    files = {name: tmp_path / name for name in (
+        f"sensorplan_aot_{'a' * 16}{suffix}", f"sensorplan_aot_{'b' * 16}{suffix}",
+        f"sensorplan_aot_{'c' * 16}{suffix}", "failed-dddddddddddddddd.txt", "other.txt")}
+    for f in files.values():
+        f.write_text("")
+    old = now - (_aot.UNUSED_DAYS + 1) * _aot.DAY
+    a, b, c, failed, other = files.values()
+    for f in (a, c, failed, other):
+        os.utime(f, (old, old))
+    gone = _aot.prune(tmp_path, keep=c, now=now)
+    assert sorted(gone) == sorted([a, failed])     # b is recent, c is the new build
+    assert b.exists() and c.exists() and other.exists()

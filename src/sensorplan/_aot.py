@@ -9,7 +9,8 @@ holds a call's argument types, numba's dispatcher otherwise.
 
 * **Where**: ``sensorplan-aot/`` in the first writable place of: ``NUMBA_CACHE_DIR``, the
   package's ``__pycache__`` directory, the user's cache directory (``~/.cache/numba``),
-  a private directory under the system's temporary directory.
+  a private directory under the system's temporary directory. A build deletes the modules
+  beside it that no process has loaded for 30 days (:func:`prune`).
 * **When**: ``sensorplan plan`` builds it the first time it is missing (about a minute, in a
   child process, said in one line on stderr); :func:`ensure_built` does the same for any
   caller. The module's name carries a hash of the kernels' source, the signature list, the
@@ -31,6 +32,7 @@ import subprocess
 import sys
 import sysconfig
 import tempfile
+import time
 from pathlib import Path
 from typing import Any
 
@@ -38,6 +40,9 @@ from ._kernel_cache import NOTICE, _private_dir, _writable, cache_places
 
 PACKAGE = Path(__file__).resolve().parent
 SUBDIR = "sensorplan-aot"
+DAY = 86400.0
+#: A built module not loaded for this many days is deleted by the next build beside it.
+UNUSED_DAYS = 30
 #: The child process that builds the module (numba's dispatchers first: the exported
 #: kernels call others, which numba must see as its own). It reads numba's disk cache but
 #: writes nothing to it: the kernels it compiles on the way are not all a later command
@@ -146,7 +151,33 @@ def load() -> Any | None:
     except (ImportError, OSError, AssertionError):
         return None                          # a damaged file: numba's kernels do the work
     sys.modules[name] = module
+    try:
+        if time.time() - path.stat().st_mtime > DAY:
+            os.utime(path)                   # in use: see prune()
+    except OSError:
+        pass
     return module
+
+
+def prune(dest: Path, keep: Path, now: float | None = None) -> list[Path]:
+    """Delete the built modules (and failure notes) in ``dest`` not used for
+    :data:`UNUSED_DAYS` days, except ``keep``: each edit of a kernel or upgrade builds a
+    new module, and the old ones would pile up (about 1 MB each).
+
+    Returns
+    -------
+    the files deleted
+    """
+    now = time.time() if now is None else now
+    gone = []
+    for f in [*dest.glob(f"{module_name('*')}{_suffix()}"), *dest.glob("failed-*.txt")]:
+        try:
+            if f != keep and now - f.stat().st_mtime > UNUSED_DAYS * DAY:
+                f.unlink()
+                gone.append(f)
+        except OSError:
+            pass
+    return gone
 
 
 def attach(kernels: list[Any]) -> None:
@@ -243,6 +274,7 @@ def build(dest: Path | None = None) -> Path:
         built = Path(work) / (module_name(tag_) + _suffix())
         target = dest / built.name
         os.replace(built, target)
+    prune(dest, target)
     return target
 
 
