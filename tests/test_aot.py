@@ -248,3 +248,16 @@ def test_old_builds_are_pruned_and_used_ones_kept(tmp_path: Path) -> None:
     gone = _aot.prune(tmp_path, keep=c, now=now)
     assert sorted(gone) == sorted([a, failed])     # b is recent, c is the new build
     assert b.exists() and c.exists() and other.exists()
+
+
+def test_a_temp_dir_others_can_write_in_is_not_searched(tmp_path: Path,
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    from sensorplan import _kernel_cache
+
+    monkeypatch.setattr(_aot.tempfile, "gettempdir", lambda: str(tmp_path))
+    private = Path(_kernel_cache.private_path(str(tmp_path)))
+    private.mkdir(mode=0o700)
+    assert _aot.places()[-1] == private / _aot.SUBDIR
+    private.chmod(0o777)                # anyone could have put a module there
+    assert private / _aot.SUBDIR not in _aot.places()
+    assert _kernel_cache._private_dir(str(tmp_path)) != str(private)   # a fresh one instead

@@ -36,7 +36,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ._kernel_cache import NOTICE, _private_dir, _writable, cache_places
+from ._kernel_cache import (NOTICE, _private_dir, _writable, cache_places, is_private,
+                            private_path)
 
 PACKAGE = Path(__file__).resolve().parent
 SUBDIR = "sensorplan-aot"
@@ -103,11 +104,13 @@ def module_name(tag_: str) -> str:
 
 
 def places() -> list[Path]:
-    """The directories a built module may live in, in order of preference."""
+    """The directories a built module may live in, in order of preference: numba's cache
+    places, then this user's private directory under the temporary one, if it is private
+    (anyone can make a directory of that name in ``/tmp``; a module found there is run)."""
     out = [Path(p) / SUBDIR for p in cache_places()]
-    tmp = os.path.join(tempfile.gettempdir(),
-                       f"sensorplan-numba-{os.getuid() if hasattr(os, 'getuid') else 0}")
-    out.append(Path(tmp) / SUBDIR)
+    tmp = private_path(tempfile.gettempdir())
+    if is_private(tmp):
+        out.append(Path(tmp) / SUBDIR)
     return out
 
 

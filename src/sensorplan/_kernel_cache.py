@@ -32,15 +32,29 @@ def _writable(path: str) -> bool:
         return False
 
 
+def private_path(base: str, prefix: str = "sensorplan-numba") -> str:
+    """``base/<prefix>-<uid>``: this user's directory under a shared one (``/tmp``)."""
+    return os.path.join(base, f"{prefix}-{os.getuid() if hasattr(os, 'getuid') else 0}")
+
+
+def is_private(path: str) -> bool:
+    """Whether ``path`` is a directory (not a link) of this user that nobody else can write
+    in: only then may compiled code be loaded from it."""
+    try:
+        st = os.lstat(path)
+    except OSError:
+        return False
+    mine = not hasattr(os, "getuid") or st.st_uid == os.getuid()
+    return stat.S_ISDIR(st.st_mode) and mine and not st.st_mode & 0o022
+
+
 def _private_dir(base: str, prefix: str = "sensorplan-numba") -> str | None:
-    """``base/<prefix>-<uid>``, owned by this user and not a link, or a fresh directory
+    """:func:`private_path` when it is (or can be made) private, else a fresh directory
     under ``base``; None if ``base`` is not writable."""
-    path = os.path.join(base, f"{prefix}-{os.getuid() if hasattr(os, 'getuid') else 0}")
+    path = private_path(base, prefix)
     try:
         os.makedirs(path, mode=0o700, exist_ok=True)
-        st = os.lstat(path)
-        mine = not hasattr(os, "getuid") or st.st_uid == os.getuid()
-        if stat.S_ISDIR(st.st_mode) and mine and _writable(path):
+        if is_private(path) and _writable(path):
             return path
         return tempfile.mkdtemp(prefix=f"{prefix}-", dir=base)
     except OSError:
