@@ -240,16 +240,17 @@ def build(dest: Path | None = None) -> Path:
     for mod, fname, _ in SIGNATURES:
         kernel = getattr(importlib.import_module(mod), fname)
         kernels[(mod, fname)] = kernel
-    # pycc compiles every exported function with default flags; the kernels' own numba
-    # options (numpy's error model for the radar's) must hold as under numba's jit.
+    # pycc compiles every exported function with one set of default flags; the kernels' own
+    # numba options (numpy's error model for the radar's, releasing the GIL for those run on
+    # threads) must hold as under numba's jit, each kernel its own.
     options = {k.py_func: k.targetoptions for k in kernels.values()}
     original = pycc_compiler.compile_extra
 
     def compile_extra(typing_ctx: Any, target_ctx: Any, func: Any, args: Any, return_type: Any,
                       flags: Any, locals: Any, library: Any = None, **kw: Any) -> Any:
         opts = options.get(func, {})
-        if "error_model" in opts:
-            flags.error_model = opts["error_model"]
+        flags.error_model = opts.get("error_model", "python")
+        flags.release_gil = bool(opts.get("nogil", False))
         if opts.get("fastmath"):
             raise ValueError(f"{func.__name__}: fastmath kernels are not built ahead of time")
         return original(typing_ctx, target_ctx, func, args, return_type, flags,
