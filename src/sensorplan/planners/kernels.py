@@ -133,7 +133,25 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
     w = np.zeros((L, e, 3))
     rng_ = np.zeros((e, 3))
     looked = np.zeros(L, dtype=np.bool_)
+    # One-epoch chains (an initialisation's whole reachable region times every target): most
+    # candidates are beyond reach of their target; the loop below would give them no pair,
+    # so they are passed over at the cost of the reach test alone.
+    quick = L == 1 and not shared[0]
+    t_last = (k0 - 1) * e + 1
     for c in range(C):
+        if quick:
+            j = tgt[c, 0]
+            if far[j]:
+                continue
+            out = True
+            for s in range(e):
+                x0 = xbar[j, t_last + s, 0] - pos[c, 0, 0]
+                y0 = xbar[j, t_last + s, 1] - pos[c, 0, 1]
+                if x0 * x0 + y0 * y0 <= reach2[j, s]:
+                    out = False
+                    break
+            if out:
+                continue
         h = prev
         h_in = prev
         hit = -1
