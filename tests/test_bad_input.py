@@ -481,6 +481,16 @@ def test_a_switch_of_the_ahead_of_time_kernels_that_is_not_0_or_1_is_refused(
     assert plan(capsys, tmp_path, spec7())[0] == 0
 
 
+def test_a_thread_count_that_is_not_a_whole_number_of_at_least_one_is_refused(
+        capsys, tmp_path, monkeypatch) -> None:
+    for value in ("0", "-1", "two", "1.5", ""):
+        monkeypatch.setenv("SENSORPLAN_THREADS", value)
+        line = assert_bad_input(plan(capsys, tmp_path, spec7()), "SENSORPLAN_THREADS")
+        assert ">= 1" in line
+    monkeypatch.setenv("SENSORPLAN_THREADS", "3")
+    assert plan(capsys, tmp_path, spec7())[0] == 0
+
+
 def test_d17_a_document_that_is_not_an_object_names_the_file(capsys, tmp_path) -> None:
     for text in ("[]", "1", '"x"', "null"):
         assert_bad_input(plan_text(capsys, tmp_path, text), str(tmp_path / "problem.json"))

@@ -13,6 +13,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+from ._threads import ENV as THREADS_ENV
+from ._threads import parse_threads
 from .errors import ConfigError
 
 #: Environment variables the command line checks before it runs a command: name -> the
@@ -28,6 +30,9 @@ def check_environment() -> None:
         if value is not None and value not in allowed:
             raise ConfigError(name, f"unknown value {value!r} of this environment variable; "
                               f"choose from {', '.join(allowed)} (or unset it)")
+    value = os.environ.get(THREADS_ENV)
+    if value is not None:
+        parse_threads(value)
     # numba refuses a thread count below 1 when it is imported, wherever that happens
     # (other values it cannot read, it ignores).
     threads = os.environ.get("NUMBA_NUM_THREADS", "").strip()

@@ -36,6 +36,7 @@ from ..information import Context, _c, chain_looks, covariance_recursion, cv_for
 from ..problem import TIE_TOL, Plan
 from .gain_kernels import gains_nb, game_gains_nb, index_pairs_nb, jsfp_step_nb
 from .kernels import candidate_sets_nb, chain_pairs_nb, player_positions_nb
+from .._threads import n_threads, run_all
 
 
 @dataclass
@@ -67,6 +68,27 @@ class _Pairs:
     view: tuple | None = None  # an epoch game's (current action, kept actions, c_loc, ...)
 
 
+@dataclass
+class _PairsJob:
+    """A cache miss of :meth:`GameState._cached_pairs`: what the entry needs besides the
+    kernels' results (``args``, for :func:`_pair_kernels`)."""
+
+    i: int
+    k0: int
+    L: int
+    key: tuple
+    n_cand: int
+    k_end: int
+    args: tuple
+
+
+def _pair_kernels(*args: object) -> tuple:
+    """:func:`chain_pairs_nb` then :func:`candidate_sets_nb` on its pairs (one thread's job:
+    both release the GIL)."""
+    c_pair, j_pair, first, count, offset, data, rep = chain_pairs_nb(*args)
+    return (c_pair, j_pair, first, count, offset, data, rep) + candidate_sets_nb(c_pair, rep)
+
+
 class GameState:
     """A (possibly partial) joint plan with its cached per-player information.
 
@@ -93,6 +115,7 @@ class GameState:
         self._covs = _c(np.array(ctx.problem.covs))        # writable copies for the kernels
         self._Q = _c(np.array(ctx.Q))
         self._rows_buf: dict[int, FloatArray] = {}
+        self.threads = n_threads()          # for the independent kernels of an epoch game
 
     # ----------------------------------------------------------------- plan access
     def copy(self) -> GameState:
@@ -107,6 +130,7 @@ class GameState:
         other.version = 0
         other._covs, other._Q = self._covs, self._Q
         other._rows_buf = {}
+        other.threads = self.threads
         return other
 
     def xy(self, i: int, k: int, idx: IntArray | int) -> FloatArray:
@@ -271,15 +295,16 @@ class GameState:
         return self._cached_pairs(i, k0, cand_tgt.shape[1], cands,
                                   lambda: (self.xy_chains(i, k0, cand_pos), cand_tgt))
 
-    def _game_pairs(self, i: int, k: int, cand: IntArray, token: tuple) -> _Pairs:
-        """:meth:`_pairs` of player (i, k)'s actions: positions ``cand`` times every target."""
+    def _game_pairs(self, i: int, k: int, cand: IntArray, token: tuple) -> _Pairs | _PairsJob:
+        """:meth:`_pairs` of player (i, k)'s actions (positions ``cand`` times every target),
+        or on a cache miss the job that computes them (see :meth:`_pairs_done`)."""
         M = self.ctx.M
 
         def candidates() -> tuple[FloatArray, IntArray]:
             xy = self.xy(i, k, cand)
             return np.repeat(xy, M, axis=0)[:, None], np.tile(np.arange(M), len(cand))[:, None]
 
-        return self._cached_pairs(i, k, 1, token, candidates)
+        return self._pairs_job(i, k, 1, token, candidates)
 
     def xy_chains(self, i: int, k0: int, cand_pos: IntArray) -> FloatArray:
         """Ground positions ``(C, L, 2)`` of candidate chains ``cand_pos (C, L)`` from k0."""
@@ -289,6 +314,15 @@ class GameState:
         return out
 
     def _cached_pairs(self, i: int, k0: int, L: int, cands: tuple, candidates) -> _Pairs:
+        found = self._pairs_job(i, k0, L, cands, candidates)
+        if isinstance(found, _Pairs):
+            return found
+        return self._pairs_done(found, _pair_kernels(*found.args))
+
+    def _pairs_job(self, i: int, k0: int, L: int, cands: tuple,
+                   candidates) -> _Pairs | _PairsJob:
+        """The cached entry of sensor i's candidates ``cands`` from epoch k0 if it still holds,
+        else the kernels' job that computes it."""
         ctx = self.ctx
         # The chain continues through the following assigned epochs: their headings change.
         k_last = k0 + L - 1
@@ -316,11 +350,16 @@ class GameState:
             kk = k0 + l
             pos_xy[:, l] = self.xy(i, kk, self.pos[i, kk - 1])
             tgt[:, l] = self.tgt[i, kk - 1]
-        c_pair, j_pair, first, count, offset, data, rep = chain_pairs_nb(
-            pos_xy, tgt, k0, ctx.e, float(prev), bool(prev_ok), float(ctx.problem.headings[i]),
-            float(ctx.max_turn[i]), ctx.aim, ctx.xbar_xy, ctx.Cbar, ctx.probabilistic,
-            ctx.radar[i], ctx.T - (k0 - 1) * ctx.e, ctx.buildings)
-        owners, dups, contrib, free = candidate_sets_nb(c_pair, rep)
+        args = (pos_xy, tgt, k0, ctx.e, float(prev), bool(prev_ok), float(ctx.problem.headings[i]),
+                float(ctx.max_turn[i]), ctx.aim, ctx.xbar_xy, ctx.Cbar, ctx.probabilistic,
+                ctx.radar[i], ctx.T - (k0 - 1) * ctx.e, ctx.buildings)
+        return _PairsJob(i, k0, L, key, C, k_end, args)
+
+    def _pairs_done(self, job: _PairsJob, out: tuple) -> _Pairs:
+        """The cache entry of ``job`` from its kernels' results ``out``."""
+        ctx = self.ctx
+        i, k0, L = job.i, job.k0, job.L
+        c_pair, j_pair, first, count, offset, data, rep, owners, dups, contrib, free = out
         if L == 1:
             # Rows of the players of epoch k0 live in one buffer, passed whole to the game.
             buf = self._rows_buf.get(k0)
@@ -330,8 +369,9 @@ class GameState:
             rows[:] = np.nan
         else:
             rows = np.full((ctx.M, ctx.T, 3), np.nan)
-        entry = _Pairs(key, C, k0 - 1, k_end, c_pair, j_pair, first, count, offset, data,
-                       np.zeros(len(c_pair)), rows, contrib, free, owners, dups, rep[dups])
+        entry = _Pairs(job.key, job.n_cand, k0 - 1, job.k_end, c_pair, j_pair, first, count,
+                       offset, data, np.zeros(len(c_pair)), rows, contrib, free, owners, dups,
+                       rep[dups])
         self._cache[(i, k0, L)] = entry
         return entry
 
@@ -437,12 +477,7 @@ class EpochGame:
         self._init_sets = []
         entries, c_loc, aliases = [], [], []
         M = state.ctx.M
-        for i in range(N):
-            if check is not None and i > 0:
-                check()                          # a time budget's safe point
-            token = state.action_token(i, k)
-            cand = state.player_positions(i, k)
-            entry = state._game_pairs(i, k, cand, token)
+        for i, token, cand, entry in self._entries(check):
             if token[3] < 0 and k > 1:
                 self._init_sets.append(i)
             cur = -1
@@ -510,6 +545,30 @@ class EpochGame:
         self._tot_pred = np.empty((ctx.M, S, 4, 4))
         self._tot_part = np.empty((ctx.M, S))
         self._tot_ld = np.empty((ctx.M, 2))
+
+    def _entries(self, check: Callable[[], None] | None
+                 ) -> list[tuple[int, tuple, IntArray, _Pairs]]:
+        """Every player's ``(i, action token, positions, pairs)``; the pairs not cached are
+        computed on the state's threads, a batch at a time (every player at once, or with a
+        time budget as many as there are threads, ``check`` between batches)."""
+        state, k, N = self.state, self.k, self.state.ctx.N
+        step = N if check is None else max(1, state.threads)
+        out = []
+        for a in range(0, N, step):
+            if check is not None and a > 0:
+                check()                          # a time budget's safe point
+            batch = []
+            for i in range(a, min(a + step, N)):
+                token = state.action_token(i, k)
+                cand = state.player_positions(i, k)
+                batch.append((i, token, cand, state._game_pairs(i, k, cand, token)))
+            jobs = [x[3] for x in batch if isinstance(x[3], _PairsJob)]
+            done = iter(run_all(_pair_kernels, [job.args for job in jobs], state.threads))
+            for i, token, cand, found in batch:
+                if isinstance(found, _PairsJob):
+                    found = state._pairs_done(found, next(done))
+                out.append((i, token, cand, found))
+        return out
 
     def utilities(self) -> FloatArray:
         """Every player's utility of each kept action (marginal contributions), concatenated."""

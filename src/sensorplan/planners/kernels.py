@@ -23,7 +23,7 @@ from .._kernels import _heading_rule
 from ..radar import P_VIS_MIN, look_at_azimuth, look_range, reach
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: float,
                    prev_ok: bool, theta0: float, max_turn: float, aim: np.ndarray,
                    xbar: np.ndarray, Cbar: np.ndarray, probabilistic: bool, row: np.ndarray,
@@ -351,7 +351,7 @@ def player_positions_nb(positions: np.ndarray, cand: np.ndarray, parents: np.nda
     return keep[:n][order]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def candidate_sets_nb(c_pair: np.ndarray, rep: np.ndarray) -> tuple:
     """From :func:`chain_pairs_nb`'s pairs (sorted by candidate) and ``rep``:
 

@@ -33,10 +33,11 @@ from .storage import (check_parts, clean_temporaries, consolidate, git_describe,
                       write_part)
 from .tables import TaskResult, episode_tables
 
-#: Environment variables that limit BLAS/OpenMP threads in worker processes: with one
-#: process per core, threaded linear algebra on 4x4 matrices only adds contention.
+#: Environment variables that limit threads in worker processes (BLAS/OpenMP, and the
+#: planning engine's): with one process per core, more threads only add contention.
 THREAD_LIMITS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
-                 "NUMEXPR_NUM_THREADS", "VECLIB_MAXIMUM_THREADS", "NUMBA_NUM_THREADS")
+                 "NUMEXPR_NUM_THREADS", "VECLIB_MAXIMUM_THREADS", "NUMBA_NUM_THREADS",
+                 "SENSORPLAN_THREADS")
 
 
 def run_task(study: Study, run: int, method: int) -> TaskResult:

@@ -1,0 +1,86 @@
+"""The engine's threads: any number of them gives the same plans, bit for bit."""
+
+from __future__ import annotations
+
+import os
+import sys
+import threading
+
+import numpy as np
+import pytest
+
+from sensorplan._threads import n_threads, parse_threads, run_all
+from sensorplan.errors import ConfigError
+from sensorplan.planners import make_planner
+
+from planner_reference import scale_problem
+
+
+def test_run_all_keeps_the_order_of_the_jobs_on_any_number_of_threads() -> None:
+    jobs = [(i, 3) for i in range(25)]
+    want = [i * 3 for i in range(25)]
+    for threads in (1, 2, 3, 8):
+        assert run_all(lambda a, b: a * b, jobs, threads) == want
+    assert run_all(lambda a: a, [], 4) == []
+
+
+def test_run_all_raises_the_error_of_a_job_and_stays_usable() -> None:
+    def job(x: int) -> int:
+        if x == 5:
+            raise ValueError("job 5")
+        return x
+
+    with pytest.raises(ValueError, match="job 5"):
+        run_all(job, [(i,) for i in range(12)], 3)
+    assert run_all(job, [(i,) for i in range(5)], 3) == list(range(5))
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="fork only")
+def test_a_forked_child_starts_its_own_helpers() -> None:
+    run_all(lambda a: a, [(1,), (2,)], 2)              # the parent has a helper now
+    pid = os.fork()
+    if pid == 0:                                       # pragma: no cover (the child)
+        ok = run_all(lambda a: a + 1, [(i,) for i in range(4)], 2) == [1, 2, 3, 4]
+        os._exit(0 if ok else 1)
+    _, status = os.waitpid(pid, 0)
+    assert os.waitstatus_to_exitcode(status) == 0
+    helpers = [t for t in threading.enumerate() if t.name.startswith("sensorplan-")]
+    assert all(t.daemon for t in helpers)              # none keeps a process alive
+
+
+def test_the_thread_count_comes_from_the_environment(monkeypatch) -> None:
+    monkeypatch.setenv("SENSORPLAN_THREADS", " 3 ")
+    assert n_threads() == 3
+    monkeypatch.delenv("SENSORPLAN_THREADS")
+    assert 1 <= n_threads() <= 4
+    for bad in ("0", "-2", "x", "2.0", ""):
+        with pytest.raises(ConfigError, match="SENSORPLAN_THREADS"):
+            parse_threads(bad)
+
+
+def _plan_bits(planner: str, threads: str, monkeypatch, **settings) -> tuple:
+    monkeypatch.setenv("SENSORPLAN_THREADS", threads)
+    # Large initialisation sets (every position of R_K times every target), several
+    # players: the batches really are split between threads.
+    problem = scale_problem(n_sensors=6, n_targets=12, horizon=4, width=1200.0, seed=3)
+    r = make_planner(planner, **settings).plan(problem, np.random.default_rng(11))
+    return (r.plan.positions.tobytes(), r.plan.targets.tobytes(), float(r.potential).hex(),
+            r.converged, r.sweeps)
+
+
+@pytest.mark.parametrize("planner", ["pg", "pg-refine"])
+def test_plans_are_the_same_on_one_thread_and_on_three(planner, monkeypatch) -> None:
+    one = _plan_bits(planner, "1", monkeypatch)
+    assert _plan_bits(planner, "3", monkeypatch) == one
+    assert _plan_bits(planner, "2", monkeypatch) == one
+
+
+def test_a_time_budget_is_checked_between_batches(monkeypatch) -> None:
+    # With a budget the players' pairs are computed a thread-count at a time, with a check
+    # between: a budget far larger than needed still gives the unbudgeted plan.
+    free = _plan_bits("pg", "2", monkeypatch)
+    assert _plan_bits("pg", "2", monkeypatch, time_budget=1e6)[:4] == free[:4]
+
+
+if __name__ == "__main__":                             # pragma: no cover
+    sys.exit(pytest.main([__file__, "-q"]))
