@@ -34,7 +34,8 @@ import numpy as np
 from .._types import FloatArray, IntArray
 from ..information import Context, _c, chain_looks, covariance_recursion, cv_form, sum_by_target
 from ..problem import TIE_TOL, Plan
-from .gain_kernels import gains_nb, game_gains_nb, index_pairs_nb, jsfp_step_nb
+from .gain_kernels import (game_players_nb, game_sum_nb, game_totals_nb, gains_nb,
+                           index_pairs_nb, jsfp_step_nb)
 from .kernels import candidate_sets_nb, chain_pairs_nb, player_positions_nb
 from .._threads import n_threads, run_all
 
@@ -71,22 +72,26 @@ class _Pairs:
 @dataclass
 class _PairsJob:
     """A cache miss of :meth:`GameState._cached_pairs`: what the entry needs besides the
-    kernels' results (``args``, for :func:`_pair_kernels`)."""
+    kernels' results, and ``make()``, the kernels' arguments (made when the job runs, so that
+    a batch holds only its running jobs' inputs).
+    """
 
     i: int
     k0: int
     L: int
     key: tuple
-    n_cand: int
     k_end: int
-    args: tuple
+    make: Callable[[], tuple]
 
 
-def _pair_kernels(*args: object) -> tuple:
+def _pair_kernels(job: _PairsJob) -> tuple:
     """:func:`chain_pairs_nb` then :func:`candidate_sets_nb` on its pairs (one thread's job:
-    both release the GIL)."""
-    c_pair, j_pair, first, count, offset, data, rep = chain_pairs_nb(*args)
-    return (c_pair, j_pair, first, count, offset, data, rep) + candidate_sets_nb(c_pair, rep)
+    both release the GIL); what the cache entry keeps of them, with the number of candidates.
+    """
+    c_pair, j_pair, first, count, offset, data, rep = chain_pairs_nb(*job.make())
+    owners, dups, contrib, free = candidate_sets_nb(c_pair, rep)
+    return (c_pair, j_pair, first, count, offset, data, owners, dups, contrib, free, rep[dups],
+            len(rep))
 
 
 class GameState:
@@ -295,9 +300,17 @@ class GameState:
         return self._cached_pairs(i, k0, cand_tgt.shape[1], cands,
                                   lambda: (self.xy_chains(i, k0, cand_pos), cand_tgt))
 
-    def _game_pairs(self, i: int, k: int, cand: IntArray, token: tuple) -> _Pairs | _PairsJob:
-        """:meth:`_pairs` of player (i, k)'s actions (positions ``cand`` times every target),
-        or on a cache miss the job that computes them (see :meth:`_pairs_done`)."""
+    def _game_pairs(self, i: int, k: int, cand: IntArray, token: tuple) -> _Pairs:
+        """:meth:`_pairs` of player (i, k)'s actions: positions ``cand`` times every target."""
+        found = self._game_pairs_job(i, k, cand, token)
+        if isinstance(found, _Pairs):
+            return found
+        return self._pairs_done(found, _pair_kernels(found))
+
+    def _game_pairs_job(self, i: int, k: int, cand: IntArray,
+                        token: tuple) -> _Pairs | _PairsJob:
+        """:meth:`_game_pairs`, or on a cache miss the job that computes them (see
+        :meth:`_pairs_done`)."""
         M = self.ctx.M
 
         def candidates() -> tuple[FloatArray, IntArray]:
@@ -317,7 +330,7 @@ class GameState:
         found = self._pairs_job(i, k0, L, cands, candidates)
         if isinstance(found, _Pairs):
             return found
-        return self._pairs_done(found, _pair_kernels(*found.args))
+        return self._pairs_done(found, _pair_kernels(found))
 
     def _pairs_job(self, i: int, k0: int, L: int, cands: tuple,
                    candidates) -> _Pairs | _PairsJob:
@@ -339,27 +352,31 @@ class GameState:
         entry = self._cache.get((i, k0, L))
         if entry is not None and entry.key == key:
             return entry
-        xy, tgt_var = candidates()
-        C = len(tgt_var)
-        Lf = k_end - k0 + 1
-        pos_xy = np.empty((C, Lf, 2))
-        tgt = np.empty((C, Lf), dtype=np.int64)
-        pos_xy[:, :L] = xy
-        tgt[:, :L] = tgt_var
-        for l in range(L, Lf):
-            kk = k0 + l
-            pos_xy[:, l] = self.xy(i, kk, self.pos[i, kk - 1])
-            tgt[:, l] = self.tgt[i, kk - 1]
-        args = (pos_xy, tgt, k0, ctx.e, float(prev), bool(prev_ok), float(ctx.problem.headings[i]),
-                float(ctx.max_turn[i]), ctx.aim, ctx.xbar_xy, ctx.Cbar, ctx.probabilistic,
-                ctx.radar[i], ctx.T - (k0 - 1) * ctx.e, ctx.buildings)
-        return _PairsJob(i, k0, L, key, C, k_end, args)
+
+        def make() -> tuple:
+            xy, tgt_var = candidates()
+            C = len(tgt_var)
+            Lf = k_end - k0 + 1
+            pos_xy = np.empty((C, Lf, 2))
+            tgt = np.empty((C, Lf), dtype=np.int64)
+            pos_xy[:, :L] = xy
+            tgt[:, :L] = tgt_var
+            for l in range(L, Lf):
+                kk = k0 + l
+                pos_xy[:, l] = self.xy(i, kk, self.pos[i, kk - 1])
+                tgt[:, l] = self.tgt[i, kk - 1]
+            return (pos_xy, tgt, k0, ctx.e, float(prev), bool(prev_ok),
+                    float(ctx.problem.headings[i]), float(ctx.max_turn[i]), ctx.aim, ctx.xbar_xy,
+                    ctx.Cbar, ctx.probabilistic, ctx.radar[i], ctx.T - (k0 - 1) * ctx.e,
+                    ctx.buildings)
+
+        return _PairsJob(i, k0, L, key, k_end, make)
 
     def _pairs_done(self, job: _PairsJob, out: tuple) -> _Pairs:
         """The cache entry of ``job`` from its kernels' results ``out``."""
         ctx = self.ctx
         i, k0, L = job.i, job.k0, job.L
-        c_pair, j_pair, first, count, offset, data, rep, owners, dups, contrib, free = out
+        c_pair, j_pair, first, count, offset, data, owners, dups, contrib, free, dup_of, C = out
         if L == 1:
             # Rows of the players of epoch k0 live in one buffer, passed whole to the game.
             buf = self._rows_buf.get(k0)
@@ -369,9 +386,8 @@ class GameState:
             rows[:] = np.nan
         else:
             rows = np.full((ctx.M, ctx.T, 3), np.nan)
-        entry = _Pairs(job.key, job.n_cand, k0 - 1, job.k_end, c_pair, j_pair, first, count,
-                       offset, data, np.zeros(len(c_pair)), rows, contrib, free, owners, dups,
-                       rep[dups])
+        entry = _Pairs(job.key, C, k0 - 1, job.k_end, c_pair, j_pair, first, count, offset,
+                       data, np.zeros(len(c_pair)), rows, contrib, free, owners, dups, dup_of)
         self._cache[(i, k0, L)] = entry
         return entry
 
@@ -436,6 +452,9 @@ class GameState:
 
 
 _NONE = np.zeros(0, dtype=np.int64)
+#: An epoch game's iteration runs its players' part on threads when about this many pair
+#: terms are recomputed (below it, waking a thread costs more than it saves).
+PARALLEL_PAIRS = 4000
 
 
 def choose(values: FloatArray, current: int = -1, scale: float | None = None) -> int:
@@ -545,6 +564,15 @@ class EpochGame:
         self._tot_pred = np.empty((ctx.M, S, 4, 4))
         self._tot_part = np.empty((ctx.M, S))
         self._tot_ld = np.empty((ctx.M, 2))
+        # Blocks of players for the threads, contiguous and of about equal numbers of pairs
+        # (a block writes only its players' entries, and lists its candidates to sum again
+        # in its own part of _dlist); one block when the iteration has little work.
+        total = int(self._pair_off[-1])
+        nb = max(1, min(state.threads, N))
+        cut = np.searchsorted(self._pair_off, total * np.arange(1, nb) / nb)
+        bounds = sorted({0, N} | {int(c) for c in np.clip(cut, 1, N - 1)})
+        self._blocks = list(pairwise(bounds))
+        self._busy = PARALLEL_PAIRS * ctx.M / max(total, 1)     # changed targets worth it
 
     def _entries(self, check: Callable[[], None] | None
                  ) -> list[tuple[int, tuple, IntArray, _Pairs]]:
@@ -561,9 +589,9 @@ class EpochGame:
             for i in range(a, min(a + step, N)):
                 token = state.action_token(i, k)
                 cand = state.player_positions(i, k)
-                batch.append((i, token, cand, state._game_pairs(i, k, cand, token)))
+                batch.append((i, token, cand, state._game_pairs_job(i, k, cand, token)))
             jobs = [x[3] for x in batch if isinstance(x[3], _PairsJob)]
-            done = iter(run_all(_pair_kernels, [job.args for job in jobs], state.threads))
+            done = iter(run_all(_pair_kernels, [(job,) for job in jobs], state.threads))
             for i, token, cand, found in batch:
                 if isinstance(found, _PairsJob):
                     found = state._pairs_done(found, next(done))
@@ -573,14 +601,23 @@ class EpochGame:
     def utilities(self) -> FloatArray:
         """Every player's utility of each kept action (marginal contributions), concatenated."""
         st = self.state
-        cv, dt = cv_form(st.ctx.F)
-        return game_gains_nb(st.W, st.tgt, st._covs, st.ctx.F, st._Q, cv, dt, st.cumulative,
-                             self.k, self._hi, self._c_loc, self._j, self._first, self._count,
-                             self._offset, self._data, self._delta, self._rows, self._by_t,
-                             self._t_off, self._cp_off, self.cand_off, self._gcache,
-                             self._dirty, self._dlist, self._seen, self._shared, self._pre,
-                             self._tot_rows, self._tot_ver, self._tot_pred, self._tot_part,
-                             self._tot_ld, self._alias_dst, self._alias_src)
+        ctx = st.ctx
+        cv, dt = cv_form(ctx.F)
+        Wtot, first_call, changed = game_totals_nb(
+            st.W, st.tgt, st._covs, ctx.F, st._Q, cv, dt, st.cumulative, self.k, self._t_off,
+            self._shared, self._pre, self._tot_rows, self._tot_ver, self._tot_pred,
+            self._tot_part, self._tot_ld)
+        common = (st.W, st.tgt, ctx.F, st._Q, cv, dt, st.cumulative, self.k, self._hi,
+                  self._c_loc, self._j, self._first, self._count, self._offset, self._data,
+                  self._delta, self._rows, self._by_t, self._t_off, self.cand_off, self._dirty,
+                  self._dlist, self._seen, Wtot, self._pre, self._tot_ver, self._tot_pred,
+                  self._tot_part, self._tot_ld)
+        blocks = self._blocks if first_call or changed >= self._busy else [(0, ctx.N)]
+        counts = run_all(game_players_nb, [(a, b) + common for a, b in blocks], st.threads)
+        starts = self.cand_off[[a for a, _ in blocks]]
+        return game_sum_nb(first_call, starts, np.array(counts, dtype=np.int64), self._delta,
+                           self._cp_off, self._gcache, self._dirty, self._dlist,
+                           self._alias_dst, self._alias_src)
 
     def split(self, values: FloatArray) -> list[FloatArray]:
         """Per-player views of concatenated values."""

@@ -1,10 +1,12 @@
 """Compiled kernels of the planning engine: utilities from sparse pairs.
 
 :func:`gains_nb` (one sensor's candidates, the :meth:`GameState.chain_gains` path) and
-:func:`game_gains_nb` (every player of an epoch game, once per JSFP iteration) turn the pairs
-of :func:`sensorplan.planners.kernels.chain_pairs_nb` into utilities: they sum the other
-players' looks, recompute each target's baseline recursion where those looks changed, and
-then the pairs of those targets only. :func:`jsfp_step_nb` does an iteration's bookkeeping.
+:func:`game_totals_nb`, :func:`game_players_nb`, :func:`game_sum_nb` (every player of an
+epoch game, once per JSFP iteration; the players' part in blocks that may run on threads)
+turn the pairs of :func:`sensorplan.planners.kernels.chain_pairs_nb` into utilities: they sum
+the other players' looks, recompute each target's baseline recursion where those looks
+changed, and then the pairs of those targets only. :func:`jsfp_step_nb` does an iteration's
+bookkeeping.
 
 Both repeat, operation for operation, what the readable path does (a dense covariance
 recursion per pair, ``tests/engine_reference.py``): the same predict and update steps in the
@@ -262,50 +264,35 @@ def _base(P0: np.ndarray, Wrow: np.ndarray, s0: int, F: np.ndarray, Q: np.ndarra
 
 
 @njit(cache=True, fastmath=False)
-def game_gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray,
-                  Q: np.ndarray, cv: bool, dt: float, cum: bool, k: int, hi: np.ndarray,
-                  c_loc: np.ndarray, j_pair: np.ndarray, first: np.ndarray,
-                  count: np.ndarray, offset: np.ndarray, data: np.ndarray, delta: np.ndarray,
-                  rows: np.ndarray, by_t: np.ndarray, t_off: np.ndarray, cp_off: np.ndarray,
-                  cand_off: np.ndarray, gcache: np.ndarray, dirty: np.ndarray,
-                  dlist: np.ndarray, seen: np.ndarray, shared: np.ndarray, pre: np.ndarray,
-                  tot_rows: np.ndarray, tot_ver: np.ndarray, tot_pred: np.ndarray,
-                  tot_part: np.ndarray, tot_ld: np.ndarray, alias_dst: np.ndarray,
-                  alias_src: np.ndarray) -> np.ndarray:
-    """Utilities of the players (p, k), p = 0..N-1, of an epoch game (one call per iteration).
+def game_totals_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray,
+                   Q: np.ndarray, cv: bool, dt: float, cum: bool, k: int, t_off: np.ndarray,
+                   shared: np.ndarray, pre: np.ndarray, tot_rows: np.ndarray,
+                   tot_ver: np.ndarray, tot_pred: np.ndarray, tot_part: np.ndarray,
+                   tot_ld: np.ndarray) -> tuple:
+    """The first part of an epoch game's utilities (see :func:`game_players_nb`): the total
+    information at every target and step, and the "no chain" recursions it gives.
 
-    The same values as :func:`gains_nb` for each player (sensor p's epochs ``k-1 .. hi[p]-1``
-    removed), computed with less work, all of it exact:
-
-    * the other players' information at target j equals the total over every player when
-      player p's own chain adds nothing at j (exact zeros leave a sum unchanged), so those
-      targets share one "no chain" recursion per change of the total (``tot_*``, whose
-      changes ``tot_ver`` counts); only the few targets p's own chain looks at get a
-      private one;
-    * the covariance at step ``s0 = (k-1) e`` depends on epochs before k only, which the game
-      never changes: it is computed once (``pre``, ``shared[0]``);
-    * a candidate's utility is the sum of its pairs' terms in pair order; it is summed again
-      only when one of them changed (``gcache``; ``dirty``/``dlist`` list those); a current
-      action that duplicates an earlier candidate takes its sum (``alias_*``).
-
-    ``rows[p]`` holds the information each of p's cached terms was computed with (NaN:
-    never), ``seen[p, j]`` the version of the total it equals (-1: unknown), ``tot_rows``
-    the total the shared recursions were computed with.
+    The total is summed in the order of ``information.sum_by_target`` (sensors, then
+    epochs): bit for bit its sums. The covariance at step ``s0 = (k-1) e`` depends on epochs
+    before k only, which the game never changes: it is computed on the first call (``pre``,
+    ``shared[0]``). Where the total at a target changed (``tot_rows`` holds the one last
+    seen, ``tot_ver`` counts the changes), its shared recursion from ``s0`` is recomputed if
+    any player has a pair there.
 
     Returns
     -------
-    (cand_off[-1],) utilities of every player's candidates, concatenated (a new array).
+    Wtot : (M, T, 3)    the total information
+    first_call : bool
+    changed : int       targets whose total changed
     """
     N, K, e = Wp.shape[0], Wp.shape[1], Wp.shape[2]
     M = covs.shape[0]
     T = K * e
     s0 = (k - 1) * e
-    S = T - s0
     shared_q = Q.shape[0] == 1
     P = np.empty((4, 4))
     FP = np.empty((4, 4))
     Pc = np.empty((4, 2))
-    # The total information at every target and step, in the order of sum_by_target.
     Wtot = np.zeros((M, T, 3))
     for i2 in range(N):
         for k2 in range(K):
@@ -331,21 +318,75 @@ def game_gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarr
                 for c in range(4):
                     pre[j, r, c] = P[r, c]
         shared[0] = True
-    tot_ok = np.ones(M, dtype=np.bool_)              # shared recursion valid for the total
+    has_pair = np.zeros(M, dtype=np.bool_)
+    for p in range(t_off.shape[0]):
+        for j in range(M):
+            if t_off[p, j + 1] > t_off[p, j]:
+                has_pair[j] = True
+    changed = 0
     for j in range(M):
-        if not _same_row(tot_rows, j, Wtot, j, T):
-            tot_ver[j] += 1
-            tot_ok[j] = False
-            for t in range(T):
-                for x in range(3):
-                    tot_rows[j, t, x] = Wtot[j, t, x]
+        if _same_row(tot_rows, j, Wtot, j, T):
+            continue
+        changed += 1
+        tot_ver[j] += 1
+        for t in range(T):
+            for x in range(3):
+                tot_rows[j, t, x] = Wtot[j, t, x]
+        if has_pair[j]:
+            tot_ld[j, 0], tot_ld[j, 1] = _base(pre[j], Wtot[j], s0, F, Q, 0 if shared_q else j,
+                                               cv, dt, cum, tot_pred[j], tot_part[j], P, FP,
+                                               Pc)
+    return Wtot, first_call, changed
+
+
+
+@njit(cache=True, fastmath=False, nogil=True)
+def game_players_nb(p_lo: int, p_hi: int, Wp: np.ndarray, tgt: np.ndarray, F: np.ndarray,
+                    Q: np.ndarray, cv: bool, dt: float, cum: bool, k: int, hi: np.ndarray,
+                    c_loc: np.ndarray, j_pair: np.ndarray, first: np.ndarray,
+                    count: np.ndarray, offset: np.ndarray, data: np.ndarray,
+                    delta: np.ndarray, rows: np.ndarray, by_t: np.ndarray, t_off: np.ndarray,
+                    cand_off: np.ndarray, dirty: np.ndarray, dlist: np.ndarray,
+                    seen: np.ndarray, Wtot: np.ndarray, pre: np.ndarray, tot_ver: np.ndarray,
+                    tot_pred: np.ndarray, tot_part: np.ndarray, tot_ld: np.ndarray) -> int:
+    """The pair terms of players ``p_lo .. p_hi - 1`` of an epoch game (players (p, k)).
+
+    An epoch game's utilities are :func:`game_totals_nb`, this for every player (in blocks,
+    on threads: a block writes only its own players' entries) and :func:`game_sum_nb`. They
+    are the values of :func:`gains_nb` for each player (sensor p's epochs ``k-1 .. hi[p]-1``
+    removed), computed with less work, all of it exact:
+
+    * the other players' information at target j equals the total when player p's own chain
+      adds nothing at j (exact zeros leave a sum unchanged), so those targets use the shared
+      "no chain" recursion of the total; only the few targets p's own chain looks at get a
+      private one;
+    * a pair's term is recomputed only when the information it was computed with changed:
+      ``rows[p]`` holds it per target (NaN: never), ``seen[p, j]`` the version of the total
+      it equals (-1: unknown).
+
+    Returns
+    -------
+    The number of candidates whose utility must be summed again, listed in
+    ``dlist[cand_off[p_lo]:]`` (and flagged in ``dirty``).
+    """
+    K, e = Wp.shape[1], Wp.shape[2]
+    M = Wtot.shape[0]
+    T = K * e
+    s0 = (k - 1) * e
+    S = T - s0
+    shared_q = Q.shape[0] == 1
+    P = np.empty((4, 4))
+    FP = np.empty((4, 4))
+    Pc = np.empty((4, 2))
     own = np.zeros(M, dtype=np.bool_)
     Wown = np.zeros((M, T, 3))
     own_pred = np.empty((M, S, 4, 4))
     own_part = np.empty((M, S))
     own_ld = np.empty((M, 2))
+    N = Wp.shape[0]
+    d0 = cand_off[p_lo]
     n_dirty = 0
-    for p in range(N):
+    for p in range(p_lo, p_hi):
         lo, h = k - 1, hi[p]
         for k2 in range(lo, h):
             j = tgt[p, k2]
@@ -390,10 +431,6 @@ def game_gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarr
                     continue
                 seen[p, j] = tot_ver[j]
                 Wf = Wtot
-                if not tot_ok[j]:
-                    tot_ld[j, 0], tot_ld[j, 1] = _base(pre[j], Wtot[j], s0, F, Q, qb, cv, dt,
-                                                       cum, tot_pred[j], tot_part[j], P, FP, Pc)
-                    tot_ok[j] = True
                 base_pred, base_part = tot_pred, tot_part
                 ld_end_b, ld_sum_b = tot_ld[j, 0], tot_ld[j, 1]
             _deltas(by_t, t_off[p, j], t_off[p, j + 1], base_pred, base_part, ld_end_b,
@@ -403,7 +440,7 @@ def game_gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarr
                 c = cand_off[p] + c_loc[by_t[x]]
                 if not dirty[c]:
                     dirty[c] = True
-                    dlist[n_dirty] = c
+                    dlist[d0 + n_dirty] = c
                     n_dirty += 1
             for t in range(T):
                 for x in range(3):
@@ -412,17 +449,40 @@ def game_gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarr
             j = tgt[p, k2]
             if j >= 0:
                 own[j] = False
-    if first_call:                                   # every utility is summed once
-        n_dirty = gcache.shape[0]
-        for c in range(n_dirty):
-            dlist[c] = c
-    for y in range(n_dirty):
-        c = dlist[y]
-        g = 0.0
-        for q in range(cp_off[c], cp_off[c + 1]):
-            g += delta[q]
-        gcache[c] = g
-        dirty[c] = False
+    return n_dirty
+
+
+
+@njit(cache=True)
+def game_sum_nb(first_call: bool, starts: np.ndarray, counts: np.ndarray, delta: np.ndarray,
+                cp_off: np.ndarray, gcache: np.ndarray, dirty: np.ndarray, dlist: np.ndarray,
+                alias_dst: np.ndarray, alias_src: np.ndarray) -> np.ndarray:
+    """The last part of an epoch game's utilities: each candidate's sum of its pairs' terms
+    in pair order, summed again only where one of them changed (``gcache`` keeps them; the
+    blocks of :func:`game_players_nb` listed ``counts[b]`` candidates from ``dlist[starts[b]]``
+    on; on the first call every candidate); a current action that duplicates an earlier
+    candidate takes its sum (``alias_*``).
+
+    Returns
+    -------
+    (cand_off[-1],) utilities of every player's candidates, concatenated (a new array).
+    """
+    if first_call:
+        for c in range(gcache.shape[0]):
+            g = 0.0
+            for q in range(cp_off[c], cp_off[c + 1]):
+                g += delta[q]
+            gcache[c] = g
+            dirty[c] = False
+    else:
+        for b in range(starts.shape[0]):
+            for y in range(starts[b], starts[b] + counts[b]):
+                c = dlist[y]
+                g = 0.0
+                for q in range(cp_off[c], cp_off[c + 1]):
+                    g += delta[q]
+                gcache[c] = g
+                dirty[c] = False
     for x in range(alias_dst.shape[0]):              # a duplicate current action
         gcache[alias_dst[x]] = gcache[alias_src[x]]
     return gcache.copy()
