@@ -49,7 +49,8 @@ def main() -> None:
     from sensorplan.sensors import SensorParams
 
     for name in ("_kernels", "_lattice", "radar.batch", "planners.kernels",
-                 "planners.gain_kernels", "planners.engine", "planners.potential_game",
+                 "planners.gain_kernels", "planners.engine", "planners.epoch_game",
+                 "planners.potential_game",
                  "planners.refine", "planners.greedy", "planners.brute_force",
                  "planners.random_plan"):
         importlib.import_module(f"sensorplan.{name}")

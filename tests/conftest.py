@@ -34,7 +34,7 @@ def warm_kernels() -> None:
     remember that they ran, so the planners' own calls to them are free afterwards.
     """
     from sensorplan._kernels import warm_up
-    from sensorplan.planners.engine import warm_engine
+    from sensorplan.planners.epoch_game import warm_engine
 
     warm_up()           # covariance recursion, looks, the radar's batched kernels
     warm_engine()       # the planning engine's chain, gain and JSFP kernels

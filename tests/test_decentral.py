@@ -23,7 +23,7 @@ from sensorplan.decentral import (
 from sensorplan.errors import ConfigError
 from sensorplan.information import prepare
 from sensorplan.planners import make_planner, potential_game
-from sensorplan.planners.engine import warm_engine
+from sensorplan.planners.epoch_game import warm_engine
 from sensorplan.planners.engine import GameState, choose
 from sensorplan.problem import TIE_TOL, check_plan
 

@@ -166,7 +166,7 @@ def test_corner_start_one_sensor_one_target(horizon, corner):
 def test_engine_utilities_equal_the_plain_computation_bit_for_bit(seed):
     """The epoch-game kernel (shared baselines, cached terms, dirty lists) and the per-player
     kernel give exactly the utilities of the plain dense computation, also after switches."""
-    from sensorplan.planners.engine import EpochGame
+    from sensorplan.planners.epoch_game import EpochGame
 
     from engine_reference import dense_gains
 

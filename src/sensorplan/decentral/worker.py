@@ -215,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
     orphaned = False
     try:
         from .._kernels import warm_up
-        from ..planners.engine import warm_engine
+        from ..planners.epoch_game import warm_engine
 
         warm_up()                # load the compiled kernels before saying ready: a first
         warm_engine()           # compile would otherwise look like a silent, lost agent

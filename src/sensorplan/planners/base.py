@@ -85,7 +85,7 @@ def start_clock(engine: bool = False) -> float:
 
     warm_up()
     if engine:
-        from .engine import warm_engine
+        from .epoch_game import warm_engine
 
         warm_engine()
     return anytime.clock()

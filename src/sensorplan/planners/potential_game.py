@@ -20,7 +20,8 @@ from ..information import prepare
 from ..problem import PlanningProblem
 from .anytime import Anytime, BudgetExhausted, check_budget, complete
 from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
-from .engine import EpochGame, GameState
+from .engine import GameState
+from .epoch_game import EpochGame
 
 
 @dataclass

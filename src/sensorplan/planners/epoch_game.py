@@ -1,0 +1,228 @@
+"""An epoch game: the players (i, k), i = 0..N-1, of one epoch, batched for the compiled
+kernels (see :mod:`sensorplan.planners.engine` for what is reused and why the utilities are
+exact, and :mod:`sensorplan._threads` for the threads).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from itertools import pairwise
+
+import numpy as np
+
+from .._threads import run_all
+from .._types import FloatArray, IntArray
+from ..information import _c, cv_form
+from ..problem import TIE_TOL
+from .engine import GameState, Pairs, PairsJob, pair_kernels
+from .gain_kernels import (game_players_nb, game_sum_nb, game_totals_nb, index_pairs_nb,
+                           jsfp_step_nb)
+
+#: An epoch game's iteration runs its players' part on threads when about this many pair
+#: terms are recomputed (below it, waking a thread costs more than it saves).
+PARALLEL_PAIRS = 4000
+
+
+class EpochGame:
+    """The players (i, k), i = 0..N-1, of one epoch game, batched for the compiled kernels.
+
+    Each player's feasible actions are fixed for the whole game (only epoch k changes), and
+    so are its chain's looks. Actions whose looks never count have utility exactly 0 whatever
+    the others do; only the first of them in tie order (and the current action) can ever be
+    chosen, so the game is played on the rest: same decisions, far fewer candidates.
+
+    Attributes
+    ----------
+    actions : list of (pos, tgt)   each player's kept actions, in tie order
+    cur : (N,) int                 index of each player's current action (-1 unassigned)
+    cand_off : (N + 1,) int        player i's utilities are ``u[cand_off[i]:cand_off[i+1]]``
+    """
+
+    def __init__(self, state: GameState, k: int, check: Callable[[], None] | None = None
+                 ) -> None:
+        self.state, self.k = state, k
+        N = state.ctx.N
+        self.actions: list[tuple[IntArray, IntArray]] = []
+        self.cur = np.full(N, -1, dtype=np.int64)
+        self._init_sets = []
+        entries, c_loc, aliases = [], [], []
+        M = state.ctx.M
+        for i, token, cand, entry in self._entries(check):
+            if token[3] < 0 and k > 1:
+                self._init_sets.append(i)
+            cur = -1
+            if state.tgt[i, k - 1] >= 0:
+                q = np.flatnonzero(cand == state.pos[i, k - 1])
+                cur = int(q[0]) * M + int(state.tgt[i, k - 1]) if q.size else -1
+            if entry.view is None or entry.view[0] != cur:
+                # Kept: candidates holding pairs, the first without a counting look, the
+                # current action. A duplicate (same pairs as an earlier candidate) can only
+                # be chosen as the current action; it then takes its original's utility.
+                keep = entry.owners
+                for extra in (entry.free, cur):
+                    if extra >= 0:
+                        at = int(np.searchsorted(keep, extra))
+                        if at == len(keep) or keep[at] != extra:
+                            keep = np.insert(keep, at, extra)
+                cur_loc = int(np.searchsorted(keep, cur)) if cur >= 0 else -1
+                alias = -1
+                if cur >= 0 and entry.dups.size:
+                    d = int(np.searchsorted(entry.dups, cur))
+                    if d < entry.dups.size and entry.dups[d] == cur:
+                        alias = int(np.searchsorted(keep, entry.dup_of[d]))
+                entry.view = (cur, (cand[keep // M], keep % M), cur_loc,
+                              np.searchsorted(keep, entry.c_pair), alias)
+            _, actions, self.cur[i], loc, alias = entry.view
+            self.actions.append(actions)
+            entries.append(entry)
+            c_loc.append(loc)
+            aliases.append(alias)
+        sizes = np.array([len(a[0]) for a in self.actions])
+        self.cand_off = np.r_[0, np.cumsum(sizes)]
+        al = np.array([(self.cand_off[i] + self.cur[i], self.cand_off[i] + a)
+                       for i, a in enumerate(aliases) if a >= 0], dtype=np.int64).reshape(-1, 2)
+        self._alias_dst, self._alias_src = al[:, 0].copy(), al[:, 1].copy()
+        n_pairs = np.array([len(en.c_pair) for en in entries])
+        n_data = np.array([len(en.data) for en in entries])
+        self._pair_off = np.r_[0, np.cumsum(n_pairs)]
+        data_off = np.r_[0, np.cumsum(n_data)]
+        cat = np.concatenate
+        self._c_loc = cat(c_loc)
+        self._j = cat([en.j_pair for en in entries])
+        self._first = cat([en.first for en in entries])
+        self._count = cat([en.count for en in entries])
+        self._offset = cat([en.offset + data_off[i] for i, en in enumerate(entries)])
+        self._data = _c(cat([en.data for en in entries]))
+        self._delta = cat([en.delta for en in entries])
+        self._rows = state._rows_buf[k]          # every entry's rows are views into it
+        self._hi = np.array([en.hi for en in entries])
+        for i, en in enumerate(entries):
+            # The cache keeps working on the game's buffer (views): no copy back needed.
+            en.delta = self._delta[self._pair_off[i]:self._pair_off[i + 1]]
+        ctx = state.ctx
+        self._by_t, self._t_off, self._cp_off = index_pairs_nb(
+            self._pair_off, self._c_loc, self._j, self.cand_off, ctx.M)
+        n = int(self.cand_off[-1])
+        self._gcache = np.zeros(n)
+        self._dirty = np.zeros(n, dtype=bool)
+        self._dlist = np.empty(n, dtype=np.int64)
+        self._seen = np.full((N, ctx.M), -1, dtype=np.int64)
+        self._tot_ver = np.zeros(ctx.M, dtype=np.int64)
+        S = ctx.T - (k - 1) * ctx.e
+        self._shared = np.zeros(1, dtype=bool)
+        self._pre = np.empty((ctx.M, 4, 4))
+        self._tot_rows = np.full((ctx.M, ctx.T, 3), np.nan)
+        self._tot_pred = np.empty((ctx.M, S, 4, 4))
+        self._tot_part = np.empty((ctx.M, S))
+        self._tot_ld = np.empty((ctx.M, 2))
+        # Blocks of players for the threads, contiguous and of about equal numbers of pairs
+        # (a block writes only its players' entries, and lists its candidates to sum again
+        # in its own part of _dlist); one block when the iteration has little work.
+        total = int(self._pair_off[-1])
+        nb = max(1, min(state.threads, N))
+        cut = np.searchsorted(self._pair_off, total * np.arange(1, nb) / nb)
+        bounds = sorted({0, N} | {int(c) for c in np.clip(cut, 1, N - 1)})
+        self._blocks = list(pairwise(bounds))
+        self._busy = PARALLEL_PAIRS * ctx.M / max(total, 1)     # changed targets worth it
+
+    def _entries(self, check: Callable[[], None] | None
+                 ) -> list[tuple[int, tuple, IntArray, Pairs]]:
+        """Every player's ``(i, action token, positions, pairs)``; the pairs not cached are
+        computed on the state's threads, a batch at a time (every player at once, or with a
+        time budget as many as there are threads, ``check`` between batches)."""
+        state, k, N = self.state, self.k, self.state.ctx.N
+        step = N if check is None else max(1, state.threads)
+        out = []
+        for a in range(0, N, step):
+            if check is not None and a > 0:
+                check()                          # a time budget's safe point
+            batch = []
+            for i in range(a, min(a + step, N)):
+                token = state.action_token(i, k)
+                cand = state.player_positions(i, k)
+                batch.append((i, token, cand, state._game_pairs_job(i, k, cand, token)))
+            jobs = [x[3] for x in batch if isinstance(x[3], PairsJob)]
+            done = iter(run_all(pair_kernels, [(job,) for job in jobs], state.threads))
+            for i, token, cand, found in batch:
+                if isinstance(found, PairsJob):
+                    found = state._pairs_done(found, next(done))
+                out.append((i, token, cand, found))
+        return out
+
+    def utilities(self) -> FloatArray:
+        """Every player's utility of each kept action (marginal contributions), concatenated."""
+        st = self.state
+        ctx = st.ctx
+        cv, dt = cv_form(ctx.F)
+        Wtot, first_call, changed = game_totals_nb(
+            st.W, st.tgt, st._covs, ctx.F, st._Q, cv, dt, st.cumulative, self.k, self._t_off,
+            self._shared, self._pre, self._tot_rows, self._tot_ver, self._tot_pred,
+            self._tot_part, self._tot_ld)
+        common = (st.W, st.tgt, ctx.F, st._Q, cv, dt, st.cumulative, self.k, self._hi,
+                  self._c_loc, self._j, self._first, self._count, self._offset, self._data,
+                  self._delta, self._rows, self._by_t, self._t_off, self.cand_off, self._dirty,
+                  self._dlist, self._seen, Wtot, self._pre, self._tot_ver, self._tot_pred,
+                  self._tot_part, self._tot_ld)
+        blocks = self._blocks if first_call or changed >= self._busy else [(0, ctx.N)]
+        counts = run_all(game_players_nb, [(a, b) + common for a, b in blocks], st.threads)
+        starts = self.cand_off[[a for a, _ in blocks]]
+        return game_sum_nb(first_call, starts, np.array(counts, dtype=np.int64), self._delta,
+                           self._cp_off, self._gcache, self._dirty, self._dlist,
+                           self._alias_dst, self._alias_src)
+
+    def split(self, values: FloatArray) -> list[FloatArray]:
+        """Per-player views of concatenated values."""
+        return [values[a:b] for a, b in pairwise(self.cand_off.tolist())]
+
+    def step(self, u: FloatArray, ubar: FloatArray, t: int,
+             scale: float) -> tuple[bool, FloatArray, IntArray]:
+        """Equilibrium test, running averages and best responses of iteration ``t``.
+
+        The equilibrium: no player can raise its utility ``u`` by more than
+        ``TIE_TOL max(1, scale)``. Otherwise ``ubar <- (t-1)/t ubar + u/t`` and each player's
+        best response is ``argmax ubar`` under the tie rule (see :func:`choose`).
+
+        Returns
+        -------
+        equilibrium : bool;  ubar : new averages (unchanged at an equilibrium);
+        best : (N,) indices into each player's kept actions
+        """
+        return jsfp_step_nb(u, ubar, t, self.cand_off, self.cur, TIE_TOL * max(1.0, scale))
+
+    def close(self) -> None:
+        """Forget the initialisation sets' pairs (their actions are never offered again)."""
+        for i in self._init_sets:
+            self.state.forget(i, self.k)
+
+
+_ENGINE_WARM = False
+
+
+def warm_engine() -> None:
+    """Compile (or load from numba's cache) the engine's kernels once, on a tiny decision."""
+    global _ENGINE_WARM
+    if _ENGINE_WARM:
+        return
+    _ENGINE_WARM = True
+    from ..information import prepare
+    from ..problem import PlanningProblem
+    from ..sensors import SensorParams
+
+    problem = PlanningProblem(np.array([[300.0, 300.0, 1.0, 0.0]]),
+                              np.diag([400.0, 400.0, 4.0, 4.0])[None], np.array([[0.0, 300.0]]),
+                              np.array([0.0]), (SensorParams(),), horizon=2)
+    state = GameState(prepare(problem))
+    game = EpochGame(state, 2)
+    try:
+        ubar = np.zeros(int(game.cand_off[-1]))
+        for t in (1, 2):            # unassigned, then assigned: both code paths compiled
+            u = game.utilities()
+            _, ubar, best = game.step(u, ubar, t, abs(state.potential()))
+            if best[0] >= 0:
+                pos, tgt = game.actions[0]
+                state.set_action(0, 2, int(pos[best[0]]), int(tgt[best[0]]))
+                game.cur[0] = best[0]
+    finally:
+        game.close()
+    pos, tgt = state.player_actions(0, 1)
+    state.chain_gains(0, 1, pos[:, None], tgt[:, None], with_base=True)
