@@ -11,8 +11,9 @@ import pytest
 
 from sensorplan._threads import n_threads, parse_threads, run_all
 from sensorplan.errors import ConfigError
-from sensorplan.planners import make_planner
+from sensorplan.planners import epoch_game, make_planner
 
+from factories import paper_problem
 from planner_reference import scale_problem
 
 
@@ -58,6 +59,22 @@ def test_the_thread_count_comes_from_the_environment(monkeypatch) -> None:
             parse_threads(bad)
 
 
+@pytest.fixture
+def split_everything(monkeypatch) -> list[int]:
+    """Every batch of an epoch game runs on threads, however small; counts the batches that
+    really were split."""
+    monkeypatch.setattr(epoch_game, "PARALLEL_PAIRS", 0)
+    monkeypatch.setattr(epoch_game, "PARALLEL_LOOKS", 0)
+    split = [0]
+
+    def counting(fn, jobs, threads):
+        split[0] += threads > 1 and len(jobs) > 1
+        return run_all(fn, jobs, threads)
+
+    monkeypatch.setattr(epoch_game, "run_all", counting)
+    return split
+
+
 def _plan_bits(planner: str, threads: str, monkeypatch, **settings) -> tuple:
     monkeypatch.setenv("SENSORPLAN_THREADS", threads)
     # Large initialisation sets (every position of R_K times every target), several
@@ -69,13 +86,32 @@ def _plan_bits(planner: str, threads: str, monkeypatch, **settings) -> tuple:
 
 
 @pytest.mark.parametrize("planner", ["pg", "pg-refine"])
-def test_plans_are_the_same_on_one_thread_and_on_three(planner, monkeypatch) -> None:
+def test_plans_are_the_same_on_one_thread_and_on_three(planner, monkeypatch,
+                                                        split_everything) -> None:
     one = _plan_bits(planner, "1", monkeypatch)
+    assert split_everything[0] == 0
     assert _plan_bits(planner, "3", monkeypatch) == one
+    assert split_everything[0] > 10                    # looks and utilities both
     assert _plan_bits(planner, "2", monkeypatch) == one
 
 
-def test_a_time_budget_is_checked_between_batches(monkeypatch) -> None:
+def test_small_batches_stay_on_the_calling_thread(monkeypatch) -> None:
+    # A paper-size decision: handing its small batches to a thread only costs time.
+    monkeypatch.setenv("SENSORPLAN_THREADS", "2")
+    split = [0]
+
+    def counting(fn, jobs, threads):
+        split[0] += threads > 1 and len(jobs) > 1
+        return run_all(fn, jobs, threads)
+
+    monkeypatch.setattr(epoch_game, "run_all", counting)
+    make_planner("pg").plan(paper_problem(np.random.default_rng(0)))
+    assert split[0] == 0
+    make_planner("pg").plan(scale_problem(n_sensors=4, n_targets=20, horizon=4, seed=1))
+    assert split[0] > 0                                # the initialisation's looks
+
+
+def test_a_time_budget_is_checked_between_batches(monkeypatch, split_everything) -> None:
     # With a budget the players' pairs are computed a thread-count at a time, with a check
     # between: a budget far larger than needed still gives the unbudgeted plan.
     free = _plan_bits("pg", "2", monkeypatch)

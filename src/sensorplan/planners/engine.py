@@ -80,6 +80,7 @@ class PairsJob:
     key: tuple
     k_end: int
     make: Callable[[], tuple]
+    size: int = 0              # candidates times epochs of the chains, when known
 
 
 def pair_kernels(job: PairsJob) -> tuple:
@@ -315,7 +316,7 @@ class GameState:
             xy = self.xy(i, k, cand)
             return np.repeat(xy, M, axis=0)[:, None], np.tile(np.arange(M), len(cand))[:, None]
 
-        return self._pairs_job(i, k, 1, token, candidates)
+        return self._pairs_job(i, k, 1, token, candidates, len(cand) * M)
 
     def xy_chains(self, i: int, k0: int, cand_pos: IntArray) -> FloatArray:
         """Ground positions ``(C, L, 2)`` of candidate chains ``cand_pos (C, L)`` from k0."""
@@ -330,8 +331,8 @@ class GameState:
             return found
         return self._pairs_done(found, pair_kernels(found))
 
-    def _pairs_job(self, i: int, k0: int, L: int, cands: tuple,
-                   candidates) -> Pairs | PairsJob:
+    def _pairs_job(self, i: int, k0: int, L: int, cands: tuple, candidates,
+                   n_cand: int = 0) -> Pairs | PairsJob:
         """The cached entry of sensor i's candidates ``cands`` from epoch k0 if it still holds,
         else the kernels' job that computes it."""
         ctx = self.ctx
@@ -368,7 +369,7 @@ class GameState:
                     ctx.Cbar, ctx.probabilistic, ctx.radar[i], ctx.T - (k0 - 1) * ctx.e,
                     ctx.buildings)
 
-        return PairsJob(i, k0, L, key, k_end, make)
+        return PairsJob(i, k0, L, key, k_end, make, n_cand * (k_end - k0 + 1))
 
     def _pairs_done(self, job: PairsJob, out: tuple) -> Pairs:
         """The cache entry of ``job`` from its kernels' results ``out``."""

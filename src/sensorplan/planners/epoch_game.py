@@ -18,9 +18,13 @@ from .engine import GameState, Pairs, PairsJob, pair_kernels
 from .gain_kernels import (game_players_nb, game_sum_nb, game_totals_nb, index_pairs_nb,
                            jsfp_step_nb)
 
-#: An epoch game's iteration runs its players' part on threads when about this many pair
-#: terms are recomputed (below it, waking a thread costs more than it saves).
+#: Below these amounts of work a batch runs on the calling thread alone: handing work to
+#: another thread and waiting for it costs more than it saves (a paper-size decision took
+#: 50 % longer on two threads). An iteration's players' part runs on threads when about
+#: PARALLEL_PAIRS pair terms are recomputed; the players' looks when their candidate chains
+#: hold PARALLEL_LOOKS candidate epochs.
 PARALLEL_PAIRS = 4000
+PARALLEL_LOOKS = 20000
 
 
 class EpochGame:
@@ -123,7 +127,7 @@ class EpochGame:
         cut = np.searchsorted(self._pair_off, total * np.arange(1, nb) / nb)
         bounds = sorted({0, N} | {int(c) for c in np.clip(cut, 1, N - 1)})
         self._blocks = list(pairwise(bounds))
-        self._busy = PARALLEL_PAIRS * ctx.M / max(total, 1)     # changed targets worth it
+        self._total = total
 
     def _entries(self, check: Callable[[], None] | None
                  ) -> list[tuple[int, tuple, IntArray, Pairs]]:
@@ -142,7 +146,8 @@ class EpochGame:
                 cand = state.player_positions(i, k)
                 batch.append((i, token, cand, state._game_pairs_job(i, k, cand, token)))
             jobs = [x[3] for x in batch if isinstance(x[3], PairsJob)]
-            done = iter(run_all(pair_kernels, [(job,) for job in jobs], state.threads))
+            threads = state.threads if sum(job.size for job in jobs) >= PARALLEL_LOOKS else 1
+            done = iter(run_all(pair_kernels, [(job,) for job in jobs], threads))
             for i, token, cand, found in batch:
                 if isinstance(found, PairsJob):
                     found = state._pairs_done(found, next(done))
@@ -163,7 +168,8 @@ class EpochGame:
                   self._delta, self._rows, self._by_t, self._t_off, self.cand_off, self._dirty,
                   self._dlist, self._seen, Wtot, self._pre, self._tot_ver, self._tot_pred,
                   self._tot_part, self._tot_ld)
-        blocks = self._blocks if first_call or changed >= self._busy else [(0, ctx.N)]
+        redo = self._total if first_call else changed * self._total / ctx.M   # about
+        blocks = self._blocks if redo >= PARALLEL_PAIRS else [(0, ctx.N)]
         counts = run_all(game_players_nb, [(a, b) + common for a, b in blocks], st.threads)
         starts = self.cand_off[[a for a, _ in blocks]]
         return game_sum_nb(first_call, starts, np.array(counts, dtype=np.int64), self._delta,
