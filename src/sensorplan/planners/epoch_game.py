@@ -168,7 +168,9 @@ class EpochGame:
                   self._delta, self._rows, self._by_t, self._t_off, self.cand_off, self._dirty,
                   self._dlist, self._seen, Wtot, self._pre, self._tot_ver, self._tot_pred,
                   self._tot_part, self._tot_ld)
-        redo = self._total if first_call else changed * self._total / ctx.M   # about
+        # Pair terms this iteration recomputes, roughly: all at first, then those of the
+        # targets whose total changed.
+        redo = self._total if first_call else changed * self._total / ctx.M
         blocks = self._blocks if redo >= PARALLEL_PAIRS else [(0, ctx.N)]
         counts = run_all(game_players_nb, [(a, b) + common for a, b in blocks], st.threads)
         starts = self.cand_off[[a for a, _ in blocks]]
