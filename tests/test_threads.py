@@ -36,6 +36,25 @@ def test_run_all_raises_the_error_of_a_job_and_stays_usable() -> None:
     assert run_all(job, [(i,) for i in range(5)], 3) == list(range(5))
 
 
+def test_callers_on_several_threads_share_the_helpers() -> None:
+    # Planners run from a user's own threads (or a Dask worker's): every batch completes,
+    # with its own results.
+    out: dict[int, list] = {}
+
+    def caller(c: int) -> None:
+        out[c] = [run_all(lambda a, b: a * b + c, [(i, 2) for i in range(9)], 3)
+                  for _ in range(50)]
+
+    callers = [threading.Thread(target=caller, args=(c,)) for c in range(4)]
+    for t in callers:
+        t.start()
+    for t in callers:
+        t.join(60)
+    assert not any(t.is_alive() for t in callers)
+    for c in range(4):
+        assert out[c] == [[2 * i + c for i in range(9)]] * 50
+
+
 @pytest.mark.skipif(not hasattr(os, "fork"), reason="fork only")
 def test_a_forked_child_starts_its_own_helpers() -> None:
     run_all(lambda a: a, [(1,), (2,)], 2)              # the parent has a helper now
