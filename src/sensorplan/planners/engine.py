@@ -301,10 +301,7 @@ class GameState:
 
     def _game_pairs(self, i: int, k: int, cand: IntArray, token: tuple) -> Pairs:
         """:meth:`_pairs` of player (i, k)'s actions: positions ``cand`` times every target."""
-        found = self._game_pairs_job(i, k, cand, token)
-        if isinstance(found, Pairs):
-            return found
-        return self._pairs_done(found, pair_kernels(found))
+        return self._completed(self._game_pairs_job(i, k, cand, token))
 
     def _game_pairs_job(self, i: int, k: int, cand: IntArray,
                         token: tuple) -> Pairs | PairsJob:
@@ -326,10 +323,11 @@ class GameState:
         return out
 
     def _cached_pairs(self, i: int, k0: int, L: int, cands: tuple, candidates) -> Pairs:
-        found = self._pairs_job(i, k0, L, cands, candidates)
-        if isinstance(found, Pairs):
-            return found
-        return self._pairs_done(found, pair_kernels(found))
+        return self._completed(self._pairs_job(i, k0, L, cands, candidates))
+
+    def _completed(self, found: Pairs | PairsJob) -> Pairs:
+        """``found`` if it is a cache entry, else its job run on this thread."""
+        return found if isinstance(found, Pairs) else self._pairs_done(found, pair_kernels(found))
 
     def _pairs_job(self, i: int, k0: int, L: int, cands: tuple, candidates,
                    n_cand: int = 0) -> Pairs | PairsJob:
