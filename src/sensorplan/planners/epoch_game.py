@@ -128,6 +128,7 @@ class EpochGame:
         bounds = sorted({0, N} | {int(c) for c in np.clip(cut, 1, N - 1)})
         self._blocks = list(pairwise(bounds))
         self._total = total
+        self._has_pair = np.diff(self._t_off, axis=1).any(axis=0)   # targets with a pair
 
     def _entries(self, check: Callable[[], None] | None
                  ) -> list[tuple[int, tuple, IntArray, Pairs]]:
@@ -160,7 +161,7 @@ class EpochGame:
         ctx = st.ctx
         cv, dt = cv_form(ctx.F)
         Wtot, first_call, changed = game_totals_nb(
-            st.W, st.tgt, st._covs, ctx.F, st._Q, cv, dt, st.cumulative, self.k, self._t_off,
+            st.W, st.tgt, st._covs, ctx.F, st._Q, cv, dt, st.cumulative, self.k, self._has_pair,
             self._shared, self._pre, self._tot_rows, self._tot_ver, self._tot_pred,
             self._tot_part, self._tot_ld)
         common = (st.W, st.tgt, ctx.F, st._Q, cv, dt, st.cumulative, self.k, self._hi,

@@ -265,7 +265,7 @@ def _base(P0: np.ndarray, Wrow: np.ndarray, s0: int, F: np.ndarray, Q: np.ndarra
 
 @njit(cache=True, fastmath=False)
 def game_totals_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray,
-                   Q: np.ndarray, cv: bool, dt: float, cum: bool, k: int, t_off: np.ndarray,
+                   Q: np.ndarray, cv: bool, dt: float, cum: bool, k: int, has_pair: np.ndarray,
                    shared: np.ndarray, pre: np.ndarray, tot_rows: np.ndarray,
                    tot_ver: np.ndarray, tot_pred: np.ndarray, tot_part: np.ndarray,
                    tot_ld: np.ndarray) -> tuple:
@@ -277,7 +277,7 @@ def game_totals_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndar
     before k only, which the game never changes: it is computed on the first call (``pre``,
     ``shared[0]``). Where the total at a target changed (``tot_rows`` holds the one last
     seen, ``tot_ver`` counts the changes), its shared recursion from ``s0`` is recomputed if
-    any player has a pair there.
+    any player has a pair there (``has_pair``, (M,) bool).
 
     Returns
     -------
@@ -318,11 +318,6 @@ def game_totals_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndar
                 for c in range(4):
                     pre[j, r, c] = P[r, c]
         shared[0] = True
-    has_pair = np.zeros(M, dtype=np.bool_)
-    for p in range(t_off.shape[0]):
-        for j in range(M):
-            if t_off[p, j + 1] > t_off[p, j]:
-                has_pair[j] = True
     changed = 0
     for j in range(M):
         if _same_row(tot_rows, j, Wtot, j, T):
