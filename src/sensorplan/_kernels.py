@@ -19,46 +19,78 @@ from .radar import P_VIS_MIN, look, range_weight, wrap
 from .sensors import COLUMNS
 
 
-@njit(cache=True, fastmath=False, inline="always")
-def logdet4(P: np.ndarray) -> float:
-    """log det of a 4x4 symmetric positive definite matrix (NaN if not PD).
+# The 4x4 covariance steps, once each, on scalars: a symmetric matrix is the tuple of its
+# upper triangle ``(p00, p01, p02, p03, p11, p12, p13, p22, p23, p33)`` ("sym10"). A loop
+# that keeps its matrix in such a tuple (the planners' per-pair recursions) touches no array
+# between steps: numba counts references to every array a helper is handed, an atomic
+# operation per array and call that cost the planners about a seventh of their time. The
+# array forms below load, call the same scalar step and store, so both give the same numbers.
 
-    Cholesky on the lower triangle, ``log det = 2 sum log diag(L)``; unrolled into scalars
-    (no scratch array), in the order of the textbook column loop.
+
+@njit(cache=True, inline="always")
+def load_sym10(P: np.ndarray) -> tuple:
+    """The upper triangle of a 4x4 array as a sym10 tuple."""
+    return (P[0, 0], P[0, 1], P[0, 2], P[0, 3], P[1, 1], P[1, 2], P[1, 3], P[2, 2], P[2, 3],
+            P[3, 3])
+
+
+@njit(cache=True, inline="always")
+def store_sym10(P: np.ndarray, s: tuple) -> None:
+    """Write a sym10 tuple into a 4x4 array (both triangles)."""
+    P[0, 0] = s[0]
+    P[0, 1] = P[1, 0] = s[1]
+    P[0, 2] = P[2, 0] = s[2]
+    P[0, 3] = P[3, 0] = s[3]
+    P[1, 1] = s[4]
+    P[1, 2] = P[2, 1] = s[5]
+    P[1, 3] = P[3, 1] = s[6]
+    P[2, 2] = s[7]
+    P[2, 3] = P[3, 2] = s[8]
+    P[3, 3] = s[9]
+
+
+@njit(cache=True, fastmath=False, inline="always")
+def logdet_sym(m00: float, m10: float, m20: float, m30: float, m11: float, m21: float,
+               m31: float, m22: float, m32: float, m33: float) -> float:
+    """log det of a 4x4 symmetric positive definite matrix given its lower triangle by
+    columns (NaN if not PD).
+
+    Cholesky, ``log det = 2 sum log diag(L)``, unrolled in the order of the textbook column
+    loop.
     """
-    s = P[0, 0]
+    s = m00
     if s <= 0.0:
         return np.nan
     d0 = np.sqrt(s)
     total = 0.0
     total += np.log(d0)
-    l10 = P[1, 0] / d0
-    l20 = P[2, 0] / d0
-    l30 = P[3, 0] / d0
-    s = P[1, 1]
+    l10 = m10 / d0
+    l20 = m20 / d0
+    l30 = m30 / d0
+    s = m11
     s -= l10 * l10
     if s <= 0.0:
         return np.nan
     d1 = np.sqrt(s)
     total += np.log(d1)
-    t = P[2, 1]
+    t = m21
     t -= l20 * l10
     l21 = t / d1
-    t = P[3, 1]
+    t = m31
     t -= l30 * l10
     l31 = t / d1
-    s = P[2, 2]
+    s = m22
     s -= l20 * l20
     s -= l21 * l21
     if s <= 0.0:
         return np.nan
     d2 = np.sqrt(s)
     total += np.log(d2)
-    t = P[3, 2]
+    t = m32
     t -= l30 * l20
     t -= l31 * l21
     l32 = t / d2
-    s = P[3, 3]
+    s = m33
     s -= l30 * l30
     s -= l31 * l31
     s -= l32 * l32
@@ -69,22 +101,33 @@ def logdet4(P: np.ndarray) -> float:
     return 2.0 * total
 
 
+@njit(cache=True, fastmath=False, inline="always")
+def logdet4(P: np.ndarray) -> float:
+    """log det of a 4x4 symmetric positive definite array (its lower triangle; NaN if not
+    PD): :func:`logdet_sym`."""
+    return logdet_sym(P[0, 0], P[1, 0], P[2, 0], P[3, 0], P[1, 1], P[2, 1], P[3, 1], P[2, 2],
+                      P[3, 2], P[3, 3])
+
+
+@njit(cache=True, fastmath=False, inline="always")
+def logdet10(s: tuple) -> float:
+    """:func:`logdet_sym` of a sym10 tuple."""
+    return logdet_sym(s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7], s[8], s[9])
+
+
 @njit(cache=True, inline="always")
-def _joseph_update(P: np.ndarray, w00: float, w01: float, w11: float, det_w: float) -> None:
-    """In place: update P with position information W in Joseph form.
+def joseph_sym(s: tuple, w00: float, w01: float, w11: float, det_w: float) -> tuple:
+    """The sym10 ``s`` updated with position information W in Joseph form.
 
     With R = W^-1 (the equivalent measurement noise), K = P G^T (G P G^T + R)^-1 and
     P+ = (I - K G) P (I - K G)^T + K R K^T: a sum of PSD terms, accurate also when W C is
     large (the subtractive form loses digits there and the log-det with them).
 
-    Unrolled into scalars (``P`` is symmetric on entry: every update follows a predict),
-    each entry computed as the loops ``K = P[:, :2] S^-1``, ``A = P - K P[:2]``,
+    Each entry is computed as the loops ``K = P[:, :2] S^-1``, ``A = P - K P[:2]``,
     ``P+ = A - A[:, :2] K^T + K R K^T`` would, in the same order.
     """
     r00, r01, r11 = w11 / det_w, -w01 / det_w, w00 / det_w
-    p00, p01, p02, p03 = P[0, 0], P[0, 1], P[0, 2], P[0, 3]
-    p11, p12, p13 = P[1, 1], P[1, 2], P[1, 3]
-    p22, p23, p33 = P[2, 2], P[2, 3], P[3, 3]
+    p00, p01, p02, p03, p11, p12, p13, p22, p23, p33 = s
     s00, s01, s11 = p00 + r00, p01 + r01, p11 + r11
     det_s = s00 * s11 - s01 * s01
     i00, i01, i11 = s11 / det_s, -s01 / det_s, s00 / det_s
@@ -113,47 +156,43 @@ def _joseph_update(P: np.ndarray, w00: float, w01: float, w11: float, det_w: flo
     a33 = p33 - k30 * p03 - k31 * p13
     v = a00 - a00 * k00 - a01 * k01
     v += (k00 * (r00 * k00 + r01 * k01) + k01 * (r01 * k00 + r11 * k01))
-    P[0, 0] = v
+    o00 = v
     v = a01 - a00 * k10 - a01 * k11
     v += (k00 * (r00 * k10 + r01 * k11) + k01 * (r01 * k10 + r11 * k11))
-    P[0, 1] = v
-    P[1, 0] = v
+    o01 = v
     v = a02 - a00 * k20 - a01 * k21
     v += (k00 * (r00 * k20 + r01 * k21) + k01 * (r01 * k20 + r11 * k21))
-    P[0, 2] = v
-    P[2, 0] = v
+    o02 = v
     v = a03 - a00 * k30 - a01 * k31
     v += (k00 * (r00 * k30 + r01 * k31) + k01 * (r01 * k30 + r11 * k31))
-    P[0, 3] = v
-    P[3, 0] = v
+    o03 = v
     v = a11 - a10 * k10 - a11 * k11
     v += (k10 * (r00 * k10 + r01 * k11) + k11 * (r01 * k10 + r11 * k11))
-    P[1, 1] = v
+    o11 = v
     v = a12 - a10 * k20 - a11 * k21
     v += (k10 * (r00 * k20 + r01 * k21) + k11 * (r01 * k20 + r11 * k21))
-    P[1, 2] = v
-    P[2, 1] = v
+    o12 = v
     v = a13 - a10 * k30 - a11 * k31
     v += (k10 * (r00 * k30 + r01 * k31) + k11 * (r01 * k30 + r11 * k31))
-    P[1, 3] = v
-    P[3, 1] = v
+    o13 = v
     v = a22 - a20 * k20 - a21 * k21
     v += (k20 * (r00 * k20 + r01 * k21) + k21 * (r01 * k20 + r11 * k21))
-    P[2, 2] = v
+    o22 = v
     v = a23 - a20 * k30 - a21 * k31
     v += (k20 * (r00 * k30 + r01 * k31) + k21 * (r01 * k30 + r11 * k31))
-    P[2, 3] = v
-    P[3, 2] = v
+    o23 = v
     v = a33 - a30 * k30 - a31 * k31
     v += (k30 * (r00 * k30 + r01 * k31) + k31 * (r01 * k30 + r11 * k31))
-    P[3, 3] = v
+    o33 = v
+    return (o00, o01, o02, o03, o11, o12, o13, o22, o23, o33)
 
 
-@njit(cache=True)
-def _woodbury_update(P: np.ndarray, w00: float, w01: float, w11: float,
-                     Pc: np.ndarray) -> None:
-    """In place: P - P G^T (I + W C)^-1 W G P, for a singular W (no R = W^-1 exists)."""
-    c00, c01, c11 = P[0, 0], P[0, 1], P[1, 1]
+@njit(cache=True, inline="always")
+def woodbury_sym(p: tuple, w00: float, w01: float, w11: float) -> tuple:
+    """P - P G^T (I + W C)^-1 W G P for a singular W (no R = W^-1 exists), as a sym10;
+    ``p`` is the full matrix, row-major (16 entries: the array form reads both triangles).
+    """
+    c00, c01, c11 = p[0], p[1], p[5]
     # A = I + W C ; S = A^{-1} W (2x2 adjugate), det(A) >= 1
     a00 = 1.0 + w00 * c00 + w01 * c01
     a01 = w00 * c01 + w01 * c11
@@ -165,16 +204,79 @@ def _woodbury_update(P: np.ndarray, w00: float, w01: float, w11: float,
     s10 = (-a10 * w00 + a00 * w01) / det
     s11 = (-a10 * w01 + a00 * w11) / det
     s01 = 0.5 * (s01 + s10)
-    for r in range(4):
-        Pc[r, 0] = P[r, 0]
-        Pc[r, 1] = P[r, 1]
-    for r in range(4):
-        x0 = Pc[r, 0] * s00 + Pc[r, 1] * s01
-        x1 = Pc[r, 0] * s01 + Pc[r, 1] * s11
-        for c in range(r, 4):
-            v = P[r, c] - (x0 * Pc[c, 0] + x1 * Pc[c, 1])
-            P[r, c] = v
-            P[c, r] = v
+    # Columns 0 and 1 of P (the array form's copy Pc), then x_r = Pc[r] S.
+    u0, u1, u2, u3 = p[0], p[4], p[8], p[12]
+    v0, v1, v2, v3 = p[1], p[5], p[9], p[13]
+    x00, x01 = u0 * s00 + v0 * s01, u0 * s01 + v0 * s11
+    x10, x11 = u1 * s00 + v1 * s01, u1 * s01 + v1 * s11
+    x20, x21 = u2 * s00 + v2 * s01, u2 * s01 + v2 * s11
+    x30, x31 = u3 * s00 + v3 * s01, u3 * s01 + v3 * s11
+    return (p[0] - (x00 * u0 + x01 * v0), p[1] - (x00 * u1 + x01 * v1),
+            p[2] - (x00 * u2 + x01 * v2), p[3] - (x00 * u3 + x01 * v3),
+            p[5] - (x10 * u1 + x11 * v1), p[6] - (x10 * u2 + x11 * v2),
+            p[7] - (x10 * u3 + x11 * v3), p[10] - (x20 * u2 + x21 * v2),
+            p[11] - (x20 * u3 + x21 * v3), p[15] - (x30 * u3 + x31 * v3))
+
+
+@njit(cache=True, inline="always")
+def full16(s: tuple) -> tuple:
+    """The 16 entries, row-major, of the symmetric matrix of a sym10 tuple."""
+    return (s[0], s[1], s[2], s[3], s[1], s[4], s[5], s[6], s[2], s[5], s[7], s[8], s[3],
+            s[6], s[8], s[9])
+
+
+@njit(cache=True, inline="always")
+def load16(P: np.ndarray) -> tuple:
+    """The 16 entries of a 4x4 array, row-major."""
+    return (P[0, 0], P[0, 1], P[0, 2], P[0, 3], P[1, 0], P[1, 1], P[1, 2], P[1, 3], P[2, 0],
+            P[2, 1], P[2, 2], P[2, 3], P[3, 0], P[3, 1], P[3, 2], P[3, 3])
+
+
+@njit(cache=True, fastmath=False, inline="always")
+def predict_cv_sym(p: tuple, dt: float, q: tuple) -> tuple:
+    """``F P F^T + Q`` for the CWNA transition with step ``dt`` (state [x, y, vx, vy]), in
+    closed form: P' = [[A + dt (B + B^T) + dt^2 D, B + dt D], [., D]] + Q, new from old, made
+    symmetric. ``p``: the 16 entries of P, row-major; ``q``: Q as a sym10; returns a sym10.
+    (``dt2`` is the product dt * dt the loop form evaluates first.)
+    """
+    dt2 = dt * dt
+    p00, p01, p02, p03, p10, p11, p12, p13, p20, p21, p22, p23, p30, p31, p32, p33 = p
+    f00 = p00 + dt * (p02 + p20) + dt2 * p22
+    f01 = p01 + dt * (p03 + p21) + dt2 * p23
+    f02 = p02 + dt * p22
+    f03 = p03 + dt * p23
+    f10 = p10 + dt * (p12 + p30) + dt2 * p32
+    f11 = p11 + dt * (p13 + p31) + dt2 * p33
+    f12 = p12 + dt * p32
+    f13 = p13 + dt * p33
+    f20 = p20 + dt * p22
+    f21 = p21 + dt * p23
+    f22 = p22
+    f23 = p23
+    f30 = p30 + dt * p32
+    f31 = p31 + dt * p33
+    f32 = p32
+    f33 = p33
+    return (0.5 * (f00 + f00) + q[0], 0.5 * (f01 + f10) + q[1], 0.5 * (f02 + f20) + q[2],
+            0.5 * (f03 + f30) + q[3], 0.5 * (f11 + f11) + q[4], 0.5 * (f12 + f21) + q[5],
+            0.5 * (f13 + f31) + q[6], 0.5 * (f22 + f22) + q[7], 0.5 * (f23 + f32) + q[8],
+            0.5 * (f33 + f33) + q[9])
+
+
+@njit(cache=True, fastmath=False, inline="always")
+def update_sym(p: tuple, w00: float, w01: float, w11: float) -> tuple:
+    """Add position information ``W = [[w00, w01], [w01, w11]]`` to the sym10 ``p``.
+
+    Joseph form when ``W`` is well conditioned, the subtractive form when it is nearly
+    singular (see :func:`sensorplan.information.information_update`); ``W = 0`` leaves it
+    unchanged.
+    """
+    if w00 != 0.0 or w01 != 0.0 or w11 != 0.0:
+        det_w = w00 * w11 - w01 * w01
+        if det_w > 1e-12 * (w00 + w11) ** 2:     # information.JOSEPH_MIN_DET
+            return joseph_sym(p, w00, w01, w11, det_w)
+        return woodbury_sym(full16(p), w00, w01, w11)
+    return p
 
 
 @njit(cache=True, fastmath=False, inline="always")
@@ -183,59 +285,10 @@ def predict_step(P: np.ndarray, F: np.ndarray, Q: np.ndarray, qb: int, cv: bool,
     """In place: ``P <- F P F^T + Q[qb]``, symmetric (``FP`` is scratch, 4x4).
 
     ``cv`` says that ``F`` is the CWNA transition with step ``dt``, whose product is then
-    computed in closed form (a quarter of the multiplications).
+    computed in closed form (:func:`predict_cv_sym`, a quarter of the multiplications).
     """
     if cv:
-        # F = [[I, dt I], [0, I]] (state [x, y, vx, vy]): the product in closed form,
-        # P' = [[A + dt (B + B^T) + dt^2 D, B + dt D], [., D]] + Q, new from old (unrolled;
-        # dt2 is the product dt * dt the loop form evaluates first).
-        dt2 = dt * dt
-        p00, p01, p02, p03 = P[0, 0], P[0, 1], P[0, 2], P[0, 3]
-        p10, p11, p12, p13 = P[1, 0], P[1, 1], P[1, 2], P[1, 3]
-        p20, p21, p22, p23 = P[2, 0], P[2, 1], P[2, 2], P[2, 3]
-        p30, p31, p32, p33 = P[3, 0], P[3, 1], P[3, 2], P[3, 3]
-        f00 = p00 + dt * (p02 + p20) + dt2 * p22
-        f01 = p01 + dt * (p03 + p21) + dt2 * p23
-        f02 = p02 + dt * p22
-        f03 = p03 + dt * p23
-        f10 = p10 + dt * (p12 + p30) + dt2 * p32
-        f11 = p11 + dt * (p13 + p31) + dt2 * p33
-        f12 = p12 + dt * p32
-        f13 = p13 + dt * p33
-        f20 = p20 + dt * p22
-        f21 = p21 + dt * p23
-        f22 = p22
-        f23 = p23
-        f30 = p30 + dt * p32
-        f31 = p31 + dt * p33
-        f32 = p32
-        f33 = p33
-        v = 0.5 * (f00 + f00) + Q[qb, 0, 0]
-        P[0, 0] = v
-        v = 0.5 * (f01 + f10) + Q[qb, 0, 1]
-        P[0, 1] = v
-        P[1, 0] = v
-        v = 0.5 * (f02 + f20) + Q[qb, 0, 2]
-        P[0, 2] = v
-        P[2, 0] = v
-        v = 0.5 * (f03 + f30) + Q[qb, 0, 3]
-        P[0, 3] = v
-        P[3, 0] = v
-        v = 0.5 * (f11 + f11) + Q[qb, 1, 1]
-        P[1, 1] = v
-        v = 0.5 * (f12 + f21) + Q[qb, 1, 2]
-        P[1, 2] = v
-        P[2, 1] = v
-        v = 0.5 * (f13 + f31) + Q[qb, 1, 3]
-        P[1, 3] = v
-        P[3, 1] = v
-        v = 0.5 * (f22 + f22) + Q[qb, 2, 2]
-        P[2, 2] = v
-        v = 0.5 * (f23 + f32) + Q[qb, 2, 3]
-        P[2, 3] = v
-        P[3, 2] = v
-        v = 0.5 * (f33 + f33) + Q[qb, 3, 3]
-        P[3, 3] = v
+        store_sym10(P, predict_cv_sym(load16(P), dt, load_sym10(Q[qb])))
     else:
         for r in range(4):
             for c in range(4):
@@ -253,20 +306,15 @@ def predict_step(P: np.ndarray, F: np.ndarray, Q: np.ndarray, qb: int, cv: bool,
 
 
 @njit(cache=True, fastmath=False, inline="always")
-def update_step(P: np.ndarray, w00: float, w01: float, w11: float, Pc: np.ndarray,
-                FP: np.ndarray) -> None:
-    """In place: add position information ``W = [[w00, w01], [w01, w11]]`` to ``P``.
-
-    Joseph form when ``W`` is well conditioned, the subtractive form when it is nearly
-    singular (see :func:`sensorplan.information.information_update`); ``W = 0`` leaves ``P``
-    unchanged. ``Pc`` (4x2) and ``FP`` (4x4) are scratch.
-    """
+def update_step(P: np.ndarray, w00: float, w01: float, w11: float) -> None:
+    """In place: :func:`update_sym` of a 4x4 array (the Joseph form reads its upper
+    triangle: every update follows a predict, which leaves it symmetric)."""
     if w00 != 0.0 or w01 != 0.0 or w11 != 0.0:
         det_w = w00 * w11 - w01 * w01
         if det_w > 1e-12 * (w00 + w11) ** 2:     # information.JOSEPH_MIN_DET
-            _joseph_update(P, w00, w01, w11, det_w)
+            store_sym10(P, joseph_sym(load_sym10(P), w00, w01, w11, det_w))
         else:
-            _woodbury_update(P, w00, w01, w11, Pc)
+            store_sym10(P, woodbury_sym(load16(P), w00, w01, w11))
 
 
 @njit(cache=True, fastmath=False)
@@ -285,7 +333,6 @@ def covariance_recursion_nb(P0: np.ndarray, W: np.ndarray, F: np.ndarray, Q: np.
     ld_sum = np.zeros(n)
     P = np.empty((4, 4))
     FP = np.empty((4, 4))
-    Pc = np.empty((4, 2))
     shared_q = Q.shape[0] == 1
     for b in range(n):
         qb = 0 if shared_q else b
@@ -294,7 +341,7 @@ def covariance_recursion_nb(P0: np.ndarray, W: np.ndarray, F: np.ndarray, Q: np.
                 P[r, c] = P0[b, r, c]
         for t in range(S):
             predict_step(P, F, Q, qb, cv, dt, FP)
-            update_step(P, W[b, t, 0, 0], W[b, t, 0, 1], W[b, t, 1, 1], Pc, FP)
+            update_step(P, W[b, t, 0, 0], W[b, t, 0, 1], W[b, t, 1, 1])
             if need_sum:
                 ld_sum[b] += logdet4(P)
         for r in range(4):

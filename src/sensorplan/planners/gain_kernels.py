@@ -19,7 +19,8 @@ from __future__ import annotations
 import numpy as np
 from .._jit import njit
 
-from .._kernels import logdet4, predict_step, update_step
+from .._kernels import (full16, load_sym10, logdet4, logdet10, predict_cv_sym,
+                        predict_step, store_sym10, update_step, update_sym)
 
 
 @njit(cache=True, fastmath=False)
@@ -61,7 +62,6 @@ def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q
     ld_sum = np.zeros(M)
     P = np.empty((4, 4))
     FP = np.empty((4, 4))
-    Pc = np.empty((4, 2))
     by_t = np.empty(j_pair.shape[0], dtype=np.int64)
     t_off = np.zeros(M + 1, dtype=np.int64)
     fill = np.zeros(M, dtype=np.int64)
@@ -104,7 +104,7 @@ def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q
             acc = 0.0
             for t in range(s0):
                 predict_step(P, F, Q, qb, cv, dt, FP)
-                update_step(P, Wf[j, t, 0], Wf[j, t, 1], Wf[j, t, 2], Pc, FP)
+                update_step(P, Wf[j, t, 0], Wf[j, t, 1], Wf[j, t, 2])
                 if cum:
                     acc += logdet4(P)
             ld_pre[j] = acc
@@ -114,7 +114,7 @@ def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q
                 for r in range(4):
                     for c in range(4):
                         P_pred[j, t, r, c] = P[r, c]
-                update_step(P, Wf[j, s0 + t, 0], Wf[j, s0 + t, 1], Wf[j, s0 + t, 2], Pc, FP)
+                update_step(P, Wf[j, s0 + t, 0], Wf[j, s0 + t, 1], Wf[j, s0 + t, 2])
                 if cum:
                     acc += logdet4(P)
                 part[j, t] = acc
@@ -139,7 +139,7 @@ def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q
             if t_off[j + 1] > t_off[j]:
                 _deltas(by_t, t_off[j], t_off[j + 1], P_pred, part, ld_end[j], ld_sum[j], Wf,
                         j, s0, first, count, offset, data, delta, F, Q,
-                        0 if shared_q else j, cv, dt, cum, P, FP, Pc)
+                        0 if shared_q else j, cv, dt, cum, P, FP)
         for q in range(a, b):
             gains[cand_off[p] + c_loc[q]] += delta[q]
         for j in range(M):
@@ -156,7 +156,7 @@ def _deltas(idx: np.ndarray, a: int, b: int, P_pred: np.ndarray, part: np.ndarra
             ld_end_b: float, ld_sum_b: float, Wf: np.ndarray, j: int, s0: int,
             first: np.ndarray, count: np.ndarray, offset: np.ndarray, data: np.ndarray,
             delta: np.ndarray, F: np.ndarray, Q: np.ndarray, qb: int, cv: bool, dt: float,
-            cum: bool, P: np.ndarray, FP: np.ndarray, Pc: np.ndarray) -> None:
+            cum: bool, P: np.ndarray, FP: np.ndarray) -> None:
     """``delta[q] = term(no chain + pair q) - term(no chain)`` for pairs ``idx[a:b]``, all
     of target j (one call per target: the per-pair work is a tight loop).
 
@@ -165,6 +165,7 @@ def _deltas(idx: np.ndarray, a: int, b: int, P_pred: np.ndarray, part: np.ndarra
     running log-det sum.
     """
     S = part.shape[1]
+    q10 = load_sym10(Q[qb])
     for x in range(a, b):
         q = idx[x]
         f = first[q]
@@ -173,13 +174,17 @@ def _deltas(idx: np.ndarray, a: int, b: int, P_pred: np.ndarray, part: np.ndarra
             continue
         cnt = count[q]
         off = offset[q]
-        for r in range(4):
-            for c in range(4):
-                P[r, c] = P_pred[j, f, r, c]
+        # The matrix lives in a sym10 tuple (see sensorplan._kernels): no array per step.
+        s = load_sym10(P_pred[j, f])
         acc = part[j, f - 1] if f > 0 else 0.0
         for t in range(f, S):
             if t > f:
-                predict_step(P, F, Q, qb, cv, dt, FP)
+                if cv:
+                    s = predict_cv_sym(full16(s), dt, q10)
+                else:
+                    store_sym10(P, s)
+                    predict_step(P, F, Q, qb, cv, dt, FP)
+                    s = load_sym10(P)
             d = t - f
             if d < cnt:
                 w00 = Wf[j, s0 + t, 0] + data[off + d, 0]
@@ -189,13 +194,13 @@ def _deltas(idx: np.ndarray, a: int, b: int, P_pred: np.ndarray, part: np.ndarra
                 w00 = Wf[j, s0 + t, 0] + 0.0
                 w01 = Wf[j, s0 + t, 1] + 0.0
                 w11 = Wf[j, s0 + t, 2] + 0.0
-            update_step(P, w00, w01, w11, Pc, FP)
+            s = update_sym(s, w00, w01, w11)
             if cum:
-                acc += logdet4(P)
+                acc += logdet10(s)
         if cum:
             delta[q] = 0.5 * (ld_sum_b - acc)
         else:
-            delta[q] = 0.5 * (ld_end_b - logdet4(P))
+            delta[q] = 0.5 * (ld_end_b - logdet10(s))
 
 
 
@@ -239,27 +244,35 @@ def index_pairs_nb(pair_off: np.ndarray, c_loc: np.ndarray, j_pair: np.ndarray,
 @njit(cache=True, fastmath=False)
 def _base(P0: np.ndarray, Wrow: np.ndarray, s0: int, F: np.ndarray, Q: np.ndarray, qb: int,
           cv: bool, dt: float, cum: bool, P_pred: np.ndarray, part: np.ndarray,
-          P: np.ndarray, FP: np.ndarray, Pc: np.ndarray) -> tuple:
+          P: np.ndarray, FP: np.ndarray) -> tuple:
     """"No chain" recursion of one target from ``s0`` on, from its covariance ``P0`` at
     ``s0``; keeps the predicted covariance and the running log-det sum of every step.
 
     Returns ``(log det at the end, log-det sum)``.
     """
     S = part.shape[0]
-    for r in range(4):
-        for c in range(4):
-            P[r, c] = P0[r, c]
+    q10 = load_sym10(Q[qb])
+    s = load_sym10(P0)            # (replaced at t = 0; typed here)
     acc = 0.0
     for t in range(S):
-        predict_step(P, F, Q, qb, cv, dt, FP)
-        for r in range(4):
-            for c in range(4):
-                P_pred[t, r, c] = P[r, c]
-        update_step(P, Wrow[s0 + t, 0], Wrow[s0 + t, 1], Wrow[s0 + t, 2], Pc, FP)
+        if cv and t > 0:
+            s = predict_cv_sym(full16(s), dt, q10)     # no array per step (as _deltas)
+        else:
+            # The first step reads P0's both triangles (it may come from outside).
+            if t == 0:
+                for r in range(4):
+                    for c in range(4):
+                        P[r, c] = P0[r, c]
+            else:
+                store_sym10(P, s)
+            predict_step(P, F, Q, qb, cv, dt, FP)
+            s = load_sym10(P)
+        store_sym10(P_pred[t], s)
+        s = update_sym(s, Wrow[s0 + t, 0], Wrow[s0 + t, 1], Wrow[s0 + t, 2])
         if cum:
-            acc += logdet4(P)
+            acc += logdet10(s)
         part[t] = acc
-    return logdet4(P), acc
+    return logdet10(s), acc
 
 
 
@@ -292,7 +305,6 @@ def game_totals_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndar
     shared_q = Q.shape[0] == 1
     P = np.empty((4, 4))
     FP = np.empty((4, 4))
-    Pc = np.empty((4, 2))
     Wtot = np.zeros((M, T, 3))
     for i2 in range(N):
         for k2 in range(K):
@@ -313,7 +325,7 @@ def game_totals_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndar
                     P[r, c] = covs[j, r, c]
             for t in range(s0):
                 predict_step(P, F, Q, qb, cv, dt, FP)
-                update_step(P, Wtot[j, t, 0], Wtot[j, t, 1], Wtot[j, t, 2], Pc, FP)
+                update_step(P, Wtot[j, t, 0], Wtot[j, t, 1], Wtot[j, t, 2])
             for r in range(4):
                 for c in range(4):
                     pre[j, r, c] = P[r, c]
@@ -329,8 +341,7 @@ def game_totals_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndar
                 tot_rows[j, t, x] = Wtot[j, t, x]
         if has_pair[j]:
             tot_ld[j, 0], tot_ld[j, 1] = _base(pre[j], Wtot[j], s0, F, Q, 0 if shared_q else j,
-                                               cv, dt, cum, tot_pred[j], tot_part[j], P, FP,
-                                               Pc)
+                                               cv, dt, cum, tot_pred[j], tot_part[j], P, FP)
     return Wtot, first_call, changed
 
 
@@ -372,7 +383,6 @@ def game_players_nb(p_lo: int, p_hi: int, Wp: np.ndarray, tgt: np.ndarray, F: np
     shared_q = Q.shape[0] == 1
     P = np.empty((4, 4))
     FP = np.empty((4, 4))
-    Pc = np.empty((4, 2))
     own = np.zeros(M, dtype=np.bool_)
     Wown = np.zeros((M, T, 3))
     own_pred = np.empty((M, S, 4, 4))
@@ -415,7 +425,7 @@ def game_players_nb(p_lo: int, p_hi: int, Wp: np.ndarray, tgt: np.ndarray, F: np
                 seen[p, j] = -1
                 Wf = Wown
                 own_ld[j, 0], own_ld[j, 1] = _base(pre[j], Wown[j], s0, F, Q, qb, cv, dt, cum,
-                                                   own_pred[j], own_part[j], P, FP, Pc)
+                                                   own_pred[j], own_part[j], P, FP)
                 base_pred, base_part = own_pred, own_part
                 ld_end_b, ld_sum_b = own_ld[j, 0], own_ld[j, 1]
             else:
@@ -430,7 +440,7 @@ def game_players_nb(p_lo: int, p_hi: int, Wp: np.ndarray, tgt: np.ndarray, F: np
                 ld_end_b, ld_sum_b = tot_ld[j, 0], tot_ld[j, 1]
             _deltas(by_t, t_off[p, j], t_off[p, j + 1], base_pred, base_part, ld_end_b,
                     ld_sum_b, Wf, j, s0, first, count, offset, data, delta, F, Q, qb, cv, dt,
-                    cum, P, FP, Pc)
+                    cum, P, FP)
             for x in range(t_off[p, j], t_off[p, j + 1]):
                 c = cand_off[p] + c_loc[by_t[x]]
                 if not dirty[c]:
