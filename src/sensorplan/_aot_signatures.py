@@ -33,6 +33,7 @@ SIGNATURES: tuple = (
     ('sensorplan.planners.kernels', 'chain_pairs_nb',
      (('d', 3), ('l', 2), 'i', 'i', 'f', 'b', 'f', 'f', ('d', 3), ('d', 3), ('d', 3), 'b',
       ('d', 1), 'i', ('d', 2))),
+    ('sensorplan.planners.kernels', 'game_chains_nb', (('d', 2), 'i', ('d', 2), ('l', 1))),
     ('sensorplan.planners.kernels', 'player_positions_nb',
      (('d', 2), ('l', 1), ('l', 1), 'b', ('d', 1))),
     ('sensorplan.radar.batch', '_detect_grid',

@@ -35,7 +35,11 @@ from .._types import FloatArray, IntArray
 from ..information import Context, _c, chain_looks, covariance_recursion, cv_form, sum_by_target
 from ..problem import TIE_TOL, Plan
 from .gain_kernels import gains_nb
-from .kernels import candidate_sets_nb, chain_pairs_nb, player_positions_nb
+from .kernels import candidate_sets_nb, chain_pairs_nb, game_chains_nb, player_positions_nb
+
+
+#: Makes candidate chains followed by a sensor's fixed later epochs (see GameState._pairs_job).
+Chains = Callable[[FloatArray, IntArray], tuple[FloatArray, IntArray]]
 
 
 @dataclass
@@ -296,8 +300,18 @@ class GameState:
         """The cached pairs of sensor i's candidate chains from epoch k0 (computed if the
         chain's context or the candidates changed)."""
         cands = token if token is not None else (cand_pos.tobytes(), cand_tgt.tobytes())
-        return self._cached_pairs(i, k0, cand_tgt.shape[1], cands,
-                                  lambda: (self.xy_chains(i, k0, cand_pos), cand_tgt))
+        C, L = cand_tgt.shape
+
+        def chains(tail_xy: FloatArray, tail_tgt: IntArray) -> tuple[FloatArray, IntArray]:
+            pos_xy = np.empty((C, L + len(tail_tgt), 2))
+            tgt = np.empty((C, L + len(tail_tgt)), dtype=np.int64)
+            pos_xy[:, :L] = self.xy_chains(i, k0, cand_pos)
+            tgt[:, :L] = cand_tgt
+            pos_xy[:, L:] = tail_xy
+            tgt[:, L:] = tail_tgt
+            return pos_xy, tgt
+
+        return self._cached_pairs(i, k0, L, cands, chains)
 
     def _game_pairs(self, i: int, k: int, cand: IntArray, token: tuple) -> Pairs:
         """:meth:`_pairs` of player (i, k)'s actions: positions ``cand`` times every target."""
@@ -309,11 +323,10 @@ class GameState:
         :meth:`_pairs_done`)."""
         M = self.ctx.M
 
-        def candidates() -> tuple[FloatArray, IntArray]:
-            xy = self.xy(i, k, cand)
-            return np.repeat(xy, M, axis=0)[:, None], np.tile(np.arange(M), len(cand))[:, None]
+        def chains(tail_xy: FloatArray, tail_tgt: IntArray) -> tuple[FloatArray, IntArray]:
+            return game_chains_nb(self.xy(i, k, cand), M, tail_xy, tail_tgt)
 
-        return self._pairs_job(i, k, 1, token, candidates, len(cand) * M)
+        return self._pairs_job(i, k, 1, token, chains, len(cand) * M)
 
     def xy_chains(self, i: int, k0: int, cand_pos: IntArray) -> FloatArray:
         """Ground positions ``(C, L, 2)`` of candidate chains ``cand_pos (C, L)`` from k0."""
@@ -322,17 +335,18 @@ class GameState:
             out[:, l] = self.xy(i, k0 + l, cand_pos[:, l])
         return out
 
-    def _cached_pairs(self, i: int, k0: int, L: int, cands: tuple, candidates) -> Pairs:
-        return self._completed(self._pairs_job(i, k0, L, cands, candidates))
+    def _cached_pairs(self, i: int, k0: int, L: int, cands: tuple, chains: Chains) -> Pairs:
+        return self._completed(self._pairs_job(i, k0, L, cands, chains))
 
     def _completed(self, found: Pairs | PairsJob) -> Pairs:
         """``found`` if it is a cache entry, else its job run on this thread."""
         return found if isinstance(found, Pairs) else self._pairs_done(found, pair_kernels(found))
 
-    def _pairs_job(self, i: int, k0: int, L: int, cands: tuple, candidates,
+    def _pairs_job(self, i: int, k0: int, L: int, cands: tuple, chains: Chains,
                    n_cand: int = 0) -> Pairs | PairsJob:
         """The cached entry of sensor i's candidates ``cands`` from epoch k0 if it still holds,
-        else the kernels' job that computes it."""
+        else the kernels' job that computes it (``chains(tail_xy, tail_tgt)`` makes the
+        candidate chains followed by the sensor's fixed later epochs)."""
         ctx = self.ctx
         # The chain continues through the following assigned epochs: their headings change.
         k_last = k0 + L - 1
@@ -351,17 +365,14 @@ class GameState:
             return entry
 
         def make() -> tuple:
-            xy, tgt_var = candidates()
-            C = len(tgt_var)
-            Lf = k_end - k0 + 1
-            pos_xy = np.empty((C, Lf, 2))
-            tgt = np.empty((C, Lf), dtype=np.int64)
-            pos_xy[:, :L] = xy
-            tgt[:, :L] = tgt_var
-            for l in range(L, Lf):
-                kk = k0 + l
-                pos_xy[:, l] = self.xy(i, kk, self.pos[i, kk - 1])
-                tgt[:, l] = self.tgt[i, kk - 1]
+            n = k_end - k_last
+            tail_xy = np.empty((n, 2))
+            tail_tgt = np.empty(n, dtype=np.int64)
+            for l in range(n):
+                kk = k_last + 1 + l
+                tail_xy[l] = self.xy(i, kk, self.pos[i, kk - 1])
+                tail_tgt[l] = self.tgt[i, kk - 1]
+            pos_xy, tgt = chains(tail_xy, tail_tgt)
             return (pos_xy, tgt, k0, ctx.e, float(prev), bool(prev_ok),
                     float(ctx.problem.headings[i]), float(ctx.max_turn[i]), ctx.aim, ctx.xbar_xy,
                     ctx.Cbar, ctx.probabilistic, ctx.radar[i], ctx.T - (k0 - 1) * ctx.e,

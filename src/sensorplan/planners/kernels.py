@@ -324,6 +324,34 @@ def _same_pairs_range(a0: int, a1: int, b0: int, b1: int, j_pair: np.ndarray,
 
 
 
+@njit(cache=True, nogil=True)
+def game_chains_nb(xy: np.ndarray, M: int, tail_xy: np.ndarray,
+                   tail_tgt: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """An epoch game player's candidate chains for :func:`chain_pairs_nb`: each position of
+    ``xy (P, 2)`` times every target (position-major), followed by the sensor's fixed later
+    epochs ``tail_xy (n, 2)``, ``tail_tgt (n,)``.
+
+    Returns
+    -------
+    pos : (P M, 1 + n, 2);  tgt : (P M, 1 + n) int64
+    """
+    P, n = xy.shape[0], tail_tgt.shape[0]
+    pos = np.empty((P * M, 1 + n, 2))
+    tgt = np.empty((P * M, 1 + n), dtype=np.int64)
+    c = 0
+    for a in range(P):
+        for j in range(M):
+            pos[c, 0, 0] = xy[a, 0]
+            pos[c, 0, 1] = xy[a, 1]
+            tgt[c, 0] = j
+            for l in range(n):
+                pos[c, 1 + l, 0] = tail_xy[l, 0]
+                pos[c, 1 + l, 1] = tail_xy[l, 1]
+                tgt[c, 1 + l] = tail_tgt[l]
+            c += 1
+    return pos, tgt
+
+
 @njit(cache=True)
 def player_positions_nb(positions: np.ndarray, cand: np.ndarray, parents: np.ndarray,
                         use_parents: bool, ref: np.ndarray) -> np.ndarray:
