@@ -97,11 +97,13 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
                     xbar[j, t, 1] - pos[0, l, 1], Cbar[j, t, 0], Cbar[j, t, 1], Cbar[j, t, 2],
                     probabilistic)
     # The shared tail: epochs tail .. L-1 are shared; their looks depend only on the
-    # heading entering them. Keep the results of a few distinct entering headings.
+    # heading of epoch ``tail`` (then every later one follows from it). Keep the results of
+    # a few distinct ones: where the turn into the tail is not clipped that heading is the
+    # tail's bearing up to round-off in the heading rule, a handful of values at most.
     tail = L
     while tail > 1 and shared[tail - 1]:
         tail -= 1
-    n_memo = 4 if tail < L else 0
+    n_memo = 8 if tail < L else 0
     memo_h = np.zeros(max(n_memo, 1))
     memo_w = np.zeros((max(n_memo, 1), L, e, 3))
     memo_looked = np.zeros((max(n_memo, 1), L), dtype=np.bool_)
@@ -158,9 +160,11 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
         l = 0
         while l < L:
             if l == tail and n_memo > 0:
-                h_in = h
+                # The tail's heading, as the loop below computes it (tail >= 1).
+                h_in = _heading_rule(h, sh_bearing[tail], max_turn)
                 for x in range(n_kept):
-                    if memo_h[x] == h and math.copysign(1.0, memo_h[x]) == math.copysign(1.0, h):
+                    if memo_h[x] == h_in and (math.copysign(1.0, memo_h[x])
+                                              == math.copysign(1.0, h_in)):
                         hit = x
                         break
                 if hit >= 0:
