@@ -23,6 +23,26 @@ from .._kernels import (full16, load_sym10, logdet4, logdet10, predict_cv_sym,
                         predict_step, store_sym10, update_step, update_sym)
 
 
+@njit(cache=True, nogil=True)
+def add_looks(Wp: np.ndarray, tgt: np.ndarray, out: np.ndarray, only: int, skip: int,
+              lo: int, hi: int) -> None:
+    """Add the players' look information ``Wp (N, K, e, 2, 2)`` into ``out[j, t]`` (w00, w01,
+    w11) by target and step, in the order of ``information.sum_by_target`` (sensors, then
+    epochs): bit for bit its sums. Only target ``only`` if it is >= 0; sensor ``skip``'s
+    epochs ``lo .. hi - 1`` left out."""
+    N, K, e = Wp.shape[0], Wp.shape[1], Wp.shape[2]
+    for i2 in range(N):
+        for k2 in range(K):
+            j = tgt[i2, k2]
+            if j < 0 or (only >= 0 and j != only) or (i2 == skip and lo <= k2 < hi):
+                continue
+            for s in range(e):
+                t = k2 * e + s
+                out[j, t, 0] += Wp[i2, k2, s, 0, 0]
+                out[j, t, 1] += Wp[i2, k2, s, 0, 1]
+                out[j, t, 2] += Wp[i2, k2, s, 1, 1]
+
+
 @njit(cache=True, fastmath=False)
 def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q: np.ndarray,
              cv: bool, dt: float, cum: bool, s0: int, sensor: np.ndarray, lo: np.ndarray,
@@ -47,7 +67,7 @@ def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q
                                   player): log-dets summed before ``s0``, at the end, and
                                   summed from ``s0`` on
     """
-    N, K, e = Wp.shape[0], Wp.shape[1], Wp.shape[2]
+    K, e = Wp.shape[1], Wp.shape[2]
     M = covs.shape[0]
     T = K * e
     S = T - s0
@@ -68,19 +88,8 @@ def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q
     has_pair = np.zeros(M, dtype=np.bool_)
     for p in range(sensor.shape[0]):
         i = sensor[p]
-        # The other players' looks, summed by target and step in the order of
-        # information.sum_by_target (sensors, then epochs): bit for bit the same sums.
         Wf[:] = 0.0
-        for i2 in range(N):
-            for k2 in range(K):
-                j = tgt[i2, k2]
-                if j < 0 or (i2 == i and lo[p] <= k2 < hi[p]):
-                    continue
-                for s in range(e):
-                    t = k2 * e + s
-                    Wf[j, t, 0] += Wp[i2, k2, s, 0, 0]
-                    Wf[j, t, 1] += Wp[i2, k2, s, 0, 1]
-                    Wf[j, t, 2] += Wp[i2, k2, s, 1, 1]
+        add_looks(Wp, tgt, Wf, -1, i, lo[p], hi[p])       # the other players' looks
         has_pair[:] = False
         for q in range(pair_off[p], pair_off[p + 1]):
             has_pair[j_pair[q]] = True
@@ -298,7 +307,7 @@ def game_totals_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndar
     first_call : bool
     changed : int       targets whose total changed
     """
-    N, K, e = Wp.shape[0], Wp.shape[1], Wp.shape[2]
+    K, e = Wp.shape[1], Wp.shape[2]
     M = covs.shape[0]
     T = K * e
     s0 = (k - 1) * e
@@ -306,16 +315,7 @@ def game_totals_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndar
     P = np.empty((4, 4))
     FP = np.empty((4, 4))
     Wtot = np.zeros((M, T, 3))
-    for i2 in range(N):
-        for k2 in range(K):
-            j = tgt[i2, k2]
-            if j < 0:
-                continue
-            for s in range(e):
-                t = k2 * e + s
-                Wtot[j, t, 0] += Wp[i2, k2, s, 0, 0]
-                Wtot[j, t, 1] += Wp[i2, k2, s, 0, 1]
-                Wtot[j, t, 2] += Wp[i2, k2, s, 1, 1]
+    add_looks(Wp, tgt, Wtot, -1, -1, 0, 0)
     first_call = not shared[0]
     if first_call:
         for j in range(M):
@@ -388,7 +388,6 @@ def game_players_nb(p_lo: int, p_hi: int, Wp: np.ndarray, tgt: np.ndarray, F: np
     own_pred = np.empty((M, S, 4, 4))
     own_part = np.empty((M, S))
     own_ld = np.empty((M, 2))
-    N = Wp.shape[0]
     d0 = cand_off[p_lo]
     n_dirty = 0
     for p in range(p_lo, p_hi):
@@ -411,15 +410,7 @@ def game_players_nb(p_lo: int, p_hi: int, Wp: np.ndarray, tgt: np.ndarray, F: np
                     Wown[j, t, 0] = 0.0
                     Wown[j, t, 1] = 0.0
                     Wown[j, t, 2] = 0.0
-                for i2 in range(N):
-                    for k2 in range(K):
-                        if tgt[i2, k2] != j or (i2 == p and lo <= k2 < h):
-                            continue
-                        for s in range(e):
-                            t = k2 * e + s
-                            Wown[j, t, 0] += Wp[i2, k2, s, 0, 0]
-                            Wown[j, t, 1] += Wp[i2, k2, s, 0, 1]
-                            Wown[j, t, 2] += Wp[i2, k2, s, 1, 1]
+                add_looks(Wp, tgt, Wown, j, p, lo, h)
                 if _same_row(rows[p], j, Wown, j, T):
                     continue
                 seen[p, j] = -1
