@@ -778,6 +778,35 @@ def test_d16_the_import_lock_callback_is_recognised() -> None:
     assert not lands_unraisable(None)
 
 
+def test_d16_a_ctrl_c_inside_numba_scipy_or_an_import_waits_for_them() -> None:
+    # A Ctrl-C that landed in llvmlite's object-cache callback (a ctypes callback, run while
+    # numba loads a cached kernel) was printed and dropped, and the process then crashed;
+    # inside numba's compiler it left a dispatcher with an exception set; inside scipy's
+    # Sobol set-up it was dropped by a Cython function and the run failed later. The handler
+    # now defers while numba's, llvmlite's, scipy's or the import system's code is on the
+    # stack (real code objects here).
+    from types import SimpleNamespace
+
+    from llvmlite.binding import executionengine
+    from numba.core import dispatcher
+    from scipy.stats import _qmc
+
+    from sensorplan.cli_guards import lands_unraisable
+
+    import _frozen_importlib
+
+    here = sys._getframe()
+    for code in (executionengine.ExecutionEngine._raw_object_cache_getbuffer.__code__,
+                 executionengine.ExecutionEngine._raw_object_cache_notify.__code__,
+                 dispatcher.Dispatcher._compile_for_args.__code__,
+                 _qmc.Sobol.__init__.__code__,
+                 _frozen_importlib._find_and_load.__code__):       # any module's import
+        assert lands_unraisable(SimpleNamespace(f_code=code, f_back=None))
+        assert lands_unraisable(SimpleNamespace(f_code=here.f_code, f_back=SimpleNamespace(
+            f_code=code, f_back=None)))           # our code called from inside theirs
+    assert not lands_unraisable(here)
+
+
 def test_d16_ctrl_c_while_the_commands_are_built(monkeypatch, capsys) -> None:
     # typer builds the commands from their signatures (about 0.1 s, after the imports):
     # a Ctrl-C landing there once escaped as a traceback. Deterministic stand-in for it.

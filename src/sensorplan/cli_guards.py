@@ -8,6 +8,7 @@ only the standard library at import time.
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -199,17 +200,46 @@ def animate_drawable(episode: Any, scenario: Any, path: Path) -> Path:
 
 
 def lands_unraisable(frame: Any) -> bool:
-    """Whether an exception raised by a signal handler in ``frame`` would be lost: CPython
-    runs an import lock's weakref callback (and ``__del__`` finalizers) where no exception
-    can propagate, prints ``Exception ignored in ...`` with a traceback, and goes on. True
-    when such a callback is anywhere on the stack (the exception would end there)."""
+    """Whether an exception raised by a signal handler in ``frame`` would be lost, or would
+    break the code it lands in. True when anywhere on the stack there is
+
+    * a ``__del__`` finalizer: CPython runs it where no exception can propagate, prints
+      ``Exception ignored in ...`` with a traceback, and goes on;
+    * an import in progress (the import system's frames): the import lock's weakref
+      callback runs where no exception can propagate, and a module's top-level code may
+      call C code that drops them. An import is over in well under a second;
+    * the Python code of numba, llvmlite or scipy, which run Python from C code that drops
+      exceptions. numba loads a cached kernel through llvmlite's object-cache callbacks,
+      ctypes callbacks: an exception there is printed and dropped, and LLVM goes on with a
+      buffer that was never filled (the process crashed); elsewhere in numba an interrupt
+      could leave a dispatcher with an exception set (``SystemError``). scipy's Sobol
+      generator reads its tables in a Cython function that drops exceptions: an interrupt
+      there left them unfilled and the run failed later. Each of these steps takes
+      milliseconds (one kernel's compilation at worst).
+    """
+    roots = _callback_roots()
     while frame is not None:
         code = getattr(frame, "f_code", None)
-        if code is not None and (code.co_name == "__del__" or (
-                code.co_name == "cb" and code.co_filename.startswith("<frozen importlib"))):
-            return True
+        if code is not None:
+            name, file = code.co_name, code.co_filename
+            if name == "__del__" or file.startswith("<frozen importlib"):
+                return True
+            if roots and file.startswith(roots):
+                return True
         frame = getattr(frame, "f_back", None)
     return False
+
+
+def _callback_roots() -> tuple[str, ...]:
+    """The package directories of numba, llvmlite and scipy, those that are loaded (a
+    package that is not loaded runs no code; this never imports one)."""
+    roots = []
+    for name in ("numba", "llvmlite", "scipy"):
+        module = sys.modules.get(name)
+        file = getattr(module, "__file__", None)
+        if file:
+            roots.append(os.path.dirname(file) + os.sep)
+    return tuple(roots)
 
 
 def deliver_later(signum: int) -> None:
