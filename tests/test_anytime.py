@@ -7,6 +7,7 @@ budget of n stops a planner at a known check, independently of the machine's spe
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 import pytest
@@ -104,6 +105,37 @@ def test_a_stopped_planner_returns_the_plan_held_at_its_last_check(monkeypatch, 
         # Stopping later never returns less.
         assert result.potential >= previous - 1e-9 * max(1.0, abs(previous))
         previous = result.potential
+
+
+def _functions_on_stack() -> set[str]:
+    frame, names = sys._getframe(1), set()
+    while frame is not None:
+        names.add(frame.f_code.co_name)
+        frame = frame.f_back
+    return names
+
+
+def test_an_epoch_games_long_first_iteration_has_checks_inside(monkeypatch):
+    # A game's first iteration recomputes every pair term: at the swarm's size a stretch of
+    # 0.1 s or more. With a budget it runs in rounds of player blocks, a check between.
+    problem = scale_problem(n_sensors=10, n_targets=20, horizon=4)
+    where: list[set[str]] = []
+    monkeypatch.setattr(anytime, "CHECK_HOOK",
+                        lambda phi, plan: where.append(_functions_on_stack()))
+    timed = make_planner("pg", time_budget=1e9).plan(problem, rng=2)
+    monkeypatch.setattr(anytime, "CHECK_HOOK", None)
+    free = make_planner("pg").plan(problem, rng=2)
+    np.testing.assert_array_equal(timed.plan.targets, free.plan.targets)
+    np.testing.assert_array_equal(timed.plan.positions, free.plan.positions)
+    inside = [n for n, names in enumerate(where) if "utilities" in names]
+    assert inside, "no check inside an iteration's utilities"
+    # Stopped there, the planner returns the plan it held at that check.
+    stop = inside[0] + 1
+    result, seen = _run_with_checks(monkeypatch, "pg", problem, stop - 0.5)
+    assert result.budget_exhausted and len(seen) == stop
+    np.testing.assert_array_equal(result.plan.targets, seen[-1][1].targets)
+    np.testing.assert_array_equal(result.plan.positions, seen[-1][1].positions)
+    check_plan(problem, result.plan)
 
 
 @pytest.mark.parametrize("name", BUDGETED)

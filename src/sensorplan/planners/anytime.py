@@ -1,7 +1,8 @@
 """Planning on a deadline: a time budget, the best complete plan so far, cheap completions.
 
 A planner with a ``time_budget`` (seconds) reads the clock only at safe points (between
-JSFP iterations, player updates or local-search moves). At each such *check* it first
+JSFP iterations, player updates or local-search moves, and within an epoch game's set-up and
+its longer iterations). At each such *check* it first
 offers the plan it holds, when that plan is complete, to an :class:`Anytime` record that
 keeps the best complete plan seen (by Phi); then, if the budget is spent, it stops and
 returns that best plan. So the plan a planner would return if stopped at a check never has

@@ -25,6 +25,9 @@ from .gain_kernels import (game_players_nb, game_sum_nb, game_totals_nb, index_p
 #: hold PARALLEL_LOOKS candidate epochs.
 PARALLEL_PAIRS = 4000
 PARALLEL_LOOKS = 20000
+#: With a time budget, an iteration with much to recompute is cut into this many blocks per
+#: thread, with a check between rounds: the swarm's first game took 0.1 s uninterrupted.
+BUDGET_BLOCKS = 8
 
 
 class EpochGame:
@@ -45,6 +48,7 @@ class EpochGame:
     def __init__(self, state: GameState, k: int, check: Callable[[], None] | None = None
                  ) -> None:
         self.state, self.k = state, k
+        self._check = check
         N = state.ctx.N
         self.actions: list[tuple[IntArray, IntArray]] = []
         self.cur = np.full(N, -1, dtype=np.int64)
@@ -81,6 +85,8 @@ class EpochGame:
             entries.append(entry)
             c_loc.append(loc)
             aliases.append(alias)
+        if check is not None:
+            check()                   # safe points between the set-up's longer parts
         sizes = np.array([len(a[0]) for a in self.actions])
         self.cand_off = np.r_[0, np.cumsum(sizes)]
         al = np.array([(self.cand_off[i] + self.cur[i], self.cand_off[i] + a)
@@ -103,6 +109,8 @@ class EpochGame:
         for i, en in enumerate(entries):
             # The cache keeps working on the game's buffer (views): no copy back needed.
             en.delta = self._delta[self._pair_off[i]:self._pair_off[i + 1]]
+        if check is not None:
+            check()
         ctx = state.ctx
         self._by_t, self._t_off, self._cp_off = index_pairs_nb(
             self._pair_off, self._c_loc, self._j, self.cand_off, ctx.M)
@@ -121,14 +129,21 @@ class EpochGame:
         self._tot_ld = np.empty((ctx.M, 2))
         # Blocks of players for the threads, contiguous and of about equal numbers of pairs
         # (a block writes only its players' entries, and lists its candidates to sum again
-        # in its own part of _dlist); one block when the iteration has little work.
-        total = int(self._pair_off[-1])
-        nb = max(1, min(state.threads, N))
-        cut = np.searchsorted(self._pair_off, total * np.arange(1, nb) / nb)
-        bounds = sorted({0, N} | {int(c) for c in np.clip(cut, 1, N - 1)})
-        self._blocks = list(pairwise(bounds))
-        self._total = total
+        # in its own part of _dlist); one block when the iteration has little work. With a
+        # time budget, BUDGET_BLOCKS times as many, run a thread-count at a time with a
+        # check between (a game's first iteration recomputes every pair: a long stretch).
+        self._total = int(self._pair_off[-1])
+        nb = max(1, state.threads)
+        self._blocks = self._player_blocks(nb if check is None else nb * BUDGET_BLOCKS)
         self._has_pair = np.diff(self._t_off, axis=1).any(axis=0)   # targets with a pair
+
+    def _player_blocks(self, n: int) -> list[tuple[int, int]]:
+        """Up to ``n`` contiguous blocks of players with about equal numbers of pairs."""
+        N = self.state.ctx.N
+        n = max(1, min(n, N))
+        cut = np.searchsorted(self._pair_off, self._total * np.arange(1, n) / n)
+        bounds = sorted({0, N} | {int(c) for c in np.clip(cut, 1, N - 1)})
+        return list(pairwise(bounds))
 
     def _entries(self, check: Callable[[], None] | None
                  ) -> list[tuple[int, tuple, IntArray, Pairs]]:
@@ -173,7 +188,13 @@ class EpochGame:
         # targets whose total changed.
         redo = self._total if first_call else changed * self._total / ctx.M
         blocks = self._blocks if redo >= PARALLEL_PAIRS else [(0, ctx.N)]
-        counts = run_all(game_players_nb, [(a, b) + common for a, b in blocks], st.threads)
+        step = len(blocks) if self._check is None else max(1, st.threads)
+        counts: list[int] = []
+        for a in range(0, len(blocks), step):
+            if a > 0 and self._check is not None:
+                self._check()                # a time budget's safe point
+            counts += run_all(game_players_nb, [(b0, b1) + common for b0, b1 in blocks[a:a + step]],
+                              st.threads)
         starts = self.cand_off[[a for a, _ in blocks]]
         return game_sum_nb(first_call, starts, np.array(counts, dtype=np.int64), self._delta,
                            self._cp_off, self._gcache, self._dirty, self._dlist,
