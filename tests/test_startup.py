@@ -216,3 +216,23 @@ def test_a_writable_home_leaves_matplotlib_alone(monkeypatch: pytest.MonkeyPatch
     quiet_matplotlib_dirs()
     assert "MPLCONFIGDIR" not in os.environ
     assert not (tmp_path / "home").exists()                  # nothing made by looking
+
+
+def test_the_command_line_turns_numpys_huge_pages_off_unless_the_user_chose() -> None:
+    from sensorplan._launch import numpy_defaults
+
+    env: dict[str, str] = {}
+    numpy_defaults(env)
+    assert env == {"NUMPY_MADVISE_HUGEPAGE": "0"}
+    env = {"NUMPY_MADVISE_HUGEPAGE": "1"}
+    numpy_defaults(env)
+    assert env == {"NUMPY_MADVISE_HUGEPAGE": "1"}             # the user's choice stands
+    # numpy reads it when imported: what the command line's process gets.
+    code = ("import os; from sensorplan._launch import numpy_defaults; "
+            "numpy_defaults(os.environ); import numpy._core.multiarray as m; "
+            "print(m._get_madvise_hugepage())")
+    env_run = {k: v for k, v in os.environ.items() if k != "NUMPY_MADVISE_HUGEPAGE"}
+    env_run["PYTHONPATH"] = str(SRC)
+    out = subprocess.run([sys.executable, "-c", code], env=env_run, capture_output=True,
+                         text=True, timeout=120, check=True)
+    assert out.stdout.strip() == "False"
