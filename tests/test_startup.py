@@ -236,3 +236,19 @@ def test_the_command_line_turns_numpys_huge_pages_off_unless_the_user_chose() ->
     out = subprocess.run([sys.executable, "-c", code], env=env_run, capture_output=True,
                          text=True, timeout=120, check=True)
     assert out.stdout.strip() == "False"
+
+
+@pytest.mark.parametrize("bad", ["abc", "", "1.5"])
+def test_a_huge_pages_value_numpy_cannot_read_is_refused_in_one_line(bad: str) -> None:
+    env = {**os.environ, "PYTHONPATH": str(SRC), "NUMPY_MADVISE_HUGEPAGE": bad}
+    done = subprocess.run([sys.executable, "-m", "sensorplan", "plan", str(PROBLEM)], env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2, done.stderr
+    assert done.stdout == ""
+    assert done.stderr.splitlines() == [
+        f"error: NUMPY_MADVISE_HUGEPAGE: must be 0 (off) or 1 (on), numpy's setting; got "
+        f"{bad!r} (or unset it)"]
+    env["NUMPY_MADVISE_HUGEPAGE"] = "1"                     # a value numpy reads: planned
+    done = subprocess.run([sys.executable, "-m", "sensorplan", "plan", str(PROBLEM)], env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr

@@ -12,6 +12,12 @@ import os
 import sys
 from collections.abc import MutableMapping
 
+from .errors import ConfigError, error_line
+
+
+#: numpy's switch for transparent huge pages, read when numpy is imported.
+HUGEPAGE = "NUMPY_MADVISE_HUGEPAGE"
+
 
 def numpy_defaults(environ: MutableMapping[str, str]) -> None:
     """The command line's numpy settings, unless the user set them: no transparent huge
@@ -21,12 +27,25 @@ def numpy_defaults(environ: MutableMapping[str, str]) -> None:
     machine whose memory the host backs only when first touched, each such page stalled for
     milliseconds: a large decision's 50 MB of arrays took 0.2-0.35 s in some runs instead of
     0.01 s, with no gain in the others. Read by numpy when it is imported: set here first.
+
+    Raises ConfigError naming the variable when the user's value is not a whole number
+    (numpy would fail on import with a bare ValueError).
     """
-    environ.setdefault("NUMPY_MADVISE_HUGEPAGE", "0")
+    value = environ.setdefault(HUGEPAGE, "0")
+    try:
+        int(value)
+    except ValueError:
+        raise ConfigError(HUGEPAGE, f"must be 0 (off) or 1 (on), numpy's setting; got "
+                          f"{value!r} (or unset it)") from None
 
 
 def main() -> None:
-    numpy_defaults(os.environ)
+    try:
+        numpy_defaults(os.environ)
+    except ConfigError as exc:
+        if not {"--help", "-h", "--version"} & set(sys.argv[1:]):   # they need no numpy
+            sys.stderr.write(error_line(exc.field, exc.message) + "\n")
+            sys.exit(2)
     try:
         import signal
         import threading  # noqa: F401 - loaded before a handler may need it (deliver_later)
