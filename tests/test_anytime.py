@@ -127,8 +127,8 @@ def test_an_epoch_games_long_first_iteration_has_checks_inside(monkeypatch):
     free = make_planner("pg").plan(problem, rng=2)
     np.testing.assert_array_equal(timed.plan.targets, free.plan.targets)
     np.testing.assert_array_equal(timed.plan.positions, free.plan.positions)
-    inside = [n for n, names in enumerate(where) if "utilities" in names]
-    assert inside, "no check inside an iteration's utilities"
+    inside = [n for n, names in enumerate(where) if "_iterate" in names]
+    assert inside, "no check inside an iteration's player blocks"
     # Stopped there, the planner returns the plan it held at that check.
     stop = inside[0] + 1
     result, seen = _run_with_checks(monkeypatch, "pg", problem, stop - 0.5)

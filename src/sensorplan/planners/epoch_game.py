@@ -15,16 +15,17 @@ from .._types import FloatArray, IntArray
 from ..information import _c, cv_form
 from ..problem import TIE_TOL
 from .engine import GameState, Pairs, PairsJob, pair_kernels
-from .gain_kernels import (game_players_nb, game_sum_nb, game_totals_nb, index_pairs_nb,
-                           jsfp_step_nb)
+from .gain_kernels import game_block_nb, game_totals_nb, index_pairs_nb
 
 #: Below these amounts of work a batch runs on the calling thread alone: handing work to
 #: another thread and waiting for it costs more than it saves (a paper-size decision took
 #: 50 % longer on two threads). An iteration's players' part runs on threads when about
 #: PARALLEL_PAIRS pair terms are recomputed; the players' looks when their candidate chains
-#: hold PARALLEL_LOOKS candidate epochs.
+#: hold PARALLEL_LOOKS candidate epochs; an iteration's bookkeeping when the game has
+#: PARALLEL_CANDIDATES kept actions.
 PARALLEL_PAIRS = 4000
 PARALLEL_LOOKS = 20000
+PARALLEL_CANDIDATES = 20000
 #: With a time budget, an iteration with much to recompute is cut into this many blocks per
 #: thread, with a check between rounds: the swarm's first game took 0.1 s uninterrupted.
 BUDGET_BLOCKS = 8
@@ -116,6 +117,7 @@ class EpochGame:
             self._pair_off, self._c_loc, self._j, self.cand_off, ctx.M)
         n = int(self.cand_off[-1])
         self._gcache = np.zeros(n)
+        self._none = np.zeros(0)
         self._dirty = np.zeros(n, dtype=bool)
         self._dlist = np.empty(n, dtype=np.int64)
         self._seen = np.full((N, ctx.M), -1, dtype=np.int64)
@@ -172,6 +174,31 @@ class EpochGame:
 
     def utilities(self) -> FloatArray:
         """Every player's utility of each kept action (marginal contributions), concatenated."""
+        return self._iterate(0, self._none, 0.0)[0]
+
+    def iteration(self, ubar: FloatArray, t: int,
+                  scale: float) -> tuple[FloatArray, bool, FloatArray, IntArray]:
+        """JSFP iteration ``t``: the utilities ``u`` of every player's kept actions, the
+        equilibrium test, running averages and best responses.
+
+        The equilibrium: no player can raise its utility by more than
+        ``TIE_TOL max(1, scale)``. Otherwise ``ubar <- (t-1)/t ubar + u/t`` and each player's
+        best response is ``argmax ubar`` under the tie rule (see :func:`choose`).
+
+        Returns
+        -------
+        u : utilities (concatenated, a new array);  equilibrium : bool;
+        ubar : new averages (``ubar`` itself at an equilibrium);
+        best : (N,) indices into each player's kept actions (-1 at an equilibrium)
+        """
+        u, eq, new, best = self._iterate(t, ubar, TIE_TOL * max(1.0, scale))
+        if eq:
+            return u, True, ubar, np.full(len(best), -1, dtype=np.int64)
+        return u, False, new, best
+
+    def _iterate(self, t: int, ubar: FloatArray,
+                 tol: float) -> tuple[FloatArray, bool, FloatArray, IntArray]:
+        """:func:`game_block_nb` on every block of players (``t`` 0: utilities only)."""
         st = self.state
         ctx = st.ctx
         cv, dt = cv_form(ctx.F)
@@ -179,45 +206,34 @@ class EpochGame:
             st.W, st.tgt, st._covs, ctx.F, st._Q, cv, dt, st.cumulative, self.k, self._has_pair,
             self._shared, self._pre, self._tot_rows, self._tot_ver, self._tot_pred,
             self._tot_part, self._tot_ld)
+        n = int(self.cand_off[-1])
+        u = np.empty(n)
+        new = np.empty(n) if t > 0 else u
+        best = self.cur.copy()
         common = (st.W, st.tgt, ctx.F, st._Q, cv, dt, st.cumulative, self.k, self._hi,
                   self._c_loc, self._j, self._first, self._count, self._offset, self._data,
                   self._delta, self._rows, self._by_t, self._t_off, self.cand_off, self._dirty,
                   self._dlist, self._seen, Wtot, self._pre, self._tot_ver, self._tot_pred,
-                  self._tot_part, self._tot_ld)
+                  self._tot_part, self._tot_ld, first_call, self._cp_off, self._gcache,
+                  self._alias_dst, self._alias_src, u, ubar, t, tol, new, best)
         # Pair terms this iteration recomputes, roughly: all at first, then those of the
-        # targets whose total changed.
+        # targets whose total changed; every candidate's running average.
         redo = self._total if first_call else changed * self._total / ctx.M
-        blocks = self._blocks if redo >= PARALLEL_PAIRS else [(0, ctx.N)]
+        many = redo >= PARALLEL_PAIRS or (t > 0 and n >= PARALLEL_CANDIDATES)
+        blocks = self._blocks if many else [(0, ctx.N)]
         step = len(blocks) if self._check is None else max(1, st.threads)
-        counts: list[int] = []
+        eq = True
         for a in range(0, len(blocks), step):
             if a > 0 and self._check is not None:
                 self._check()                # a time budget's safe point
-            counts += run_all(game_players_nb, [(b0, b1) + common for b0, b1 in blocks[a:a + step]],
-                              st.threads)
-        starts = self.cand_off[[a for a, _ in blocks]]
-        return game_sum_nb(first_call, starts, np.array(counts, dtype=np.int64), self._delta,
-                           self._cp_off, self._gcache, self._dirty, self._dlist,
-                           self._alias_dst, self._alias_src)
+            for ok in run_all(game_block_nb, [(b0, b1) + common for b0, b1 in blocks[a:a + step]],
+                              st.threads):
+                eq &= ok
+        return u, eq, new, best
 
     def split(self, values: FloatArray) -> list[FloatArray]:
         """Per-player views of concatenated values."""
         return [values[a:b] for a, b in pairwise(self.cand_off.tolist())]
-
-    def step(self, u: FloatArray, ubar: FloatArray, t: int,
-             scale: float) -> tuple[bool, FloatArray, IntArray]:
-        """Equilibrium test, running averages and best responses of iteration ``t``.
-
-        The equilibrium: no player can raise its utility ``u`` by more than
-        ``TIE_TOL max(1, scale)``. Otherwise ``ubar <- (t-1)/t ubar + u/t`` and each player's
-        best response is ``argmax ubar`` under the tie rule (see :func:`choose`).
-
-        Returns
-        -------
-        equilibrium : bool;  ubar : new averages (unchanged at an equilibrium);
-        best : (N,) indices into each player's kept actions
-        """
-        return jsfp_step_nb(u, ubar, t, self.cand_off, self.cur, TIE_TOL * max(1.0, scale))
 
     def close(self) -> None:
         """Forget the initialisation sets' pairs (their actions are never offered again)."""
@@ -246,8 +262,7 @@ def warm_engine() -> None:
     try:
         ubar = np.zeros(int(game.cand_off[-1]))
         for t in (1, 2):            # unassigned, then assigned: both code paths compiled
-            u = game.utilities()
-            _, ubar, best = game.step(u, ubar, t, abs(state.potential()))
+            _, _, ubar, best = game.iteration(ubar, t, abs(state.potential()))
             if best[0] >= 0:
                 pos, tgt = game.actions[0]
                 state.set_action(0, 2, int(pos[best[0]]), int(tgt[best[0]]))

@@ -1,12 +1,11 @@
 """Compiled kernels of the planning engine: utilities from sparse pairs.
 
 :func:`gains_nb` (one sensor's candidates, the :meth:`GameState.chain_gains` path) and
-:func:`game_totals_nb`, :func:`game_players_nb`, :func:`game_sum_nb` (every player of an
-epoch game, once per JSFP iteration; the players' part in blocks that may run on threads)
-turn the pairs of :func:`sensorplan.planners.kernels.chain_pairs_nb` into utilities: they sum
+:func:`game_totals_nb` with :func:`game_block_nb` (every player of an epoch game, once per
+JSFP iteration; the players' part in blocks that may run on threads) turn the pairs of :func:`sensorplan.planners.kernels.chain_pairs_nb` into utilities: they sum
 the other players' looks, recompute each target's baseline recursion where those looks
-changed, and then the pairs of those targets only. :func:`jsfp_step_nb` does an iteration's
-bookkeeping.
+changed, and then the pairs of those targets only. :func:`game_block_nb` also does an
+iteration's bookkeeping, block by block.
 
 Both repeat, operation for operation, what the readable path does (a dense covariance
 recursion per pair, ``tests/engine_reference.py``): the same predict and update steps in the
@@ -358,8 +357,8 @@ def game_players_nb(p_lo: int, p_hi: int, Wp: np.ndarray, tgt: np.ndarray, F: np
     """The pair terms of players ``p_lo .. p_hi - 1`` of an epoch game (players (p, k)).
 
     An epoch game's utilities are :func:`game_totals_nb`, this for every player (in blocks,
-    on threads: a block writes only its own players' entries) and :func:`game_sum_nb`. They
-    are the values of :func:`gains_nb` for each player (sensor p's epochs ``k-1 .. hi[p]-1``
+    on threads: a block writes only its own players' entries) and the sums of
+    :func:`game_block_nb`. They are the values of :func:`gains_nb` for each player (sensor p's epochs ``k-1 .. hi[p]-1``
     removed), computed with less work, all of it exact:
 
     * the other players' information at target j equals the total when player p's own chain
@@ -450,42 +449,6 @@ def game_players_nb(p_lo: int, p_hi: int, Wp: np.ndarray, tgt: np.ndarray, F: np
 
 
 @njit(cache=True)
-def game_sum_nb(first_call: bool, starts: np.ndarray, counts: np.ndarray, delta: np.ndarray,
-                cp_off: np.ndarray, gcache: np.ndarray, dirty: np.ndarray, dlist: np.ndarray,
-                alias_dst: np.ndarray, alias_src: np.ndarray) -> np.ndarray:
-    """The last part of an epoch game's utilities: each candidate's sum of its pairs' terms
-    in pair order, summed again only where one of them changed (``gcache`` keeps them; the
-    blocks of :func:`game_players_nb` listed ``counts[b]`` candidates from ``dlist[starts[b]]``
-    on; on the first call every candidate); a current action that duplicates an earlier
-    candidate takes its sum (``alias_*``).
-
-    Returns
-    -------
-    (cand_off[-1],) utilities of every player's candidates, concatenated (a new array).
-    """
-    if first_call:
-        for c in range(gcache.shape[0]):
-            g = 0.0
-            for q in range(cp_off[c], cp_off[c + 1]):
-                g += delta[q]
-            gcache[c] = g
-            dirty[c] = False
-    else:
-        for b in range(starts.shape[0]):
-            for y in range(starts[b], starts[b] + counts[b]):
-                c = dlist[y]
-                g = 0.0
-                for q in range(cp_off[c], cp_off[c + 1]):
-                    g += delta[q]
-                gcache[c] = g
-                dirty[c] = False
-    for x in range(alias_dst.shape[0]):              # a duplicate current action
-        gcache[alias_dst[x]] = gcache[alias_src[x]]
-    return gcache.copy()
-
-
-
-@njit(cache=True)
 def _same_row(A: np.ndarray, a: int, B: np.ndarray, b: int, T: int) -> bool:
     """Whether rows ``A[a]`` and ``B[b]`` (T, 3) are equal (bit for bit; NaN never is)."""
     for t in range(T):
@@ -494,53 +457,91 @@ def _same_row(A: np.ndarray, a: int, B: np.ndarray, b: int, T: int) -> bool:
     return True
 
 
+@njit(cache=True, fastmath=False, nogil=True)
+def game_block_nb(p_lo: int, p_hi: int, Wp: np.ndarray, tgt: np.ndarray, F: np.ndarray,
+                  Q: np.ndarray, cv: bool, dt: float, cum: bool, k: int, hi: np.ndarray,
+                  c_loc: np.ndarray, j_pair: np.ndarray, first: np.ndarray,
+                  count: np.ndarray, offset: np.ndarray, data: np.ndarray,
+                  delta: np.ndarray, rows: np.ndarray, by_t: np.ndarray, t_off: np.ndarray,
+                  cand_off: np.ndarray, dirty: np.ndarray, dlist: np.ndarray,
+                  seen: np.ndarray, Wtot: np.ndarray, pre: np.ndarray, tot_ver: np.ndarray,
+                  tot_pred: np.ndarray, tot_part: np.ndarray, tot_ld: np.ndarray,
+                  first_call: bool, cp_off: np.ndarray, gcache: np.ndarray,
+                  alias_dst: np.ndarray, alias_src: np.ndarray, u: np.ndarray,
+                  ubar: np.ndarray, t: int, tol: float, new: np.ndarray,
+                  best: np.ndarray) -> bool:
+    """One JSFP iteration of players ``p_lo .. p_hi - 1`` of an epoch game (one block: it
+    reads and writes only its own players' entries, so blocks may run on threads).
 
-@njit(cache=True)
-def jsfp_step_nb(u: np.ndarray, ubar: np.ndarray, t: int, cand_off: np.ndarray,
-                 cur: np.ndarray, tol: float) -> tuple:
-    """One JSFP iteration's bookkeeping for every player, in one pass.
-
-    Whether the current actions are an equilibrium (``vmax <= u[cur] + tol`` for every
-    player); if not, the running averages ``(t-1)/t ubar + u/t`` (a new array, as the numpy
-    expression) and every player's best response under the tie rule.
+    Their pair terms (:func:`game_players_nb`); each of their candidates' utility, the sum
+    of its pairs' terms in pair order, summed again only where one of them changed
+    (``gcache`` keeps them; on the first call every candidate), written to ``u``; a current
+    action that duplicates an earlier candidate takes its sum (``alias_*``). Then, unless
+    ``t`` is 0 (utilities only), the iteration's bookkeeping: whether each of these players
+    is at a best response (``vmax <= u[cur] + tol``), the running averages
+    ``(t-1)/t ubar + u/t`` into ``new`` and the best responses under the tie rule into
+    ``best`` (both computed whatever the answer: the caller discards them when every block
+    is at an equilibrium). ``best`` holds the players' current actions on entry (-1:
+    unassigned).
 
     Returns
     -------
-    equilibrium : bool
-    ubar : (n,)   new running averages (``ubar`` itself at an equilibrium)
-    best : (P,)   best responses (-1 at an equilibrium)
+    True if every player of the block is at a best response.
     """
-    P = cur.shape[0]
+    n_dirty = game_players_nb(p_lo, p_hi, Wp, tgt, F, Q, cv, dt, cum, k, hi, c_loc, j_pair,
+                              first, count, offset, data, delta, rows, by_t, t_off,
+                              cand_off, dirty, dlist, seen, Wtot, pre, tot_ver, tot_pred,
+                              tot_part, tot_ld)
+    a0, b0 = cand_off[p_lo], cand_off[p_hi]
+    if first_call:
+        for c in range(a0, b0):
+            g = 0.0
+            for q in range(cp_off[c], cp_off[c + 1]):
+                g += delta[q]
+            gcache[c] = g
+            dirty[c] = False
+    else:
+        for y in range(a0, a0 + n_dirty):
+            c = dlist[y]
+            g = 0.0
+            for q in range(cp_off[c], cp_off[c + 1]):
+                g += delta[q]
+            gcache[c] = g
+            dirty[c] = False
+    for x in range(alias_dst.shape[0]):              # a duplicate current action
+        if a0 <= alias_dst[x] < b0:
+            gcache[alias_dst[x]] = gcache[alias_src[x]]
+    for c in range(a0, b0):
+        u[c] = gcache[c]
+    if t == 0:
+        return True
     eq = True
-    for p in range(P):
-        if cur[p] < 0:
+    for p in range(p_lo, p_hi):
+        if best[p] < 0:
             eq = False
             break
         a, b = cand_off[p], cand_off[p + 1]
         vmax = u[a]
         for x in range(a + 1, b):
             vmax = max(vmax, u[x])
-        if not vmax <= u[a + cur[p]] + tol:
+        if not vmax <= u[a + best[p]] + tol:
             eq = False
             break
-    best = np.full(P, -1, dtype=np.int64)
-    if eq:
-        return True, ubar, best
     w = (t - 1) / t
-    new = np.empty_like(ubar)
-    for x in range(u.shape[0]):
+    for x in range(a0, b0):
         new[x] = w * ubar[x] + u[x] / t
-    for p in range(P):
+    for p in range(p_lo, p_hi):
         a, b = cand_off[p], cand_off[p + 1]
+        cur = best[p]
         vmax = new[a]
         for x in range(a + 1, b):
             vmax = max(vmax, new[x])
         floor = vmax - tol
-        if cur[p] >= 0 and new[a + cur[p]] >= floor:
-            best[p] = cur[p]
-            continue
+        if cur >= 0 and new[a + cur] >= floor:
+            continue                                 # the current action stays
+        best[p] = -1
         for x in range(a, b):
             if new[x] >= floor:
                 best[p] = x - a
                 break
-    return False, new, best
+    return eq

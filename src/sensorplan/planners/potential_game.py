@@ -80,9 +80,7 @@ def jsfp_epoch(state: GameState, k: int, rng: np.random.Generator, alpha: float,
     try:
         for t in range(1, max_inner + 1):
             # Utilities are marginal contributions: Phi up to a term the player cannot change.
-            u = game.utilities()
-            scale = abs(state.potential())
-            eq, ubar, best = game.step(u, ubar, t, scale)
+            u, eq, ubar, best = game.iteration(ubar, t, abs(state.potential()))
             yield EpochState(t, game.split(u), game.split(ubar), eq)
             if eq:
                 return
