@@ -32,6 +32,8 @@ SIGNATURES: tuple = (
     ('sensorplan.planners.kernels', 'game_chains_nb', (('d', 2), 'i', ('d', 2), ('l', 1))),
     ('sensorplan.planners.kernels', 'player_positions_nb',
      (('d', 2), ('l', 1), ('l', 1), 'b', ('d', 1))),
+    ('sensorplan.planners.kernels', 'player_view_nb',
+     (('l', 1), 'i', 'i', 'i', ('l', 1), 'i', ('l', 1), ('l', 1), ('l', 1))),
     ('sensorplan.radar.batch', '_detect_grid',
      (('d', 2), ('l', 1), ('d', 2), ('d', 2), ('d', 1), ('d', 2), ('d', 2))),
     ('sensorplan.radar.batch', '_detect_quadrature',

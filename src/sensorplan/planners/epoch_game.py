@@ -15,6 +15,7 @@ from .._types import FloatArray, IntArray
 from ..information import _c, cv_form
 from ..problem import TIE_TOL
 from .engine import GameState, Pairs, PairsJob, pair_kernels
+from .kernels import player_view_nb
 from .gain_kernels import game_block_nb, game_totals_nb, index_pairs_nb
 
 #: Below these amounts of work a batch runs on the calling thread alone: handing work to
@@ -56,31 +57,19 @@ class EpochGame:
         self._init_sets = []
         entries, c_loc, aliases = [], [], []
         M = state.ctx.M
+        tgt_k = state.tgt[:, k - 1]
         for i, token, cand, entry in self._entries(check):
             if token[3] < 0 and k > 1:
                 self._init_sets.append(i)
-            cur = -1
-            if state.tgt[i, k - 1] >= 0:
-                q = np.flatnonzero(cand == state.pos[i, k - 1])
-                cur = int(q[0]) * M + int(state.tgt[i, k - 1]) if q.size else -1
-            if entry.view is None or entry.view[0] != cur:
-                # Kept: candidates holding pairs, the first without a counting look, the
-                # current action. A duplicate (same pairs as an earlier candidate) can only
-                # be chosen as the current action; it then takes its original's utility.
-                keep = entry.owners
-                for extra in (entry.free, cur):
-                    if extra >= 0:
-                        at = int(np.searchsorted(keep, extra))
-                        if at == len(keep) or keep[at] != extra:
-                            keep = np.insert(keep, at, extra)
-                cur_loc = int(np.searchsorted(keep, cur)) if cur >= 0 else -1
-                alias = -1
-                if cur >= 0 and entry.dups.size:
-                    d = int(np.searchsorted(entry.dups, cur))
-                    if d < entry.dups.size and entry.dups[d] == cur:
-                        alias = int(np.searchsorted(keep, entry.dup_of[d]))
-                entry.view = (cur, (cand[keep // M], keep % M), cur_loc,
-                              np.searchsorted(keep, entry.c_pair), alias)
+            # Kept: candidates holding pairs, the first without a counting look, the current
+            # action. A duplicate (same pairs as an earlier candidate) can only be chosen as
+            # the current action; it then takes its original's utility.
+            at = (int(state.pos[i, k - 1]), int(tgt_k[i])) if tgt_k[i] >= 0 else (-1, -1)
+            if entry.view is None or entry.view[0] != at:
+                pos, tgt, cur_loc, loc, alias = player_view_nb(
+                    cand, M, at[0], at[1], entry.owners, entry.free, entry.dups, entry.dup_of,
+                    entry.c_pair)
+                entry.view = (at, (pos, tgt), cur_loc, loc, alias)
             _, actions, self.cur[i], loc, alias = entry.view
             self.actions.append(actions)
             entries.append(entry)
@@ -102,7 +91,8 @@ class EpochGame:
         self._j = cat([en.j_pair for en in entries])
         self._first = cat([en.first for en in entries])
         self._count = cat([en.count for en in entries])
-        self._offset = cat([en.offset + data_off[i] for i, en in enumerate(entries)])
+        self._offset = cat([en.offset for en in entries])
+        self._offset += np.repeat(data_off[:-1], n_pairs)      # rows in the game's data
         self._data = _c(cat([en.data for en in entries]))
         self._delta = cat([en.delta for en in entries])
         self._rows = state._rows_buf[k]          # every entry's rows are views into it

@@ -425,3 +425,72 @@ def candidate_sets_nb(c_pair: np.ndarray, rep: np.ndarray) -> tuple:
         contrib[x] = c
         x += 1
     return owners, dups, contrib, free
+
+
+@njit(cache=True)
+def player_view_nb(cand: np.ndarray, M: int, cur_pos: int, cur_tgt: int, owners: np.ndarray,
+                   free: int, dups: np.ndarray, dup_of: np.ndarray,
+                   c_pair: np.ndarray) -> tuple:
+    """What an epoch game keeps of a player's candidates (``cand`` positions times ``M``
+    targets, position-major) given its current action (lattice index ``cur_pos`` and
+    ``cur_tgt``; ``cur_tgt`` -1: unassigned), from :func:`candidate_sets_nb`'s sets.
+
+    Kept: the candidates holding pairs (``owners``), the first without a look that counts
+    (``free``) and the current action, in candidate order.
+
+    Returns
+    -------
+    pos, tgt : (A,) int       the kept actions' positions and targets
+    cur_loc : int             the current action's index among them (-1: none)
+    c_loc : (n,) int          each pair's candidate's index among them
+    alias : int               if the current action duplicates an earlier candidate (it
+                              then has no pairs of its own), that one's index, else -1
+    """
+    cur = -1
+    if cur_tgt >= 0:
+        for q in range(cand.shape[0]):
+            if cand[q] == cur_pos:
+                cur = q * M + cur_tgt
+                break
+    e0, e1 = min(free, cur), max(free, cur)      # the extras, -1 for none
+    keep = np.empty(owners.shape[0] + 2, dtype=np.int64)
+    n = 0
+    a = 0
+    for extra in (e0, e1):
+        if extra < 0:
+            continue
+        while a < owners.shape[0] and owners[a] < extra:
+            keep[n] = owners[a]
+            n += 1
+            a += 1
+        if (a == owners.shape[0] or owners[a] != extra) and (n == 0 or keep[n - 1] != extra):
+            keep[n] = extra
+            n += 1
+    while a < owners.shape[0]:
+        keep[n] = owners[a]
+        n += 1
+        a += 1
+    pos = np.empty(n, dtype=np.int64)
+    tgt = np.empty(n, dtype=np.int64)
+    cur_loc = -1
+    for x in range(n):
+        pos[x] = cand[keep[x] // M]
+        tgt[x] = keep[x] % M
+        if keep[x] == cur:
+            cur_loc = x
+    c_loc = np.empty(c_pair.shape[0], dtype=np.int64)
+    x = 0
+    for q in range(c_pair.shape[0]):             # pairs are sorted by candidate
+        while keep[x] < c_pair[q]:
+            x += 1
+        c_loc[q] = x
+    alias = -1
+    if cur >= 0:
+        for d in range(dups.shape[0]):
+            if dups[d] == cur:
+                x = 0
+                while x < n and keep[x] < dup_of[d]:
+                    x += 1
+                alias = x
+                break
+    return pos, tgt, cur_loc, c_loc, alias
