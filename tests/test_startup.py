@@ -238,6 +238,54 @@ def test_the_command_line_turns_numpys_huge_pages_off_unless_the_user_chose() ->
     assert out.stdout.strip() == "False"
 
 
+_GLIBC = bool(getattr(os, "confstr_names", {}).get("CS_GNU_LIBC_VERSION")) and bool(
+    os.confstr("CS_GNU_LIBC_VERSION"))
+
+_FAULTS = """
+import os, resource, sys
+sys.path.insert(0, {tests!r})
+from sensorplan._launch import malloc_defaults
+print(malloc_defaults(os.environ) if sys.argv[1] == "1" else None,
+      os.environ.get("MALLOC_MMAP_THRESHOLD_"), os.environ.get("MALLOC_TRIM_THRESHOLD_"))
+from planner_reference import scale_problem
+from sensorplan.planners import make_planner
+problem = scale_problem(n_sensors=10, n_targets=20, horizon=4)
+for _ in range(2):
+    make_planner("pg").plan(problem)
+f0 = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+for _ in range(3):
+    make_planner("pg").plan(problem)
+print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
+"""
+
+
+def test_the_command_lines_allocator_settings_leave_the_users_alone() -> None:
+    from sensorplan._launch import malloc_defaults
+
+    assert not malloc_defaults({"MALLOC_TRIM_THRESHOLD_": "131072"})
+    assert not malloc_defaults({"MALLOC_MMAP_THRESHOLD_": "131072"})
+    assert not malloc_defaults({"GLIBC_TUNABLES": "glibc.malloc.trim_threshold=131072"})
+
+
+@pytest.mark.skipif(not _GLIBC, reason="glibc's allocator only")
+def test_with_the_command_lines_allocator_settings_decisions_reuse_their_memory() -> None:
+    # Repeated decisions in one process: with glibc's defaults freed blocks go back to the
+    # system and come back as fresh pages (page faults); with the settings they are reused.
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_", "GLIBC_TUNABLES")}
+    env["PYTHONPATH"] = str(SRC)
+    code = _FAULTS.format(tests=str(SRC.parent / "tests"))
+    faults = {}
+    for on in ("0", "1"):
+        out = subprocess.run([sys.executable, "-c", code, on], env=env, capture_output=True,
+                             text=True, timeout=300, check=True).stdout.split()
+        # Set, and for the processes it starts (a study's workers) in the environment.
+        assert out[:3] == (["True", str(32 * 2**20), str(2**30)] if on == "1" else
+                           ["None", "None", "None"])
+        faults[on] = int(out[3])
+    assert faults["1"] * 3 < faults["0"], faults
+
+
 @pytest.mark.parametrize("bad", ["abc", "", "1.5"])
 def test_a_huge_pages_value_numpy_cannot_read_is_refused_in_one_line(bad: str) -> None:
     env = {**os.environ, "PYTHONPATH": str(SRC), "NUMPY_MADVISE_HUGEPAGE": bad}

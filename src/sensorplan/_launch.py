@@ -17,6 +17,14 @@ from .errors import ConfigError, error_line
 
 #: numpy's switch for transparent huge pages, read when numpy is imported.
 HUGEPAGE = "NUMPY_MADVISE_HUGEPAGE"
+#: glibc's environment variables for the settings :func:`malloc_defaults` changes.
+MALLOC_VARS = ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_")
+#: mallopt's parameter numbers (glibc's malloc.h) and the command line's values: blocks up to
+#: glibc's largest threshold (32 MiB) come from the heap, and up to 1 GiB of freed heap is
+#: kept for reuse rather than given back to the system.
+M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
+MMAP_THRESHOLD = 32 * 2**20
+TRIM_THRESHOLD = 2**30
 
 
 def numpy_defaults(environ: MutableMapping[str, str]) -> None:
@@ -39,7 +47,49 @@ def numpy_defaults(environ: MutableMapping[str, str]) -> None:
                           f"{value!r} (or unset it)") from None
 
 
+def malloc_defaults(environ: MutableMapping[str, str]) -> bool:
+    """The command line's memory allocator settings, unless the user set them: memory freed
+    by one step of a decision is reused by the next instead of being returned to the system
+    and asked for again (glibc only).
+
+    A decision allocates and frees arrays of a few MiB hundreds of times, some on the
+    planner's threads; glibc's defaults gave many of them back to the system and mapped
+    them again: 14,000 page faults per decision at N = 20, about none with these settings
+    (docs/benchmarks.md has the time they save). The process keeps what it once used until
+    it ends. The settings are also put in ``environ`` (as ``MALLOC_MMAP_THRESHOLD_`` and
+    ``MALLOC_TRIM_THRESHOLD_``) for the processes it starts. Either variable already there
+    (or either setting in ``GLIBC_TUNABLES``) leaves glibc as the user set it.
+
+    Returns
+    -------
+    Whether the settings were made.
+    """
+    tunables = environ.get("GLIBC_TUNABLES", "")
+    if any(v in environ for v in MALLOC_VARS) or "_threshold" in tunables:
+        return False
+    try:
+        if not os.confstr("CS_GNU_LIBC_VERSION"):
+            return False
+    except (ValueError, OSError, AttributeError):           # not glibc, or not Unix
+        return False
+    import ctypes
+
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):
+        return False
+    mallopt.argtypes = (ctypes.c_int, ctypes.c_int)
+    if not (mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD) and mallopt(M_TRIM_THRESHOLD,
+                                                                  TRIM_THRESHOLD)):
+        return False
+    # Processes started from this one (a study's workers) read them when they start.
+    environ["MALLOC_MMAP_THRESHOLD_"] = str(MMAP_THRESHOLD)
+    environ["MALLOC_TRIM_THRESHOLD_"] = str(TRIM_THRESHOLD)
+    return True
+
+
 def main() -> None:
+    malloc_defaults(os.environ)
     try:
         numpy_defaults(os.environ)
     except ConfigError as exc:
