@@ -500,3 +500,27 @@ def test_visible_points_equals_the_per_look_test(rng):
     want = radar.measure_looks(table, sensor[:, None], np.stack([dx, dy], -1), s,
                                th[:, None])[3]
     np.testing.assert_array_equal(got, want)
+
+
+def test_the_normal_interval_skips_erfc_only_where_the_formula_gives_exactly_one():
+    # Ncdf(hi/sd) - Ncdf(lo/sd) with both bounds far out is 1.0 in floating point; the model
+    # returns 1.0 there without the two erfc calls. It must equal the formula bit for bit
+    # everywhere, on both sides of the threshold and at it.
+    from sensorplan.radar.model import SURE_SIGMAS, _interval
+
+    def formula(lo: float, hi: float, sd: float) -> float:
+        ncdf = lambda x: 0.5 * math.erfc(-x / math.sqrt(2.0))  # noqa: E731
+        return ncdf(hi / sd) - ncdf(lo / sd)
+
+    rng = np.random.default_rng(5)
+    sd = rng.uniform(0.1, 50.0, 4000)
+    za = np.concatenate([-rng.uniform(0.0, 40.0, 2000), -SURE_SIGMAS - rng.exponential(0.3, 2000)])
+    zb = np.concatenate([rng.uniform(0.0, 40.0, 2000), SURE_SIGMAS + rng.exponential(0.3, 2000)])
+    edge = [np.nextafter(SURE_SIGMAS, 0.0), SURE_SIGMAS, np.nextafter(SURE_SIGMAS, 99.0)]
+    cases = [(a * s, b * s, s) for a, b, s in zip(rng.permutation(za), zb, sd)]
+    cases += [(-x, y, 1.0) for x in edge for y in edge]
+    skipped = 0
+    for lo, hi, s in cases:
+        assert _interval(lo, hi, s) == formula(lo, hi, s), (lo, hi, s)
+        skipped += lo / s <= -SURE_SIGMAS and hi / s >= SURE_SIGMAS
+    assert skipped > 500                      # the shortcut was taken, and agreed

@@ -70,6 +70,11 @@ IRF_B, IRF_C, IRF_D = 22.64, 1.134, 1.005
 #: A planned look whose predicted ground range is more than this many standard deviations
 #: outside the range band does not count: its in-band mass is below Ncdf(-6) ~ 1e-9.
 BAND_SIGMAS = 6.0
+#: Beyond this many standard deviations both normal tails are so small that
+#: ``Ncdf(b) - Ncdf(a)`` with ``a <= -SURE_SIGMAS <= SURE_SIGMAS <= b`` is exactly 1.0 in
+#: floating point (``Ncdf(b)`` rounds to 1, ``Ncdf(a) < 2**-54`` leaves 1 unchanged): the
+#: two ``erfc`` calls are skipped there, with the same result bit for bit.
+SURE_SIGMAS = 8.5
 
 
 # ------------------------------------------------------------------ scalar kernels
@@ -304,7 +309,10 @@ def _ncdf(x: float) -> float:
 def _interval(lo: float, hi: float, sd: float) -> float:
     """``Ncdf(hi/sd) - Ncdf(lo/sd)``; a zero ``sd`` gives the indicator of ``lo <= 0 <= hi``."""
     if sd > 0.0:
-        return _ncdf(hi / sd) - _ncdf(lo / sd)
+        a, b = lo / sd, hi / sd
+        if a <= -SURE_SIGMAS and b >= SURE_SIGMAS:
+            return 1.0                      # what the difference rounds to (see SURE_SIGMAS)
+        return _ncdf(b) - _ncdf(a)
     return 1.0 if (lo <= 0.0 and hi >= 0.0) else 0.0
 
 
