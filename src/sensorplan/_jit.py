@@ -38,34 +38,40 @@ _LOCK = threading.Lock()
 _UNSET: Any = object()
 
 
+#: The array dtypes and scalar types the ahead-of-time tables hold, by their names there
+#: (a non-native byte order is a different dtype: it is not found).
+_ARRAY_CHARS = {np.dtype(np.float64): "d", np.dtype(np.int64): "l", np.dtype(np.bool_): "?"}
+_SCALARS = {float: "f", np.float64: "f", bool: "b", np.bool_: "b", np.int64: "i"}
+
+
 def arg_key(args: tuple) -> tuple | None:
     """The argument types of a call as the ahead-of-time tables name them, or None for a
     type they never hold (the call then goes to numba).
 
-    Arrays: ``(dtype char, ndim)`` of aligned, C-contiguous arrays (numba's
-    ``Array(dtype, ndim, 'C')``), ``(dtype char, ndim, "r")`` if read-only; scalars:
-    ``"b"`` (bool), ``"i"`` (int64), ``"f"`` (float64), as numba types them.
+    Arrays: ``(dtype char, ndim)`` of aligned, C-contiguous float64, int64 or bool arrays
+    (numba's ``Array(dtype, ndim, 'C')``), ``(dtype char, ndim, "r")`` if read-only;
+    scalars: ``"b"`` (bool), ``"i"`` (int64), ``"f"`` (float64), as numba types them.
+    Called for every kernel call: written for speed (dictionary lookups, one flags object).
     """
     key: list = []
+    add = key.append
     for a in args:
         t = type(a)
         if t is np.ndarray:
             f = a.flags
-            if not (f.c_contiguous and f.aligned and a.dtype.isnative):
+            char = _ARRAY_CHARS.get(a.dtype)
+            if char is None or not (f.c_contiguous and f.aligned):
                 return None
-            key.append((a.dtype.char, a.ndim) if f.writeable else (a.dtype.char, a.ndim, "r"))
-        elif t is bool or t is np.bool_:
-            key.append("b")
-        elif t is float or t is np.float64:
-            key.append("f")
+            add((char, a.ndim) if f.writeable else (char, a.ndim, "r"))
         elif t is int:
             if not -(2 ** 63) <= a < 2 ** 63:
                 return None
-            key.append("i")
-        elif t is np.int64:
-            key.append("i")
+            add("i")
         else:
-            return None
+            name = _SCALARS.get(t)
+            if name is None:
+                return None
+            add(name)
     return tuple(key)
 
 
