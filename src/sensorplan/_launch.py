@@ -1,9 +1,11 @@
-"""The console script's entry point: the command line, and a quiet Ctrl-C while it loads.
+"""The console script's entry point: the command line, a quiet Ctrl-C while it loads, and
+the process's memory settings.
 
 ``sensorplan`` (and ``python -m sensorplan``) start here rather than in
 :mod:`sensorplan.cli`, so that a Ctrl-C pressed while the command line's modules are still
 being imported ends with the same one line and exit status as later (130), not with a
-traceback of the import.
+traceback of the import; and so that numpy's and glibc's memory settings
+(:func:`numpy_defaults`, :func:`malloc_defaults`) are made before numpy loads.
 """
 
 from __future__ import annotations
@@ -89,7 +91,6 @@ def malloc_defaults(environ: MutableMapping[str, str]) -> bool:
 
 
 def main() -> None:
-    malloc_defaults(os.environ)
     try:
         numpy_defaults(os.environ)
     except ConfigError as exc:
@@ -103,6 +104,7 @@ def main() -> None:
         from .cli_guards import interrupt
 
         signal.signal(signal.SIGINT, interrupt)
+        malloc_defaults(os.environ)              # before numpy allocates anything
         from .cli import main as cli_main
     except KeyboardInterrupt:
         sys.stderr.write("error: interrupted\n")
