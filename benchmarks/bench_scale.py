@@ -1,12 +1,16 @@
 """Planning at scale: one ``pg`` decision at N = 20 / M = 50 / K = 10 and at swarm size.
 
     .venv/bin/python benchmarks/bench_scale.py [--repeats 7] [--growth] [--quick]
+        [--settings library|cli|both]
 
 1. **N = 20, M = 50, K = 10** (e = 1, 2,000 m map; the case of ``bench_planning.py``) and
    **swarm** (``swarm_scenario()``: N = 100, M = 200, K = 5, e = 1, 3,000 m map, its first
    decision): each in a fresh process, the median wall and CPU time of ``--repeats``
    decisions after one warm-up decision, the process's max RSS, and the RSS of the same
    process after import and kernel warm-up only (what Python, numpy and numba take).
+   ``--settings``: the process as a library user's (numpy's and glibc's defaults), as the
+   command line sets it up (no huge pages for numpy, glibc keeping freed memory for reuse:
+   ``sensorplan._launch``), or both (the default), each in its own processes.
 2. ``--growth``: the cost of one swarm-size decision as N and M vary on the same 3,000 m map
    (K = 5; N in 25..200 at M = 200, M in 50..400 at N = 100), median of 3 decisions (CPU
    time), with the exponents of least-squares fits of log time on log N and log M.
@@ -19,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -53,11 +58,25 @@ print(json.dumps(dict(wall=wall, cpu=cpu, phi=r.potential, sweeps=r.sweeps,
 """
 
 
-def measure(case: str, reps: int) -> dict:
+def process_env(settings: str) -> dict[str, str]:
+    """The environment of a measured process: as a library user's, or as the command line
+    sets up its own (read by numpy and glibc when the process starts)."""
+    from sensorplan._launch import (HUGEPAGE, MALLOC_VARS, MMAP_THRESHOLD, TRIM_THRESHOLD,
+                                    numpy_defaults)
+
+    env = {k: v for k, v in os.environ.items() if k not in (HUGEPAGE, *MALLOC_VARS)}
+    if settings == "cli":
+        numpy_defaults(env)
+        env["MALLOC_MMAP_THRESHOLD_"] = str(MMAP_THRESHOLD)
+        env["MALLOC_TRIM_THRESHOLD_"] = str(TRIM_THRESHOLD)
+    return env
+
+
+def measure(case: str, reps: int, settings: str = "library") -> dict:
     """Run one case in a fresh process (its own RSS)."""
     code = _CHILD.format(tests=str(ROOT / "tests"), case=case, reps=reps)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True)
+                         check=True, env=process_env(settings))
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -122,14 +141,19 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--growth", action="store_true")
     ap.add_argument("--quick", action="store_true", help="3 repeats, smaller growth sweep")
+    ap.add_argument("--settings", choices=("library", "cli", "both"), default="both",
+                    help="the process's numpy and allocator settings (see the docstring)")
     args = ap.parse_args()
     reps = 3 if args.quick else args.repeats
     print(f"## One pg decision, median of {reps} (fresh process per case)")
-    print("| case | wall s (median) | CPU s (median) | CPU s (min) | max RSS MiB "
+    print("| case | settings | wall s (median) | CPU s (median) | CPU s (min) | max RSS MiB "
           "| RSS after import MiB | Phi | sweeps |")
-    print("|---|---|---|---|---|---|---|---|")
-    report("N = 20, M = 50, K = 10", measure("scale", reps))
-    report("swarm N = 100, M = 200, K = 5", measure("swarm", reps))
+    print("|---|---|---|---|---|---|---|---|---|")
+    chosen = ("library", "cli") if args.settings == "both" else (args.settings,)
+    for label, case in (("N = 20, M = 50, K = 10", "scale"),
+                        ("swarm N = 100, M = 200, K = 5", "swarm")):
+        for settings in chosen:
+            report(f"{label} | {settings}", measure(case, reps, settings))
     if args.growth:
         growth(args.quick)
 

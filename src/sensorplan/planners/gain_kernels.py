@@ -2,10 +2,11 @@
 
 :func:`gains_nb` (one sensor's candidates, the :meth:`GameState.chain_gains` path) and
 :func:`game_totals_nb` with :func:`game_block_nb` (every player of an epoch game, once per
-JSFP iteration; the players' part in blocks that may run on threads) turn the pairs of :func:`sensorplan.planners.kernels.chain_pairs_nb` into utilities: they sum
-the other players' looks, recompute each target's baseline recursion where those looks
-changed, and then the pairs of those targets only. :func:`game_block_nb` also does an
-iteration's bookkeeping, block by block.
+JSFP iteration; the players' part in blocks that may run on threads) turn the pairs of
+:func:`sensorplan.planners.kernels.chain_pairs_nb` into utilities: they sum the other
+players' looks, recompute each target's baseline recursion where those looks changed, and
+then the pairs of those targets only. :func:`game_block_nb` also does an iteration's
+bookkeeping, block by block.
 
 Both repeat, operation for operation, what the readable path does (a dense covariance
 recursion per pair, ``tests/engine_reference.py``): the same predict and update steps in the
@@ -358,8 +359,8 @@ def game_players_nb(p_lo: int, p_hi: int, Wp: np.ndarray, tgt: np.ndarray, F: np
 
     An epoch game's utilities are :func:`game_totals_nb`, this for every player (in blocks,
     on threads: a block writes only its own players' entries) and the sums of
-    :func:`game_block_nb`. They are the values of :func:`gains_nb` for each player (sensor p's epochs ``k-1 .. hi[p]-1``
-    removed), computed with less work, all of it exact:
+    :func:`game_block_nb`. They are the values of :func:`gains_nb` for each player (sensor
+    p's epochs ``k-1 .. hi[p]-1`` removed), computed with less work, all of it exact:
 
     * the other players' information at target j equals the total when player p's own chain
       adds nothing at j (exact zeros leave a sum unchanged), so those targets use the shared
