@@ -127,6 +127,9 @@ class EpochGame:
         self._total = int(self._pair_off[-1])
         nb = max(1, state.threads)
         self._blocks = self._player_blocks(nb if check is None else nb * BUDGET_BLOCKS)
+        # An iteration with little to recompute but many actions: its bookkeeping is short,
+        # one block per thread.
+        self._step_blocks = self._blocks if check is None else self._player_blocks(nb)
         self._has_pair = np.diff(self._t_off, axis=1).any(axis=0)   # targets with a pair
 
     def _player_blocks(self, n: int) -> list[tuple[int, int]]:
@@ -209,8 +212,12 @@ class EpochGame:
         # Pair terms this iteration recomputes, roughly: all at first, then those of the
         # targets whose total changed; every candidate's running average.
         redo = self._total if first_call else changed * self._total / ctx.M
-        many = redo >= PARALLEL_PAIRS or (t > 0 and n >= PARALLEL_CANDIDATES)
-        blocks = self._blocks if many else [(0, ctx.N)]
+        if redo >= PARALLEL_PAIRS:
+            blocks = self._blocks
+        elif t > 0 and n >= PARALLEL_CANDIDATES:
+            blocks = self._step_blocks
+        else:
+            blocks = [(0, ctx.N)]
         step = len(blocks) if self._check is None else max(1, st.threads)
         eq = True
         for a in range(0, len(blocks), step):
