@@ -61,14 +61,12 @@ print(json.dumps(dict(wall=wall, cpu=cpu, phi=r.potential, sweeps=r.sweeps,
 def process_env(settings: str) -> dict[str, str]:
     """The environment of a measured process: as a library user's, or as the command line
     sets up its own (read by numpy and glibc when the process starts)."""
-    from sensorplan._launch import (HUGEPAGE, MALLOC_VARS, MMAP_THRESHOLD, TRIM_THRESHOLD,
-                                    numpy_defaults)
+    from sensorplan._launch import HUGEPAGE, MALLOC_ENV, MALLOC_VARS, numpy_defaults
 
     env = {k: v for k, v in os.environ.items() if k not in (HUGEPAGE, *MALLOC_VARS)}
     if settings == "cli":
         numpy_defaults(env)
-        env["MALLOC_MMAP_THRESHOLD_"] = str(MMAP_THRESHOLD)
-        env["MALLOC_TRIM_THRESHOLD_"] = str(TRIM_THRESHOLD)
+        env.update(MALLOC_ENV)
     return env
 
 

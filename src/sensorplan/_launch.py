@@ -27,6 +27,9 @@ MALLOC_VARS = ("MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_")
 M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
 MMAP_THRESHOLD = 32 * 2**20
 TRIM_THRESHOLD = 2**30
+#: The same settings as glibc reads them from the environment when a process starts.
+MALLOC_ENV = {"MALLOC_MMAP_THRESHOLD_": str(MMAP_THRESHOLD),
+              "MALLOC_TRIM_THRESHOLD_": str(TRIM_THRESHOLD)}
 
 
 def numpy_defaults(environ: MutableMapping[str, str]) -> None:
@@ -84,9 +87,7 @@ def malloc_defaults(environ: MutableMapping[str, str]) -> bool:
     if not (mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD) and mallopt(M_TRIM_THRESHOLD,
                                                                   TRIM_THRESHOLD)):
         return False
-    # Processes started from this one (a study's workers) read them when they start.
-    environ["MALLOC_MMAP_THRESHOLD_"] = str(MMAP_THRESHOLD)
-    environ["MALLOC_TRIM_THRESHOLD_"] = str(TRIM_THRESHOLD)
+    environ.update(MALLOC_ENV)        # read by the processes it starts (a study's workers)
     return True
 
 
