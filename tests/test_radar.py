@@ -524,3 +524,37 @@ def test_the_normal_interval_skips_erfc_only_where_the_formula_gives_exactly_one
         assert _interval(lo, hi, s) == formula(lo, hi, s), (lo, hi, s)
         skipped += lo / s <= -SURE_SIGMAS and hi / s >= SURE_SIGMAS
     assert skipped > 500                      # the shortcut was taken, and agreed
+
+
+@pytest.mark.parametrize("aware", [False, True])
+def test_a_radar_row_as_a_tuple_gives_the_same_looks_bit_for_bit(rng, aware):
+    # The planner's inner loop passes the row as a tuple (row_values) and calls the open-sky
+    # range test where no building stands; both must be the array row's model exactly.
+    from sensorplan.radar.model import look_range_clear, row_values
+
+    table = radar_table([DEF, dataclasses.replace(DEF, detection="swerling1",
+                                                   fov_half_angle=0.4)], aware=aware)
+    none = np.zeros((0, 5))
+    for row in table:
+        rv = row_values(row)
+        assert len(rv) == len(COLUMNS) and rv == tuple(row)     # a column added: update it
+        g = rng.uniform(1.0, 700.0, 300)
+        az = rng.uniform(-np.pi, np.pi, 300)
+        dx, dy = g * np.cos(az), g * np.sin(az)
+        c = rng.uniform(1.0, 900.0, (300, 2))
+        c01 = rng.uniform(-0.9, 0.9, 300) * np.sqrt(c[:, 0] * c[:, 1])
+        heading = rng.uniform(-np.pi, np.pi, 300)
+        counted = 0
+        for b in range(300):
+            for prob in (True, False):
+                cov = (c[b, 0], c01[b], c[b, 1])
+                arr = radar.look_range(row, none, 5.0, 7.0, dx[b], dy[b], *cov, prob)
+                assert look_range_clear(rv, dx[b], dy[b], *cov, prob) == arr
+                assert radar.reach(rv, *cov, prob) == radar.reach(row, *cov, prob)
+                p, g2, gg = arr
+                a = radar.look_at_azimuth(row, dx[b], dy[b], g2, gg, p, az[b], heading[b],
+                                          *cov, prob)
+                assert radar.look_at_azimuth(rv, dx[b], dy[b], g2, gg, p, az[b], heading[b],
+                                             *cov, prob) == a
+                counted += a[0] > 0
+        assert counted > 50                    # looks that count were compared, not only zeros

@@ -16,14 +16,15 @@ from .batch import (clutter_points, detectable_points, detectable_quadrature,
 from .model import (ANGLE_TOL, BAND_SIGMAS, IRF_B, IRF_C, IRF_D, P_VIS_MIN, RANGE_TOL,
                     clutter_factor, cos_psi, detection_probability, hidden, in_band,
                     in_sight_probability, in_wedge, inverse, look, look_at_azimuth,
-                    look_in_range, look_range, measure, noise_variances, range_weight, reach,
-                    visible, wrap)
+                    look_in_range, look_range, look_range_clear, measure, noise_variances,
+                    range_weight, reach, row_values, visible, wrap)
 
 __all__ = ["ANGLE_TOL", "BAND_SIGMAS", "IRF_B", "IRF_C", "IRF_D", "P_VIS_MIN", "RANGE_TOL",
            "clutter_factor", "clutter_points", "cos_psi", "detectable_points",
            "detectable_quadrature", "detection_probabilities", "detection_probability",
            "hidden", "hidden_looks",
            "in_band", "in_sight_probability", "in_wedge", "inverse", "inverse_looks", "look",
-           "look_at_azimuth", "look_in_range", "look_information", "look_range", "measure",
-           "measure_looks", "noise_variances", "range_weight", "reach", "visible",
+           "look_at_azimuth", "look_in_range", "look_information", "look_range",
+           "look_range_clear", "measure", "measure_looks", "noise_variances", "range_weight",
+           "reach", "row_values", "visible",
            "visible_points", "warm_up", "wrap"]
