@@ -69,6 +69,11 @@ class Pairs:
     dups: IntArray             # candidates whose pairs equal an earlier one's (left out) ...
     dup_of: IntArray           # ... and that earlier candidate: the same utility, always
     view: tuple | None = None  # an epoch game's (current action, kept actions, c_loc, ...)
+    # An epoch game's entry: the player's action token and positions, and the sensor's
+    # change count when the key last held (while it is unchanged, so is the key).
+    token: tuple | None = None
+    cand: IntArray | None = None
+    changes: int = -1
 
 
 @dataclass
@@ -120,6 +125,7 @@ class GameState:
         self._actions: dict = {}
         self._phi: tuple[int, float] | None = None
         self.version = 0                    # bumped by every change of an action
+        self.changes = [0] * N              # ... and per sensor
         self._covs = _c(np.array(ctx.problem.covs))        # writable copies for the kernels
         self._Q = _c(np.array(ctx.Q))
         self._rows_buf: dict[int, FloatArray] = {}
@@ -136,6 +142,7 @@ class GameState:
         other._actions = self._actions          # depends only on the lattices: share it
         other._phi = None
         other.version = 0
+        other.changes = [0] * self.ctx.N
         other._covs, other._Q = self._covs, self._Q
         other._rows_buf = {}
         other.threads = self.threads
@@ -194,6 +201,7 @@ class GameState:
         """Recompute sensor i's headings and look information from its actions."""
         ctx = self.ctx
         self.version += 1
+        self.changes[i] += 1
         self.heading[i] = np.nan
         self.W[i] = 0.0
         k = 1

@@ -146,6 +146,7 @@ class EpochGame:
         computed on the state's threads, a batch at a time (every player at once, or with a
         time budget as many as there are threads, ``check`` between batches)."""
         state, k, N = self.state, self.k, self.state.ctx.N
+        cache, changes = state._cache, state.changes
         step = N if check is None else max(1, state.threads)
         out = []
         for a in range(0, N, step):
@@ -153,6 +154,11 @@ class EpochGame:
                 check()                          # a time budget's safe point
             batch = []
             for i in range(a, min(a + step, N)):
+                entry = cache.get((i, k, 1))
+                if entry is not None and entry.changes == changes[i] and entry.token:
+                    # Sensor i unchanged since this entry's key last held: it still does.
+                    batch.append((i, entry.token, entry.cand, entry))
+                    continue
                 token = state.action_token(i, k)
                 cand = state.player_positions(i, k)
                 batch.append((i, token, cand, state._game_pairs_job(i, k, cand, token)))
@@ -162,6 +168,7 @@ class EpochGame:
             for i, token, cand, found in batch:
                 if isinstance(found, PairsJob):
                     found = state._pairs_done(found, next(done))
+                found.token, found.cand, found.changes = token, cand, changes[i]
                 out.append((i, token, cand, found))
         return out
 
