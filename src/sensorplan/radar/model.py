@@ -87,9 +87,10 @@ SURE_SIGMAS = 8.5
 def row_values(row: np.ndarray) -> tuple:
     """A radar row's values as a tuple, for a kernel's inner loop.
 
-    Every function of this module takes either (they only index the row by its column
-    constants). A tuple is passed by value: an array argument costs two atomic reference
-    count updates per call, about a tenth of a planned look's time.
+    Every function of this module takes the row as an array or as this tuple (they only
+    index it by the column constants). A tuple is passed by value, while an array argument
+    costs two atomic reference count updates per call, about a tenth of a planned look's
+    time. Its length must follow :data:`sensorplan.sensors.COLUMNS` (a test checks).
     """
     return (row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8], row[9],
             row[10], row[11], row[12], row[13], row[14], row[15])
