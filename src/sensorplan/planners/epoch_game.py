@@ -155,7 +155,7 @@ class EpochGame:
             batch = []
             for i in range(a, min(a + step, N)):
                 entry = cache.get((i, k, 1))
-                if entry is not None and entry.changes == changes[i] and entry.token:
+                if entry is not None and entry.token is not None and entry.changes == changes[i]:
                     # Sensor i unchanged since this entry's key last held: it still does.
                     batch.append((i, entry.token, entry.cand, entry))
                     continue
