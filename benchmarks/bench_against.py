@@ -7,20 +7,22 @@ making ``--decisions`` timed decisions after an untimed one; a process's figure 
 median. Prints every round, the medians and the ratio earlier / this per round.
 
     PYTHONPATH=src .venv/bin/python benchmarks/bench_against.py [--rev 92b58f2] [--rounds 6]
+        [--decisions 7] [--settings cli|library]
 
 Why a ratio: this machine's speed moves by 30-50 % from hour to hour and from day to day (the
-code that took 0.93 s on 2026-11-23 took 1.40-1.46 s on 2026-12-02), so an absolute time set
+code that took 0.93 s on 2026-11-23 took 1.4-1.6 s on 2026-12-02), so an absolute time set
 on one day cannot be checked on another; a ratio measured in interleaved rounds can.
 
 The default revision, ``92b58f2``, is the code the "0.93 s" figure (and the 4x target
-set from it) was measured with. Both versions get the command line's process settings (numpy
-without huge pages, glibc keeping freed memory) and the same environment otherwise; this
+set from it) was measured with. Both versions get the same environment: by default with the
+command line's process settings (numpy without huge pages, glibc keeping freed memory;
+``--settings library`` leaves numpy's and glibc's defaults, as in a library user's process); this
 checkout uses its threads (``SENSORPLAN_THREADS``), the earlier code has none. The earlier
-code's kernels are compiled by numba in the first, untimed process (about a minute); its
+code's kernels are compiled by numba in the first, untimed process (10 s here); its
 source is unpacked with ``git archive`` into a temporary directory that is removed at the end
-(also on Ctrl-C). The two versions must return the same plan (positions and targets to the bit; Phi
-may differ in its last digits where its own computation changed); otherwise the script says
-so and exits with status 1.
+(also on Ctrl-C). The two versions must return the same plan (positions and targets to the
+bit; Phi may differ in its last digits where its own computation changed); otherwise the
+script says so and exits with status 1.
 """
 
 from __future__ import annotations
@@ -68,14 +70,16 @@ print(json.dumps(dict(wall=wall, cpu=cpu, phi=float(r.potential), plan=plan)))
 """
 
 
-def process_env() -> dict[str, str]:
-    """The command line's process settings on top of the caller's environment."""
+def process_env(settings: str) -> dict[str, str]:
+    """The caller's environment with numpy's and glibc's settings as a library user's process
+    has them (their defaults) or as the command line sets up its own."""
     sys.path.insert(0, str(ROOT / "src"))
     from sensorplan._launch import HUGEPAGE, MALLOC_ENV, MALLOC_VARS, numpy_defaults
 
     env = {k: v for k, v in os.environ.items() if k not in (HUGEPAGE, *MALLOC_VARS)}
-    numpy_defaults(env)
-    env.update(MALLOC_ENV)
+    if settings == "cli":
+        numpy_defaults(env)
+        env.update(MALLOC_ENV)
     env.pop("PYTHONDONTWRITEBYTECODE", None)      # as an installed package runs
     return env
 
@@ -111,18 +115,21 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=6, help="interleaved rounds (>= 1)")
     parser.add_argument("--decisions", type=int, default=7,
                         help="timed decisions per process (>= 1)")
+    parser.add_argument("--settings", choices=("cli", "library"), default="cli",
+                        help="both processes' numpy and allocator settings: as the command "
+                             "line sets them (default) or a library user's defaults")
     opts = parser.parse_args()
     for name in ("rounds", "decisions"):
         if getattr(opts, name) < 1:
             parser.error(f"--{name} must be at least 1, got {getattr(opts, name)}")
-    env = process_env()
+    env = process_env(opts.settings)
     with tempfile.TemporaryDirectory(prefix="sensorplan-against-") as tmp:
         srcs = {"earlier": unpack(opts.rev, Path(tmp)), "this": ROOT / "src"}
         print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python "
               f"{platform.python_version()}, load average "
               f"{', '.join(f'{x:.1f}' for x in os.getloadavg())}")
         print(f"earlier = {opts.rev}, this = {ROOT}; N = 20, M = 50, K = 10; "
-              f"{opts.decisions} decisions per process, median")
+              f"{opts.decisions} decisions per process, median; {opts.settings} settings")
         print("warming up (the earlier code's kernels compile in its first process) ...",
               flush=True)
         first = {v: run(s, env, 1) for v, s in srcs.items()}
