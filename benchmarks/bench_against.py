@@ -158,4 +158,8 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except KeyboardInterrupt:         # the running child is killed, the temporary copy removed
+        print("error: interrupted", file=sys.stderr)
+        raise SystemExit(130) from None
