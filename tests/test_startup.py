@@ -244,9 +244,11 @@ _GLIBC = bool(getattr(os, "confstr_names", {}).get("CS_GNU_LIBC_VERSION")) and b
 _FAULTS = """
 import os, resource, sys
 sys.path.insert(0, {tests!r})
+import sensorplan
 from sensorplan._launch import malloc_defaults
-print(malloc_defaults(os.environ) if sys.argv[1] == "1" else None,
-      os.environ.get("MALLOC_MMAP_THRESHOLD_"), os.environ.get("MALLOC_TRIM_THRESHOLD_"))
+made = (None if sys.argv[1] == "0" else malloc_defaults(os.environ) if sys.argv[1] == "1"
+        else sensorplan.keep_freed_memory())
+print(made, os.environ.get("MALLOC_MMAP_THRESHOLD_"), os.environ.get("MALLOC_TRIM_THRESHOLD_"))
 from planner_reference import scale_problem
 from sensorplan.planners import make_planner
 problem = scale_problem(n_sensors=10, n_targets=20, horizon=4)
@@ -259,12 +261,21 @@ print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
 """
 
 
-def test_the_command_lines_allocator_settings_leave_the_users_alone() -> None:
+def test_the_command_lines_allocator_settings_leave_the_users_alone(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    import sensorplan
     from sensorplan._launch import malloc_defaults
 
     assert not malloc_defaults({"MALLOC_TRIM_THRESHOLD_": "131072"})
     assert not malloc_defaults({"MALLOC_MMAP_THRESHOLD_": "131072"})
     assert not malloc_defaults({"GLIBC_TUNABLES": "glibc.malloc.trim_threshold=131072"})
+    # The library's switch reads the process's environment the same way.
+    for var, value in (("MALLOC_TRIM_THRESHOLD_", "131072"), ("MALLOC_MMAP_THRESHOLD_", "131072"),
+                       ("GLIBC_TUNABLES", "glibc.malloc.mmap_threshold=131072")):
+        with monkeypatch.context() as m:
+            m.setenv(var, value)
+            assert not sensorplan.keep_freed_memory()
+            assert os.environ[var] == value
 
 
 @pytest.mark.skipif(not _GLIBC, reason="glibc's allocator only")
@@ -276,14 +287,18 @@ def test_with_the_command_lines_allocator_settings_decisions_reuse_their_memory(
     env["PYTHONPATH"] = str(SRC)
     code = _FAULTS.format(tests=str(SRC.parent / "tests"))
     faults = {}
-    for on in ("0", "1"):
+    # "0": glibc's defaults; "1": the command line's call, which also puts the settings in
+    # the environment for the processes it starts (a study's workers); "2": the library's
+    # switch, which leaves the environment alone.
+    expected = {"0": ["None", "None", "None"], "1": ["True", str(32 * 2**20), str(2**30)],
+                "2": ["True", "None", "None"]}
+    for on in ("0", "1", "2"):
         out = subprocess.run([sys.executable, "-c", code, on], env=env, capture_output=True,
                              text=True, timeout=300, check=True).stdout.split()
-        # Set, and for the processes it starts (a study's workers) in the environment.
-        assert out[:3] == (["True", str(32 * 2**20), str(2**30)] if on == "1" else
-                           ["None", "None", "None"])
+        assert out[:3] == expected[on]
         faults[on] = int(out[3])
     assert faults["1"] * 3 < faults["0"], faults
+    assert faults["2"] * 3 < faults["0"], faults
 
 
 @pytest.mark.parametrize("bad", ["abc", "", "1.5"])

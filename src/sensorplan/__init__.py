@@ -15,14 +15,15 @@ TYPE_CHECKING = False
 if TYPE_CHECKING:  # pragma: no cover
     from typing import Any
 
+    from ._launch import keep_freed_memory
     from .information import potential
     from .problem import MapRect, Plan, PlanningProblem
     from .sensors import SensorParams
 
 __version__ = "0.1.0"
 
-__all__ = ["ConfigError", "MapRect", "Plan", "PlanningProblem", "SensorParams", "potential",
-           "__version__"]
+__all__ = ["ConfigError", "MapRect", "Plan", "PlanningProblem", "SensorParams",
+           "keep_freed_memory", "potential", "__version__"]
 
 
 def __getattr__(name: str) -> Any:
@@ -32,6 +33,8 @@ def __getattr__(name: str) -> Any:
         from . import sensors as module  # type: ignore[no-redef]
     elif name == "potential":
         from . import information as module  # type: ignore[no-redef]
+    elif name == "keep_freed_memory":
+        from . import _launch as module  # type: ignore[no-redef]
     else:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     value = getattr(module, name)
