@@ -74,7 +74,7 @@ def process_env(settings: str) -> dict[str, str]:
     """The caller's environment with numpy's and glibc's settings as a library user's process
     has them (their defaults) or as the command line sets up its own."""
     sys.path.insert(0, str(ROOT / "src"))
-    from sensorplan._launch import HUGEPAGE, MALLOC_ENV, MALLOC_VARS, numpy_defaults
+    from sensorplan.memory import HUGEPAGE, MALLOC_ENV, MALLOC_VARS, numpy_defaults
 
     env = {k: v for k, v in os.environ.items() if k not in (HUGEPAGE, *MALLOC_VARS)}
     if settings == "cli":

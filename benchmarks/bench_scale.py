@@ -10,7 +10,7 @@
    process after import and kernel warm-up only (what Python, numpy and numba take).
    ``--settings``: the process as a library user's (numpy's and glibc's defaults), as the
    command line sets it up (no huge pages for numpy, glibc keeping freed memory for reuse:
-   ``sensorplan._launch``), or both (the default), each in its own processes.
+   ``sensorplan.memory``), or both (the default), each in its own processes.
 2. ``--growth``: the cost of one swarm-size decision as N and M vary on the same 3,000 m map
    (K = 5; N in 25..200 at M = 200, M in 50..400 at N = 100), median of 3 decisions (CPU
    time), with the exponents of least-squares fits of log time on log N and log M.
@@ -61,7 +61,7 @@ print(json.dumps(dict(wall=wall, cpu=cpu, phi=r.potential, sweeps=r.sweeps,
 def process_env(settings: str) -> dict[str, str]:
     """The environment of a measured process: as a library user's, or as the command line
     sets up its own (read by numpy and glibc when the process starts)."""
-    from sensorplan._launch import HUGEPAGE, MALLOC_ENV, MALLOC_VARS, numpy_defaults
+    from sensorplan.memory import HUGEPAGE, MALLOC_ENV, MALLOC_VARS, numpy_defaults
 
     env = {k: v for k, v in os.environ.items() if k not in (HUGEPAGE, *MALLOC_VARS)}
     if settings == "cli":

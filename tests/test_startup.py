@@ -219,7 +219,7 @@ def test_a_writable_home_leaves_matplotlib_alone(monkeypatch: pytest.MonkeyPatch
 
 
 def test_the_command_line_turns_numpys_huge_pages_off_unless_the_user_chose() -> None:
-    from sensorplan._launch import numpy_defaults
+    from sensorplan.memory import numpy_defaults
 
     env: dict[str, str] = {}
     numpy_defaults(env)
@@ -228,7 +228,7 @@ def test_the_command_line_turns_numpys_huge_pages_off_unless_the_user_chose() ->
     numpy_defaults(env)
     assert env == {"NUMPY_MADVISE_HUGEPAGE": "1"}             # the user's choice stands
     # numpy reads it when imported: what the command line's process gets.
-    code = ("import os; from sensorplan._launch import numpy_defaults; "
+    code = ("import os; from sensorplan.memory import numpy_defaults; "
             "numpy_defaults(os.environ); import numpy._core.multiarray as m; "
             "print(m._get_madvise_hugepage())")
     env_run = {k: v for k, v in os.environ.items() if k != "NUMPY_MADVISE_HUGEPAGE"}
@@ -245,7 +245,7 @@ _FAULTS = """
 import os, resource, sys
 sys.path.insert(0, {tests!r})
 import sensorplan
-from sensorplan._launch import malloc_defaults
+from sensorplan.memory import malloc_defaults
 made = (None if sys.argv[1] == "0" else malloc_defaults(os.environ) if sys.argv[1] == "1"
         else sensorplan.keep_freed_memory())
 print(made, os.environ.get("MALLOC_MMAP_THRESHOLD_"), os.environ.get("MALLOC_TRIM_THRESHOLD_"))
@@ -264,7 +264,7 @@ print(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - f0)
 def test_the_command_lines_allocator_settings_leave_the_users_alone(
         monkeypatch: pytest.MonkeyPatch) -> None:
     import sensorplan
-    from sensorplan._launch import malloc_defaults
+    from sensorplan.memory import malloc_defaults
 
     assert not malloc_defaults({"MALLOC_TRIM_THRESHOLD_": "131072"})
     assert not malloc_defaults({"MALLOC_MMAP_THRESHOLD_": "131072"})

@@ -15,7 +15,7 @@ TYPE_CHECKING = False
 if TYPE_CHECKING:  # pragma: no cover
     from typing import Any
 
-    from ._launch import keep_freed_memory
+    from .memory import keep_freed_memory
     from .information import potential
     from .problem import MapRect, Plan, PlanningProblem
     from .sensors import SensorParams
@@ -34,7 +34,7 @@ def __getattr__(name: str) -> Any:
     elif name == "potential":
         from . import information as module  # type: ignore[no-redef]
     elif name == "keep_freed_memory":
-        from . import _launch as module  # type: ignore[no-redef]
+        from . import memory as module  # type: ignore[no-redef]
     else:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     value = getattr(module, name)
