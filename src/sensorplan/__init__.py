@@ -15,8 +15,8 @@ TYPE_CHECKING = False
 if TYPE_CHECKING:  # pragma: no cover
     from typing import Any
 
-    from .memory import keep_freed_memory
     from .information import potential
+    from .memory import keep_freed_memory
     from .problem import MapRect, Plan, PlanningProblem
     from .sensors import SensorParams
 
