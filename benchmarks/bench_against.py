@@ -71,16 +71,14 @@ print(json.dumps(dict(wall=wall, cpu=cpu, phi=float(r.potential), plan=plan)))
 
 
 def process_env(settings: str) -> dict[str, str]:
-    """The caller's environment with numpy's and glibc's settings as a library user's process
-    has them (their defaults) or as the command line sets up its own."""
+    """:func:`bench_scale.process_env` (a library user's process or the command line's), with
+    bytecode caches written and used as an installed package's are."""
     sys.path.insert(0, str(ROOT / "src"))
-    from sensorplan.memory import HUGEPAGE, MALLOC_ENV, MALLOC_VARS, numpy_defaults
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    import bench_scale
 
-    env = {k: v for k, v in os.environ.items() if k not in (HUGEPAGE, *MALLOC_VARS)}
-    if settings == "cli":
-        numpy_defaults(env)
-        env.update(MALLOC_ENV)
-    env.pop("PYTHONDONTWRITEBYTECODE", None)      # as an installed package runs
+    env = bench_scale.process_env(settings)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
     return env
 
 
