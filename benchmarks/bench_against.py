@@ -47,8 +47,8 @@ _CHILD = """
 import hashlib, json, math, sys, time
 import numpy as np
 from sensorplan.planners import make_planner
-from sensorplan.problem import MapRect, PlanningProblem
-from sensorplan.sensors import SensorParams
+from sensorplan.planners.problem import MapRect, PlanningProblem
+from sensorplan.models.sensors import SensorParams
 rng = np.random.default_rng(0)
 N, M, K, W = 20, 50, 10, 2000.0
 means = np.c_[rng.uniform(100, W - 100, (M, 2)), rng.normal(0, 3, (M, 2))]

@@ -37,7 +37,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from factories import paper_problem
 from sensorplan.decentral import AgentSpec, LinkModel, decision_key, run_inproc
 from sensorplan.decentral.bus import Bus
-from sensorplan.information import prepare
+from sensorplan.planners.information import prepare
 
 
 def main() -> None:

@@ -44,8 +44,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 
 from sensorplan.planners import make_planner  # noqa: E402
-from sensorplan.problem import PlanningProblem  # noqa: E402
-from sensorplan.scenario import paper_scenario  # noqa: E402
+from sensorplan.planners.problem import PlanningProblem  # noqa: E402
+from sensorplan.simulation.scenario import paper_scenario  # noqa: E402
 from sensorplan.simulation import RunSettings, run_episode  # noqa: E402
 
 
@@ -74,7 +74,7 @@ def preset_problems(preset: str, n: int, seed: int = 0) -> list[PlanningProblem]
     planning q, the poses, the run's planning modes and the buildings); the decisions at
     t = 10, 20, ..., 50 of each run are kept.
     """
-    from sensorplan import simulation
+    from sensorplan.simulation import run as simulation
     from sensorplan.config.simulate import load_simulation
 
     cfg = load_simulation(preset=preset, overrides={"planner": "random",
@@ -220,7 +220,7 @@ def backend_comparison(args: argparse.Namespace) -> None:
     code = (
         "import sys, numpy as np; sys.argv=['x']; sys.path.insert(0, {!r});"
         "import bench_planning as b;"
-        "from sensorplan.problem import PlanningProblem;"
+        "from sensorplan.planners.problem import PlanningProblem;"
         "s=b.paper_states({:d});"
         "ps=[PlanningProblem(horizon=3, steps_per_epoch=2, **x) for x in s];"
         "w,c,_=b.time_planner('pg', ps); print(w, c)").format(str(ROOT / "benchmarks"),

@@ -89,8 +89,8 @@ def swarm_like(n_sensors: int, n_targets: int, seed: int = 0):
     (sensors and targets repeat the swarm's specs in turn)."""
     from dataclasses import replace
 
-    from sensorplan.problem import PlanningProblem
-    from sensorplan.scenario import draw_initial, swarm_scenario
+    from sensorplan.planners.problem import PlanningProblem
+    from sensorplan.simulation.scenario import draw_initial, swarm_scenario
 
     sc = swarm_scenario()
     sc = replace(sc, sensors=tuple(sc.sensors[i % 100] for i in range(n_sensors)),

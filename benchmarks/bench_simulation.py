@@ -33,7 +33,7 @@ import time
 
 import numpy as np
 
-from sensorplan import simulation
+from sensorplan.simulation import run as simulation
 from sensorplan.config.simulate import PRESETS, load_simulation
 from sensorplan.simulation import run_episode
 

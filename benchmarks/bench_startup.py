@@ -45,7 +45,7 @@ CASES: list[tuple[str, list[str], dict[str, str]]] = [
     ("import numpy", ["-c", "import numpy"], {}),
     ("import numba", ["-c", "import numba"], {}),
     ("numba target + cached kernels",
-     ["-c", "from sensorplan._kernels import warm_up; warm_up()"], NUMBA_ONLY),
+     ["-c", "from sensorplan.planners._chains_nb import warm_up; warm_up()"], NUMBA_ONLY),
     ("import sensorplan", ["-c", "import sensorplan"], {}),
     ("sensorplan --version", ["-m", "sensorplan", "--version"], {}),
     ("sensorplan --help", ["-m", "sensorplan", "--help"], {}),

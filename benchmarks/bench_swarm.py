@@ -91,7 +91,7 @@ def swarm_run(steps: int) -> None:
 def figures(episode: Any, scenario: Any, steps: int) -> None:
     """Wall and CPU time of ``episode.png`` of the swarm run (matplotlib's import included)
     and of a paper-preset run of ``steps`` steps."""
-    from sensorplan.cli_guards import plot_drawable
+    from sensorplan.cli.guards import plot_drawable
     from sensorplan.config.simulate import load_simulation
     from sensorplan.simulation import run_episode
 

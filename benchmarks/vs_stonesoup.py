@@ -10,7 +10,7 @@ random instances: Stone Soup's ``BruteForceSensorManager`` and ``GreedySensorMan
 updater on our measurement model; the same objective as ours) against our ``brute-force`` and
 ``pg`` behind :class:`~sensorplan.integrations.stonesoup.SensorplanManager`. Measured: wall
 and CPU time of ``choose_actions`` and the chosen joint action's information, evaluated by one
-evaluator, :func:`sensorplan.information.potential`, on the equivalent plan (the mapping
+evaluator, :func:`sensorplan.planners.information.potential`, on the equivalent plan (the mapping
 config -> plan is exact: the reward of a config equals that potential, which the run checks).
 Stone Soup's time is always also extrapolated from a fixed, seeded uniform sample of its reward
 calls: manager overhead (the same enumeration with a zero reward, measured in full) plus joint
@@ -66,15 +66,15 @@ from stonesoup.types.state import State
 from stonesoup.updater.kalman import ExtendedKalmanUpdater
 
 import sensorplan
-from sensorplan.information import potential
+from sensorplan.planners.information import potential
 from sensorplan.integrations.stonesoup import (LatticeMovable, LatticeMoveAction,
                                                MutualInformationReward, SensorplanManager,
                                                SensorplanRadar, execute, from_tracks,
                                                set_aim_candidates, to_ground_truth_state,
                                                to_tracks)
-from sensorplan.problem import Plan, PlanningProblem
-from sensorplan.scenario import draw_initial, make_truth, paper_scenario
-from sensorplan.sensors import SensorParams
+from sensorplan.planners.problem import Plan, PlanningProblem
+from sensorplan.simulation.scenario import draw_initial, make_truth, paper_scenario
+from sensorplan.models.sensors import SensorParams
 from sensorplan.simulation import run_streams
 
 T0 = datetime.datetime(2024, 1, 1)

@@ -32,7 +32,7 @@ from stonesoup.updater.kalman import ExtendedKalmanUpdater
 
 from sensorplan.integrations.stonesoup import (LatticeMovable, MapRect, SensorplanManager,
                                                SensorplanRadar, execute, from_gaussian_state)
-from sensorplan.sensors import SensorParams
+from sensorplan.models.sensors import SensorParams
 
 START = datetime.datetime(2024, 1, 1)
 Q = 0.05                                     # m^2/s^3, truth and filter

@@ -42,8 +42,8 @@ from stonesoup.updater.probability import PDAUpdater
 from sensorplan.integrations.stonesoup import (LatticeMovable, MapRect, SensorplanManager,
                                                SensorplanRadar, execute, from_gaussian_state,
                                                ordered_detections)
-from sensorplan.scenario import RADAR_DETECTION
-from sensorplan.sensors import SensorParams
+from sensorplan.simulation.scenario import RADAR_DETECTION
+from sensorplan.models.sensors import SensorParams
 
 START = datetime.datetime(2024, 1, 1)
 Q = 0.05                                     # m^2/s^3, truth and filter

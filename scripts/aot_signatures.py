@@ -1,5 +1,6 @@
-"""Write ``src/sensorplan/_aot_signatures.py``: the kernels the planners call from Python, with
-the argument types they are called with, for the ahead-of-time build (``sensorplan._aot``).
+"""Write ``src/sensorplan/_compiled/aot_signatures.py``: the kernels the planners call from
+Python, with the argument types they are called with, for the ahead-of-time build
+(``sensorplan._compiled.aot``).
 
     PYTHONPATH=src .venv/bin/python scripts/aot_signatures.py
 
@@ -22,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
 os.environ["SENSORPLAN_AOT"] = "0"
 
-from sensorplan import _jit  # noqa: E402
+from sensorplan._compiled import jit as _jit  # noqa: E402
 
 CALLS: set[tuple[str, str, tuple]] = set()
 OTHER: set[str] = set()          # called with a type no table can hold (read-only array...)
@@ -44,12 +45,13 @@ def main() -> None:
     from planner_reference import CASES
     from sensorplan.config import load_decision
     from sensorplan.planners import make_planner
-    from sensorplan.planners.problems import paper_problem
-    from sensorplan.problem import PlanningProblem
-    from sensorplan.sensors import SensorParams
+    from sensorplan.planners.contract_problems import paper_problem
+    from sensorplan.planners.problem import PlanningProblem
+    from sensorplan.models.sensors import SensorParams
 
-    for name in ("_kernels", "_lattice", "radar.batch", "planners.kernels",
-                 "planners.gain_kernels", "planners.engine", "planners.epoch_game",
+    for name in ("planners._chains_nb", "planners._lattice_nb", "models.radar.batch",
+                 "planners._pairs_nb", "planners._gains_nb", "planners.engine",
+                 "planners.epoch_game",
                  "planners.potential_game",
                  "planners.refine", "planners.greedy", "planners.brute_force",
                  "planners.random_plan"):
@@ -81,13 +83,14 @@ def main() -> None:
             make_planner(name).plan(problem, rng=0)
         make_planner("brute-force").plan(PlanningProblem(**{**fields, "horizon": 1}))
     lines = ['"""The kernels the planners call from Python and their argument types (see',
-             ":mod:`sensorplan._aot`); written by ``scripts/aot_signatures.py``.", '"""', "",
+             ":mod:`sensorplan._compiled.aot`); written by ``scripts/aot_signatures.py``.",
+             '"""', "",
              "SIGNATURES: tuple = ("]
     for entry in sorted(CALLS, key=repr):
         lines.append(textwrap.indent(pprint.pformat(entry, width=94, compact=True) + ",",
                                      "    "))
     lines.append(")")
-    out = ROOT / "src" / "sensorplan" / "_aot_signatures.py"
+    out = ROOT / "src" / "sensorplan" / "_compiled" / "aot_signatures.py"
     out.write_text("\n".join(lines) + "\n")
     print(f"{len(CALLS)} signatures -> {out}")
     if OTHER:

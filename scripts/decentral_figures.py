@@ -41,17 +41,17 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from sensorplan.colors import method_colors, mix_hex
+from sensorplan.figures.colors import method_colors, mix_hex
 from sensorplan.decentral import DecentralJSFPPlanner
 from sensorplan.study import (
-    DIVERGED_THRESHOLD,
-    consistency,
-    kinds_with_all,
-    load_study_dir,
-    paired_differences,
-    run_metrics,
-    summary,
-)
+                              DIVERGED_THRESHOLD,
+                              consistency,
+                              kinds_with_all,
+                              load_study_dir,
+                              paired_differences,
+                              run_metrics,
+                              summary,
+                              )
 
 #: The round budget of ``dec-jsfp`` when a method does not set it.
 DEFAULT_ROUNDS = next(f.default for f in dataclasses.fields(DecentralJSFPPlanner)

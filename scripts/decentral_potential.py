@@ -8,12 +8,12 @@ Three sets of ``--problems`` decisions each:
 
 - ``paper`` and ``holes``: the first decision of a closed-loop run of the scenario of
   ``studies/decentral.toml`` (paper preset) and ``studies/decentral_holes.toml``
-  (configs/holes.toml): initial conditions drawn by ``sensorplan.scenario.draw_initial``,
+  (configs/holes.toml): initial conditions drawn by ``sensorplan.simulation.scenario.draw_initial``,
   the default tracker's estimates and planning process noise, K = 3, e = 2 and every other
   planning setting of those studies, built exactly as the simulator builds its first
   problem (a test compares the two). Every method of the study file plans each problem and
   its Phi is divided by the centralized ``pg``'s.
-- ``tiny``: ``sensorplan.planners.problems.tiny_problem`` (N <= 3, M <= 4, K <= 4, with
+- ``tiny``: ``sensorplan.planners.contract_problems.tiny_problem`` (N <= 3, M <= 4, K <= 4, with
   the studies' visibility and objective), where ``brute-force`` gives the optimum Phi*;
   ``pg`` and every decentralized method are divided by it.
 
@@ -50,14 +50,14 @@ import numpy as np
 import pandas as pd
 
 from sensorplan.planners import make_planner
-from sensorplan.planners.problems import tiny_problem
-from sensorplan.problem import PlanningProblem
-from sensorplan.scenario import Scenario, draw_initial
-from sensorplan.sensors import radar_table
-from sensorplan.settings import RunSettings
+from sensorplan.planners.contract_problems import tiny_problem
+from sensorplan.planners.problem import PlanningProblem
+from sensorplan.simulation.scenario import Scenario, draw_initial
+from sensorplan.models.sensors import radar_table
+from sensorplan.simulation.settings import RunSettings
 from sensorplan.simulation import run_streams
 from sensorplan.study import load_study, median_interval, t_interval
-from sensorplan.tracker import Tracker
+from sensorplan.tracking.tracker import Tracker
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The sets of problems, in order, with the study file whose scenario and methods they use.
@@ -269,13 +269,13 @@ def progress(total: int, done: int) -> Iterator[Callable[[str], None]]:
     """A rich bar on a terminal, a plain line about every 10 % otherwise."""
     from rich.console import Console
     from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
+                               BarColumn,
+                               MofNCompleteColumn,
+                               Progress,
+                               TextColumn,
+                               TimeElapsedColumn,
+                               TimeRemainingColumn,
+                               )
 
     console = Console(stderr=True)
     if console.is_terminal:

@@ -17,7 +17,7 @@ value Pd (1 - (1 + g^2/2) exp(-g^2/2)) so that the clutter factor q2 is 1 withou
 and fits Kershaw and Evans's functional form
     q2(Pd, lam) = 1 / (1 + b Pd^-c lam^d)
 by least squares on log q2 (relative errors: the planner's objective is a log-det). Run
-once; its output is in docs/model.md and the constants in sensorplan/radar.py:
+once; its output is in docs/model.md and the constants in sensorplan/models/radar.py:
 
     python scripts/irf_fit.py            (about 10 min on 2 cores)
 """

@@ -7,7 +7,7 @@ from typing import Any
 
 import pytest
 
-from sensorplan.cli import main
+from sensorplan.cli.app import main
 
 #: The documented decision example, verbatim (docs/cli.md).
 SPEC7_TEXT = """

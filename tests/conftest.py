@@ -33,7 +33,7 @@ def warm_kernels() -> None:
     which makes that test look slow and its timing-sensitive checks flaky. Both warm-ups
     remember that they ran, so the planners' own calls to them are free afterwards.
     """
-    from sensorplan._kernels import warm_up
+    from sensorplan.planners._chains_nb import warm_up
     from sensorplan.planners.epoch_game import warm_engine
 
     warm_up()           # covariance recursion, looks, the radar's batched kernels

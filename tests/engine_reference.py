@@ -1,8 +1,8 @@
 """The planners' utilities computed the plain way, as the second computation of the engine.
 
 For a batch of candidate chains of one sensor: every chain's looks by
-:func:`sensorplan.information.chain_looks` (dense), the other players' information by
-:func:`sensorplan.information.sum_by_target`, and for every (candidate, target) pair with a
+:func:`sensorplan.planners.information.chain_looks` (dense), the other players' information by
+:func:`sensorplan.planners.information.sum_by_target`, and for every (candidate, target) pair with a
 look that counts the full covariance recursion of that target (no shared prefix, no cache).
 This is how the engine computed utilities before its speed-ups; the engine's kernels must give
 the same numbers bit for bit.
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sensorplan.information import chain_looks, covariance_recursion, sum_by_target
+from sensorplan.planners.information import chain_looks, covariance_recursion, sum_by_target
 from sensorplan.planners.engine import GameState
 
 

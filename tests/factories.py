@@ -7,7 +7,7 @@
 - :func:`lattice_problem`: a seeded small problem on a coarse lattice with chosen sizes;
 - :func:`random_covariance`: a building block;
 - :func:`tiny_problem`, :func:`paper_problem`, :func:`joint_plan_count`: from
-  :mod:`sensorplan.planners.problems`, where the planner contract needs them.
+  :mod:`sensorplan.planners.contract_problems`, where the planner contract needs them.
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from sensorplan.planners.problems import joint_plan_count, paper_problem, tiny_problem
-from sensorplan.problem import MapRect, Plan, PlanningProblem, move_vectors
-from sensorplan.sensors import SensorParams
+from sensorplan.planners.contract_problems import joint_plan_count, paper_problem, tiny_problem
+from sensorplan.planners.problem import MapRect, Plan, PlanningProblem, move_vectors
+from sensorplan.models.sensors import SensorParams
 
 __all__ = ["joint_plan_count", "lattice_problem", "make_problem", "paper_problem",
            "random_covariance", "random_plan", "tiny_problem"]

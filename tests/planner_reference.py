@@ -19,8 +19,8 @@ from collections.abc import Callable
 import numpy as np
 
 from factories import paper_problem, tiny_problem
-from sensorplan.problem import MapRect, PlanningProblem
-from sensorplan.sensors import SensorParams
+from sensorplan.planners.problem import MapRect, PlanningProblem
+from sensorplan.models.sensors import SensorParams
 
 
 def scale_problem(n_sensors: int = 20, n_targets: int = 50, horizon: int = 10,
@@ -39,9 +39,10 @@ def scale_problem(n_sensors: int = 20, n_targets: int = 50, horizon: int = 10,
 
 def swarm_problem(horizon: int = 5, steps_per_epoch: int = 1, seed: int = 0,
                   n_sensors: int | None = None, n_targets: int | None = None) -> PlanningProblem:
-    """A first decision of :func:`sensorplan.scenario.swarm_scenario` (optionally its first
+    """A first decision of :func:`sensorplan.simulation.scenario.swarm_scenario` (optionally its
+    first
     ``n_sensors`` sensors and ``n_targets`` targets)."""
-    from sensorplan.scenario import draw_initial, swarm_scenario
+    from sensorplan.simulation.scenario import draw_initial, swarm_scenario
 
     sc = swarm_scenario()
     ss = np.random.SeedSequence(seed).spawn(2)

@@ -1,12 +1,12 @@
 """The radar model written out in plain numpy: the tests' independent second computation.
 
-This is the slow, readable version of what :mod:`sensorplan.radar` computes with compiled
+This is the slow, readable version of what :mod:`sensorplan.models.radar` computes with compiled
 kernels (range, bearing, Jacobian, noise, field of view and the probability of seeing a
 target whose position is uncertain). It shares no code with the library's radar: the tests
 check the two against each other to 1e-12.
 
 Every function broadcasts over leading batch axes; sensor parameters are a
-:class:`~sensorplan.sensors.SensorParams` whose fields may be floats or arrays (see
+:class:`~sensorplan.models.sensors.SensorParams` whose fields may be floats or arrays (see
 :func:`stack_params`).
 """
 
@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtr
 
-from sensorplan.sensors import SensorParams
+from sensorplan.models.sensors import SensorParams
 
 RANGE_TOL = 1e-9
 ANGLE_TOL = 1e-12
@@ -30,7 +30,7 @@ FloatArray = BoolArray = np.ndarray
 
 
 def wrap_angle(a: Any) -> FloatArray:
-    """Wrap to (-pi, pi], independently of :func:`sensorplan.angles.wrap_angle`."""
+    """Wrap to (-pi, pi], independently of :func:`sensorplan.models.angles.wrap_angle`."""
     a = np.asarray(a, dtype=float)
     w = np.arctan2(np.sin(a), np.cos(a))
     return np.where(w <= -math.pi, w + 2 * math.pi, w)

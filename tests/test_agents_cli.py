@@ -17,8 +17,8 @@ import pytest
 from cli_helpers import assert_bad_input, run
 from sensorplan.config.agents import load_agents
 from sensorplan.decentral import run_agents
-from sensorplan.scenario import paper_scenario
-from sensorplan.settings import RunSettings
+from sensorplan.simulation.scenario import paper_scenario
+from sensorplan.simulation.settings import RunSettings
 from sensorplan.simulation import Episode
 from test_decentral_bus import running, wait_gone
 

@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sensorplan.angles import heading_rule, wrap_angle
+from sensorplan.models.angles import heading_rule, wrap_angle
 
 TWO_PI = 2 * math.pi
 angles = st.floats(min_value=-1e4, max_value=1e4, allow_nan=False, allow_infinity=False)

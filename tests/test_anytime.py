@@ -15,9 +15,9 @@ import pytest
 from factories import paper_problem, tiny_problem
 from planner_reference import scale_problem
 from sensorplan.errors import ConfigError
-from sensorplan.information import potential
+from sensorplan.planners.information import potential
 from sensorplan.planners import anytime, make_planner
-from sensorplan.problem import check_plan
+from sensorplan.planners.problem import check_plan
 
 BUDGETED = ("pg", "pg-refine", "sequential-greedy")
 

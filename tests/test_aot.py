@@ -1,6 +1,7 @@
 """The planners' kernels compiled ahead of time: same plans bit for bit, no numba in a plan.
 
-The module is built once (``sensorplan._aot.ensure_built``, about a minute, then cached with
+The module is built once (``sensorplan._compiled.aot.ensure_built``, about a minute, then cached
+with
 numba's kernels) by the ``built`` fixture; the rest of the suite runs numba's kernels
 (``conftest.py`` sets ``SENSORPLAN_AOT=0``), so each comparison here is between the two.
 """
@@ -19,7 +20,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sensorplan import _aot, _jit
+from sensorplan._compiled import aot as _aot, jit as _jit
 
 ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "src"
@@ -103,9 +104,10 @@ def test_the_tag_follows_the_kernels_source_only(tmp_path: Path,
     shutil.copytree(SRC / "sensorplan", copy, ignore=shutil.ignore_patterns("__pycache__"))
     monkeypatch.setattr(_aot, "PACKAGE", copy)
     before = _aot.tag()
-    (copy / "colors.py").write_text((copy / "colors.py").read_text() + "\n# a comment\n")
+    colors = copy / "figures" / "colors.py"
+    colors.write_text(colors.read_text() + "\n# a comment\n")
     assert _aot.tag() == before                 # no kernel there: the build still holds
-    kernel = copy / "planners" / "gain_kernels.py"
+    kernel = copy / "planners" / "_gains_nb.py"
     kernel.write_text(kernel.read_text() + "\n# a comment\n")
     assert _aot.tag() != before                 # a kernel's source: a new build
 
@@ -162,7 +164,7 @@ print(json.dumps({"plans": out, "numba": "numba" in sys.modules}))
 
 
 def test_the_plan_command_does_not_load_numba(built: Path) -> None:
-    code = ("import sys\nfrom sensorplan.cli import main\ntry:\n    main(sys.argv[1:])\n"
+    code = ("import sys\nfrom sensorplan.cli.app import main\ntry:\n    main(sys.argv[1:])\n"
             "except SystemExit as e:\n    assert not e.code, e.code\n"
             "sys.stderr.write('NUMBA %s\\n' % ('numba' in sys.modules))")
     outs = []
@@ -183,8 +185,8 @@ def test_threads_that_load_numba_together_all_get_a_kernel() -> None:
     code = """
 import threading
 import numpy as np
-from sensorplan.radar import wrap
-from sensorplan._kernels import sum_by_target_nb
+from sensorplan.models.radar import wrap
+from sensorplan.planners._chains_nb import sum_by_target_nb
 out, errors = [], []
 def call():
     try:
@@ -217,7 +219,7 @@ def test_a_read_only_install_finds_them_in_its_private_temp_dir(built: Path,
     env = {**_env(), "PYTHONPATH": str(pkg), "PYTHONDONTWRITEBYTECODE": "1",
            "HOME": str(blocker / "home"), "XDG_CACHE_HOME": str(blocker / "cache"),
            "NUMBA_CACHE_DIR": str(blocker / "numba"), "TMPDIR": str(temp)}
-    code = ("import sys\nfrom sensorplan.cli import main\ntry:\n    main(sys.argv[1:])\n"
+    code = ("import sys\nfrom sensorplan.cli.app import main\ntry:\n    main(sys.argv[1:])\n"
             "except SystemExit as e:\n    assert not e.code, e.code\n"
             "assert 'numba' not in sys.modules")
     try:
@@ -252,8 +254,7 @@ def test_old_builds_are_pruned_and_used_ones_kept(tmp_path: Path) -> None:
 
 def test_a_temp_dir_others_can_write_in_is_not_searched(tmp_path: Path,
                                                         monkeypatch: pytest.MonkeyPatch) -> None:
-    from sensorplan import _kernel_cache
-
+    from sensorplan._compiled import cache as _kernel_cache
     monkeypatch.setattr(_aot.tempfile, "gettempdir", lambda: str(tmp_path))
     private = Path(_kernel_cache.private_path(str(tmp_path)))
     private.mkdir(mode=0o700)

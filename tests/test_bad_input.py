@@ -29,10 +29,10 @@ import pytest
 
 from cli_helpers import SPEC7, assert_bad_input, run
 from sensorplan import limits
-from sensorplan.drawing import cap_position_covariances
+from sensorplan.figures.caps import cap_position_covariances
 from sensorplan.errors import error_line
 from sensorplan.limits import RANGES, lattice_sizes
-from sensorplan.problem import MapRect, build_lattice, move_vectors
+from sensorplan.planners.problem import MapRect, build_lattice, move_vectors
 
 ROOT = Path(__file__).resolve().parents[1]
 QUICK = ROOT / "configs" / "quick.toml"
@@ -313,7 +313,7 @@ def test_d4_values_at_the_edges_of_the_ranges_run_cleanly(capsys, tmp_path) -> N
 
 
 def test_d5_runtime_warnings_never_reach_stderr(capsys, tmp_path, monkeypatch) -> None:
-    import sensorplan.io as sio
+    import sensorplan.config.files as sio
 
     original = sio.dumps_result
 
@@ -354,7 +354,7 @@ def test_d6_capped_covariances_keep_directions_and_small_ones() -> None:
 def test_d6_huge_covariances_are_drawn_without_hanging(tmp_path) -> None:
     import dataclasses
 
-    from sensorplan.cli_guards import plot_drawable
+    from sensorplan.cli.guards import plot_drawable
     from sensorplan.config import load_simulation
     from sensorplan.simulation import run_episode
 
@@ -371,7 +371,7 @@ def test_d6_huge_covariances_are_animated_without_hanging(tmp_path) -> None:
 
     from PIL import Image
 
-    from sensorplan.cli_guards import animate_drawable
+    from sensorplan.cli.guards import animate_drawable
     from sensorplan.config import load_simulation
     from sensorplan.simulation import run_episode
 
@@ -412,7 +412,7 @@ def test_d7_given_boxes_are_checked_against_the_map(capsys, tmp_path) -> None:
 
 def test_d7_square_maps_keep_their_draws() -> None:
     # The 600 m map's scaled defaults are the former fixed boxes, so its runs are unchanged.
-    from sensorplan.scenario import Scenario, SensorSpec, TargetSpec
+    from sensorplan.simulation.scenario import Scenario, SensorSpec, TargetSpec
 
     s = Scenario(targets=(TargetSpec(),), sensors=(SensorSpec(),))
     assert (s.target_box, s.sensor_box) == ((100.0, 500.0), (50.0, 550.0))
@@ -641,7 +641,7 @@ def test_d12_replay_on_a_full_disk_is_one_line(capsys, tmp_path) -> None:
 
 
 #: The import that ends just before the command line's guarded start (``_launch.main``).
-LAUNCHED = "sensorplan._launch"
+LAUNCHED = "sensorplan.cli.launch"
 
 
 def _interrupt_after(args: list[str], delay: float, cwd: Path) -> subprocess.CompletedProcess:
@@ -649,7 +649,7 @@ def _interrupt_after(args: list[str], delay: float, cwd: Path) -> subprocess.Com
     outcome (stderr without the ``-X importtime`` lines used to time it).
 
     The clock starts at the first import the child reports (``-X importtime``) after
-    ``sensorplan._launch``: ``_launch.main``'s own imports, where every Ctrl-C is ours to
+    ``sensorplan.cli.launch``: ``_launch.main``'s own imports, where every Ctrl-C is ours to
     report, in the imports of the command line as in the command. Before it lie CPython's
     start-up and the package's tiny ``__init__``, where a fixed delay from the spawn can
     land on a loaded machine (and CPython prints the traceback).
@@ -736,7 +736,7 @@ def test_d16_a_ctrl_c_inside_a_finalizer_is_delivered_after_it() -> None:
     code = textwrap.dedent("""
         import signal
         import time
-        from sensorplan import cli_guards
+        from sensorplan.cli import guards as cli_guards
         signal.signal(signal.SIGINT, cli_guards.interrupt)
 
         class Finalized:
@@ -765,7 +765,7 @@ def test_d16_the_import_lock_callback_is_recognised() -> None:
 
     import _frozen_importlib
 
-    from sensorplan.cli_guards import lands_unraisable
+    from sensorplan.cli.guards import lands_unraisable
 
     codes = [c for c in _frozen_importlib._get_module_lock.__code__.co_consts
              if getattr(c, "co_name", None) == "cb"]
@@ -791,7 +791,7 @@ def test_d16_a_ctrl_c_inside_numba_scipy_or_an_import_waits_for_them() -> None:
     from numba.core import dispatcher
     from scipy.stats import _qmc
 
-    from sensorplan.cli_guards import lands_unraisable
+    from sensorplan.cli.guards import lands_unraisable
 
     import _frozen_importlib
 
@@ -812,7 +812,7 @@ def test_d16_ctrl_c_while_the_commands_are_built(monkeypatch, capsys) -> None:
     # a Ctrl-C landing there once escaped as a traceback. Deterministic stand-in for it.
     import typer.main
 
-    from sensorplan.cli import main
+    from sensorplan.cli.app import main
 
     def interrupted(app: Any) -> Any:
         raise KeyboardInterrupt
@@ -841,8 +841,7 @@ def test_d16_ctrl_c_while_pool_workers_start(tmp_path) -> None:
 @pytest.mark.xfail(strict=True, reason="the compiled covariance recursion loses all precision "
                    "on this input (NaN) where the numpy one does not; see tests/data/README.md")
 def test_compiled_recursion_agrees_with_numpy_on_a_precise_look() -> None:
-    from sensorplan import information
-
+    from sensorplan.planners import information
     d = np.load(ROOT / "tests" / "data" / "recursion_precision.npz")
     args = (d["P"], d["W"], d["F"], d["Q"])
     _, ld_np, _ = information.covariance_recursion_numpy(*args)
@@ -894,7 +893,7 @@ def test_many_buildings_are_one_collection_and_few_are_drawn_and_labelled_one_by
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from sensorplan.plotting import MAX_LABELLED_BUILDINGS, draw_buildings
+    from sensorplan.figures.run import MAX_LABELLED_BUILDINGS, draw_buildings
 
     for n in (MAX_LABELLED_BUILDINGS, MAX_LABELLED_BUILDINGS + 1, 10_000):
         rows = [(b["box"][0], b["box"][1], b["box"][2], b["box"][3], 10.0 + k)

@@ -2,7 +2,7 @@
 
 The reference enumerates every sensor's move sequences with ``itertools.product`` (in-map
 check done here, not with the library's lattice), every target sequence, and every joint
-combination, and calls :func:`sensorplan.information.potential` on each :class:`Plan`.
+combination, and calls :func:`sensorplan.planners.information.potential` on each :class:`Plan`.
 """
 
 from __future__ import annotations
@@ -14,14 +14,14 @@ import numpy as np
 import pytest
 
 from sensorplan.errors import ConfigError
-from sensorplan.information import potential
+from sensorplan.planners.information import potential
 from sensorplan.planners import PLANNERS, make_planner
 from sensorplan.planners import brute_force as bf
 from sensorplan.planners.brute_force import BruteForcePlanner, count_joint_plans
-from sensorplan.problem import Plan, PlanningProblem, check_plan, move_vectors
+from sensorplan.planners.problem import Plan, PlanningProblem, check_plan, move_vectors
 
 from factories import lattice_problem
-from sensorplan.sensors import SensorParams
+from sensorplan.models.sensors import SensorParams
 
 RTOL = 1e-9
 
@@ -243,7 +243,7 @@ def test_contribution_classes_carry_each_options_information(visibility: str,
     """Every option's class carries exactly the information the option's own plan gives
     each target (``plan_information``); with K = 1 the classes of target j are the zero
     class plus one per position whose look at j counts."""
-    from sensorplan.information import plan_information, prepare
+    from sensorplan.planners.information import plan_information, prepare
 
     problem = lattice_problem(21, n_sensors=1, n_targets=3, horizon=horizon, steps_per_epoch=2,
                            visibility=visibility, size=60.0, starts=[(30.0, 30.0)])

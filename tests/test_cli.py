@@ -14,10 +14,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from sensorplan.cli import main
-from sensorplan.io import dumps_result, result_to_dict
+from sensorplan.cli.app import main
+from sensorplan.config.files import dumps_result, result_to_dict
 from sensorplan.planners import PLANNERS, PlanResult
-from sensorplan.problem import Plan, move_vectors
+from sensorplan.planners.problem import Plan, move_vectors
 
 from cli_helpers import SPEC7, SPEC7_TEXT, assert_bad_input, run
 
@@ -411,8 +411,8 @@ def test_simulate_has_an_option_per_declared_setting_with_its_default() -> None:
     the default of a RunSettings() (an independent source of the defaults)."""
     import typer
 
-    from sensorplan.cli import app
-    from sensorplan.settings import RunSettings, all_settings
+    from sensorplan.cli.app import app
+    from sensorplan.simulation.settings import RunSettings, all_settings
 
     command = typer.main.get_command(app).commands["simulate"]   # type: ignore[attr-defined]
     options = {p.name: p for p in command.params}

@@ -16,8 +16,8 @@ from sensorplan.config import (PRESETS, decision_from_dict, load_decision, load_
                                planner_settings)
 from sensorplan.errors import ConfigError
 from sensorplan.planners import PLANNERS
-from sensorplan.scenario import Scenario, SensorSpec, TargetSpec, paper_scenario
-from sensorplan.sensors import SensorParams
+from sensorplan.simulation.scenario import Scenario, SensorSpec, TargetSpec, paper_scenario
+from sensorplan.models.sensors import SensorParams
 
 from cli_helpers import SPEC7
 
@@ -370,7 +370,7 @@ def test_planner_override_drops_max_plans(tmp_path: Path) -> None:
 
 
 def test_the_radar_preset_is_the_paper_scenario_with_radar_detection() -> None:
-    from sensorplan.scenario import RADAR_DETECTION, radar_scenario
+    from sensorplan.simulation.scenario import RADAR_DETECTION, radar_scenario
 
     sc = load_simulation(preset="radar").scenario
     assert sc == radar_scenario()

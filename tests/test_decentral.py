@@ -10,22 +10,22 @@ import pytest
 import sensorplan.decentral as dec
 from factories import paper_problem, tiny_problem
 from sensorplan.decentral import (
-    AgentSpec,
-    InprocTransport,
-    LinkModel,
-    Message,
-    assemble,
-    decision_key,
-    decode,
-    encode,
-    run_inproc,
-)
+                                  AgentSpec,
+                                  InprocTransport,
+                                  LinkModel,
+                                  Message,
+                                  assemble,
+                                  decision_key,
+                                  decode,
+                                  encode,
+                                  run_inproc,
+                                  )
 from sensorplan.errors import ConfigError
-from sensorplan.information import prepare
+from sensorplan.planners.information import prepare
 from sensorplan.planners import make_planner, potential_game
 from sensorplan.planners.epoch_game import warm_engine
 from sensorplan.planners.engine import GameState, choose
-from sensorplan.problem import TIE_TOL, check_plan
+from sensorplan.planners.problem import TIE_TOL, check_plan
 
 MODES = [(v, o) for v in ("probabilistic", "mean") for o in ("terminal", "cumulative")]
 DEC = ("dec-jsfp", "dec-independent", "dec-sequential")
@@ -91,7 +91,7 @@ def test_lossless_jsfp_is_centralized_pg(visibility, objective, monkeypatch):
 
 
 def test_lossless_jsfp_closed_loop_equals_pg():
-    from sensorplan.scenario import paper_scenario
+    from sensorplan.simulation.scenario import paper_scenario
     from sensorplan.simulation import RunSettings, run_episode
 
     sc = paper_scenario()

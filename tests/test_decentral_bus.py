@@ -19,7 +19,7 @@ pytest.importorskip("zmq")
 from factories import paper_problem
 from sensorplan.decentral import AgentSpec, LinkModel, assemble, decision_key, run_inproc
 from sensorplan.decentral.bus import Bus
-from sensorplan.information import prepare
+from sensorplan.planners.information import prepare
 
 SRC = str(Path(__file__).resolve().parents[1] / "src")
 TESTS = str(Path(__file__).resolve().parent)
@@ -223,7 +223,7 @@ def test_killed_agent_is_lost_and_the_others_finish():
 def test_closed_loop_on_the_bus_equals_inproc_and_pg():
     from sensorplan.decentral import run_agents
     from sensorplan.decentral.bus import open_buses
-    from sensorplan.scenario import paper_scenario
+    from sensorplan.simulation.scenario import paper_scenario
     from sensorplan.simulation import RunSettings, run_episode
 
     before = open_buses()
@@ -244,7 +244,7 @@ def test_closed_loop_on_the_bus_equals_inproc_and_pg():
 def test_episode_goes_on_when_an_agent_process_is_killed():
     from sensorplan.decentral import run_agents
     from sensorplan.decentral.bus import open_buses
-    from sensorplan.scenario import paper_scenario
+    from sensorplan.simulation.scenario import paper_scenario
     from sensorplan.simulation import RunSettings
 
     before = {id(b) for b in open_buses()}

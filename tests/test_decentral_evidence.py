@@ -91,8 +91,7 @@ def test_study_files_resolve_to_the_intended_planners(name: str, seed: int) -> N
 def test_first_decision_is_the_closed_loop_first_problem(monkeypatch: pytest.MonkeyPatch
                                                          ) -> None:
     """The open-loop problems are the simulator's first decision, field by field."""
-    from sensorplan import simulation
-
+    from sensorplan.simulation import run as simulation
     pot = _script("decentral_potential")
     scenario, settings, _ = pot.study_methods(pot.STUDIES["holes"])
     seen = []

@@ -11,11 +11,11 @@ import pytest
 from scipy import stats
 
 import radar_reference as ref
-from sensorplan import radar
-from sensorplan.missed import miss_update
-from sensorplan.sensors import AREA, SensorParams, radar_table
-from sensorplan.simulation import _DetectionDraws, run_streams
-from sensorplan.tracker import Tracker
+from sensorplan.models import radar
+from sensorplan.tracking.missed import miss_update
+from sensorplan.models.sensors import AREA, SensorParams, radar_table
+from sensorplan.simulation.run import _DetectionDraws, run_streams
+from sensorplan.tracking.tracker import Tracker
 
 RADAR = SensorParams(detection="swerling1", false_alarm_probability=1e-4, clutter_rate=3.0)
 
@@ -172,7 +172,7 @@ def test_the_clutter_factor_is_in_the_unit_interval_and_decreases_with_lambda():
 
 def test_aware_planning_with_ideal_detection_and_no_clutter_is_todays_potential(rng):
     from factories import make_problem, random_plan
-    from sensorplan.information import potential
+    from sensorplan.planners.information import potential
 
     for _ in range(5):
         problem = make_problem(rng, n_sensors=2, n_targets=3, horizon=2)
@@ -185,7 +185,7 @@ def test_aware_planning_with_ideal_detection_and_no_clutter_is_todays_potential(
 
 def test_aware_planning_counts_pd_and_clutter(rng):
     from factories import make_problem, random_plan
-    from sensorplan.information import potential
+    from sensorplan.planners.information import potential
 
     problem = make_problem(rng, n_sensors=2, n_targets=3, horizon=2,
                            sensor_kwargs=dict(detection="swerling1",

@@ -18,7 +18,7 @@ import pytest
 import typer
 
 from cli_helpers import run
-from sensorplan.cli import app
+from sensorplan.cli.app import app
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 from scipy.integrate import quad_vec
 
-from sensorplan.dynamics import cv_matrices, predict_covariance, predict_covariances, predict_means
+from sensorplan.models.motion import (cv_matrices, predict_covariance, predict_covariances,
+                                      predict_means)
 
 G = np.array([[0.0, 0.0], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
 

@@ -10,13 +10,13 @@ import pytest
 from scipy.stats import chi2
 
 from radar_reference import jacobian, measure, noise_cov, stack_params, take_params
-from sensorplan.dynamics import cv_matrices, predict_covariance
-from sensorplan.ekf import (joseph_update, nees, position_update, predict,
-                            standard_update, update, update_rounds)
-from sensorplan.problem import MapRect
-from sensorplan.scenario import Scenario, SensorSpec, TargetSpec, make_truth
-from sensorplan.sensors import SensorParams, radar_table
-from sensorplan.tracker import Tracker
+from sensorplan.models.motion import cv_matrices, predict_covariance
+from sensorplan.tracking.ekf import (joseph_update, nees, position_update, predict,
+                                     standard_update, update, update_rounds)
+from sensorplan.planners.problem import MapRect
+from sensorplan.simulation.scenario import Scenario, SensorSpec, TargetSpec, make_truth
+from sensorplan.models.sensors import SensorParams, radar_table
+from sensorplan.tracking.tracker import Tracker
 
 
 def table_of(params: SensorParams) -> np.ndarray:

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 from scipy.special import log_ndtr
 
-from sensorplan import radar
-from sensorplan._imm import combine_rows
-from sensorplan.known_map import map_constraint
-from sensorplan.missed import standard_points
-from sensorplan.sensors import SensorParams, radar_table
+from sensorplan.models import radar
+from sensorplan.tracking._imm_nb import combine_rows
+from sensorplan.tracking.known_map import map_constraint
+from sensorplan.tracking.missed import standard_points
+from sensorplan.models.sensors import SensorParams, radar_table
 
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
 
@@ -136,8 +136,8 @@ def test_measure_looks_flat_path_equals_the_broadcasting_path(rng):
 
 
 def _miss_numpy(means, covs, sxy, heading, table, sensor, gate):
-    from sensorplan.missed import INFLATE_FRACTION, MIN_OUTSIDE, _inside, _point_set
-    from sensorplan.sensors import G_MAX, G_MIN
+    from sensorplan.tracking.missed import INFLATE_FRACTION, MIN_OUTSIDE, _inside, _point_set
+    from sensorplan.models.sensors import G_MAX, G_MIN
 
     x, xx = _point_set(None)
     S = x.shape[0]
@@ -162,7 +162,7 @@ def _miss_numpy(means, covs, sxy, heading, table, sensor, gate):
 
 @pytest.mark.parametrize("gate", [1.0, 0.999])
 def test_miss_update_is_the_numpy_formula_bit_for_bit(rng, gate):
-    from sensorplan.missed import miss_update
+    from sensorplan.tracking.missed import miss_update
 
     table = radar_table([SensorParams(), SensorParams(detection="swerling1")])
     L, R = 40, 2
@@ -185,7 +185,7 @@ def test_miss_update_is_the_numpy_formula_bit_for_bit(rng, gate):
 
 @pytest.mark.parametrize("R", [2, 3, 4])
 def test_imm_mixing_is_the_einsum_formula_bit_for_bit(rng, R):
-    from sensorplan._imm import mix
+    from sensorplan.tracking._imm_nb import mix
 
     M = 6
     mu = rng.dirichlet(np.ones(R), M)
@@ -205,7 +205,7 @@ def test_imm_mixing_is_the_einsum_formula_bit_for_bit(rng, R):
 
 @pytest.mark.parametrize("m", [1, 2, 5, 9])
 def test_pda_sums_are_the_einsum_formulas_bit_for_bit(rng, m):
-    from sensorplan._imm import pda_covariances, pda_spread
+    from sensorplan.tracking._imm_nb import pda_covariances, pda_spread
 
     R = 3
     beta = rng.dirichlet(np.ones(m + 1), R)[:, :m]
@@ -226,7 +226,7 @@ def test_pda_sums_are_the_einsum_formulas_bit_for_bit(rng, m):
 
 @pytest.mark.parametrize("R", [2, 3, 7])
 def test_mode_reweighting_is_the_numpy_formula_bit_for_bit(rng, R):
-    from sensorplan._imm import floored_rows, normalise_rows, shifted_by_max
+    from sensorplan.tracking._imm_nb import floored_rows, normalise_rows, shifted_by_max
 
     M = 9
     probs = rng.dirichlet(np.ones(R), M)
@@ -249,7 +249,7 @@ def test_mode_reweighting_is_the_numpy_formula_bit_for_bit(rng, R):
 
 
 def test_pda_likelihoods_are_the_numpy_formula_bit_for_bit(rng):
-    from sensorplan._imm import pda_likelihoods, pda_weights
+    from sensorplan.tracking._imm_nb import pda_likelihoods, pda_weights
 
     R, m = 3, 4
     pd = rng.uniform(0.2, 1.0, R)
@@ -275,7 +275,7 @@ def test_pda_likelihoods_are_the_numpy_formula_bit_for_bit(rng):
 
 
 def test_position_update_is_the_numpy_formula_bit_for_bit(rng):
-    from sensorplan.ekf import position_update
+    from sensorplan.tracking.ekf import position_update
 
     B = 6
     _, P = _random_tracks(rng, B)

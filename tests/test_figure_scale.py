@@ -29,7 +29,7 @@ def test_small_figure_is_pixel_identical_to_the_reference(name: str, tmp_path: P
     import matplotlib
 
     from sensorplan.config import load_simulation
-    from sensorplan.plotting import plot_episode
+    from sensorplan.figures.run import plot_episode
     from sensorplan.simulation import Episode
 
     golden = json.loads((DATA / "figure_golden.json").read_text())
@@ -68,7 +68,7 @@ def _by_gid(ax, gid: str) -> list:
 def _semi_axes(C: np.ndarray) -> np.ndarray:
     """Semi-axes ``(K, 2)`` (major, minor) of the N_SIGMA ellipses of ``C (K, 2, 2)``, from
     the closed-form eigenvalues of a symmetric 2x2 matrix."""
-    from sensorplan.plotting import N_SIGMA
+    from sensorplan.figures.run import N_SIGMA
 
     a, b, d = C[:, 0, 0], 0.5 * (C[:, 0, 1] + C[:, 1, 0]), C[:, 1, 1]
     r = np.sqrt((0.5 * (a - d)) ** 2 + b ** 2)
@@ -80,8 +80,8 @@ def test_swarm_figure_is_condensed(swarm_run, tmp_path: Path) -> None:
     drawn once for all (not an artist per sensor or target), with the right geometry."""
     from matplotlib.image import AxesImage
 
-    from sensorplan import colors
-    from sensorplan.plotting import episode_figure, plot_episode
+    from sensorplan.figures import colors
+    from sensorplan.figures.run import episode_figure, plot_episode
 
     cfg, ep = swarm_run
     S, N, M = ep.looked.shape[0] - 1, ep.looked.shape[1], ep.truth.shape[1]
@@ -176,7 +176,7 @@ def test_condensed_drawing_starts_above_the_thresholds(swarm_run, extra: int) ->
     from matplotlib.image import AxesImage
     from matplotlib.lines import Line2D
 
-    from sensorplan.plotting import DENSE_SENSORS, DENSE_TARGETS, episode_figure, look_runs
+    from sensorplan.figures.run import DENSE_SENSORS, DENSE_TARGETS, episode_figure, look_runs
 
     cfg, ep = swarm_run
     n, m = DENSE_SENSORS + extra, DENSE_TARGETS + extra
@@ -199,7 +199,7 @@ def test_condensed_drawing_starts_above_the_thresholds(swarm_run, extra: int) ->
 
 @pytest.mark.parametrize("m", [12, 13])
 def test_legend_lists_targets_up_to_legend_items(swarm_run, m: int) -> None:
-    from sensorplan.plotting import LEGEND_ITEMS, episode_figure
+    from sensorplan.figures.run import LEGEND_ITEMS, episode_figure
 
     cfg, ep = swarm_run
     small, scenario = _first(cfg, ep, 5, m)
@@ -220,7 +220,7 @@ def test_legend_lists_targets_up_to_legend_items(swarm_run, m: int) -> None:
 def test_swarm_animation_moves_collections(swarm_run, tmp_path: Path) -> None:
     """At swarm size the animation's moving artists are a few collections; each frame puts
     the looks, positions and ellipses of its own step."""
-    from sensorplan.animation import _Frames, animate_episode
+    from sensorplan.figures.animation import _Frames, animate_episode
 
     cfg, ep = swarm_run
     S = ep.looked.shape[0] - 1
@@ -250,8 +250,8 @@ def test_swarm_animation_moves_collections(swarm_run, tmp_path: Path) -> None:
 def test_faded_chunks_cover_each_path_once(t: int, rng: np.random.Generator) -> None:
     """The chunks of a path are its segments, each once, in tints that get lighter with
     age and stop at the oldest tint."""
-    from sensorplan.animation_dense import FADE_CUTOFF, faded_chunks
-    from sensorplan.plotting_parts import FADE_FLOOR
+    from sensorplan.figures.animation_swarm import FADE_CUTOFF, faded_chunks
+    from sensorplan.figures.view import FADE_FLOOR
 
     K, tau = 3, 4.0
     xy = rng.normal(size=(t + 1, K, 2))
@@ -277,8 +277,8 @@ def test_faded_chunks_cover_each_path_once(t: int, rng: np.random.Generator) -> 
 
 
 def test_ellipse_arrays_agree_with_ellipse_geometry(rng: np.random.Generator) -> None:
-    from sensorplan.plotting import ellipse_geometry
-    from sensorplan.plotting_dense import ellipse_arrays
+    from sensorplan.figures.run import ellipse_geometry
+    from sensorplan.figures.swarm import ellipse_arrays
 
     A = rng.normal(size=(20, 2, 2)) * rng.uniform(0.1, 100, size=(20, 1, 1))
     C = A @ np.swapaxes(A, 1, 2)

@@ -25,7 +25,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 
 import fuzz_docs as fz
-from sensorplan.cli import main
+from sensorplan.cli.app import main
 
 #: Longest a single case may take (s) before it counts as a hang.
 CASE_SECONDS = 120

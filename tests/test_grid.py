@@ -20,7 +20,7 @@ from sensorplan import study as studies
 from sensorplan.errors import ConfigError
 from sensorplan.report import write_report
 from sensorplan.report.grid_figures import NOT_RUN, heatmap_panels, heatmap_values
-from sensorplan.scenario import town_buildings
+from sensorplan.simulation.scenario import town_buildings
 from sensorplan.study.grid import Axis, cell_indices, cell_slug, grid_from_dict, load_grid
 from sensorplan.study.grid_run import GridInterrupted, grid_statistics, run_grid
 
@@ -445,10 +445,10 @@ def test_same_results_with_one_and_two_worker_processes(grid_dir: Path,
 def test_grid_command_runs_resumes_refuses_and_reports(capsys: pytest.CaptureFixture[str],
                                                        tmp_path: Path,
                                                        monkeypatch: pytest.MonkeyPatch) -> None:
-    import sensorplan.console
+    import sensorplan.cli.console
 
     # Plain progress lines stay quiet during the first seconds; this grid is quicker.
-    monkeypatch.setattr(sensorplan.console, "FIRST_LINE_SECONDS", 0.0)
+    monkeypatch.setattr(sensorplan.cli.console, "FIRST_LINE_SECONDS", 0.0)
     path = tmp_path / "g.toml"
     path.write_text(GOOD.replace("runs = 2", "runs = 1"))
     out = tmp_path / "out"

@@ -1,6 +1,7 @@
 """The mutual-information potential against an independent computation.
 
-The reference here shares no code with ``sensorplan.information``: it rebuilds the headings,
+The reference here shares no code with ``sensorplan.planners.information``: it rebuilds the
+headings,
 H, R and p_vis from their definitions with scalar maths, and evaluates the information with the
 paper's joint-Gaussian conditional-covariance formula (Lemma 1): the joint covariance of the
 target state and every measurement of the plan, conditioned by a Schur complement.
@@ -14,11 +15,11 @@ import math
 import numpy as np
 import pytest
 
-from sensorplan import information
-from sensorplan.information import (covariance_recursion, evaluate, information_update,
-                                    potential, prepare)
-from sensorplan.problem import Plan, PlanningProblem
-from sensorplan.sensors import SensorParams
+from sensorplan.planners import information
+from sensorplan.planners.information import (covariance_recursion, evaluate, information_update,
+                                             potential, prepare)
+from sensorplan.planners.problem import Plan, PlanningProblem
+from sensorplan.models.sensors import SensorParams
 
 RTOL = 1e-9          # information is compared at 1e-9 relative
 ATOL = 1e-12         # nats; for terms that are (almost) zero

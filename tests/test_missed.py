@@ -12,12 +12,12 @@ import math
 import numpy as np
 import pytest
 
-from sensorplan.angles import wrap_angle
-from sensorplan import missed
-from sensorplan.dynamics import cv_matrices, predict_covariance
-from sensorplan.missed import (INFLATE_FRACTION, MIN_OUTSIDE, N_POINTS, SOBOL_SEED,
-                               inside_fraction, miss_update, standard_points)
-from sensorplan.sensors import SensorParams, radar_table
+from sensorplan.models.angles import wrap_angle
+from sensorplan.tracking import missed
+from sensorplan.models.motion import cv_matrices, predict_covariance
+from sensorplan.tracking.missed import (INFLATE_FRACTION, MIN_OUTSIDE, N_POINTS, SOBOL_SEED,
+                                        inside_fraction, miss_update, standard_points)
+from sensorplan.models.sensors import SensorParams, radar_table
 
 PARAMS = SensorParams()
 ORIGIN = np.zeros(2)

@@ -7,11 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from sensorplan import radar
+from sensorplan.models import radar
 from sensorplan.errors import ConfigError
-from sensorplan.scenario import Scenario, SensorSpec, TargetSpec, make_truth
-from sensorplan.sensors import SensorParams
-from sensorplan.truth import inside_buildings
+from sensorplan.simulation.scenario import Scenario, SensorSpec, TargetSpec, make_truth
+from sensorplan.models.sensors import SensorParams
+from sensorplan.models.truth import inside_buildings
 
 BOX = np.array([[100.0, 100.0, 200.0, 150.0, 50.0]])      # x0, y0, x1, y1, height
 
@@ -99,7 +99,7 @@ def test_truth_never_enters_a_building_over_ten_thousand_steps():
 
 
 def test_a_look_at_a_hidden_target_never_detects_it():
-    from sensorplan.settings import RunSettings
+    from sensorplan.simulation.settings import RunSettings
     from sensorplan.simulation import run_episode
 
     # One building between a fixed sensor and a fixed, slowly moving target.
@@ -198,7 +198,7 @@ def test_in_sight_probability_is_deterministic_in_0_1_and_one_without_buildings(
 def test_a_planned_look_counts_the_in_sight_probability(rng):
     """Two computations: the look with buildings equals the open-ground look times the
     in-sight probability (weight and information), for random looks."""
-    from sensorplan.sensors import radar_table
+    from sensorplan.models.sensors import radar_table
 
     row = radar_table((SensorParams(fov_half_angle=math.pi / 3),))[0]
     blds = np.array([[300.0, 300.0, 420.0, 380.0, 150.0], [520.0, 250.0, 560.0, 500.0, 90.0]])
@@ -223,7 +223,7 @@ def test_a_planned_look_counts_the_in_sight_probability(rng):
 
 
 def _two_targets(buildings, visibility):
-    from sensorplan.problem import MapRect, PlanningProblem
+    from sensorplan.planners.problem import MapRect, PlanningProblem
 
     # Target 0 due east of the sensor, uncertain (worth looking at); target 1 at 25 degrees,
     # better known. A 200 m block just in front of target 0 hides it from every reachable
@@ -251,7 +251,7 @@ def test_the_planner_does_not_look_at_a_hidden_target(visibility):
 def test_without_buildings_planning_ignores_the_setting(rng):
     """Aware and ignore are the same run on open ground, bit for bit; with a building in
     the way they differ."""
-    from sensorplan.settings import RunSettings
+    from sensorplan.simulation.settings import RunSettings
     from sensorplan.simulation import run_episode
 
     def both(sc):

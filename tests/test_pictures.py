@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from cli_helpers import assert_bad_input, run
-from sensorplan import colors
+from sensorplan.figures import colors
 from sensorplan.config import load_simulation
 from sensorplan.simulation import run_episode
 
@@ -98,7 +98,7 @@ def test_mix_is_the_convex_combination_with_white() -> None:
 
 
 def test_ellipse_geometry_closed_forms() -> None:
-    from sensorplan.plotting import N_SIGMA, ellipse_geometry
+    from sensorplan.figures.run import N_SIGMA, ellipse_geometry
 
     w, h, angle = ellipse_geometry(np.diag([100.0, 25.0]), limit=1e9)
     assert (w, h) == (2 * N_SIGMA * 10.0, 2 * N_SIGMA * 5.0)
@@ -117,7 +117,7 @@ def test_ellipse_geometry_closed_forms() -> None:
 
 
 def test_look_runs_rebuild_the_looks_exactly(rng: np.random.Generator) -> None:
-    from sensorplan.plotting import look_runs
+    from sensorplan.figures.run import look_runs
 
     S, N = 40, 3
     looked = np.full((S + 1, N), -1)
@@ -149,7 +149,7 @@ def _hex(rgba) -> str:
 
 
 def test_static_figure_timeline_matches_the_looks(busy_run) -> None:
-    from sensorplan.plotting import MISS_HATCH, episode_figure
+    from sensorplan.figures.run import MISS_HATCH, episode_figure
 
     cfg, episode = busy_run
     fig = episode_figure(episode, cfg.scenario)
@@ -193,7 +193,7 @@ def test_static_figure_timeline_matches_the_looks(busy_run) -> None:
 def test_plot_with_huge_covariances_clips_the_ellipses(quick_run, tmp_path: Path) -> None:
     from matplotlib.patches import Ellipse
 
-    from sensorplan.plotting import episode_figure, map_limit, plot_episode
+    from sensorplan.figures.run import episode_figure, map_limit, plot_episode
 
     cfg, episode = quick_run
     huge = dataclasses.replace(episode, cov=episode.cov * 1e40)
@@ -217,7 +217,7 @@ def _frames(path: Path) -> list[np.ndarray]:
 @pytest.mark.parametrize("every", [1, 4])
 def test_animation_has_one_frame_per_step_and_every_frame_moves(quick_run, tmp_path: Path,
                                                                 every: int) -> None:
-    from sensorplan.animation import animate_episode, frame_steps
+    from sensorplan.figures.animation import animate_episode, frame_steps
 
     cfg, episode = quick_run
     S = episode.error.shape[0] - 1
@@ -234,7 +234,7 @@ def test_animation_has_one_frame_per_step_and_every_frame_moves(quick_run, tmp_p
 
 
 def test_animation_of_buildings_and_false_alarms(busy_run, tmp_path: Path) -> None:
-    from sensorplan.animation import _Frames
+    from sensorplan.figures.animation import _Frames
 
     cfg, episode = busy_run
     frames = _Frames(episode, cfg.scenario, tail=12.0, dpi=40)
@@ -252,8 +252,7 @@ def test_animation_of_buildings_and_false_alarms(busy_run, tmp_path: Path) -> No
 
 
 def test_mp4_needs_ffmpeg(quick_run, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from sensorplan import animation
-
+    from sensorplan.figures import animation
     cfg, episode = quick_run
     if animation.ffmpeg_available():
         import shutil
@@ -281,8 +280,7 @@ def test_simulate_animate_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]
     assert_bad_input(run(capsys, "simulate", QUICK, "--steps", "4", "--animate",
                          "--animation-format", "avi", "--out", tmp_path / "x"),
                      "--animation-format")
-    from sensorplan import animation
-
+    from sensorplan.figures import animation
     monkeypatch.setattr(animation.shutil, "which", lambda name: None)
     line = assert_bad_input(run(capsys, "simulate", QUICK, "--steps", "4", "--animate",
                                 "--animation-format", "mp4", "--out", tmp_path / "y"),
@@ -321,7 +319,7 @@ def study_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_replay_reproduces_the_stored_run_exactly(study_dir: Path) -> None:
     import pandas as pd
 
-    from sensorplan.replay import replay_run
+    from sensorplan.simulation.replay import replay_run
 
     rep = replay_run(study_dir, 1, "OLF pg K=2")
     assert rep.stored and rep.reproduced, rep.differences
@@ -341,7 +339,7 @@ def test_replay_reproduces_the_stored_run_exactly(study_dir: Path) -> None:
 def test_replay_notices_a_difference(study_dir: Path) -> None:
     import pandas as pd
 
-    from sensorplan.replay import _compare, replay_run
+    from sensorplan.simulation.replay import _compare, replay_run
 
     rep = replay_run(study_dir, 0, "myopic")
     steps = pd.read_parquet(study_dir / "steps.parquet")

@@ -15,7 +15,7 @@ from factories import paper_problem
 from sensorplan.errors import ConfigError
 from sensorplan.planners import (CHECKS, PLANNERS, Plan, PlannerCheckError, PlanResult,
                                  check_planner, finish, make_planner, start_clock)
-from sensorplan.planners.problems import contract_problems
+from sensorplan.planners.contract_problems import contract_problems
 from sensorplan.planners.registry import BUILTIN
 
 

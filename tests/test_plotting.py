@@ -13,7 +13,7 @@ def test_plot_episode_writes_a_png(tmp_path: Path) -> None:
     from matplotlib.image import imread
 
     from sensorplan.config import load_simulation
-    from sensorplan.plotting import plot_episode
+    from sensorplan.figures.run import plot_episode
     from sensorplan.simulation import run_episode
 
     cfg = load_simulation(ROOT / "configs" / "quick.toml", overrides={"steps": 6})

@@ -9,12 +9,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sensorplan.information import potential, prepare
+from sensorplan.planners.information import potential, prepare
 from sensorplan.planners import make_planner
 from sensorplan.planners.engine import GameState
 from sensorplan.planners.potential_game import jsfp_epoch
-from sensorplan.problem import TIE_TOL, MapRect, Plan, PlanningProblem, check_plan
-from sensorplan.sensors import SensorParams
+from sensorplan.planners.problem import TIE_TOL, MapRect, Plan, PlanningProblem, check_plan
+from sensorplan.models.sensors import SensorParams
 
 from factories import paper_problem, tiny_problem
 

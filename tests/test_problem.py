@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from sensorplan.errors import ConfigError
-from sensorplan.problem import (MapRect, Plan, PlanningProblem, build_lattice, check_plan,
-                                move_vectors)
-from sensorplan.sensors import SensorParams
+from sensorplan.planners.problem import (MapRect, Plan, PlanningProblem, build_lattice, check_plan,
+                                         move_vectors)
+from sensorplan.models.sensors import SensorParams
 
 TOL = 1e-6
 SPEC_DIRS = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)]

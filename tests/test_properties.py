@@ -9,11 +9,11 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sensorplan.dynamics import predict_covariance
-from sensorplan.information import (evaluate, information_update, plan_information, potential,
-                                    prepare, sum_by_target)
-from sensorplan.problem import TIE_TOL, Plan, check_plan, move_vectors
-from sensorplan.sensors import SensorParams
+from sensorplan.models.motion import predict_covariance
+from sensorplan.planners.information import (evaluate, information_update, plan_information,
+                                             potential, prepare, sum_by_target)
+from sensorplan.planners.problem import TIE_TOL, Plan, check_plan, move_vectors
+from sensorplan.models.sensors import SensorParams
 
 SETTINGS = settings(max_examples=60, deadline=None)
 # Phi and its terms are non-negative up to round-off of the log-determinants.

@@ -1,4 +1,4 @@
-"""The one radar model (:mod:`sensorplan.radar`): closed forms, edge cases, and agreement
+"""The one radar model (:mod:`sensorplan.models.radar`): closed forms, edge cases, and agreement
 with the independent numpy computation of ``radar_reference`` to 1e-12.
 
 The helpers below call the library's compiled radar with the shapes the tests want; they
@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 import radar_reference as ref
-from sensorplan import radar
-from sensorplan.radar import ANGLE_TOL, RANGE_TOL
-from sensorplan.sensors import COLUMNS, SensorParams, radar_table
+from sensorplan.models import radar
+from sensorplan.models.radar import ANGLE_TOL, RANGE_TOL
+from sensorplan.models.sensors import COLUMNS, SensorParams, radar_table
 
 DEF = SensorParams()
 
@@ -506,7 +506,7 @@ def test_the_normal_interval_skips_erfc_only_where_the_formula_gives_exactly_one
     # Ncdf(hi/sd) - Ncdf(lo/sd) with both bounds far out is 1.0 in floating point; the model
     # returns 1.0 there without the two erfc calls. It must equal the formula bit for bit
     # everywhere, on both sides of the threshold and at it.
-    from sensorplan.radar.model import SURE_SIGMAS, _interval
+    from sensorplan.models.radar.model import SURE_SIGMAS, _interval
 
     def formula(lo: float, hi: float, sd: float) -> float:
         ncdf = lambda x: 0.5 * math.erfc(-x / math.sqrt(2.0))  # noqa: E731
@@ -530,7 +530,7 @@ def test_the_normal_interval_skips_erfc_only_where_the_formula_gives_exactly_one
 def test_a_radar_row_as_a_tuple_gives_the_same_looks_bit_for_bit(rng, aware):
     # The planner's inner loop passes the row as a tuple (row_values) and calls the open-sky
     # range test where no building stands; both must be the array row's model exactly.
-    from sensorplan.radar.model import look_range_clear, row_values
+    from sensorplan.models.radar.model import look_range_clear, row_values
 
     table = radar_table([DEF, dataclasses.replace(DEF, detection="swerling1",
                                                    fov_half_angle=0.4)], aware=aware)

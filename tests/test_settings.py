@@ -11,11 +11,11 @@ from typing import Any
 import pytest
 
 from sensorplan.errors import ConfigError
-from sensorplan.scenario import paper_scenario
-from sensorplan.scenario_file import PlanningTable, RunTable, TrackerTable
-from sensorplan.settings import (SECTIONS, RunSettings, TrackerSettings, _Settings,
-                                 all_settings, field_type, setting)
-from sensorplan.validation import section_model, validate
+from sensorplan.simulation.scenario import paper_scenario
+from sensorplan.config.scenario import PlanningTable, RunTable, TrackerTable
+from sensorplan.simulation.settings import (SECTIONS, RunSettings, TrackerSettings, _Settings,
+                                            all_settings, field_type, setting)
+from sensorplan.config.validation import section_model, validate
 
 DECLARED = all_settings()
 TABLES = {"planning": PlanningTable, "tracker": TrackerTable, "run": RunTable}

@@ -9,17 +9,17 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
-from sensorplan import simulation
-from sensorplan.angles import heading_rule, wrap_angle
-from sensorplan.dynamics import cv_matrices
-from sensorplan.tracker import Tracker
+from sensorplan.simulation import run as simulation
+from sensorplan.models.angles import heading_rule, wrap_angle
+from sensorplan.models.motion import cv_matrices
+from sensorplan.tracking.tracker import Tracker
 from sensorplan.errors import ConfigError
 from sensorplan.planners import PLANNERS, PlanResult
-from sensorplan.problem import MapRect, Plan, PlanningProblem, move_vectors
-from sensorplan.scenario import Scenario, SensorSpec, TargetSpec, paper_scenario
+from sensorplan.planners.problem import MapRect, Plan, PlanningProblem, move_vectors
+from sensorplan.simulation.scenario import Scenario, SensorSpec, TargetSpec, paper_scenario
 from radar_reference import cos_boresight, noise_std, visible
-from sensorplan.sensors import SensorParams
-from sensorplan.settings import TrackerSettings
+from sensorplan.models.sensors import SensorParams
+from sensorplan.simulation.settings import TrackerSettings
 from sensorplan.simulation import Episode, RunSettings, run_episode, run_streams
 
 
@@ -358,8 +358,7 @@ class TestTracking:
         assert S == len(ep.truth) - 1
 
     def test_negative_update_is_the_kernel_applied_in_sensor_order(self, monkeypatch):
-        from sensorplan import missed
-
+        from sensorplan.tracking import missed
         calls = []
         kernel = missed.miss_update
 
@@ -379,7 +378,7 @@ class TestTracking:
 def test_none_reproduces_a_tracker_without_the_feature(monkeypatch):
     """``miss_update = "none"`` never touches the missed-look code and gives exactly the
     tracks of a tracker whose miss update is a no-op (the feature removed)."""
-    import sensorplan.simulation as sim
+    import sensorplan.simulation.run as sim
 
     def forbidden():
         raise AssertionError("the miss-update kernel was requested with miss_update='none'")

@@ -41,7 +41,7 @@ def _loaded(code: str) -> list[str]:
 
 
 def test_import_sensorplan_loads_nothing_heavy() -> None:
-    assert _loaded("import sensorplan, sensorplan.planners, sensorplan.settings") == []
+    assert _loaded("import sensorplan, sensorplan.planners, sensorplan.simulation.settings") == []
     # ... and the lazy names still work.
     assert _loaded("from sensorplan.planners import PLANNERS; list(PLANNERS)") == []
     # The kernels load numba at their first call that needs it, not at import.
@@ -49,7 +49,7 @@ def test_import_sensorplan_loads_nothing_heavy() -> None:
 
 
 def test_help_loads_nothing_heavy() -> None:
-    code = ("from sensorplan.cli import main\n"
+    code = ("from sensorplan.cli.app import main\n"
             "for args in (['--help'], ['simulate', '--help'], ['plan', '--help']):\n"
             "    try:\n        main(args)\n    except SystemExit:\n        pass")
     assert _loaded(code) == []
@@ -84,8 +84,8 @@ def _seed_cache(pkg: Path, fallback: Path) -> None:
     does not compile every kernel again. Without it the test is only slower."""
     from numba.core.caching import UserProvidedCacheLocator
 
-    from sensorplan import radar
-    from sensorplan._kernels import warm_up
+    from sensorplan.models import radar
+    from sensorplan.planners._chains_nb import warm_up
 
     warm_up()
     cached = Path(radar.wrap._cache.cache_path)
@@ -130,8 +130,7 @@ def test_nowhere_writable_compiles_without_a_cache(tmp_path: Path,
     import numba
     from numba.core import dispatcher
 
-    from sensorplan import _kernel_cache
-
+    from sensorplan._compiled import cache as _kernel_cache
     blocker = tmp_path / "blocker"
     blocker.write_text("")
     monkeypatch.setattr(_kernel_cache, "cache_places",
@@ -151,15 +150,15 @@ def test_nowhere_writable_compiles_without_a_cache(tmp_path: Path,
 
 def test_a_writable_place_changes_nothing(monkeypatch: pytest.MonkeyPatch,
                                           tmp_path: Path) -> None:
-    from sensorplan import _kernel_cache
-
+    from sensorplan._compiled import cache as _kernel_cache
     monkeypatch.setattr(_kernel_cache, "cache_places", lambda: [str(tmp_path / "cache")])
     assert _kernel_cache.ensure_cache() is None
 
 
 def _import_jit(env_extra: dict[str, str]) -> str:
     env = {k: v for k, v in os.environ.items() if k != "SENSORPLAN_FIRST_RUN_NOTED"}
-    done = subprocess.run([sys.executable, "-c", "import sensorplan._jit as j; j.activate()"],
+    done = subprocess.run([sys.executable, "-c",
+                           "import sensorplan._compiled.jit as j; j.activate()"],
                           env={**env, "PYTHONPATH": str(SRC), **env_extra},
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
@@ -207,7 +206,7 @@ def test_a_read_only_home_gives_matplotlib_a_private_directory_quietly(tmp_path:
 
 def test_a_writable_home_leaves_matplotlib_alone(monkeypatch: pytest.MonkeyPatch,
                                                  tmp_path: Path) -> None:
-    from sensorplan.cli_guards import quiet_matplotlib_dirs
+    from sensorplan.cli.guards import quiet_matplotlib_dirs
 
     monkeypatch.delenv("MPLCONFIGDIR", raising=False)
     monkeypatch.setenv("HOME", str(tmp_path / "home"))       # not there yet: can be made

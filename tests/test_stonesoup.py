@@ -34,18 +34,18 @@ from stonesoup.types.state import GaussianState, State  # noqa: E402
 from stonesoup.types.track import Track  # noqa: E402
 from stonesoup.updater.kalman import ExtendedKalmanUpdater  # noqa: E402
 
-from sensorplan import ekf  # noqa: E402
-from sensorplan.angles import wrap_angle  # noqa: E402
-from sensorplan.dynamics import cv_matrices  # noqa: E402
+from sensorplan.tracking import ekf  # noqa: E402
+from sensorplan.models.angles import wrap_angle  # noqa: E402
+from sensorplan.models.motion import cv_matrices  # noqa: E402
 from sensorplan.errors import ConfigError  # noqa: E402
-from sensorplan.information import potential  # noqa: E402
+from sensorplan.planners.information import potential  # noqa: E402
 from sensorplan.integrations import stonesoup as ss  # noqa: E402
 from sensorplan.planners import make_planner  # noqa: E402
-from sensorplan.problem import MapRect, Plan, PlanningProblem, move_vectors  # noqa: E402
-from sensorplan.scenario import draw_initial, make_truth, paper_scenario  # noqa: E402
-from sensorplan.settings import TrackerSettings  # noqa: E402
+from sensorplan.planners.problem import MapRect, Plan, PlanningProblem, move_vectors  # noqa: E402
+from sensorplan.simulation.scenario import draw_initial, make_truth, paper_scenario  # noqa: E402
+from sensorplan.simulation.settings import TrackerSettings  # noqa: E402
 from radar_reference import jacobian, measure, noise_cov, visible  # noqa: E402
-from sensorplan.sensors import SensorParams, radar_table  # noqa: E402
+from sensorplan.models.sensors import SensorParams, radar_table  # noqa: E402
 from sensorplan.simulation import RunSettings, run_episode, run_streams  # noqa: E402
 
 T0 = datetime.datetime(2024, 1, 1)

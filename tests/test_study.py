@@ -16,12 +16,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sensorplan.settings import TrackerSettings
+from sensorplan.simulation.settings import TrackerSettings
 from scipy import stats
 
 from sensorplan import study as studies
 from sensorplan.errors import ConfigError
-from sensorplan.scenario_file import scenario_from_dict, scenario_to_dict
+from sensorplan.config.scenario import scenario_from_dict, scenario_to_dict
 from sensorplan.study import load_study, parse_study, study_from_dict
 
 ROOT = Path(__file__).resolve().parents[1]

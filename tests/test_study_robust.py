@@ -18,7 +18,7 @@ import pytest
 
 from cli_helpers import assert_bad_input, run
 from sensorplan import study as studies
-from sensorplan.console import FIRST_LINE_SECONDS, PlainProgress
+from sensorplan.cli.console import FIRST_LINE_SECONDS, PlainProgress
 from sensorplan.study import parse_study
 from sensorplan.study.storage import TABLE_SUMS, part_path, sums_path
 
@@ -390,8 +390,7 @@ def test_progress_lines_wait_for_work_and_time() -> None:
 
 def test_simulate_shows_plain_progress_when_not_on_a_terminal(tmp_path, capsys,
                                                               monkeypatch) -> None:
-    from sensorplan import console
-
+    from sensorplan.cli import console
     monkeypatch.setattr(console, "FIRST_LINE_SECONDS", 0.0)
     code, _, err = run(capsys, "simulate", ROOT / "configs" / "quick.toml", "--steps", "20",
                        "--out", tmp_path / "o")

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from planner_reference import swarm_problem
-from sensorplan.information import potential
+from sensorplan.planners.information import potential
 from sensorplan.planners import make_planner
-from sensorplan.problem import check_plan
-from sensorplan.scenario import draw_initial, paper_scenario, swarm_scenario
+from sensorplan.planners.problem import check_plan
+from sensorplan.simulation.scenario import draw_initial, paper_scenario, swarm_scenario
 
 
 def test_swarm_scenario_is_the_paper_scaled_up():

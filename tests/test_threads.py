@@ -9,7 +9,7 @@ import threading
 import numpy as np
 import pytest
 
-from sensorplan._threads import n_threads, parse_threads, run_all
+from sensorplan._compiled.threads import n_threads, parse_threads, run_all
 from sensorplan.errors import ConfigError
 from sensorplan.planners import epoch_game, make_planner
 

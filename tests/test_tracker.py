@@ -9,10 +9,10 @@ import pytest
 from scipy.stats import chi2, truncnorm
 
 import radar_reference as ref
-from sensorplan.dynamics import cv_matrices
-from sensorplan.known_map import map_constraint, truncated_normal_moments
-from sensorplan.sensors import SensorParams, radar_table
-from sensorplan.tracker import Tracker, gate_threshold, stationary
+from sensorplan.models.motion import cv_matrices
+from sensorplan.tracking.known_map import map_constraint, truncated_normal_moments
+from sensorplan.models.sensors import SensorParams, radar_table
+from sensorplan.tracking.tracker import Tracker, gate_threshold, stationary
 
 P0 = np.diag([400.0, 400.0, 4.0, 4.0])
 TABLE = radar_table(SensorParams())
@@ -249,8 +249,8 @@ def test_the_paper_configuration_reproduces_the_tracks_bit_for_bit(seed):
     commit be1378b with the script in tests/data/README.md)."""
     from pathlib import Path
 
-    from sensorplan.scenario import paper_scenario
-    from sensorplan.settings import TrackerSettings
+    from sensorplan.simulation.scenario import paper_scenario
+    from sensorplan.simulation.settings import TrackerSettings
     from sensorplan.simulation import RunSettings, run_episode
 
     golden = np.load(Path(__file__).parent / "data" / "paper_rows_golden.npz")
@@ -295,7 +295,7 @@ def test_nees_band_covers_a_consistent_filter_in_95_percent_of_seeds():
     """A linear Gaussian Kalman filter with the true model: the average NEES over 100
     independent runs at one step lies in its 95 % chi-square band for about 95 % of seeds
     (at least 90 of 100 here), and an overconfident filter's does not."""
-    from sensorplan.ekf import joseph_update, nees, predict
+    from sensorplan.tracking.ekf import joseph_update, nees, predict
     from sensorplan.study.metrics import nees_band
 
     runs, seeds, steps = 100, 100, 25

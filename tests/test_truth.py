@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from sensorplan.dynamics import cv_matrices
-from sensorplan.problem import MapRect
-from sensorplan.scenario import Scenario, SensorSpec, TargetSpec, make_truth
-from sensorplan.truth import NOISE_BLOCK, TruthModel, dubins_arc, mirror
+from sensorplan.models.motion import cv_matrices
+from sensorplan.planners.problem import MapRect
+from sensorplan.simulation.scenario import Scenario, SensorSpec, TargetSpec, make_truth
+from sensorplan.models.truth import NOISE_BLOCK, TruthModel, dubins_arc, mirror
 
 
 def make_model(kinds, x0, rng, width=600.0, height=600.0, dt=1.0, q=0.05, turn_hold=10.0,

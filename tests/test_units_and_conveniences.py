@@ -18,7 +18,7 @@ from cli_helpers import SPEC7, assert_bad_input, run
 from sensorplan.config import decision_from_dict
 from sensorplan.config.decision import EXAMPLE_PROBLEM
 from sensorplan.errors import ConfigError
-from sensorplan.scenario_file import scenario_from_dict
+from sensorplan.config.scenario import scenario_from_dict
 from sensorplan.study import METRIC_RANGES, SMALL_SAMPLE, paired_differences, parse_study, summary
 
 ROOT = Path(__file__).resolve().parents[1]

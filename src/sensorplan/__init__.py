@@ -15,10 +15,10 @@ TYPE_CHECKING = False
 if TYPE_CHECKING:  # pragma: no cover
     from typing import Any
 
-    from .information import potential
     from .memory import keep_freed_memory
-    from .problem import MapRect, Plan, PlanningProblem
-    from .sensors import SensorParams
+    from .models.sensors import SensorParams
+    from .planners.information import potential
+    from .planners.problem import MapRect, Plan, PlanningProblem
 
 __version__ = "0.1.0"
 
@@ -28,11 +28,11 @@ __all__ = ["ConfigError", "MapRect", "Plan", "PlanningProblem", "SensorParams",
 
 def __getattr__(name: str) -> Any:
     if name in ("MapRect", "Plan", "PlanningProblem"):
-        from . import problem as module
+        from .planners import problem as module
     elif name == "SensorParams":
-        from . import sensors as module  # type: ignore[no-redef]
+        from .models import sensors as module  # type: ignore[no-redef]
     elif name == "potential":
-        from . import information as module  # type: ignore[no-redef]
+        from .planners import information as module  # type: ignore[no-redef]
     elif name == "keep_freed_memory":
         from . import memory as module  # type: ignore[no-redef]
     else:

@@ -1,6 +1,6 @@
 """``python -m sensorplan``: the same command line as the ``sensorplan`` script."""
 
-from ._launch import main
+from .cli.launch import main
 
 if __name__ == "__main__":
     main()

@@ -204,7 +204,7 @@ def check_radar_precision(snr_ref_db: float, range_ref: float, altitude: float,
 
 
 def check_sensor_precision(params: Any, prefix: str) -> None:
-    """:func:`check_radar_precision` of a :class:`~sensorplan.sensors.SensorParams` (scalar
+    """:func:`check_radar_precision` of a :class:`~sensorplan.models.sensors.SensorParams` (scalar
     fields). Input files (decision, scenario) apply it to every sensor; problems built in
     Python are not bound by it."""
     p = params
@@ -370,8 +370,8 @@ def check_study_size(runs: int, n_methods: int, steps: int, n_targets: int) -> N
 
 def check_run(scenario: Any, settings: Any, fields: dict[str, str]) -> None:
     """:func:`check_decision_size` for the decisions of a run of ``settings``
-    (:class:`~sensorplan.settings.RunSettings`) on ``scenario``
-    (:class:`~sensorplan.scenario.Scenario`; sensors anywhere on the map) and
+    (:class:`~sensorplan.simulation.settings.RunSettings`) on ``scenario``
+    (:class:`~sensorplan.simulation.scenario.Scenario`; sensors anywhere on the map) and
     :func:`check_run_size` for its steps.
 
     ``fields`` names the fields as :func:`check_decision_size` wants, plus ``steps``.

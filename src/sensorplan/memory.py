@@ -1,6 +1,6 @@
 """The process's memory settings: numpy's huge pages and glibc's reuse of freed memory.
 
-The command line makes both before numpy loads (:mod:`sensorplan._launch`); a program that
+The command line makes both before numpy loads (:mod:`sensorplan.cli.launch`); a program that
 imports the library can make the second with :func:`keep_freed_memory`.
 """
 

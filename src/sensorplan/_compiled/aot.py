@@ -2,9 +2,9 @@
 
 Importing numba and loading its cached kernels takes about a second, most of a one-decision
 process. The kernels the planners call from Python, for the argument types listed in
-:mod:`sensorplan._aot_signatures`, are therefore also compiled by numba's ahead-of-time
+:mod:`sensorplan._compiled.aot_signatures`, are therefore also compiled by numba's ahead-of-time
 compiler (``numba.pycc``: the same source, compiler and options, for this machine's CPU) into
-one extension module that needs numpy only. :mod:`sensorplan._jit` calls it whenever it
+one extension module that needs numpy only. :mod:`sensorplan._compiled.jit` calls it whenever it
 holds a call's argument types, numba's dispatcher otherwise.
 
 * **Where**: ``sensorplan-aot/`` in the first writable place of: ``NUMBA_CACHE_DIR``, the
@@ -36,10 +36,10 @@ import time
 from pathlib import Path
 from typing import Any
 
-from ._kernel_cache import (NOTICE, _private_dir, _writable, cache_places, is_private,
-                            private_path)
+from .cache import (NOTICE, _private_dir, _writable, cache_places, is_private,
+                    private_path)
 
-PACKAGE = Path(__file__).resolve().parent
+PACKAGE = Path(__file__).resolve().parents[1]
 SUBDIR = "sensorplan-aot"
 DAY = 86400.0
 #: A built module not loaded for this many days is deleted by the next build beside it.
@@ -51,8 +51,8 @@ UNUSED_DAYS = 30
 BUILD = ("import sys; sys.path.insert(0, sys.argv[1]); from pathlib import Path; "
          "from numba.core.caching import Cache; "
          "Cache.save_overload = lambda self, sig, data: None; "
-         "from sensorplan._jit import activate; activate(); "
-         "from sensorplan._aot import build; print(build(Path(sys.argv[2])))")
+         "from sensorplan._compiled.jit import activate; activate(); "
+         "from sensorplan._compiled.aot import build; print(build(Path(sys.argv[2])))")
 
 
 def enabled() -> bool:
@@ -91,7 +91,7 @@ def tag() -> str:
     h = hashlib.sha256()
     for path in sorted(PACKAGE.rglob("*.py")):
         text = path.read_bytes()
-        if b"njit" in text or path.name == "_aot_signatures.py":
+        if b"njit" in text or path.name == "aot_signatures.py":
             h.update(str(path.relative_to(PACKAGE)).encode() + b"\0" + text + b"\0")
     for part in (sys.version, np.__version__, platform.machine(), _cpu()):
         h.update(part.encode() + b"\0")
@@ -184,9 +184,9 @@ def prune(dest: Path, keep: Path, now: float | None = None) -> list[Path]:
 
 
 def attach(kernels: list[Any]) -> None:
-    """Give every kernel (:class:`sensorplan._jit.Kernel`) its ahead-of-time table
+    """Give every kernel (:class:`sensorplan._compiled.jit.Kernel`) its ahead-of-time table
     (``{arg_key: function}``), or None."""
-    from ._aot_signatures import SIGNATURES
+    from .aot_signatures import SIGNATURES
 
     module = load()
     tables: dict[tuple[str, str], dict] = {}
@@ -228,10 +228,10 @@ def build(dest: Path | None = None) -> Path:
     from numba.core.codegen import AOTCPUCodegen
     from numba.pycc import CC
 
-    from ._aot_signatures import SIGNATURES
+    from .aot_signatures import SIGNATURES
 
     if "numba" not in sys.modules:
-        raise RuntimeError("build() runs after sensorplan._jit.activate() (see BUILD)")
+        raise RuntimeError("build() runs after sensorplan._compiled.jit.activate() (see BUILD)")
     tag_ = tag()
     if dest is None:
         dest = next(d for d in places() if _writable(str(d)))

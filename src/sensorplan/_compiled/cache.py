@@ -4,11 +4,11 @@ numba caches the just-in-time kernels on disk (``cache=True``) in the first writ
 of: ``NUMBA_CACHE_DIR`` if set, the package's own ``__pycache__`` directory, the user's
 cache directory (``~/.cache/numba`` on Linux). When none is writable (a read-only install
 and a read-only home), numba would refuse with a traceback; :func:`ensure_cache`, run when
-numba is loaded and before any kernel is compiled (:func:`sensorplan._jit.activate`), then
+numba is loaded and before any kernel is compiled (:func:`sensorplan._compiled.jit.activate`), then
 caches in a private directory under the system's temporary directory, and when even that
 fails compiles without a cache. Either way it says so in one line on stderr, and child
 processes (study workers, agents) inherit the choice through ``NUMBA_CACHE_DIR``. The
-ahead-of-time kernels (:mod:`sensorplan._aot`) live in the same places.
+ahead-of-time kernels (:mod:`sensorplan._compiled.aot`) live in the same places.
 """
 
 from __future__ import annotations
@@ -20,6 +20,8 @@ import tempfile
 
 #: The notice's prefix, on stderr.
 NOTICE = "note: "
+#: The package's directory: numba caches each kernel in the ``__pycache__`` beside its module.
+PACKAGE_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def _writable(path: str) -> bool:
@@ -79,7 +81,7 @@ def cache_places() -> list[str]:
     if "numba" in sys.modules:
         cache_dir = getattr(sys.modules["numba"].config, "CACHE_DIR", "") or cache_dir
     places = [cache_dir] if cache_dir else []
-    places.append(os.path.join(os.path.dirname(os.path.abspath(__file__)), "__pycache__"))
+    places.append(os.path.join(PACKAGE_DIR, "__pycache__"))
     places.append(user_cache_dir())
     return places
 
@@ -137,11 +139,10 @@ def first_run_notice() -> str | None:
     cache_dir = os.environ.get("NUMBA_CACHE_DIR", "")
     if "numba" in sys.modules:
         cache_dir = getattr(sys.modules["numba"].config, "CACHE_DIR", "") or cache_dir
-    package = os.path.dirname(os.path.abspath(__file__))
     if cache_dir:
         cold = not _has_kernels(cache_dir, mine=False)
     else:
-        cold = not (_has_kernels(package, mine=True)
+        cold = not (_has_kernels(PACKAGE_DIR, mine=True)
                     or _has_kernels(cache_places()[-1], mine=False))
     os.environ["SENSORPLAN_FIRST_RUN_NOTED"] = "1"      # children (workers) stay quiet
     if not cold:

@@ -4,7 +4,7 @@ Every kernel of the package is written once, as a Python function decorated with
 :func:`njit` (this module's, with numba's options). Calling it runs compiled code from one
 of two places, the same source compiled by the same compiler:
 
-* **ahead of time** (:mod:`sensorplan._aot`): an extension module holding the kernels the
+* **ahead of time** (:mod:`sensorplan._compiled.aot`): an extension module holding the kernels the
   planners call, for the argument types they are called with. It needs numpy only, so a
   process that finds every call there (``sensorplan plan``) never imports numba: it starts
   in a fraction of a second instead of about one. It is built once (``sensorplan plan``
@@ -16,7 +16,7 @@ of two places, the same source compiled by the same compiler:
 Both give the same numbers bit for bit (the planner reference tests run under each).
 
 numba's on-disk cache, and what happens when nowhere is writable:
-:mod:`sensorplan._kernel_cache`.
+:mod:`sensorplan._compiled.cache`.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from ._kernel_cache import ensure_cache, first_run_notice
+from .cache import ensure_cache, first_run_notice
 
 _KERNELS: list[Kernel] = []
 _NUMBA_GLOBALS: dict[str, Callable[[], dict[str, Any]]] = {}
@@ -93,7 +93,7 @@ class Kernel:
     def __call__(self, *args: Any) -> Any:
         aot = self._aot
         if aot is _UNSET:
-            from . import _aot
+            from . import aot as _aot
 
             _aot.attach(_KERNELS)
             aot = self._aot

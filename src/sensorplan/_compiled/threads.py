@@ -1,7 +1,7 @@
 """Threads for the planning engine's independent kernel calls.
 
 An epoch game's players each need their candidate chains' looks
-(:func:`~sensorplan.planners.kernels.chain_pairs_nb`): independent computations, one per
+(:func:`~sensorplan.planners._pairs_nb.chain_pairs_nb`): independent computations, one per
 player, in kernels that release the GIL. They run on a few threads, so one decision uses the
 machine's cores. Each call computes the same numbers whatever thread runs it, so plans are the
 same for any number of threads.
@@ -22,7 +22,7 @@ import threading
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 #: Threads used by default at most (an epoch game's batches rarely keep more busy).
 MAX_THREADS = 4

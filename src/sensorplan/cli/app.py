@@ -17,14 +17,14 @@ from typing import Annotated, Any
 
 import typer
 
-from . import __version__
-from .cli_guards import (Sigterm, Signals, Stopped, animate_drawable, check_environment,
-                         check_finite, plot_drawable, quiet_numerics, usage_error_class,
-                         usage_line, writing, guard_paths)
-from .cli_guards import Terminated as _Terminated
-from .cli_settings import with_setting_options
-from .errors import ConfigError, error_line
-from .planners.registry import BUILTIN
+from .. import __version__
+from ..errors import ConfigError, error_line
+from ..planners.registry import BUILTIN
+from .guards import (Sigterm, Signals, Stopped, animate_drawable, check_environment,
+                     check_finite, plot_drawable, quiet_numerics, usage_error_class,
+                     usage_line, writing, guard_paths)
+from .guards import Terminated as _Terminated
+from .options import with_setting_options
 
 #: For help texts: the built-in names (no installed plugin is looked up for --help);
 #: validation always asks the registry.
@@ -84,7 +84,7 @@ def _bad_input() -> Iterator[None]:
 
 
 def _hinted(exc: ConfigError) -> ConfigError:
-    from .config.planners import planner_hint
+    from ..config.planners import planner_hint
 
     return planner_hint(exc)
 
@@ -117,16 +117,16 @@ def plan(
     Example: sensorplan plan --example > problem.json; sensorplan plan problem.json
     """
     if example:
-        from .config.decision import EXAMPLE_PROBLEM
+        from ..config.decision import EXAMPLE_PROBLEM
 
         with _bad_input():
             if problem is not None or planner is not None:
                 raise ConfigError("--example", "takes no PROBLEM.json and no --planner")
         sys.stdout.write(EXAMPLE_PROBLEM)
         return
-    from ._aot import ensure_built
-    from .config import load_decision
-    from .io import dumps_result
+    from .._compiled.aot import ensure_built
+    from ..config import load_decision
+    from ..config.files import dumps_result
 
     with _bad_input():
         if problem is None:
@@ -172,7 +172,7 @@ def simulate(
     Runs the planner in closed loop on a scenario file or preset, prints tables
     (RMSE per target and per target kind, measurements and missed looks per sensor,
     planning time per decision) and writes the run's arrays (DIR/episode.npz, readable with
-    sensorplan.simulation.Episode.load) and a figure (DIR/episode.png).
+    sensorplan.simulation.run.Episode.load) and a figure (DIR/episode.png).
 
     Options override the scenario file's [planning], [tracker] and [run] tables; a
     [default] applies when neither sets a value. Bad input exits with status 2 and one line
@@ -180,19 +180,19 @@ def simulate(
 
     Example: sensorplan simulate --preset paper --planner pg --horizon 3 --steps-per-epoch 2
     """
-    from .config import load_simulation
-    from .io import ensure_out_dir
+    from ..config import load_simulation
+    from ..config.files import ensure_out_dir
 
     with _bad_input():
         cfg = load_simulation(config, preset, {**settings, "seed": seed})
         if animate:
-            from .animation import check_format
+            from ..figures.animation import check_format
 
             check_format(animation_format)
         ensure_out_dir(out)
 
+    from ..simulation.run import run_episode
     from .console import print_summary, run_with_progress
-    from .simulation import run_episode
 
     try:
         episode = run_with_progress(run_episode, cfg)
@@ -272,8 +272,8 @@ def agents(
 
     Example: sensorplan agents --preset paper --steps 20 --transport bus --p-loss 0.1
     """
-    from .config.agents import load_agents
-    from .io import ensure_out_dir
+    from ..config.agents import load_agents
+    from ..config.files import ensure_out_dir
 
     links = {"transport": transport, "rounds": rounds, "p_loss": p_loss, "delay": delay,
              "comm_range": comm_range, "mode": agent_mode}
@@ -282,8 +282,8 @@ def agents(
                           links)
         ensure_out_dir(out)
 
+    from ..decentral import run_agents
     from .console import print_links, print_summary, run_with_progress, write_agent_logs
-    from .decentral import run_agents
 
     try:
         with Sigterm():
@@ -311,9 +311,9 @@ app.command()(with_setting_options(agents, skip=("planner",)))
 
 def _run_study_command(study_obj: Any, out: Path, workers: int | None,
                        scheduler: str | None, label: str) -> Any:
+    from ..study import StudyInterrupted, default_workers, run_study
+    from ..study.execution import StudyLost
     from .console import study_progress
-    from .study import StudyInterrupted, default_workers, run_study
-    from .study.execution import StudyLost
 
     parallel = (workers or default_workers()) if scheduler in (None, "local") else 1
     term = Sigterm()
@@ -374,7 +374,7 @@ def study(
 
     Example: sensorplan study studies/paper.toml --out runs/paper --workers 2
     """
-    from .study import load_study
+    from ..study import load_study
 
     with _bad_input():
         study_obj = load_study(study_file)
@@ -417,7 +417,7 @@ def grid(
 
     Example: sensorplan grid studies/lookahead_map.toml --out runs/lookahead_map -j 2
     """
-    from .study.grid_run import grid_command
+    from ..study.grid_run import grid_command
 
     with _bad_input():
         code = grid_command(grid_file, out, workers, scheduler)
@@ -448,8 +448,8 @@ def report(
 
     Example: sensorplan report runs/paper
     """
-    from .io import ensure_out_dir
-    from .report import write_report
+    from ..config.files import ensure_out_dir
+    from ..report import write_report
 
     with _bad_input():
         if not study_dir.is_dir():
@@ -499,7 +499,7 @@ def replay(
 
     Example: sensorplan replay runs/paper --run 9 --method ours/olf-pg
     """
-    from .replay import replay_command
+    from ..simulation.replay import replay_command
 
     with _bad_input():
         replay_command(study_dir, run, method, out, animate, animation_format)
@@ -523,8 +523,8 @@ def demo(
 
     Example: sensorplan demo --out out/demo
     """
-    from . import study as studies
-    from .report import write_report
+    from .. import study as studies
+    from ..report import write_report
 
     with _bad_input():
         if workers is not None and workers < 1:

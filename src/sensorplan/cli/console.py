@@ -11,7 +11,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from .settings import all_settings
+from ..simulation.settings import all_settings
 
 #: A plain progress line (stderr not a terminal) at most this often, besides every 10 %.
 LINE_SECONDS = 60.0
@@ -111,13 +111,13 @@ def run_with_progress(run_episode: Any, cfg: Any) -> Any:
     stderr: a bar on a terminal, plain lines otherwise (:class:`PlainProgress`)."""
     from rich.console import Console
     from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
+                               BarColumn,
+                               MofNCompleteColumn,
+                               Progress,
+                               TextColumn,
+                               TimeElapsedColumn,
+                               TimeRemainingColumn,
+                               )
 
     console = Console(stderr=True)
     if not console.is_terminal:
@@ -147,7 +147,7 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    from .study.metrics import LOST_THRESHOLD, NEES_HIGH, episode_consistency, episode_errors
+    from ..study.metrics import LOST_THRESHOLD, NEES_HIGH, episode_consistency, episode_errors
 
     console = Console()
     s = cfg.settings
@@ -237,13 +237,13 @@ def study_progress(label: str, parallel: int = 1) -> Any:
     (:class:`PlainProgress`; ``parallel``: worker processes, for its first ETA)."""
     from rich.console import Console
     from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
+                               BarColumn,
+                               MofNCompleteColumn,
+                               Progress,
+                               TextColumn,
+                               TimeElapsedColumn,
+                               TimeRemainingColumn,
+                               )
 
     console = Console(stderr=True)
 

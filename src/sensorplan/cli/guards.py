@@ -1,7 +1,7 @@
 """What the command line guards against around its commands: signals, unwritable outputs,
 numeric warnings, a bad environment, and figures of runs whose estimates blew up.
 
-Kept apart from :mod:`sensorplan.cli` (the commands themselves) and as light to import:
+Kept apart from :mod:`sensorplan.cli.app` (the commands themselves) and as light to import:
 only the standard library at import time.
 """
 
@@ -14,9 +14,9 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
-from ._threads import ENV as THREADS_ENV
-from ._threads import parse_threads
-from .errors import ConfigError
+from .._compiled.threads import ENV as THREADS_ENV
+from .._compiled.threads import parse_threads
+from ..errors import ConfigError
 
 #: Environment variables the command line checks before it runs a command: name -> the
 #: values it may have.
@@ -170,7 +170,7 @@ def guard_paths(command: Any) -> Any:
 def writing(where: Path | None = None, field: str = "--out") -> Iterator[None]:
     """An output file that cannot be written (a full disk, a directory in its place) is a
     :class:`ConfigError` naming ``field`` and the file (else ``where``)."""
-    from .io import write_failed
+    from ..config.files import write_failed
 
     try:
         yield
@@ -180,11 +180,11 @@ def writing(where: Path | None = None, field: str = "--out") -> Iterator[None]:
 
 def plot_drawable(episode: Any, scenario: Any, path: Path) -> None:
     """``plot_episode`` of what can be drawn: covariances and fields of view far larger than
-    the map are capped first (:mod:`sensorplan.drawing`), so a run whose covariances grew
+    the map are capped first (:mod:`sensorplan.figures.caps`), so a run whose covariances grew
     huge, or a radar reaching far beyond the map, is drawn at once instead of hanging the
     renderer."""
-    from .drawing import drawable, drawable_scenario
-    from .plotting import plot_episode
+    from ..figures.caps import drawable, drawable_scenario
+    from ..figures.run import plot_episode
 
     plot_episode(drawable(episode, scenario.world), drawable_scenario(scenario), path)
 
@@ -192,8 +192,8 @@ def plot_drawable(episode: Any, scenario: Any, path: Path) -> None:
 def animate_drawable(episode: Any, scenario: Any, path: Path) -> Path:
     """``animate_episode`` of what can be drawn, capped as in :func:`plot_drawable`; the
     animation's path."""
-    from .animation import animate_episode
-    from .drawing import drawable, drawable_scenario
+    from ..figures.animation import animate_episode
+    from ..figures.caps import drawable, drawable_scenario
 
     return Path(animate_episode(drawable(episode, scenario.world),
                                 drawable_scenario(scenario), path))

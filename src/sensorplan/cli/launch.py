@@ -2,7 +2,7 @@
 the process's memory settings (:mod:`sensorplan.memory`).
 
 ``sensorplan`` (and ``python -m sensorplan``) start here rather than in
-:mod:`sensorplan.cli`, so that a Ctrl-C pressed while the command line's modules are still
+:mod:`sensorplan.cli.app`, so that a Ctrl-C pressed while the command line's modules are still
 being imported ends with the same one line and exit status as later (130), not with a
 traceback of the import; and so that numpy's and glibc's memory settings
 (:func:`numpy_defaults`, :func:`malloc_defaults`) are made before numpy loads.
@@ -13,8 +13,8 @@ from __future__ import annotations
 import os
 import sys
 
-from .errors import ConfigError, error_line
-from .memory import malloc_defaults, numpy_defaults
+from ..errors import ConfigError, error_line
+from ..memory import malloc_defaults, numpy_defaults
 
 
 def main() -> None:
@@ -28,11 +28,11 @@ def main() -> None:
         import signal
         import threading  # noqa: F401 - loaded before a handler may need it (deliver_later)
 
-        from .cli_guards import interrupt
+        from .guards import interrupt
 
         signal.signal(signal.SIGINT, interrupt)
         malloc_defaults(os.environ)              # before numpy allocates anything
-        from .cli import main as cli_main
+        from .app import main as cli_main
     except KeyboardInterrupt:
         sys.stderr.write("error: interrupted\n")
         sys.exit(130)

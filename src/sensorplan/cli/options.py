@@ -1,5 +1,5 @@
 """The run-setting options of ``sensorplan simulate`` and ``agents``, generated from the
-settings' declarations (:mod:`sensorplan.settings`)."""
+settings' declarations (:mod:`sensorplan.simulation.settings`)."""
 
 from __future__ import annotations
 
@@ -8,13 +8,13 @@ from typing import Annotated, Any
 
 import typer
 
-from .settings import all_settings, default_of, field_type
+from ..simulation.settings import all_settings, default_of, field_type
 
 
 def setting_options(skip: tuple[str, ...] = ()) -> list[inspect.Parameter]:
     """An option of ``simulate`` for every run setting that declares option names (but those
     in ``skip``), with its help, value placeholder and default from the declaration
-    (sensorplan.settings)."""
+    (sensorplan.simulation.settings)."""
     params = []
     for cls, _, f, s in all_settings():
         if not s.cli or f.name in skip:

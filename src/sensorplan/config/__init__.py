@@ -4,8 +4,9 @@
 - :mod:`.simulate`: a scenario file or preset with command-line overrides;
 - :mod:`.planners`: checking a planner's settings from a file, and building it.
 
-Scenario files themselves are :mod:`sensorplan.scenario_file`, study files
-:mod:`sensorplan.study.file`, the strict models and their errors :mod:`sensorplan.validation`.
+Scenario files themselves are :mod:`sensorplan.config.scenario`, study files
+:mod:`sensorplan.study.file`, the strict models and their errors
+:mod:`sensorplan.config.validation`.
 The names below are imported on first use, so that ``sensorplan plan`` does not load the
 scenario machinery.
 """

@@ -10,15 +10,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from pydantic import ConfigDict
 
-from .. import io
 from ..errors import ConfigError
 from ..limits import (MAX_SENSORS, MAX_TARGETS, RANGES, check_count, check_covariance_scale,
                       check_decision_size, check_sensor_precision)
-from ..problem import MapRect, PlanningProblem, check_covariance
-from ..settings import RunSettings
-from ..validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict,
-                          Vec2, Vec4, setting_type, validate)
+from ..planners.problem import MapRect, PlanningProblem, check_covariance
+from ..simulation.settings import RunSettings
+from . import files as io
 from .planners import build_planner, planner_settings
+from .validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict,
+                         Vec2, Vec4, setting_type, validate)
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..planners import Planner

@@ -12,10 +12,10 @@ import tomllib
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .planners import PlanResult
+    from ..planners import PlanResult
 
 #: Planners whose result carries ``converged`` and ``sweeps``.
 GAME_PLANNERS = ("pg", "pg-refine")

@@ -30,7 +30,8 @@ defaults as below (``configs/paper.toml`` spells out every key)::
     moves = [20.0, 40.0]
     # position = [100.0, 100.0]   (drawn if absent), heading = 0.0
 
-    # How ``sensorplan simulate`` runs it (sensorplan.settings declares every key; a study
+    # How ``sensorplan simulate`` runs it (sensorplan.simulation.settings declares every key; a
+    # study
     # using the file ignores these three tables):
     [planning]                    # planner, planner_params, horizon, steps_per_epoch,
     horizon = 1                   # execution, visibility, objective
@@ -39,7 +40,7 @@ defaults as below (``configs/paper.toml`` spells out every key)::
     seed = 0
 
 :func:`scenario_from_dict` validates a parsed file and builds the
-:class:`~sensorplan.scenario.Scenario`; :func:`scenario_to_dict` writes one back (the
+:class:`~sensorplan.simulation.scenario.Scenario`; :func:`scenario_to_dict` writes one back (the
 scenario of a study's ``config.resolved.json``).
 """
 
@@ -50,11 +51,11 @@ from typing import Annotated, Any
 
 from pydantic import Field, ValidationInfo, field_validator
 
-from .limits import check_sensor_precision
-from .problem import MapRect
-from .scenario import TARGET_KINDS, Scenario, SensorSpec, TargetSpec
-from .sensors import SensorParams
-from .settings import RunSettings, TrackerSettings
+from ..limits import check_sensor_precision
+from ..models.sensors import SensorParams
+from ..planners.problem import MapRect
+from ..simulation.scenario import TARGET_KINDS, Scenario, SensorSpec, TargetSpec
+from ..simulation.settings import RunSettings, TrackerSettings
 from .validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict,
                          Vec2, choice, one_spelling, radians_of, section_model, validate)
 
@@ -63,7 +64,7 @@ _SC = Scenario(targets=(TargetSpec(),), sensors=(SensorSpec(),))
 
 TargetKind = Annotated[str, choice(TARGET_KINDS, "target kind")]
 
-#: The run-settings tables, generated from sensorplan.settings.
+#: The run-settings tables, generated from sensorplan.simulation.settings.
 PlanningTable = section_model(RunSettings, "planning", "PlanningTable",
                               "The ``[planning]`` table; ``None`` takes the setting's default.")
 TrackerTable = section_model(TrackerSettings, "tracker", "TrackerTable",

@@ -7,15 +7,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .. import io
 from ..errors import ConfigError
 from ..limits import check_run
-from ..scenario import PRESETS as SCENARIO_PRESETS
-from ..scenario import Scenario
-from ..scenario_file import ScenarioFile, SettingsTables
-from ..settings import RunSettings, all_settings
-from ..validation import given, validate
+from ..simulation.scenario import PRESETS as SCENARIO_PRESETS
+from ..simulation.scenario import Scenario
+from ..simulation.settings import RunSettings, all_settings
+from . import files as io
 from .planners import RUN_SEED, planner_settings
+from .scenario import ScenarioFile, SettingsTables
+from .validation import given, validate
 
 #: Built-in scenarios for ``sensorplan simulate --preset`` and study files.
 PRESETS = tuple(SCENARIO_PRESETS)
@@ -97,10 +97,11 @@ def load_simulation(path: str | Path | None = None, preset: str | None = None,
     Parameters
     ----------
     path : path, optional
-        A scenario TOML file (:mod:`sensorplan.scenario_file`); its ``[planning]``,
+        A scenario TOML file (:mod:`sensorplan.config.scenario`); its ``[planning]``,
         ``[tracker]`` and ``[run]`` tables give the run settings and seed.
     preset : str, optional
-        A name in :data:`PRESETS` (``paper``: :func:`~sensorplan.scenario.paper_scenario` with
+        A name in :data:`PRESETS` (``paper``:
+        :func:`~sensorplan.simulation.scenario.paper_scenario` with
         default run settings). Give ``path`` or ``preset``, not both; neither means ``paper``.
     overrides : mapping, optional
         Run settings by field name (``horizon``, ``miss_update``, ...) and ``seed``; ``None``

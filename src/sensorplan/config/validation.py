@@ -9,7 +9,7 @@ own checks apply the semantic rules. Every bad input becomes one
 ``sensors[1].altitude`` (:func:`validate`).
 
 The tables that hold run settings are generated from their one declaration in
-:mod:`sensorplan.settings` (:func:`section_model`).
+:mod:`sensorplan.simulation.settings` (:func:`section_model`).
 """
 
 from __future__ import annotations
@@ -23,21 +23,21 @@ from collections.abc import Mapping
 from typing import Annotated, Any, Union
 
 from pydantic import (
-    AfterValidator,
-    BaseModel,
-    ConfigDict,
-    Field,
-    ValidationError,
-    ValidationInfo,
-    create_model,
-    field_validator,
-)
+                      AfterValidator,
+                      BaseModel,
+                      ConfigDict,
+                      Field,
+                      ValidationError,
+                      ValidationInfo,
+                      create_model,
+                      field_validator,
+                      )
 
-from .errors import ConfigError
-from .limits import RANGES, Range
-from .problem import MapRect
-from .sensors import ANGLE_FIELDS, DETECTION_MODELS, SensorParams
-from .settings import Setting, declared, field_hint, field_type, is_group
+from ..errors import ConfigError
+from ..limits import RANGES, Range
+from ..models.sensors import ANGLE_FIELDS, DETECTION_MODELS, SensorParams
+from ..planners.problem import MapRect
+from ..simulation.settings import Setting, declared, field_hint, field_type, is_group
 
 # --------------------------------------------------------------------------- field types
 
@@ -123,7 +123,7 @@ def radians_of(model: BaseModel, name: str, default: Any) -> Any:
 
 
 class SensorParamsModel(Strict):
-    """Every :class:`~sensorplan.sensors.SensorParams` field, with its default; each angle
+    """Every :class:`~sensorplan.models.sensors.SensorParams` field, with its default; each angle
     may be given in radians (``fov_half_angle``) or in degrees (``fov_half_angle_deg``),
     not both."""
 

@@ -31,10 +31,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..information import Context
 from ..planners.engine import GameState, choose
+from ..planners.information import Context
 from ..planners.potential_game import current_index
-from ..problem import TIE_TOL
+from ..planners.problem import TIE_TOL
 from .messages import Message
 
 

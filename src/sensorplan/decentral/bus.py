@@ -28,7 +28,7 @@ from typing import Self
 import numpy as np
 import zmq
 
-from ..problem import PlanningProblem
+from ..planners.problem import PlanningProblem
 from .agent import AgentSpec
 from .decision import AgentOutcome
 from .links import LinkModel

@@ -18,8 +18,8 @@ from typing import Any
 import numpy as np
 
 from .._types import IntArray
-from ..information import Context
-from ..problem import Plan
+from ..planners.information import Context
+from ..planners.problem import Plan
 from .agent import Agent, AgentSpec
 from .links import Inbox, LinkModel
 from .messages import DecisionLog, decode, encode

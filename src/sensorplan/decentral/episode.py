@@ -2,7 +2,7 @@
 
 :func:`recording` collects the :class:`DecisionLog` of every decentralized decision taken
 while it is active (in this thread or task), so a study can wrap
-:func:`sensorplan.simulation.run_episode` without changing it. :func:`run_agents` runs one
+:func:`sensorplan.simulation.run.run_episode` without changing it. :func:`run_agents` runs one
 episode that way and stops every agent process the episode started, however it ends.
 """
 
@@ -18,8 +18,8 @@ import numpy as np
 from .messages import DecisionLog
 
 if TYPE_CHECKING:
-    from ..scenario import Scenario
-    from ..simulation import Episode, RunSettings
+    from ..simulation.run import Episode, RunSettings
+    from ..simulation.scenario import Scenario
 
 _RECORDERS: contextvars.ContextVar[tuple[list[DecisionLog], ...]] = contextvars.ContextVar(
     "sensorplan_decentral_recorders", default=())
@@ -51,7 +51,7 @@ def run_agents(scenario: Scenario, settings: RunSettings,
 
     Returns the episode and the log of each of its decisions.
     """
-    from ..simulation import run_episode
+    from ..simulation.run import run_episode
     from .bus import open_buses
 
     before = {id(b) for b in open_buses()}

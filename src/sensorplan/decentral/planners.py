@@ -21,10 +21,10 @@ from typing import Any, ClassVar, Self
 import numpy as np
 
 from ..errors import ConfigError
-from ..information import prepare
 from ..planners.base import PlanResult, RngLike, finish, make_rng, register, start_clock
+from ..planners.information import prepare
 from ..planners.potential_game import LearningSettings, check_learning_params
-from ..problem import PlanningProblem
+from ..planners.problem import PlanningProblem
 from .agent import AgentSpec
 from .decision import assemble, run_inproc, to_plan
 from .episode import record

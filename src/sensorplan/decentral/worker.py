@@ -23,7 +23,7 @@ from typing import Any
 
 import zmq
 
-from ..information import prepare
+from ..planners.information import prepare
 from .agent import Agent
 from .decision import outcome
 from .links import Inbox
@@ -214,7 +214,7 @@ def main(argv: list[str] | None = None) -> int:
     proc = None
     orphaned = False
     try:
-        from .._kernels import warm_up
+        from ..planners._chains_nb import warm_up
         from ..planners.epoch_game import warm_engine
 
         warm_up()                # load the compiled kernels before saying ready: a first

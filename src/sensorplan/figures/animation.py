@@ -4,9 +4,9 @@ Each frame shows the map at time t: the true tracks and estimates so far in each
 colour, fading with age; the estimates' 2-sigma ellipses; every sensor's field of view, its
 recent path and a line to the target it looks at (dashed, with a cross at the target, when
 the look missed); false alarms as a count beside the sensor; buildings. Below, the run's
-assignment timeline and errors (as in :func:`sensorplan.plotting.plot_episode`) with the
-future greyed out. Colours are those of :mod:`sensorplan.colors`. Many sensors or targets
-move as a few collections (:mod:`sensorplan.animation_dense`).
+assignment timeline and errors (as in :func:`sensorplan.figures.run.plot_episode`) with the
+future greyed out. Colours are those of :mod:`sensorplan.figures.colors`. Many sensors or targets
+move as a few collections (:mod:`sensorplan.figures.animation_swarm`).
 """
 
 from __future__ import annotations
@@ -21,13 +21,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .colors import mix_hex, sensor_style, target_color
-from .plotting import (DENSE_SENSORS, DENSE_TARGETS, N_SIGMA, clip_xy, draw_buildings,
-                       draw_errors, draw_timeline, ellipse_geometry, episode_title, fade_colors,
-                       fov_geometry, map_legend, map_limit, segments, timeline_height)
+from .run import (DENSE_SENSORS, DENSE_TARGETS, N_SIGMA, clip_xy, draw_buildings,
+                  draw_errors, draw_timeline, ellipse_geometry, episode_title, fade_colors,
+                  fov_geometry, map_legend, map_limit, segments, timeline_height)
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .scenario import Scenario
-    from .simulation import Episode
+    from ..simulation.run import Episode
+    from ..simulation.scenario import Scenario
 
 #: Animation formats, by file suffix: GIF (Pillow, always available) and MP4 (needs ffmpeg).
 FORMATS = ("gif", "mp4")
@@ -51,7 +51,7 @@ def check_format(fmt: str) -> None:
     ConfigError
         Naming ``--animation-format``.
     """
-    from .errors import ConfigError
+    from ..errors import ConfigError
 
     if fmt not in FORMATS:
         raise ConfigError("--animation-format", f"must be one of {', '.join(FORMATS)}, "
@@ -220,7 +220,7 @@ class _Frames:
         # Many sensors or targets: a few collections instead (no names, no counts).
         self.dense: list[Any] = []
         if self.N > DENSE_SENSORS:
-            from .animation_dense import DenseSensors
+            from .animation_swarm import DenseSensors
 
             self.dense.append(DenseSensors(ax, scenario, self.spos, self.shead, self.looked,
                                            self.missed, self.truth, tail, border))
@@ -249,7 +249,7 @@ class _Frames:
         self.ell: list[Any] = []
         many = self.M > DENSE_TARGETS
         if many:
-            from .animation_dense import DenseTargets
+            from .animation_swarm import DenseTargets
 
             self.dense.append(DenseTargets(ax, self.truth, self.est, self.cov, self.limit,
                                            tail))

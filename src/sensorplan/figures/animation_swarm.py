@@ -1,11 +1,11 @@
 """The moving artists of an animation of many sensors or targets, as a few collections.
 
-:mod:`sensorplan.animation` updates one set of artists per target and per sensor for every
-frame; above :data:`~sensorplan.plotting_parts.DENSE_TARGETS` targets or
-:data:`~sensorplan.plotting_parts.DENSE_SENSORS` sensors that is over a thousand artists and
+:mod:`sensorplan.figures.animation` updates one set of artists per target and per sensor for every
+frame; above :data:`~sensorplan.figures.view.DENSE_TARGETS` targets or
+:data:`~sensorplan.figures.view.DENSE_SENSORS` sensors that is over a thousand artists and
 half a second a frame. Here all targets (sensors) share one collection per kind of thing,
 updated in place, as the static figure's condensed drawing does
-(:mod:`sensorplan.plotting_dense`): no names, and a path fades in steps of a few segments
+(:mod:`sensorplan.figures.swarm`): no names, and a path fades in steps of a few segments
 (each step one polyline in one tint) instead of segment by segment.
 """
 
@@ -17,13 +17,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .colors import SENSOR_MARKERS, mix, mix_hex, sensor_style
-from .plotting_dense import ellipse_arrays, target_rgb
-from .plotting_parts import FADE_FLOOR, fov_geometry
+from .swarm import ellipse_arrays, target_rgb
+from .view import FADE_FLOOR, fov_geometry
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
 
-    from .scenario import Scenario
+    from ..simulation.scenario import Scenario
 
 #: Paths fade in steps of this many segments (at least; more when the tail is long).
 FADE_STEP = 4
@@ -37,7 +37,7 @@ def faded_chunks(xy: np.ndarray, rgb: np.ndarray, t: int,
                  tau: float) -> tuple[list[np.ndarray], np.ndarray]:
     """Polylines of paths ``xy[:t + 1] (t + 1, K, 2)`` cut into chunks of a few segments
     and each chunk's tint of ``rgb (K, 3)`` at its mean age (steps before ``t``;
-    ``exp(-age / tau)`` above the floor tint, as :func:`~sensorplan.plotting_parts.fade_colors`);
+    ``exp(-age / tau)`` above the floor tint, as :func:`~sensorplan.figures.view.fade_colors`);
     segments older than :data:`FADE_CUTOFF` ``tau`` form one chunk at the oldest tint."""
     if t < 1:
         return [], np.zeros((0, 3))

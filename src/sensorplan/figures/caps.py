@@ -17,12 +17,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ._types import FloatArray
+from .._types import FloatArray
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .problem import MapRect
-    from .scenario import Scenario
-    from .simulation import Episode
+    from ..planners.problem import MapRect
+    from ..simulation.run import Episode
+    from ..simulation.scenario import Scenario
 
 #: Largest standard deviation drawn, in map sizes (the larger side).
 MAX_SIGMA_MAPS = 5.0

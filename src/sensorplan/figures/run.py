@@ -1,10 +1,10 @@
 """Figures of saved runs (matplotlib only here, Agg canvas; the CLI imports this lazily).
 
-Plots read what a run recorded (:class:`~sensorplan.simulation.Episode`) and the scenario
+Plots read what a run recorded (:class:`~sensorplan.simulation.run.Episode`) and the scenario
 it ran; they compute nothing the run did not record except the drawing geometry. Colours
-come from :mod:`sensorplan.colors` (a target has one colour in every figure; sensors are
+come from :mod:`sensorplan.figures.colors` (a target has one colour in every figure; sensors are
 greys with distinct markers). :func:`plot_episode` writes the static figure of a run,
-:mod:`sensorplan.animation` its animation; both use the drawing helpers here.
+:mod:`sensorplan.figures.animation` its animation; both use the drawing helpers here.
 """
 
 from __future__ import annotations
@@ -18,17 +18,17 @@ import numpy as np
 
 from .colors import (BUILDING_EDGE, BUILDING_FACE, mix, mix_hex, sensor_style, target_color,
                      target_colors)
-from .plotting_parts import (DENSE_SENSORS, DENSE_TARGETS, LEGEND_ITEMS, N_SIGMA,
-                             TIMELINE_IMAGE_HEIGHT, RunView, fade_colors, fov_geometry,
-                             segments)
+from .view import (DENSE_SENSORS, DENSE_TARGETS, LEGEND_ITEMS, N_SIGMA,
+                   TIMELINE_IMAGE_HEIGHT, RunView, fade_colors, fov_geometry,
+                   segments)
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
     from matplotlib.patches import Wedge
 
-    from .scenario import Scenario
-    from .simulation import Episode
+    from ..simulation.run import Episode
+    from ..simulation.scenario import Scenario
 
 #: Number of times at which the static figure draws ellipses, fields of view and looks.
 N_ELLIPSES = 5
@@ -201,7 +201,7 @@ def draw_timeline(ax: Axes, episode: Episode, dt: float) -> None:
     # The limits are set below; autoscaling after every bar would cost O(bars^2).
     ax.set_autoscale_on(False)
     if many:
-        from .plotting_dense import draw_look_image
+        from .swarm import draw_look_image
 
         draw_look_image(ax, looked, missed, dt)
     for run in ([] if many else look_runs(looked, missed)):
@@ -224,7 +224,7 @@ def draw_timeline(ax: Axes, episode: Episode, dt: float) -> None:
         ax.scatter((when + 0.5) * dt, who + 0.25, s=6 + 6 * fa[1:][when, who], color="k",
                    zorder=3, linewidths=0)
     if many:
-        from .plotting_dense import label_rows
+        from .swarm import label_rows
 
         label_rows(ax, N)
     else:
@@ -245,7 +245,7 @@ def draw_timeline(ax: Axes, episode: Episode, dt: float) -> None:
 def draw_errors(ax: Axes, episode: Episode, dt: float) -> None:
     """Position error of each target over time (log scale) with the filter's own RMS
     position error ``sqrt(tr P_xy)`` (dotted) and the lost-track threshold."""
-    from .study.metrics import LOST_THRESHOLD
+    from ..study.metrics import LOST_THRESHOLD
 
     err = np.asarray(episode.error, dtype=float)
     cov = np.asarray(episode.cov, dtype=float)
@@ -255,7 +255,7 @@ def draw_errors(ax: Axes, episode: Episode, dt: float) -> None:
     floor = 0.1
     many = err.shape[1] > DENSE_TARGETS
     if many:
-        from .plotting_dense import draw_error_bundle
+        from .swarm import draw_error_bundle
 
         draw_error_bundle(ax, time_s, err, own, floor)
     for j in range(0 if many else err.shape[1]):
@@ -314,7 +314,7 @@ def map_legend(ax: Axes, episode: Episode, scenario: Scenario,
 
     kinds = tuple(episode.target_kinds)
     if len(kinds) > LEGEND_ITEMS or len(scenario.sensors) > LEGEND_ITEMS:
-        from .plotting_dense import summary_legend
+        from .swarm import summary_legend
 
         summary_legend(ax, kinds, scenario, extra)
         return
@@ -339,7 +339,7 @@ def episode_title(episode: Episode) -> str:
     head = (f"{s.planner}, K = {s.horizon}, e = {s.steps_per_epoch}, {s.execution.upper()}, "
             f"{np.asarray(episode.error).shape[0] - 1} steps \u2014 ")
     if rmse.size > LEGEND_ITEMS:
-        from .plotting_dense import rmse_summary
+        from .swarm import rmse_summary
 
         return head + rmse_summary(rmse)
     return head + "RMSE per target: " + ", ".join(f"{v:.0f}" for v in rmse) + " m"
@@ -473,7 +473,7 @@ def episode_figure(episode: Episode, scenario: Scenario) -> Figure:
     """The static figure of a run (see :func:`plot_episode`), not yet saved."""
     from matplotlib.patches import Rectangle
 
-    from . import plotting_dense as dense
+    from . import swarm as dense
 
     run = run_view(episode, scenario)
     W, H = scenario.world.width, scenario.world.height
@@ -514,7 +514,7 @@ def plot_episode(episode: Episode, scenario: Scenario, path: str | Path) -> Path
     - Errors: each target's position error over time and the filter's own RMS error.
 
     Runs with more than :data:`DENSE_SENSORS` sensors or :data:`DENSE_TARGETS` targets are
-    drawn condensed (:mod:`sensorplan.plotting_dense`), and the legend and title summarise
+    drawn condensed (:mod:`sensorplan.figures.swarm`), and the legend and title summarise
     more than :data:`LEGEND_ITEMS` of either.
 
     Parameters

@@ -1,8 +1,8 @@
 """Condensed drawing of runs with many sensors or targets (a swarm), for
-:mod:`sensorplan.plotting` and :mod:`sensorplan.animation`.
+:mod:`sensorplan.figures.run` and :mod:`sensorplan.figures.animation`.
 
-Above :data:`~sensorplan.plotting_parts.DENSE_SENSORS` sensors or
-:data:`~sensorplan.plotting_parts.DENSE_TARGETS` targets, one artist per sensor, target, ellipse or
+Above :data:`~sensorplan.figures.view.DENSE_SENSORS` sensors or
+:data:`~sensorplan.figures.view.DENSE_TARGETS` targets, one artist per sensor, target, ellipse or
 look costs matplotlib tens of seconds (a 100-sensor, 200-target run had over ten thousand)
 and draws a picture nobody can read. Here each kind of thing is one collection (all
 sensors' paths one ``LineCollection``, all fields of view one ``PatchCollection``, all
@@ -19,21 +19,21 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .colors import (
-    BUILDING_EDGE,
-    BUILDING_FACE,
-    SENSOR_MARKERS,
-    TARGET_PALETTE,
-    mix,
-    mix_hex,
-    sensor_style,
-    target_color,
-)
-from .plotting_parts import LEGEND_ITEMS, N_SIGMA, RunView, fade_colors, fov_geometry, segments
+                     BUILDING_EDGE,
+                     BUILDING_FACE,
+                     SENSOR_MARKERS,
+                     TARGET_PALETTE,
+                     mix,
+                     mix_hex,
+                     sensor_style,
+                     target_color,
+                     )
+from .view import LEGEND_ITEMS, N_SIGMA, RunView, fade_colors, fov_geometry, segments
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
 
-    from .scenario import Scenario
+    from ..simulation.scenario import Scenario
 
 #: Tint of a missed look's cell in the timeline image (as in the hatched cells).
 MISSED_TINT = 0.45
@@ -45,7 +45,8 @@ def palette_rgb(weight: float = 1.0) -> np.ndarray:
 
 
 def target_rgb(indices: Any, weight: float = 1.0) -> np.ndarray:
-    """``(..., 3)`` RGB of targets ``indices`` (their :func:`~sensorplan.colors.target_color`,
+    """``(..., 3)`` RGB of targets ``indices`` (their
+    :func:`~sensorplan.figures.colors.target_color`,
     tinted by ``weight``)."""
     return palette_rgb(weight)[np.asarray(indices, dtype=int) % len(TARGET_PALETTE)]
 
@@ -53,7 +54,7 @@ def target_rgb(indices: Any, weight: float = 1.0) -> np.ndarray:
 def faded_paths(xy: np.ndarray, colors: list[str], ages: np.ndarray,
                 tau: float | None) -> tuple[list[np.ndarray], np.ndarray]:
     """Segments ``(K * (n - 1), 2, 2)`` of ``K`` paths ``xy (n, K, 2)`` and their faded
-    colours (each path's own colour, :func:`~sensorplan.plotting_parts.fade_colors`)."""
+    colours (each path's own colour, :func:`~sensorplan.figures.view.fade_colors`)."""
     if xy.shape[0] < 2 or xy.shape[1] == 0:
         return [], np.zeros((0, 3))
     segs = np.concatenate([segments(xy[:, k]) for k in range(xy.shape[1])])
@@ -64,7 +65,7 @@ def faded_paths(xy: np.ndarray, colors: list[str], ages: np.ndarray,
 def ellipse_arrays(cov: np.ndarray, limit: float) -> tuple[np.ndarray, ...]:
     """Widths, heights (m), angles (deg) of the ``N_SIGMA`` ellipses of ``cov (K, 2, 2)``
     and which are finite (``ok (K,)``); semi-axes clipped to ``limit`` as in
-    :func:`~sensorplan.plotting.ellipse_geometry`."""
+    :func:`~sensorplan.figures.run.ellipse_geometry`."""
     cov = np.asarray(cov, dtype=float)
     ok = np.all(np.isfinite(cov), axis=(-2, -1))
     sym = np.where(ok[:, None, None], 0.5 * cov + 0.5 * np.swapaxes(cov, -1, -2), 0.0)
@@ -200,7 +201,7 @@ def draw_error_bundle(ax: Axes, time_s: np.ndarray, err: np.ndarray, own: np.nda
 
 def summary_legend(ax: Axes, kinds: tuple[str, ...], scenario: Scenario,
                    extra: list[Any]) -> None:
-    """:func:`~sensorplan.plotting.map_legend` with more than ``LEGEND_ITEMS`` targets or
+    """:func:`~sensorplan.figures.run.map_legend` with more than ``LEGEND_ITEMS`` targets or
     sensors: each group that large is one entry (its colours or markers side by side, its
     range of names, kinds or altitudes)."""
     from matplotlib.legend_handler import HandlerTuple

@@ -1,7 +1,7 @@
 """Constants, geometry and tints shared by the figures of a run (numpy only).
 
-:mod:`sensorplan.plotting` (one artist per sensor and target) and
-:mod:`sensorplan.plotting_dense` (the condensed drawing of many) both draw from here, so
+:mod:`sensorplan.figures.run` (one artist per sensor and target) and
+:mod:`sensorplan.figures.swarm` (the condensed drawing of many) both draw from here, so
 that neither imports the other's module.
 """
 
@@ -19,7 +19,7 @@ from .colors import mix
 N_SIGMA = 2.0
 #: Lightest tint of a faded path (its oldest point), as a weight of the full colour.
 FADE_FLOOR = 0.12
-#: Above this many sensors the figures draw them condensed (:mod:`sensorplan.plotting_dense`):
+#: Above this many sensors the figures draw them condensed (:mod:`sensorplan.figures.swarm`):
 #: fields of view and looks at the last step only, no names or heading arrows, and the
 #: timeline as one image. 30 is also where sensors' (grey, marker) pairs start to repeat.
 DENSE_SENSORS = 30

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from ._types import FloatArray
+from .._types import FloatArray
 
 TWO_PI = 2.0 * np.pi
 

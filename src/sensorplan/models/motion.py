@@ -9,7 +9,7 @@ import functools
 
 import numpy as np
 
-from ._types import FloatArray
+from .._types import FloatArray
 
 
 def cv_matrices(dt: float, q: float) -> tuple[FloatArray, FloatArray]:

@@ -3,7 +3,7 @@ r"""Sensor parameters, validated at the boundary, and the per-sensor table the r
 :class:`SensorParams` is what users write (one frozen value per sensor, with the defaults of
 the paper's radar). :func:`radar_table` turns a sequence of them into one float64 row per
 sensor, computed once, with the columns of :data:`COLUMNS`; the compiled radar model
-(:mod:`sensorplan.radar`) and every kernel take such rows.
+(:mod:`sensorplan.models.radar`) and every kernel take such rows.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from ._types import FloatArray
-from .errors import ConfigError
+from .._types import FloatArray
+from ..errors import ConfigError
 
 #: Detection models of a sensor.
 DETECTION_MODELS = ("ideal", "swerling1")
@@ -82,7 +82,7 @@ class SensorParams:
         the range of :data:`sensorplan.limits.RANGES`. (Input files also bound the radar's
         precision: :func:`sensorplan.limits.check_sensor_precision`.)
         """
-        from .limits import MAX_MOVE_DISTANCES, RANGES, check_count
+        from ..limits import MAX_MOVE_DISTANCES, RANGES, check_count
 
         if self.detection not in DETECTION_MODELS:
             raise ConfigError(f"{prefix}.detection", f"unknown detection model "
@@ -165,7 +165,7 @@ def radar_table(sensors: Sequence[SensorParams] | SensorParams, *,
     sensors : SensorParams or sequence of SensorParams (scalar fields)
     aware : bool
         Planned looks count their detection probability and the clutter (see
-        :func:`sensorplan.radar.look`).
+        :func:`sensorplan.models.radar.look`).
 
     Returns
     -------

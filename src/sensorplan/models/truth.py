@@ -31,9 +31,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ._types import BoolArray, FloatArray
+from .._types import BoolArray, FloatArray
 from .angles import wrap_angle
-from .dynamics import cv_matrices
+from .motion import cv_matrices
 
 #: Steps of ``cv`` process noise drawn per block.
 NOISE_BLOCK = 256
@@ -178,7 +178,8 @@ def reflect_off_buildings(old: FloatArray, new: FloatArray, buildings: FloatArra
 
 
 class TruthModel:
-    """Batched true motion of M targets (:func:`sensorplan.scenario.make_truth` builds one
+    """Batched true motion of M targets (:func:`sensorplan.simulation.scenario.make_truth` builds
+    one
     from a scenario).
 
     Parameters

@@ -26,24 +26,24 @@ from .registry import (ENTRY_POINT_GROUP, PLANNERS, make_planner, planner_class,
                        register)
 
 if TYPE_CHECKING:  # pragma: no cover
-    from ..information import potential
-    from ..problem import TIE_TOL, Plan, PlanningProblem, check_plan, move_vectors
     from .base import PlanResult, Planner, RngLike, finish, make_rng, prepare, start_clock
     from .checks import CHECKS, PlannerCheckError, check_planner
+    from .information import potential
+    from .problem import TIE_TOL, Plan, PlanningProblem, check_plan, move_vectors
 
 
 def __getattr__(name: str) -> Any:
     # Everything but the registry is imported on first use: the registry is what the
     # command line's help and the settings need, and it must not load numpy or the kernels.
     if name in ("TIE_TOL", "Plan", "PlanningProblem", "check_plan", "move_vectors"):
-        from .. import problem as module
+        from . import problem as module
     elif name in ("PlanResult", "Planner", "RngLike", "finish", "make_rng", "prepare",
                   "start_clock"):
         from . import base as module  # type: ignore[no-redef]
     elif name in ("CHECKS", "PlannerCheckError", "check_planner"):
         from . import checks as module  # type: ignore[no-redef]
     elif name == "potential":
-        from .. import information as module  # type: ignore[no-redef]
+        from . import information as module  # type: ignore[no-redef]
     else:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     value = getattr(module, name)

@@ -4,7 +4,7 @@ The covariance recursion is the planners' hot spot: thousands of tiny 4x4 predic
 steps per decision. numpy pays ~5 us of call overhead per operation on such small matrices;
 one compiled loop does a whole (candidate, target, step) block in well under a microsecond
 per step. ``benchmarks/bench_planning.py --backend numpy`` measures the difference. The
-pure-numpy reference lives in :mod:`sensorplan.information` and the two are tested equal.
+pure-numpy reference lives in :mod:`sensorplan.planners.information` and the two are tested equal.
 """
 
 from __future__ import annotations
@@ -12,11 +12,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from ._jit import njit
+from .._compiled.jit import njit
 
-from . import radar
-from .radar import P_VIS_MIN, look, range_weight, wrap
-from .sensors import COLUMNS
+from ..models import radar
+from ..models.radar import P_VIS_MIN, look, range_weight, wrap
+from ..models.sensors import COLUMNS
 
 
 # The 4x4 covariance steps, once each, on scalars: a symmetric matrix is the tuple of its
@@ -268,7 +268,7 @@ def update_sym(p: tuple, w00: float, w01: float, w11: float) -> tuple:
     """Add position information ``W = [[w00, w01], [w01, w11]]`` to the sym10 ``p``.
 
     Joseph form when ``W`` is well conditioned, the subtractive form when it is nearly
-    singular (see :func:`sensorplan.information.information_update`); ``W = 0`` leaves it
+    singular (see :func:`sensorplan.planners.information.information_update`); ``W = 0`` leaves it
     unchanged.
     """
     if w00 != 0.0 or w01 != 0.0 or w11 != 0.0:
@@ -321,7 +321,7 @@ def update_step(P: np.ndarray, w00: float, w01: float, w11: float) -> None:
 def covariance_recursion_nb(P0: np.ndarray, W: np.ndarray, F: np.ndarray, Q: np.ndarray,
                             need_sum: bool, cv: bool,
                             dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Same contract as :func:`sensorplan.information.covariance_recursion_numpy`.
+    """Same contract as :func:`sensorplan.planners.information.covariance_recursion_numpy`.
 
     ``Q`` is ``(1, 4, 4)`` (shared by every row) or ``(B, 4, 4)`` (one per row); ``cv``: see
     :func:`predict_step`.
@@ -403,7 +403,7 @@ def chain_looks_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
     """Headings and look information of candidate chains (see information.chain_looks).
 
     ``row`` is the sensor's radar table row, ``buildings`` the ``(B, 5)`` boxes that can hide a
-    target (:func:`sensorplan.radar.look`). Without ``all_headings`` the heading of a
+    target (:func:`sensorplan.models.radar.look`). Without ``all_headings`` the heading of a
     chain's last epoch is left NaN when none of its looks can pass the range band (it has no
     other use): most candidates of a large initialisation set are out of range.
     """

@@ -3,7 +3,7 @@
 :func:`gains_nb` (one sensor's candidates, the :meth:`GameState.chain_gains` path) and
 :func:`game_totals_nb` with :func:`game_block_nb` (every player of an epoch game, once per
 JSFP iteration; the players' part in blocks that may run on threads) turn the pairs of
-:func:`sensorplan.planners.kernels.chain_pairs_nb` into utilities: they sum the other
+:func:`sensorplan.planners._pairs_nb.chain_pairs_nb` into utilities: they sum the other
 players' looks, recompute each target's baseline recursion where those looks changed, and
 then the pairs of those targets only. :func:`game_block_nb` also does an iteration's
 bookkeeping, block by block.
@@ -17,10 +17,10 @@ skip is only work whose result is known exactly (see each function).
 from __future__ import annotations
 
 import numpy as np
-from .._jit import njit
+from .._compiled.jit import njit
 
-from .._kernels import (full16, load_sym10, logdet4, logdet10, predict_cv_sym,
-                        predict_step, store_sym10, update_step, update_sym)
+from ._chains_nb import (full16, load_sym10, logdet4, logdet10, predict_cv_sym,
+                         predict_step, store_sym10, update_step, update_sym)
 
 
 @njit(cache=True, nogil=True)
@@ -183,7 +183,7 @@ def _deltas(idx: np.ndarray, a: int, b: int, P_pred: np.ndarray, part: np.ndarra
             continue
         cnt = count[q]
         off = offset[q]
-        # The matrix lives in a sym10 tuple (see sensorplan._kernels): no array per step.
+        # The matrix lives in a sym10 tuple (see sensorplan.planners._chains_nb): no array per step.
         s = load_sym10(P_pred[j, f])
         acc = part[j, f - 1] if f > 0 else 0.0
         for t in range(f, S):

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from ._jit import njit, numba_globals
+from .._compiled.jit import njit, numba_globals
 
 
 def _numba_names() -> dict[str, Any]:
@@ -39,7 +39,7 @@ def lattice_nb(p0: np.ndarray, moves: np.ndarray, K: int, bounded: bool, width: 
     p0 : (2,)          start position (m)
     moves : (n_moves, 2)
     bounded : bool     keep only positions inside ``[0, width] x [0, height]`` (tolerance
-                       ``tol``, as :meth:`sensorplan.problem.MapRect.contains`)
+                       ``tol``, as :meth:`sensorplan.planners.problem.MapRect.contains`)
     grid : int         common step of the moves in units of ``tol`` (0 if none): positions
                        are then points of that grid, found in a dense table (the same
                        positions as the 1e-6 m keys give)

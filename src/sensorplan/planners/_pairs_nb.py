@@ -3,11 +3,11 @@
 :func:`chain_pairs_nb` computes the looks of a batch of candidate chains of one sensor and
 keeps, sparsely, only the (candidate, target) pairs with a look that counts, with that pair's
 information from its first non-zero step on; the utilities come from
-:mod:`sensorplan.planners.gain_kernels`.
+:mod:`sensorplan.planners._gains_nb`.
 
 The looks are those the readable path computes (``chain_looks`` with the same headings,
 the same radar calls, in the same order), bit for bit. What is skipped is only work whose
-result is known exactly: looks beyond the radar's reach (:func:`sensorplan.radar.reach`),
+result is known exactly: looks beyond the radar's reach (:func:`sensorplan.models.radar.reach`),
 the heading-free part of looks shared by every candidate, the looks of a shared tail entered
 with a heading already seen, and copies of candidates whose pairs equal an earlier one's.
 """
@@ -17,11 +17,11 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from .._jit import njit
+from .._compiled.jit import njit
 
-from .._kernels import _heading_rule
-from ..radar import (P_VIS_MIN, look_at_azimuth, look_range, look_range_clear, reach,
-                     row_values)
+from ..models.radar import (P_VIS_MIN, look_at_azimuth, look_range, look_range_clear, reach,
+                            row_values)
+from ._chains_nb import _heading_rule
 
 
 @njit(cache=True, nogil=True)
@@ -33,12 +33,12 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
 
     A chain of sensor ``row`` covers epochs ``k0 .. k0 + L - 1`` (positions ``pos (C, L, 2)``,
     targets ``tgt (C, L)``); headings and looks are those of
-    :func:`sensorplan._kernels.chain_looks_nb` with ``all_headings=False``, computed with
-    less work: the heading-free part of a look (:func:`sensorplan.radar.look_range`) once per
+    :func:`sensorplan.planners._chains_nb.chain_looks_nb` with ``all_headings=False``, computed with
+    less work: the heading-free part of a look (:func:`sensorplan.models.radar.look_range`) once per
     epoch that every candidate shares; the looks of the shared tail of the chain once per
     distinct heading entering it (candidates whose turn is clipped enter it with the same
     heading, bit for bit); and nothing for last-epoch targets out of the radar's reach.
-    ``buildings (B, 5)`` can hide targets (:func:`sensorplan.radar.look_range`).
+    ``buildings (B, 5)`` can hide targets (:func:`sensorplan.models.radar.look_range`).
 
     Returns
     -------

@@ -32,8 +32,8 @@ from collections.abc import Callable
 import numpy as np
 
 from ..errors import ConfigError
-from ..problem import Plan
 from .engine import GameState, choose
+from .problem import Plan
 
 #: The clock budgets are measured with (tests replace it to stop planners deterministically).
 clock: Callable[[], float] = time.perf_counter

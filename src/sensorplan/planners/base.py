@@ -20,11 +20,11 @@ from typing import TYPE_CHECKING, ClassVar, Protocol
 import numpy as np
 
 from .._types import FloatArray
-from ..problem import Plan, PlanningProblem
+from .problem import Plan, PlanningProblem
 from .registry import PLANNERS, make_planner, register
 
 if TYPE_CHECKING:  # pragma: no cover
-    from ..information import Context
+    from .information import Context
 
 RngLike = np.random.Generator | int | None
 
@@ -80,8 +80,8 @@ def start_clock(engine: bool = False) -> float:
     float   the clock (:data:`sensorplan.planners.anytime.clock`) after the warm-up; pass
             it to :func:`finish`.
     """
-    from .._kernels import warm_up
     from . import anytime
+    from ._chains_nb import warm_up
 
     warm_up()
     if engine:
@@ -101,8 +101,8 @@ def make_rng(rng: RngLike, seed: int | None) -> np.random.Generator:
 
 def prepare(problem: PlanningProblem) -> Context:
     """Everything Phi needs that does not depend on the plan (lattices, predictions, noise
-    tables): :func:`sensorplan.information.prepare`. Prepare once per decision."""
-    from ..information import prepare as _prepare
+    tables): :func:`sensorplan.planners.information.prepare`. Prepare once per decision."""
+    from .information import prepare as _prepare
 
     return _prepare(problem)
 
@@ -121,9 +121,9 @@ def finish(name: str, ctx: Context | PlanningProblem, plan: Plan, start: float,
     start : float            :func:`start_clock`'s value; ``seconds`` runs until now
     converged, sweeps, trace, budget_exhausted : as in :class:`PlanResult`
     """
-    from ..information import evaluate
-    from ..information import prepare as _prepare
     from . import anytime
+    from .information import evaluate
+    from .information import prepare as _prepare
 
     if isinstance(ctx, PlanningProblem):
         ctx = _prepare(ctx)

@@ -13,8 +13,9 @@ once per such prefix. Phi then separates over targets,
 
 where ``W_ij(a_i)`` is ``(T, 2, 2)``: sensor ``i``'s information about target ``j`` at every
 step under option ``a_i`` (zero where it looks elsewhere or does not see ``j``), and ``f_j``
-is the target's term of Phi, computed by :func:`~sensorplan.information.covariance_recursion`
-exactly as :func:`~sensorplan.information.target_information` does. For each target the
+is the target's term of Phi, computed by
+:func:`~sensorplan.planners.information.covariance_recursion`
+exactly as :func:`~sensorplan.planners.information.target_information` does. For each target the
 options of a sensor collapse into a few *contribution classes* (all options that never see
 ``j`` share the zero class; with K = 1 the rest differ only by position), so ``f_j`` is
 evaluated once per combination of classes and gathered for every joint plan. A target's
@@ -40,10 +41,10 @@ import numpy as np
 
 from .._types import FloatArray, IntArray
 from ..errors import ConfigError
-from ..information import (Context, chain_headings, covariance_recursion, epoch_information,
-                           prepare)
-from ..problem import TIE_TOL, Lattice, Plan, PlanningProblem
 from .base import PlanResult, RngLike, finish, register, start_clock
+from .information import (Context, chain_headings, covariance_recursion, epoch_information,
+                          prepare)
+from .problem import TIE_TOL, Lattice, Plan, PlanningProblem
 
 #: Class combinations per batch of the covariance recursion (bounds its temporaries).
 _F_BATCH = 1 << 15

@@ -1,7 +1,7 @@
 """The planner contract: named checks every planner must pass (:func:`check_planner`).
 
 In the style of scikit-learn's ``check_estimator``: each check runs the planner on a fixed
-set of problems (:func:`~sensorplan.planners.problems.contract_problems`: both visibility
+set of problems (:func:`~sensorplan.planners.contract_problems.contract_problems`: both visibility
 modes and both objectives, tiny problems and paper-size ones) and raises
 :class:`PlannerCheckError` naming the check, the planner and the problem on the first
 failure. The project's own contract suite (``tests/test_planner_contract.py``) runs exactly
@@ -22,10 +22,10 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from ..information import potential
-from ..problem import TIE_TOL, Plan, PlanningProblem, check_plan
 from .base import PlanResult
-from .problems import ContractProblem, contract_problems
+from .contract_problems import ContractProblem, contract_problems
+from .information import potential
+from .problem import TIE_TOL, Plan, PlanningProblem, check_plan
 from .registry import make_planner, planner_class
 
 #: The seed passed as ``rng`` to every ``plan`` call of the checks.
@@ -134,7 +134,7 @@ def check_feasible_complete_plan(planner: Any) -> None:
 
 def check_potential_matches_recomputation(planner: Any) -> None:
     """The reported Phi and its per-target terms equal an independent recomputation with
-    :func:`sensorplan.information.potential` (rtol 1e-9), and the terms sum to Phi."""
+    :func:`sensorplan.planners.information.potential` (rtol 1e-9), and the terms sum to Phi."""
     for case, res in _results(planner):
         phi, info = potential(case.problem, res.plan)
         if not _close(res.potential, phi):
@@ -202,7 +202,7 @@ def _optimum(problem: PlanningProblem) -> float:
 
 def check_never_above_brute_force(planner: Any) -> None:
     """On the tiny problems, Phi is at most the brute-force optimum (within the tie
-    tolerance :data:`~sensorplan.problem.TIE_TOL`): nobody beats exhaustive search."""
+    tolerance :data:`~sensorplan.planners.problem.TIE_TOL`): nobody beats exhaustive search."""
     for case, res in _results(planner, tiny_only=True):
         best = _optimum(case.problem)
         if res.potential > best + TIE_TOL * max(1.0, abs(best)):

@@ -14,9 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..problem import (OBJECTIVES, VISIBILITY_MODES, MapRect, PlanningProblem, build_lattice,
-                       move_vectors)
-from ..sensors import SensorParams
+from ..models.sensors import SensorParams
+from .problem import (OBJECTIVES, VISIBILITY_MODES, MapRect, PlanningProblem, build_lattice,
+                      move_vectors)
 
 
 def joint_plan_count(problem: PlanningProblem) -> int:

@@ -16,10 +16,10 @@ game at once. Both reuse everything a change cannot touch:
 
 Phi(c) = Phi_base + sum over affected targets j of (term_j(c) - term_j(base)), where "base"
 is the plan with sensor i's changed chain removed. This is the definition of Phi regrouped;
-the compiled kernels (:mod:`~sensorplan.planners.kernels`,
-:mod:`~sensorplan.planners.gain_kernels`) compute every term with the same operations in the
+the compiled kernels (:mod:`~sensorplan.planners._pairs_nb`,
+:mod:`~sensorplan.planners._gains_nb`) compute every term with the same operations in the
 same order as the plain dense computation, so utilities are bit for bit its values
-(``tests/engine_reference.py``), and equal :func:`sensorplan.information.potential`'s
+(``tests/engine_reference.py``), and equal :func:`sensorplan.planners.information.potential`'s
 differences to round-off.
 """
 
@@ -30,12 +30,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._threads import n_threads
+from .._compiled.threads import n_threads
 from .._types import FloatArray, IntArray
-from ..information import Context, _c, chain_looks, covariance_recursion, cv_form, sum_by_target
-from ..problem import TIE_TOL, Plan
-from .gain_kernels import gains_nb
-from .kernels import candidate_sets_nb, chain_pairs_nb, game_chains_nb, player_positions_nb
+from ._gains_nb import gains_nb
+from ._pairs_nb import candidate_sets_nb, chain_pairs_nb, game_chains_nb, player_positions_nb
+from .information import Context, _c, chain_looks, covariance_recursion, cv_form, sum_by_target
+from .problem import TIE_TOL, Plan
 
 
 #: Makes candidate chains followed by a sensor's fixed later epochs (see GameState._pairs_job).
@@ -47,7 +47,7 @@ class Pairs:
     """One player's candidate chains, as the (candidate, target) pairs whose looks count.
 
     ``data`` holds each pair's information (w00, w01, w11) from its first non-zero step on
-    (:func:`~sensorplan.planners.kernels.chain_pairs_nb`); ``delta`` its cached term change
+    (:func:`~sensorplan.planners._pairs_nb.chain_pairs_nb`); ``delta`` its cached term change
     and ``rows`` the other players' information it was computed with (NaN: never).
     """
 

@@ -1,6 +1,6 @@
 """An epoch game: the players (i, k), i = 0..N-1, of one epoch, batched for the compiled
 kernels (see :mod:`sensorplan.planners.engine` for what is reused and why the utilities are
-exact, and :mod:`sensorplan._threads` for the threads).
+exact, and :mod:`sensorplan._compiled.threads` for the threads).
 """
 
 from __future__ import annotations
@@ -10,13 +10,13 @@ from itertools import pairwise
 
 import numpy as np
 
-from .._threads import run_all
+from .._compiled.threads import run_all
 from .._types import FloatArray, IntArray
-from ..information import _c, cv_form
-from ..problem import TIE_TOL
+from ._gains_nb import game_block_nb, game_totals_nb, index_pairs_nb
+from ._pairs_nb import player_view_nb
 from .engine import GameState, Pairs, PairsJob, pair_kernels
-from .kernels import player_view_nb
-from .gain_kernels import game_block_nb, game_totals_nb, index_pairs_nb
+from .information import _c, cv_form
+from .problem import TIE_TOL
 
 #: Below these amounts of work a batch runs on the calling thread alone: handing work to
 #: another thread and waiting for it costs more than it saves (a paper-size decision took
@@ -254,9 +254,9 @@ def warm_engine() -> None:
     if _ENGINE_WARM:
         return
     _ENGINE_WARM = True
-    from ..information import prepare
-    from ..problem import PlanningProblem
-    from ..sensors import SensorParams
+    from ..models.sensors import SensorParams
+    from .information import prepare
+    from .problem import PlanningProblem
 
     problem = PlanningProblem(np.array([[300.0, 300.0, 1.0, 0.0]]),
                               np.diag([400.0, 400.0, 4.0, 4.0])[None], np.array([[0.0, 300.0]]),

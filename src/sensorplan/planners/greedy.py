@@ -5,11 +5,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from ..information import Context, prepare
-from ..problem import PlanningProblem
 from .anytime import Anytime, BudgetExhausted, check_budget, complete
 from .base import PlanResult, RngLike, finish, register, start_clock
 from .engine import GameState, choose
+from .information import Context, prepare
+from .problem import PlanningProblem
 
 
 def sequential_greedy(ctx: Context, anytime: Anytime | None = None) -> GameState:

@@ -20,13 +20,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import radar
-from ._kernels import chain_looks_nb, covariance_recursion_nb, sum_by_target_nb
-from ._types import BoolArray, FloatArray, IntArray
-from .angles import heading_rule
-from .dynamics import cv_matrices, predict_covariance, predict_covariances, predict_means
+from .._types import BoolArray, FloatArray, IntArray
+from ..models import radar
+from ..models.angles import heading_rule
+from ..models.motion import cv_matrices, predict_covariance, predict_covariances, predict_means
+from ..models.sensors import radar_table
+from ._chains_nb import chain_looks_nb, covariance_recursion_nb, sum_by_target_nb
 from .problem import Lattice, Plan, PlanningProblem, build_lattice, move_vectors
-from .sensors import radar_table
 
 #: ``"numba"`` (default) or ``"numpy"``: which implementation of the covariance recursion
 #: and of the chains' headings runs; set ``SENSORPLAN_BACKEND=numpy`` to measure or debug
@@ -264,7 +264,7 @@ def look_information(ctx: Context, i: int, dx: FloatArray, dy: FloatArray, th: F
 
     Returns
     -------
-    W : (..., 2, 2)   ``w H'^T R^{-1} H'`` (:func:`sensorplan.radar.look`)
+    W : (..., 2, 2)   ``w H'^T R^{-1} H'`` (:func:`sensorplan.models.radar.look`)
     weight : (...)    w: p_vis (``probabilistic``, 0 below 1e-6) or 0/1 (``mean``)
     """
     return radar.look_information(ctx.radar[i], dx, dy, th, C, ctx.probabilistic,

@@ -1,6 +1,6 @@
 """The planning modes: which planned looks count in Phi, and how Phi sums them.
 
-Kept apart from :mod:`sensorplan.problem` so that the run settings (and the command line's
+Kept apart from :mod:`sensorplan.planners.problem` so that the run settings (and the command line's
 help) can name them without importing numpy.
 """
 

@@ -16,12 +16,12 @@ import numpy as np
 
 from .._types import FloatArray, IntArray
 from ..errors import ConfigError
-from ..information import prepare
-from ..problem import PlanningProblem
 from .anytime import Anytime, BudgetExhausted, check_budget, complete
 from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
 from .engine import GameState
 from .epoch_game import EpochGame
+from .information import prepare
+from .problem import PlanningProblem
 
 
 @dataclass

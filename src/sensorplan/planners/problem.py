@@ -14,12 +14,12 @@ from typing import Any
 
 import numpy as np
 
-from ._types import FloatArray, IntArray
-from .errors import ConfigError
-from .limits import MAX_BUILDINGS, RANGES, check_count
-from .modes import (OBJECTIVES, PLANNING_DETECTIONS, VISIBILITY_MODES,  # noqa: F401
-                    Objective, Visibility)
-from .sensors import SensorParams
+from .._types import FloatArray, IntArray
+from ..errors import ConfigError
+from ..limits import MAX_BUILDINGS, RANGES, check_count
+from ..models.sensors import SensorParams
+from .objective import (OBJECTIVES, PLANNING_DETECTIONS, VISIBILITY_MODES,  # noqa: F401
+                        Objective, Visibility)
 
 #: The 8 lattice directions in move order.
 DIRECTIONS = np.array([(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)],
@@ -172,7 +172,7 @@ def _unbounded_lattice(moves_bytes: bytes, K: int) -> Lattice:
 
 def _build_lattice(p0: FloatArray, moves: FloatArray, K: int,
                    world: MapRect | None) -> Lattice:
-    from ._lattice import lattice_nb             # compiled; imported late (cold start)
+    from ._lattice_nb import lattice_nb             # compiled; imported late (cold start)
 
     # Writeable copies: a read-only array is another numba signature, compiled again.
     p0 = np.array(p0, dtype=float, order="C")
@@ -226,7 +226,7 @@ class PlanningProblem:
         ``terminal``: at the horizon's end (the paper's).
     planning_detection : {"ignore", "aware"}
         ``aware``: a planned look's information also counts its detection probability and
-        the clutter (:func:`sensorplan.radar.look`); ``ignore``: only whether the target is
+        the clutter (:func:`sensorplan.models.radar.look`); ``ignore``: only whether the target is
         in view.
     buildings : (B, 5)
         Boxes ``x0, y0, x1, y1, height`` (m) that can hide targets; a planned look counts

@@ -7,9 +7,9 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..information import prepare
-from ..problem import Plan, PlanningProblem
 from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
+from .information import prepare
+from .problem import Plan, PlanningProblem
 
 
 @register

@@ -23,13 +23,13 @@ from typing import ClassVar
 import numpy as np
 
 from .._types import IntArray
-from ..information import prepare
-from ..problem import TIE_TOL, PlanningProblem
 from .anytime import Anytime, BudgetExhausted, complete
 from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
 from .engine import GameState, choose
 from .greedy import sequential_greedy
+from .information import prepare
 from .potential_game import BudgetedLearningSettings, current_index, run_sweeps
+from .problem import TIE_TOL, PlanningProblem
 
 
 def _improves(new: float, old: float, scale: float) -> bool:

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..settings import all_settings
+from ..simulation.settings import all_settings
 from ..study.metrics import (DIVERGED_THRESHOLD, LOST_THRESHOLD, consistency, kinds_with_all,
                              nees_over_time, paired_differences, planning_summary, references,
                              rmse_over_time, run_metrics, sensing_summary, summary)

@@ -12,9 +12,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..colors import (MEAN_COLOR, MEDIAN_COLOR, kind_color, kind_marker, method_colors,
-                      mix_hex, sensor_style, target_color)
-from ..plotting import draw_buildings, draw_ellipse, field_of_view, frame_map
+from ..figures.colors import (MEAN_COLOR, MEDIAN_COLOR, kind_color, kind_marker, method_colors,
+                              mix_hex, sensor_style, target_color)
+from ..figures.run import draw_buildings, draw_ellipse, field_of_view, frame_map
 from ..study.metrics import LOST_THRESHOLD, horizon_groups, kinds_with_all
 from ..study.model import Method
 from ..study.storage import StudyTables

@@ -179,7 +179,7 @@ def draw_axis_lines(info: dict[str, Any], methods: Any, path: Path) -> Path | No
     metric, one line per method. None for a full design (its heat maps show the cells)."""
     from matplotlib.figure import Figure
 
-    from ..colors import method_colors
+    from ..figures.colors import method_colors
 
     if info["design"] != "star" or methods.empty:
         return None

@@ -18,9 +18,9 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ConfigError
-from .simulation import Episode, run_episode
-from .study.model import FORMAT, Method, Study
+from ..errors import ConfigError
+from ..study.model import FORMAT, Method, Study
+from .run import Episode, run_episode
 
 #: Stored columns compared with the replay: table -> {column: Episode array (S+1, K)}.
 _STEPS = {"error": "error", "nees": "nees", "x": "truth_x", "y": "truth_y",
@@ -156,7 +156,7 @@ def _stored_tables(out: Path, study: Study, run: int, m: int
 
     import pyarrow.parquet as pq
 
-    from .study.storage import part_path, part_problem
+    from ..study.storage import part_path, part_problem
 
     name = study.methods[m].name
     problem = part_problem(out, run, m) if part_path(out, run, m, "steps").exists() else None
@@ -239,12 +239,12 @@ def replay_command(study_dir: Path, run: int, method: str, out: Path | None, ani
     import sys
     from types import SimpleNamespace
 
-    from .console import print_summary
-    from .io import ensure_out_dir
-    from .cli_guards import animate_drawable, plot_drawable, writing
+    from ..cli.console import print_summary
+    from ..cli.guards import animate_drawable, plot_drawable, writing
+    from ..config.files import ensure_out_dir
 
     if animate:
-        from .animation import check_format
+        from ..figures.animation import check_format
 
         check_format(animation_format)
     check_request(study_dir, run, method)

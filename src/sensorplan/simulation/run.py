@@ -3,7 +3,7 @@
 One run (:func:`run_episode`) alternates decisions and execution:
 
 - At each decision time the trackers' means and covariances and the platforms' poses form a
-  :class:`~sensorplan.problem.PlanningProblem`; the planner named in :class:`RunSettings`
+  :class:`~sensorplan.planners.problem.PlanningProblem`; the planner named in :class:`RunSettings`
   returns a plan of K epochs. ``olf`` (open-loop feedback, rolling horizon) executes its
   first epoch and plans again, so decisions fall every ``e`` steps; ``ol`` (open loop)
   executes all K epochs, so decisions fall every ``K e`` steps.
@@ -11,7 +11,7 @@ One run (:func:`run_episode`) alternates decisions and execution:
   rule, at most ``max_turn``) toward its planned target's current estimate predicted to the
   epoch's first step; it keeps position, heading and target for the epoch's ``e`` steps.
 - Every step: the targets move; the filters predict; every sensor whose target is truly in
-  its field of view measures it (the radar model of :mod:`sensorplan.radar` at the true
+  its field of view measures it (the radar model of :mod:`sensorplan.models.radar` at the true
   position: its noise-free measurement plus noise with ``R`` at the true position);
   a look that misses feeds the ``negative`` miss update when enabled, for all
   missed looks in sensor order before the measurement updates, which are also applied in
@@ -42,17 +42,17 @@ from typing import Any
 
 import numpy as np
 
-from ._types import BoolArray, FloatArray, IntArray, IntegerArray
-from .angles import heading_rule, wrap_angle
-from .ekf import nees
-from .tracker import Tracker
-from .errors import ConfigError
-from .planners import make_planner
-from .problem import PlanningProblem
+from .._types import BoolArray, FloatArray, IntArray, IntegerArray
+from ..errors import ConfigError
+from ..models import radar
+from ..models.angles import heading_rule, wrap_angle
+from ..models.sensors import ALTITUDE, CLUTTER_RATE, SWERLING, radar_table
+from ..planners import make_planner
+from ..planners.problem import PlanningProblem
+from ..tracking.ekf import nees
+from ..tracking.tracker import Tracker
 from .scenario import Scenario, draw_initial, make_truth
-from .sensors import ALTITUDE, CLUTTER_RATE, SWERLING, radar_table
 from .settings import EXECUTIONS, RunSettings
-from . import radar
 
 __all__ = ["EXECUTIONS", "STREAMS", "Episode", "RunSettings", "run_episode", "run_streams"]
 #: Names of the run's independent random streams, in spawn order (a new stream is only ever
@@ -291,7 +291,7 @@ class _DetectionDraws:
 
 
 def _miss_update_kernel() -> Callable[..., tuple[FloatArray, ...]]:
-    from .missed import miss_update  # lazy: only runs with ``negative`` need it
+    from ..tracking.missed import miss_update  # lazy: only runs with ``negative`` need it
 
     return miss_update
 
@@ -379,7 +379,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     F = tracker.F
     # Load the compiled kernels now, so that no decision's time includes it (the planners
     # warm them too, before starting their clock; a planner of another package may not).
-    from ._kernels import warm_up
+    from ..planners._chains_nb import warm_up
 
     warm_up()
 

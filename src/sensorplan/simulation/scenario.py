@@ -2,8 +2,8 @@
 
 A scenario may fix initial target states and sensor poses or leave them to be drawn from a
 run's seed (the paper draws them anew in every run): a field left ``None`` is drawn.
-How a run plans and tracks is not part of the scenario: see :mod:`sensorplan.settings`.
-Scenario files are read and written by :mod:`sensorplan.scenario_file`.
+How a run plans and tracks is not part of the scenario: see :mod:`sensorplan.simulation.settings`.
+Scenario files are read and written by :mod:`sensorplan.config.scenario`.
 """
 
 from __future__ import annotations
@@ -16,11 +16,11 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ._types import FloatArray
-from .errors import ConfigError
-from .problem import MapRect, check_buildings, check_covariance
-from .sensors import SensorParams
-from .truth import TruthModel, inside_buildings
+from .._types import FloatArray
+from ..errors import ConfigError
+from ..models.sensors import SensorParams
+from ..models.truth import TruthModel, inside_buildings
+from ..planners.problem import MapRect, check_buildings, check_covariance
 
 TargetKind = Literal["cv", "dubins"]
 TARGET_KINDS = ("cv", "dubins")
@@ -137,8 +137,8 @@ class Scenario:
     def validate(self) -> None:
         """The decision file's rules that apply to scenarios, and the ranges of
         :data:`sensorplan.limits.RANGES`; raise ConfigError naming the field."""
-        from .limits import (MAX_SENSORS, MAX_TARGETS, MAX_TURNS_PER_STEP, RANGES, check_count,
-                             check_covariance_scale)
+        from ..limits import (MAX_SENSORS, MAX_TARGETS, MAX_TURNS_PER_STEP, RANGES, check_count,
+                              check_covariance_scale)
 
         if not (math.isfinite(self.dt) and self.dt > 0):
             raise ConfigError("dt", "must be a finite number > 0")
@@ -351,7 +351,7 @@ def draw_initial(scenario: Scenario, truth_rng: np.random.Generator,
 
 def make_truth(scenario: Scenario, initial_states: FloatArray,
                rng: np.random.Generator) -> TruthModel:
-    """The scenario's :class:`~sensorplan.truth.TruthModel` starting at ``initial_states``
+    """The scenario's :class:`~sensorplan.models.truth.TruthModel` starting at ``initial_states``
     ``(M, 4)``, drawing from the truth generator ``rng``."""
     return TruthModel(scenario.target_kinds, initial_states, rng,
                       turn_hold=[t.turn_hold for t in scenario.targets],

@@ -11,8 +11,8 @@ Every setting is one field of :class:`RunSettings` (or of its nested
 - its rule besides the type annotation: choices, a range or a custom check.
 
 From this one declaration come the checks of ``__post_init__`` (:func:`check_fields`), the
-strict file models (:func:`sensorplan.validation.section_model`), the ``simulate`` options
-(:mod:`sensorplan.cli`), study methods with their per-key inheritance
+strict file models (:func:`sensorplan.config.validation.section_model`), the ``simulate`` options
+(:mod:`sensorplan.cli.app`), study methods with their per-key inheritance
 (:mod:`sensorplan.study.file`) and the resolved files (:meth:`RunSettings.to_dict`,
 :meth:`RunSettings.from_dict`). Adding a setting is adding a field here (and its docs).
 
@@ -33,9 +33,10 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from .errors import ConfigError
-from .limits import MAX_PLAN_STEPS, MAX_Q, MAX_STEPS
-from .modes import OBJECTIVES, PLANNING_DETECTIONS, PLANNING_OCCLUSIONS, VISIBILITY_MODES
+from ..errors import ConfigError
+from ..limits import MAX_PLAN_STEPS, MAX_Q, MAX_STEPS
+from ..planners.objective import (OBJECTIVES, PLANNING_DETECTIONS, PLANNING_OCCLUSIONS,
+                                  VISIBILITY_MODES)
 
 EXECUTIONS = ("ol", "olf")
 MISS_UPDATES = ("negative", "none")
@@ -115,7 +116,7 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
 
 def builtin_planners() -> tuple[str, ...]:
     """The built-in planner names, sorted (for help texts: no plugin is looked up)."""
-    from .planners.registry import BUILTIN
+    from ..planners.registry import BUILTIN
 
     return tuple(sorted(BUILTIN))
 
@@ -123,7 +124,7 @@ def builtin_planners() -> tuple[str, ...]:
 def known_planner(name: str) -> None:
     """Raise ``ValueError(message)`` unless ``name`` is a planner (a known name or a
     ``package.module:Class`` that imports as one)."""
-    from .planners.registry import planner_class
+    from ..planners.registry import planner_class
 
     try:
         planner_class(name)
@@ -398,7 +399,7 @@ class TrackerSettings(_Settings):
                               "triggers it)")
 
     def tracker_options(self) -> dict[str, Any]:
-        """Keyword arguments of :class:`sensorplan.tracker.Tracker` for these settings."""
+        """Keyword arguments of :class:`sensorplan.tracking.tracker.Tracker` for these settings."""
         import numpy as np
 
         imm = self.model == "imm"
@@ -495,7 +496,7 @@ class RunSettings(_Settings):
         check_fields(self)
         # Checking the settings instantiates the planner once: bad values show now, not
         # mid-study.
-        from .planners.registry import check_settings
+        from ..planners.registry import check_settings
 
         object.__setattr__(self, "planner_params", check_settings(
             self.planner, self.planner_params, "planner_params", keep_none=True))

@@ -24,9 +24,9 @@ from typing import Any, TypeGuard, cast
 
 import numpy as np
 
+from ..config.files import ensure_out_dir, write_failed
 from ..errors import ConfigError
-from ..io import ensure_out_dir, write_failed
-from ..simulation import run_episode
+from ..simulation.run import run_episode
 from .model import Study
 from .storage import (check_parts, clean_temporaries, consolidate, git_describe, locked, now,
                       part_path, prepare, remove_part, tables_intact, versions, write_meta,
@@ -60,7 +60,7 @@ def run_task(study: Study, run: int, method: int) -> TaskResult:
 def _warm() -> None:
     """Load the compiled kernels (once per process), so that no task's time, and no
     decision's, includes it."""
-    from .._kernels import warm_up
+    from ..planners._chains_nb import warm_up
 
     warm_up()
 

@@ -17,10 +17,10 @@ from typing import Any
 
 from ..config.planners import RUN_SEED
 from ..errors import ConfigError
+from ..models.sensors import SensorParams
 from ..planners.registry import planner_class, planner_settings_of
-from ..scenario import Scenario, town_buildings
-from ..sensors import SensorParams
-from ..settings import RunSettings, all_settings
+from ..simulation.scenario import Scenario, town_buildings
+from ..simulation.settings import RunSettings, all_settings
 
 #: Largest half size (m) of the town's buildings: at 70 m neighbouring blocks touch.
 TOWN_MAX = 70.0

@@ -27,7 +27,8 @@ list of methods; ``sensorplan study`` runs every method on every run (docs/studi
     [methods.tracker]                           # every [tracker] setting
     miss_update = "none"
 
-The method settings are :mod:`sensorplan.settings`' ``planning`` and ``tracker`` sections;
+The method settings are :mod:`sensorplan.simulation.settings`' ``planning`` and ``tracker``
+sections;
 each key is the method's value, else the one in ``[defaults]``, else the setting's default.
 ``planner_params`` merge key by key: a method's own keys must be settings of its planner; a
 key of ``[defaults.planner_params]`` applies to the methods whose planner takes it, and must
@@ -43,17 +44,17 @@ from typing import Annotated, Any
 
 from pydantic import AfterValidator, create_model
 
-from .. import io
+from ..config import files as io
 from ..config.planners import RUN_SEED
+from ..config.scenario import scenario_from_dict
 from ..config.simulate import preset_scenario
+from ..config.validation import (PositiveInt, Seed, Strict, given, section_model,
+                                 setting_annotation, setting_type, validate)
 from ..errors import ConfigError
 from ..limits import check_run, check_study_size
-from ..scenario import Scenario
-from ..scenario_file import scenario_from_dict
 from ..planners.registry import check_settings, instantiate, planner_class, planner_settings_of
-from ..settings import RunSettings, declared, field_type, is_group
-from ..validation import (PositiveInt, Seed, Strict, given, section_model, setting_annotation,
-                          setting_type, validate)
+from ..simulation.scenario import Scenario
+from ..simulation.settings import RunSettings, declared, field_type, is_group
 from .model import STUDY_KEYS, Method, Study
 
 

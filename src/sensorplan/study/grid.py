@@ -37,10 +37,10 @@ from typing import Annotated, Any
 
 from pydantic import AfterValidator, create_model
 
-from .. import io
+from ..config import files as io
+from ..config.validation import Strict, choice, validate
 from ..errors import ConfigError
 from ..limits import MAX_CELL_NAME, MAX_GRID_CELLS
-from ..validation import Strict, choice, validate
 from .features import FEATURES, SCENARIO_FEATURES, check_setting_key, setting
 from .file import StudyFile, study_from_dict
 from .metrics import references

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ..config.files import ensure_out_dir
 from ..errors import ConfigError
-from ..io import ensure_out_dir
 from .execution import StudyInterrupted, StudyRun, run_study
 from .grid import Grid, load_grid
 from .metrics import (consistency, kinds_with_all, paired_differences, planning_summary,
@@ -204,8 +204,8 @@ def grid_command(path: Path, out: Path | None, workers: int | None,
                  scheduler: str | None) -> int:
     """``sensorplan grid``: load, run with a progress report on stderr, say what was done;
     the exit status (130 when interrupted, 143 when terminated)."""
-    from ..cli_guards import Sigterm
-    from ..console import study_progress
+    from ..cli.console import study_progress
+    from ..cli.guards import Sigterm
     from .execution import default_workers
 
     grid = load_grid(path)

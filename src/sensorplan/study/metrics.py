@@ -19,11 +19,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .._types import FloatArray
-from ..settings import RunSettings
+from ..simulation.settings import RunSettings
 from .model import Method, Study
 
 if TYPE_CHECKING:  # pragma: no cover
-    from ..simulation import Episode
+    from ..simulation.run import Episode
     from .storage import StudyTables
 
 #: Position error above which a target-step counts as lost (m).

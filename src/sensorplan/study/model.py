@@ -8,10 +8,10 @@ from typing import Any
 
 import numpy as np
 
+from ..config.scenario import scenario_from_dict, scenario_to_dict
 from ..errors import ConfigError
-from ..scenario import Scenario
-from ..scenario_file import scenario_from_dict, scenario_to_dict
-from ..settings import RunSettings, declared
+from ..simulation.scenario import Scenario
+from ..simulation.settings import RunSettings, declared
 
 #: Layout version of a study directory (2: tracker settings in a ``tracker`` sub-table).
 FORMAT = "sensorplan-study/2"

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from ..simulation import Episode
+from ..simulation.run import Episode
 
 #: Tidy tables, in the order a part's files are written (the last one marks it done).
 TABLES = ("decisions", "sensors", "steps")

@@ -1,4 +1,4 @@
-"""Compiled pieces of the IMM tracker's step (:mod:`sensorplan.tracker`).
+"""Compiled pieces of the IMM tracker's step (:mod:`sensorplan.tracking.tracker`).
 
 A track has a handful of modes of 4 states each, so the tracker's numpy expressions cost
 their call overhead, not their arithmetic. These kernels do the elementwise arithmetic and
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._jit import njit
+from .._compiled.jit import njit
 
 
 @njit(cache=True, error_model="numpy")

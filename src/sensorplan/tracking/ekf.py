@@ -1,8 +1,8 @@
 r"""Extended Kalman filtering of the targets, batched over targets.
 
-One EKF per target with the filter model of :mod:`sensorplan.dynamics` (CWNA, no walls)
-and the range/azimuth measurement of :mod:`sensorplan.radar`. Functions take leading batch
-axes; :class:`sensorplan.tracker.Tracker` is the stateful wrapper holding every target's
+One EKF per target with the filter model of :mod:`sensorplan.models.motion` (CWNA, no walls)
+and the range/azimuth measurement of :mod:`sensorplan.models.radar`. Functions take leading batch
+axes; :class:`sensorplan.tracking.tracker.Tracker` is the stateful wrapper holding every target's
 track.
 
 Update (per measurement, Joseph form):
@@ -12,7 +12,7 @@ Update (per measurement, Joseph form):
     x^+ = x + K\,[z - h(x)]_{\phi\ \mathrm{wrapped}},\quad
     P^+ = (I - K H) P (I - K H)^T + K R K^T
 
-with ``H`` and ``R`` from the one radar model (:mod:`sensorplan.radar`) evaluated at the
+with ``H`` and ``R`` from the one radar model (:mod:`sensorplan.models.radar`) evaluated at the
 current estimate (the predicted state for the first measurement of a step: the filter's
 ``R`` uses its own state, never the truth).
 """
@@ -21,10 +21,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import radar
-from ._jit import njit
-from ._types import FloatArray, IntArray
-from .angles import wrap_angle
+from .._compiled.jit import njit
+from .._types import FloatArray, IntArray
+from ..models import radar
+from ..models.angles import wrap_angle
 
 _EYE4 = np.eye(4)
 
@@ -169,7 +169,7 @@ def update(x: FloatArray, P: FloatArray, z: FloatArray, sensor_xy: FloatArray,
            sensor: IntArray | None = None) -> tuple[FloatArray, FloatArray]:
     """EKF update of B independent tracks, each with one range/azimuth measurement.
 
-    ``H`` and ``R`` come from the radar model (:func:`sensorplan.radar.measure_looks`)
+    ``H`` and ``R`` come from the radar model (:func:`sensorplan.models.radar.measure_looks`)
     evaluated at the given means (the predicted state: the filter never uses the truth), the
     bearing innovation is wrapped, the covariance is updated in Joseph form.
 
@@ -180,7 +180,7 @@ def update(x: FloatArray, P: FloatArray, z: FloatArray, sensor_xy: FloatArray,
     z : (B, 2)        measurements ``[r, phi]`` (m, rad)
     sensor_xy : (B, 2)
     heading : (B,)
-    table : (N, C)    radar table (:func:`sensorplan.sensors.radar_table`)
+    table : (N, C)    radar table (:func:`sensorplan.models.sensors.radar_table`)
     sensor : (B,) int, optional
         Row of ``table`` of each measuring sensor (default: row 0 for all).
 

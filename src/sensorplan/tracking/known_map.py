@@ -38,8 +38,8 @@ import math
 import numpy as np
 from scipy.special import log_ndtr
 
-from ._jit import njit
-from ._types import BoolArray, FloatArray
+from .._compiled.jit import njit
+from .._types import BoolArray, FloatArray
 
 #: Extent (in standard deviations per axis) that must stay inside the map for a track to be
 #: left untouched.

@@ -39,10 +39,10 @@ from scipy.linalg import solve_triangular
 from scipy.special import ndtri
 from scipy.stats import qmc
 
-from . import radar
-from ._jit import njit
-from ._types import FloatArray, IntArray
-from .sensors import G_MAX, G_MIN, SensorParams, radar_table
+from .._compiled.jit import njit
+from .._types import FloatArray, IntArray
+from ..models import radar
+from ..models.sensors import G_MAX, G_MIN, SensorParams, radar_table
 
 #: Number of quadrature points.
 N_POINTS = 512
@@ -213,7 +213,7 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
     heading : (...) float64
         Its heading (rad).
     table : (N, C) float64 or SensorParams
-        Radar table of the sensors (:func:`sensorplan.sensors.radar_table`); one
+        Radar table of the sensors (:func:`sensorplan.models.sensors.radar_table`); one
         SensorParams stands for a one-row table.
     sensor : (...) int, optional
         Row of ``table`` of the sensor that missed, broadcastable to the batch shape

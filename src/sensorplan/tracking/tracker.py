@@ -19,11 +19,11 @@ Bar-Shalom 1988). The options, each switchable:
 - **Re-acquisition.** With the gate on and no false alarms, a detection from a look at
   target j is target j: if it falls outside the gate the track is wrong, and is restarted
   from the detection: position at the inverse measurement with its linearised covariance
-  :math:`J R J^T` (:func:`sensorplan.radar.inverse`), velocity mean zero with the initial
+  :math:`J R J^T` (:func:`sensorplan.models.radar.inverse`), velocity mean zero with the initial
   velocity variances, no cross-covariance, IMM mode probabilities at their initial values.
-- **The known map** (:mod:`sensorplan.known_map`): after the predict and after the updates,
+- **The known map** (:mod:`sensorplan.tracking.known_map`): after the predict and after the updates,
   every mode whose mean or 3-sigma box leaves the map is truncated to the map.
-- **Missed looks** (:mod:`sensorplan.missed`): a look that missed applies its negative
+- **Missed looks** (:mod:`sensorplan.tracking.missed`): a look that missed applies its negative
   information to every mode; an IMM mode's likelihood of the miss is the probability mass it
   puts outside the sensing region.
 
@@ -39,14 +39,14 @@ from typing import Any
 
 import numpy as np
 
-from ._imm import (SEQUENTIAL_SUM, combine_rows, floored_rows, mix, normalise_rows,
-                   pda_covariances, pda_likelihoods, pda_spread, pda_weights, shifted_by_max)
-from ._types import BoolArray, FloatArray, IntArray
-from .dynamics import cv_matrices
+from .._types import BoolArray, FloatArray, IntArray
+from ..models.motion import cv_matrices
+from ..models.radar import detection_probabilities, inverse_looks
+from ..models.sensors import ALTITUDE2, AREA, CLUTTER_RATE, G_MAX, G_MIN
+from ._imm_nb import (SEQUENTIAL_SUM, combine_rows, floored_rows, mix, normalise_rows,
+                      pda_covariances, pda_likelihoods, pda_spread, pda_weights, shifted_by_max)
 from .ekf import innovations, mahalanobis2, position_update, predict, update, update_rounds
 from .known_map import map_constraint
-from .radar import detection_probabilities, inverse_looks
-from .sensors import ALTITUDE2, AREA, CLUTTER_RATE, G_MAX, G_MIN
 
 #: Ways to associate a look's detections with its track when false alarms are on.
 ASSOCIATIONS = ("pda", "nearest")
@@ -265,7 +265,7 @@ class Tracker:
         ----------
         sensors, targets : (L,) int;  sensor_xy : (L, 2);  heading : (L,)
         kernel : callable, optional
-            The missed-look update (default :func:`sensorplan.missed.miss_update`).
+            The missed-look update (default :func:`sensorplan.tracking.missed.miss_update`).
 
         Returns
         -------
@@ -358,7 +358,7 @@ class Tracker:
           association (``association = "pda"``) or the nearest gated detection
           (``"nearest"``); with no gated detection the look is a miss and gets the
           negative update for ``Pd < 1`` (``kernel``, default
-          :func:`sensorplan.missed.miss_update`), if the tracker has missed-look updates;
+          :func:`sensorplan.tracking.missed.miss_update`), if the tracker has missed-look updates;
         - it does not: the (single) detection is the target's, as in :meth:`update`.
 
         Parameters

@@ -24,7 +24,7 @@ What is here (``docs/stonesoup.md`` has the full mapping and its limits):
   needs (``prob_detect``, ``clutter_spatial_density``); :func:`ordered_detections` orders a
   look's detections for bit-identical runs.
 - :class:`SensorplanManager`: a Stone Soup ``SensorManager`` that turns the tracks and the
-  actionables into a :class:`~sensorplan.problem.PlanningProblem`, runs any registered
+  actionables into a :class:`~sensorplan.planners.problem.PlanningProblem`, runs any registered
   planner (rolling horizon: every call plans K epochs and returns the first) and returns
   Stone Soup actions.
 - :class:`MutualInformationReward`: a reward for Stone Soup's own sensor managers

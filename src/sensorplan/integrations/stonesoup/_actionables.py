@@ -19,11 +19,11 @@ from stonesoup.types.state import State
 from stonesoup.types.track import Track
 
 from ..._types import FloatArray
-from ...angles import heading_rule
-from ...dynamics import cv_matrices
-from ...problem import POSITION_TOL, move_vectors
-from ... import radar
-from ...sensors import CLUTTER_RATE, SensorParams, radar_table
+from ...models import radar
+from ...models.angles import heading_rule
+from ...models.motion import cv_matrices
+from ...models.sensors import CLUTTER_RATE, SensorParams, radar_table
+from ...planners.problem import POSITION_TOL, move_vectors
 
 from ._convert import _ground_xy, from_tracks, ordered_tracks
 from ._detection import clutter_density, detection_probability, draw_clutter, is_swerling
@@ -111,7 +111,7 @@ class LatticeMovable(FixedMovable):
     ``world`` is the map in world coordinates, a :class:`MapRect` ``(x0, y0, width, height)``
     with any origin (``MapRect(-500, -500, 1000, 1000)`` is centred on 0). Without one it is
     ``DEFAULT_WORLD``, the paper's ``[0, 600] x [0, 600]``. A core
-    ``sensorplan.problem.MapRect(W, H)`` is taken as ``[0, W] x [0, H]``.
+    ``sensorplan.planners.problem.MapRect(W, H)`` is taken as ``[0, W] x [0, H]``.
     """
 
     move_distances: Sequence[float] = Property(default=(20.0, 40.0),
@@ -233,7 +233,7 @@ class SensorplanRadar(Sensor):
 
     Field of view: ground range in ``[min_ground_range, max_ground_range]``, azimuth within
     ``fov_half_angle`` of the heading, ``cos psi > 0``, from the one radar model
-    (:func:`sensorplan.radar.measure_looks`).
+    (:func:`sensorplan.models.radar.measure_looks`).
 
     Detection (``params.detection``, ``params.clutter_rate``): with ``"swerling1"`` a target
     in view is detected with probability :meth:`detection_probability` (else nothing is

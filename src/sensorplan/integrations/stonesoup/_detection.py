@@ -1,6 +1,6 @@
 r"""Missed detections and false alarms of the radar, in Stone Soup's terms.
 
-The radar model decides everything here (:mod:`sensorplan.radar`): the detection
+The radar model decides everything here (:mod:`sensorplan.models.radar`): the detection
 probability of a target in view (``radar.detection_probabilities``), where false alarms
 fall (``radar.clutter_points``: uniform in ground area over the look's sensing region) and
 how they are measured (``radar.measure_looks``: ``[r, phi]`` with the noise ``R`` at their
@@ -33,10 +33,10 @@ from stonesoup.types.angle import Bearing
 from stonesoup.types.array import StateVector
 from stonesoup.types.detection import Clutter, Detection
 
-from ... import radar
 from ..._types import FloatArray
-from ...angles import wrap_angle
-from ...sensors import ALTITUDE2, AREA, CLUTTER_RATE, G_MAX, G_MIN, SWERLING
+from ...models import radar
+from ...models.angles import wrap_angle
+from ...models.sensors import ALTITUDE2, AREA, CLUTTER_RATE, G_MAX, G_MIN, SWERLING
 
 
 def is_swerling(table: FloatArray) -> bool:

@@ -23,11 +23,11 @@ from stonesoup.types.track import Track
 from stonesoup.updater import Updater
 
 from ..._types import FloatArray
-from ...dynamics import cv_matrices
-from ...planners import PlanResult, make_planner
 from ...errors import ConfigError
-from ...modes import PLANNING_DETECTIONS
-from ...problem import POSITION_TOL, PlanningProblem, move_vectors
+from ...models.motion import cv_matrices
+from ...planners import PlanResult, make_planner
+from ...planners.objective import PLANNING_DETECTIONS
+from ...planners.problem import POSITION_TOL, PlanningProblem, move_vectors
 
 from ._actionables import LatticeMovable, SensorplanRadar
 from ._convert import from_tracks, ordered_tracks
@@ -41,7 +41,8 @@ from ._world import MapRect, check_inside
 class SensorplanManager(SensorManager):
     """A Stone Soup sensor manager that plans with any registered sensorplan planner.
 
-    Each call of :meth:`choose_actions` builds a :class:`~sensorplan.problem.PlanningProblem`
+    Each call of :meth:`choose_actions` builds a
+    :class:`~sensorplan.planners.problem.PlanningProblem`
     from the tracks (means and covariances at their common time ``t0``) and the managed
     platforms (position, heading, radar parameters, moves, map), runs the planner for
     ``horizon`` epochs of ``steps_per_epoch`` steps of ``dt`` seconds, and returns the first
@@ -323,7 +324,7 @@ class MutualInformationReward(RewardFunction):
     the same after ``updater`` applies every look at j (each acted :class:`SensorplanRadar`
     whose aim target is j) whose predicted mean lies in the radar's field of view, with a
     noise-free measurement at that mean. This is sensorplan's potential with K = e = 1 and
-    ``visibility = "mean"`` (tested equal to :func:`sensorplan.information.potential`).
+    ``visibility = "mean"`` (tested equal to :func:`sensorplan.planners.information.potential`).
 
     Works with configurations of platforms (their mounted radars look with their current
     aim) and of radars, as Stone Soup's brute-force, greedy and MCTS managers build them.

@@ -14,9 +14,9 @@ from stonesoup.types.angle import Bearing
 from stonesoup.types.array import CovarianceMatrix, StateVector, StateVectors
 
 from ..._types import FloatArray
-from ...angles import wrap_angle
-from ... import radar
-from ...sensors import SensorParams, radar_table
+from ...models import radar
+from ...models.angles import wrap_angle
+from ...models.sensors import SensorParams, radar_table
 
 from ._convert import _ground_xy
 
@@ -51,7 +51,7 @@ class RadarMeasurementModel(MeasurementModel, GaussianModel, ReversibleModel):
         R = \operatorname{diag}(\sigma_r^2, \sigma_\phi^2)
 
     with the SNR-dependent standard deviations of the one radar model
-    (:func:`sensorplan.radar.measure_looks`).
+    (:func:`sensorplan.models.radar.measure_looks`).
     The measurement order is ours, range first (Stone Soup's own ``CartesianToBearingRange``
     puts the bearing first); the azimuth entry is a Stone Soup ``Bearing``, so innovations
     are wrapped by Stone Soup's updaters.

@@ -2,7 +2,7 @@
 
 The bridge's own classes are Stone Soup ``Base`` classes, which Stone Soup's YAML already
 writes. Reading them back needs a constructor for their ``!sensorplan.`` tags (Stone Soup's
-covers ``!stonesoup.`` only), and the radar's :class:`~sensorplan.sensors.SensorParams` (a
+covers ``!stonesoup.`` only), and the radar's :class:`~sensorplan.models.sensors.SensorParams` (a
 core dataclass) needs a representer and a constructor. :func:`yaml_init` registers these with
 a YAML instance; importing the bridge registers them with ruamel's representer and
 constructor classes, so ``YAML().dumps(...)`` and ``YAML().load(...)`` work in any process
@@ -23,7 +23,7 @@ from ruamel.yaml.representer import RepresenterError
 from stonesoup.base import Base
 from stonesoup.serialise import get_class, yaml_tag
 
-from ...sensors import SensorParams
+from ...models.sensors import SensorParams
 
 _PARAMS_TAG = yaml_tag(SensorParams)
 _PREFIX = "!sensorplan."

@@ -1,6 +1,6 @@
 """The map in Stone Soup's world coordinates, with any origin, and its translation to the core.
 
-The core's :class:`sensorplan.problem.MapRect` is ``[0, W] x [0, H]``. Stone Soup scenarios
+The core's :class:`sensorplan.planners.problem.MapRect` is ``[0, W] x [0, H]``. Stone Soup scenarios
 are often centred on 0, so the bridge's :class:`MapRect` has an origin ``(x0, y0)``; the
 manager plans in the core's frame (world coordinates minus the origin) and executes in world
 coordinates.
@@ -16,8 +16,8 @@ from stonesoup.base import Base, ImmutableMixIn, Property
 
 from ..._types import FloatArray
 from ...errors import ConfigError
-from ...problem import POSITION_TOL
-from ...problem import MapRect as CoreMapRect
+from ...planners.problem import POSITION_TOL
+from ...planners.problem import MapRect as CoreMapRect
 
 
 def _num(v: float) -> str:

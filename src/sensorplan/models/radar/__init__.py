@@ -1,10 +1,10 @@
 """The radar: the one model of what a sensor measures and what it can see.
 
-:mod:`sensorplan.radar.model` holds the model itself, as compiled scalar functions over one
-sensor's row of a radar table (:func:`sensorplan.sensors.radar_table`): range, azimuth,
+:mod:`sensorplan.models.radar.model` holds the model itself, as compiled scalar functions over one
+sensor's row of a radar table (:func:`sensorplan.models.sensors.radar_table`): range, azimuth,
 Jacobian, noise, field of view, line of sight, detection probability, clutter, and a
 planned look's information. A change to the radar is one edit there.
-:mod:`sensorplan.radar.batch` loops those functions over batches and wraps them for numpy;
+:mod:`sensorplan.models.radar.batch` loops those functions over batches and wraps them for numpy;
 the tracker, the simulator, the planner, the missed-look update and the Stone Soup bridge
 all call them. The slow numpy version of the same model lives in the tests
 (``tests/radar_reference.py``) as the independent second computation.

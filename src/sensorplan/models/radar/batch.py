@@ -1,6 +1,6 @@
 """Batched radar kernels and the numpy-facing wrappers every consumer calls.
 
-Each loops a scalar function of :mod:`sensorplan.radar.model` (the one radar model) over a
+Each loops a scalar function of :mod:`sensorplan.models.radar.model` (the one radar model) over a
 batch in one compiled call; the wrappers broadcast and reshape numpy arrays around them.
 """
 
@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from .._jit import njit
-from .._types import BoolArray, FloatArray, IntArray
+from ..._compiled.jit import njit
+from ..._types import BoolArray, FloatArray, IntArray
 from ..sensors import ALTITUDE, ALTITUDE2, COLUMNS, FOV, G_MAX, G_MIN
 from .model import ANGLE_TOL, detection_probability, hidden, inverse, look, measure, visible
 

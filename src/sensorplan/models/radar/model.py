@@ -1,15 +1,16 @@
 r"""The radar model: what a sensor measures and what it can see, in one place.
 
 Every consumer calls these compiled functions, directly (the planner's kernels) or through
-the batched wrappers of :mod:`sensorplan.radar.batch`: the tracker's update
-(:mod:`sensorplan.ekf`), the simulator's measurements of the truth
-(:mod:`sensorplan.simulation`), the planner's look information (:mod:`sensorplan._kernels`,
-:mod:`sensorplan.information`), the missed-look update (:mod:`sensorplan.missed`) and the
+the batched wrappers of :mod:`sensorplan.models.radar.batch`: the tracker's update
+(:mod:`sensorplan.tracking.ekf`), the simulator's measurements of the truth
+(:mod:`sensorplan.simulation.run`), the planner's look information
+(:mod:`sensorplan.planners._chains_nb`, :mod:`sensorplan.planners.information`), the missed-look
+update (:mod:`sensorplan.tracking.missed`) and the
 Stone Soup bridge. A change to the radar is one edit here. The slow numpy version of the same
 model lives in the tests (``tests/radar_reference.py``), as the independent second
 computation.
 
-A sensor is one row of a radar table (:func:`sensorplan.sensors.radar_table`). For a target
+A sensor is one row of a radar table (:func:`sensorplan.models.sensors.radar_table`). For a target
 at ground offset :math:`(dx, dy)` from a platform at altitude :math:`z` with heading
 :math:`\theta`:
 
@@ -54,9 +55,9 @@ import math
 
 import numpy as np
 
-from .._jit import njit  # numba.njit, once numba's kernel cache is known to be writable
+from ..._compiled.jit import njit  # numba.njit, once numba's kernel cache is known to be writable
 from ..sensors import (ALTITUDE, ALTITUDE2, AREA, AWARE, CLUTTER_RATE, COS_DEP, FOV,
-                      G_MAX, G_MIN, LOG_PFA, RANGE_REF, SIN_DEP, SNR0, SWERLING, VAR_PHI, VAR_R)
+                       G_MAX, G_MIN, LOG_PFA, RANGE_REF, SIN_DEP, SNR0, SWERLING, VAR_PHI, VAR_R)
 
 #: A sensor's radar row: an array (a row of the radar table) or a tuple of its values
 #: (:func:`row_values`); every function here takes either.
@@ -90,7 +91,7 @@ def row_values(row: np.ndarray) -> tuple:
     Every function of this module takes the row as an array or as this tuple (they only
     index it by the column constants). A tuple is passed by value, while an array argument
     costs two atomic reference count updates per call, about a tenth of a planned look's
-    time. Its length must follow :data:`sensorplan.sensors.COLUMNS` (a test checks).
+    time. Its length must follow :data:`sensorplan.models.sensors.COLUMNS` (a test checks).
     """
     return (row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8], row[9],
             row[10], row[11], row[12], row[13], row[14], row[15])
@@ -98,7 +99,7 @@ def row_values(row: np.ndarray) -> tuple:
 
 @njit(cache=True, error_model="numpy")
 def wrap(a: float) -> float:
-    """Wrap an angle to (-pi, pi] (as :func:`sensorplan.angles.wrap_angle`)."""
+    """Wrap an angle to (-pi, pi] (as :func:`sensorplan.models.angles.wrap_angle`)."""
     two_pi = 2.0 * math.pi
     x = math.pi - a
     # x % two_pi is x itself for 0 <= x < two_pi (the usual case): skip the floating modulo.

@@ -1,0 +1,1 @@
+"""Compiled-kernel infrastructure: numba kernels, their ahead-of-time build, cache and threads."""

@@ -1,0 +1,1 @@
+"""Tracking: filters (EKF, IMM), association, missed looks and the known map, behind a protocol."""
