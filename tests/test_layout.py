@@ -1,4 +1,5 @@
-"""The package's layout: its import graph has no cycle, and no module is too long.
+"""The package's layout: a package per layer, each importing only the layers below it, and
+an import graph without cycles.
 
 Imports are read with ``ast`` from every module, including the ones inside functions (a
 lazy import that breaks a cycle at run time is still a cycle in the design) and under
@@ -9,15 +10,13 @@ lazy import that breaks a cycle at run time is still a cycle in the design) and 
 from __future__ import annotations
 
 import ast
+import shutil
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "src" / "sensorplan"
-#: Longest module allowed; integrations/stonesoup.py is being split separately.
-MAX_LINES = 600
-LONG_ALLOWED = {"sensorplan.integrations.stonesoup"}
 
 
 def modules(package: Path) -> dict[str, Path]:
@@ -116,8 +115,114 @@ def test_the_checker_sees_lazy_relative_and_package_imports(tmp_path: Path) -> N
     assert cycle is not None and set(cycle) == {"pkg.c", "pkg.sub"}
 
 
-@pytest.mark.parametrize("name", sorted(set(modules(PACKAGE)) - LONG_ALLOWED))
-def test_no_module_is_longer_than_600_lines(name: str) -> None:
-    lines = modules(PACKAGE)[name].read_text(encoding="utf-8").count("\n")
-    assert lines <= MAX_LINES, f"{name} has {lines} lines"
+# ----------------------------------------------------------------------------- layers
 
+#: The package's layers, bottom up, and what each may import besides itself. ``base`` is the
+#: top-level modules (errors, array types, limits, memory settings); the package's own
+#: ``__init__`` is its public face and may name anything lazily.
+LAYERS: dict[str, set[str]] = {
+    "base": set(),
+    "_compiled": {"base"},
+    "models": {"base", "_compiled"},
+    "tracking": {"base", "_compiled", "models"},
+    "planners": {"base", "_compiled", "models"},
+    "simulation": {"base", "_compiled", "models", "tracking", "planners"},
+    "decentral": {"base", "_compiled", "models", "planners", "simulation"},
+    "config": {"base", "_compiled", "models", "planners", "simulation"},
+    "study": {"base", "_compiled", "models", "tracking", "planners", "simulation", "config",
+              "decentral"},
+    "figures": {"base", "_compiled", "models", "planners", "simulation", "study"},
+    "report": {"base", "_compiled", "models", "planners", "simulation", "study", "figures"},
+    "integrations": {"base", "_compiled", "models", "tracking", "planners", "simulation"},
+    "cli": {"base", "_compiled", "models", "tracking", "planners", "simulation", "decentral",
+            "config", "study", "figures", "report"},
+}
+#: The only layers that may import matplotlib (it is slow to import, and the rest of the
+#: library computes; it never draws).
+PLOTTING_LAYERS = {"figures", "report", "cli"}
+#: The most top-level modules (not packages) the package may hold.
+MAX_TOP_MODULES = 6
+
+
+def layer_of(name: str) -> str | None:
+    """The layer of module ``name`` (None for the package's own ``__init__``)."""
+    parts = name.split(".")
+    if len(parts) == 1:
+        return None
+    if len(parts) == 2 and parts[1] not in LAYERS:
+        return "cli" if parts[1] == "__main__" else "base"
+    return parts[1]
+
+
+def layer_violations(package: Path) -> list[str]:
+    """Every import of the package at ``package`` that breaks a layer rule, as a sentence."""
+    out = []
+    mods = modules(package)
+    for name, path in sorted(mods.items()):
+        mine = layer_of(name)
+        if mine is None:
+            continue
+        if mine not in LAYERS:
+            out.append(f"{name}: in no layer")
+            continue
+        for target in sorted(imported(name, path, set(mods))):
+            theirs = layer_of(target)
+            if theirs is not None and theirs != mine and theirs not in LAYERS[mine]:
+                out.append(f"{name} ({mine}) imports {target} ({theirs})")
+        if mine not in PLOTTING_LAYERS and _imports_matplotlib(path):
+            out.append(f"{name} ({mine}) imports matplotlib")
+    return out
+
+
+def _imports_matplotlib(path: Path) -> bool:
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and not node.level:
+            names = [node.module or ""]
+        else:
+            continue
+        if any(n == "matplotlib" or n.startswith("matplotlib.") for n in names):
+            return True
+    return False
+
+
+def test_every_layer_imports_only_the_layers_below_it() -> None:
+    assert layer_violations(PACKAGE) == []
+
+
+def test_the_top_level_holds_few_modules_and_every_package_says_what_it_is() -> None:
+    top = sorted(p.name for p in PACKAGE.glob("*.py"))
+    assert len(top) <= MAX_TOP_MODULES, top
+    for init in sorted(PACKAGE.rglob("__init__.py")):
+        doc = ast.get_docstring(ast.parse(init.read_text(encoding="utf-8")), clean=False)
+        assert doc, f"{init.relative_to(PACKAGE)}: no docstring"
+        first, _, rest = doc.partition("\n")
+        assert first.strip() and (not rest or rest.startswith("\n")), (
+            f"{init.relative_to(PACKAGE)}: the first line alone should say what it is")
+
+
+_PLANTED = [
+    # (module file to plant in, the import, the rule it breaks)
+    ("models/truth.py", "from ..tracking import ekf", "(models) imports"),
+    ("tracking/ekf.py", "from ..planners import problem", "(tracking) imports"),
+    ("planners/registry.py", "from ..tracking import tracker", "(planners) imports"),
+    ("planners/registry.py", "from ..simulation import settings", "(planners) imports"),
+    ("study/model.py", "from ..cli.console import print_summary", "(study) imports"),
+    ("config/files.py", "from ..figures.colors import target_color", "(config) imports"),
+    ("simulation/run.py", "import matplotlib.pyplot", "imports matplotlib"),
+    ("_compiled/threads.py", "from ..models import angles", "(_compiled) imports"),
+]
+
+
+@pytest.mark.parametrize(("where", "line", "said"), _PLANTED)
+def test_a_planted_import_breaks_its_rule(tmp_path: Path, where: str, line: str, said: str
+                                          ) -> None:
+    copy = tmp_path / "sensorplan"
+    shutil.copytree(PACKAGE, copy, ignore=shutil.ignore_patterns("__pycache__"))
+    assert layer_violations(copy) == []
+    target = copy / where
+    target.write_text(target.read_text(encoding="utf-8") + f"\n\ndef _planted():\n    {line}\n",
+                      encoding="utf-8")
+    found = layer_violations(copy)
+    assert found and all(said in f for f in found), found

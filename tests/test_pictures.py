@@ -319,7 +319,7 @@ def study_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_replay_reproduces_the_stored_run_exactly(study_dir: Path) -> None:
     import pandas as pd
 
-    from sensorplan.simulation.replay import replay_run
+    from sensorplan.study.replay import replay_run
 
     rep = replay_run(study_dir, 1, "OLF pg K=2")
     assert rep.stored and rep.reproduced, rep.differences
@@ -339,7 +339,7 @@ def test_replay_reproduces_the_stored_run_exactly(study_dir: Path) -> None:
 def test_replay_notices_a_difference(study_dir: Path) -> None:
     import pandas as pd
 
-    from sensorplan.simulation.replay import _compare, replay_run
+    from sensorplan.study.replay import _compare, replay_run
 
     rep = replay_run(study_dir, 0, "myopic")
     steps = pd.read_parquet(study_dir / "steps.parquet")

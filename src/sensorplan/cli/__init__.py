@@ -1,1 +1,1 @@
-"""The ``sensorplan`` command line: typer app, options, console, signals; no library import of it."""
+"""The ``sensorplan`` command line: typer app, options, console, signals (no library import)."""

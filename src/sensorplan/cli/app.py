@@ -417,7 +417,7 @@ def grid(
 
     Example: sensorplan grid studies/lookahead_map.toml --out runs/lookahead_map -j 2
     """
-    from ..study.grid_run import grid_command
+    from .commands import grid_command
 
     with _bad_input():
         code = grid_command(grid_file, out, workers, scheduler)
@@ -499,7 +499,7 @@ def replay(
 
     Example: sensorplan replay runs/paper --run 9 --method ours/olf-pg
     """
-    from ..simulation.replay import replay_command
+    from .commands import replay_command
 
     with _bad_input():
         replay_command(study_dir, run, method, out, animate, animation_format)

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -21,7 +20,7 @@ from typing import Any
 from ..config.files import ensure_out_dir
 from ..errors import ConfigError
 from .execution import StudyInterrupted, StudyRun, run_study
-from .grid import Grid, load_grid
+from .grid import Grid
 from .metrics import (consistency, kinds_with_all, paired_differences, planning_summary,
                       run_metrics, summary)
 from .storage import (RESULT_KEYS, differences, done_tasks, git_describe, load_study_dir,
@@ -198,41 +197,6 @@ def run_grid(grid: Grid, out: str | Path, *, workers: int | None = None,
             runs[cell.slug] = res
             ran += res.ran
     return GridRun(out, total, ran, time.perf_counter() - start, runs)
-
-
-def grid_command(path: Path, out: Path | None, workers: int | None,
-                 scheduler: str | None) -> int:
-    """``sensorplan grid``: load, run with a progress report on stderr, say what was done;
-    the exit status (130 when interrupted, 143 when terminated)."""
-    from ..cli.console import study_progress
-    from ..cli.guards import Sigterm
-    from .execution import default_workers
-
-    grid = load_grid(path)
-    if workers is not None and workers < 1:
-        raise ConfigError("--workers", f"must be an integer >= 1, got {workers}")
-    out = out if out is not None else Path("runs") / path.stem
-    label = f"grid {path.stem} ({len(grid.cells)} cells)"
-    parallel = (workers or default_workers()) if scheduler in (None, "local") else 1
-    term = Sigterm()
-    try:
-        with term, study_progress(label, parallel) as progress:
-            res = run_grid(grid, out, workers=workers, scheduler=scheduler,
-                           progress=progress)
-    except GridInterrupted as exc:
-        sys.stdout.flush()
-        sys.stderr.write(f"interrupted in cell {exc.cell}: {exc.done} of {exc.total} (run, "
-                         f"method) pairs are saved in {out}; run the same command again to "
-                         "resume\n")
-        return 143 if term.fired else 130
-    if res.ran == 0:
-        print(f"{out}: grid already complete ({len(grid.cells)} cells, {res.total} (run, "
-              "method) pairs); nothing to run")
-    else:
-        print(f"{out}: ran {res.ran} of {res.total} (run, method) pairs in "
-              f"{len(grid.cells)} cells in {res.wall:.1f} s; one study directory per cell")
-    print(f"next: sensorplan report {out}")
-    return 0
 
 
 # ------------------------------------------------------------------------ statistics

@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from ..study.model import FORMAT, Method, Study
-from .run import Episode, run_episode
+from .model import FORMAT, Method, Study
+from ..simulation.run import Episode, run_episode
 
 #: Stored columns compared with the replay: table -> {column: Episode array (S+1, K)}.
 _STEPS = {"error": "error", "nees": "nees", "x": "truth_x", "y": "truth_y",
@@ -156,7 +156,7 @@ def _stored_tables(out: Path, study: Study, run: int, m: int
 
     import pyarrow.parquet as pq
 
-    from ..study.storage import part_path, part_problem
+    from .storage import part_path, part_problem
 
     name = study.methods[m].name
     problem = part_problem(out, run, m) if part_path(out, run, m, "steps").exists() else None
@@ -222,56 +222,3 @@ def replay_dir_name(run: int, method: str) -> str:
     spelling of the method)."""
     safe = "".join(c if c.isalnum() or c in "-." else "_" for c in method).strip("_")
     return f"run-{run:05d}-{safe or 'method'}"
-
-
-def replay_command(study_dir: Path, run: int, method: str, out: Path | None, animate: bool,
-                   animation_format: str) -> Replay:
-    """``sensorplan replay``: check the request and the output folder, re-simulate, write
-    ``episode.npz``, ``episode.png`` (and the animation), print the run's summary and
-    whether it reproduces the stored run (a warning on stderr if it does not).
-
-    Raises
-    ------
-    ConfigError
-        Bad ``DIR``, ``--run``, ``--method``, ``--out`` or ``--animation-format``, found
-        before the simulation starts.
-    """
-    import sys
-    from types import SimpleNamespace
-
-    from ..cli.console import print_summary
-    from ..cli.guards import animate_drawable, plot_drawable, writing
-    from ..config.files import ensure_out_dir
-
-    if animate:
-        from ..figures.animation import check_format
-
-        check_format(animation_format)
-    check_request(study_dir, run, method)
-    target = out if out is not None else study_dir / "replay" / replay_dir_name(run, method)
-    ensure_out_dir(target)                      # before the simulation, not after it
-    rep = replay_run(study_dir, run, method)
-    npz, png = target / "episode.npz", target / "episode.png"
-    with writing(target):          # a full disk or lost permissions: one line naming --out
-        written = [npz, png, rep.episode.save(npz)]
-        plot_drawable(rep.episode, rep.study.scenario, png)
-        if animate:
-            written.append(animate_drawable(rep.episode, rep.study.scenario,
-                                            target / f"episode.{animation_format}"))
-    cfg = SimpleNamespace(scenario=rep.study.scenario, settings=rep.method.settings,
-                          seed=f"{rep.study.seed}, run {run}")
-    print_summary(rep.episode, cfg, written)
-    if rep.damaged is not None:
-        print(f"run {run} of {method!r} is damaged in {study_dir}: nothing to compare")
-    elif rep.reproduced is None:
-        print(f"run {run} of {method!r} is not stored in {study_dir} yet: nothing to compare")
-    elif rep.reproduced:
-        print(f"identical to the stored run {run} of {method!r} (errors, estimates, NEES, "
-              "sensor poses and looks)")
-    else:
-        worst = max(rep.differences, key=lambda k: rep.differences[k])
-        sys.stdout.flush()
-        sys.stderr.write(f"warning: the replay differs from the stored run (largest: "
-                         f"{worst} by {rep.differences[worst]:.3g}); was the study run "
-                         "with another sensorplan version? (see DIR/meta.json)\n")
-    return rep
