@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 # The suite runs numba's kernels (in this process and in the commands it starts), as every
-# command but ``plan`` does; tests/test_aot.py runs the ahead-of-time ones and checks that
+# command but ``plan`` does; tests/_compiled/test_aot.py runs the ahead-of-time ones and checks that
 # they give the same plans. Without this the first ``plan`` a test starts would build them.
 os.environ.setdefault("SENSORPLAN_AOT", "0")
 

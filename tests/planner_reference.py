@@ -7,7 +7,7 @@ plans the code gave at commit 5a3b30c (before the speed-ups), written by running
 
     PYTHONPATH=src python tests/planner_reference.py tests/data/planner_reference.npz
 
-and ``tests/test_planner_reference.py`` compares the current code against it.
+and ``tests/planners/test_plans_equal_recorded.py`` compares the current code against it.
 """
 
 from __future__ import annotations

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from sensorplan._compiled import aot as _aot, jit as _jit
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SRC = ROOT / "src"
 PROBLEM = ROOT / "examples" / "problem.json"
 

@@ -34,7 +34,7 @@ from sensorplan.errors import error_line
 from sensorplan.limits import RANGES, lattice_sizes
 from sensorplan.planners.problem import MapRect, build_lattice, move_vectors
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 QUICK = ROOT / "configs" / "quick.toml"
 
 

@@ -21,7 +21,7 @@ from sensorplan.planners.problem import Plan, move_vectors
 
 from cli_helpers import SPEC7, SPEC7_TEXT, assert_bad_input, run
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 QUICK = ROOT / "configs" / "quick.toml"
 
 BASE_KEYS = {"planner", "plan", "potential", "information", "seconds"}

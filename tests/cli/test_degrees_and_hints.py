@@ -21,7 +21,7 @@ from sensorplan.errors import ConfigError
 from sensorplan.config.scenario import scenario_from_dict
 from sensorplan.study import METRIC_RANGES, SMALL_SAMPLE, paired_differences, parse_study, summary
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 ANGLES = {"max_turn": (0.0, math.pi, False), "fov_half_angle": (0.0, math.pi, True),
           "depression": (0.0, math.pi / 2, True), "beamwidth": (1e-4, math.pi / 2, False)}
 

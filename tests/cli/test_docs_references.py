@@ -20,7 +20,7 @@ import typer
 from cli_helpers import run
 from sensorplan.cli.app import app
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 #: ``SPEC`` as a word (``SPEC 4``, ``SPEC's``, ``SPEC.md``); case matters (``spec`` is an
 #: ordinary word and variable name). ``issue 7``, ``issue #7``, ``issues 3``, in any case.

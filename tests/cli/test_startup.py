@@ -16,7 +16,7 @@ import pytest
 import sensorplan
 from cli_helpers import run
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 SRC = ROOT / "src"
 PROBLEM = ROOT / "examples" / "problem.json"
 #: Modules that neither ``import sensorplan`` nor ``sensorplan --help`` may load: the

@@ -21,7 +21,7 @@ from sensorplan.models.sensors import SensorParams
 
 from cli_helpers import SPEC7
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CONFIGS = ROOT / "configs"
 
 

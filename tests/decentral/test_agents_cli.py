@@ -22,7 +22,7 @@ from sensorplan.simulation.settings import RunSettings
 from sensorplan.simulation import Episode
 from test_decentral_bus import running, wait_gone
 
-SRC = Path(__file__).resolve().parents[1] / "src"
+SRC = Path(__file__).resolve().parents[2] / "src"
 
 
 def test_agents_runs_an_episode_and_reports_the_links(

@@ -119,7 +119,7 @@ def test_too_few_rounds_is_not_pg_but_complete():
 
 
 # ---------------------------------------------------------------------- contract
-# The planner contract (tests/test_planner_contract.py) covers every dec-* planner.
+# The planner contract (tests/planners/test_planner_contract.py) covers every dec-* planner.
 @pytest.mark.parametrize("name", ["dec-jsfp", "dec-independent"])
 def test_best_response_mode_contract(name):
     problem = paper_problem(np.random.default_rng(4), horizon=3)

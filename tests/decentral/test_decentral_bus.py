@@ -21,8 +21,8 @@ from sensorplan.decentral import AgentSpec, LinkModel, assemble, decision_key, r
 from sensorplan.decentral.bus import Bus
 from sensorplan.planners.information import prepare
 
-SRC = str(Path(__file__).resolve().parents[1] / "src")
-TESTS = str(Path(__file__).resolve().parent)
+SRC = str(Path(__file__).resolve().parents[2] / "src")
+TESTS = str(Path(__file__).resolve().parents[1])
 
 
 def running(pid: int) -> bool:

@@ -18,7 +18,7 @@ from scipy import stats
 from sensorplan.decentral import DecentralJSFPPlanner
 from sensorplan.study import load_study, run_study, study_from_dict
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_ROUNDS = next(f.default for f in dataclasses.fields(DecentralJSFPPlanner)
                       if f.name == "rounds")
 

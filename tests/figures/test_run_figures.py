@@ -15,7 +15,7 @@ from sensorplan.figures import colors
 from sensorplan.config import load_simulation
 from sensorplan.simulation import run_episode
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 QUICK = ROOT / "configs" / "quick.toml"
 
 #: Buildings, false alarms (a cluttered Swerling sensor) and misses, in 6 steps.

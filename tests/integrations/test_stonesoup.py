@@ -49,7 +49,7 @@ from sensorplan.models.sensors import SensorParams, radar_table  # noqa: E402
 from sensorplan.simulation import RunSettings, run_episode, run_streams  # noqa: E402
 
 T0 = datetime.datetime(2024, 1, 1)
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _covariance(rng: np.random.Generator) -> np.ndarray:

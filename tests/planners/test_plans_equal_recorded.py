@@ -16,7 +16,7 @@ import pytest
 from planner_reference import CASES
 from sensorplan.planners import make_planner
 
-REFERENCE = np.load(Path(__file__).parent / "data" / "planner_reference.npz")
+REFERENCE = np.load(Path(__file__).parents[1] / "data" / "planner_reference.npz")
 PARAMS = [pytest.param(case, name, id=f"{case}-{name}")
           for case, (_, names, _) in CASES.items() for name in names]
 

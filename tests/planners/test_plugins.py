@@ -19,7 +19,7 @@ from sensorplan.errors import ConfigError
 from sensorplan.planners import (ENTRY_POINT_GROUP, PLANNERS, check_planner, make_planner,
                                  planner_class, potential)
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 EXAMPLES = ROOT / "examples"
 SRC = ROOT / "src"
 REFERENCE = "nearest_planner:NearestTargetPlanner"

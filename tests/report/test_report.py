@@ -20,7 +20,7 @@ from sensorplan.errors import ConfigError
 from sensorplan.report import FIGURES, OPTIONAL_FIGURES, write_report
 from sensorplan.study import parse_study
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 #: K = 1, 2, 3 of one configuration (the horizon figure), the paper's configuration and
 #: random references; names with characters that HTML must escape.

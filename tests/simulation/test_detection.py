@@ -134,7 +134,7 @@ def test_pda_weights_a_far_clutter_detection_down():
 def test_generalised_miss_update_with_pd_one_is_the_old_rule_bit_for_bit():
     """Ideal detection, no gate: exactly the outputs of the code before the
     generalisation (tests/data/miss_update_golden.npz, written by commit 0c5d23e)."""
-    g = np.load(Path(__file__).parent / "data" / "miss_update_golden.npz")
+    g = np.load(Path(__file__).parents[1] / "data" / "miss_update_golden.npz")
     table = radar_table([SensorParams(), SensorParams(altitude=490.0, fov_half_angle=0.4),
                          SensorParams(min_ground_range=200.0, max_ground_range=420.0)])
     m, P, infl = miss_update(g["means"], g["covs"], g["sxy"], g["heading"], table, g["sensor"])

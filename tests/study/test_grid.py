@@ -26,7 +26,7 @@ from sensorplan.study.grid_run import GridInterrupted, grid_statistics, run_grid
 
 from cli_helpers import assert_bad_input, run
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 #: Cheap methods (random and myopic pg), two axes of two values: 3 star cells.
 HEAD = """\

@@ -13,7 +13,7 @@ from scipy import stats
 
 from sensorplan.study import run_study, study_from_dict
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _paired_module():

@@ -24,7 +24,7 @@ from sensorplan.errors import ConfigError
 from sensorplan.config.scenario import scenario_from_dict, scenario_to_dict
 from sensorplan.study import load_study, parse_study, study_from_dict
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 STUDIES = ROOT / "studies"
 
 #: Cheap planners, a few short runs, both tracker configurations.

@@ -12,7 +12,7 @@ from sensorplan.study import parse_study
 
 from cli_helpers import assert_bad_input, run
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 GOOD = """\
 runs = 2
@@ -155,7 +155,7 @@ def test_default_out_is_runs_slash_the_file_name(capsys: pytest.CaptureFixture[s
 def test_demo_writes_its_report_and_says_where(capsys: pytest.CaptureFixture[str],
                                                tmp_path: Path,
                                                monkeypatch: pytest.MonkeyPatch) -> None:
-    # The real demo takes ~15 s (tests/test_study_cli.py::test_real_demo, marked slow); the
+    # The real demo takes ~15 s (tests/study/test_study_cli.py::test_real_demo, marked slow); the
     # command's logic is the same with a smaller study.
     monkeypatch.setattr(studies, "demo_study", lambda: parse_study(GOOD))
     out = tmp_path / "demo"

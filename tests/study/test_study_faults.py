@@ -22,7 +22,7 @@ from sensorplan.cli.console import FIRST_LINE_SECONDS, PlainProgress
 from sensorplan.study import parse_study
 from sensorplan.study.storage import TABLE_SUMS, part_path, sums_path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 TEXT = """
 runs = 3

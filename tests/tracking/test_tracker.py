@@ -253,7 +253,7 @@ def test_the_paper_configuration_reproduces_the_tracks_bit_for_bit(seed):
     from sensorplan.simulation.settings import TrackerSettings
     from sensorplan.simulation import RunSettings, run_episode
 
-    golden = np.load(Path(__file__).parent / "data" / "paper_rows_golden.npz")
+    golden = np.load(Path(__file__).parents[1] / "data" / "paper_rows_golden.npz")
     s = RunSettings(planner="pg", horizon=3, steps_per_epoch=2, execution="olf", steps=40,
                     visibility="mean", objective="terminal",
                     tracker=TrackerSettings(miss_update="none", model="cv", process_noise=0.05,

@@ -4,7 +4,7 @@ In the style of scikit-learn's ``check_estimator``: each check runs the planner 
 set of problems (:func:`~sensorplan.planners.contract_problems.contract_problems`: both visibility
 modes and both objectives, tiny problems and paper-size ones) and raises
 :class:`PlannerCheckError` naming the check, the planner and the problem on the first
-failure. The project's own contract suite (``tests/test_planner_contract.py``) runs exactly
+failure. The project's own contract suite (``tests/planners/test_planner_contract.py``) runs exactly
 these checks for every registered planner.
 
 A planner may decline a problem that is too large for it by raising a
