@@ -492,7 +492,7 @@ def _by_target(step: npt.ArrayLike, target_id: npt.ArrayLike, assigned: npt.Arra
     twice = (t[1:] == t[:-1]) & (s[1:] == s[:-1])
     if twice.any():
         i = int(np.argmax(twice))
-        raise ValueError(f"target_id: target {t[i]} appears twice at step {s[i]}")
+        raise ValueError(f"target_id: {t[i]} appears twice at step {s[i]}")
     starts = np.flatnonzero(np.append(True, t[1:] != t[:-1])) if len(t) else t
     return t[starts], starts, order, s, t, a
 
