@@ -189,7 +189,8 @@ def padded_steps(rng: np.random.Generator, steps: int, n_max: int, m_max: int, c
 
 
 @pytest.mark.parametrize("n_max, m_max, d, p", [(6, 5, 2, 2.0), (4, 7, 3, 2.0),
-                                                (5, 5, 2, 1.5), (3, 0, 2, 2.0)])
+                                                (5, 5, 2, 1.5), (3, 0, 2, 2.0),
+                                                (40, 30, 2, 2.0)])
 def test_over_time_equals_step_by_step_exactly(monkeypatch, rng, n_max: int, m_max: int,
                                                d: int, p: float) -> None:
     monkeypatch.setattr(sm, "_CHUNK_ENTRIES", 64)       # several chunks, some steps per chunk
