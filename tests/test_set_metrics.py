@@ -354,7 +354,8 @@ def test_over_time_names_the_bad_argument() -> None:
                         ((xy, live, xy[:2], live[:2]), "^track_xy:.*steps"),
                         ((xy, live, xy[..., :1], live), "^track_xy:.*coordinates"),
                         ((xy, live, nan, live), "^track_xy:.*step 1, slot 1"),
-                        ((xy[0], live[0], xy, live), "^truth_xy:")]:
+                        ((xy[0], live[0], xy, live), "^truth_xy:"),
+                        ((xy[..., :0], live, xy, live), "^truth_xy:.*d >= 1")]:
         with pytest.raises(ValueError, match=match):
             gospa_over_time(*args, c=1.0)
 
