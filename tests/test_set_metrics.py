@@ -18,8 +18,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sensorplan.study import set_metrics as sm
-from sensorplan.study.set_metrics import (gospa, gospa_over_time, label_switches,
-                                          longest_unassigned, set_metrics)
+from sensorplan.study.set_metrics import gospa, gospa_over_time, set_metrics, target_metrics
 
 SETTINGS = settings(max_examples=80, deadline=None)
 PARTS = ("distance", "localisation", "missed", "false")
@@ -256,14 +255,15 @@ STORY = tables(
 
 def test_the_story_table() -> None:
     r = set_metrics(*STORY, c=C)
-    np.testing.assert_array_equal(r.target_ids, [10, 11, 12, 13])
-    np.testing.assert_array_equal(r.birth_step, [0, 2, 0, 0])
-    np.testing.assert_array_equal(r.first_report_step, [3, -1, 0, 0])
-    np.testing.assert_array_equal(r.report_delay, [3.0, np.nan, 0.0, 0.0])
-    assert r.never_reported == 1
-    np.testing.assert_array_equal(r.label_switches, [0, 0, 2, 0])
-    np.testing.assert_array_equal(r.longest_unassigned, [3, 6, 2, 0])
-    assert r.targets_lost == 0
+    t = r.targets
+    np.testing.assert_array_equal(t.ids, [10, 11, 12, 13])
+    np.testing.assert_array_equal(t.birth_step, [0, 2, 0, 0])
+    np.testing.assert_array_equal(t.first_report_step, [3, -1, 0, 0])
+    np.testing.assert_array_equal(t.report_delay, [3.0, np.nan, 0.0, 0.0])
+    assert t.never_reported == 1
+    np.testing.assert_array_equal(t.label_switches, [0, 0, 2, 0])
+    np.testing.assert_array_equal(t.longest_unassigned, [3, 6, 2, 0])
+    assert t.targets_lost == 0
     np.testing.assert_array_equal(r.n_targets, [3, 3, 4, 4, 4, 4, 4, 4])
     np.testing.assert_array_equal(r.n_tracks, [2, 3, 2, 3, 3, 3, 3, 2])
     np.testing.assert_array_equal(r.false_tracks, [0, 1, 1, 0, 0, 0, 1, 0])
@@ -284,7 +284,7 @@ def test_per_row_answers_follow_the_input_order(rng) -> None:
     np.testing.assert_array_equal(q.label, r.label[t_perm])
     np.testing.assert_array_equal(q.track_assigned, r.track_assigned[y_perm])
     for name in ("label_switches", "longest_unassigned", "first_report_step"):
-        np.testing.assert_array_equal(getattr(q, name), getattr(r, name))
+        np.testing.assert_array_equal(getattr(q.targets, name), getattr(r.targets, name))
     # Row by row: target 12 at step 3 carries label 8; track 99 is never assigned.
     step, ident = STORY[0], STORY[1]
     assert r.label[(step == 3) & (ident == 12)].tolist() == [8]
@@ -295,36 +295,41 @@ def test_per_row_answers_follow_the_input_order(rng) -> None:
 @pytest.mark.parametrize("gap, lost", [(19, False), (20, True), (21, True)])
 def test_a_target_is_lost_after_20_steps_without_a_track(gap: int, lost: bool) -> None:
     steps = range(gap + 2)
-    r = set_metrics(*tables({4: still(0, steps)}, {1: near(0, [0, gap + 1])}), c=C)
+    r = set_metrics(*tables({4: still(0, steps)}, {1: near(0, [0, gap + 1])}), c=C).targets
     assert r.longest_unassigned.tolist() == [gap]
     assert r.lost.tolist() == [lost] and r.targets_lost == int(lost)
     assert r.label_switches.tolist() == [0]                 # the same label on both ends
     assert set_metrics(*tables({4: still(0, steps)}, {1: near(0, [0, gap + 1])}), c=C,
-                       lost_steps=gap + 1).targets_lost == 0
+                       lost_steps=gap + 1).targets.targets_lost == 0
 
 
 def test_a_step_without_the_target_ends_its_stretch() -> None:
     # Alive 0..11 and 13..24 (not at 12), never tracked: two stretches of 12.
     alive = [*range(0, 12), *range(13, 25)]
     r = set_metrics(*tables({4: still(0, alive)}, {}), c=C, lost_steps=13)
-    assert r.longest_unassigned.tolist() == [12] and not r.lost.any()
-    assert r.first_report_step.tolist() == [-1] and np.isnan(r.report_delay).all()
+    t = r.targets
+    assert t.longest_unassigned.tolist() == [12] and not t.lost.any()
+    assert t.first_report_step.tolist() == [-1] and np.isnan(t.report_delay).all()
     assert r.gospa.distance.shape == (25,) and r.gospa.distance[12] == 0.0
 
 
-def test_label_switches_skip_unassigned_steps() -> None:
-    step = np.array([0, 1, 2, 3, 4, 0, 1])
-    ident = np.array([1, 1, 1, 1, 1, 2, 2])
-    assigned = np.array([True, False, True, True, True, True, True])
-    label = np.array([5, 6, 5, 9, 9, 3, 3])         # 6 is ignored: 5 -> 5 -> 9
-    ids, switches = label_switches(step, ident, assigned, label)
-    assert ids.tolist() == [1, 2] and switches.tolist() == [1, 0]
-    assert longest_unassigned(step, ident, assigned)[1].tolist() == [1, 0]
+def test_target_metrics_from_an_assigned_column() -> None:
+    # Rows in no particular order; target 1's label 6 at an unassigned step is ignored.
+    step = np.array([1, 0, 2, 3, 4, 0, 1, 5, 6, 7])
+    ident = np.array([1, 1, 1, 1, 1, 2, 2, 2, 2, 2])
+    assigned = np.array([False, True, True, True, True, False, False, False, True, True])
+    label = np.array([6, 5, 5, 9, 9, -1, -1, -1, 3, 4])
+    t = target_metrics(step, ident, assigned, label, lost_steps=2)
+    assert t.ids.tolist() == [1, 2]
+    assert t.birth_step.tolist() == [0, 0] and t.first_report_step.tolist() == [0, 6]
+    assert t.label_switches.tolist() == [1, 1]
+    # Target 2 is missing at steps 2..4: its unassigned stretches are 0-1 and 5.
+    assert t.longest_unassigned.tolist() == [1, 2] and t.lost.tolist() == [False, True]
 
 
 def test_no_rows_give_empty_answers() -> None:
     r = set_metrics([], [], np.empty((0, 2)), [], [], np.empty((0, 2)), c=C)
-    assert r.target_ids.shape == r.lost.shape == r.gospa.distance.shape == (0,)
+    assert r.targets.ids.shape == r.targets.lost.shape == r.gospa.distance.shape == (0,)
     assert math.isnan(r.mean_gospa)
     r = set_metrics([], [], [], [0, 2], [1, 1], [[0, 0], [1, 1]], c=C, n_steps=4)
     np.testing.assert_array_equal(r.false_tracks, [1, 0, 1, 0])
@@ -379,3 +384,8 @@ def test_set_metrics_names_the_bad_argument() -> None:
         set_metrics(*STORY, c=C, n_steps=7)
     with pytest.raises(ValueError, match="^c:"):
         set_metrics(*STORY, c=0.0)
+    one = np.zeros(2, dtype=int)
+    with pytest.raises(ValueError, match="^assigned:"):
+        target_metrics(one, [1, 2], one, one)
+    with pytest.raises(ValueError, match="^target_id: 1 appears twice at step 0"):
+        target_metrics(one, [1, 1], one > 0, one)

@@ -7,11 +7,12 @@ live targets with identities. This module scores one against the other:
   alpha = 2) between two point sets of one step, split into its localisation, missed and
   false parts;
 - :func:`gospa_over_time` is the same for many steps at once, from padded arrays and masks;
+- :func:`target_metrics` gives, per target and from its assignments step by step, the
+  steps from birth to the first report, the label switches and the longest stretch without
+  a track (a target without one for 20 steps or more is *lost*);
 - :func:`set_metrics` takes a run's long tables (one row per (step, target) and one per
-  (step, track)) and adds, per target, the steps from birth to the first report, the label
-  switches and the longest stretch without a track (a target stuck there 20 steps or more
-  is *lost*), and per step the false tracks; :func:`first_reports`, :func:`label_switches`
-  and :func:`longest_unassigned` are its per-target parts, usable on their own.
+  (step, track)), assigns the tracks as GOSPA does and returns all of the above plus the
+  false tracks per step.
 
 Everything is numpy and :func:`scipy.optimize.linear_sum_assignment`; the only Python loop
 runs over steps, one assignment problem each, and skips steps with no target or no track.
@@ -194,12 +195,8 @@ def gospa_over_time(truth_xy: npt.ArrayLike, truth_alive: npt.ArrayLike,
     if truth.shape[2] != track.shape[2]:
         raise ValueError(f"track_xy: {track.shape[2]} coordinates per point, truth_xy has "
                          f"{truth.shape[2]}")
-    # Live slots first, each group in slot order (a stable sort of the masks).
-    t_order = np.argsort(~alive, axis=1, kind="stable")
-    y_order = np.argsort(~present, axis=1, kind="stable")
-    # Coordinate-major (d, S, slots): each coordinate one contiguous block.
-    truth = np.take_along_axis(truth.transpose(2, 0, 1), t_order[None], axis=2)
-    track = np.take_along_axis(track.transpose(2, 0, 1), y_order[None], axis=2)
+    truth, t_order = _live_first(truth, alive)
+    track, y_order = _live_first(track, present)
     n, m = alive.sum(axis=1), present.sum(axis=1)
     col = _solve_steps(truth, n, track, m, cp, p)
     # The chosen pairs' costs, recomputed with the arithmetic the solver saw.
@@ -212,10 +209,24 @@ def gospa_over_time(truth_xy: npt.ArrayLike, truth_alive: npt.ArrayLike,
     total = localisation + missed + false
     distance = np.sqrt(total) if p == 2.0 else total ** (1.0 / p)
     # Back to the caller's slots.
-    slot = np.where(col >= 0, np.take_along_axis(y_order, np.maximum(col, 0), axis=1), -1)
-    assignment = np.empty_like(slot)
-    np.put_along_axis(assignment, t_order, slot, axis=1)
+    if y_order is not None:
+        col = np.where(col >= 0, np.take_along_axis(y_order, np.maximum(col, 0), axis=1), -1)
+    assignment = col
+    if t_order is not None:
+        assignment = np.empty_like(col)
+        np.put_along_axis(assignment, t_order, col, axis=1)
     return GospaSeries(distance, localisation, missed, false, assignment)
+
+
+def _live_first(xy: FloatArray, live: BoolArray) -> tuple[FloatArray, IntArray | None]:
+    """Coordinate-major (d, S, k) positions, each step's live slots first in slot order.
+
+    Also returns the (S, k) slot order, or None where the live slots already come first.
+    """
+    if np.all(live[:, 1:] <= live[:, :-1]):
+        return np.ascontiguousarray(xy.transpose(2, 0, 1)), None
+    order = np.argsort(~live, axis=1, kind="stable")
+    return np.take_along_axis(xy.transpose(2, 0, 1), order[None], axis=2), order
 
 
 def _solve_steps(truth: FloatArray, n: IntArray, track: FloatArray, m: IntArray, cp: float,
@@ -268,46 +279,27 @@ def _sequential_sum(a: FloatArray) -> FloatArray:
 
 
 @dataclass(frozen=True)
-class SetMetrics:
-    """The set metrics of one run; see :func:`set_metrics`.
+class TargetMetrics:
+    """Per-target metrics of one run; see :func:`target_metrics`.
 
     Attributes
     ----------
-    gospa : GospaSeries    (S,) GOSPA distance (m) and its parts (m^p) per step
-    n_targets, n_tracks : (S,) int64    live targets, reported tracks per step
-    false_tracks : (S,) int64    reported tracks assigned to no target
-    assigned : (R,) bool    per target row (input order): a track is assigned within c
-    label : (R,) int64    the assigned track's label; -1 where ``assigned`` is False
-    track_assigned : (Q,) bool    per track row (input order): assigned to a target
-    target_ids : (U,) int64    the targets, sorted
-    birth_step, first_report_step : (U,) int64    first step alive, first step assigned
-        (-1: never reported)
+    ids : (U,) int64    the targets, sorted
+    birth_step : (U,) int64    first step alive
+    first_report_step : (U,) int64    first step with an assigned track, -1 if never
     report_delay : (U,) float64    steps from birth to first report, NaN if never
     label_switches : (U,) int64    label changes between successive assigned steps
     longest_unassigned : (U,) int64    longest run of consecutive live, unassigned steps
     lost : (U,) bool    ``longest_unassigned >= lost_steps``
     """
 
-    gospa: GospaSeries
-    n_targets: IntArray
-    n_tracks: IntArray
-    false_tracks: IntArray
-    assigned: BoolArray
-    label: IntArray
-    track_assigned: BoolArray
-    target_ids: IntArray
+    ids: IntArray
     birth_step: IntArray
     first_report_step: IntArray
     report_delay: FloatArray
     label_switches: IntArray
     longest_unassigned: IntArray
     lost: BoolArray
-
-    @property
-    def mean_gospa(self) -> float:
-        """Mean GOSPA distance over the run's steps (m); NaN for a run of no step."""
-        d = self.gospa.distance
-        return float(d.mean()) if d.size else math.nan
 
     @property
     def targets_lost(self) -> int:
@@ -320,6 +312,97 @@ class SetMetrics:
         return int((self.first_report_step < 0).sum())
 
 
+def target_metrics(step: npt.ArrayLike, target_id: npt.ArrayLike, assigned: npt.ArrayLike,
+                   label: npt.ArrayLike, lost_steps: int = LOST_STEPS) -> TargetMetrics:
+    """Report delay, label switches and losses of each target, from its assignments.
+
+    - The *report delay* is the number of steps from a target's birth (its first step in
+      the table) to the first step it is assigned; a target never assigned has none (NaN).
+    - A *label switch* is a change of the assigned label between one step at which the
+      target is assigned and the next such step; unassigned steps in between are skipped.
+    - A target is *lost* when it stays alive and unassigned for ``lost_steps`` or more
+      consecutive steps; a step at which it is not in the table ends the stretch.
+
+    Parameters
+    ----------
+    step : (R,) int    step of each row; one row per live (step, target)
+    target_id : (R,) int    the target, unique within a step
+    assigned : (R,) bool    a track is assigned to the target at that step
+    label : (R,) int    the assigned track's label (ignored where not assigned)
+    lost_steps : int    consecutive unassigned steps that make a target lost, >= 1
+
+    Returns
+    -------
+    TargetMetrics
+    """
+    if isinstance(lost_steps, bool) or not isinstance(lost_steps, int | np.integer) \
+            or lost_steps < 1:
+        raise ValueError(f"lost_steps: must be an integer >= 1, got {lost_steps!r}")
+    s = _int_column(step, "step")
+    t = _int_column(target_id, "target_id", len(s))
+    lab = _int_column(label, "label", len(s))
+    a = np.asarray(assigned)
+    if a.dtype != np.bool_ or a.shape != s.shape:
+        raise ValueError(f"assigned: must be a boolean ({len(s)},) array, got {a.dtype} "
+                         f"{a.shape}")
+    order = np.lexsort((s, t))                           # by target, then step
+    s, t, a, lab = s[order], t[order], a[order], lab[order]
+    same = t[1:] == t[:-1]
+    if np.any(same & (s[1:] == s[:-1])):
+        i = int(np.argmax(same & (s[1:] == s[:-1])))
+        raise ValueError(f"target_id: {t[i]} appears twice at step {s[i]}")
+    starts = np.flatnonzero(np.append(True, ~same)) if len(t) else t
+    ids = t[starts]
+    never = np.iinfo(np.int64).max
+    first = (np.minimum.reduceat(np.where(a, s, never), starts) if len(t) else t.copy())
+    first[first == never] = -1
+    birth = s[starts]
+    # Switches: successive assigned rows of one target with different labels.
+    ta, la = t[a], lab[a]
+    change = (ta[1:] == ta[:-1]) & (la[1:] != la[:-1])
+    switches = np.bincount(np.searchsorted(ids, ta[1:][change]), minlength=len(ids))
+    # Runs of rows with the same target, consecutive steps and the same assigned state.
+    new = np.append(True, ~same | (s[1:] != s[:-1] + 1) | (a[1:] != a[:-1]))
+    run = np.flatnonzero(new) if len(t) else t
+    length = np.diff(np.append(run, len(t)))
+    gap = ~a[run]
+    longest = np.zeros(len(ids), dtype=np.int64)
+    np.maximum.at(longest, np.searchsorted(ids, t[run[gap]]), length[gap])
+    return TargetMetrics(ids, birth, first, np.where(first >= 0, first - birth, np.nan),
+                         switches.astype(np.int64), longest, longest >= lost_steps)
+
+
+@dataclass(frozen=True)
+class SetMetrics:
+    """The set metrics of one run; see :func:`set_metrics`.
+
+    Attributes
+    ----------
+    gospa : GospaSeries    (S,) GOSPA distance (m) and its parts (m^p) per step
+    n_targets, n_tracks : (S,) int64    live targets, reported tracks per step
+    false_tracks : (S,) int64    reported tracks assigned to no target
+    assigned : (R,) bool    per target row (input order): a track is assigned within c
+    label : (R,) int64    the assigned track's label; -1 where ``assigned`` is False
+    track_assigned : (Q,) bool    per track row (input order): assigned to a target
+    targets : TargetMetrics    report delay, label switches, losses per target
+    """
+
+    gospa: GospaSeries
+    n_targets: IntArray
+    n_tracks: IntArray
+    false_tracks: IntArray
+    assigned: BoolArray
+    label: IntArray
+    track_assigned: BoolArray
+    targets: TargetMetrics
+
+    @property
+    def mean_gospa(self) -> float:
+        """Mean GOSPA distance over the run's steps (m); NaN for a run of no step."""
+        d = self.gospa.distance
+        return float(d.mean()) if d.size else math.nan
+
+
 def set_metrics(target_step: npt.ArrayLike, target_id: npt.ArrayLike,
                 target_xy: npt.ArrayLike, track_step: npt.ArrayLike,
                 track_label: npt.ArrayLike, track_xy: npt.ArrayLike, c: float, *,
@@ -328,16 +411,9 @@ def set_metrics(target_step: npt.ArrayLike, target_id: npt.ArrayLike,
     """Set metrics of one run from its long tables of live targets and reported tracks.
 
     At each step the reported tracks are assigned to the live targets as GOSPA assigns them
-    (:func:`gospa`; a target counts as assigned only to a track closer than ``c``). Then:
-
-    - a target's *report delay* is the number of steps from its birth (first step alive)
-      to the first step it is assigned; targets never assigned are kept apart (NaN delay);
-    - a *false track* is a reported track assigned to no target;
-    - a *label switch* is a change of a target's assigned label between one step at which it
-      is assigned and the next such step (steps without an assignment in between do not
-      count as switches);
-    - a target is *lost* when it stays alive and unassigned for ``lost_steps`` or more
-      consecutive steps; a step at which it is not in the table ends the stretch.
+    (:func:`gospa`; a target counts as assigned only to a track closer than ``c``). A
+    reported track assigned to no target is a *false track*; the per-target metrics follow
+    from the assignments (:func:`target_metrics`).
 
     Parameters
     ----------
@@ -364,9 +440,6 @@ def set_metrics(target_step: npt.ArrayLike, target_id: npt.ArrayLike,
         negative or non-integer steps, a target or label twice in one step, or a
         non-finite position.
     """
-    if isinstance(lost_steps, bool) or not isinstance(lost_steps, int | np.integer) \
-            or lost_steps < 1:
-        raise ValueError(f"lost_steps: must be an integer >= 1, got {lost_steps!r}")
     t_step = _int_column(target_step, "target_step")
     t_id = _int_column(target_id, "target_id", len(t_step))
     t_xy = _points(target_xy, "target_xy", len(t_step))
@@ -384,155 +457,54 @@ def set_metrics(target_step: npt.ArrayLike, target_id: npt.ArrayLike,
         raise ValueError(f"n_steps: must be an integer above the last step {last}, "
                          f"got {n_steps!r}")
     d = max(t_xy.shape[1], y_xy.shape[1], 1)
-    t_rows, t_slots = _slots(t_step, t_id, n_steps, "target_id")
-    y_rows, y_slots = _slots(y_step, y_label, n_steps, "track_label")
-    series = gospa_over_time(_scatter(t_xy, t_rows, d), t_rows >= 0,
-                             _scatter(y_xy, y_rows, d), y_rows >= 0, c, p)
+    t_rows, t_slot = _cells(t_step, t_id, n_steps, "target_id")
+    y_rows, y_slot = _cells(y_step, y_label, n_steps, "track_label")
+    series = gospa_over_time(_scatter(t_xy, t_step, t_slot, t_rows.shape, d), t_rows >= 0,
+                             _scatter(y_xy, y_step, y_slot, y_rows.shape, d), y_rows >= 0, c, p)
     # Per target row: the track row assigned to it (-1).
-    slot_of = series.assignment[t_step, t_slots]
+    slot_of = series.assignment[t_step, t_slot]
     track_row = np.where(slot_of >= 0, y_rows[t_step, np.maximum(slot_of, 0)], -1)
     assigned = track_row >= 0
     label = np.full(len(t_step), -1, dtype=np.int64)
     label[assigned] = y_label[track_row[assigned]]
     track_assigned = np.zeros(len(y_step), dtype=bool)
     track_assigned[track_row[assigned]] = True
-    n_targets = np.bincount(t_step, minlength=n_steps)
     n_tracks = np.bincount(y_step, minlength=n_steps)
-    ids, birth, first = first_reports(t_step, t_id, assigned)
-    delay = np.where(first >= 0, first - birth, np.nan)
-    longest = longest_unassigned(t_step, t_id, assigned)[1]
     return SetMetrics(
-        gospa=series, n_targets=n_targets, n_tracks=n_tracks,
-        false_tracks=n_tracks - np.bincount(y_step[track_assigned], minlength=n_steps),
-        assigned=assigned, label=label, track_assigned=track_assigned, target_ids=ids,
-        birth_step=birth, first_report_step=first, report_delay=delay,
-        label_switches=label_switches(t_step, t_id, assigned, label)[1],
-        longest_unassigned=longest, lost=longest >= lost_steps)
+        series, np.bincount(t_step, minlength=n_steps), n_tracks,
+        n_tracks - np.bincount(y_step[track_assigned], minlength=n_steps), assigned, label,
+        track_assigned, target_metrics(t_step, t_id, assigned, label, lost_steps))
 
 
-def first_reports(step: npt.ArrayLike, target_id: npt.ArrayLike,
-                  assigned: npt.ArrayLike) -> tuple[IntArray, IntArray, IntArray]:
-    """Each target's birth (first step alive) and first step with an assigned track.
+def _cells(step: IntArray, key: IntArray, n_steps: int,
+           name: str) -> tuple[IntArray, IntArray]:
+    """Place a long table's rows in (step, slot) cells, slots in key order per step.
 
-    Parameters
-    ----------
-    step, target_id : (R,) int    one row per live (step, target)
-    assigned : (R,) bool    the row's target has a track assigned
-
-    Returns
-    -------
-    ids : (U,) int64    the targets, sorted
-    birth : (U,) int64    first step in the table
-    first_report : (U,) int64    first assigned step, -1 if never assigned
+    Returns (n_steps, n_max >= 1) int64, the row of each cell (-1: empty), and (R,) the
+    slot of each row.
     """
-    ids, starts, _, s, _, a = _by_target(step, target_id, assigned)
-    if not ids.size:
-        return ids, ids.copy(), ids.copy()
-    never = np.iinfo(np.int64).max
-    first = np.minimum.reduceat(np.where(a, s, never), starts)
-    return ids, s[starts], np.where(first == never, -1, first)
-
-
-def label_switches(step: npt.ArrayLike, target_id: npt.ArrayLike, assigned: npt.ArrayLike,
-                   label: npt.ArrayLike) -> tuple[IntArray, IntArray]:
-    """How often each target's assigned label changes from one assigned step to the next.
-
-    Parameters
-    ----------
-    step, target_id : (R,) int    one row per live (step, target)
-    assigned : (R,) bool    the row's target has a track assigned
-    label : (R,) int    the assigned track's label (ignored where not assigned)
-
-    Returns
-    -------
-    ids : (U,) int64    the targets, sorted
-    switches : (U,) int64
-    """
-    ids, _, order, _, t, a = _by_target(step, target_id, assigned)
-    lab = _int_column(label, "label", len(order))[order][a]
-    t = t[a]
-    change = (t[1:] == t[:-1]) & (lab[1:] != lab[:-1])
-    index = np.searchsorted(ids, t[1:][change])
-    return ids, np.bincount(index, minlength=len(ids)).astype(np.int64)
-
-
-def longest_unassigned(step: npt.ArrayLike, target_id: npt.ArrayLike,
-                       assigned: npt.ArrayLike) -> tuple[IntArray, IntArray]:
-    """Each target's longest run of consecutive steps alive without an assigned track.
-
-    Parameters
-    ----------
-    step, target_id : (R,) int    one row per live (step, target)
-    assigned : (R,) bool    the row's target has a track assigned
-
-    Returns
-    -------
-    ids : (U,) int64    the targets, sorted
-    longest : (U,) int64    0 for a target assigned at every step
-    """
-    ids, _, _, s, t, a = _by_target(step, target_id, assigned)
-    longest = np.zeros(len(ids), dtype=np.int64)
-    if not ids.size:
-        return ids, longest
-    # A run of rows: same target, consecutive steps, same assigned state.
-    new = np.ones(len(s), dtype=bool)
-    new[1:] = (t[1:] != t[:-1]) | (s[1:] != s[:-1] + 1) | (a[1:] != a[:-1])
-    starts = np.flatnonzero(new)
-    lengths = np.diff(np.append(starts, len(s)))
-    gaps = ~a[starts]
-    np.maximum.at(longest, np.searchsorted(ids, t[starts[gaps]]), lengths[gaps])
-    return ids, longest
-
-
-def _by_target(step: npt.ArrayLike, target_id: npt.ArrayLike, assigned: npt.ArrayLike,
-               ) -> tuple[IntArray, IntArray, IntArray, IntArray, IntArray, BoolArray]:
-    """Rows sorted by (target, step).
-
-    Returns the sorted ids, each id's first sorted row, the sorting order, and the sorted
-    steps, targets and assigned flags.
-    """
-    s = _int_column(step, "step")
-    t = _int_column(target_id, "target_id", len(s))
-    a = np.asarray(assigned)
-    if a.dtype != np.bool_ or a.shape != s.shape:
-        raise ValueError(f"assigned: must be a boolean ({len(s)},) array, got {a.dtype} "
-                         f"{a.shape}")
-    order = np.lexsort((s, t))
-    s, t, a = s[order], t[order], a[order]
-    twice = (t[1:] == t[:-1]) & (s[1:] == s[:-1])
+    # Tables are usually written sorted by (step, key); then no sort is needed.
+    later = (step[1:] > step[:-1]) | ((step[1:] == step[:-1]) & (key[1:] > key[:-1]))
+    order = np.arange(len(step)) if later.all() else np.lexsort((key, step))
+    s, k = step[order], key[order]
+    twice = (s[1:] == s[:-1]) & (k[1:] == k[:-1])
     if twice.any():
         i = int(np.argmax(twice))
-        raise ValueError(f"target_id: {t[i]} appears twice at step {s[i]}")
-    starts = np.flatnonzero(np.append(True, t[1:] != t[:-1])) if len(t) else t
-    return t[starts], starts, order, s, t, a
-
-
-def _slots(step: IntArray, key: IntArray, n_steps: int,
-           name: str) -> tuple[IntArray, IntArray]:
-    """Place rows in (step, slot) cells, slots in key order within each step.
-
-    Returns (n_steps, n_max) int64 row index of each cell (-1: empty) and (R,) the slot of
-    each row.
-    """
-    order = np.lexsort((key, step))
-    s, k = step[order], key[order]
-    if np.any((s[1:] == s[:-1]) & (k[1:] == k[:-1])):
-        i = int(np.argmax((s[1:] == s[:-1]) & (k[1:] == k[:-1])))
         raise ValueError(f"{name}: {k[i]} appears twice at step {s[i]}")
     rank = np.arange(len(s)) - np.searchsorted(s, s, side="left")
     # At least one slot, so that a table without rows still indexes.
     rows = np.full((n_steps, max(1, int(rank.max(initial=-1)) + 1)), -1, dtype=np.int64)
     rows[s, rank] = order
-    slots = np.empty(len(s), dtype=np.int64)
-    slots[order] = rank
-    return rows, slots
+    slot = np.empty(len(s), dtype=np.int64)
+    slot[order] = rank
+    return rows, slot
 
 
-def _scatter(xy: FloatArray, rows: IntArray, d: int) -> FloatArray:
-    """(S, n_max, d) positions of the cells' rows; zeros in empty cells."""
-    out = np.zeros(rows.shape + (d,))
-    filled = rows >= 0
-    out[filled] = xy.reshape(len(xy), d)[rows[filled]]
+def _scatter(xy: FloatArray, step: IntArray, slot: IntArray, shape: tuple[int, ...],
+             d: int) -> FloatArray:
+    """(S, n_max, d) positions of a long table's rows in their cells; zeros elsewhere."""
+    out = np.zeros(shape + (d,))
+    out[step, slot] = xy.reshape(len(xy), d)
     return out
 
 
@@ -587,4 +559,4 @@ def _int_column(x: npt.ArrayLike, name: str, rows: int | None = None) -> IntArra
         raise ValueError(f"{name}: must hold integers, got {a.dtype}")
     if rows is not None and len(a) != rows:
         raise ValueError(f"{name}: {len(a)} rows, expected {rows}")
-    return a.astype(np.int64)
+    return a.astype(np.int64, copy=False)
