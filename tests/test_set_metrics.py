@@ -342,6 +342,8 @@ def test_no_rows_give_empty_answers() -> None:
     (dict(c=0.0), "^c:"), (dict(c=-1.0), "^c:"), (dict(c=math.nan), "^c:"),
     (dict(c=1.0, p=0.5), "^p:"), (dict(c=1.0, alpha=1.0), "^alpha:"),
     (dict(c=1.0, truth_xy=[[0.0, 0.0, 0.0]]), "^track_xy:"),
+    (dict(c=1.0, truth_xy=np.empty((0, 3))), "^track_xy: 2 coordinates"),
+    (dict(c=1.0, track_xy=np.empty((2, 0))), "^track_xy:.*d >= 1"),
     (dict(c=1.0, truth_xy=[0.0, 1.0]), "^truth_xy:"),
     (dict(c=1.0, track_xy=[[0.0, math.inf]]), "^track_xy:.*non-finite"),
 ])
@@ -371,6 +373,7 @@ def test_set_metrics_names_the_bad_argument() -> None:
                             (3, STORY[3].astype(float), "^track_step:"),
                             (1, STORY[1][:-1], "^target_id:"),
                             (2, np.where(STORY[2] == 2000, np.nan, STORY[2]), "^target_xy:"),
+                            (5, np.c_[STORY[5], STORY[5][:, :1]], "^track_xy: 3 coord"),
                             (4, np.where(STORY[4] == 8, 5, STORY[4]),
                              "^track_label: 5 appears twice at step 3")]:
         with pytest.raises(ValueError, match=match):

@@ -93,9 +93,9 @@ def gospa(truth_xy: npt.ArrayLike, track_xy: npt.ArrayLike, c: float, p: float =
 
     A pair at distance :math:`\geq c` costs :math:`c^p`, the same as leaving both ends
     unassigned, so the value does not depend on which of the two an optimal assignment
-    chooses; such pairs are reported as one missed target and one false track. The parts,
-    contributions to the p-th power of the distance (García-Fernández, Rahmathullah and
-    Svensson 2017), are
+    chooses; such pairs are reported as one missed target and one false track. The parts
+    are contributions to the p-th power of the distance, as García-Fernández, Rahmathullah
+    and Svensson (2017) and Stone Soup's ``GOSPAMetric`` report them:
 
     .. math::
 
@@ -136,10 +136,7 @@ def gospa(truth_xy: npt.ArrayLike, track_xy: npt.ArrayLike, c: float, p: float =
         raise ValueError(f"alpha: only alpha = 2 is supported, got {alpha!r}")
     truth = _points(truth_xy, "truth_xy")
     track = _points(track_xy, "track_xy")
-    if truth.shape[1] != track.shape[1] and truth.size and track.size:
-        raise ValueError(f"track_xy: {track.shape[1]} coordinates per row, truth_xy has "
-                         f"{truth.shape[1]}")
-    d = max(truth.shape[1], track.shape[1], 1)
+    d = _dimension(truth, track, "truth_xy", "track_xy")
     truth, track = truth.reshape(len(truth), d), track.reshape(len(track), d)
     series = gospa_over_time(truth[None], np.ones((1, len(truth)), bool), track[None],
                              np.ones((1, len(track)), bool), c, p)
@@ -456,7 +453,7 @@ def set_metrics(target_step: npt.ArrayLike, target_id: npt.ArrayLike,
             or n_steps <= last:
         raise ValueError(f"n_steps: must be an integer above the last step {last}, "
                          f"got {n_steps!r}")
-    d = max(t_xy.shape[1], y_xy.shape[1], 1)
+    d = _dimension(t_xy, y_xy, "target_xy", "track_xy")
     t_rows, t_slot = _cells(t_step, t_id, n_steps, "target_id")
     y_rows, y_slot = _cells(y_step, y_label, n_steps, "track_label")
     series = gospa_over_time(_scatter(t_xy, t_step, t_slot, t_rows.shape, d), t_rows >= 0,
@@ -519,18 +516,27 @@ def _check_c_p(c: float, p: float) -> tuple[float, float]:
 
 
 def _points(xy: npt.ArrayLike, name: str, rows: int | None = None) -> FloatArray:
-    """(k, d) float64 finite positions; an empty 1-D array is an empty set."""
+    """(k, d >= 1) float64 finite positions; an empty 1-D array is an empty set (0, 0)."""
     a = np.asarray(xy, dtype=np.float64)
     if a.ndim == 1 and a.size == 0:
         a = a.reshape(0, 0)
-    if a.ndim != 2:
-        raise ValueError(f"{name}: must be a (k, d) array of positions, got shape {a.shape}")
+    if a.ndim != 2 or (len(a) and not a.shape[1]):
+        raise ValueError(f"{name}: must be a (k, d) array of positions, d >= 1, got shape "
+                         f"{a.shape}")
     if rows is not None and len(a) != rows:
         raise ValueError(f"{name}: {len(a)} rows, expected {rows}")
     if not np.isfinite(a).all():
         raise ValueError(f"{name}: non-finite position in row "
                          f"{int(np.argmin(np.isfinite(a).all(axis=1)))}")
     return a
+
+
+def _dimension(a: FloatArray, b: FloatArray, name_a: str, name_b: str) -> int:
+    """The points' common dimension d; a (0, 0) set takes the other's (2 if both)."""
+    if a.shape[1] and b.shape[1] and a.shape[1] != b.shape[1]:
+        raise ValueError(f"{name_b}: {b.shape[1]} coordinates per row, {name_a} has "
+                         f"{a.shape[1]}")
+    return max(a.shape[1], b.shape[1]) or 2
 
 
 def _padded(xy: npt.ArrayLike, mask: npt.ArrayLike, name: str,
