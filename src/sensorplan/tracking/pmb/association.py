@@ -334,7 +334,9 @@ def association_exact(w_miss: FloatArray, w_det: FloatArray, w_new: FloatArray,
         per = np.bincount(assign[:, i] + 1, weights=weight, minlength=m + 1) / total
         p_miss[i], p_det[i] = per[0], per[1:]
     p_new = weight @ (~taken) / total
-    return AssociationMarginals(p_det, p_miss, p_new, 0, True)
+    # A sum of every weight over their total can round to just above 1.
+    return AssociationMarginals(np.minimum(p_det, 1.0), np.minimum(p_miss, 1.0),
+                                np.minimum(p_new, 1.0), 0, True)
 
 
 def association_components(w_det: FloatArray) -> list[tuple[IntArray, IntArray]]:
