@@ -45,9 +45,11 @@ starting from :math:`\nu_{ij} = 1 / w^{new}_j` (no competing track). At the fixe
 The two sides agree at a fixed point; after a finite number of iterations the track side
 (``p_det``, ``p_miss``) sums to one exactly and the measurement side to within the
 convergence tolerance. On a tree-shaped association graph (no cycle through tracks and
-measurements) belief propagation is exact; on a loopy one it is an approximation,
-typically within 1e-2 of the exact marginals (Williams and Lau 2014), and it always
-converges (they prove it). The sums "over all others" are formed from prefix and suffix
+measurements) belief propagation is exact; on a loopy one it is an approximation that
+Williams and Lau (2014) prove converges, typically to within 1e-2 of the exact marginals.
+On random, densely gated clusters of up to 5 tracks and 5 measurements with PMB-like
+weights the tests measured a mean worst error of 0.008 per cluster, but up to 0.17 on
+strongly ambiguous ones. The sums "over all others" are formed from prefix and suffix
 sums rather than a total minus one term, which would cancel when one term dominates.
 
 :func:`association_exact` enumerates every joint association instead: exponential in the
