@@ -1,0 +1,1 @@
+"""The track-oriented Poisson multi-Bernoulli (PMB) filter for an unknown number of targets."""
