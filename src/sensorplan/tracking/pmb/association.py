@@ -64,7 +64,7 @@ import numpy as np
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
-from ..._jit import njit
+from ..._compiled.jit import njit
 from ..._types import BoolArray, FloatArray, IntArray
 
 #: Default relative change of every message below which belief propagation stops.
