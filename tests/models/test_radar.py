@@ -558,3 +558,39 @@ def test_a_radar_row_as_a_tuple_gives_the_same_looks_bit_for_bit(rng, aware):
                                              *cov, prob) == a
                 counted += a[0] > 0
         assert counted > 50                    # looks that count were compared, not only zeros
+
+
+def test_the_clutter_density_integrates_to_the_clutter_rate_over_the_sensing_region() -> None:
+    p = SensorParams(clutter_rate=3.0)
+    row = radar_table((p,))[0]
+    r_lo = math.hypot(p.altitude, p.min_ground_range)
+    r_hi = math.hypot(p.altitude, p.max_ground_range)
+    r = np.linspace(r_lo, r_hi, 20001)
+    rho = radar.clutter_densities(row, r)
+    # over the region: azimuth width 2 fov times the integral over slant range (trapezoid)
+    total = 2 * p.fov_half_angle * float(np.sum(0.5 * (rho[1:] + rho[:-1]) * np.diff(r)))
+    np.testing.assert_allclose(total, 3.0, rtol=1e-9)
+    # the compiled scalar is the same model
+    assert radar.clutter_density(row, 700.0) == radar.clutter_densities(row, 700.0)
+    # a range outside the band is clipped to it when asked
+    assert radar.clutter_densities(row, 1.0, in_region=True) == radar.clutter_densities(row, r_lo)
+    assert float(radar.clutter_densities(radar_table((SensorParams(),))[0], 700.0)) == 0.0
+
+
+def test_false_alarms_are_measured_noisy_points_of_the_sensing_region() -> None:
+    table = radar_table((SensorParams(clutter_rate=5.0),))
+    rng = np.random.default_rng(4)
+    u, e = rng.random((40, 2)), rng.standard_normal((40, 2))
+    sxy, heading = np.array([100.0, 200.0]), 0.7
+    z = radar.false_alarms(table, 0, sxy, heading, u, e)
+    # the same composed by hand: points, their measurement, noise, wrap, points in the region
+    xy = radar.clutter_points(table[0], sxy, heading, u)
+    h, _, var, inside = radar.measure_looks(table, np.zeros(40, dtype=np.int64), xy, sxy,
+                                            np.full(40, heading))
+    want = h + np.sqrt(var) * e
+    want[:, 1] = np.angle(np.exp(1j * want[:, 1]))
+    np.testing.assert_allclose(z, want[inside], rtol=1e-12, atol=1e-12)
+    assert 0 < len(z) <= 40
+    noiseless = radar.false_alarms(table, 0, sxy, heading, u, None)
+    np.testing.assert_array_equal(noiseless[:, 0], h[inside, 0])
+    assert radar.false_alarms(table, 0, sxy, heading, np.zeros((0, 2)), None).shape == (0, 2)

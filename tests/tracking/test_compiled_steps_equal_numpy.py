@@ -249,6 +249,7 @@ def test_mode_reweighting_is_the_numpy_formula_bit_for_bit(rng, R):
 
 
 def test_pda_likelihoods_are_the_numpy_formula_bit_for_bit(rng):
+    from sensorplan.models.sensors import AREA, CLUTTER_RATE, COLUMNS
     from sensorplan.tracking._imm_nb import pda_likelihoods, pda_weights
 
     R, m = 3, 4
@@ -256,11 +257,13 @@ def test_pda_likelihoods_are_the_numpy_formula_bit_for_bit(rng):
     density = np.exp(-rng.uniform(0.0, 40.0, (R, m)))
     ranges = rng.uniform(100.0, 900.0, m)
     rate, area, pg = 1.3, 2.5e5, 0.999
+    row = np.zeros(len(COLUMNS))
+    row[CLUTTER_RATE], row[AREA] = rate, area
     rho = rate * ranges / area
     lik = pd[:, None] * density / (2.0 * math.pi) / rho[None]
     none = 1.0 - pd * pg
     den = none + lik.sum(axis=1)
-    got_lik, got_none, positive = pda_likelihoods(pd, density, ranges, rate, area, pg)
+    got_lik, got_none, positive = pda_likelihoods(pd, density, ranges, row, pg)
     np.testing.assert_array_equal(got_lik, lik)
     np.testing.assert_array_equal(got_none, none)
     assert positive
@@ -270,7 +273,7 @@ def test_pda_likelihoods_are_the_numpy_formula_bit_for_bit(rng):
     np.testing.assert_array_equal(beta0, none / den)
     assert ok
     ranges[1] = -5.0                                          # a range below the region's
-    assert not pda_likelihoods(pd, density, ranges, rate, area, pg)[2]
+    assert not pda_likelihoods(pd, density, ranges, row, pg)[2]
     assert not pda_weights(lik, np.zeros(R), np.zeros(R))[3]  # den = 0
 
 

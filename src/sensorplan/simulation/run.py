@@ -279,15 +279,7 @@ class _DetectionDraws:
 
     def _clutter_of(self, i: int, t: int, sxy: FloatArray, heading: float) -> FloatArray:
         u, n = self.points[i][t - 1]
-        if len(u) == 0:
-            return np.zeros((0, 2))
-        xy = radar.clutter_points(self.table[i], sxy, heading, u)
-        h, _, var, inside = radar.measure_looks(self.table, np.full(len(u), i), xy, sxy,
-                                                np.full(len(u), heading))
-        zc = h + np.sqrt(var) * n
-        zc[:, 1] = wrap_angle(zc[:, 1])
-        # Points behind the boresight plane (cos psi <= 0) are outside the sensing region.
-        return zc[inside]
+        return radar.false_alarms(self.table, i, sxy, heading, u, n)
 
 
 def _miss_update_kernel() -> Callable[..., tuple[FloatArray, ...]]:

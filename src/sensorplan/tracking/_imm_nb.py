@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._compiled.jit import njit
+from ..models.radar.model import clutter_density
 
 
 @njit(cache=True, error_model="numpy")
@@ -148,19 +149,19 @@ def pda_covariances(P: np.ndarray, Pc: np.ndarray, KSK: np.ndarray, beta0: np.nd
 
 
 @njit(cache=True, error_model="numpy")
-def pda_likelihoods(pd: np.ndarray, density: np.ndarray, ranges: np.ndarray, rate: float,
-                    area: float, pg: float) -> tuple[np.ndarray, np.ndarray, bool]:
+def pda_likelihoods(pd: np.ndarray, density: np.ndarray, ranges: np.ndarray, row: np.ndarray,
+                    pg: float) -> tuple[np.ndarray, np.ndarray, bool]:
     """PDA's detection likelihoods against clutter, per mode and detection.
 
     Parameters
     ----------
     pd : (R,) detection probabilities;  density : (R, m) ``exp(-d2/2 - logdet/2)``
-    ranges : (m,) measured ranges (m);  rate, area : the sensor's clutter rate and the
-    sensing region's ground area;  pg : gate probability
+    ranges : (m,) measured ranges (m);  row : the sensor's radar table row (its clutter
+    density, :func:`~sensorplan.models.radar.clutter_density`);  pg : gate probability
 
     Returns
     -------
-    lik : (R, m)  ``pd density / (2 pi) / rho``, ``rho = rate r / area`` the clutter density
+    lik : (R, m)  ``pd density / (2 pi) / rho``, ``rho`` the clutter density at each range
     none : (R,)   ``1 - pd pg``
     rho_positive : bool   every clutter density > 0
     """
@@ -168,7 +169,7 @@ def pda_likelihoods(pd: np.ndarray, density: np.ndarray, ranges: np.ndarray, rat
     rho = np.empty(m)
     positive = True
     for i in range(m):
-        rho[i] = rate * ranges[i] / area
+        rho[i] = clutter_density(row, ranges[i])
         positive = positive and rho[i] > 0.0
     lik = np.empty((R, m))
     none = np.empty(R)

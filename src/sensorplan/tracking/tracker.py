@@ -41,8 +41,8 @@ import numpy as np
 
 from .._types import BoolArray, FloatArray, IntArray
 from ..models.motion import cv_matrices
-from ..models.radar import detection_probabilities, inverse_looks
-from ..models.sensors import ALTITUDE2, AREA, CLUTTER_RATE, G_MAX, G_MIN
+from ..models.radar import clutter_densities, detection_probabilities, inverse_looks
+from ..models.sensors import CLUTTER_RATE
 from ._imm_nb import (SEQUENTIAL_SUM, combine_rows, floored_rows, mix, normalise_rows,
                       pda_covariances, pda_likelihoods, pda_spread, pda_weights, shifted_by_max)
 from .ekf import innovations, mahalanobis2, position_update, predict, update, update_rounds
@@ -442,8 +442,7 @@ class Tracker:
             # lik = pd exp(-d2/2 - logdet/2) / (2 pi) / rho, rho = rate r / area per
             # detection; none = 1 - pd pg (compiled; exp and the row sums numpy's).
             lik, none, rho_positive = pda_likelihoods(
-                pd, np.exp(-0.5 * d2 - 0.5 * logdet), np.ascontiguousarray(Z[:, 0]),
-                row[CLUTTER_RATE], row[AREA], pg)
+                pd, np.exp(-0.5 * d2 - 0.5 * logdet), np.ascontiguousarray(Z[:, 0]), row, pg)
             den, beta, beta0, den_ok = pda_weights(lik, none, lik.sum(axis=1))   # (R,), (R, m)
         if rho_positive and den_ok:
             log_den = np.log(den)
@@ -453,10 +452,8 @@ class Tracker:
             # likelihood under- or overflowed (Pd = 1, no gate, detections far off). Redo it
             # in logs with the density taken at the region's slant ranges; ratios survive.
             # Kept as a fallback so that every run the direct form handles stays bit for bit.
-            r = np.clip(Z[:, 0], math.sqrt(row[ALTITUDE2] + row[G_MIN] ** 2),
-                        math.sqrt(row[ALTITUDE2] + row[G_MAX] ** 2))
             with np.errstate(divide="ignore"):
-                log_rho = np.log(row[CLUTTER_RATE] * r / row[AREA])              # (m,)
+                log_rho = np.log(clutter_densities(row, Z[:, 0], in_region=True))   # (m,)
                 log_lik = (np.log(pd)[:, None] - 0.5 * d2 - 0.5 * logdet
                            - math.log(2.0 * math.pi) - log_rho[None])           # (R, m)
                 log_none = np.log(1.0 - pd * pg)

@@ -35,8 +35,7 @@ from stonesoup.types.detection import Clutter, Detection
 
 from ..._types import FloatArray
 from ...models import radar
-from ...models.angles import wrap_angle
-from ...models.sensors import ALTITUDE2, AREA, CLUTTER_RATE, G_MAX, G_MIN, SWERLING
+from ...models.sensors import ALTITUDE2, CLUTTER_RATE, G_MAX, G_MIN, SWERLING
 
 
 def is_swerling(table: FloatArray) -> bool:
@@ -61,15 +60,10 @@ def clutter_density(table: FloatArray, slant_range: float | None) -> float:
     0 without clutter; ``inf`` for a sensing region of zero area with clutter.
     """
     row = table[0]
-    lam = float(row[CLUTTER_RATE])
-    if lam == 0.0:
-        return 0.0
-    if row[AREA] <= 0.0:
-        return math.inf
     if slant_range is None:
         slant_range = 0.5 * (math.sqrt(row[G_MIN] ** 2 + row[ALTITUDE2])
                              + math.sqrt(row[G_MAX] ** 2 + row[ALTITUDE2]))
-    return lam * float(slant_range) / float(row[AREA])
+    return float(radar.clutter_densities(row, float(slant_range)))
 
 
 def draw_clutter(table: FloatArray, sensor_xy: FloatArray, heading: float, gen: Any,
@@ -90,17 +84,11 @@ def draw_clutter(table: FloatArray, sensor_xy: FloatArray, heading: float, gen: 
     if n == 0:
         return set()
     u = np.asarray(gen.random((n, 2)), dtype=float)
-    xy = radar.clutter_points(table[0], sensor_xy, heading, u)
-    h, _, var, inside = radar.measure_looks(table, np.zeros(n, dtype=np.int64), xy,
-                                            sensor_xy, np.full(n, float(heading)))
-    if noise:
-        e = np.asarray(gen.standard_normal((n, 2)), dtype=float)
-        # Points outside the region are dropped; their azimuth noise may be infinite.
-        h[inside] += np.sqrt(var[inside]) * e[inside]
-    phi = wrap_angle(h[:, 1])
-    return {Clutter(StateVector([[float(h[k, 0])], [Bearing(float(phi[k]))]]), timestamp=timestamp,
+    e = np.asarray(gen.standard_normal((n, 2)), dtype=float) if noise else None
+    z = radar.false_alarms(table, 0, sensor_xy, heading, u, e)
+    return {Clutter(StateVector([[float(r)], [Bearing(float(phi))]]), timestamp=timestamp,
                     measurement_model=model)
-            for k in np.flatnonzero(inside)}
+            for r, phi in z}
 
 
 def ordered_detections(detections: Iterable[Detection]) -> list[Detection]:

@@ -10,17 +10,18 @@ all call them. The slow numpy version of the same model lives in the tests
 (``tests/radar_reference.py``) as the independent second computation.
 """
 
-from .batch import (clutter_points, detectable_points, detectable_quadrature,
-                    detection_probabilities, hidden_looks, inverse_looks, look_information,
-                    measure_looks, visible_points, warm_up)
+from .batch import (clutter_densities, clutter_points, detectable_points,
+                    detectable_quadrature, detection_probabilities, false_alarms, hidden_looks,
+                    inverse_looks, look_information, measure_looks, visible_points, warm_up)
 from .model import (ANGLE_TOL, BAND_SIGMAS, IRF_B, IRF_C, IRF_D, P_VIS_MIN, RANGE_TOL,
-                    clutter_factor, cos_psi, detection_probability, hidden, in_band,
-                    in_sight_probability, in_wedge, inverse, look, look_at_azimuth,
+                    clutter_density, clutter_factor, cos_psi, detection_probability, hidden,
+                    in_band, in_sight_probability, in_wedge, inverse, look, look_at_azimuth,
                     look_in_range, look_range, look_range_clear, measure, noise_variances,
                     range_weight, reach, row_values, visible, wrap)
 
 __all__ = ["ANGLE_TOL", "BAND_SIGMAS", "IRF_B", "IRF_C", "IRF_D", "P_VIS_MIN", "RANGE_TOL",
-           "clutter_factor", "clutter_points", "cos_psi", "detectable_points",
+           "clutter_densities", "clutter_density", "clutter_factor", "clutter_points",
+           "cos_psi", "false_alarms", "detectable_points",
            "detectable_quadrature", "detection_probabilities", "detection_probability",
            "hidden", "hidden_looks",
            "in_band", "in_sight_probability", "in_wedge", "inverse", "inverse_looks", "look",

@@ -13,7 +13,8 @@ import numpy as np
 
 from ..._compiled.jit import njit
 from ..._types import BoolArray, FloatArray, IntArray
-from ..sensors import ALTITUDE, ALTITUDE2, COLUMNS, FOV, G_MAX, G_MIN
+from ..angles import wrap_angle
+from ..sensors import ALTITUDE, ALTITUDE2, AREA, CLUTTER_RATE, COLUMNS, FOV, G_MAX, G_MIN
 from .model import ANGLE_TOL, detection_probability, hidden, inverse, look, measure, visible
 
 
@@ -382,6 +383,57 @@ def clutter_points(row: FloatArray, sensor_xy: FloatArray, heading: float,
     a = heading + row[FOV] * (2.0 * u[:, 1] - 1.0)
     return np.asarray(sensor_xy, dtype=float) + g[:, None] * np.column_stack(
         [np.cos(a), np.sin(a)])
+
+
+def clutter_densities(row: FloatArray, r: FloatArray | float, *, in_region: bool = False
+                      ) -> FloatArray:
+    """Density of false alarms in ``(r, phi)`` (1/(m rad)) at slant ranges ``r`` (m): the
+    clutter rate times ``r`` over the sensing region's ground area (see
+    :func:`~sensorplan.models.radar.model.clutter_density`).
+
+    ``in_region``: take the density at ``r`` clipped to the sensing region's slant ranges
+    (a noisy range may fall outside the band the false alarms come from). 0 without clutter;
+    ``inf`` for a region of zero area with clutter.
+    """
+    r = np.asarray(r, dtype=float)
+    if in_region:
+        r = np.clip(r, math.sqrt(row[ALTITUDE2] + row[G_MIN] ** 2),
+                    math.sqrt(row[ALTITUDE2] + row[G_MAX] ** 2))
+    if row[CLUTTER_RATE] == 0.0:
+        return np.zeros(r.shape)
+    with np.errstate(divide="ignore"):
+        return row[CLUTTER_RATE] * r / row[AREA]
+
+
+def false_alarms(table: FloatArray, sensor: int, sensor_xy: FloatArray, heading: float,
+                 u: FloatArray, normals: FloatArray | None) -> FloatArray:
+    """One look's false alarms as measurements ``[r, phi]``.
+
+    Parameters
+    ----------
+    table : (N, C) radar table; sensor : the looking sensor's row
+    sensor_xy : (2,); heading : float
+    u : (n, 2) uniforms placing them uniformly in area over the sensing region
+        (:func:`clutter_points`)
+    normals : (n, 2) standard normals for their measurement noise, or None for none
+
+    Returns
+    -------
+    (k, 2) measurements of the ``k <= n`` points inside the sensing region (those behind the
+    boresight plane, ``cos psi <= 0``, are not), azimuth wrapped, in the order drawn.
+    """
+    n = len(u)
+    if n == 0:
+        return np.zeros((0, 2))
+    xy = clutter_points(table[sensor], sensor_xy, heading, u)
+    h, _, var, inside = measure_looks(table, np.full(n, sensor), xy, sensor_xy,
+                                      np.full(n, float(heading)))
+    z = h[inside]
+    if normals is not None:
+        # outside the region the azimuth noise may be infinite: only the points kept
+        z = z + np.sqrt(var[inside]) * np.asarray(normals, dtype=float)[inside]
+    z[:, 1] = wrap_angle(z[:, 1])
+    return z
 
 
 def look_information(row: FloatArray, dx: FloatArray, dy: FloatArray, th: FloatArray,

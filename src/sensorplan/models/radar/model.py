@@ -235,6 +235,21 @@ def detection_probability(row: Row, r2: float) -> float:
 
 
 @njit(cache=True, error_model="numpy")
+def clutter_density(row: Row, r: float) -> float:
+    r"""Density of false alarms in the measurement space ``(r, phi)`` at slant range ``r``.
+
+    ``clutter_rate`` :math:`\lambda` false alarms per look fall uniformly in ground area over
+    the sensing region of area :math:`A` (the ``area`` column). With :math:`r^2 = g^2 + z^2`
+    the ground area element is :math:`g\,dg\,d\phi = r\,dr\,d\phi`, so
+
+    .. math:: \rho(r) = \lambda\, r / A \quad [1 / (\mathrm{m\ rad})],
+
+    which integrates to :math:`\lambda` over the region. 0 without clutter.
+    """
+    return row[CLUTTER_RATE] * r / row[AREA]
+
+
+@njit(cache=True, error_model="numpy")
 def clutter_factor(row: Row, pd: float, r: float, s00: float, s01: float,
                    s11: float) -> float:
     r"""Information reduction of a look by clutter, for detection-aware planning.
@@ -259,7 +274,7 @@ def clutter_factor(row: Row, pd: float, r: float, s00: float, s01: float,
     if lam == 0.0:
         return 1.0
     det = s00 * s11 - s01 * s01
-    lam_w = lam * r / row[AREA] * math.sqrt(max(det, 0.0))
+    lam_w = clutter_density(row, r) * math.sqrt(max(det, 0.0))
     if lam_w <= 0.0:
         return 1.0
     return 1.0 / (1.0 + IRF_B * pd ** -IRF_C * lam_w ** IRF_D)
