@@ -57,7 +57,7 @@ from sensorplan.models.sensors import radar_table
 from sensorplan.simulation.settings import RunSettings
 from sensorplan.simulation import run_streams
 from sensorplan.study import load_study, median_interval, t_interval
-from sensorplan.tracking.tracker import Tracker
+from sensorplan.tracking.tracker import KnownTargetTracker
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The sets of problems, in order, with the study file whose scenario and methods they use.
@@ -106,7 +106,7 @@ def first_decision(scenario: Scenario, settings: RunSettings,
                         np.random.default_rng(streams["init"]))
     sensors = tuple(s.params for s in scenario.sensors)
     P0 = np.array(scenario.initial_cov)
-    tracker = Tracker(init.estimate, P0, scenario.dt, radar_table(sensors),
+    tracker = KnownTargetTracker(init.estimate, P0, scenario.dt, radar_table(sensors),
                       world=(scenario.world.width, scenario.world.height)
                       if settings.tracker.known_map else None,
                       restart_velocity_var=(P0[2, 2], P0[3, 3]),

@@ -14,8 +14,9 @@ import radar_reference as ref
 from sensorplan.models import radar
 from sensorplan.tracking.missed import miss_update
 from sensorplan.models.sensors import AREA, SensorParams, radar_table
-from sensorplan.simulation.run import _DetectionDraws, run_streams
-from sensorplan.tracking.tracker import Tracker
+from sensorplan.simulation import run_streams
+from sensorplan.simulation.sensing import DetectionDraws
+from sensorplan.tracking.tracker import KnownTargetTracker
 
 RADAR = SensorParams(detection="swerling1", false_alarm_probability=1e-4, clutter_rate=3.0)
 
@@ -34,7 +35,7 @@ def test_detection_frequencies_match_pd_within_binomial_bounds():
     table = radar_table([RADAR, SensorParams(detection="swerling1",
                                              false_alarm_probability=1e-6, altitude=450.0)])
     S = 20_000
-    draws = _DetectionDraws(table, run_streams(11), S)
+    draws = DetectionDraws(table, run_streams(11), S)
     target = np.array([[400.0, 300.0], [300.0, 650.0]])
     sensor = np.array([[100.0, 300.0], [300.0, 300.0]])
     pd = radar.detection_probabilities(table, np.arange(2), target, sensor)
@@ -49,7 +50,7 @@ def test_detection_frequencies_match_pd_within_binomial_bounds():
 def test_the_clutter_count_is_poisson_with_mean_lambda():
     table = radar_table([RADAR, SensorParams(clutter_rate=0.4)])
     S = 20_000
-    counts = _DetectionDraws(table, run_streams(3), S).counts          # (S, 2)
+    counts = DetectionDraws(table, run_streams(3), S).counts          # (S, 2)
     for i, lam in enumerate((3.0, 0.4)):
         c = counts[:, i]
         # mean within 4 standard errors; variance equal to the mean (Poisson dispersion)
@@ -69,7 +70,7 @@ def test_no_clutter_point_lies_outside_the_sensing_region():
                      beamwidth=1e-9)           # near-noiseless, so measurements show the points
     table = radar_table([p])
     S = 400
-    draws = _DetectionDraws(table, run_streams(5), S)
+    draws = DetectionDraws(table, run_streams(5), S)
     rng = np.random.default_rng(0)
     n = 0
     for t in range(1, S + 1):
@@ -101,11 +102,11 @@ def test_pda_without_clutter_and_with_pd_one_is_the_plain_update():
     rng = np.random.default_rng(3)
     st = ref.stack_params([SensorParams()])
     z = ref.measure(mean, sxy, st.altitude) + rng.normal(size=(1, 2)) * [2.0, 0.003]
-    plain = Tracker(mean, cov, 1.0, radar_table(SensorParams()), process_noise=0.05,
+    plain = KnownTargetTracker(mean, cov, 1.0, radar_table(SensorParams()), process_noise=0.05,
                     gate_probability=0.999)
-    plain.update(np.zeros(1, int), np.zeros(1, int), z, sxy, heading)
+    plain.update_detections(np.zeros(1, int), np.zeros(1, int), z, sxy, heading)
     # Clutter so thin that a detection is surely the target's, and Pd = 1: beta_1 -> 1.
-    pda = Tracker(mean, cov, 1.0, radar_table(SensorParams(clutter_rate=1e-12)),
+    pda = KnownTargetTracker(mean, cov, 1.0, radar_table(SensorParams(clutter_rate=1e-12)),
                   process_noise=0.05, gate_probability=0.999)
     pda.update_sets(np.zeros(1, int), np.zeros(1, int), [z], sxy, heading)
     np.testing.assert_allclose(pda.means, plain.means, rtol=1e-12)
@@ -118,13 +119,13 @@ def test_pda_weights_a_far_clutter_detection_down():
     z = ref.measure(mean, sxy, st.altitude)
     far = z + np.array([[30.0, 0.0]])                 # a false alarm 30 m off, in the gate
     table = radar_table(SensorParams(clutter_rate=1.0))
-    tr = Tracker(mean, cov, 1.0, table, process_noise=0.05, gate_probability=0.999)
+    tr = KnownTargetTracker(mean, cov, 1.0, table, process_noise=0.05, gate_probability=0.999)
     res = tr.update_sets(np.zeros(1, int), np.zeros(1, int), [np.vstack([z, far])], sxy,
                          heading)
     assert res.used[0] == 2 and res.discarded[0] == 0
     # The estimate moves little toward the false alarm, and the covariance keeps the
     # association uncertainty (larger than a single-detection update's).
-    single = Tracker(mean, cov, 1.0, table, process_noise=0.05, gate_probability=0.999)
+    single = KnownTargetTracker(mean, cov, 1.0, table, process_noise=0.05, gate_probability=0.999)
     single.update_sets(np.zeros(1, int), np.zeros(1, int), [z], sxy, heading)
     assert np.linalg.norm(tr.means[0, :2] - mean[0, :2]) < 10.0
     assert np.trace(tr.covs[0, :2, :2]) > np.trace(single.covs[0, :2, :2])

@@ -9,10 +9,11 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
+from sensorplan.simulation import episode as episode_module
 from sensorplan.simulation import run as simulation
 from sensorplan.models.angles import heading_rule, wrap_angle
 from sensorplan.models.motion import cv_matrices
-from sensorplan.tracking.tracker import Tracker
+from sensorplan.tracking.tracker import KnownTargetTracker
 from sensorplan.errors import ConfigError
 from sensorplan.planners import PLANNERS, PlanResult
 from sensorplan.planners.problem import MapRect, Plan, PlanningProblem, move_vectors
@@ -35,7 +36,7 @@ def settings(miss_update: str = "none", **kw) -> RunSettings:
 
 
 def assert_episodes_equal(a: Episode, b: Episode) -> None:
-    for name in simulation._ARRAYS:
+    for name in episode_module._ARRAYS:
         if name == "planning_seconds":   # wall-clock time
             continue
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
@@ -142,12 +143,12 @@ class TestDeterminism:
             np.testing.assert_array_equal(s.generate_state(4), c.generate_state(4))
 
 
-class _RecordingTracker(Tracker):
+class _RecordingTracker(KnownTargetTracker):
     calls: ClassVar[list] = []
 
-    def update(self, sensors, targets, z, sensor_xy, heading):
+    def update_detections(self, sensors, targets, z, sensor_xy, heading):
         self.calls.append((np.array(sensors), np.array(z)))
-        return super().update(sensors, targets, z, sensor_xy, heading)
+        return super().update_detections(sensors, targets, z, sensor_xy, heading)
 
 
 def recovered_noise(ep: Episode, calls, scenario: Scenario) -> dict[tuple[int, int], np.ndarray]:
@@ -169,7 +170,7 @@ def recovered_noise(ep: Episode, calls, scenario: Scenario) -> dict[tuple[int, i
 
 class TestPairing:
     def test_two_planners_share_truth_initial_estimates_and_noise(self, monkeypatch):
-        monkeypatch.setattr(simulation, "Tracker", _RecordingTracker)
+        monkeypatch.setattr(simulation, "KnownTargetTracker", _RecordingTracker)
         sc = paper_scenario()
         S, seed = 40, 3
         streams = run_streams(seed)
@@ -311,7 +312,7 @@ class TestRecording:
                                            execution="ol"), 6)
         ep.save(tmp_path / "ep.npz")
         back = Episode.load(tmp_path / "ep.npz")
-        for name in simulation._ARRAYS:
+        for name in episode_module._ARRAYS:
             a, b = getattr(ep, name), getattr(back, name)
             assert a.dtype == b.dtype, name
             np.testing.assert_array_equal(a, b, err_msg=name)

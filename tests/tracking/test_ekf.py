@@ -16,7 +16,7 @@ from sensorplan.tracking.ekf import (joseph_update, nees, position_update, predi
 from sensorplan.planners.problem import MapRect
 from sensorplan.simulation.scenario import Scenario, SensorSpec, TargetSpec, make_truth
 from sensorplan.models.sensors import SensorParams, radar_table
-from sensorplan.tracking.tracker import Tracker
+from sensorplan.tracking.tracker import KnownTargetTracker
 
 
 def table_of(params: SensorParams) -> np.ndarray:
@@ -190,8 +190,8 @@ class TestTracker:
         sensors = np.array([0, 1, 2, 3, 4])
         targets = np.array([1, 3, 1, 0, 1])           # target 1 measured three times
         z = measure(x[:, :2][np.array([0, 1, 0, 3, 0])] + 3.0, sxy, params.altitude)
-        tr = Tracker(means, covs, 1.0, table_of(params), process_noise=0.05)
-        tr.update(sensors, targets, z, sxy, th)
+        tr = KnownTargetTracker(means, covs, 1.0, table_of(params), process_noise=0.05)
+        tr.update_detections(sensors, targets, z, sxy, th)
         m, P = means.copy(), covs.copy()
         for s, j in zip(sensors, targets):  # sensor order, one measurement at a time
             m[[j]], P[[j]] = update(m[[j]], P[[j]], z[[s]], sxy[[s]], th[[s]],
@@ -203,7 +203,7 @@ class TestTracker:
 
     def test_predict_all_tracks(self, rng):
         *_, params, means, covs = self.setup(rng)
-        tr = Tracker(means, covs, 2.0, table_of(params), process_noise=0.1)
+        tr = KnownTargetTracker(means, covs, 2.0, table_of(params), process_noise=0.1)
         tr.predict()
         F, Q = cv_matrices(2.0, 0.1)
         np.testing.assert_allclose(tr.means, means @ F.T)
@@ -230,7 +230,7 @@ class TestConsistency:
         n_runs, steps = 200, 60
         sc, rng, truth0, est0, P0 = consistency_setup(n_runs, 11)
         truth = make_truth(sc, truth0, rng)
-        tracker = Tracker(est0, P0, sc.dt, radar_table(SensorParams()),
+        tracker = KnownTargetTracker(est0, P0, sc.dt, radar_table(SensorParams()),
                           process_noise=sc.process_noise)
         # The sensor flies with each target, 350 m behind it in x (constant geometry).
         offset = np.array([350.0, 0.0])
@@ -247,7 +247,7 @@ class TestConsistency:
             noise = rng.standard_normal((n_runs, 2)) * np.sqrt(
                 np.stack([R[:, 0, 0], R[:, 1, 1]], axis=-1))
             z = measure(x, sxy, 500.0) + noise
-            tracker.update(sensors, targets, z, sxy, heading)
+            tracker.update_detections(sensors, targets, z, sxy, heading)
             mean_nees.append(nees(x, tracker.means, tracker.covs).mean())
         mean_nees = np.array(mean_nees)
         assert lo <= mean_nees[-1] <= hi, (lo, mean_nees[-1], hi)
@@ -264,7 +264,7 @@ class TestConsistency:
         sc, rng, truth0, est0, P0 = consistency_setup(n_runs, 11)
         truth = make_truth(sc, truth0, rng)
         params = SensorParams(range_resolution=3.0, beamwidth=math.radians(0.3))
-        tracker = Tracker(est0, P0, sc.dt, radar_table(params),
+        tracker = KnownTargetTracker(est0, P0, sc.dt, radar_table(params),
                           process_noise=sc.process_noise)
         offset = np.array([350.0, 0.0])
         heading = np.zeros(n_runs)
@@ -275,7 +275,7 @@ class TestConsistency:
             R = noise_cov(x, sxy, heading, SensorParams())
             z = measure(x, sxy, 500.0) + rng.standard_normal((n_runs, 2)) * np.sqrt(
                 np.stack([R[:, 0, 0], R[:, 1, 1]], axis=-1))
-            tracker.update(np.zeros(n_runs, dtype=np.int64), np.arange(n_runs), z, sxy,
+            tracker.update_detections(np.zeros(n_runs, dtype=np.int64), np.arange(n_runs), z, sxy,
                            heading)
         hi = chi2.ppf(0.975, 4 * n_runs) / n_runs
         assert nees(x, tracker.means, tracker.covs).mean() > hi
@@ -288,7 +288,7 @@ class TestConsistency:
         truth0 = np.column_stack([np.full((M, 2), 5e7), rng.uniform(-5, 5, (M, 2))])
         truth = make_truth(sc, truth0, rng)
         params = varied_params(rng, N)
-        tracker = Tracker(truth0 + rng.normal(0, 10, (M, 4)) * [1, 1, 0.1, 0.1],
+        tracker = KnownTargetTracker(truth0 + rng.normal(0, 10, (M, 4)) * [1, 1, 0.1, 0.1],
                           np.diag([400.0, 400.0, 4.0, 4.0]), 1.0, table_of(params),
                           process_noise=0.05)
         for step in range(10_000):
@@ -305,7 +305,7 @@ class TestConsistency:
                 R = noise_cov(x[targets], sxy, th, take_params(params, sensors))
                 z = measure(x[targets], sxy, params.altitude[sensors]) + rng.standard_normal(
                     (len(sensors), 2)) * np.sqrt(np.stack([R[:, 0, 0], R[:, 1, 1]], -1))
-                tracker.update(sensors, targets, z, sxy, th)
+                tracker.update_detections(sensors, targets, z, sxy, th)
             P = tracker.covs
             assert np.array_equal(P, np.swapaxes(P, -1, -2)), step
             np.linalg.cholesky(P)  # raises if not positive definite

@@ -12,7 +12,7 @@ import radar_reference as ref
 from sensorplan.models.motion import cv_matrices
 from sensorplan.tracking.known_map import map_constraint, truncated_normal_moments
 from sensorplan.models.sensors import SensorParams, radar_table
-from sensorplan.tracking.tracker import Tracker, gate_threshold, stationary
+from sensorplan.tracking.tracker import KnownTargetTracker, gate_threshold, stationary
 
 P0 = np.diag([400.0, 400.0, 4.0, 4.0])
 TABLE = radar_table(SensorParams())
@@ -33,8 +33,9 @@ def test_imm_with_equal_modes_is_the_single_filter(rng):
     M = 4
     means = np.column_stack([rng.uniform(200, 400, (M, 2)), rng.normal(0, 3, (M, 2))])
     kw = dict(gate_probability=0.999, reacquire=True, world=(600.0, 600.0))
-    single = Tracker(means, P0, 1.0, TABLE, process_noise=0.3, **kw)
-    imm = Tracker(means, P0, 1.0, TABLE, process_noise=0.3, mode_process_noise=(0.3, 0.3),
+    single = KnownTargetTracker(means, P0, 1.0, TABLE, process_noise=0.3, **kw)
+    imm = KnownTargetTracker(means, P0, 1.0, TABLE, process_noise=0.3, mode_process_noise=(0.3,
+                             0.3),
                   switching=np.array([[0.9, 0.1], [0.2, 0.8]]), **kw)
     truth = means.copy()
     F, _ = cv_matrices(1.0, 0.0)
@@ -52,7 +53,7 @@ def test_imm_with_equal_modes_is_the_single_filter(rng):
             for tr in (single, imm):
                 tr.miss(sensors[:1], np.array([t % M]), sxy[:1] + 5000.0, hd[:1])
         for tr in (single, imm):
-            tr.update(sensors[i], i, z[i], sxy[i], hd[i])
+            tr.update_detections(sensors[i], i, z[i], sxy[i], hd[i])
         np.testing.assert_allclose(imm.means, single.means, rtol=1e-12, atol=1e-9)
         np.testing.assert_allclose(imm.covs, single.covs, rtol=1e-12, atol=1e-9)
     np.testing.assert_allclose(imm.planning_process_noise(), np.full(M, 0.3), rtol=1e-12)
@@ -67,7 +68,7 @@ def test_stationary_distribution():
 
 def test_a_manoeuvre_raises_the_high_noise_mode(rng):
     m = np.array([[300.0, 300.0, 5.0, 0.0]])
-    tr = Tracker(m, P0, 1.0, TABLE, process_noise=0.05, mode_process_noise=(0.05, 5.0),
+    tr = KnownTargetTracker(m, P0, 1.0, TABLE, process_noise=0.05, mode_process_noise=(0.05, 5.0),
                  switching=np.array([[0.95, 0.05], [0.1, 0.9]]))
     truth = m.copy()
     F, _ = cv_matrices(1.0, 0.0)
@@ -79,7 +80,7 @@ def test_a_manoeuvre_raises_the_high_noise_mode(rng):
         tr.predict()
         sxy, hd = looks_at(rng, truth, 1)
         z = ref.measure(truth, sxy, 500.0) + rng.normal(size=(1, 2)) * [1.0, 0.001]
-        tr.update(np.zeros(1, dtype=int), np.zeros(1, dtype=int), z, sxy, hd)
+        tr.update_detections(np.zeros(1, dtype=int), np.zeros(1, dtype=int), z, sxy, hd)
         high.append(tr.mode_probs[0, 1])
     high = np.array(high)
     # Quiet before the turn, the high-noise mode takes over right after it, then fades.
@@ -116,10 +117,12 @@ def test_a_detection_just_inside_the_gate_is_used_and_just_outside_is_not(direct
     heading = math.atan2(280.0 - 100.0, 300.0 - 40.0)
     gamma = gate_threshold(0.999)
     for factor, used in ((1 - 1e-6, True), (1 + 1e-6, False)):
-        tr = Tracker(mean[None], P0, 1.0, TABLE, process_noise=0.05, gate_probability=0.999)
+        tr = KnownTargetTracker(mean[None], P0, 1.0, TABLE, process_noise=0.05,
+                                gate_probability=0.999)
         z = _detection_at_distance(mean, P0, sxy, heading, factor * gamma,
                                    np.array(direction))
-        res = tr.update(np.zeros(1, dtype=int), np.zeros(1, dtype=int), z[None], sxy[None],
+        res = tr.update_detections(np.zeros(1, dtype=int), np.zeros(1, dtype=int), z[None],
+                                   sxy[None],
                         np.array([heading]))
         assert bool(res.used[0]) is used and bool(res.gated_out[0]) is not used
         if used:
@@ -134,9 +137,9 @@ def test_re_acquisition_restarts_at_the_inverse_measurement():
     sxy = np.array([40.0, 100.0])
     heading = 0.5
     z = np.array([620.0, 0.9])                       # far from the track
-    tr = Tracker(mean[None], P0, 1.0, TABLE, process_noise=0.05, gate_probability=0.999,
+    tr = KnownTargetTracker(mean[None], P0, 1.0, TABLE, process_noise=0.05, gate_probability=0.999,
                  reacquire=True, restart_velocity_var=(4.0, 9.0))
-    res = tr.update(np.zeros(1, dtype=int), np.zeros(1, dtype=int), z[None], sxy[None],
+    res = tr.update_detections(np.zeros(1, dtype=int), np.zeros(1, dtype=int), z[None], sxy[None],
                     np.array([heading]))
     assert res.gated_out[0] and res.restarted[0] and not res.used[0]
     # Independent inverse: ground range from the slant range, then polar to Cartesian.
@@ -156,7 +159,7 @@ def test_re_acquisition_restarts_at_the_inverse_measurement():
 
 def test_re_acquisition_needs_the_gate():
     with pytest.raises(ValueError, match="gate"):
-        Tracker(np.zeros((1, 4)), P0, 1.0, TABLE, process_noise=0.05, reacquire=True)
+        KnownTargetTracker(np.zeros((1, 4)), P0, 1.0, TABLE, process_noise=0.05, reacquire=True)
 
 
 # ------------------------------------------------------------------------------ the map
@@ -231,10 +234,10 @@ def test_the_map_truncation_matches_the_truncated_gaussian_moments(rng):
 
 def test_tracker_applies_the_map_after_predict():
     m = np.array([[595.0, 300.0, 8.0, 0.0]])          # about to leave the map
-    tr = Tracker(m, P0, 1.0, TABLE, process_noise=0.05, world=(600.0, 600.0))
+    tr = KnownTargetTracker(m, P0, 1.0, TABLE, process_noise=0.05, world=(600.0, 600.0))
     corrected = tr.predict()
     assert corrected[0] and tr.means[0, 0] <= 600.0
-    free = Tracker(m, P0, 1.0, TABLE, process_noise=0.05)
+    free = KnownTargetTracker(m, P0, 1.0, TABLE, process_noise=0.05)
     free.predict()
     assert free.means[0, 0] > 600.0
 

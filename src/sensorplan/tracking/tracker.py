@@ -1,4 +1,10 @@
-r"""The tracker: one filter per target, and the options that keep its tracks honest.
+r"""The tracker of known targets: one filter per target, and the options that keep its
+tracks honest.
+
+It is the tracker of the paper's configuration (``tracker.kind = "known"``): the number of
+targets is known, and a look pointed at target ``j`` can only detect ``j``, so track ``j``
+is target ``j`` (its label is ``j``, its existence 1). It follows the tracker protocol of
+:mod:`sensorplan.tracking.base`.
 
 Each target has a Gaussian track, the moment-matched state of its filter: a single extended
 Kalman filter with a CWNA motion model (``model = "cv"``) or an interacting multiple model
@@ -42,9 +48,10 @@ import numpy as np
 from .._types import BoolArray, FloatArray, IntArray
 from ..models.motion import cv_matrices
 from ..models.radar import clutter_densities, detection_probabilities, inverse_looks
-from ..models.sensors import CLUTTER_RATE
+from ..models.sensors import CLUTTER_RATE, SWERLING
 from ._imm_nb import (SEQUENTIAL_SUM, combine_rows, floored_rows, mix, normalise_rows,
                       pda_covariances, pda_likelihoods, pda_spread, pda_weights, shifted_by_max)
+from .base import Looks, TrackSet, UpdateRecord
 from .ekf import innovations, mahalanobis2, position_update, predict, update, update_rounds
 from .known_map import map_constraint
 
@@ -76,7 +83,7 @@ def stationary(switching: FloatArray) -> FloatArray:
 
 @dataclass(frozen=True)
 class SetResults:
-    """What :meth:`Tracker.update_sets` did with each of L looks.
+    """What :meth:`KnownTargetTracker.update_sets` did with each of L looks.
 
     Attributes
     ----------
@@ -96,7 +103,7 @@ class SetResults:
 
 @dataclass(frozen=True)
 class LookResults:
-    """What :meth:`Tracker.update` did with each of L detections.
+    """What :meth:`KnownTargetTracker.update_detections` did with each of L detections.
 
     Attributes
     ----------
@@ -112,8 +119,9 @@ class LookResults:
     map_corrected: BoolArray
 
 
-class Tracker:
-    """Every target's track, with the honest-tracking options (see the module docstring).
+class KnownTargetTracker:
+    """Every known target's track, with the honest-tracking options (see the module
+    docstring).
 
     Parameters
     ----------
@@ -140,6 +148,9 @@ class Tracker:
         nothing about the places they hide.
     restart_velocity_var : (2,)
         Velocity variances (m^2/s^2) of a restarted track.
+    miss_update : callable, optional
+        The missed-look update :meth:`update` applies to a look that returned no detection
+        (:func:`sensorplan.tracking.missed.miss_update`); None: a miss changes nothing.
     """
 
     def __init__(self, means: FloatArray, covs: FloatArray, dt: float, table: FloatArray, *,
@@ -148,7 +159,8 @@ class Tracker:
                  reacquire: bool = False, association: str = "pda",
                  world: tuple[float, float] | None = None,
                  buildings: FloatArray | None = None,
-                 restart_velocity_var: tuple[float, float] = (4.0, 4.0)) -> None:
+                 restart_velocity_var: tuple[float, float] = (4.0, 4.0),
+                 miss_update: Callable[..., Any] | None = None) -> None:
         means = np.array(means, dtype=float)
         covs = np.array(np.broadcast_to(covs, means.shape + (4,)), dtype=float)
         self.table = np.ascontiguousarray(table, dtype=float)
@@ -180,6 +192,55 @@ class Tracker:
         self.restart_velocity_var = np.asarray(restart_velocity_var, dtype=float)
         self.means, self.covs = means, covs
         self._all_rows = np.arange(M)
+        self.miss_update = miss_update
+        # A look at target j returns j's detection only, when no sensor misses a target in
+        # view or reports false alarms: detections then update as one batch.
+        self.imperfect = bool(self.table[:, SWERLING].any() or self.table[:, CLUTTER_RATE].any())
+
+    # ---------------------------------------------------------------- the tracker protocol
+    def tracks(self) -> TrackSet:
+        """Every target's track, labelled with the target's index (arrays held by the
+        tracker: valid until its next predict or update)."""
+        M = len(self.means)
+        return TrackSet(self.means, self.covs, np.ones(M), self._all_rows)
+
+    def update(self, looks: Looks) -> UpdateRecord:
+        """Update with one step's looks, each aimed at a target (``looks.aims``).
+
+        First the looks that returned nothing get the missed-look update (in sensor order,
+        if the tracker has one); then the detections: with ideal detection each look's one
+        detection is its target's and they apply as one batch (:meth:`update_detections`),
+        else look by look with association in clutter (:meth:`update_sets`).
+        """
+        M, L = len(self.means), len(looks.sensors)
+        sensors, aims = np.asarray(looks.sensors), np.asarray(looks.aims)
+        pos, head = np.asarray(looks.positions), np.asarray(looks.headings)
+        counts = looks.counts
+        negative, inflated = np.zeros(M, dtype=bool), np.zeros(M, dtype=bool)
+        restarted, corrected = np.zeros(M, dtype=bool), np.zeros(M, dtype=bool)
+        used, discarded = np.zeros(L, dtype=np.int64), np.zeros(L, dtype=np.int64)
+        gated_out = np.zeros(L, dtype=bool)
+        empty = np.flatnonzero(counts == 0)
+        if self.miss_update is not None and empty.size:
+            negative, inflated = self.miss(sensors[empty], aims[empty], pos[empty],
+                                           head[empty], kernel=self.miss_update)
+        i = np.flatnonzero(counts > 0)
+        if i.size and self.imperfect:
+            res = self.update_sets(sensors[i], aims[i], [looks.detections[n] for n in i],
+                                   pos[i], head[i], kernel=self.miss_update)
+            negative |= res.negative
+            restarted[aims[i][res.restarted]] = True
+            corrected |= res.map_corrected
+            used[i], discarded[i] = res.used, res.discarded
+        elif i.size:
+            z = np.concatenate([looks.detections[n][:1] for n in i])
+            one = self.update_detections(sensors[i], aims[i], z, pos[i], head[i])
+            gated_out[i] = one.gated_out
+            restarted[aims[i][one.restarted]] = True
+            corrected |= one.map_corrected
+            used[i], discarded[i] = one.used, one.gated_out
+        return UpdateRecord(negative, inflated, restarted, corrected, used, discarded,
+                            gated_out)
 
     @property
     def n_modes(self) -> int:
@@ -307,8 +368,8 @@ class Tracker:
         return negative, inflated
 
     # ---------------------------------------------------------------- detections
-    def update(self, sensors: IntArray, targets: IntArray, z: FloatArray,
-               sensor_xy: FloatArray, heading: FloatArray) -> LookResults:
+    def update_detections(self, sensors: IntArray, targets: IntArray, z: FloatArray,
+                          sensor_xy: FloatArray, heading: FloatArray) -> LookResults:
         """Apply L detections, in the given (sensor) order per target, then the map.
 
         Detections of distinct targets are independent and applied as one batch; a target
@@ -359,7 +420,8 @@ class Tracker:
           (``"nearest"``); with no gated detection the look is a miss and gets the
           negative update for ``Pd < 1`` (``kernel``, default
           :func:`sensorplan.tracking.missed.miss_update`), if the tracker has missed-look updates;
-        - it does not: the (single) detection is the target's, as in :meth:`update`.
+        - it does not: the (single) detection is the target's, as in
+          :meth:`update_detections`.
 
         Parameters
         ----------
@@ -387,8 +449,8 @@ class Tracker:
                 if Z.shape[0] != 1:
                     raise ValueError(f"look {n}: {Z.shape[0]} detections from a sensor "
                                      "without false alarms")
-                one = self.update(np.array([i]), np.array([j]), Z, sensor_xy[n:n + 1],
-                                  heading[n:n + 1])
+                one = self.update_detections(np.array([i]), np.array([j]), Z,
+                                             sensor_xy[n:n + 1], heading[n:n + 1])
                 used[n], discarded[n] = int(one.used[0]), int(one.gated_out[0])
                 restarted[n] = one.restarted[0]
                 continue

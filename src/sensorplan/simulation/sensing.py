@@ -1,0 +1,132 @@
+"""What the sensors see of the truth in one step: each look's detections and what they were.
+
+:class:`Sensing` holds a run's sensors and every random draw of their sensing, made up front
+from the run's own streams (measurement noise, detection, false alarms), so that every
+method of a study sees the same draws (common random numbers). Its :meth:`Sensing.look`
+turns the platforms' poses and aims into the :class:`~sensorplan.tracking.base.Looks` a
+tracker updates with, and the facts only the simulator knows (:class:`Sensed`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._types import BoolArray, FloatArray, IntArray, IntegerArray
+from ..models import radar
+from ..models.angles import wrap_angle
+from ..models.sensors import ALTITUDE, CLUTTER_RATE, SWERLING
+from ..tracking.base import Looks
+from .episode import Sensed
+
+
+def _imperfect(table: FloatArray) -> bool:
+    """Whether some sensor misses targets in view or reports false alarms."""
+    return bool(table[:, SWERLING].any() or table[:, CLUTTER_RATE].any())
+
+
+class DetectionDraws:
+    """A run's detection outcomes and false alarms, drawn up front from their own streams.
+
+    Per sensor and step: one uniform decides whether a target in view is detected
+    (``u < Pd``), drawn whether the sensor looks or not; a Poisson count of false alarms
+    (mean ``clutter_rate``) and, per false alarm, two uniforms (its ground range and
+    azimuth, uniform in area over the sensing region) and two standard normals (its
+    measurement noise). The draws depend only on the run's seed, so every method of a study
+    sees the same ones (common random numbers).
+    """
+
+    def __init__(self, table: FloatArray, streams: dict[str, np.random.SeedSequence],
+                 S: int) -> None:
+        N = len(table)
+        self.table = table
+        self.u = np.stack([np.random.default_rng(c).random(S)
+                           for c in streams["detection"].spawn(N)], axis=1)   # (S, N)
+        self.counts = np.zeros((S, N), dtype=np.int64)
+        self.points: list[list[tuple[FloatArray, FloatArray]]] = []
+        for i, c in enumerate(streams["clutter"].spawn(N)):
+            rng = np.random.default_rng(c)
+            lam = table[i, CLUTTER_RATE]
+            counts = rng.poisson(lam, S) if lam > 0 else np.zeros(S, dtype=np.int64)
+            draws = rng.random((int(counts.sum()), 2))
+            normals = rng.standard_normal((int(counts.sum()), 2))
+            self.counts[:, i] = counts
+            split = np.cumsum(counts)[:-1]
+            self.points.append(list(zip(np.split(draws, split), np.split(normals, split))))
+
+    def detected(self, t: int, target_xy: FloatArray, sensor_xy: FloatArray) -> BoolArray:
+        """Whether each sensor's look would detect its target if in view, at step t."""
+        pd = radar.detection_probabilities(self.table, np.arange(len(self.table)),
+                                           target_xy, sensor_xy)
+        return self.u[t - 1] < pd
+
+    def looks(self, t: int, seen: BoolArray, z: FloatArray, pos: FloatArray, head: FloatArray,
+              assigned: BoolArray) -> tuple[list[FloatArray], IntegerArray]:
+        """Each sensor's detections at step t (its target's if seen, then its false alarms
+        in the sensing region), and its number of false alarms."""
+        sets, false = [], np.zeros(len(self.table), dtype=np.int16)
+        for i in range(len(self.table)):
+            clutter = self._clutter_of(i, t, pos[i], head[i]) if assigned[i] \
+                else np.zeros((0, 2))
+            false[i] = len(clutter)
+            sets.append(np.concatenate(([z[i:i + 1]] if seen[i] else []) + [clutter]))
+        return sets, false
+
+    def _clutter_of(self, i: int, t: int, sxy: FloatArray, heading: float) -> FloatArray:
+        u, n = self.points[i][t - 1]
+        return radar.false_alarms(self.table, i, sxy, heading, u, n)
+
+
+class Sensing:
+    """A run's sensors looking at the truth (see the module docstring).
+
+    Parameters
+    ----------
+    table : (N, C) radar table
+    buildings : (K, 5)   buildings that can hide a target (none: ``(0, 5)``)
+    streams : the run's seed sequences (:func:`~sensorplan.simulation.run.run_streams`)
+    steps : S, the run's number of steps
+
+    Every sensor draws its two standard normals of measurement noise at every step, whether
+    it looks or not, so the noise of one sensor does not depend on the others' plans.
+    """
+
+    def __init__(self, table: FloatArray, buildings: FloatArray,
+                 streams: dict[str, np.random.SeedSequence], steps: int) -> None:
+        N = len(table)
+        self.table = table
+        self.buildings = buildings
+        self.noise = np.stack([np.random.default_rng(c).standard_normal((steps, 2))
+                               for c in streams["noise"].spawn(N)], axis=1)     # (S, N, 2)
+        self.draws = DetectionDraws(table, streams, steps) if _imperfect(table) else None
+        self._index = np.arange(N)
+
+    def look(self, t: int, truth: FloatArray, positions: FloatArray, headings: FloatArray,
+             aimed: IntArray) -> tuple[Looks, Sensed]:
+        """Step ``t``'s looks: sensor i, at ``positions[i]`` with ``headings[i]``, looks at
+        target ``aimed[i]`` (-1: it does not look) of the true states ``truth`` ``(M, 4)``.
+
+        Visibility and the sampled noise use the true position; a building in the line of
+        sight hides the target (false alarms still occur).
+        """
+        table, idx = self.table, self._index
+        assigned = aimed >= 0
+        tj = np.maximum(aimed, 0)
+        h, _, var, seen = radar.measure_looks(table, idx, truth[tj, :2], positions, headings)
+        seen &= assigned
+        if len(self.buildings):
+            seen &= ~radar.hidden_looks(self.buildings, positions, table[:, ALTITUDE],
+                                        truth[tj, :2])
+        if self.draws is not None:
+            seen &= self.draws.detected(t, truth[tj, :2], positions)
+        z = h + np.sqrt(var) * self.noise[t - 1]
+        z[:, 1] = wrap_angle(z[:, 1])
+        i = idx[assigned]
+        if self.draws is not None:
+            sets, false = self.draws.looks(t, seen, z, positions, headings, assigned)
+            detections = tuple(sets[n] for n in i)
+        else:
+            false = np.zeros(len(table), dtype=np.int16)
+            detections = tuple(z[n:n + 1] if seen[n] else z[n:n][:0] for n in i)
+        looks = Looks(sensors=i, aims=aimed[i], positions=positions[i], headings=headings[i],
+                      detections=detections)
+        return looks, Sensed(seen=seen, missed=assigned & ~seen, false_alarms=false)

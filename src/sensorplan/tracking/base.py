@@ -1,0 +1,127 @@
+"""What every tracker offers the closed loop: the looks it is given and the tracks it reports.
+
+A step of the closed loop is: the tracker predicts (:meth:`Tracker.predict`); the sensors
+look, and each look returns its detections (:class:`Looks`); the tracker updates with them
+(:meth:`Tracker.update`) and reports its tracks (:meth:`Tracker.tracks`), which the planner
+plans on. Nothing outside a tracker assumes that track ``j`` is target ``j``: a tracker of
+known targets labels its tracks with the targets' indices, a multi-target tracker with
+labels of its own, and reports each track's probability of existence.
+
+Trackers are registered by kind (:data:`TRACKERS`), as planners are by name.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from .._types import BoolArray, FloatArray, IntArray
+
+
+@dataclass(frozen=True)
+class Looks:
+    """One step's looks and the detections each returned.
+
+    Attributes
+    ----------
+    sensors : (L,) int        the looking sensors (rows of the radar table), in sensor order
+    aims : (L,) int           the track each look pointed its beam at (a label)
+    positions : (L, 2)        the sensors' ground positions (m)
+    headings : (L,)           their headings (rad)
+    detections : L arrays ``(n_l, 2)``   ``[r, phi]`` of each look's detections (m, rad),
+                              in the order the sensor reported them
+    """
+
+    sensors: IntArray
+    aims: IntArray
+    positions: FloatArray
+    headings: FloatArray
+    detections: tuple[FloatArray, ...]
+
+    def __post_init__(self) -> None:
+        L = len(self.sensors)
+        if not (len(self.aims) == len(self.positions) == len(self.headings)
+                == len(self.detections) == L):
+            raise ValueError("looks: sensors, aims, positions, headings and detections must "
+                             "have one entry per look")
+
+    @property
+    def counts(self) -> IntArray:
+        """(L,) the number of detections of each look."""
+        return np.array([len(d) for d in self.detections], dtype=np.int64)
+
+
+@dataclass(frozen=True)
+class TrackSet:
+    """The tracks a tracker reports at one time.
+
+    Attributes
+    ----------
+    means : (T, 4)            ``[x, y, vx, vy]``
+    covs : (T, 4, 4)
+    existence : (T,)          probability that each track is a real target (1 for a tracker
+                              of known targets)
+    labels : (T,) int         each track's label, kept for the track's life
+    """
+
+    means: FloatArray
+    covs: FloatArray
+    existence: FloatArray
+    labels: IntArray
+
+    def __len__(self) -> int:
+        return len(self.labels)
+
+
+@dataclass(frozen=True)
+class UpdateRecord:
+    """What one step's update did, for the run's record.
+
+    Attributes
+    ----------
+    negative : (T,) bool      tracks that got a missed-look (negative) update
+    inflated : (T,) bool      tracks whose missed-look update inflated them instead
+    restarted : (T,) bool     tracks restarted from a detection
+    map_corrected : (T,) bool tracks the known map corrected after the updates
+    used : (L,) int           detections of each look applied to a track
+    discarded : (L,) int      detections of each look outside every gate
+    gated_out : (L,) bool     a look's single detection fell outside its track's gate
+    """
+
+    negative: BoolArray
+    inflated: BoolArray
+    restarted: BoolArray
+    map_corrected: BoolArray
+    used: IntArray
+    discarded: IntArray
+    gated_out: BoolArray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+
+
+@runtime_checkable
+class Tracker(Protocol):
+    """A tracker in the closed loop (see the module docstring)."""
+
+    def predict(self) -> BoolArray:
+        """Predict every track one step; returns ``(T,)`` the tracks the map corrected."""
+        ...
+
+    def update(self, looks: Looks) -> UpdateRecord:
+        """Update the tracks with one step's looks."""
+        ...
+
+    def tracks(self) -> TrackSet:
+        """The tracks as they stand."""
+        ...
+
+    def planning_process_noise(self) -> float | FloatArray:
+        """The process noise the planner should predict each reported track with."""
+        ...
+
+
+#: The trackers by kind (``tracker.kind`` of the run settings): ``module:Class``, imported
+#: when used.
+TRACKERS: dict[str, str] = {
+    "known": "sensorplan.tracking.tracker:KnownTargetTracker",
+}
