@@ -46,39 +46,16 @@ from typing import Any
 import numpy as np
 
 from .._types import BoolArray, FloatArray, IntArray
-from ..models.motion import cv_matrices
-from ..models.radar import clutter_densities, detection_probabilities, inverse_looks
+from ..models.radar import inverse_looks
 from ..models.sensors import CLUTTER_RATE, SWERLING
-from ._imm_nb import (SEQUENTIAL_SUM, combine_rows, floored_rows, mix, normalise_rows,
-                      pda_covariances, pda_likelihoods, pda_spread, pda_weights, shifted_by_max)
+from .association import ASSOCIATIONS, GATE_DOF, gate_threshold, pda_update
 from .base import Looks, TrackSet, UpdateRecord
-from .ekf import innovations, mahalanobis2, position_update, predict, update, update_rounds
+from .ekf import innovations, mahalanobis2, position_update, update, update_rounds
+from .imm import ModeMixture, stationary
 from .known_map import map_constraint
 
-#: Ways to associate a look's detections with its track when false alarms are on.
-ASSOCIATIONS = ("pda", "nearest")
-
-#: Degrees of freedom of a range/azimuth innovation.
-GATE_DOF = 2
-
-
-def gate_threshold(probability: float) -> float:
-    """The chi-square(2) quantile of ``probability``: ``-2 ln(1 - p)`` in closed form."""
-    if not 0.0 < probability < 1.0:
-        raise ValueError(f"gate probability must be in (0, 1), got {probability!r}")
-    return -2.0 * math.log1p(-probability)
-
-
-def stationary(switching: FloatArray) -> FloatArray:
-    """The stationary distribution ``pi = pi Pi`` of a Markov switching matrix ``(R, R)``."""
-    R = switching.shape[0]
-    # Solve (Pi^T - I) pi = 0 with sum(pi) = 1 (least squares on the stacked system).
-    A = np.vstack([switching.T - np.eye(R), np.ones((1, R))])
-    b = np.zeros(R + 1)
-    b[-1] = 1.0
-    pi = np.linalg.lstsq(A, b, rcond=None)[0]
-    pi = np.clip(pi, 0.0, None)
-    return pi / pi.sum()
+__all__ = ["ASSOCIATIONS", "KnownTargetTracker", "LookResults", "SetResults", "gate_threshold",
+           "stationary"]
 
 
 @dataclass(frozen=True)
@@ -119,7 +96,7 @@ class LookResults:
     map_corrected: BoolArray
 
 
-class KnownTargetTracker:
+class KnownTargetTracker(ModeMixture):
     """Every known target's track, with the honest-tracking options (see the module
     docstring).
 
@@ -161,23 +138,9 @@ class KnownTargetTracker:
                  buildings: FloatArray | None = None,
                  restart_velocity_var: tuple[float, float] = (4.0, 4.0),
                  miss_update: Callable[..., Any] | None = None) -> None:
-        means = np.array(means, dtype=float)
-        covs = np.array(np.broadcast_to(covs, means.shape + (4,)), dtype=float)
+        super().__init__(means, covs, dt, process_noise=process_noise,
+                         mode_process_noise=mode_process_noise, switching=switching)
         self.table = np.ascontiguousarray(table, dtype=float)
-        self.F, self.Q = cv_matrices(dt, process_noise)
-        if mode_process_noise is None:
-            self.q_modes = np.array([float(process_noise)])
-            self.switching = np.ones((1, 1))
-        else:
-            self.q_modes = np.asarray(mode_process_noise, dtype=float)
-            self.switching = np.asarray(switching, dtype=float)
-        self.Q_modes = np.stack([cv_matrices(dt, q)[1] for q in self.q_modes])
-        self.initial_probs = stationary(self.switching)
-        R = len(self.q_modes)
-        M = len(means)
-        self.mode_means = np.repeat(means[:, None], R, axis=1)
-        self.mode_covs = np.repeat(covs[:, None], R, axis=1)
-        self.mode_probs = np.tile(self.initial_probs, (M, 1))
         self.gate = None if gate_probability is None else gate_threshold(gate_probability)
         self.gate_probability = gate_probability
         if association not in ASSOCIATIONS:
@@ -190,8 +153,6 @@ class KnownTargetTracker:
         self.buildings = None if buildings is None or len(buildings) == 0 else np.asarray(
             buildings, dtype=float).reshape(-1, 5)
         self.restart_velocity_var = np.asarray(restart_velocity_var, dtype=float)
-        self.means, self.covs = means, covs
-        self._all_rows = np.arange(M)
         self.miss_update = miss_update
         # A look at target j returns j's detection only, when no sensor misses a target in
         # view or reports false alarms: detections then update as one batch.
@@ -246,40 +207,6 @@ class KnownTargetTracker:
     def n_modes(self) -> int:
         return len(self.q_modes)
 
-    # ---------------------------------------------------------------- combination
-    def _combine(self, targets: IntArray | slice = slice(None)) -> None:
-        """Moment-match the modes of ``targets`` into their tracks (a slice: all of them)."""
-        if self.n_modes == 1:
-            self.means[targets] = self.mode_means[targets, 0]
-            self.covs[targets] = self.mode_covs[targets, 0]
-            return
-        rows = self._all_rows if isinstance(targets, slice) else np.asarray(targets,
-                                                                            dtype=np.int64)
-        combine_rows(self.mode_probs, self.mode_means, self.mode_covs, rows, self.means,
-                     self.covs)
-
-    def _reweight(self, targets: IntArray, log_likelihood: FloatArray) -> None:
-        """Multiply mode probabilities by likelihoods ``(B, R)`` (log), renormalised."""
-        if self.n_modes == 1:
-            return
-        # log(max(mu, 1e-300)) + L, minus its row maximum; then exp and normalise. The
-        # elementwise steps are compiled, in numpy's order; log and exp stay numpy's.
-        rows = np.asarray(targets, dtype=np.int64)
-        w = np.exp(shifted_by_max(np.log(floored_rows(self.mode_probs, rows, 1e-300)),
-                                  log_likelihood))
-        if self.n_modes < SEQUENTIAL_SUM:
-            normalise_rows(w, self.mode_probs, rows)
-        else:
-            self.mode_probs[rows] = w / w.sum(axis=1, keepdims=True)
-
-    def planning_process_noise(self) -> float | FloatArray:
-        """q the planner should predict with: the filter's q, or per target ``(M,)`` the
-        IMM's effective q under the mode probabilities predicted one step ahead."""
-        if self.n_modes == 1:
-            return float(self.q_modes[0])
-        return (self.mode_probs @ self.switching) @ self.q_modes
-
-    # ---------------------------------------------------------------- predict
     def predict(self) -> BoolArray:
         """Predict every track one step (mixing first for an IMM), then apply the map.
 
@@ -287,19 +214,7 @@ class KnownTargetTracker:
         -------
         (M,) bool: tracks the map constraint corrected.
         """
-        if self.n_modes == 1:
-            self.mode_means[:, 0], self.mode_covs[:, 0] = predict(
-                self.mode_means[:, 0], self.mode_covs[:, 0], self.F, self.Q)
-        else:
-            mu, Pi = self.mode_probs, self.switching
-            c = np.maximum(mu @ Pi, 1e-300)                                  # (M, R)
-            x0, P0 = mix(mu, Pi, c, self.mode_means, self.mode_covs)         # (M, R, ...)
-            Fm = self.F
-            xp = x0 @ Fm.T
-            Pp = Fm @ P0 @ Fm.T + self.Q_modes[None]
-            self.mode_means, self.mode_covs = xp, 0.5 * (Pp + np.swapaxes(Pp, -1, -2))
-            self.mode_probs = c / c.sum(axis=1, keepdims=True)
-        self._combine()
+        self.predict_modes()
         return self.apply_map()
 
     def apply_map(self) -> BoolArray:
@@ -312,8 +227,8 @@ class KnownTargetTracker:
         if hit.any():
             self.mode_means, self.mode_covs = m, P
             idx = np.flatnonzero(hit)
-            self._reweight(idx, log_mass[idx])
-            self._combine(idx)
+            self.reweight(idx, log_mass[idx])
+            self.combine(idx)
         return hit
 
     # ---------------------------------------------------------------- missed looks
@@ -360,9 +275,9 @@ class KnownTargetTracker:
                                        return_fraction=True, **gate_kw)
                 self.mode_means[j], self.mode_covs[j] = m, P
                 # The mode's probability of the miss: the mass the look did not remove.
-                self._reweight(j, np.log(np.maximum(1.0 - f, 1.0 / 512)))
+                self.reweight(j, np.log(np.maximum(1.0 - f, 1.0 / 512)))
                 infl = infl.any(axis=1)
-            self._combine(j)
+            self.combine(j)
             negative[j] = True
             inflated[j] |= infl
         return negative, inflated
@@ -473,7 +388,14 @@ class KnownTargetTracker:
             if self.association == "nearest":
                 gated = gated[[int(np.argmin(mahalanobis2(nu[ok], S[ok])))]] \
                     if self.gate is not None else gated[:1]
-            self._pda(i, j, gated, sensor_xy[n], heading[n])
+            pg = (self.gate_probability
+                  if self.gate is not None and self.gate_probability is not None else 1.0)
+            done = pda_update(self.mode_means[j], self.mode_covs[j], gated, sensor_xy[n],
+                              float(heading[n]), self.table, i, pg)
+            if done is not None:
+                self.mode_means[j], self.mode_covs[j], log_den = done
+                self.reweight(np.array([j]), log_den[None])
+                self.combine(np.array([j]))
             used[n] = len(gated)
         return SetResults(used, discarded, restarted, negative, self.apply_map())
 
@@ -481,64 +403,6 @@ class KnownTargetTracker:
                   kernel: Callable[..., Any] | None) -> tuple[BoolArray, BoolArray]:
         return self.miss(np.array([i]), np.array([j]), np.asarray(sxy)[None],
                          np.array([hd]), kernel=kernel)
-
-    def _pda(self, i: int, j: int, Z: FloatArray, sxy: FloatArray, hd: float) -> None:
-        """Probabilistic data association update of track j with gated detections Z."""
-        R, m = self.n_modes, len(Z)
-        x = self.mode_means[j]                                           # (R, 4)
-        P = self.mode_covs[j]                                            # (R, 4, 4)
-        xr = np.repeat(x, m, 0)
-        Pr = np.repeat(P, m, 0)
-        # (np.repeat / concatenate rather than np.tile: the same arrays, a fifth of the cost)
-        sxy_rows = np.repeat(np.asarray(sxy, dtype=float)[None], R * m, axis=0)
-        nu, S, Hp, var = innovations(xr, Pr, np.concatenate((Z,) * R), sxy_rows,
-                                     np.full(R * m, hd), self.table, np.full(R * m, i))
-        d2 = mahalanobis2(nu, S).reshape(R, m)
-        logdet = np.linalg.slogdet(S)[1].reshape(R, m)
-        pg = (self.gate_probability
-              if self.gate is not None and self.gate_probability is not None else 1.0)
-        # Pd at each mode's predicted position; clutter density in (r, phi) at each detection.
-        pd = detection_probabilities(self.table, np.full(R, i), x[:, :2], sxy_rows[:R])
-        row = self.table[i]
-        with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-            # lik = pd exp(-d2/2 - logdet/2) / (2 pi) / rho, rho = rate r / area per
-            # detection; none = 1 - pd pg (compiled; exp and the row sums numpy's).
-            lik, none, rho_positive = pda_likelihoods(
-                pd, np.exp(-0.5 * d2 - 0.5 * logdet), np.ascontiguousarray(Z[:, 0]), row, pg)
-            den, beta, beta0, den_ok = pda_weights(lik, none, lik.sum(axis=1))   # (R,), (R, m)
-        if rho_positive and den_ok:
-            log_den = np.log(den)
-        else:
-            # The direct form failed at an edge of the valid ranges: a very noisy radar
-            # measured a range below the sensing region's (a clutter density <= 0), or every
-            # likelihood under- or overflowed (Pd = 1, no gate, detections far off). Redo it
-            # in logs with the density taken at the region's slant ranges; ratios survive.
-            # Kept as a fallback so that every run the direct form handles stays bit for bit.
-            with np.errstate(divide="ignore"):
-                log_rho = np.log(clutter_densities(row, Z[:, 0], in_region=True))   # (m,)
-                log_lik = (np.log(pd)[:, None] - 0.5 * d2 - 0.5 * logdet
-                           - math.log(2.0 * math.pi) - log_rho[None])           # (R, m)
-                log_none = np.log(1.0 - pd * pg)
-            log_den = np.logaddexp(log_none, np.logaddexp.reduce(log_lik, axis=1))
-            if not np.all(np.isfinite(log_den)):
-                # The model gives these detections no probability at all (a sensing region
-                # of zero area, a singular innovation): they carry no usable information.
-                return
-            beta = np.exp(log_lik - log_den[:, None])
-            beta0 = np.exp(log_none - log_den)
-        nu = nu.reshape(R, m, 2)
-        # Combined innovation and spread of innovations (the einsums' sums, compiled).
-        nu_c, spread = pda_spread(beta, nu)
-        Hp0, var0 = Hp.reshape(R, m, 2, 2)[:, 0], var.reshape(R, m, 2)[:, 0]
-        xc, Pc = position_update(x, P, nu_c, Hp0, var0)                  # Joseph, P_c
-        # Gain K = P H'^T S^-1 at the mode's linearisation (the same for every detection).
-        S0 = S.reshape(R, m, 2, 2)[:, 0]
-        PHt = P[:, :, :2] @ np.swapaxes(Hp0, -1, -2)
-        K = np.swapaxes(np.linalg.solve(S0, np.swapaxes(PHt, -1, -2)), -1, -2)   # (R, 4, 2)
-        self.mode_means[j] = xc
-        pda_covariances(P, Pc, K @ spread @ np.swapaxes(K, -1, -2), beta0, self.mode_covs[j])
-        self._reweight(np.array([j]), log_den[None])
-        self._combine(np.array([j]))
 
     def _update_modes(self, idx: IntArray, sensors: IntArray, targets: IntArray, z: FloatArray,
                       sensor_xy: FloatArray, heading: FloatArray) -> None:
@@ -561,8 +425,8 @@ class KnownTargetTracker:
             xn, Pn = position_update(x, P, nu, Hp, var)
             self.mode_means[j] = xn.reshape(-1, R, 4)
             self.mode_covs[j] = Pn.reshape(-1, R, 4, 4)
-            self._reweight(j, logl.reshape(-1, R))
-        self._combine(j)
+            self.reweight(j, logl.reshape(-1, R))
+        self.combine(j)
 
     def _restart(self, idx: IntArray, sensors: IntArray, targets: IntArray, z: FloatArray,
                  sensor_xy: FloatArray, heading: FloatArray) -> None:
@@ -574,7 +438,4 @@ class KnownTargetTracker:
         P[:, 2, 2], P[:, 3, 3] = self.restart_velocity_var
         x = np.zeros((len(idx), 4))
         x[:, :2] = xy
-        self.mode_means[j] = x[:, None]
-        self.mode_covs[j] = P[:, None]
-        self.mode_probs[j] = self.initial_probs
-        self._combine(j)
+        self.restart(j, x, P)
