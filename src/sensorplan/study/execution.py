@@ -374,6 +374,34 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
         On Ctrl-C; everything finished before is kept and a rerun resumes.
     """
     out = Path(out)
+    workers = _check_executor(workers, scheduler, processes)
+    ensure_out_dir(out)
+
+    import pyarrow.parquet  # noqa: F401  (imported now, not inside the first write's timing)
+
+    start = time.perf_counter()
+    with locked(out):
+        done = _open_study_dir(out, study)
+        todo = [t for t in study.tasks() if t not in done]
+        if not todo and tables_intact(out, study):
+            return StudyRun(out, len(study.tasks()), 0, time.perf_counter() - start)
+        executor = _Executor(study, todo, workers, scheduler, processes)
+        try:
+            session = _Session(out, study, executor.name if todo else "none (complete)",
+                               len(done))
+            try:
+                session.run(executor, _progress_calls(progress), len(todo))
+            finally:
+                executor.close()
+                session.finish()
+        finally:
+            executor.close()
+    return StudyRun(out, len(study.tasks()), session.ran, session.wall, session.record)
+
+
+def _check_executor(workers: int | None, scheduler: str | None, processes: bool) -> int:
+    """The number of workers, after checking the executor's arguments (see
+    :func:`run_study`)."""
     if workers is None:
         workers = default_workers()
     if not isinstance(workers, int) or isinstance(workers, bool) or workers < 1:
@@ -393,109 +421,144 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
             raise RuntimeError(
                 f"run_study starts worker processes, which run {script} again, so call it "
                 f"under `if __name__ == \"__main__\":` in that script (or pass workers=1)")
-    ensure_out_dir(out)
+    return workers
 
-    import pyarrow.parquet  # noqa: F401  (imported now, not inside the first write's timing)
 
-    start_wall, start_cpu = time.perf_counter(), time.process_time()
-    with locked(out):
-        grown_from = prepare(out, study)
-        clean_temporaries(out)
-        done, damaged = check_parts(out, study)
-        for (r, m), problem in sorted(damaged.items()):
-            # Never trusted and never fatal: its pair runs again with the missing ones.
-            # Removed first: a part that cannot be removed is then the only line.
-            remove_part(out, r, m)
-            _say(f"warning: {part_path(out, r, m, 'steps').parent.name}/m{m:02d} is damaged "
-                 f"({problem}); running it again")
-        if grown_from is not None:
-            _say(f"note: {out} held {grown_from} runs of this study; adding runs "
-                 f"{grown_from}..{study.runs - 1}")
-        todo = [t for t in study.tasks() if t not in done]
+def _open_study_dir(out: Path, study: Study) -> set[tuple[int, int]]:
+    """Make ``out`` hold ``study`` and return the (run, method) pairs already done: a new
+    directory, the same study, or the same study with more runs; damaged parts removed to
+    run again (never trusted, never fatal)."""
+    grown_from = prepare(out, study)
+    clean_temporaries(out)
+    done, damaged = check_parts(out, study)
+    for (r, m), problem in sorted(damaged.items()):
+        # Removed first: a part that cannot be removed is then the only line.
+        remove_part(out, r, m)
+        _say(f"warning: {part_path(out, r, m, 'steps').parent.name}/m{m:02d} is damaged "
+             f"({problem}); running it again")
+    if grown_from is not None:
+        _say(f"note: {out} held {grown_from} runs of this study; adding runs "
+             f"{grown_from}..{study.runs - 1}")
+    return set(done)
+
+
+class _Executor:
+    """Where the missing pairs run: in this process, a process pool, or Dask."""
+
+    def __init__(self, study: Study, todo: list[tuple[int, int]], workers: int,
+                 scheduler: str | None, processes: bool) -> None:
+        self.study, self.todo, self.workers = study, todo, workers
+        self.client = self.cluster = None
         if scheduler is not None:
-            executor = f"dask {scheduler}" + (f" ({workers} workers)" if scheduler == "local"
-                                              else "")
+            self.name = f"dask {scheduler}" + (f" ({workers} workers)"
+                                               if scheduler == "local" else "")
+            if todo:
+                # Connected before anything is reported: a bad address is the only line.
+                self.client, self.cluster = _dask_client(scheduler, workers, processes)
         elif workers == 1 or len(todo) <= 1:
-            executor = "in process"
+            self.name = "in process"
         else:
-            executor = f"process pool ({workers} workers)"
-        session: dict[str, Any] = {
+            self.name = f"process pool ({workers} workers)"
+
+    def results(self) -> Iterable[TaskResult]:
+        if not self.todo:
+            return ()
+        if self.client is not None:
+            return _dask(self.study, self.todo, self.client, self.cluster)
+        if self.name == "in process":
+            return _in_process(self.study, self.todo)
+        return _process_pool(self.study, self.todo, self.workers)
+
+    def close(self) -> None:
+        """Close the Dask client and cluster (closed already unless never started)."""
+        if self.client is not None:
+            with contextlib.suppress(Exception):
+                self.client.close()
+            if self.cluster is not None:
+                with contextlib.suppress(Exception):
+                    self.cluster.close()
+
+
+class _Session:
+    """One call's work on a study directory: what it ran and how long it took, recorded in
+    ``meta.json`` as it starts and when it ends (interrupted or not)."""
+
+    def __init__(self, out: Path, study: Study, executor: str, before: int) -> None:
+        self.out, self.study, self.before = out, study, before
+        self.start_wall, self.start_cpu = time.perf_counter(), time.process_time()
+        self.record: dict[str, Any] = {
             "id": f"{now()}-{os.getpid()}", "started": now(), "finished": None,
-            "executor": executor if todo else "none (complete)", "tasks_run": 0,
-            "tasks_before": len(done), "interrupted": False,
+            "executor": executor, "tasks_run": 0, "tasks_before": before,
+            "interrupted": False,
             # Per session: a resumed study may have been continued with other code.
             "sensorplan": versions().get("sensorplan"), "git": git_describe()}
-        timing = {"compute_wall_seconds": 0.0, "compute_cpu_seconds": 0.0,
-                  "planning_seconds": 0.0, "write_seconds": 0.0, "consolidate_seconds": 0.0}
-        if not todo and tables_intact(out, study):
-            return StudyRun(out, len(study.tasks()), 0, time.perf_counter() - start_wall)
-        client = cluster = None
-        if todo and scheduler is not None:
-            # Connected before anything is reported: a bad address is the only line.
-            client, cluster = _dask_client(scheduler, workers, processes)
+        self.timing = {"compute_wall_seconds": 0.0, "compute_cpu_seconds": 0.0,
+                       "planning_seconds": 0.0, "write_seconds": 0.0,
+                       "consolidate_seconds": 0.0}
+        self.ran, self.wall, self.finished = 0, 0.0, False
         try:
-            write_meta(out, study, session, complete=False)
+            write_meta(out, study, self.record, complete=False)
         except OSError as exc:
             raise write_failed(exc) from None
-        with_seconds = progress is not None and _takes_seconds(progress)
+
+    def run(self, executor: _Executor, progress: Callable[..., None] | None, todo: int
+            ) -> None:
+        """Write every result as it comes, then consolidate the tables."""
         if progress is not None:
-            progress(0, len(todo), len(done))
-        n = 0
-        finished = False
+            progress(0, todo, self.before)
         try:
-            if not todo:
-                results: Iterable[TaskResult] = ()
-            elif client is not None:
-                results = _dask(study, todo, client, cluster)
-            elif executor == "in process":
-                results = _in_process(study, todo)
-            else:
-                results = _process_pool(study, todo, workers)
-            for res in results:
+            for res in executor.results():
                 t0 = time.perf_counter()
-                try:
-                    write_part(out, res)
-                except OSError as exc:
-                    raise write_failed(exc) from None
-                timing["write_seconds"] += time.perf_counter() - t0
-                timing["compute_wall_seconds"] += res.wall
-                timing["compute_cpu_seconds"] += res.cpu
-                timing["planning_seconds"] += res.planning
-                n += 1
+                self._write(write_part, self.out, res)
+                self.timing["write_seconds"] += time.perf_counter() - t0
+                self.timing["compute_wall_seconds"] += res.wall
+                self.timing["compute_cpu_seconds"] += res.cpu
+                self.timing["planning_seconds"] += res.planning
+                self.ran += 1
                 if progress is not None:
-                    if with_seconds:
-                        # a callback that takes it (checked by _takes_seconds)
-                        cast(Callable[..., None], progress)(n, len(todo), len(done),
-                                                            seconds=res.wall)
-                    else:
-                        progress(n, len(todo), len(done))
+                    progress(self.ran, todo, self.before, seconds=res.wall)
             t0 = time.perf_counter()
-            try:
-                consolidate(out, study)
-            except OSError as exc:
-                raise write_failed(exc) from None
-            timing["consolidate_seconds"] = time.perf_counter() - t0
-            finished = True
+            self._write(consolidate, self.out, self.study)
+            self.timing["consolidate_seconds"] = time.perf_counter() - t0
+            self.finished = True
         except KeyboardInterrupt:
-            session["interrupted"] = True
-            raise StudyInterrupted(len(done) + n, len(study.tasks())) from None
+            self.record["interrupted"] = True
+            raise StudyInterrupted(self.before + self.ran, len(self.study.tasks())) from None
         except _DaskLost as exc:
-            session["interrupted"] = True
-            raise StudyLost(len(done) + n, len(study.tasks()), str(exc)) from None
-        finally:
-            if client is not None:                  # closed already unless never started
-                with contextlib.suppress(Exception):
-                    client.close()
-                if cluster is not None:
-                    with contextlib.suppress(Exception):
-                        cluster.close()
-            wall = time.perf_counter() - start_wall
-            session.update({k: round(v, 4) for k, v in timing.items()})
-            session.update({"finished": now(), "tasks_run": n, "wall_seconds": round(wall, 3),
-                            "main_cpu_seconds": round(time.process_time() - start_cpu, 3)})
-            with contextlib.suppress(Exception):
-                write_meta(out, study, session, complete=finished)
-    return StudyRun(out, len(study.tasks()), n, wall, session)
+            self.record["interrupted"] = True
+            raise StudyLost(self.before + self.ran, len(self.study.tasks()), str(exc)) from None
+
+    @staticmethod
+    def _write(write: Callable[..., None], *args: Any) -> None:
+        try:
+            write(*args)
+        except OSError as exc:
+            raise write_failed(exc) from None
+
+    def finish(self) -> None:
+        """Record the session's end in ``meta.json`` (never raising: the study is safe)."""
+        self.wall = time.perf_counter() - self.start_wall
+        self.record.update({k: round(v, 4) for k, v in self.timing.items()})
+        self.record.update({"finished": now(), "tasks_run": self.ran,
+                            "wall_seconds": round(self.wall, 3),
+                            "main_cpu_seconds": round(time.process_time() - self.start_cpu,
+                                                      3)})
+        with contextlib.suppress(Exception):
+            write_meta(self.out, self.study, self.record, complete=self.finished)
+
+
+def _progress_calls(progress: ProgressFn | None) -> Callable[..., None] | None:
+    """The progress callback, called with ``seconds=`` (a pair's compute time) only if it
+    takes it: checked once, not at every pair."""
+    if progress is None:
+        return None
+    if _takes_seconds(progress):
+        return cast(Callable[..., None], progress)
+
+    def call(done: int, total: int, already: int, seconds: float = 0.0) -> None:
+        progress(done, total, already)
+
+    return call
 
 
 def _takes_seconds(progress: Callable[..., Any]) -> bool:
