@@ -200,11 +200,14 @@ class Sensed:
     seen : (N,) bool          each sensor detected the target it looked at
     missed : (N,) bool        each assigned sensor's look did not detect its target
     false_alarms : (N,) int   false alarms each look returned
+    measured : (M, N) bool    which sensor detected which target (None: only the aimed ones,
+                              as ``seen`` says)
     """
 
     seen: BoolArray
     missed: BoolArray
     false_alarms: IntegerArray
+    measured: BoolArray | None = None
 
 
 class Recorder:
@@ -245,8 +248,11 @@ class Recorder:
         a = self.arrays
         a["truth"][t], a["estimate"][t], a["cov"][t] = truth, tracks.means, tracks.covs
         a["looked"][t], a["missed"][t] = aimed, sensed.missed
-        n = np.flatnonzero(sensed.seen)
-        a["measured"][t, aimed[n], n] = True
+        if sensed.measured is not None:
+            a["measured"][t] = sensed.measured
+        else:
+            n = np.flatnonzero(sensed.seen)
+            a["measured"][t, aimed[n], n] = True
         i = looks.sensors
         a["detections"][t, i] = looks.counts
         a["false_alarms"][t, i] = sensed.false_alarms[i]

@@ -54,7 +54,7 @@ from .settings import EXECUTIONS, RunSettings
 __all__ = ["EXECUTIONS", "STREAMS", "Episode", "RunSettings", "run_episode", "run_streams"]
 #: Names of the run's independent random streams, in spawn order (a new stream is only ever
 #: appended, so the earlier ones keep their values).
-STREAMS = ("truth", "init", "noise", "planner", "detection", "clutter")
+STREAMS = ("truth", "init", "noise", "planner", "detection", "clutter", "target_detection")
 
 
 def run_streams(seed: int | np.random.SeedSequence) -> dict[str, np.random.SeedSequence]:

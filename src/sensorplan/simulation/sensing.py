@@ -91,23 +91,33 @@ class Sensing:
     """
 
     def __init__(self, table: FloatArray, buildings: FloatArray,
-                 streams: dict[str, np.random.SeedSequence], steps: int) -> None:
+                 streams: dict[str, np.random.SeedSequence], steps: int,
+                 look_detects: str = "target") -> None:
+        if look_detects not in LOOK_DETECTS:
+            raise ValueError(f"look_detects must be one of {LOOK_DETECTS}, got {look_detects!r}")
         N = len(table)
         self.table = table
         self.buildings = buildings
+        self.look_detects = look_detects
+        self.targets = TargetDraws(streams["target_detection"], steps, N)
         self.noise = np.stack([np.random.default_rng(c).standard_normal((steps, 2))
                                for c in streams["noise"].spawn(N)], axis=1)     # (S, N, 2)
-        self.draws = DetectionDraws(table, streams, steps) if _imperfect(table) else None
+        self.draws = (DetectionDraws(table, streams, steps)
+                      if _imperfect(table) or look_detects == "all" else None)
         self._index = np.arange(N)
 
     def look(self, t: int, truth: FloatArray, positions: FloatArray, headings: FloatArray,
-             aimed: IntArray) -> tuple[Looks, Sensed]:
+             aimed: IntArray, alive: BoolArray | None = None) -> tuple[Looks, Sensed]:
         """Step ``t``'s looks: sensor i, at ``positions[i]`` with ``headings[i]``, looks at
-        target ``aimed[i]`` (-1: it does not look) of the true states ``truth`` ``(M, 4)``.
+        target ``aimed[i]`` (-1: it does not look) of the true states ``truth`` ``(M, 4)``,
+        of which ``alive`` ``(M,)`` are in the world (default: all).
 
         Visibility and the sampled noise use the true position; a building in the line of
-        sight hides the target (false alarms still occur).
+        sight hides the target (false alarms still occur). With ``look_detects = "all"`` a
+        look detects every live target in its sensing region (:meth:`look_all`).
         """
+        if self.look_detects == "all":
+            return self.look_all(t, truth, positions, headings, aimed, alive)
         table, idx = self.table, self._index
         assigned = aimed >= 0
         tj = np.maximum(aimed, 0)
@@ -130,3 +140,83 @@ class Sensing:
         looks = Looks(sensors=i, aims=aimed[i], positions=positions[i], headings=headings[i],
                       detections=detections)
         return looks, Sensed(seen=seen, missed=assigned & ~seen, false_alarms=false)
+
+    def look_all(self, t: int, truth: FloatArray, positions: FloatArray, headings: FloatArray,
+                 aimed: IntArray, alive: BoolArray | None = None) -> tuple[Looks, Sensed]:
+        """Step ``t``'s looks when a look detects every live target in its sensing region.
+
+        Each (sensor, target) pair in view and in sight is detected with the radar's Pd,
+        decided by a uniform of the target's own stream (:class:`TargetDraws`), and measured
+        with the target's own noise; a look's detections are its detected targets' (in the
+        targets' order) followed by its false alarms.
+        """
+        table, N, M = self.table, len(self.table), len(truth)
+        live = np.ones(M, dtype=bool) if alive is None else np.asarray(alive, dtype=bool)
+        assigned = aimed >= 0
+        i = self._index[assigned]
+        j = np.flatnonzero(live)
+        ii, jj = np.repeat(i, len(j)), np.tile(j, len(i))                   # (L K,)
+        xy = truth[jj, :2]
+        h, _, var, seen = radar.measure_looks(table, ii, xy, positions[ii], headings[ii])
+        if len(self.buildings) and len(ii):
+            seen &= ~radar.hidden_looks(self.buildings, positions[ii], table[ii, ALTITUDE], xy)
+        u, e = self.targets.draws(t, ii, jj)
+        if _imperfect(table):
+            seen &= u < radar.detection_probabilities(table, ii, xy, positions[ii])
+        z = h + np.sqrt(np.where(seen[:, None], var, 0.0)) * e
+        z[:, 1] = wrap_angle(z[:, 1])
+        measured = np.zeros((M, N), dtype=bool)
+        measured[jj[seen], ii[seen]] = True
+        clutter = (self.draws.looks(t, np.zeros(N, dtype=bool), np.zeros((N, 2)), positions,
+                                    headings, assigned)
+                   if self.draws is not None else None)
+        detections, false = [], np.zeros(N, dtype=np.int16)
+        for n in i:
+            own = z[(ii == n) & seen]
+            extra = clutter[0][n] if clutter is not None else np.zeros((0, 2))
+            if clutter is not None:
+                false[n] = clutter[1][n]
+            detections.append(np.concatenate([own, extra]))
+        aimed_seen = np.zeros(N, dtype=bool)
+        aimed_seen[i] = measured[aimed[i], i]
+        looks = Looks(sensors=i, aims=aimed[i], positions=positions[i], headings=headings[i],
+                      detections=tuple(detections))
+        return looks, Sensed(seen=aimed_seen, missed=assigned & ~aimed_seen,
+                             false_alarms=false, measured=measured)
+
+
+#: What a look can detect: only the target it points at (the paper's), or every live
+#: target in its sensing region (what a multi-target tracker needs).
+LOOK_DETECTS = ("target", "all")
+
+
+class TargetDraws:
+    """Each target's own detection draws and measurement noise, per sensor and step.
+
+    Target slot k's draws come from child k of the run's ``target_detection`` stream, made
+    when first needed: a target born later, or another target's presence, changes nothing
+    of them. Per step and sensor: one uniform (detected if below Pd) and two standard
+    normals (the measurement noise), whether the sensor sees the target or not.
+    """
+
+    def __init__(self, stream: np.random.SeedSequence, steps: int, n_sensors: int) -> None:
+        self.stream, self.steps, self.n_sensors = stream, steps, n_sensors
+        self._u: list[FloatArray] = []
+        self._e: list[FloatArray] = []
+
+    def _grow(self, slots: int) -> None:
+        base = self.stream
+        for k in range(len(self._u), slots):
+            rng = np.random.default_rng(np.random.SeedSequence(
+                base.entropy, spawn_key=tuple(base.spawn_key) + (k,), pool_size=base.pool_size))
+            self._u.append(rng.random((self.steps, self.n_sensors)))
+            self._e.append(rng.standard_normal((self.steps, self.n_sensors, 2)))
+
+    def draws(self, t: int, sensors: IntArray, slots: IntArray) -> tuple[FloatArray, FloatArray]:
+        """Step ``t``'s uniforms ``(P,)`` and normals ``(P, 2)`` of (sensor, target) pairs."""
+        if len(slots) == 0:
+            return np.zeros(0), np.zeros((0, 2))
+        self._grow(int(slots.max()) + 1)
+        u = np.array([self._u[k][t - 1, i] for i, k in zip(sensors, slots)])
+        e = np.array([self._e[k][t - 1, i] for i, k in zip(sensors, slots)])
+        return u, e

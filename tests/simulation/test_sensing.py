@@ -1,0 +1,75 @@
+"""What a look detects: its own target only, or every live target in its sensing region."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sensorplan.models import radar
+from sensorplan.models.sensors import SensorParams, radar_table
+from sensorplan.simulation import run_streams
+from sensorplan.simulation.sensing import Sensing
+
+STEPS = 5
+
+
+def scene(rng: np.random.Generator, M: int = 12) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    truth = np.zeros((M, 4))
+    truth[:, :2] = rng.uniform(0.0, 600.0, (M, 2))
+    positions = np.array([[100.0, 100.0], [500.0, 300.0], [300.0, 550.0]])
+    headings = np.array([0.8, 2.8, -1.6])
+    return truth, positions, headings
+
+
+def test_a_look_detects_every_live_target_in_its_region_with_ideal_sensors() -> None:
+    table = radar_table((SensorParams(),) * 3)
+    rng = np.random.default_rng(11)
+    truth, pos, head = scene(rng)
+    s = Sensing(table, np.zeros((0, 5)), run_streams(3), STEPS, look_detects="all")
+    aimed = np.array([0, -1, 5])
+    looks, sensed = s.look(1, truth, pos, head, aimed)
+    np.testing.assert_array_equal(looks.sensors, [0, 2])
+    for n, i in enumerate(looks.sensors):
+        h, _, var, seen = radar.measure_looks(table, np.full(len(truth), i), truth[:, :2],
+                                              np.repeat(pos[i:i + 1], len(truth), 0),
+                                              np.full(len(truth), head[i]))
+        assert len(looks.detections[n]) == seen.sum()
+        np.testing.assert_array_equal(np.flatnonzero(sensed.measured[:, i]), np.flatnonzero(seen))
+        # each detection is its target's measurement plus noise (within 6 sigma)
+        dz = looks.detections[n] - h[seen]
+        dz[:, 1] = np.angle(np.exp(1j * dz[:, 1]))
+        assert np.all(np.abs(dz) < 6 * np.sqrt(var[seen]))
+    assert not sensed.measured[:, 1].any()                  # sensor 1 did not look
+
+
+def test_a_targets_detections_do_not_depend_on_the_others() -> None:
+    table = radar_table((SensorParams(detection="swerling1", false_alarm_probability=1e-6),) * 3)
+    truth, pos, head = scene(np.random.default_rng(5))
+    aimed = np.array([0, 1, 2])
+    a = Sensing(table, np.zeros((0, 5)), run_streams(8), STEPS, look_detects="all")
+    b = Sensing(table, np.zeros((0, 5)), run_streams(8), STEPS, look_detects="all")
+    alive = np.ones(len(truth), dtype=bool)
+    _, sa = a.look(2, truth, pos, head, aimed, alive)
+    alive[1::2] = False                                     # half of them gone
+    _, sb = b.look(2, truth, pos, head, aimed, alive)
+    np.testing.assert_array_equal(sb.measured[::2], sa.measured[::2])
+    assert not sb.measured[1::2].any()
+
+
+@pytest.mark.parametrize("rate", [0.0, 4.0])
+def test_false_alarms_follow_the_targets_detections(rate: float) -> None:
+    table = radar_table((SensorParams(clutter_rate=rate),) * 3)
+    truth, pos, head = scene(np.random.default_rng(2))
+    s = Sensing(table, np.zeros((0, 5)), run_streams(1), STEPS, look_detects="all")
+    aimed = np.array([0, 1, 2])
+    looks, sensed = s.look(3, truth, pos, head, aimed)
+    for n, i in enumerate(looks.sensors):
+        assert len(looks.detections[n]) == sensed.measured[:, i].sum() + sensed.false_alarms[i]
+    if rate == 0.0:
+        assert not sensed.false_alarms.any()
+
+
+def test_an_unknown_look_detects_is_refused() -> None:
+    with pytest.raises(ValueError, match="look_detects"):
+        Sensing(radar_table((SensorParams(),)), np.zeros((0, 5)), run_streams(1), 2,
+                look_detects="some")
