@@ -34,7 +34,7 @@ def doc_with(**sensor: float) -> dict:
     return d
 
 
-# ----------------------------------------------------------------- angles (item 2)
+# ---------------------------------------------------------------------------- angles
 
 
 @pytest.mark.parametrize("name", sorted(ANGLES))
@@ -98,7 +98,7 @@ def test_degrees_in_scenario_and_study_files(capsys, tmp_path) -> None:
     assert "sensors[0].max_turn" in line and "max_turn_deg" in line
 
 
-# ---------------------------------------------------------- small samples (item 3)
+# --------------------------------------------------------------------- small samples
 
 
 def _metrics(values: dict[str, list[float]]) -> pd.DataFrame:
@@ -108,7 +108,7 @@ def _metrics(values: dict[str, list[float]]) -> pd.DataFrame:
 
 
 def test_rmse_intervals_are_clipped_at_zero_and_small_samples_flagged() -> None:
-    x = [1.0, 2.0, 60.0]                     # the audit's case: a t-interval reaching < 0
+    x = [1.0, 2.0, 60.0]                     # a t-interval reaching below 0
     s = summary(_metrics({"a": x}))
     row = s.iloc[0]
     half = stats.t.ppf(0.975, 2) * np.std(x, ddof=1) / math.sqrt(3)
@@ -138,7 +138,7 @@ def test_paired_differences_flag_small_samples() -> None:
     assert row.mean_lo == pytest.approx(diffs.mean() - half, rel=1e-12)   # may be < 0
 
 
-# ---------------------------------------------------------- example file (item 5)
+# ---------------------------------------------------------------------- example file
 
 
 def test_plan_example_prints_the_shipped_example_and_it_plans(capsys, tmp_path) -> None:
@@ -164,7 +164,7 @@ def test_the_readme_points_at_the_shipped_example() -> None:
     assert not re.search(r"sensorplan plan problem\.json", readme)
 
 
-# ---------------------------------------------------------------- hints (item 10)
+# ----------------------------------------------------------------------------- hints
 
 
 @pytest.mark.parametrize("name,suggested", [("greedy", "sequential-greedy"),

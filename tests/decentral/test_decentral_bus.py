@@ -132,6 +132,7 @@ COORDINATOR = textwrap.dedent("""
     print(" ".join(map(str, planner.pids)), flush=True)
     seed = 1
     while True:                       # until interrupted; the planner is never closed here
+        print("deciding", flush=True)
         planner.plan(problem, rng=seed)
         seed += 1
 """)
@@ -157,7 +158,9 @@ def start_coordinator(new_session: bool = False):
         raise AssertionError(proc.stderr.read())
     pids = [int(p) for p in line.split()]
     assert len(pids) == 3 and all(running(p) for p in pids)
-    time.sleep(0.3)                   # let it get into the middle of a decision
+    # The second "deciding": one loop decision is done and the next under way.
+    for _ in range(2):
+        assert proc.stdout.readline().strip() == "deciding", proc.stderr.read()
     return proc, pids
 
 
