@@ -246,10 +246,12 @@ def test_tracker_applies_the_map_after_predict():
 
 
 @pytest.mark.parametrize("seed", [3, 8])
-def test_the_paper_configuration_reproduces_the_tracks_bit_for_bit(seed):
-    """Every option off: the tracks of the paper's configuration equal, bit for bit, those
-    the code gave before the options existed (tests/data/paper_rows_golden.npz, written by
-    commit be1378b with the script in tests/data/README.md)."""
+def test_the_paper_configuration_reproduces_its_recorded_tracks(seed):
+    """Every option off: the tracks of the paper's configuration equal those the code gave
+    before the options existed (tests/data/paper_rows_golden.npz, written by commit be1378b
+    with the script in tests/data/README.md), to rtol 1e-12: a refactor may change the
+    order of a sum, not the result. Runs of one version are bit for bit the same (the
+    determinism tests in tests/simulation/)."""
     from pathlib import Path
 
     from sensorplan.simulation.scenario import paper_scenario
@@ -262,8 +264,8 @@ def test_the_paper_configuration_reproduces_the_tracks_bit_for_bit(seed):
                     tracker=TrackerSettings(miss_update="none", model="cv", process_noise=0.05,
                                             gate=False, reacquire=False, known_map=False))
     ep = run_episode(paper_scenario(), s, seed)
-    np.testing.assert_array_equal(ep.estimate, golden[f"estimate_{seed}"])
-    np.testing.assert_array_equal(ep.cov, golden[f"cov_{seed}"])
+    np.testing.assert_allclose(ep.estimate, golden[f"estimate_{seed}"], rtol=1e-12, atol=1e-9)
+    np.testing.assert_allclose(ep.cov, golden[f"cov_{seed}"], rtol=1e-12, atol=1e-9)
     np.testing.assert_array_equal(ep.looked, golden[f"looked_{seed}"])
 
 
