@@ -369,6 +369,7 @@ BAD_TOML = [
     ("unknown objective", _set("planning.objective", "x"), "planning.objective"),
     ("unknown execution", _set("planning.execution", "closed"), "planning.execution"),
     ("unknown miss update", _set("tracker.miss_update", "x"), "tracker.miss_update"),
+    ("unknown tracker kind", _set("tracker.kind", "jpda"), "tracker.kind"),
     ("unknown kind", _set("targets.0.kind", "ballistic"), "targets[0].kind"),
     ("negative speed", _set("targets.0.speed", -1.0), "targets[0].speed"),
     ("speed range", _set("initial.speed_range", [5.0, 1.0]), "initial.speed_range"),

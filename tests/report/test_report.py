@@ -119,7 +119,7 @@ def test_markdown_summary_has_the_tables(report: object) -> None:
     assert "| method | planner | K | visibility | miss update | vs myopic | vs random |" in md
     assert "| paper/myopic | pg | 1 | mean | none | – | paper/random |" in md
     assert "Every method: e 2; execution olf; objective cumulative; detection in planning aware;" \
-        " occlusion in planning aware; model imm;" in md
+        " occlusion in planning aware; tracker known; model imm;" in md
     # The RMSE table row of a method: mean [lo, hi] and median [lo, hi] (n = 3: no median
     # interval at 95 %, so the median is shown alone).
     assert re.search(r"\| ours/myopic \| \d+\.\d \[-?\d+\.\d, \d+\.\d\] \| \d+\.\d \|", md)

@@ -29,7 +29,8 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
     paths = [path for _, path, _, _ in DECLARED]
     assert paths == ["planner", "planner_params", "horizon", "steps_per_epoch", "execution",
                      "visibility", "objective", "planning_detection", "planning_occlusion", "steps",
-                     "tracker.miss_update", "tracker.model", "tracker.process_noise",
+                     "tracker.kind", "tracker.miss_update", "tracker.model",
+                     "tracker.process_noise",
                      "tracker.mode_process_noise", "tracker.switching", "tracker.gate",
                      "tracker.gate_probability", "tracker.reacquire", "tracker.association",
                      "tracker.known_map"]

@@ -171,7 +171,7 @@ def recovered_noise(ep: Episode, calls, scenario: Scenario) -> dict[tuple[int, i
 
 class TestPairing:
     def test_two_planners_share_truth_initial_estimates_and_noise(self, monkeypatch):
-        monkeypatch.setattr(simulation, "KnownTargetTracker", _RecordingTracker)
+        monkeypatch.setattr(simulation, "tracker_class", lambda kind: _RecordingTracker)
         sc = paper_scenario()
         S, seed = 40, 3
         streams = run_streams(seed)

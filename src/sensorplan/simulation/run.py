@@ -44,8 +44,8 @@ from ..models.motion import cv_matrices
 from ..models.sensors import radar_table
 from ..planners import make_planner
 from ..planners.problem import PlanningProblem
-from ..tracking.base import TrackSet
-from ..tracking.tracker import KnownTargetTracker
+from ..tracking.base import Tracker, TrackSet
+from ..tracking.registry import tracker_class
 from .episode import Episode, Recorder, _is_int
 from .scenario import Scenario, draw_initial, make_truth
 from .sensing import Sensing
@@ -144,11 +144,12 @@ def run_episode(scenario: Scenario, settings: RunSettings,
 
 
 def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray,
-                 table: FloatArray) -> KnownTargetTracker:
-    """The run's tracker, started at the initial estimates ``(M, 4)`` with the scenario's
-    initial covariance."""
+                 table: FloatArray) -> Tracker:
+    """The run's tracker (``settings.tracker.kind``), started at the initial estimates
+    ``(M, 4)`` with the scenario's initial covariance."""
     P0 = np.array(scenario.initial_cov)
-    return KnownTargetTracker(
+    cls = tracker_class(settings.tracker.kind)
+    return cls(
         estimate, P0, scenario.dt, table,
         world=(scenario.world.width, scenario.world.height)
         if settings.tracker.known_map else None,
@@ -183,7 +184,7 @@ class _Schedule:
         self.buildings = (scenario.building_array if settings.planning_occlusion == "aware"
                           else np.zeros((0, 5)))
 
-    def epoch(self, t: int, tracker: KnownTargetTracker, record: Recorder) -> None:
+    def epoch(self, t: int, tracker: Tracker, record: Recorder) -> None:
         """Start the epoch that begins with step ``t`` (deciding first if a plan is due)."""
         tracks = tracker.tracks()
         if self.epoch_index == self.per_plan:

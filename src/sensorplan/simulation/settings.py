@@ -37,6 +37,7 @@ from ..errors import ConfigError
 from ..limits import MAX_PLAN_STEPS, MAX_Q, MAX_STEPS
 from ..planners.objective import (OBJECTIVES, PLANNING_DETECTIONS, PLANNING_OCCLUSIONS,
                                   VISIBILITY_MODES)
+from ..tracking.registry import tracker_kinds
 
 EXECUTIONS = ("ol", "olf")
 MISS_UPDATES = ("negative", "none")
@@ -345,6 +346,10 @@ class TrackerSettings(_Settings):
     rows turn every option off.
     """
 
+    kind: str = setting(
+        "known", section="tracker", cli=("--tracker",), metavar="KIND", label="tracker",
+        choices=tracker_kinds, noun="tracker kind",
+        help="The tracker: known (one track per target known from the start, the paper's).")
     miss_update: str = setting(
         "negative", section="tracker", cli=("--miss-update",), metavar="MODE",
         label="miss update", choices=MISS_UPDATES, noun="miss update",
@@ -399,7 +404,8 @@ class TrackerSettings(_Settings):
                               "triggers it)")
 
     def tracker_options(self) -> dict[str, Any]:
-        """Keyword arguments of :class:`sensorplan.tracking.tracker.Tracker` for these settings."""
+        """Keyword arguments of :class:`sensorplan.tracking.tracker.KnownTargetTracker` for
+        these settings."""
         import numpy as np
 
         imm = self.model == "imm"

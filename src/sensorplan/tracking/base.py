@@ -7,7 +7,8 @@ plans on. Nothing outside a tracker assumes that track ``j`` is target ``j``: a 
 known targets labels its tracks with the targets' indices, a multi-target tracker with
 labels of its own, and reports each track's probability of existence.
 
-Trackers are registered by kind (:data:`TRACKERS`), as planners are by name.
+Trackers are registered by kind (:data:`sensorplan.tracking.registry.TRACKERS`), as
+planners are by name.
 """
 
 from __future__ import annotations
@@ -118,10 +119,3 @@ class Tracker(Protocol):
     def planning_process_noise(self) -> float | FloatArray:
         """The process noise the planner should predict each reported track with."""
         ...
-
-
-#: The trackers by kind (``tracker.kind`` of the run settings): ``module:Class``, imported
-#: when used.
-TRACKERS: dict[str, str] = {
-    "known": "sensorplan.tracking.tracker:KnownTargetTracker",
-}
