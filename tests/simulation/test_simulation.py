@@ -396,3 +396,35 @@ def test_none_reproduces_a_tracker_without_the_feature(monkeypatch):
     noop = run_episode(paper_scenario(), settings(steps=40, miss_update="negative"), 21)
     for name in ("truth", "estimate", "cov", "error", "measured", "looked", "missed"):
         np.testing.assert_array_equal(getattr(off, name), getattr(noop, name), err_msg=name)
+
+
+def test_a_run_records_its_reported_tracks_as_a_set(tmp_path) -> None:
+    from sensorplan.study.metrics import episode_set_metrics
+    from sensorplan.study.set_metrics import gospa
+
+    ep = run_episode(paper_scenario(), settings(steps=12), 4)
+    S1, M = ep.truth.shape[:2]
+    assert ep.alive.all()
+    # a tracker of known targets reports every target's track, labelled with its index
+    np.testing.assert_array_equal(ep.track_step, np.repeat(np.arange(S1), M))
+    np.testing.assert_array_equal(ep.track_label, np.tile(np.arange(M), S1))
+    np.testing.assert_array_equal(ep.track_mean.reshape(S1, M, 4), ep.estimate)
+    np.testing.assert_array_equal(ep.track_cov.reshape(S1, M, 4, 4), ep.cov)
+    # GOSPA of each step, against an independent per-step computation
+    sm = episode_set_metrics(ep, c=50.0)
+    for t in (1, 6, 12):
+        want = gospa(ep.truth[t, :, :2], ep.estimate[t, :, :2], 50.0)
+        np.testing.assert_allclose(sm.gospa.distance[t - 1], want.distance, rtol=1e-12)
+    # an episode file written before the set records existed reads with the same records
+    path = tmp_path / "e.npz"
+    ep.save(path)
+    import zipfile
+    old = tmp_path / "old.npz"
+    with zipfile.ZipFile(path) as zin, zipfile.ZipFile(old, "w") as zout:
+        for item in zin.infolist():
+            if not item.filename.startswith(("alive", "track_")):
+                zout.writestr(item, zin.read(item.filename))
+    back = Episode.load(old)
+    for name in ("alive", "track_step", "track_label", "track_mean", "track_cov",
+                 "track_existence"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(ep, name))

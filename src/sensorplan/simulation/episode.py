@@ -56,6 +56,12 @@ class Episode:
     false_alarms : (S+1, N) int       of which false alarms
     used : (S+1, N) int               detections the tracker used
     discarded : (S+1, N) int          detections outside the validation gate
+    alive : (S+1, M) bool             target j is in the world at t (all, without births)
+    track_step : (R,) int             the tracks the tracker reported, one row per track and
+    track_label : (R,) int            step: the step, the track's label, its mean,
+    track_mean : (R, 4)               covariance and probability of existence (a tracker of
+    track_cov : (R, 4, 4)             known targets reports every target's track, labelled
+    track_existence : (R,)            with its index, existence 1)
     sensor_positions : (S+1, N, 2)    pose during step t (initial pose at t = 0)
     sensor_headings : (S+1, N)
     decision_steps : (D,) int         time index at which each decision was taken
@@ -89,6 +95,12 @@ class Episode:
     false_alarms: IntegerArray
     used: IntegerArray
     discarded: IntegerArray
+    alive: BoolArray
+    track_step: IntArray
+    track_label: IntArray
+    track_mean: FloatArray
+    track_cov: FloatArray
+    track_existence: FloatArray
     sensor_positions: FloatArray
     sensor_headings: FloatArray
     decision_steps: IntArray
@@ -135,8 +147,10 @@ class Episode:
         """Read an episode written by :meth:`save` (timings NaN if the sidecar is missing)."""
         path = Path(path)
         with np.load(path, allow_pickle=False) as data:
-            arrays = {name: data[name] for name in _ARRAYS}
+            arrays = {name: data[name] for name in _ARRAYS if name in data}
             meta = json.loads(str(data["meta"]))
+        if "alive" not in arrays:
+            arrays.update(_known_target_sets(arrays["estimate"], arrays["cov"]))
         sidecar = _timing_path(path)
         if sidecar.exists():
             seconds = np.array(json.loads(sidecar.read_text())["planning_seconds"], dtype=float)
@@ -147,6 +161,17 @@ class Episode:
                    seed_entropy=meta["seed_entropy"],
                    seed_spawn_key=tuple(int(k) for k in meta.get("seed_spawn_key", ())),
                    planning_seconds=seconds, **arrays)
+
+
+def _known_target_sets(estimate: FloatArray, cov: FloatArray) -> dict[str, np.ndarray]:
+    """The set records of a run of known targets (for files written before they existed):
+    every target alive, every target's track reported with its index as label."""
+    S1, M = estimate.shape[:2]
+    return {"alive": np.ones((S1, M), dtype=bool),
+            "track_step": np.repeat(np.arange(S1, dtype=np.int64), M),
+            "track_label": np.tile(np.arange(M, dtype=np.int64), S1),
+            "track_mean": estimate.reshape(-1, 4), "track_cov": cov.reshape(-1, 4, 4),
+            "track_existence": np.ones(S1 * M)}
 
 
 def _timing_path(path: Path) -> Path:
@@ -181,6 +206,7 @@ STEP_ARRAYS: dict[str, tuple[tuple[str | int, ...], type, Any]] = {
     "false_alarms": (("N",), np.int16, 0),
     "used": (("N",), np.int16, 0),
     "discarded": (("N",), np.int16, 0),
+    "alive": (("M",), np.bool_, True),
     "sensor_positions": (("N", 2), np.float64, None),
     "sensor_headings": (("N",), np.float64, None),
 }
@@ -222,6 +248,7 @@ class Recorder:
             self.arrays[name] = (np.empty(full, dtype=dtype) if fill is None
                                  else np.full(full, fill, dtype=dtype))
         self.decisions: list[tuple[int, float, float, float, float]] = []
+        self.tracks: list[tuple[int, TrackSet]] = []
 
     def start(self, truth: FloatArray, tracks: TrackSet, positions: FloatArray,
               headings: FloatArray) -> None:
@@ -229,6 +256,12 @@ class Recorder:
         self.pose(0, positions, headings)
         a = self.arrays
         a["truth"][0], a["estimate"][0], a["cov"][0] = truth, tracks.means, tracks.covs
+        self._tracks(0, tracks)
+
+    def _tracks(self, t: int, tracks: TrackSet) -> None:
+        # copies: a tracker's arrays change with its next step
+        self.tracks.append((t, TrackSet(np.array(tracks.means), np.array(tracks.covs),
+                                        np.array(tracks.existence), np.array(tracks.labels))))
 
     def pose(self, t: int, positions: FloatArray, headings: FloatArray) -> None:
         self.arrays["sensor_positions"][t] = positions
@@ -247,6 +280,7 @@ class Recorder:
         """
         a = self.arrays
         a["truth"][t], a["estimate"][t], a["cov"][t] = truth, tracks.means, tracks.covs
+        self._tracks(t, tracks)
         a["looked"][t], a["missed"][t] = aimed, sensed.missed
         if sensed.measured is not None:
             a["measured"][t] = sensed.measured
@@ -269,7 +303,13 @@ class Recorder:
         truth, estimate, cov = a["truth"], a["estimate"], a["cov"]
         error = np.hypot(truth[..., 0] - estimate[..., 0], truth[..., 1] - estimate[..., 1])
         d = np.array(self.decisions, dtype=float).reshape(-1, 5)
+        steps = [np.full(len(ts), t, dtype=np.int64) for t, ts in self.tracks]
         return Episode(
+            track_step=np.concatenate(steps),
+            track_label=np.concatenate([ts.labels for _, ts in self.tracks]).astype(np.int64),
+            track_mean=np.concatenate([ts.means for _, ts in self.tracks]).reshape(-1, 4),
+            track_cov=np.concatenate([ts.covs for _, ts in self.tracks]).reshape(-1, 4, 4),
+            track_existence=np.concatenate([ts.existence for _, ts in self.tracks]),
             target_kinds=target_kinds, error=error, nees=nees(truth, estimate, cov),
             decision_steps=d[:, 0].astype(np.int64), planning_seconds=d[:, 1],
             potential=d[:, 2], converged=d[:, 3], sweeps=d[:, 4], settings=settings,
