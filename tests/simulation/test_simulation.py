@@ -399,7 +399,7 @@ def test_none_reproduces_a_tracker_without_the_feature(monkeypatch):
 
 
 def test_a_run_records_its_reported_tracks_as_a_set(tmp_path) -> None:
-    from sensorplan.study.metrics import episode_set_metrics
+    from sensorplan.study.set_metrics import episode_set_metrics
     from sensorplan.study.set_metrics import gospa
 
     ep = run_episode(paper_scenario(), settings(steps=12), 4)

@@ -336,7 +336,7 @@ def _frames(out: Path) -> dict[str, pd.DataFrame]:
     t = studies.load_study_dir(out)
     assert t.complete
     return {"steps": t.steps, "decisions": t.decisions.drop(columns="planning_seconds"),
-            "sensors": t.sensors}
+            "sensors": t.sensors, "tracks": t.tracks, "gospa": t.gospa}
 
 
 def assert_same_grid(a: Path, b: Path) -> None:

@@ -58,7 +58,7 @@ def frames(out: Path) -> dict[str, pd.DataFrame]:
     t = studies.load_study_dir(out)
     assert t.complete
     return {"steps": t.steps, "decisions": t.decisions.drop(columns="planning_seconds"),
-            "sensors": t.sensors}
+            "sensors": t.sensors, "tracks": t.tracks, "gospa": t.gospa}
 
 
 def assert_same_tables(a: Path, b: Path) -> None:
@@ -197,6 +197,15 @@ def test_tables_have_every_row_once(serial_dir: Path) -> None:
     conv = t.decisions.groupby("method", observed=True)["converged"].apply(
         lambda s: s.isna().all())
     assert conv["ours/random"] and not conv["ours/myopic"]
+    # Every reported track and every step's GOSPA: known targets, a track each.
+    assert len(t.tracks) == len(t.steps)
+    np.testing.assert_array_equal(t.tracks[["x", "y"]].to_numpy(),
+                                  t.steps[["x_est", "y_est"]].to_numpy())
+    assert len(t.gospa) == study.runs * n_methods * study.steps
+    g = t.gospa
+    np.testing.assert_allclose(g["gospa"] ** 2, g["localisation"] + g["missed"] + g["false"],
+                               rtol=1e-9)
+    assert (g["targets"] == M).all() and (g["tracks"] == M).all()
 
 
 def test_finished_study_is_not_recomputed(serial_dir: Path) -> None:

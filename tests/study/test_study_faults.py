@@ -40,7 +40,7 @@ planner = "pg"
 def frames(out: Path, runs: list[int] | None = None) -> dict[str, pd.DataFrame]:
     t = studies.load_study_dir(out)
     got = {"steps": t.steps, "decisions": t.decisions.drop(columns="planning_seconds"),
-           "sensors": t.sensors}
+           "sensors": t.sensors, "tracks": t.tracks, "gospa": t.gospa}
     if runs is not None:
         got = {k: v[v["run"].isin(runs)].reset_index(drop=True) for k, v in got.items()}
     return got

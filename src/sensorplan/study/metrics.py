@@ -488,26 +488,3 @@ def horizon_groups(study: Study, minimum: int = 3) -> list[list[Method]]:
                 out.append([by_k[k] for k in sorted(by_k)])
     return out
 
-
-#: GOSPA's cut-off distance (m) unless a study or command sets it.
-GOSPA_CUTOFF = 50.0
-
-
-def episode_set_metrics(episode: Episode, c: float = GOSPA_CUTOFF) -> Any:
-    """GOSPA (its localisation, missed and false parts) and the per-target set metrics of a
-    run: the live targets' true positions against the tracker's reported tracks at every
-    step (:func:`sensorplan.study.set_metrics.set_metrics`), steps 1..S.
-
-    Returns
-    -------
-    SetMetrics
-    """
-    from .set_metrics import set_metrics
-
-    S1, M = episode.alive.shape
-    steps, ids = np.nonzero(episode.alive)
-    keep = (steps > 0)
-    rows = episode.track_step > 0
-    return set_metrics(steps[keep] - 1, ids[keep], episode.truth[steps[keep], ids[keep], :2],
-                       episode.track_step[rows] - 1, episode.track_label[rows],
-                       episode.track_mean[rows, :2], c, n_steps=S1 - 1)

@@ -14,7 +14,7 @@ from ..simulation.scenario import Scenario
 from ..simulation.settings import RunSettings, declared
 
 #: Layout version of a study directory (2: tracker settings in a ``tracker`` sub-table).
-FORMAT = "sensorplan-study/2"
+FORMAT = "sensorplan-study/3"
 #: Run settings that are study-wide (top-level keys of a study file), not per method.
 STUDY_KEYS = tuple(f.name for f, _ in declared(RunSettings, "run"))
 

@@ -22,12 +22,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
 from .._types import BoolArray, FloatArray, IntArray
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..simulation.episode import Episode
 
 #: A live target unassigned for this many consecutive steps or more is lost.
 LOST_STEPS = 20
@@ -566,3 +570,25 @@ def _int_column(x: npt.ArrayLike, name: str, rows: int | None = None) -> IntArra
     if rows is not None and len(a) != rows:
         raise ValueError(f"{name}: {len(a)} rows, expected {rows}")
     return a.astype(np.int64, copy=False)
+
+
+#: GOSPA's cut-off distance (m) unless a study or command sets it.
+GOSPA_CUTOFF = 50.0
+
+
+def episode_set_metrics(episode: Episode, c: float = GOSPA_CUTOFF) -> SetMetrics:
+    """GOSPA (its localisation, missed and false parts) and the per-target set metrics of a
+    run: the live targets' true positions against the tracker's reported tracks at every
+    step (:func:`set_metrics`), steps 1..S.
+
+    Returns
+    -------
+    SetMetrics
+    """
+    S1, M = episode.alive.shape
+    steps, ids = np.nonzero(episode.alive)
+    keep = (steps > 0)
+    rows = episode.track_step > 0
+    return set_metrics(steps[keep] - 1, ids[keep], episode.truth[steps[keep], ids[keep], :2],
+                       episode.track_step[rows] - 1, episode.track_label[rows],
+                       episode.track_mean[rows, :2], c, n_steps=S1 - 1)

@@ -405,6 +405,8 @@ class StudyTables:
     steps: Any
     decisions: Any
     sensors: Any
+    tracks: Any
+    gospa: Any
     complete: bool
     runs_done: list[int]
 
@@ -457,4 +459,4 @@ def load_study_dir(out: str | Path) -> StudyTables:
     frames["steps"]["kind"] = frames["steps"]["kind"].astype(
         pd.CategoricalDtype(sorted(set(study.scenario.target_kinds)), ordered=True))
     return StudyTables(study, meta, frames["steps"], frames["decisions"], frames["sensors"],
-                       complete, runs_done)
+                       frames["tracks"], frames["gospa"], complete, runs_done)

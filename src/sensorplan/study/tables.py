@@ -1,5 +1,6 @@
-"""The tidy tables of a study: one row per (run, method, step, target), per decision and per
-(run, method, step, sensor), built from episodes (:func:`episode_tables`)."""
+"""The tidy tables of a study: one row per (run, method, step, target), per decision, per
+(run, method, step, sensor), per reported track and step, and per step's GOSPA, built from
+episodes (:func:`episode_tables`)."""
 
 from __future__ import annotations
 
@@ -10,9 +11,10 @@ from typing import Any
 import numpy as np
 
 from ..simulation.run import Episode
+from .set_metrics import GOSPA_CUTOFF, episode_set_metrics
 
 #: Tidy tables, in the order a part's files are written (the last one marks it done).
-TABLES = ("decisions", "sensors", "steps")
+TABLES = ("decisions", "sensors", "tracks", "gospa", "steps")
 
 #: What each table holds, column by column.
 TABLE_DOC = {
@@ -30,6 +32,13 @@ TABLE_DOC = {
     "sensors": "one row per (run, method, step, sensor): run, method, step, sensor, x, y "
                "(ground position, m), heading (rad), target (looked-at target, -1 none), "
                "missed (the look missed: target truly outside the field of view), measured",
+    "tracks": "one row per (run, method, step, reported track): run, method, step, label "
+              "(the track's label, kept for its life), x, y (its position estimate, m), "
+              "existence (its probability of being a real target)",
+    "gospa": "one row per (run, method, step >= 1): run, method, step, gospa (m), "
+             "localisation, missed, false (its three parts, m^2: they sum to gospa^2), "
+             "targets (live targets), tracks (reported tracks), false_tracks (reported tracks "
+             "assigned to no target); cut-off c = 50 m, alpha = 2, p = 2",
 }
 
 
@@ -65,8 +74,9 @@ def episode_tables(episode: Episode, run: int, method: str) -> dict[str, dict[st
     Returns
     -------
     dict
-        ``{"steps": {...}, "decisions": {...}, "sensors": {...}}``; row order is step-major
-        (then target or sensor) and decision order.
+        ``{"steps": {...}, "decisions": {...}, "sensors": {...}, "tracks": {...},
+        "gospa": {...}}``; row order is step-major (then target, sensor or track) and
+        decision order.
     """
     S1, M = episode.error.shape
     N = episode.looked.shape[1]
@@ -118,7 +128,28 @@ def episode_tables(episode: Episode, run: int, method: str) -> dict[str, dict[st
         "missed": np.asarray(episode.missed).reshape(-1),
         "measured": measured.any(axis=1).reshape(-1),
     }
-    return {"steps": steps, "decisions": decisions, "sensors": sensors}
+    sm = episode_set_metrics(episode, GOSPA_CUTOFF)
+    R, G = len(episode.track_step), S1 - 1
+    tracks = {
+        "run": np.full(R, run, dtype=np.int32),
+        "method": np.full(R, method, dtype=object),
+        "step": np.asarray(episode.track_step, dtype=np.int32),
+        "label": np.asarray(episode.track_label, dtype=np.int64),
+        "x": episode.track_mean[:, 0], "y": episode.track_mean[:, 1],
+        "existence": np.asarray(episode.track_existence, dtype=float),
+    }
+    gospa = {
+        "run": np.full(G, run, dtype=np.int32),
+        "method": np.full(G, method, dtype=object),
+        "step": np.arange(1, S1, dtype=np.int32),
+        "gospa": sm.gospa.distance, "localisation": sm.gospa.localisation,
+        "missed": sm.gospa.missed, "false": sm.gospa.false,
+        "targets": np.asarray(sm.n_targets, dtype=np.int32),
+        "tracks": np.asarray(sm.n_tracks, dtype=np.int32),
+        "false_tracks": np.asarray(sm.false_tracks, dtype=np.int32),
+    }
+    return {"steps": steps, "decisions": decisions, "sensors": sensors, "tracks": tracks,
+            "gospa": gospa}
 
 
 def arrow_table(columns: Mapping[str, np.ndarray]) -> Any:
