@@ -626,3 +626,18 @@ def test_config_error_pickles() -> None:
             "assert (e.field, e.message) == ('a.b', 'bad')")
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
+
+
+def test_gospa_summary_and_curves_match_direct_computations(serial_dir: Path) -> None:
+    from sensorplan.study.metrics import gospa_over_time, gospa_summary
+
+    t = studies.load_study_dir(serial_dir)
+    summ = gospa_summary(t).set_index("method")
+    curves = gospa_over_time(t)
+    for method, g in t.gospa.groupby("method", observed=True):
+        per_run = [g.loc[g["run"] == r, "gospa"].mean() for r in sorted(g["run"].unique())]
+        np.testing.assert_allclose(summ.loc[method, "mean"], np.mean(per_run), rtol=1e-12)
+        np.testing.assert_allclose(summ.loc[method, "median"], np.median(per_run), rtol=1e-12)
+        step3 = g.loc[g["step"] == 3, "gospa"].mean()
+        got = curves[(curves["method"] == method) & (curves["step"] == 3)]["gospa"]
+        np.testing.assert_allclose(got.to_numpy(), [step3], rtol=1e-12)

@@ -18,9 +18,11 @@ from pathlib import Path
 from typing import Any
 
 from ..simulation.settings import all_settings
-from ..study.metrics import (DIVERGED_THRESHOLD, LOST_THRESHOLD, consistency, kinds_with_all,
-                             nees_over_time, paired_differences, planning_summary, references,
-                             rmse_over_time, run_metrics, sensing_summary, summary)
+from ..study.metrics import (DIVERGED_THRESHOLD, LOST_THRESHOLD, consistency, gospa_over_time,
+                             gospa_summary, kinds_with_all, nees_over_time, paired_differences,
+                             planning_summary, references, rmse_over_time, run_metrics,
+                             sensing_summary, summary)
+from ..study.set_metrics import GOSPA_CUTOFF
 from ..study.model import Method
 from ..study.storage import StudyTables, load_study_dir
 from .figures import FIGURES, draw_figures
@@ -240,8 +242,10 @@ def write_report(study_dir: str | Path, out: str | Path | None = None) -> Report
     plan = planning_summary(t)
     sensing = sensing_summary(t)
     honest = consistency(t)
+    gospa = gospa_summary(t)
     figs = draw_figures(t, out, {"rmse": rmse, "lost": lost, "diffs": diffs, "plan": plan,
-                                 "curves": rmse_over_time(t), "nees": nees_over_time(t)})
+                                 "curves": rmse_over_time(t), "nees": nees_over_time(t),
+                                 "gospa": gospa_over_time(t)})
 
     top = headline(t.study, metrics, rmse, diffs)
     lines = headline_paragraphs(top, results_link(out))
@@ -251,12 +255,30 @@ def write_report(study_dir: str | Path, out: str | Path | None = None) -> Report
                f"{shlex.quote(top.best)}") if worst is not None else None
     doc = _document(t, rmse, lost, diffs, plan, sensing, figs, honest, lines, single,
                     example)
+    _gospa_section(doc, gospa, figs)
     title = f"sensorplan study report: {study_dir.name}"
     md = out / "summary.md"
     page = out / "report.html"
     md.write_text(doc.markdown(), encoding="utf-8")
     page.write_text(doc.html(title), encoding="utf-8")
     return ReportFiles(page, md, figs, t.complete, len(t.runs_done))
+
+
+def _gospa_section(doc: _Doc, gospa: Any, figs: dict[str, Path]) -> None:
+    """The multi-target error: GOSPA per method and its parts."""
+    doc.h(2, "GOSPA (the reported tracks against the live targets)")
+    doc.p(f"GOSPA (alpha = 2, p = 2, cut-off c = {GOSPA_CUTOFF:g} m) compares the set of "
+          "reported tracks with the set of live targets at every step: its square is the "
+          "localisation error of the assigned pairs plus c^2/2 for each missed target and "
+          "for each false track. Per run its mean over the steps; across runs the mean with "
+          "its 95 % t-interval and the median with its 95 % interval; the parts are the "
+          "mean contributions to GOSPA^2 (m^2), false tracks the mean per step.")
+    rows = [[str(r.method), _ci(r.mean, r.lo, r.hi), _ci(r.median, r.median_lo, r.median_hi),
+             _f(r.localisation), _f(r.missed), _f(r.false), _f(r.false_tracks, 2)]
+            for r in gospa.itertuples()]
+    doc.table(["method", "GOSPA mean (m)", "median", "localisation", "missed", "false",
+               "false tracks"], rows, caption=_caption("per run", gospa))
+    doc.figure("gospa_time", figs["gospa_time"])
 
 
 def _small(rows: Any) -> bool:

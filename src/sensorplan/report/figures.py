@@ -47,6 +47,8 @@ FIGURES = {
     "planning_time": "Wall time of each planning decision per method (log scale).",
     "convergence": "Convergence of the game planners: share of decisions that ended at a "
                    "pure Nash equilibrium, and sweeps per decision.",
+    "gospa_time": "Mean GOSPA over time (the reported tracks against the live targets, "
+                  "c = 50 m), one line per method; the band is the 95 % interval across runs.",
     "horizon": "Methods that differ only in the horizon K: overall RMSE (mean with its 95 % "
                "t-interval) and planning time per decision against K.",
 }
@@ -71,6 +73,7 @@ def draw_figures(t: StudyTables, out: Path, stats: dict[str, Any]) -> dict[str, 
         "paired_differences": _fig_paired(stats["diffs"], t, out / "paired_differences.png"),
         "planning_time": _fig_planning(t, colors, out / "planning_time.png"),
         "convergence": _fig_convergence(stats["plan"], t, out / "convergence.png"),
+        "gospa_time": _fig_gospa_time(stats["gospa"], t, colors, out / "gospa_time.png"),
     }
     groups = horizon_groups(t.study)
     if groups:
@@ -202,6 +205,28 @@ def _fig_rmse_time(curves: Any, t: StudyTables, colors: dict[str, Any],
     fig.legend(handles, labels, loc="outside lower center", ncol=min(5, len(labels)),
                fontsize=9, frameon=False)
     fig.suptitle("Position RMSE over time (band: 95 % interval across runs)")
+    return _save(fig, path)
+
+
+def _fig_gospa_time(curves: Any, t: StudyTables, colors: dict[str, Any], path: Path) -> Path:
+    dt = t.study.scenario.dt
+    styles = _method_styles(t.study)
+    fig = _new_figure(7.0, 5.0)
+    ax = fig.subplots()
+    for name in t.study.method_names:
+        c = curves[curves["method"] == name]
+        time_s = c["step"].to_numpy() * dt
+        ax.plot(time_s, c["gospa"], color=colors[name], linestyle=styles[name], linewidth=1.5,
+                label=name)
+        ax.fill_between(time_s, c["lo"], c["hi"], color=colors[name], alpha=0.12, linewidth=0)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("GOSPA (m)")
+    ax.set_ylim(bottom=0)
+    ax.grid(True, linewidth=0.4, alpha=0.5)
+    handles, labels = ax.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=min(4, len(labels)),
+               fontsize=9, frameon=False)
+    fig.suptitle(f"GOSPA over time ({len(t.runs_done)} runs; band: 95 % interval)")
     return _save(fig, path)
 
 

@@ -488,3 +488,51 @@ def horizon_groups(study: Study, minimum: int = 3) -> list[list[Method]]:
                 out.append([by_k[k] for k in sorted(by_k)])
     return out
 
+
+
+def gospa_summary(tables: StudyTables, level: float = LEVEL) -> Any:
+    """GOSPA per method: each run's mean over steps 1..S, summarised across runs (mean with
+    its t-interval, median with its order-statistic interval), and each part's mean.
+
+    Columns: method, n, mean, lo, hi, median, median_lo, median_hi, localisation, missed,
+    false (mean share of GOSPA^2 over steps, m^2), false_tracks (mean per step).
+    """
+    import pandas as pd
+
+    g = tables.gospa
+    per_run = g.groupby(["method", "run"], observed=True).agg(
+        gospa=("gospa", "mean"), localisation=("localisation", "mean"),
+        missed=("missed", "mean"), false=("false", "mean"),
+        false_tracks=("false_tracks", "mean")).reset_index()
+    rows = []
+    for method, r in per_run.groupby("method", observed=True, sort=False):
+        values = r["gospa"].to_numpy(float)
+        mean, lo, hi = t_interval(values, level)
+        med, mlo, mhi = median_interval(values, level)
+        rows.append(dict(method=method, n=len(values), mean=mean, lo=lo, hi=hi, median=med,
+                         median_lo=mlo, median_hi=mhi,
+                         localisation=float(r["localisation"].mean()),
+                         missed=float(r["missed"].mean()), false=float(r["false"].mean()),
+                         false_tracks=float(r["false_tracks"].mean())))
+    out = pd.DataFrame(rows)
+    out["method"] = out["method"].astype(g["method"].dtype)
+    return out.sort_values("method").reset_index(drop=True)
+
+
+def gospa_over_time(tables: StudyTables, level: float = LEVEL) -> Any:
+    """Mean GOSPA at each step per method with its t-interval across runs.
+
+    Columns: method, step, gospa, lo, hi, n.
+    """
+    import pandas as pd
+
+    rows = []
+    for method, g in tables.gospa.groupby("method", observed=True, sort=False):
+        wide = g.pivot(index="run", columns="step", values="gospa")
+        mean, lo, hi = t_interval(wide.to_numpy(float), level, axis=0)
+        rows.append(pd.DataFrame(dict(method=method, step=wide.columns.to_numpy(), gospa=mean,
+                                      lo=np.clip(lo, 0.0, None), hi=hi,
+                                      n=wide.notna().sum(axis=0).to_numpy())))
+    out = pd.concat(rows, ignore_index=True)
+    out["method"] = out["method"].astype(tables.gospa["method"].dtype)
+    return out.sort_values(["method", "step"]).reset_index(drop=True)
