@@ -36,8 +36,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+import numpy.typing as npt
 
-from .._types import BoolArray, FloatArray
+from .._types import BoolArray, FloatArray, IntArray
 from .angles import wrap_angle
 from .motion import cv_matrices
 
@@ -223,7 +224,7 @@ class TruthModel:
         mutate) this array.
     """
 
-    def __init__(self, kinds: Sequence[str], initial_states: FloatArray,
+    def __init__(self, kinds: Sequence[str] | npt.NDArray[np.str_], initial_states: FloatArray,
                  rng: np.random.Generator, *, turn_hold: Sequence[float] | FloatArray,
                  max_turn_rate: Sequence[float] | FloatArray,
                  world_size: Sequence[float] | FloatArray, dt: float,
@@ -267,7 +268,7 @@ class TruthModel:
         """Number of targets moved by :meth:`step`."""
         return len(self.states)
 
-    def add(self, kinds: Sequence[str], states: FloatArray,
+    def add(self, kinds: Sequence[str] | npt.NDArray[np.str_], states: FloatArray,
             rngs: Sequence[np.random.Generator], *, turn_hold: Sequence[float] | FloatArray,
             max_turn_rate: Sequence[float] | FloatArray) -> None:
         """Append targets after the present ones (rows ``n_targets ..``), each moving with
@@ -308,13 +309,13 @@ class TruthModel:
         self.time_left = np.concatenate([self.time_left, hold[d]])
         self._redraw_tol = REDRAW_TOL * self.turn_hold
 
-    def remove(self, rows: Sequence[int] | FloatArray) -> None:
+    def remove(self, rows: Sequence[int] | IntArray) -> None:
         """Drop the targets at ``rows``; the others keep their order, states and streams."""
-        rows = np.asarray(rows, dtype=np.int64).reshape(-1)
-        if rows.size == 0:
+        drop = np.asarray(rows, dtype=np.int64).reshape(-1)
+        if drop.size == 0:
             return
         keep = np.ones(self.n_targets, dtype=bool)
-        keep[rows] = False
+        keep[drop] = False
         renumber = np.cumsum(keep) - 1
         kc, kd = keep[self.cv], keep[self.dub]
         self.cv = renumber[self.cv[kc]]
