@@ -13,7 +13,7 @@ import pytest
 
 from sensorplan.config import load_simulation
 from sensorplan.config.scenario import scenario_from_dict, scenario_to_dict
-from sensorplan.simulation.scenario import paper_scenario
+from sensorplan.simulation.scenario import benchmark_scenario, paper_scenario
 
 from cli_helpers import assert_bad_input, run
 
@@ -96,3 +96,19 @@ def test_python_m_sensorplan_refuses_uniform_births_that_never_die(tmp_path):
     assert done.stdout == ""
     lines = done.stderr.splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: survival_probability: "), lines
+
+
+def test_a_scripted_file_needs_no_targets(tmp_path):
+    path = tmp_path / "s.toml"
+    path.write_text('scripted = "williams15"\n[map]\nwidth = 300.0\nheight = 300.0\n'
+                    "[[sensors]]\n")
+    sc = load_simulation(path).scenario
+    assert sc.scripted == "williams15" and sc.targets == () and sc.n_initial == 0
+    assert sc == benchmark_scenario("williams15", sc.sensors)
+
+
+def test_without_targets_and_without_a_scripted_truth(tmp_path, capsys):
+    path = tmp_path / "s.toml"
+    path.write_text("[[sensors]]\n")
+    line = assert_bad_input(run(capsys, "simulate", path, "--steps", "2"), "targets")
+    assert line.endswith("is required")

@@ -16,8 +16,10 @@ from sensorplan.models.population import (PopulationTruth, edge_births, outside_
                                           uniform_births)
 from sensorplan.models.truth import NOISE_BLOCK, TruthModel, inside_buildings
 from sensorplan.simulation.run import run_streams
-from sensorplan.simulation.scenario import (PRESETS, draw_initial, make_population,
-                                            make_truth)
+from sensorplan.models.scripted import scripted_truth
+from sensorplan.simulation.scenario import (PRESETS, SensorSpec, benchmark_scenario,
+                                            draw_initial, make_population, make_truth,
+                                            search_scenario)
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 KINDS = ("cv", "cv", "cv", "dubins", "dubins")
@@ -299,3 +301,38 @@ def test_bad_arguments():
         population("edges", survival=0.0)
     with pytest.raises(ValueError, match="grows without bound"):
         population("uniform", 1.0)
+
+
+# ---------------------------------------------------------------------- the scenarios
+
+def test_search_scenario_keeps_three_to_eight_targets_alive_most_of_the_time():
+    """The search truth's purpose, on seeds other than the development ones its birth rate
+    was chosen on: 3 to 8 targets alive in at least 75 % of the steps of 200-step runs
+    (87 % on the development seeds), and births on every run."""
+    sc = search_scenario()
+    assert (sc.births, sc.n_initial, sc.survival_probability) == ("edges", 3, 1.0)
+    share, born = [], []
+    for seed in range(20):
+        streams = run_streams(seed)
+        truth_rng = np.random.default_rng(streams["truth"])
+        init = draw_initial(sc, truth_rng, np.random.default_rng(streams["init"]))
+        assert init.truth.shape == (3, 4)
+        pop = make_population(sc, init.truth, truth_rng, np.random.default_rng(seed + 5))
+        counts = [pop.step()[1].sum() for _ in range(200)]
+        share.append(np.mean([3 <= c <= 8 for c in counts]))
+        born.append(len(pop.states) - 3)
+    assert np.mean(share) >= 0.75
+    assert min(born) > 0
+
+
+def test_a_scripted_scenario_is_its_benchmark_s_truth():
+    sc = benchmark_scenario("vo12", (SensorSpec(),))
+    pop = make_population(sc, np.zeros((0, 4)), np.random.default_rng(0),
+                          np.random.default_rng(1))
+    ref = scripted_truth("vo12")
+    for _ in range(100):
+        (x, a), (y, b) = pop.step(), ref.step()
+        np.testing.assert_array_equal(x, y)
+        np.testing.assert_array_equal(a, b)
+    with pytest.raises(ValueError, match="make_population"):
+        make_truth(sc, np.zeros((0, 4)), np.random.default_rng(0))

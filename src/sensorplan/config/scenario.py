@@ -1,8 +1,9 @@
 """Scenario files (TOML): their strict model, reading and writing.
 
-Every key is optional except ``targets`` and ``sensors``; angles in radians, or in degrees
-under the same key with ``_deg`` appended (``fov_half_angle_deg = 30``; one of the two);
-defaults as below (``configs/paper.toml`` spells out every key)::
+Every key is optional except ``targets`` (optional with ``scripted``) and ``sensors``;
+angles in radians, or in degrees under the same key with ``_deg`` appended
+(``fov_half_angle_deg = 30``; one of the two); defaults as below (``configs/paper.toml``
+spells out every key)::
 
     dt = 1.0                      # s
     process_noise = 0.05          # q, m^2/s^3
@@ -61,6 +62,7 @@ from typing import Annotated, Any
 
 from pydantic import Field, ValidationInfo, field_validator
 
+from ..errors import ConfigError
 from ..limits import check_sensor_precision
 from ..models.sensors import SensorParams
 from ..planners.problem import MapRect
@@ -131,19 +133,22 @@ class ScenarioFile(Strict):
     map: MapModel = MapModel()
     initial: InitialModel = InitialModel()
     tracker: TrackerTable = TrackerTable()  # type: ignore[valid-type]
-    targets: list[ScenarioTarget]
+    targets: list[ScenarioTarget] | None = None
     sensors: list[ScenarioSensor]
     buildings: list[BuildingModel] = []
     planning: PlanningTable = PlanningTable()  # type: ignore[valid-type]
     run: RunTable = RunTable()  # type: ignore[valid-type]
 
     def scenario(self) -> Scenario:
+        if self.targets is None and self.scripted is None:
+            # Required unless a scripted truth brings its own targets.
+            raise ConfigError("targets", "is required")
         targets = tuple(
             TargetSpec(kind=t.kind,
                        position=None if t.position is None else (t.position[0], t.position[1]),
                        speed=t.speed, heading=t.heading, turn_hold=t.turn_hold,
                        max_turn_rate=radians_of(t, "max_turn_rate", _TS.max_turn_rate))
-            for t in self.targets)
+            for t in self.targets or ())
         sensors = tuple(
             SensorSpec(params=s.params(),
                        position=None if s.position is None else (s.position[0], s.position[1]),
