@@ -148,6 +148,7 @@ RANGES: dict[str, Range] = {
     "covariance": Range(None, 1e14, magnitude=True),
     "velocity_variance": Range(0.0, 1e8, "m^2/s^2"),
     "building_height": Range(0.0, LENGTH, "m", lo_open=True),
+    "birth_rate": Range(0.0, 100.0, "per step"),
 }
 
 

@@ -292,3 +292,72 @@ def test_make_truth_passes_every_target_and_map_field(rng):
     assert not np.allclose(a[:, 1:], c[:, 1:])
 
 
+
+
+class TestAddRemoveOpenWalls:
+    """Targets added and removed while the others move on, and walls that let targets out."""
+
+    def x0(self, rng, M):
+        return np.column_stack([rng.uniform(0, 300, M), rng.uniform(0, 250, M),
+                                rng.uniform(-6, 6, M), rng.uniform(-6, 6, M)])
+
+    def model(self, kinds, x0, seed, walls="mirror", buildings=None):
+        M = len(kinds)
+        return TruthModel(kinds, x0, np.random.default_rng(seed), turn_hold=np.full(M, 4.0),
+                          max_turn_rate=np.full(M, 0.1), world_size=(300.0, 250.0), dt=1.0,
+                          process_noise=0.5, buildings=buildings, walls=walls)
+
+    @pytest.mark.parametrize("kind", ["cv", "dubins"])
+    def test_an_added_target_moves_as_a_model_started_then(self, rng, kind):
+        # The added target's noise blocks start when it is added, not in step with the
+        # others'; its motion equals a one-target model started at that moment with a
+        # parent whose first child is the generator given to add().
+        x0 = self.x0(rng, 3)
+        a = self.model(["cv", "dubins", "cv"], x0, 9)
+        alone = self.model(["cv", "dubins", "cv"], x0, 9)
+        for _ in range(37):
+            a.step()
+            alone.step()
+        xb = self.x0(rng, 1)
+        a.add([kind], xb, [np.random.default_rng(21).spawn(1)[0]], turn_hold=[4.0],
+              max_turn_rate=[0.1])
+        ref = self.model([kind], xb, 21)
+        for _ in range(2 * NOISE_BLOCK + 5):
+            x = a.step()
+            np.testing.assert_array_equal(x[:3], alone.step())
+            np.testing.assert_array_equal(x[3:], ref.step())
+
+    def test_removing_targets_leaves_the_others_bit_for_bit(self, rng):
+        kinds = ["cv", "dubins", "cv", "dubins", "cv"]
+        x0 = self.x0(rng, 5)
+        a, b = self.model(kinds, x0, 3), self.model(kinds, x0, 3)
+        for t in range(NOISE_BLOCK + 30):
+            if t == 100:
+                b.remove([1, 2])
+            xa, xb = a.step(), b.step()
+            np.testing.assert_array_equal(xb, xa if t < 100 else xa[[0, 3, 4]])
+        assert b.n_targets == 3 and len(b.cv) == 2 and len(b.dub) == 1
+
+    def test_open_walls_let_a_target_through(self, rng):
+        x0 = np.array([[290.0, 5.0, 4.0, -1.0], [10.0, 125.0, -3.0, 0.5]])
+        m = TruthModel(["cv", "dubins"], x0, rng, turn_hold=[10.0, 10.0],
+                       max_turn_rate=[0.1, 0.0], world_size=(300.0, 250.0), dt=1.0,
+                       process_noise=0.0, walls="open")
+        for t in range(1, 21):
+            np.testing.assert_allclose(m.step(), x0 + t * np.hstack([x0[:, 2:], 0 * x0[:, 2:]]),
+                                       atol=1e-9)
+
+    def test_open_walls_keep_the_buildings(self):
+        # Heading +x into a building whose wall is at x = 100: mirrored back across it.
+        m = TruthModel(["cv"], np.array([[96.0, 50.0, 5.0, 0.0]]), np.random.default_rng(0),
+                       turn_hold=[10.0], max_turn_rate=[0.1], world_size=(300.0, 250.0),
+                       dt=1.0, process_noise=0.0, buildings=np.array([[100.0, 0.0, 150.0,
+                                                                       100.0, 20.0]]),
+                       walls="open")
+        np.testing.assert_allclose(m.step(), [[99.0, 50.0, -5.0, 0.0]], atol=1e-12)
+
+    def test_unknown_walls_or_kind(self):
+        with pytest.raises(ValueError, match="walls"):
+            self.model(["cv"], np.zeros((1, 4)), 0, walls="bounce")
+        with pytest.raises(ValueError, match="kind"):
+            self.model(["cv", "boat"], np.zeros((2, 4)), 0)

@@ -1,11 +1,22 @@
 """Scenario files (TOML): their strict model, reading and writing.
 
-Every key is optional except ``targets`` and ``sensors``; angles in radians, or in degrees
-under the same key with ``_deg`` appended (``fov_half_angle_deg = 30``; one of the two);
-defaults as below (``configs/paper.toml`` spells out every key)::
+Every key is optional except ``targets`` (optional with ``scripted``) and ``sensors``;
+angles in radians, or in degrees under the same key with ``_deg`` appended
+(``fov_half_angle_deg = 30``; one of the two); defaults as below (``configs/paper.toml``
+spells out every key)::
 
     dt = 1.0                      # s
     process_noise = 0.05          # q, m^2/s^3
+
+    # Targets that are born and die (leave all five out for the paper's known targets):
+    births = "none"               # or "edges" (on the boundary, heading inward; a target
+                                  # that leaves the map dies) or "uniform" (anywhere)
+    birth_rate = 0.0              # expected births per step (Poisson); > 0 needs births
+    survival_probability = 1.0    # per step, in (0, 1]; < 1 with births = "uniform"
+    # initial_targets = 3         # the first 3 [[targets]] start; the [[targets]] are the
+                                  # templates of born ones, cycled (default: all start)
+    # scripted = "williams15"     # a published benchmark's scripted truth ("vo12"): its
+                                  # own births, deaths and trajectories, map and dt
 
     [map]
     width = 600.0                 # m
@@ -51,9 +62,11 @@ from typing import Annotated, Any
 
 from pydantic import Field, ValidationInfo, field_validator
 
+from ..errors import ConfigError
 from ..limits import check_sensor_precision
 from ..models.sensors import SensorParams
 from ..planners.problem import MapRect
+from ..models.population import BIRTHS
 from ..simulation.scenario import TARGET_KINDS, Scenario, SensorSpec, TargetSpec
 from ..simulation.settings import RunSettings, TrackerSettings
 from .validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict,
@@ -112,22 +125,30 @@ class SettingsTables(Strict):
 class ScenarioFile(Strict):
     dt: float = _SC.dt
     process_noise: float = _SC.process_noise
+    births: Annotated[str, choice(BIRTHS, "births")] = _SC.births
+    birth_rate: float = _SC.birth_rate
+    survival_probability: float = _SC.survival_probability
+    initial_targets: int | None = None
+    scripted: str | None = None
     map: MapModel = MapModel()
     initial: InitialModel = InitialModel()
     tracker: TrackerTable = TrackerTable()  # type: ignore[valid-type]
-    targets: list[ScenarioTarget]
+    targets: list[ScenarioTarget] | None = None
     sensors: list[ScenarioSensor]
     buildings: list[BuildingModel] = []
     planning: PlanningTable = PlanningTable()  # type: ignore[valid-type]
     run: RunTable = RunTable()  # type: ignore[valid-type]
 
     def scenario(self) -> Scenario:
+        if self.targets is None and self.scripted is None:
+            # Required unless a scripted truth brings its own targets.
+            raise ConfigError("targets", "is required")
         targets = tuple(
             TargetSpec(kind=t.kind,
                        position=None if t.position is None else (t.position[0], t.position[1]),
                        speed=t.speed, heading=t.heading, turn_hold=t.turn_hold,
                        max_turn_rate=radians_of(t, "max_turn_rate", _TS.max_turn_rate))
-            for t in self.targets)
+            for t in self.targets or ())
         sensors = tuple(
             SensorSpec(params=s.params(),
                        position=None if s.position is None else (s.position[0], s.position[1]),
@@ -143,7 +164,9 @@ class ScenarioFile(Strict):
             sensor_box=None if ini.sensor_box is None else (ini.sensor_box[0],
                                                             ini.sensor_box[1]),
             initial_cov=tuple(tuple(row) for row in ini.cov),
-            buildings=tuple(b.row() for b in self.buildings))
+            buildings=tuple(b.row() for b in self.buildings), births=self.births,
+            birth_rate=self.birth_rate, survival_probability=self.survival_probability,
+            initial_targets=self.initial_targets, scripted=self.scripted)
         for i, spec in enumerate(scenario.sensors):
             check_sensor_precision(spec.params, f"sensors[{i}]")
         return scenario
@@ -167,8 +190,11 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
     """A scenario as the content of a scenario file, every default filled in.
 
     Fields left to each run's seed (``None`` positions, speeds, headings) are omitted, as
-    they would be in the file. :func:`scenario_from_dict` inverts it exactly (floats
-    round-trip through JSON unchanged).
+    they would be in the file. The births, deaths and scripted-truth keys are written only
+    when they differ from the known-target defaults, so that a known-target scenario is
+    written as it always was (a study directory written before they existed still holds
+    the same study). :func:`scenario_from_dict` inverts it exactly (floats round-trip
+    through JSON unchanged).
     """
     def sensor(spec: SensorSpec) -> dict[str, Any]:
         d: dict[str, Any] = {}
@@ -195,8 +221,20 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
         d["max_turn_rate"] = float(spec.max_turn_rate)
         return d
 
+    population: dict[str, Any] = {}
+    if scenario.births != _SC.births:
+        population["births"] = scenario.births
+    if scenario.birth_rate != _SC.birth_rate:
+        population["birth_rate"] = float(scenario.birth_rate)
+    if scenario.survival_probability != _SC.survival_probability:
+        population["survival_probability"] = float(scenario.survival_probability)
+    if scenario.initial_targets is not None:
+        population["initial_targets"] = int(scenario.initial_targets)
+    if scenario.scripted is not None:
+        population["scripted"] = scenario.scripted
     return {
         "dt": float(scenario.dt), "process_noise": float(scenario.process_noise),
+        **population,
         "map": {"width": float(scenario.world.width), "height": float(scenario.world.height)},
         # A box left to the map (None: a non-square map) is left out, as in the file.
         "initial": {**({} if scenario.target_box is None else

@@ -17,12 +17,18 @@ Two kinds of truth, both mirrored at the walls of the map ``[0, W] x [0, H]``:
     reflection (its steering does not change); only the part of the step after the wall is
     mirrored, so within that step the turn is mirrored too.
 
+With ``walls="open"`` the map's walls do nothing (buildings still reflect): a target may
+leave the map, and the caller decides what that means (targets born at the edges die
+there, :mod:`sensorplan.models.population`).
+
 Randomness: :class:`TruthModel` spawns one child generator per target from the truth
 generator it is given (``Generator.spawn``), so a target's motion depends on nothing but the
 truth generator and its own index - not on the other targets, the filter, the sensors or
 the planner. ``cv`` targets draw their normals in fixed blocks (the stream is consumed in
 order, so the values do not depend on when a block is drawn); ``dubins`` targets draw one
-uniform per redraw, the first at the start.
+uniform per redraw, the first at the start. Targets added later (:meth:`TruthModel.add`)
+bring their own generators; removing a target (:meth:`TruthModel.remove`) leaves the others'
+streams as they were.
 """
 
 from __future__ import annotations
@@ -30,8 +36,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+import numpy.typing as npt
 
-from .._types import BoolArray, FloatArray
+from .._types import BoolArray, FloatArray, IntArray
 from .angles import wrap_angle
 from .motion import cv_matrices
 
@@ -177,10 +184,13 @@ def reflect_off_buildings(old: FloatArray, new: FloatArray, buildings: FloatArra
     return xy, flipped
 
 
+#: What the walls of the map do: reflect targets back inside, or nothing.
+WALLS = ("mirror", "open")
+
+
 class TruthModel:
-    """Batched true motion of M targets (:func:`sensorplan.simulation.scenario.make_truth` builds
-    one
-    from a scenario).
+    """Batched true motion of M targets (:func:`sensorplan.simulation.scenario.make_truth`
+    builds one from a scenario).
 
     Parameters
     ----------
@@ -203,27 +213,26 @@ class TruthModel:
     buildings : (B, 5), optional
         Building footprints and heights ``x0, y0, x1, y1, h``: targets reflect off their
         walls as off the map's (:func:`reflect_off_buildings`).
+    walls : {"mirror", "open"}
+        ``mirror`` (default): the map's walls reflect targets (:func:`mirror`); ``open``:
+        targets pass through them and may leave the map.
 
     Attributes
     ----------
     states : (M, 4)
-        Current true states; :meth:`step` replaces (does not mutate) this array.
+        Current true states; :meth:`step`, :meth:`add` and :meth:`remove` replace (do not
+        mutate) this array.
     """
 
-    def __init__(self, kinds: Sequence[str], initial_states: FloatArray,
+    def __init__(self, kinds: Sequence[str] | npt.NDArray[np.str_], initial_states: FloatArray,
                  rng: np.random.Generator, *, turn_hold: Sequence[float] | FloatArray,
                  max_turn_rate: Sequence[float] | FloatArray,
                  world_size: Sequence[float] | FloatArray, dt: float,
-                 process_noise: float, buildings: FloatArray | None = None) -> None:
-        kind = np.asarray(kinds, dtype=str).reshape(-1)
-        states = np.array(initial_states, dtype=float)
-        M = len(kind)
-        if states.shape != (M, 4):
-            raise ValueError(f"initial_states must have shape ({M}, 4), got {states.shape}")
-        hold = np.asarray(turn_hold, dtype=float).reshape(-1)
-        rate = np.asarray(max_turn_rate, dtype=float).reshape(-1)
-        if hold.shape != (M,) or rate.shape != (M,):
-            raise ValueError(f"turn_hold and max_turn_rate must have shape ({M},)")
+                 process_noise: float, buildings: FloatArray | None = None,
+                 walls: str = "mirror") -> None:
+        if walls not in WALLS:
+            raise ValueError(f"walls must be one of {WALLS}, got {walls!r}")
+        self.walls = walls
         self.width, self.height = (float(v) for v in world_size)
         self.buildings = np.zeros((0, 5)) if buildings is None else np.asarray(
             buildings, dtype=float).reshape(-1, 5)
@@ -233,23 +242,91 @@ class TruthModel:
         # and q = 0 (allowed) gives no noise instead of a failed factorisation.
         _, Q1 = cv_matrices(self.dt, 1.0)
         self.L = np.sqrt(process_noise) * np.linalg.cholesky(Q1)
-        self._rngs = rng.spawn(M)
-        self.cv = np.flatnonzero(kind == "cv")
-        self.dub = np.flatnonzero(kind == "dubins")
-        self._noise = np.empty((len(self.cv), NOISE_BLOCK, 4))
-        self._noise_at = NOISE_BLOCK
-        d = self.dub
-        self.turn_hold = hold[d]
-        self.max_turn_rate = rate[d]
-        self.xy = states[d, :2].copy()
-        self.speed = np.hypot(states[d, 2], states[d, 3])
-        self.heading = np.arctan2(states[d, 3], states[d, 2])
-        self.turn_rate = np.array([self._draw_turn_rate(n) for n in range(len(d))])
-        self.time_left = self.turn_hold.copy()
-        self._redraw_tol = REDRAW_TOL * self.turn_hold
         self._size = np.array([self.width, self.height])
-        self.states = states
+        self.states = np.zeros((0, 4))
+        self._rngs: list[np.random.Generator] = []
+        self.cv = np.zeros(0, dtype=np.int64)
+        self.dub = np.zeros(0, dtype=np.int64)
+        # cv noise: a block of NOISE_BLOCK steps per target and where each target is in it.
+        self._noise = np.empty((0, NOISE_BLOCK, 4))
+        self._noise_at = np.zeros(0, dtype=np.int64)
+        self.turn_hold = np.zeros(0)
+        self.max_turn_rate = np.zeros(0)
+        self.xy = np.zeros((0, 2))
+        self.speed = np.zeros(0)
+        self.heading = np.zeros(0)
+        self.turn_rate = np.zeros(0)
+        self.time_left = np.zeros(0)
+        self._redraw_tol = np.zeros(0)
+        M = len(np.asarray(kinds, dtype=str).reshape(-1))
+        self.add(kinds, initial_states, rng.spawn(M), turn_hold=turn_hold,
+                 max_turn_rate=max_turn_rate)
         self.time = 0.0
+
+    @property
+    def n_targets(self) -> int:
+        """Number of targets moved by :meth:`step`."""
+        return len(self.states)
+
+    def add(self, kinds: Sequence[str] | npt.NDArray[np.str_], states: FloatArray,
+            rngs: Sequence[np.random.Generator], *, turn_hold: Sequence[float] | FloatArray,
+            max_turn_rate: Sequence[float] | FloatArray) -> None:
+        """Append targets after the present ones (rows ``n_targets ..``), each moving with
+        its own generator of ``rngs``; a ``dubins`` target draws its first turn rate from
+        it now. Shapes as in the constructor, with K new targets."""
+        kind = np.asarray(kinds, dtype=str).reshape(-1)
+        new = np.array(states, dtype=float)
+        K = len(kind)
+        if new.shape != (K, 4):
+            raise ValueError(f"initial_states must have shape ({K}, 4), got {new.shape}")
+        hold = np.asarray(turn_hold, dtype=float).reshape(-1)
+        rate = np.asarray(max_turn_rate, dtype=float).reshape(-1)
+        if hold.shape != (K,) or rate.shape != (K,):
+            raise ValueError(f"turn_hold and max_turn_rate must have shape ({K},)")
+        if len(rngs) != K:
+            raise ValueError(f"one generator per target is needed: {K}, got {len(rngs)}")
+        bad = sorted(set(kind) - {"cv", "dubins"})
+        if bad:
+            raise ValueError(f"unknown target kind {bad[0]!r}")
+        m0 = self.n_targets
+        self.states = np.concatenate([self.states, new]) if m0 else new
+        self._rngs.extend(rngs)
+        cv = np.flatnonzero(kind == "cv")
+        self.cv = np.concatenate([self.cv, m0 + cv])
+        self._noise = np.concatenate([self._noise, np.empty((len(cv), NOISE_BLOCK, 4))])
+        self._noise_at = np.concatenate([self._noise_at,
+                                         np.full(len(cv), NOISE_BLOCK, dtype=np.int64)])
+        d = np.flatnonzero(kind == "dubins")
+        n0 = len(self.dub)
+        self.dub = np.concatenate([self.dub, m0 + d])
+        self.turn_hold = np.concatenate([self.turn_hold, hold[d]])
+        self.max_turn_rate = np.concatenate([self.max_turn_rate, rate[d]])
+        self.xy = np.concatenate([self.xy, new[d, :2]])
+        self.speed = np.concatenate([self.speed, np.hypot(new[d, 2], new[d, 3])])
+        self.heading = np.concatenate([self.heading, np.arctan2(new[d, 3], new[d, 2])])
+        self.turn_rate = np.concatenate(
+            [self.turn_rate, np.array([self._draw_turn_rate(n0 + n) for n in range(len(d))])])
+        self.time_left = np.concatenate([self.time_left, hold[d]])
+        self._redraw_tol = REDRAW_TOL * self.turn_hold
+
+    def remove(self, rows: Sequence[int] | IntArray) -> None:
+        """Drop the targets at ``rows``; the others keep their order, states and streams."""
+        drop = np.asarray(rows, dtype=np.int64).reshape(-1)
+        if drop.size == 0:
+            return
+        keep = np.ones(self.n_targets, dtype=bool)
+        keep[drop] = False
+        renumber = np.cumsum(keep) - 1
+        kc, kd = keep[self.cv], keep[self.dub]
+        self.cv = renumber[self.cv[kc]]
+        self._noise = self._noise[kc]
+        self._noise_at = self._noise_at[kc]
+        self.dub = renumber[self.dub[kd]]
+        for name in ("turn_hold", "max_turn_rate", "xy", "speed", "heading", "turn_rate",
+                     "time_left", "_redraw_tol"):
+            setattr(self, name, getattr(self, name)[kd])
+        self._rngs = [r for r, k in zip(self._rngs, keep, strict=True) if k]
+        self.states = self.states[keep]
 
     def _draw_turn_rate(self, n: int) -> float:
         """A fresh turn rate for the n-th dubins target, from that target's own stream."""
@@ -258,12 +335,13 @@ class TruthModel:
 
     def _cv_noise(self) -> FloatArray:
         """Process noise ``(M_cv, 4)`` for one step, drawn per target in blocks."""
-        if self._noise_at == NOISE_BLOCK:
-            for n, j in enumerate(self.cv):
-                self._noise[n] = self._rngs[j].standard_normal((NOISE_BLOCK, 4))
-            self._noise = self._noise @ self.L.T
-            self._noise_at = 0
-        w = self._noise[:, self._noise_at]
+        need = np.flatnonzero(self._noise_at == NOISE_BLOCK)
+        if need.size:
+            raw = np.stack([self._rngs[self.cv[n]].standard_normal((NOISE_BLOCK, 4))
+                            for n in need])
+            self._noise[need] = raw @ self.L.T
+            self._noise_at[need] = 0
+        w = self._noise[np.arange(len(self.cv)), self._noise_at]
         self._noise_at += 1
         return w
 
@@ -302,8 +380,15 @@ class TruthModel:
             new[self.dub, :2] = self.xy
             new[self.dub, 2] = self.speed * np.cos(self.heading)
             new[self.dub, 3] = self.speed * np.sin(self.heading)
-        folded, flipped = mirror(new[:, :2], self._size)
-        if len(self.buildings):
+        if self.walls == "mirror":
+            folded, flipped = mirror(new[:, :2], self._size)
+        else:
+            folded, flipped = new[:, :2], np.zeros((len(new), 2), dtype=bool)
+        if len(self.buildings) and self.walls == "open":
+            folded, off_walls = reflect_off_buildings(self.states[:, :2], folded,
+                                                      self.buildings)
+            flipped = flipped ^ off_walls
+        elif len(self.buildings):
             # A wall of a building near the edge of the map can send a point out of the
             # map and back: alternate the two reflections until it is outside every
             # building and inside the map.

@@ -18,6 +18,8 @@ import numpy as np
 
 from .._types import FloatArray
 from ..errors import ConfigError
+from ..models.population import BIRTHS, Population, PopulationTruth
+from ..models.scripted import BENCHMARKS, scripted_truth
 from ..models.sensors import SensorParams
 from ..models.truth import TruthModel, inside_buildings
 from ..planners.problem import MapRect, check_buildings, check_covariance
@@ -86,6 +88,20 @@ class Scenario:
     buildings : tuple of (x0, y0, x1, y1, height)
         Buildings: axis-aligned boxes on the ground (m) that hide targets from sensors
         and that targets reflect off; every sensor flies above all of them.
+    births : {"none", "edges", "uniform"}
+        Where targets are born (:mod:`sensorplan.models.population`): ``none`` (the known
+        targets only, as in the paper), ``edges`` (on the map's boundary heading inward; a
+        target that leaves the map dies) or ``uniform`` (anywhere outside the buildings;
+        needs ``survival_probability < 1``). Born targets take the ``targets`` as
+        templates, cycled.
+    birth_rate : float               expected births per step (Poisson), >= 0
+    survival_probability : float     probability that a target survives a step, in (0, 1]
+    initial_targets : int or None    targets alive at the start: the first
+                                     ``initial_targets`` of ``targets`` (0 allowed with
+                                     births); None: all of them
+    scripted : str or None           a published benchmark's scripted truth
+                                     (:data:`sensorplan.models.scripted.BENCHMARKS`) instead
+                                     of drawn targets; its map and step are the benchmark's
     """
 
     world: MapRect = field(default_factory=MapRect)
@@ -99,6 +115,11 @@ class Scenario:
     initial_cov: tuple[tuple[float, ...], ...] = (
         (400.0, 0.0, 0.0, 0.0), (0.0, 400.0, 0.0, 0.0), (0.0, 0.0, 4.0, 0.0), (0.0, 0.0, 0.0, 4.0))
     buildings: tuple[tuple[float, float, float, float, float], ...] = ()
+    births: str = "none"
+    birth_rate: float = 0.0
+    survival_probability: float = 1.0
+    initial_targets: int | None = None
+    scripted: str | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "targets", tuple(self.targets))
@@ -134,6 +155,21 @@ class Scenario:
     def target_kinds(self) -> tuple[str, ...]:
         return tuple(t.kind for t in self.targets)
 
+    @property
+    def n_initial(self) -> int:
+        """Targets alive at the start: ``initial_targets``, else every target of
+        ``targets`` (none for a scripted truth, whose targets are born from step 1)."""
+        if self.scripted is not None:
+            return 0
+        return len(self.targets) if self.initial_targets is None else self.initial_targets
+
+    @property
+    def known_targets(self) -> bool:
+        """Whether the targets are exactly the initial ones for the whole run (no births,
+        no deaths, no scripted truth): the paper's setting."""
+        return (self.births == "none" and self.survival_probability == 1.0
+                and self.scripted is None)
+
     def validate(self) -> None:
         """The decision file's rules that apply to scenarios, and the ranges of
         :data:`sensorplan.limits.RANGES`; raise ConfigError naming the field."""
@@ -151,7 +187,7 @@ class Scenario:
             if not (math.isfinite(v) and v > 0):
                 raise ConfigError(f"map.{name}", "must be a finite number > 0")
             RANGES["length"].check(v, f"map.{name}")
-        if not self.targets:
+        if not self.targets and self.scripted is None:
             raise ConfigError("targets", "at least one target is required")
         if not self.sensors:
             raise ConfigError("sensors", "at least one sensor is required")
@@ -213,6 +249,58 @@ class Scenario:
             if s.heading is not None:
                 RANGES["heading"].check(s.heading, f"sensors[{i}].heading")
         self._validate_buildings()
+        self._validate_population()
+
+    def _validate_population(self) -> None:
+        """The births, deaths and scripted-truth keys (:mod:`sensorplan.models.population`)."""
+        from ..limits import RANGES
+
+        if self.births not in BIRTHS:
+            raise ConfigError("births", f"unknown births {self.births!r}; choose from "
+                              f"{', '.join(BIRTHS)}")
+        rate = self.birth_rate
+        if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not (
+                math.isfinite(rate) and rate >= 0):
+            raise ConfigError("birth_rate", f"must be a finite number >= 0 (expected births "
+                              f"per step), got {rate!r}")
+        RANGES["birth_rate"].check(rate, "birth_rate")
+        if rate > 0 and self.births == "none":
+            raise ConfigError("birth_rate", 'has no effect with births = "none" (choose '
+                              'births = "edges" or "uniform")')
+        p = self.survival_probability
+        if isinstance(p, bool) or not isinstance(p, (int, float)) or not (
+                math.isfinite(p) and 0.0 < p <= 1.0):
+            raise ConfigError("survival_probability", f"must be in (0, 1], got {p!r}")
+        if self.births == "uniform" and p == 1.0:
+            raise ConfigError("survival_probability", 'must be < 1 with births = "uniform" '
+                              "(targets born anywhere never leave the map, so with every "
+                              "one surviving their number grows without bound)")
+        n0 = self.initial_targets
+        if n0 is not None:
+            if isinstance(n0, bool) or not isinstance(n0, int) or n0 < 0:
+                raise ConfigError("initial_targets", f"must be an integer >= 0, got {n0!r}")
+            if n0 > len(self.targets):
+                raise ConfigError("initial_targets", f"must be at most the number of targets "
+                                  f"({len(self.targets)}): the initial targets are the first "
+                                  "of them (give more targets)")
+            if n0 == 0 and self.births == "none" and self.scripted is None:
+                raise ConfigError("initial_targets", 'is 0 with births = "none": there would '
+                                  "be no targets")
+        if self.scripted is not None:
+            bench = BENCHMARKS.get(self.scripted)
+            if bench is None:
+                raise ConfigError("scripted", f"unknown scripted truth {self.scripted!r}; "
+                                  f"choose from {', '.join(BENCHMARKS)}")
+            if self.births != "none" or n0 is not None or p != 1.0:
+                raise ConfigError("scripted", "a scripted truth has its own births and "
+                                  "deaths: leave out births, birth_rate, "
+                                  "survival_probability and initial_targets")
+            for key, have, want in (("map.width", self.world.width, bench.world_size[0]),
+                                    ("map.height", self.world.height, bench.world_size[1]),
+                                    ("dt", self.dt, bench.dt)):
+                if have != want:
+                    raise ConfigError(key, f"must be {want:g} for the scripted "
+                                      f"{self.scripted} truth, got {have:g}")
 
     def _validate_buildings(self) -> None:
         check_buildings(self.buildings, self.world, [s.params.altitude for s in self.sensors])
@@ -285,6 +373,35 @@ def swarm_scenario() -> Scenario:
                     target_box=(100.0, 2900.0), sensor_box=(50.0, 2950.0))
 
 
+#: Expected births per step of :func:`search_scenario`: of the rates tried (0.03 to 0.08
+#: per step), the one that kept 3 to 8 targets alive in the largest share of steps (87 %,
+#: with 0.055 and 0.065 alike) over 200-step runs on development seeds 10000-10059, used
+#: for nothing else. Targets stay on the map for about 90 steps on average, so about 5
+#: are alive once the start has been forgotten.
+SEARCH_BIRTH_RATE = 0.06
+
+
+def search_scenario() -> Scenario:
+    """The truth of the search-and-track scenario: the paper's map and platforms in the
+    ``radar`` preset's conditions (:data:`RADAR_DETECTION`), the first 3 of the paper's
+    targets known at the start and Poisson births at the map's edges at
+    :data:`SEARCH_BIRTH_RATE` per step (templates cycled: 3 ``cv`` to 2 ``dubins``); a
+    target dies when it leaves the map (survival 1 otherwise). Initial states, births and
+    sensor poses are drawn from each run's seed.
+    """
+    return dataclasses.replace(radar_scenario(), births="edges",
+                               birth_rate=SEARCH_BIRTH_RATE, initial_targets=3)
+
+
+def benchmark_scenario(name: str, sensors: tuple[SensorSpec, ...]) -> Scenario:
+    """A scenario whose truth is the scripted benchmark ``name``
+    (:data:`sensorplan.models.scripted.BENCHMARKS`): its map and step, ``sensors``, and no
+    target templates (the benchmark's targets are its own)."""
+    bench = BENCHMARKS[name]
+    return Scenario(world=MapRect(*bench.world_size), dt=bench.dt, sensors=sensors,
+                    scripted=name)
+
+
 #: Built-in scenarios by name (``--preset``, a study's ``scenario.preset``).
 PRESETS: dict[str, Callable[[], Scenario]] = {"paper": paper_scenario, "radar": radar_scenario,
                                               "urban": urban_scenario, "swarm": swarm_scenario}
@@ -313,13 +430,14 @@ def draw_initial(scenario: Scenario, truth_rng: np.random.Generator,
     """Draw what the scenario leaves open.
 
     ``truth_rng`` draws target states and sensor poses (what every method of a paired run
-    shares); ``init_rng`` draws the initial estimation error.
+    shares); ``init_rng`` draws the initial estimation error. Only the initial targets
+    (:attr:`Scenario.n_initial`, the first of ``targets``) are drawn.
     """
-    M = len(scenario.targets)
+    M = scenario.n_initial
     truth = np.empty((M, 4))
     blds = scenario.building_array
     t_lo, t_hi = scenario.start_region("targets")
-    for j, t in enumerate(scenario.targets):
+    for j, t in enumerate(scenario.targets[:M]):
         pos = truth_rng.uniform(t_lo, t_hi)
         # Targets start outside the buildings: redraw (only a scenario with buildings ever
         # draws more than once, so the others keep their streams).
@@ -352,10 +470,49 @@ def draw_initial(scenario: Scenario, truth_rng: np.random.Generator,
 def make_truth(scenario: Scenario, initial_states: FloatArray,
                rng: np.random.Generator) -> TruthModel:
     """The scenario's :class:`~sensorplan.models.truth.TruthModel` starting at ``initial_states``
-    ``(M, 4)``, drawing from the truth generator ``rng``."""
-    return TruthModel(scenario.target_kinds, initial_states, rng,
-                      turn_hold=[t.turn_hold for t in scenario.targets],
-                      max_turn_rate=[t.max_turn_rate for t in scenario.targets],
+    ``(M, 4)`` (the first M of its targets), drawing from the truth generator ``rng``.
+
+    Known targets only: a scenario with births, deaths or a scripted truth is moved by
+    :func:`make_population`."""
+    if not scenario.known_targets:
+        raise ValueError("this scenario's targets are born and die: use make_population")
+    targets = scenario.targets[:len(initial_states)]
+    return TruthModel([t.kind for t in targets], initial_states, rng,
+                      turn_hold=[t.turn_hold for t in targets],
+                      max_turn_rate=[t.max_turn_rate for t in targets],
                       world_size=(scenario.world.width, scenario.world.height),
                       dt=scenario.dt, process_noise=scenario.process_noise,
                       buildings=scenario.building_array)
+
+
+def make_population(scenario: Scenario, initial_states: FloatArray, rng: np.random.Generator,
+                    births_rng: np.random.Generator) -> Population:
+    """The scenario's truth as a population whose targets may be born and die.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    initial_states : (n_initial, 4)
+        The initial targets' states (:func:`draw_initial`; empty for a scripted truth).
+    rng : numpy.random.Generator
+        The run's truth generator (the same that drew ``initial_states``).
+    births_rng : numpy.random.Generator
+        A generator of its own for births and deaths, so that the truth stream keeps its
+        values: with ``births = "none"`` and survival 1 it is never drawn from and the
+        states are :func:`make_truth`'s bit for bit.
+
+    Returns
+    -------
+    :class:`~sensorplan.models.population.PopulationTruth`, or the benchmark's
+    :class:`~sensorplan.models.scripted.ScriptedTruth` when ``scenario.scripted`` is set.
+    """
+    if scenario.scripted is not None:
+        return scripted_truth(scenario.scripted, rng)
+    return PopulationTruth(
+        scenario.target_kinds, initial_states, rng, births_rng,
+        turn_hold=[t.turn_hold for t in scenario.targets],
+        max_turn_rate=[t.max_turn_rate for t in scenario.targets],
+        world_size=(scenario.world.width, scenario.world.height), dt=scenario.dt,
+        process_noise=scenario.process_noise, births=scenario.births,
+        birth_rate=scenario.birth_rate, survival_probability=scenario.survival_probability,
+        speed_range=scenario.speed_range, buildings=scenario.building_array)
