@@ -377,6 +377,11 @@ def check_run(scenario: Any, settings: Any, fields: dict[str, str]) -> None:
 
     ``fields`` names the fields as :func:`check_decision_size` wants, plus ``steps``.
     """
+    if settings.tracker.kind == "known" and not scenario.known_targets:
+        raise ConfigError(fields.get("tracker.kind", "tracker.kind"),
+                          "a tracker of known targets needs every target known from the "
+                          "start (births = 'none', survival_probability = 1, no scripted "
+                          "truth); choose a multi-target tracker")
     M, N = len(scenario.targets), len(scenario.sensors)
     check_decision_size(settings.horizon, settings.steps_per_epoch, M,
                         [s.params.moves for s in scenario.sensors], scenario.world.width,

@@ -3,6 +3,8 @@ are written back, and the one-line error naming the key for each kind of bad val
 
 from __future__ import annotations
 
+import tomllib
+
 import json
 import os
 import subprocess
@@ -11,7 +13,6 @@ from pathlib import Path
 
 import pytest
 
-from sensorplan.config import load_simulation
 from sensorplan.config.scenario import scenario_from_dict, scenario_to_dict
 from sensorplan.simulation.scenario import benchmark_scenario, paper_scenario
 
@@ -25,7 +26,8 @@ def test_a_births_file_builds_the_scenario(tmp_path):
     path = tmp_path / "s.toml"
     path.write_text('births = "edges"\nbirth_rate = 0.05\nsurvival_probability = 0.99\n'
                     "initial_targets = 1\n" + TEMPLATES)
-    sc = load_simulation(path).scenario
+    # (simulate refuses the default tracker of known targets for it: read the scenario)
+    sc = scenario_from_dict(tomllib.loads(path.read_text()))
     assert (sc.births, sc.birth_rate, sc.survival_probability, sc.initial_targets) == (
         "edges", 0.05, 0.99, 1)
     assert sc.n_initial == 1 and not sc.known_targets
@@ -102,7 +104,7 @@ def test_a_scripted_file_needs_no_targets(tmp_path):
     path = tmp_path / "s.toml"
     path.write_text('scripted = "williams15"\n[map]\nwidth = 300.0\nheight = 300.0\n'
                     "[[sensors]]\n")
-    sc = load_simulation(path).scenario
+    sc = scenario_from_dict(tomllib.loads(path.read_text()))
     assert sc.scripted == "williams15" and sc.targets == () and sc.n_initial == 0
     assert sc == benchmark_scenario("williams15", sc.sensors)
 
@@ -112,3 +114,17 @@ def test_without_targets_and_without_a_scripted_truth(tmp_path, capsys):
     path.write_text("[[sensors]]\n")
     line = assert_bad_input(run(capsys, "simulate", path, "--steps", "2"), "targets")
     assert line.endswith("is required")
+
+
+def test_a_tracker_of_known_targets_refuses_a_truth_with_births(tmp_path, capsys) -> None:
+    from cli_helpers import run
+
+    f = tmp_path / "births.toml"
+    f.write_text('births = "edges"\nbirth_rate = 0.05\n[[targets]]\nkind = "cv"\n'
+                 '[[sensors]]\n')
+    code, out, err = run(capsys, "simulate", f, "--steps", "3", "--out", tmp_path / "o")
+    assert code == 2 and out == ""
+    assert err.splitlines() == [
+        "error: tracker.kind: a tracker of known targets needs every target known from the "
+        "start (births = 'none', survival_probability = 1, no scripted truth); choose a "
+        "multi-target tracker"]

@@ -136,10 +136,10 @@ class TestDeterminism:
 
     def test_streams_are_the_spawned_children(self):
         streams = run_streams(5)
-        children = np.random.SeedSequence(5).spawn(7)
+        children = np.random.SeedSequence(5).spawn(8)
         # New streams are appended: the first four keep the values they always had.
         assert list(streams) == ["truth", "init", "noise", "planner", "detection", "clutter",
-                                "target_detection"]
+                                "target_detection", "births"]
         for s, c in zip(streams.values(), children):
             np.testing.assert_array_equal(s.generate_state(4), c.generate_state(4))
 

@@ -241,14 +241,33 @@ class Recorder:
     :data:`STEP_ARRAYS`)."""
 
     def __init__(self, steps: int, n_targets: int, n_sensors: int) -> None:
-        dims: dict[str | int, int] = {"M": n_targets, "N": n_sensors}
+        self.steps, self.n_sensors = steps, n_sensors
         self.arrays: dict[str, np.ndarray] = {}
-        for name, (shape, dtype, fill) in STEP_ARRAYS.items():
-            full = (steps + 1, *(dims[d] if d in dims else int(d) for d in shape))
-            self.arrays[name] = (np.empty(full, dtype=dtype) if fill is None
-                                 else np.full(full, fill, dtype=dtype))
+        for name in STEP_ARRAYS:
+            self.arrays[name] = self._new(name, n_targets)
         self.decisions: list[tuple[int, float, float, float, float]] = []
         self.tracks: list[tuple[int, TrackSet]] = []
+
+    def _new(self, name: str, n_targets: int) -> np.ndarray:
+        shape, dtype, fill = STEP_ARRAYS[name]
+        dims: dict[str | int, int] = {"M": n_targets, "N": self.n_sensors}
+        full = (self.steps + 1, *(dims[d] if d in dims else int(d) for d in shape))
+        if fill is None:                    # written at every step (NaN before a target's birth)
+            fill = np.nan if np.issubdtype(dtype, np.floating) else 0
+        return np.full(full, fill, dtype=dtype)
+
+    def _grow(self, n_targets: int) -> None:
+        """Room for ``n_targets`` target slots (targets born during the run); a slot's rows
+        before its birth hold NaN and ``alive`` False."""
+        m = self.arrays["alive"].shape[1]
+        if n_targets <= m:
+            return
+        for name, (shape, _, _) in STEP_ARRAYS.items():
+            if "M" in shape:
+                extra = self._new(name, n_targets - m)
+                if name == "alive":
+                    extra[:] = False
+                self.arrays[name] = np.concatenate([self.arrays[name], extra], axis=1)
 
     def start(self, truth: FloatArray, tracks: TrackSet, positions: FloatArray,
               headings: FloatArray) -> None:
@@ -272,18 +291,27 @@ class Recorder:
         """A decision taken at time index ``t``."""
         self.decisions.append((t, seconds, potential, converged, sweeps))
 
-    def step(self, t: int, truth: FloatArray, tracks: TrackSet, aimed: IntArray,
-             looks: Looks, sensed: Sensed, predicted: BoolArray, update: UpdateRecord) -> None:
-        """Step ``t``: the truth, the tracks after the updates, and what the looks did.
+    def step(self, t: int, truth: FloatArray, alive: BoolArray, tracks: TrackSet,
+             aimed: IntArray, looks: Looks, sensed: Sensed, predicted: BoolArray,
+             update: UpdateRecord) -> None:
+        """Step ``t``: the truth (``(M, 4)`` target slots, which are ``alive``), the tracks
+        after the updates, and what the looks did.
 
-        ``aimed`` ``(N,)`` is the target each sensor looked at (-1: none).
+        ``aimed`` ``(N,)`` is the target each sensor looked at (-1: none). The per-target
+        records of a tracker of known targets (``estimate``, ``cov`` and the update flags)
+        are its tracks in target order; other trackers' tracks are in the set records.
         """
+        self._grow(len(truth))
         a = self.arrays
-        a["truth"][t], a["estimate"][t], a["cov"][t] = truth, tracks.means, tracks.covs
+        M = len(truth)
+        a["truth"][t, :M], a["alive"][t, :M] = truth, alive
+        a["alive"][t, M:] = False
+        if len(tracks) == M and np.array_equal(tracks.labels, np.arange(M)):
+            a["estimate"][t, :M], a["cov"][t, :M] = tracks.means, tracks.covs
         self._tracks(t, tracks)
         a["looked"][t], a["missed"][t] = aimed, sensed.missed
         if sensed.measured is not None:
-            a["measured"][t] = sensed.measured
+            a["measured"][t, :len(sensed.measured)] = sensed.measured
         else:
             n = np.flatnonzero(sensed.seen)
             a["measured"][t, aimed[n], n] = True
@@ -293,9 +321,10 @@ class Recorder:
         a["used"][t, i], a["discarded"][t, i] = update.used, update.discarded
         g = i[update.gated_out] if len(update.gated_out) else i[:0]
         a["gated_out"][t, aimed[g], g] = True
-        a["negative_update"][t], a["inflated"][t] = update.negative, update.inflated
-        a["restarted"][t] = update.restarted
-        a["map_corrected"][t] = predicted | update.map_corrected
+        if len(update.negative) == M:            # flags of a tracker of known targets
+            a["negative_update"][t, :M], a["inflated"][t, :M] = update.negative, update.inflated
+            a["restarted"][t, :M] = update.restarted
+            a["map_corrected"][t, :M] = predicted | update.map_corrected
 
     def episode(self, target_kinds: tuple[str, ...], settings: RunSettings,
                 seed: np.random.SeedSequence) -> Episode:

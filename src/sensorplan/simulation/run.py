@@ -47,14 +47,15 @@ from ..planners.problem import PlanningProblem
 from ..tracking.base import Tracker, TrackSet
 from ..tracking.registry import tracker_class
 from .episode import Episode, Recorder, _is_int
-from .scenario import Scenario, draw_initial, make_truth
+from .scenario import Scenario, draw_initial, make_population
 from .sensing import Sensing
 from .settings import EXECUTIONS, RunSettings
 
 __all__ = ["EXECUTIONS", "STREAMS", "Episode", "RunSettings", "run_episode", "run_streams"]
 #: Names of the run's independent random streams, in spawn order (a new stream is only ever
 #: appended, so the earlier ones keep their values).
-STREAMS = ("truth", "init", "noise", "planner", "detection", "clutter", "target_detection")
+STREAMS = ("truth", "init", "noise", "planner", "detection", "clutter", "target_detection",
+           "births")
 
 
 def run_streams(seed: int | np.random.SeedSequence) -> dict[str, np.random.SeedSequence]:
@@ -110,10 +111,11 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     table = radar_table(tuple(s.params for s in scenario.sensors))
 
     init = draw_initial(scenario, truth_rng, np.random.default_rng(streams["init"]))
-    truth_model = make_truth(scenario, init.truth, truth_rng)
+    truth_model = make_population(scenario, init.truth, truth_rng,
+                                  np.random.default_rng(streams["births"]))
     tracker = make_tracker(scenario, settings, init.estimate, table)
     sensing = Sensing(table, scenario.building_array, streams, S)
-    record = Recorder(S, len(scenario.targets), N)
+    record = Recorder(S, len(init.truth), N)
     record.start(init.truth, tracker.tracks(), init.positions, init.headings)
     schedule = _Schedule(scenario, settings, planner, planner_rng, table, init)
     # Load the compiled kernels now, so that no decision's time includes it (the planners
@@ -125,14 +127,14 @@ def run_episode(scenario: Scenario, settings: RunSettings,
         for t in range(1, S + 1):
             if (t - 1) % e == 0:
                 schedule.epoch(t, tracker, record)
-            x_true = truth_model.step()
+            x_true, alive = truth_model.step()
             predicted = tracker.predict()
             looks, sensed = sensing.look(t, x_true, schedule.positions, schedule.headings,
-                                         schedule.aimed)
+                                         schedule.aimed, alive)
             update = tracker.update(looks)
             record.pose(t, schedule.positions, schedule.headings)
-            record.step(t, x_true, tracker.tracks(), schedule.aimed, looks, sensed, predicted,
-                        update)
+            record.step(t, x_true, alive, tracker.tracks(), schedule.aimed, looks, sensed,
+                        predicted, update)
             if progress is not None:
                 progress(t, S)
     finally:
