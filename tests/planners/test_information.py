@@ -17,7 +17,7 @@ import pytest
 
 from sensorplan.planners import information
 from sensorplan.planners.information import (covariance_recursion, evaluate, information_update,
-                                             potential, prepare)
+                                             measured, phi_terms, potential, prepare)
 from sensorplan.planners.problem import Plan, PlanningProblem
 from sensorplan.models.sensors import SensorParams
 
@@ -343,6 +343,43 @@ def test_covariance_recursion_equals_step_by_step_reference(rng, backend):
         np.testing.assert_allclose(P_end[b], P, rtol=1e-9, atol=1e-9 * np.abs(P).max())
         assert ld_end[b] == pytest.approx(np.linalg.slogdet(P)[1], rel=1e-10, abs=1e-10)
         assert ld_sum[b] == pytest.approx(total, rel=1e-10, abs=1e-10)
+
+
+def test_phi_terms_follow_the_definition_and_the_round_off_rule(rng):
+    """Terms from explicit covariances (information form, matrix inverses), target by target
+    and step by step; an unmeasured target's term is exactly 0, a measured one's at least 0."""
+    F, Q = spec_F(1.0), spec_Q(1.0, 0.05)
+    M, T = 6, 5
+    P0 = _random_spd(rng, 4, (M,))
+    W = _random_spd(rng, 2, (M, T)) * 1e-2
+    W[:, ::2] = 0.0
+    W[0] = 0.0                                                         # never measured
+    W[1, :3] = 0.0                                                     # only at step 4
+    G = np.eye(4)[:2]
+    ld_bar, ld_post = np.zeros((M, T + 1)), np.zeros((M, T + 1))
+    for j in range(M):
+        Pb = P = P0[j]
+        ld_bar[j, 0] = ld_post[j, 0] = np.linalg.slogdet(P0[j])[1]
+        for t in range(1, T + 1):
+            Pb, P = F @ Pb @ F.T + Q, F @ P @ F.T + Q
+            P = np.linalg.inv(np.linalg.inv(P) + G.T @ W[j, t - 1] @ G)
+            ld_bar[j, t], ld_post[j, t] = np.linalg.slogdet(Pb)[1], np.linalg.slogdet(P)[1]
+    ld_end, ld_sum = ld_post[:, -1], ld_post[:, 1:].sum(axis=1)
+    for cumulative in (False, True):
+        want = np.zeros(M)
+        for j in range(1, M):
+            steps = range(1, T + 1) if cumulative else (T,)
+            want[j] = sum(0.5 * (ld_bar[j, t] - ld_post[j, t]) for t in steps)
+        got = phi_terms(ld_bar, ld_end, ld_sum, cumulative, measured(W))
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+        assert got[0] == 0.0 and np.all(want[1:] > 0)
+    # The rule, on round-off: an unmeasured target 1e-13 apart is 0, a measured one just
+    # below its reference is 0, and one batch of values per target broadcasts.
+    ld_ref = np.array([0.0, 1.0, 3.0])                                  # (T + 1,) = (3,)
+    ld = np.array([3.0 - 1e-13, 3.0 + 1e-15, 2.0])
+    got = phi_terms(ld_ref, ld, ld, False, np.array([False, True, True]))
+    np.testing.assert_array_equal(got, [0.0, 0.0, 0.5])
+    np.testing.assert_array_equal(measured(np.zeros((2, 4, 2, 2))), [False, False])
 
 
 def test_covariances_stay_positive_definite_over_long_recursions(rng):

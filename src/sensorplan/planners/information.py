@@ -439,19 +439,52 @@ def assigned_runs(assigned: np.ndarray) -> list[tuple[int, int]]:
     return runs
 
 
+def phi_terms(ld_bar: FloatArray, ld_end: FloatArray, ld_sum: FloatArray, cumulative: bool,
+              measured: BoolArray) -> FloatArray:
+    r"""Per-target terms of Phi from the log-dets of the measured covariance recursion.
+
+    .. math::
+        \tfrac12 \log\det \bar P_j(T) - \tfrac12 \log\det P_j(T \mid Z_j)
+        \quad\text{or}\quad
+        \sum_{t=1}^{T} \tfrac12 \log\det \bar P_j(t) - \tfrac12 \log\det P_j(t \mid Z_j)
+
+    (``terminal`` or ``cumulative``). The rule for round-off: an unmeasured target's term is
+    exactly 0 (its two log-dets differ by round-off only), and a measured target's term is
+    at least 0 (a measurement never increases the log-det; a term below 0 is round-off, about
+    eps times the covariance's condition number, up to 1e12 in inputs). Every numpy
+    evaluation of Phi goes through here; the compiled engine's utilities are differences of
+    the same terms before this rule (it moves them by round-off only).
+
+    Parameters
+    ----------
+    ld_bar : (..., T + 1)   log det of ``Pbar_j(t)``, t = 0..T (``Context.ld_bar``)
+    ld_end : (...,)         log det of ``P_j(T | Z_j)``
+    ld_sum : (...,)         sum over t = 1..T of log det ``P_j(t | Z_j)`` (``cumulative``)
+    cumulative : bool       the objective
+    measured : (...,) bool  whether any of the target's looks counts (:func:`measured`)
+
+    Returns
+    -------
+    (...,) float64   nats, >= 0
+    """
+    if cumulative:
+        info = 0.5 * (ld_bar[..., 1:].sum(axis=-1) - ld_sum)
+    else:
+        info = 0.5 * (ld_bar[..., -1] - ld_end)
+    return np.where(measured, np.maximum(info, 0.0), 0.0)
+
+
+def measured(W_target: FloatArray) -> BoolArray:
+    """Whether each target has information, from its summed ``W_target (..., T, 2, 2)``."""
+    return np.any(W_target != 0.0, axis=(-3, -2, -1))
+
+
 def target_information(ctx: Context, W_target: FloatArray) -> FloatArray:
     """Per-target terms of Phi from the summed information ``W_target (M, T, 2, 2)``."""
     P0 = np.asarray(ctx.problem.covs)
     cumulative = ctx.problem.objective == "cumulative"
     _, ld_end, ld_sum = covariance_recursion(P0, W_target, ctx.F, ctx.Q, cumulative)
-    if cumulative:
-        info = 0.5 * (ctx.ld_bar[:, 1:].sum(axis=1) - ld_sum)
-    else:
-        info = 0.5 * (ctx.ld_bar[:, -1] - ld_end)
-    # An unmeasured target's term is exactly 0 (the two log-dets above differ by round-off).
-    # A measurement never increases the log-det, so a measured target's term below 0 is
-    # round-off too (about eps x the covariance's condition number, up to 1e12 in inputs).
-    return np.where(np.any(W_target != 0.0, axis=(1, 2, 3)), np.maximum(info, 0.0), 0.0)
+    return phi_terms(ctx.ld_bar, ld_end, ld_sum, cumulative, measured(W_target))
 
 
 def sum_by_target(ctx: Context, W: FloatArray, targets: IntArray) -> FloatArray:
