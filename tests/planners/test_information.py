@@ -15,6 +15,7 @@ import math
 import numpy as np
 import pytest
 
+from sensorplan.models.angles import heading_rule
 from sensorplan.planners import information
 from sensorplan.planners.information import (covariance_recursion, evaluate, information_update,
                                              measured, phi_terms, potential, prepare)
@@ -265,6 +266,61 @@ def test_chain_headings_turn_from_the_previous_epoch(backend):
     want, _, th = Reference(pr).information(plan)
     np.testing.assert_allclose(th[0], ev.headings[0], atol=1e-12)
     np.testing.assert_allclose(ev.information, want, rtol=RTOL, atol=ATOL)
+
+
+def numpy_chain_headings(ctx, i, k_first, positions, targets, prev_heading, prev_assigned):
+    """The heading chain in numpy, vectorised over candidates (the second computation of the
+    compiled one): bearing to the aim point, heading rule, ``k max_turn`` after a gap."""
+    max_turn = ctx.max_turn[i]
+    theta0 = ctx.problem.headings[i]
+    out = np.empty(targets.shape)
+    prev = np.asarray(prev_heading, dtype=float)
+    for l in range(targets.shape[1]):
+        k = k_first + l
+        aim = ctx.aim[targets[:, l], k - 1]
+        bearing = np.arctan2(aim[:, 1] - positions[:, l, 1], aim[:, 0] - positions[:, l, 0])
+        if l == 0 and not prev_assigned:
+            prev = heading_rule(theta0, bearing, k * max_turn)
+        else:
+            prev = heading_rule(prev, bearing, max_turn)
+        out[:, l] = prev
+    return out
+
+
+@pytest.mark.parametrize("prev_assigned", [True, False])
+def test_chain_headings_equal_the_numpy_heading_chain(rng, problem_factory, prev_assigned):
+    """The compiled heading chain (one helper for every kernel) against the numpy one (numpy's
+    and libm's atan2 differ in the last bit at times), and the headings of the compiled looks
+    equal to it bit for bit."""
+    from sensorplan.planners._chains_nb import chain_looks_nb
+
+    clipped = 0
+    for case in range(20):
+        K = int(rng.integers(2, 5))
+        turn = {"max_turn": float(rng.uniform(0.05, 1.0))}
+        pr = problem_factory(rng, n_sensors=2, n_targets=3, horizon=K, sensor_kwargs=turn)
+        ctx = prepare(pr)
+        B, k_first = 50, int(rng.integers(1, K))
+        L = K - k_first + 1
+        pos = rng.uniform(0.0, 600.0, (B, L, 2))
+        tgt = rng.integers(0, 3, (B, L))
+        prev = rng.uniform(-math.pi, math.pi, B)
+        i = case % 2
+        got = information.chain_headings(ctx, i, k_first, pos, tgt, prev, prev_assigned)
+        want = numpy_chain_headings(ctx, i, k_first, pos, tgt, prev, prev_assigned)
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-13)
+        scalar = information.chain_headings(ctx, i, k_first, pos, tgt, 0.3, prev_assigned)
+        np.testing.assert_allclose(
+            scalar, numpy_chain_headings(ctx, i, k_first, pos, tgt, 0.3, prev_assigned),
+            rtol=0, atol=1e-13)
+        th, _, _ = chain_looks_nb(pos, tgt, k_first, pr.steps_per_epoch, 0.3, prev_assigned,
+                                  float(pr.headings[i]), float(ctx.max_turn[i]), ctx.aim,
+                                  ctx.xbar_xy, ctx.Cbar, ctx.probabilistic, ctx.radar[i], True,
+                                  ctx.buildings)
+        np.testing.assert_array_equal(th, scalar)
+        step = np.abs(np.diff(np.unwrap(np.c_[prev, want], axis=1), axis=1))
+        clipped += int(np.sum(np.isclose(step, ctx.max_turn[i], rtol=1e-12)))
+    assert clipped > 50                       # the turn limit binds in many chains
 
 
 def test_empty_plan_has_zero_potential(rng, problem_factory, backend):
