@@ -34,7 +34,7 @@ from pydantic import (
                       )
 
 from ..errors import ConfigError
-from ..limits import RANGES, Range
+from ..limits import RANGES, Range, type_error
 from ..models.sensors import ANGLE_FIELDS, DETECTION_MODELS, SensorParams
 from ..planners.problem import MapRect
 from ..simulation.settings import Setting, declared, field_hint, field_type, is_group
@@ -106,9 +106,9 @@ def one_spelling(name: str, value: float | None, given: Any) -> float | None:
         return None
     if given is not None:
         raise ValueError(f"give {name} (radians) or {name}_deg (degrees), not both")
-    r = _degrees_range(name)
-    if not r.contains(value):
-        raise ValueError(f"must be {r.text()}, got {value!r}")
+    message = _degrees_range(name).violation(value)
+    if message:
+        raise ValueError(message)
     return value
 
 
@@ -298,8 +298,10 @@ def _unknown_key(parent: type[BaseModel] | None, key: str) -> str:
     return message
 
 
-_TYPE_NAMES = {"float_type": "a number", "int_type": "an integer", "string_type": "a string",
-               "bool_type": "true or false", "list_type": "a list"}
+#: pydantic's type errors -> the type whose words (:func:`sensorplan.limits.type_error`) they
+#: get, as the same type error gets them in the API.
+_TYPE_ERRORS = {"float_type": float, "int_type": int, "string_type": str, "bool_type": bool,
+                "list_type": list}
 
 
 def translate(exc: ValidationError, model: type[BaseModel], container: str) -> ConfigError:
@@ -314,10 +316,8 @@ def translate(exc: ValidationError, model: type[BaseModel], container: str) -> C
         message = "is required"
     elif kind == "finite_number":
         message = "must be a finite number"
-    elif kind in _TYPE_NAMES:
-        got = repr(err.get("input"))
-        got = got if len(got) <= 40 else got[:37] + "..."
-        message = f"must be {_TYPE_NAMES[kind]}, got {got}"
+    elif kind in _TYPE_ERRORS:
+        message = type_error(_TYPE_ERRORS[kind], err.get("input"))
     elif kind in ("model_type", "model_attributes_type", "dict_type"):
         message = f"must be {container}"
     elif kind == "value_error":
