@@ -384,6 +384,11 @@ def lattice_sizes(moves: Sequence[float], horizon: int, width: float,
     return sizes
 
 
+#: The run settings the size limits read (:func:`check_run`); their callers name them in
+#: errors through :func:`sensorplan.simulation.settings.limit_fields`.
+SIZE_SETTINGS = ("horizon", "steps_per_epoch", "steps")
+
+
 def check_decision_size(horizon: int, steps_per_epoch: int, n_targets: int,
                         moves: Sequence[Sequence[float]], width: float, height: float,
                         fields: dict[str, str], n_buildings: int = 0) -> None:

@@ -207,3 +207,22 @@ def test_the_tracker_option_lives_in_tracker_settings() -> None:
         paper_scenario(miss_update="none")                      # type: ignore[call-arg]
     s = RunSettings(planner="random", tracker={"miss_update": "none"})
     assert s.tracker == TrackerSettings(miss_update="none")
+
+
+def test_the_size_limits_name_each_setting_as_its_input_spells_it() -> None:
+    """The field names of the size limits' errors come from the declarations (the maps
+    that were written by hand for the scenario and decision files)."""
+    from sensorplan.config.decision import DECISION_FIELDS
+    from sensorplan.config.simulate import RUN_FIELDS
+    from sensorplan.simulation.settings import limit_fields
+
+    assert RUN_FIELDS == {"horizon": "planning.horizon",
+                          "steps_per_epoch": "planning.steps_per_epoch", "targets": "targets",
+                          "sensors": "sensors", "moves": "sensors[{i}].moves",
+                          "steps": "run.steps"}
+    assert DECISION_FIELDS == {"horizon": "horizon", "steps_per_epoch": "steps_per_epoch",
+                               "targets": "targets", "sensors": "sensors",
+                               "moves": "sensors[{i}].moves", "steps": "steps"}
+    assert limit_fields(lambda key, s: f"<{s.section}>{key}") == {
+        "horizon": "<planning>horizon", "steps_per_epoch": "<planning>steps_per_epoch",
+        "steps": "<run>steps"}

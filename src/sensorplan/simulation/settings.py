@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import ConfigError
-from ..limits import MAX_PLAN_STEPS, MAX_STEPS, RANGES, Range, coerce
+from ..limits import MAX_PLAN_STEPS, MAX_STEPS, RANGES, SIZE_SETTINGS, Range, coerce
 from ..planners.objective import (OBJECTIVES, PLANNING_DETECTIONS, PLANNING_OCCLUSIONS,
                                   VISIBILITY_MODES)
 
@@ -457,6 +457,15 @@ def all_settings(cls: type = RunSettings, prefix: str = ""
         elif "setting" in f.metadata:
             out.append((cls, prefix + f.name, f, f.metadata["setting"]))
     return out
+
+
+def limit_fields(path: Callable[[str, Setting], str], **structure: str) -> dict[str, str]:
+    """The field names for the size limits' errors (:func:`sensorplan.limits.check_run`):
+    each setting they read (:data:`sensorplan.limits.SIZE_SETTINGS`) as the caller's input
+    spells it, ``path(key, setting)``, plus the input's own ``structure`` (``targets``,
+    ``sensors``, ``moves``)."""
+    return {**{p: path(p, s) for _, p, _, s in all_settings() if p in SIZE_SETTINGS},
+            **structure}
 
 
 def default_of(f: dataclasses.Field[Any]) -> Any:
