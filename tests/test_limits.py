@@ -81,6 +81,8 @@ def test_one_type_error_reads_the_same_in_settings_planners_and_files() -> None:
     (Range(None, 10.0, "m", magnitude=True), -11.0, "must be at most 10 m in magnitude, "
                                                      "got -11.0"),
     (Range(0.0, 1.0), math.nan, "must be in [0, 1], got nan"),
+    (Range(0, None), 10**400, ""),                                   # a seed of any size
+    (Range(0, None), -(10**30), "must be >= 0, got " + str(-(10**30))[:21] + "..."),
 ])
 def test_a_range_says_what_it_allows_and_what_it_got(rng: Range, value: float,
                                                      message: str) -> None:

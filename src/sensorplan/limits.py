@@ -86,8 +86,9 @@ class Range:
     magnitude: bool = False          # the bounds apply to the absolute value
 
     def contains(self, value: float) -> bool:
+        """Whether ``value`` (a finite number; an integer of any size) is in the range."""
         v = abs(value) if self.magnitude else value
-        if not math.isfinite(v):
+        if not isinstance(v, numbers.Integral) and not math.isfinite(v):
             return False
         if self.lo is not None and (v < self.lo or (self.lo_open and v == self.lo)):
             return False
@@ -109,7 +110,7 @@ class Range:
 
     def violation(self, value: float) -> str:
         """Why ``value`` is out of the range ("must be in (0, 1), got 1.0"); '' if it is in."""
-        if self.contains(float(value)):
+        if self.contains(value):
             return ""
         return f"must be {self.text()}, got {_shown(value)}"
 

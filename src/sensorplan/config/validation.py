@@ -26,7 +26,6 @@ from pydantic import (
                       AfterValidator,
                       BaseModel,
                       ConfigDict,
-                      Field,
                       ValidationError,
                       ValidationInfo,
                       create_model,
@@ -62,8 +61,18 @@ def choice(valid: tuple[str, ...], what: str) -> AfterValidator:
 Vec2 = Annotated[list[float], _length(2, "a list of 2 numbers")]
 Vec4 = Annotated[list[float], _length(4, "a list of 4 numbers")]
 Matrix4 = Annotated[list[Vec4], _length(4, "a 4x4 matrix (4 rows of 4 numbers)")]
-PositiveInt = Annotated[int, Field(ge=1)]
-Seed = Annotated[int, Field(ge=0)]
+def in_range(r: Range) -> AfterValidator:
+    """A validator of a number in ``r``, worded as every range ("must be >= 1, got 0")."""
+    def check(value: Any) -> Any:
+        message = r.violation(value)
+        if message:
+            raise ValueError(message)
+        return value
+    return AfterValidator(check)
+
+
+PositiveInt = Annotated[int, in_range(Range(1, None))]
+Seed = Annotated[int, in_range(Range(0, None))]
 
 
 class Strict(BaseModel):
