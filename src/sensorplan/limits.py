@@ -252,6 +252,7 @@ RANGES: dict[str, Range] = {
     "range_resolution": Range(1e-2, 1e4, "m"),
     "monopulse_slope": Range(0.1, 10.0),
     "clutter_rate": Range(0.0, 1e3, "per look"),
+    "probability": Range(0.0, 1.0, lo_open=True, hi_open=True),
     "altitude": Range(1.0, 1e5, "m"),
     "ground_range": Range(0.0, LENGTH, "m"),
     "covariance": Range(None, 1e14, magnitude=True),

@@ -20,7 +20,7 @@ import math
 import types
 import typing
 from collections.abc import Mapping
-from typing import Annotated, Any, Union
+from typing import TYPE_CHECKING, Annotated, Any, Union
 
 from pydantic import (
                       AfterValidator,
@@ -34,7 +34,7 @@ from pydantic import (
 
 from ..errors import ConfigError
 from ..limits import RANGES, Range, type_error
-from ..models.sensors import ANGLE_FIELDS, DETECTION_MODELS, SensorParams
+from ..models.sensors import ANGLE_FIELDS, SensorParams
 from ..planners.problem import MapRect
 from ..simulation.settings import Setting, declared, field_hint, field_type, is_group
 
@@ -131,32 +131,20 @@ def radians_of(model: BaseModel, name: str, default: Any) -> Any:
     return default if degrees is None else math.radians(degrees)
 
 
-class SensorParamsModel(Strict):
-    """Every :class:`~sensorplan.models.sensors.SensorParams` field, with its default; each angle
-    may be given in radians (``fov_half_angle``) or in degrees (``fov_half_angle_deg``),
-    not both."""
+def _file_list(hint: Any) -> Any:
+    """A list type of a file for a ``tuple[X, ...]`` setting (nested for a matrix)."""
+    inner = typing.get_args(hint)[0]
+    # types.GenericAlias(list, (x,)) is list[x], spelled so that a type checker accepts a
+    # runtime value as the item type.
+    item = _file_list(inner) if typing.get_origin(inner) is tuple else inner
+    return types.GenericAlias(list, (item,))
 
-    altitude: float = _SP.altitude
-    moves: list[float] = list(_SP.moves)
-    max_turn: float | None = None
-    fov_half_angle: float | None = None
-    min_ground_range: float = _SP.min_ground_range
-    max_ground_range: float = _SP.max_ground_range
-    depression: float | None = None
-    snr_ref_db: float = _SP.snr_ref_db
-    range_ref: float = _SP.range_ref
-    beamwidth: float | None = None
-    monopulse_slope: float = _SP.monopulse_slope
-    range_resolution: float = _SP.range_resolution
-    detection: Annotated[str, choice(DETECTION_MODELS, "detection model")] = _SP.detection
-    false_alarm_probability: float = _SP.false_alarm_probability
-    clutter_rate: float = _SP.clutter_rate
-    max_turn_deg: float | None = None
-    fov_half_angle_deg: float | None = None
-    depression_deg: float | None = None
-    beamwidth_deg: float | None = None
 
-    @field_validator(*(f"{name}_deg" for name in ANGLE_FIELDS))
+class _SensorParamsBase(Strict):
+    """What the file model of :class:`~sensorplan.models.sensors.SensorParams` adds to its
+    fields: one spelling per angle, and the dataclass it gives."""
+
+    @field_validator(*(f"{name}_deg" for name in ANGLE_FIELDS), check_fields=False)
     @classmethod
     def _one_spelling(cls, value: float | None, info: ValidationInfo) -> float | None:
         name = str(info.field_name).removesuffix("_deg")
@@ -167,8 +155,41 @@ class SensorParamsModel(Strict):
                   if f.name not in ANGLE_FIELDS}
         for name in ANGLE_FIELDS:
             kwargs[name] = radians_of(self, name, getattr(_SP, name))
-        kwargs["moves"] = tuple(self.moves)
+        kwargs["moves"] = tuple(kwargs["moves"])
         return SensorParams(**kwargs)
+
+
+def _sensor_fields() -> dict[str, Any]:
+    """The file fields of :class:`~sensorplan.models.sensors.SensorParams`, from its
+    declaration: each field with its default (a list for a tuple; a choice checked as
+    declared); an angle optional, with its ``<name>_deg`` twin after every field."""
+    hints = typing.get_type_hints(SensorParams)
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(SensorParams):
+        tp, rule, default = hints[f.name], f.metadata, getattr(_SP, f.name)
+        if rule["angle"]:
+            out[f.name] = (float | None, None)
+        elif typing.get_origin(tp) is tuple:
+            out[f.name] = (_file_list(tp), list(default))
+        elif rule["choices"]:
+            out[f.name] = (Annotated[tp, choice(rule["choices"], rule["noun"])], default)
+        else:
+            out[f.name] = (tp, default)
+    out.update({f"{name}_deg": (float | None, None) for name in ANGLE_FIELDS})
+    return out
+
+
+if TYPE_CHECKING:
+    class SensorParamsModel(_SensorParamsBase):
+        pass
+else:
+    #: Every :class:`~sensorplan.models.sensors.SensorParams` field with its default, derived
+    #: from the dataclass; each angle may be given in radians (``fov_half_angle``) or in
+    #: degrees (``fov_half_angle_deg``), not both.
+    SensorParamsModel = create_model(
+        "SensorParamsModel", __base__=_SensorParamsBase, **_sensor_fields(),
+        __doc__="Every SensorParams field, with its default; each angle in radians or in "
+                "degrees (<name>_deg), not both.")
 
 
 #: A planner's settings: a table whose keys and values the planner's class decides
@@ -196,15 +217,6 @@ def setting_annotation(cls: type, f: dataclasses.Field[Any], s: Setting) -> Any:
     if tp not in (int, float, str, bool):  # pragma: no cover - caught by the settings tests
         raise TypeError(f"no file type for setting {f.name} of type {tp!r}")
     return Annotated[tp, _rule(s)]
-
-
-def _file_list(hint: Any) -> Any:
-    """A list type of a file for a ``tuple[X, ...]`` setting (nested for a matrix)."""
-    inner = typing.get_args(hint)[0]
-    # types.GenericAlias(list, (x,)) is list[x], spelled so that a type checker accepts a
-    # runtime value as the item type.
-    item = _file_list(inner) if typing.get_origin(inner) is tuple else inner
-    return types.GenericAlias(list, (item,))
 
 
 def setting_type(cls: type, name: str) -> Any:
