@@ -13,14 +13,21 @@ Two kinds of limit:
 - **joint sizes** of a request: a decision's reachable positions and work
   (:func:`check_decision_size`), a run's recorded arrays (:func:`check_run_size`) and a
   study's tables (:func:`check_study_size`).
+
+It also holds the one vocabulary of input errors that every layer uses: a value of the
+wrong type (:func:`coerce`, :func:`type_error`: "must be an integer, got 2.5") and a value
+out of its :class:`Range` ("must be in (0, 1), got 1.0").
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+import numbers
+import types
+import typing
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal, Union
 
 from .errors import ConfigError
 
@@ -79,8 +86,9 @@ class Range:
     magnitude: bool = False          # the bounds apply to the absolute value
 
     def contains(self, value: float) -> bool:
+        """Whether ``value`` (a finite number; an integer of any size) is in the range."""
         v = abs(value) if self.magnitude else value
-        if not math.isfinite(v):
+        if not isinstance(v, numbers.Integral) and not math.isfinite(v):
             return False
         if self.lo is not None and (v < self.lo or (self.lo_open and v == self.lo)):
             return False
@@ -100,10 +108,17 @@ class Range:
         return (f"in {'(' if self.lo_open else '['}{_num(self.lo)}, {_num(self.hi)}"
                 f"{')' if self.hi_open else ']'}{unit}")
 
+    def violation(self, value: float) -> str:
+        """Why ``value`` is out of the range ("must be in (0, 1), got 1.0"); '' if it is in."""
+        if self.contains(value):
+            return ""
+        return f"must be {self.text()}, got {_shown(value)}"
+
     def check(self, value: float, field: str, hint: str = "") -> None:
         """Raise :class:`ConfigError` naming ``field`` unless ``value`` is in the range."""
-        if not self.contains(float(value)):
-            raise ConfigError(field, f"must be {self.text()}, got {_shown(value)}{hint}")
+        message = self.violation(value)
+        if message:
+            raise ConfigError(field, message + hint)
 
 
 def _num(x: float | None) -> str:
@@ -119,6 +134,100 @@ def _num(x: float | None) -> str:
 def _shown(value: float) -> str:
     text = repr(float(value)) if not isinstance(value, int) else str(value)
     return text if len(text) <= 24 else text[:21] + "..."
+
+
+# ------------------------------------------------------------------------ types
+
+#: What a value of each plain type must be, in errors: "must be <words>, got ...".
+TYPE_WORDS: dict[Any, str] = {bool: "true or false", int: "an integer", float: "a number",
+                              str: "a string", list: "a list", tuple: "a list",
+                              Mapping: "a table", dict: "a table"}
+
+
+def shown(value: Any) -> str:
+    """``value`` as an error shows what it got: its repr, cut at 40 characters."""
+    text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def type_error(tp: Any, value: Any) -> str:
+    """The message for ``value`` where type ``tp`` is wanted: "must be an integer, got 2.5"."""
+    return f"must be {TYPE_WORDS[tp]}, got {shown(value)}"
+
+
+# numpy is not imported here (the command line's help reads the settings): its scalars are
+# recognised by the numbers ABCs, which numpy registers them with, and by their module.
+def _is_bool(v: Any) -> bool:
+    return isinstance(v, bool) or (type(v).__module__ == "numpy"
+                                   and type(v).__name__ in ("bool", "bool_"))
+
+
+def coerce(tp: Any, value: Any, finite: bool = True) -> Any:
+    """``value`` as type ``tp``, or ``ValueError`` with the package's words for it.
+
+    The one type check of settings, planner parameters and (through :data:`TYPE_WORDS`) the
+    file models. ``int`` takes any integer but a bool (numpy's too) and gives an ``int``;
+    ``float`` any real number but a bool, as a ``float`` (finite unless ``finite`` is
+    False); ``bool`` true or false; ``str`` a string; ``Mapping``/``dict`` a table, as a
+    ``dict``; ``tuple[X, ...]`` a list or tuple of X, as a tuple; ``X | None`` None or an X
+    (the first alternative's message); ``Literal[...]`` one of its values. Any other type is
+    not checked here (its owner checks it).
+
+    Raises
+    ------
+    ValueError
+        "must be an integer, got 2.5", "must be a finite number", ...
+    """
+    origin = typing.get_origin(tp)
+    if origin in (Union, types.UnionType):
+        args = [a for a in typing.get_args(tp) if a is not type(None)]
+        if value is None and len(args) < len(typing.get_args(tp)):
+            return None
+        first: ValueError | None = None
+        for a in args:
+            try:
+                return coerce(a, value, finite)
+            except ValueError as exc:
+                first = first or exc
+        raise first or ValueError(f"must be None, got {shown(value)}")
+    if origin is Literal:
+        allowed = typing.get_args(tp)
+        if value in allowed:
+            return value
+        raise ValueError(f"must be one of {', '.join(repr(a) for a in allowed)}, "
+                         f"got {shown(value)}")
+    if origin is tuple and typing.get_args(tp)[1:] == (Ellipsis,):
+        if not isinstance(value, (list, tuple)):
+            raise ValueError(type_error(tuple, value))
+        inner = typing.get_args(tp)[0]
+        return tuple(coerce(inner, x, finite) for x in value)
+    if tp is bool:
+        if not _is_bool(value):
+            raise ValueError(type_error(bool, value))
+        return bool(value)
+    if tp is int:
+        if not isinstance(value, numbers.Integral) or _is_bool(value):
+            raise ValueError(type_error(int, value))
+        return int(value)
+    if tp is float:
+        if not isinstance(value, numbers.Real) or _is_bool(value):
+            raise ValueError(type_error(float, value))
+        try:
+            out = float(value)
+        except OverflowError:              # an integer literal no float can hold
+            raise ValueError(type_error(float, value)) from None
+        if finite and not math.isfinite(out):
+            raise ValueError("must be a finite number")
+        return out
+    if tp is str:
+        if not isinstance(value, str):
+            raise ValueError(type_error(str, value))
+        return value
+    if tp is Mapping or tp is dict or origin in (Mapping, dict):
+        if not isinstance(value, Mapping):
+            raise ValueError(type_error(Mapping, value))
+        return dict(value)
+    return value
 
 
 #: Largest length (m): map sides, positions, altitudes, ranges, moves, boxes.
@@ -143,6 +252,7 @@ RANGES: dict[str, Range] = {
     "range_resolution": Range(1e-2, 1e4, "m"),
     "monopulse_slope": Range(0.1, 10.0),
     "clutter_rate": Range(0.0, 1e3, "per look"),
+    "probability": Range(0.0, 1.0, lo_open=True, hi_open=True),
     "altitude": Range(1.0, 1e5, "m"),
     "ground_range": Range(0.0, LENGTH, "m"),
     "covariance": Range(None, 1e14, magnitude=True),
@@ -275,6 +385,11 @@ def lattice_sizes(moves: Sequence[float], horizon: int, width: float,
             sizes.extend([count] * (horizon - k))
             break
     return sizes
+
+
+#: The run settings the size limits read (:func:`check_run`); their callers name them in
+#: errors through :func:`sensorplan.simulation.settings.limit_fields`.
+SIZE_SETTINGS = ("horizon", "steps_per_epoch", "steps")
 
 
 def check_decision_size(horizon: int, steps_per_epoch: int, n_targets: int,

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.integrate import quad_vec
 
-from sensorplan.models.motion import (cv_matrices, predict_covariance, predict_covariances,
-                                      predict_means)
+from sensorplan.models.motion import (aim_points, cv_matrices, predict_covariance,
+                                      predict_covariances, predict_means)
 
 G = np.array([[0.0, 0.0], [0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
 
@@ -58,6 +58,18 @@ def test_predict_means_are_matrix_powers(rng):
     # closed form: position advances by t dt v
     np.testing.assert_allclose(out[..., 5, :2], x0[..., :2] + 5 * 0.8 * x0[..., 2:],
                                rtol=1e-13, atol=1e-10)
+
+
+@pytest.mark.parametrize("K,e", [(1, 1), (3, 2), (4, 1), (2, 3)])
+def test_aim_points_are_the_means_at_each_epochs_first_step(rng, K, e):
+    dt = 0.7
+    x0 = rng.normal(size=(3, 4)) * [100, 100, 3, 3]
+    out = aim_points(x0, spec_F(dt), K, e)
+    assert out.shape == (3, K, 2) and out.flags.c_contiguous
+    for k in range(1, K + 1):
+        t = (k - 1) * e + 1
+        np.testing.assert_allclose(out[:, k - 1], x0[:, :2] + t * dt * x0[:, 2:],
+                                   rtol=1e-13, atol=1e-10)
 
 
 def test_predict_covariances_equal_explicit_sums(rng):

@@ -15,9 +15,10 @@ import math
 import numpy as np
 import pytest
 
+from sensorplan.models.angles import heading_rule
 from sensorplan.planners import information
 from sensorplan.planners.information import (covariance_recursion, evaluate, information_update,
-                                             potential, prepare)
+                                             measured, phi_terms, potential, prepare)
 from sensorplan.planners.problem import Plan, PlanningProblem
 from sensorplan.models.sensors import SensorParams
 
@@ -267,6 +268,61 @@ def test_chain_headings_turn_from_the_previous_epoch(backend):
     np.testing.assert_allclose(ev.information, want, rtol=RTOL, atol=ATOL)
 
 
+def numpy_chain_headings(ctx, i, k_first, positions, targets, prev_heading, prev_assigned):
+    """The heading chain in numpy, vectorised over candidates (the second computation of the
+    compiled one): bearing to the aim point, heading rule, ``k max_turn`` after a gap."""
+    max_turn = ctx.max_turn[i]
+    theta0 = ctx.problem.headings[i]
+    out = np.empty(targets.shape)
+    prev = np.asarray(prev_heading, dtype=float)
+    for l in range(targets.shape[1]):
+        k = k_first + l
+        aim = ctx.aim[targets[:, l], k - 1]
+        bearing = np.arctan2(aim[:, 1] - positions[:, l, 1], aim[:, 0] - positions[:, l, 0])
+        if l == 0 and not prev_assigned:
+            prev = heading_rule(theta0, bearing, k * max_turn)
+        else:
+            prev = heading_rule(prev, bearing, max_turn)
+        out[:, l] = prev
+    return out
+
+
+@pytest.mark.parametrize("prev_assigned", [True, False])
+def test_chain_headings_equal_the_numpy_heading_chain(rng, problem_factory, prev_assigned):
+    """The compiled heading chain (one helper for every kernel) against the numpy one (numpy's
+    and libm's atan2 differ in the last bit at times), and the headings of the compiled looks
+    equal to it bit for bit."""
+    from sensorplan.planners._chains_nb import chain_looks_nb
+
+    clipped = 0
+    for case in range(20):
+        K = int(rng.integers(2, 5))
+        turn = {"max_turn": float(rng.uniform(0.05, 1.0))}
+        pr = problem_factory(rng, n_sensors=2, n_targets=3, horizon=K, sensor_kwargs=turn)
+        ctx = prepare(pr)
+        B, k_first = 50, int(rng.integers(1, K))
+        L = K - k_first + 1
+        pos = rng.uniform(0.0, 600.0, (B, L, 2))
+        tgt = rng.integers(0, 3, (B, L))
+        prev = rng.uniform(-math.pi, math.pi, B)
+        i = case % 2
+        got = information.chain_headings(ctx, i, k_first, pos, tgt, prev, prev_assigned)
+        want = numpy_chain_headings(ctx, i, k_first, pos, tgt, prev, prev_assigned)
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-13)
+        scalar = information.chain_headings(ctx, i, k_first, pos, tgt, 0.3, prev_assigned)
+        np.testing.assert_allclose(
+            scalar, numpy_chain_headings(ctx, i, k_first, pos, tgt, 0.3, prev_assigned),
+            rtol=0, atol=1e-13)
+        th, _, _ = chain_looks_nb(pos, tgt, k_first, pr.steps_per_epoch, 0.3, prev_assigned,
+                                  float(pr.headings[i]), float(ctx.max_turn[i]), ctx.aim,
+                                  ctx.xbar_xy, ctx.Cbar, ctx.probabilistic, ctx.radar[i], True,
+                                  ctx.buildings)
+        np.testing.assert_array_equal(th, scalar)
+        step = np.abs(np.diff(np.unwrap(np.c_[prev, want], axis=1), axis=1))
+        clipped += int(np.sum(np.isclose(step, ctx.max_turn[i], rtol=1e-12)))
+    assert clipped > 50                       # the turn limit binds in many chains
+
+
 def test_empty_plan_has_zero_potential(rng, problem_factory, backend):
     for objective in ("terminal", "cumulative"):
         pr = problem_factory(rng, n_sensors=2, n_targets=3, horizon=3, objective=objective)
@@ -343,6 +399,43 @@ def test_covariance_recursion_equals_step_by_step_reference(rng, backend):
         np.testing.assert_allclose(P_end[b], P, rtol=1e-9, atol=1e-9 * np.abs(P).max())
         assert ld_end[b] == pytest.approx(np.linalg.slogdet(P)[1], rel=1e-10, abs=1e-10)
         assert ld_sum[b] == pytest.approx(total, rel=1e-10, abs=1e-10)
+
+
+def test_phi_terms_follow_the_definition_and_the_round_off_rule(rng):
+    """Terms from explicit covariances (information form, matrix inverses), target by target
+    and step by step; an unmeasured target's term is exactly 0, a measured one's at least 0."""
+    F, Q = spec_F(1.0), spec_Q(1.0, 0.05)
+    M, T = 6, 5
+    P0 = _random_spd(rng, 4, (M,))
+    W = _random_spd(rng, 2, (M, T)) * 1e-2
+    W[:, ::2] = 0.0
+    W[0] = 0.0                                                         # never measured
+    W[1, :3] = 0.0                                                     # only at step 4
+    G = np.eye(4)[:2]
+    ld_bar, ld_post = np.zeros((M, T + 1)), np.zeros((M, T + 1))
+    for j in range(M):
+        Pb = P = P0[j]
+        ld_bar[j, 0] = ld_post[j, 0] = np.linalg.slogdet(P0[j])[1]
+        for t in range(1, T + 1):
+            Pb, P = F @ Pb @ F.T + Q, F @ P @ F.T + Q
+            P = np.linalg.inv(np.linalg.inv(P) + G.T @ W[j, t - 1] @ G)
+            ld_bar[j, t], ld_post[j, t] = np.linalg.slogdet(Pb)[1], np.linalg.slogdet(P)[1]
+    ld_end, ld_sum = ld_post[:, -1], ld_post[:, 1:].sum(axis=1)
+    for cumulative in (False, True):
+        want = np.zeros(M)
+        for j in range(1, M):
+            steps = range(1, T + 1) if cumulative else (T,)
+            want[j] = sum(0.5 * (ld_bar[j, t] - ld_post[j, t]) for t in steps)
+        got = phi_terms(ld_bar, ld_end, ld_sum, cumulative, measured(W))
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+        assert got[0] == 0.0 and np.all(want[1:] > 0)
+    # The rule, on round-off: an unmeasured target 1e-13 apart is 0, a measured one just
+    # below its reference is 0, and one batch of values per target broadcasts.
+    ld_ref = np.array([0.0, 1.0, 3.0])                                  # (T + 1,) = (3,)
+    ld = np.array([3.0 - 1e-13, 3.0 + 1e-15, 2.0])
+    got = phi_terms(ld_ref, ld, ld, False, np.array([False, True, True]))
+    np.testing.assert_array_equal(got, [0.0, 0.0, 0.5])
+    np.testing.assert_array_equal(measured(np.zeros((2, 4, 2, 2))), [False, False])
 
 
 def test_covariances_stay_positive_definite_over_long_recursions(rng):

@@ -11,6 +11,7 @@ from typing import Any
 import pytest
 
 from sensorplan.errors import ConfigError
+from sensorplan.limits import Range
 from sensorplan.simulation.scenario import paper_scenario
 from sensorplan.config.scenario import PlanningTable, RunTable, TrackerTable
 from sensorplan.simulation.settings import (SECTIONS, RunSettings, TrackerSettings, _Settings,
@@ -63,8 +64,8 @@ def test_tables_hold_exactly_their_section() -> None:
 
 #: (path, bad value, message); each rule kind once, plus the type checks.
 BAD = [
-    ("horizon", 0, "must be greater than or equal to 1"),
-    ("steps", -3, "must be greater than or equal to 1"),
+    ("horizon", 0, "must be in [1, 1000], got 0"),
+    ("steps", -3, "must be in [1, 100000], got -3"),
     ("horizon", 1.5, "must be an integer, got 1.5"),
     ("horizon", True, "must be an integer, got True"),
     ("execution", "closed", "unknown execution mode 'closed'; choose from ol, olf"),
@@ -163,7 +164,8 @@ class _Tracker(_Settings):
         "negative", section="tracker", choices=("negative", "none"), noun="miss update",
         help="Tracker's reaction to a look that misses its target.")
     gate_probability: float = setting(
-        0.99, section="tracker", cli=("--gate-probability",), metavar="P", gt=0.0, lt=1.0,
+        0.99, section="tracker", cli=("--gate-probability",), metavar="P",
+        bounds=Range(0.0, 1.0, lo_open=True, hi_open=True),
         help="Probability that the gate holds a target's own measurement.")
     reacquire: bool = setting(
         True, section="tracker", cli=("--reacquire",), metavar="BOOL",
@@ -206,3 +208,22 @@ def test_the_tracker_option_lives_in_tracker_settings() -> None:
         paper_scenario(miss_update="none")                      # type: ignore[call-arg]
     s = RunSettings(planner="random", tracker={"miss_update": "none"})
     assert s.tracker == TrackerSettings(miss_update="none")
+
+
+def test_the_size_limits_name_each_setting_as_its_input_spells_it() -> None:
+    """The field names of the size limits' errors come from the declarations (the maps
+    that were written by hand for the scenario and decision files)."""
+    from sensorplan.config.decision import DECISION_FIELDS
+    from sensorplan.config.simulate import RUN_FIELDS
+    from sensorplan.simulation.settings import limit_fields
+
+    assert RUN_FIELDS == {"horizon": "planning.horizon",
+                          "steps_per_epoch": "planning.steps_per_epoch", "targets": "targets",
+                          "sensors": "sensors", "moves": "sensors[{i}].moves",
+                          "steps": "run.steps"}
+    assert DECISION_FIELDS == {"horizon": "horizon", "steps_per_epoch": "steps_per_epoch",
+                               "targets": "targets", "sensors": "sensors",
+                               "moves": "sensors[{i}].moves", "steps": "steps"}
+    assert limit_fields(lambda key, s: f"<{s.section}>{key}") == {
+        "horizon": "<planning>horizon", "steps_per_epoch": "<planning>steps_per_epoch",
+        "steps": "<run>steps"}

@@ -14,7 +14,7 @@ from ..errors import ConfigError
 from ..limits import (MAX_SENSORS, MAX_TARGETS, RANGES, check_count, check_covariance_scale,
                       check_decision_size, check_sensor_precision)
 from ..planners.problem import MapRect, PlanningProblem, check_covariance
-from ..simulation.settings import RunSettings
+from ..simulation.settings import RunSettings, limit_fields
 from . import files as io
 from .planners import build_planner, planner_settings
 from .validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict,
@@ -108,8 +108,8 @@ class Decision:
 
 
 #: Field names of a decision file in the size limits' errors.
-DECISION_FIELDS = {"horizon": "horizon", "steps_per_epoch": "steps_per_epoch",
-                   "targets": "targets", "sensors": "sensors", "moves": "sensors[{i}].moves"}
+DECISION_FIELDS = limit_fields(lambda key, s: key, targets="targets", sensors="sensors",
+                               moves="sensors[{i}].moves")
 
 
 def _check_magnitudes(model: DecisionFile) -> None:

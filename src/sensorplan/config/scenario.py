@@ -60,17 +60,18 @@ from __future__ import annotations
 import dataclasses
 from typing import Annotated, Any
 
-from pydantic import Field, ValidationInfo, field_validator
+from pydantic import ValidationInfo, field_validator
 
 from ..errors import ConfigError
-from ..limits import check_sensor_precision
+from ..limits import RANGES, check_sensor_precision
 from ..models.sensors import SensorParams
 from ..planners.problem import MapRect
 from ..models.population import BIRTHS
 from ..simulation.scenario import TARGET_KINDS, Scenario, SensorSpec, TargetSpec
 from ..simulation.settings import RunSettings, TrackerSettings
 from .validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict,
-                         Vec2, choice, one_spelling, radians_of, section_model, validate)
+                         Vec2, choice, in_range, one_spelling, radians_of, section_model,
+                         validate)
 
 _TS = TargetSpec()
 _SC = Scenario(targets=(TargetSpec(),), sensors=(SensorSpec(),))
@@ -97,7 +98,7 @@ class InitialModel(Strict):
 class ScenarioTarget(Strict):
     kind: TargetKind = _TS.kind
     position: Vec2 | None = None
-    speed: Annotated[float, Field(ge=0.0)] | None = None
+    speed: Annotated[float, in_range(RANGES["speed"])] | None = None
     heading: float | None = None
     turn_hold: float = _TS.turn_hold
     max_turn_rate: float | None = None

@@ -11,7 +11,7 @@ from ..errors import ConfigError
 from ..limits import check_run
 from ..simulation.scenario import PRESETS as SCENARIO_PRESETS
 from ..simulation.scenario import Scenario
-from ..simulation.settings import RunSettings, all_settings
+from ..simulation.settings import RunSettings, all_settings, limit_fields
 from . import files as io
 from .planners import RUN_SEED, planner_settings
 from .scenario import ScenarioFile, SettingsTables
@@ -24,9 +24,8 @@ PRESETS = tuple(SCENARIO_PRESETS)
 FILE_KEYS = {f.name: (s.section, f.name) for _, _, f, s in all_settings()}
 FILE_KEYS["seed"] = ("run", "seed")
 #: Field names of a scenario file in the size limits' errors.
-RUN_FIELDS = {"horizon": "planning.horizon", "steps_per_epoch": "planning.steps_per_epoch",
-              "targets": "targets", "sensors": "sensors", "moves": "sensors[{i}].moves",
-              "steps": "run.steps"}
+RUN_FIELDS = limit_fields(lambda key, s: f"{s.section}.{key}", targets="targets",
+                          sensors="sensors", moves="sensors[{i}].moves")
 #: RunSettings field path -> its path in a scenario file.
 _FILE_PATHS = {path: f"{s.section}.{f.name}" for _, path, f, s in all_settings()}
 

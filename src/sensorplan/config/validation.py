@@ -20,13 +20,12 @@ import math
 import types
 import typing
 from collections.abc import Mapping
-from typing import Annotated, Any, Union
+from typing import TYPE_CHECKING, Annotated, Any, Union
 
 from pydantic import (
                       AfterValidator,
                       BaseModel,
                       ConfigDict,
-                      Field,
                       ValidationError,
                       ValidationInfo,
                       create_model,
@@ -34,8 +33,8 @@ from pydantic import (
                       )
 
 from ..errors import ConfigError
-from ..limits import RANGES, Range
-from ..models.sensors import ANGLE_FIELDS, DETECTION_MODELS, SensorParams
+from ..limits import RANGES, Range, type_error
+from ..models.sensors import ANGLE_FIELDS, SensorParams
 from ..planners.problem import MapRect
 from ..simulation.settings import Setting, declared, field_hint, field_type, is_group
 
@@ -62,8 +61,18 @@ def choice(valid: tuple[str, ...], what: str) -> AfterValidator:
 Vec2 = Annotated[list[float], _length(2, "a list of 2 numbers")]
 Vec4 = Annotated[list[float], _length(4, "a list of 4 numbers")]
 Matrix4 = Annotated[list[Vec4], _length(4, "a 4x4 matrix (4 rows of 4 numbers)")]
-PositiveInt = Annotated[int, Field(ge=1)]
-Seed = Annotated[int, Field(ge=0)]
+def in_range(r: Range) -> AfterValidator:
+    """A validator of a number in ``r``, worded as every range ("must be >= 1, got 0")."""
+    def check(value: Any) -> Any:
+        message = r.violation(value)
+        if message:
+            raise ValueError(message)
+        return value
+    return AfterValidator(check)
+
+
+PositiveInt = Annotated[int, in_range(Range(1, None))]
+Seed = Annotated[int, in_range(Range(0, None))]
 
 
 class Strict(BaseModel):
@@ -106,9 +115,9 @@ def one_spelling(name: str, value: float | None, given: Any) -> float | None:
         return None
     if given is not None:
         raise ValueError(f"give {name} (radians) or {name}_deg (degrees), not both")
-    r = _degrees_range(name)
-    if not r.contains(value):
-        raise ValueError(f"must be {r.text()}, got {value!r}")
+    message = _degrees_range(name).violation(value)
+    if message:
+        raise ValueError(message)
     return value
 
 
@@ -122,32 +131,20 @@ def radians_of(model: BaseModel, name: str, default: Any) -> Any:
     return default if degrees is None else math.radians(degrees)
 
 
-class SensorParamsModel(Strict):
-    """Every :class:`~sensorplan.models.sensors.SensorParams` field, with its default; each angle
-    may be given in radians (``fov_half_angle``) or in degrees (``fov_half_angle_deg``),
-    not both."""
+def _file_list(hint: Any) -> Any:
+    """A list type of a file for a ``tuple[X, ...]`` setting (nested for a matrix)."""
+    inner = typing.get_args(hint)[0]
+    # types.GenericAlias(list, (x,)) is list[x], spelled so that a type checker accepts a
+    # runtime value as the item type.
+    item = _file_list(inner) if typing.get_origin(inner) is tuple else inner
+    return types.GenericAlias(list, (item,))
 
-    altitude: float = _SP.altitude
-    moves: list[float] = list(_SP.moves)
-    max_turn: float | None = None
-    fov_half_angle: float | None = None
-    min_ground_range: float = _SP.min_ground_range
-    max_ground_range: float = _SP.max_ground_range
-    depression: float | None = None
-    snr_ref_db: float = _SP.snr_ref_db
-    range_ref: float = _SP.range_ref
-    beamwidth: float | None = None
-    monopulse_slope: float = _SP.monopulse_slope
-    range_resolution: float = _SP.range_resolution
-    detection: Annotated[str, choice(DETECTION_MODELS, "detection model")] = _SP.detection
-    false_alarm_probability: float = _SP.false_alarm_probability
-    clutter_rate: float = _SP.clutter_rate
-    max_turn_deg: float | None = None
-    fov_half_angle_deg: float | None = None
-    depression_deg: float | None = None
-    beamwidth_deg: float | None = None
 
-    @field_validator(*(f"{name}_deg" for name in ANGLE_FIELDS))
+class _SensorParamsBase(Strict):
+    """What the file model of :class:`~sensorplan.models.sensors.SensorParams` adds to its
+    fields: one spelling per angle, and the dataclass it gives."""
+
+    @field_validator(*(f"{name}_deg" for name in ANGLE_FIELDS), check_fields=False)
     @classmethod
     def _one_spelling(cls, value: float | None, info: ValidationInfo) -> float | None:
         name = str(info.field_name).removesuffix("_deg")
@@ -158,8 +155,41 @@ class SensorParamsModel(Strict):
                   if f.name not in ANGLE_FIELDS}
         for name in ANGLE_FIELDS:
             kwargs[name] = radians_of(self, name, getattr(_SP, name))
-        kwargs["moves"] = tuple(self.moves)
+        kwargs["moves"] = tuple(kwargs["moves"])
         return SensorParams(**kwargs)
+
+
+def _sensor_fields() -> dict[str, Any]:
+    """The file fields of :class:`~sensorplan.models.sensors.SensorParams`, from its
+    declaration: each field with its default (a list for a tuple; a choice checked as
+    declared); an angle optional, with its ``<name>_deg`` twin after every field."""
+    hints = typing.get_type_hints(SensorParams)
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(SensorParams):
+        tp, rule, default = hints[f.name], f.metadata, getattr(_SP, f.name)
+        if rule["angle"]:
+            out[f.name] = (float | None, None)
+        elif typing.get_origin(tp) is tuple:
+            out[f.name] = (_file_list(tp), list(default))
+        elif rule["choices"]:
+            out[f.name] = (Annotated[tp, choice(rule["choices"], rule["noun"])], default)
+        else:
+            out[f.name] = (tp, default)
+    out.update({f"{name}_deg": (float | None, None) for name in ANGLE_FIELDS})
+    return out
+
+
+if TYPE_CHECKING:
+    class SensorParamsModel(_SensorParamsBase):
+        pass
+else:
+    #: Every :class:`~sensorplan.models.sensors.SensorParams` field with its default, derived
+    #: from the dataclass; each angle may be given in radians (``fov_half_angle``) or in
+    #: degrees (``fov_half_angle_deg``), not both.
+    SensorParamsModel = create_model(
+        "SensorParamsModel", __base__=_SensorParamsBase, **_sensor_fields(),
+        __doc__="Every SensorParams field, with its default; each angle in radians or in "
+                "degrees (<name>_deg), not both.")
 
 
 #: A planner's settings: a table whose keys and values the planner's class decides
@@ -187,15 +217,6 @@ def setting_annotation(cls: type, f: dataclasses.Field[Any], s: Setting) -> Any:
     if tp not in (int, float, str, bool):  # pragma: no cover - caught by the settings tests
         raise TypeError(f"no file type for setting {f.name} of type {tp!r}")
     return Annotated[tp, _rule(s)]
-
-
-def _file_list(hint: Any) -> Any:
-    """A list type of a file for a ``tuple[X, ...]`` setting (nested for a matrix)."""
-    inner = typing.get_args(hint)[0]
-    # types.GenericAlias(list, (x,)) is list[x], spelled so that a type checker accepts a
-    # runtime value as the item type.
-    item = _file_list(inner) if typing.get_origin(inner) is tuple else inner
-    return types.GenericAlias(list, (item,))
 
 
 def setting_type(cls: type, name: str) -> Any:
@@ -298,8 +319,10 @@ def _unknown_key(parent: type[BaseModel] | None, key: str) -> str:
     return message
 
 
-_TYPE_NAMES = {"float_type": "a number", "int_type": "an integer", "string_type": "a string",
-               "bool_type": "true or false", "list_type": "a list"}
+#: pydantic's type errors -> the type whose words (:func:`sensorplan.limits.type_error`) they
+#: get, as the same type error gets them in the API.
+_TYPE_ERRORS = {"float_type": float, "int_type": int, "string_type": str, "bool_type": bool,
+                "list_type": list}
 
 
 def translate(exc: ValidationError, model: type[BaseModel], container: str) -> ConfigError:
@@ -314,10 +337,8 @@ def translate(exc: ValidationError, model: type[BaseModel], container: str) -> C
         message = "is required"
     elif kind == "finite_number":
         message = "must be a finite number"
-    elif kind in _TYPE_NAMES:
-        got = repr(err.get("input"))
-        got = got if len(got) <= 40 else got[:37] + "..."
-        message = f"must be {_TYPE_NAMES[kind]}, got {got}"
+    elif kind in _TYPE_ERRORS:
+        message = type_error(_TYPE_ERRORS[kind], err.get("input"))
     elif kind in ("model_type", "model_attributes_type", "dict_type"):
         message = f"must be {container}"
     elif kind == "value_error":

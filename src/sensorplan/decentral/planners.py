@@ -16,14 +16,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
-from typing import Any, ClassVar, Self
+from typing import TYPE_CHECKING, Any, ClassVar, Self
 
 import numpy as np
 
 from ..errors import ConfigError
 from ..planners.base import PlanResult, RngLike, finish, make_rng, register, start_clock
 from ..planners.information import prepare
-from ..planners.potential_game import LearningSettings, check_learning_params
+from ..planners.potential_game import LearningSettings
 from ..planners.problem import PlanningProblem
 from .agent import AgentSpec
 from .decision import assemble, run_inproc, to_plan
@@ -85,20 +85,80 @@ def check_transport(transport: Any, timeout: Any) -> None:
                           f"{timeout!r}")
 
 
+def _checks_before(obj: Any, cls: type) -> None:
+    """Run the setting checks of the classes after ``cls`` in ``obj``'s MRO (the settings
+    declared before ``cls``'s), so that the first setting in field order that breaks its
+    rule is the one reported."""
+    after = getattr(super(cls, obj), "__post_init__", None)
+    if after is not None:
+        after()
+
+
+# Each group of settings is declared once, with its check, in a frozen dataclass mixin; a
+# planner lists the groups it takes. Its fields come in the reverse order of its bases.
+
+
+@dataclass(frozen=True)
+class _Rounds:
+    """The round budget R per decision (>= 1); the decision ends earlier when every agent
+    has settled."""
+
+    rounds: int = 1000
+
+    def __post_init__(self) -> None:
+        _checks_before(self, _Rounds)
+        check_rounds(self.rounds)
+
+
+@dataclass(frozen=True)
+class _Links:
+    """The links: ``p_loss`` (probability that a message is lost, in [0, 1]), ``delay``
+    (rounds a message takes, >= 0) and ``comm_range`` (largest ground distance of a working
+    link, m, > 0; inf unlimited)."""
+
+    p_loss: float = 0.0
+    delay: int = 0
+    comm_range: float = math.inf
+
+    def __post_init__(self) -> None:
+        _checks_before(self, _Links)
+        check_links(self.p_loss, self.delay, self.comm_range)
+
+    def _links(self) -> tuple[float, int, float]:
+        return float(self.p_loss), int(self.delay), float(self.comm_range)
+
+
+@dataclass(frozen=True)
+class _GameMode:
+    """How the agents play the game: ``jsfp`` or ``best-response``."""
+
+    mode: str = "jsfp"
+
+    def __post_init__(self) -> None:
+        _checks_before(self, _GameMode)
+        if self.mode not in GAME_MODES:
+            raise ConfigError("planner.mode", f"must be one of {GAME_MODES}, got {self.mode!r}")
+
+
+@dataclass(frozen=True)
 class _Agents:
-    """Shared machinery: one decision over the chosen transport, the bus's lifetime."""
+    """Shared machinery: one decision over the chosen transport (``inproc`` or ``bus``; on
+    the bus an agent waits ``timeout`` seconds for a peer before declaring it lost), the
+    bus's lifetime."""
 
     name: ClassVar[str]
-    seed: int | None
-    transport: str
-    timeout: float
-    _runtime: dict
+    if TYPE_CHECKING:              # each planner declares its seed (none here at run time)
+        seed: int | None = 0
+    transport: str = "inproc"
+    timeout: float = 10.0
+    _runtime: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        _checks_before(self, _Agents)
+        check_transport(self.transport, self.timeout)
 
     def _spec(self) -> AgentSpec:
         raise NotImplementedError
-
-    def _links(self) -> tuple[float, int, float]:
-        return 0.0, 0, math.inf
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> DecentralResult:
         """Plan one decision; ``rng`` (or ``seed``) drives the agents' shared random numbers.
@@ -109,7 +169,9 @@ class _Agents:
         start = start_clock()
         gen = make_rng(rng, self.seed)
         ctx = prepare(problem)
-        p_loss, delay, comm_range = self._links()
+        # Planners without link settings have perfect links.
+        p_loss, delay, comm_range = (self._links() if isinstance(self, _Links)
+                                     else (0.0, 0, math.inf))
         link = LinkModel(decision_key(gen), np.array(problem.positions, dtype=float), p_loss,
                          delay, comm_range)
         spec = self._spec()
@@ -160,7 +222,7 @@ class _Agents:
 
 @register
 @dataclass(frozen=True)
-class DecentralJSFPPlanner(_Agents, LearningSettings):
+class DecentralJSFPPlanner(_Agents, _GameMode, _Links, _Rounds, LearningSettings):
     """``dec-jsfp``: one agent per platform playing the game over imperfect links.
 
     Attributes
@@ -177,33 +239,14 @@ class DecentralJSFPPlanner(_Agents, LearningSettings):
     """
 
     name: ClassVar[str] = "dec-jsfp"
-    rounds: int = 1000
-    p_loss: float = 0.0
-    delay: int = 0
-    comm_range: float = math.inf
-    mode: str = "jsfp"
-    transport: str = "inproc"
-    timeout: float = 10.0
-    _runtime: dict = field(default_factory=dict, init=False, repr=False, compare=False)
-
-    def __post_init__(self) -> None:
-        check_learning_params(self.alpha, self.beta, self.max_inner, self.max_outer)
-        check_rounds(self.rounds)
-        check_links(self.p_loss, self.delay, self.comm_range)
-        if self.mode not in GAME_MODES:
-            raise ConfigError("planner.mode", f"must be one of {GAME_MODES}, got {self.mode!r}")
-        check_transport(self.transport, self.timeout)
 
     def _spec(self) -> AgentSpec:
         return AgentSpec(self.mode, int(self.rounds), *self.learning)
 
-    def _links(self) -> tuple[float, int, float]:
-        return float(self.p_loss), int(self.delay), float(self.comm_range)
-
 
 @register
 @dataclass(frozen=True)
-class DecentralIndependentPlanner(_Agents, LearningSettings):
+class DecentralIndependentPlanner(_Agents, _GameMode, _Rounds, LearningSettings):
     """``dec-independent``: every agent plans alone and sends nothing.
 
     Each agent plays the same schedule as ``dec-jsfp`` (same ``rounds``, ``mode`` and
@@ -211,18 +254,6 @@ class DecentralIndependentPlanner(_Agents, LearningSettings):
     """
 
     name: ClassVar[str] = "dec-independent"
-    rounds: int = 1000
-    mode: str = "jsfp"
-    transport: str = "inproc"
-    timeout: float = 10.0
-    _runtime: dict = field(default_factory=dict, init=False, repr=False, compare=False)
-
-    def __post_init__(self) -> None:
-        check_learning_params(self.alpha, self.beta, self.max_inner, self.max_outer)
-        check_rounds(self.rounds)
-        if self.mode not in GAME_MODES:
-            raise ConfigError("planner.mode", f"must be one of {GAME_MODES}, got {self.mode!r}")
-        check_transport(self.transport, self.timeout)
 
     def _spec(self) -> AgentSpec:
         return AgentSpec(self.mode, int(self.rounds), *self.learning, communicate=False)
@@ -230,7 +261,7 @@ class DecentralIndependentPlanner(_Agents, LearningSettings):
 
 @register
 @dataclass(frozen=True)
-class DecentralSequentialPlanner(_Agents):
+class DecentralSequentialPlanner(_Agents, _Links):
     """``dec-sequential``: agent 1 decides its K epochs, tells the others, then agent 2, ...
 
     N rounds; in its turn an agent takes, epoch by epoch, the action maximising Phi given
@@ -238,20 +269,7 @@ class DecentralSequentialPlanner(_Agents):
     """
 
     name: ClassVar[str] = "dec-sequential"
-    p_loss: float = 0.0
-    delay: int = 0
-    comm_range: float = math.inf
-    transport: str = "inproc"
-    timeout: float = 10.0
     seed: int | None = 0
-    _runtime: dict = field(default_factory=dict, init=False, repr=False, compare=False)
-
-    def __post_init__(self) -> None:
-        check_links(self.p_loss, self.delay, self.comm_range)
-        check_transport(self.transport, self.timeout)
 
     def _spec(self) -> AgentSpec:
         return AgentSpec("sequential", 1)
-
-    def _links(self) -> tuple[float, int, float]:
-        return float(self.p_loss), int(self.delay), float(self.comm_range)

@@ -67,6 +67,26 @@ def predict_means(x0: FloatArray, F: FloatArray, steps: int) -> FloatArray:
     return out
 
 
+def aim_points(means: FloatArray, F: FloatArray, horizon: int = 1,
+               steps_per_epoch: int = 1) -> FloatArray:
+    """Ground positions the heading rule aims at: each mean predicted, without updates, to
+    the first step of each epoch, ``xbar((k-1) e + 1)[:2]`` for k = 1..K.
+
+    Parameters
+    ----------
+    means : (..., 4)         the means at the decision (step 0)
+    F : (4, 4)
+    horizon : int            K epochs
+    steps_per_epoch : int    e steps each
+
+    Returns
+    -------
+    (..., K, 2)  C-contiguous
+    """
+    xbar = predict_means(means, F, (horizon - 1) * steps_per_epoch + 1)
+    return np.ascontiguousarray(xbar[..., 1::steps_per_epoch, :2])
+
+
 def predict_covariance(P: FloatArray, F: FloatArray, Q: FloatArray) -> FloatArray:
     """One prediction step ``F P F^T + Q`` for ``(..., 4, 4)`` covariances, symmetrised."""
     Pp = F @ P @ F.T + Q

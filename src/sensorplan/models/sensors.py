@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -20,6 +20,22 @@ from ..errors import ConfigError
 
 #: Detection models of a sensor.
 DETECTION_MODELS = ("ideal", "swerling1")
+
+
+def _param(default: Any, limit: str | None = None, *, positive: bool = False,
+           angle: bool = False, choices: tuple[str, ...] = (), noun: str = "") -> Any:
+    """A :class:`SensorParams` field with its rule, the one declaration that the checks of
+    :meth:`SensorParams.validate` and the file model
+    (:data:`sensorplan.config.validation.SensorParamsModel`) read.
+
+    ``limit`` names its range in :data:`sensorplan.limits.RANGES` (each move distance for
+    ``moves``); ``positive`` also refuses 0; ``angle`` marks radians (files may give
+    ``<name>_deg``); ``choices`` are the allowed strings, called ``noun`` in errors.
+    """
+    meta = {"limit": limit, "positive": positive, "angle": angle, "choices": choices,
+            "noun": noun}
+    return field(default=default, metadata=meta)
+
 
 @dataclass(frozen=True)
 class SensorParams:
@@ -58,79 +74,68 @@ class SensorParams:
         sensing region (>= 0).
     """
 
-    altitude: Any = 500.0
-    moves: tuple[float, ...] = (20.0, 40.0)
-    max_turn: Any = math.pi / 4
-    fov_half_angle: Any = math.pi / 6
-    min_ground_range: Any = 250.0
-    max_ground_range: Any = 450.0
-    depression: Any = math.radians(40.0)
-    snr_ref_db: Any = 15.0
-    range_ref: Any = 600.0
-    beamwidth: Any = math.radians(3.0)
-    monopulse_slope: Any = 1.6
-    range_resolution: Any = 30.0
-    detection: str = "ideal"
-    false_alarm_probability: Any = 1e-6
-    clutter_rate: Any = 0.0
+    altitude: float = _param(500.0, "altitude", positive=True)
+    moves: tuple[float, ...] = _param((20.0, 40.0), "length")
+    max_turn: float = _param(math.pi / 4, "max_turn", angle=True)
+    fov_half_angle: float = _param(math.pi / 6, "fov_half_angle", positive=True, angle=True)
+    min_ground_range: float = _param(250.0, "ground_range", positive=True)
+    max_ground_range: float = _param(450.0, "ground_range", positive=True)
+    depression: float = _param(math.radians(40.0), "depression", angle=True)
+    snr_ref_db: float = _param(15.0, "snr_ref_db")
+    range_ref: float = _param(600.0, "range_ref", positive=True)
+    beamwidth: float = _param(math.radians(3.0), "beamwidth", positive=True, angle=True)
+    monopulse_slope: float = _param(1.6, "monopulse_slope", positive=True)
+    range_resolution: float = _param(30.0, "range_resolution", positive=True)
+    detection: str = _param("ideal", choices=DETECTION_MODELS, noun="detection model")
+    false_alarm_probability: float = _param(1e-6, "probability")
+    clutter_rate: float = _param(0.0, "clutter_rate")
 
     def validate(self, prefix: str = "sensor") -> None:
-        """Raise :class:`ConfigError` naming the field if a value is out of its range.
-
-        Angles are in radians: ``fov_half_angle`` in (0, pi], ``max_turn`` in [0, pi],
-        ``depression`` in (0, pi/2], ``beamwidth`` in [1e-6, pi/2]; every other value has
-        the range of :data:`sensorplan.limits.RANGES`. (Input files also bound the radar's
-        precision: :func:`sensorplan.limits.check_sensor_precision`.)
+        """Raise :class:`ConfigError` naming the field ``prefix.<name>`` if a value breaks
+        its declared rule (:func:`_param`): a choice, a finite number (each move distance
+        for ``moves``), > 0 where ``positive``, its range in
+        :data:`sensorplan.limits.RANGES` (angles in radians: ``fov_half_angle`` in (0, pi],
+        ``max_turn`` in [0, pi], ``depression`` in (0, pi/2], ``beamwidth`` in
+        [1e-4, pi/2]); and ``min_ground_range <= max_ground_range``. (Input files also bound
+        the radar's precision: :func:`sensorplan.limits.check_sensor_precision`.)
         """
-        from ..limits import MAX_MOVE_DISTANCES, RANGES, check_count
+        from ..limits import MAX_MOVE_DISTANCES, RANGES, check_count, coerce
 
-        if self.detection not in DETECTION_MODELS:
-            raise ConfigError(f"{prefix}.detection", f"unknown detection model "
-                              f"{self.detection!r}; choose from {', '.join(DETECTION_MODELS)}")
+        numbers: dict[str, tuple[float, ...]] = {}
         for f in fields(self):
-            if f.name == "detection":
+            value, rule = getattr(self, f.name), f.metadata
+            if rule["choices"]:
+                if value not in rule["choices"]:
+                    raise ConfigError(f"{prefix}.{f.name}", f"unknown {rule['noun']} "
+                                      f"{value!r}; choose from {', '.join(rule['choices'])}")
                 continue
-            value = getattr(self, f.name)
-            values = value if f.name == "moves" else (value,)
-            for v in np.atleast_1d(np.asarray(values, dtype=float)).ravel():
-                if not np.isfinite(v):
-                    raise ConfigError(f"{prefix}.{f.name}", "must be a finite number")
-        positive = ("altitude", "min_ground_range", "max_ground_range", "range_ref",
-                    "beamwidth", "monopulse_slope", "range_resolution", "fov_half_angle")
-        for name in positive:
-            if np.any(np.asarray(getattr(self, name)) <= 0):
-                raise ConfigError(f"{prefix}.{name}", "must be > 0")
+            try:
+                numbers[f.name] = coerce(tuple[float, ...], value) if f.name == "moves" \
+                    else (coerce(float, value),)
+            except ValueError as exc:
+                raise ConfigError(f"{prefix}.{f.name}", str(exc)) from None
+        for f in fields(self):
+            if f.metadata["positive"] and numbers[f.name][0] <= 0:
+                raise ConfigError(f"{prefix}.{f.name}", "must be > 0")
         if len(self.moves) == 0:
             raise ConfigError(f"{prefix}.moves", "must list at least one move distance")
-        if any(m <= 0 for m in self.moves):
+        if any(m <= 0 for m in numbers["moves"]):
             raise ConfigError(f"{prefix}.moves", "move distances must be > 0")
         check_count(len(self.moves), MAX_MOVE_DISTANCES, f"{prefix}.moves", "move distances")
-        if np.any(np.asarray(self.max_turn) < 0):
-            raise ConfigError(f"{prefix}.max_turn", "must be >= 0")
-        ranges = {"altitude": "altitude", "moves": "length", "max_turn": "max_turn",
-                  "fov_half_angle": "fov_half_angle", "min_ground_range": "ground_range",
-                  "max_ground_range": "ground_range", "depression": "depression",
-                  "snr_ref_db": "snr_ref_db", "range_ref": "range_ref",
-                  "beamwidth": "beamwidth", "monopulse_slope": "monopulse_slope",
-                  "range_resolution": "range_resolution", "clutter_rate": "clutter_rate"}
-        for name, kind in ranges.items():
-            hint = (f" (angles are in radians; degrees are written {name}_deg)"
-                    if name in ANGLE_FIELDS else "")
-            for v in np.atleast_1d(np.asarray(getattr(self, name), dtype=float)).ravel():
-                RANGES[kind].check(float(v), f"{prefix}.{name}", hint)
-        if np.any(np.asarray(self.min_ground_range) > np.asarray(self.max_ground_range)):
+        for f in fields(self):
+            if f.metadata["limit"] is None:
+                continue
+            hint = (f" (angles are in radians; degrees are written {f.name}_deg)"
+                    if f.metadata["angle"] else "")
+            for v in numbers[f.name]:
+                RANGES[f.metadata["limit"]].check(v, f"{prefix}.{f.name}", hint)
+        if numbers["min_ground_range"][0] > numbers["max_ground_range"][0]:
             raise ConfigError(f"{prefix}.min_ground_range", "must be <= max_ground_range")
-        pfa = np.asarray(self.false_alarm_probability)
-        if np.any((pfa <= 0) | (pfa >= 1)):
-            raise ConfigError(f"{prefix}.false_alarm_probability",
-                              f"must be in (0, 1), got {self.false_alarm_probability!r}")
-        if np.any(np.asarray(self.clutter_rate) < 0):
-            raise ConfigError(f"{prefix}.clutter_rate", "must be >= 0")
 
 
 #: Sensor fields that are angles (radians); files may give each in degrees as
 #: ``<name>_deg`` instead.
-ANGLE_FIELDS = ("max_turn", "fov_half_angle", "depression", "beamwidth")
+ANGLE_FIELDS = tuple(f.name for f in fields(SensorParams) if f.metadata["angle"])
 
 
 #: Columns of a radar table row (:func:`radar_table`), in order. ``snr0`` is the linear SNR

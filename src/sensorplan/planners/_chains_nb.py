@@ -394,6 +394,76 @@ def _heading_rule(theta: float, bearing: float, max_turn: float) -> float:
     return wrap(theta + turn)
 
 
+# The heading chain (docs/planning.md, section 1), once for every kernel that flies it.
+
+
+@njit(cache=True, inline="always")
+def aim_bearing(aim: np.ndarray, j: int, k: int, px: float, py: float) -> float:
+    """Bearing (rad) from the ground position ``(px, py)`` to the point the heading rule aims
+    at in epoch ``k`` (1-based) when looking at target ``j``: ``aim[j, k - 1]``, the target's
+    mean predicted to the epoch's first step (``Context.aim``)."""
+    return math.atan2(aim[j, k - 1, 1] - py, aim[j, k - 1, 0] - px)
+
+
+@njit(cache=True, inline="always")
+def next_heading(h: float, bearing: float, k: int, after_gap: bool, theta0: float,
+                 max_turn: float) -> float:
+    """Heading of a chain's epoch ``k`` (1-based) toward ``bearing``.
+
+    The heading rule from the previous epoch's heading ``h``; after an unassigned epoch
+    ``k - 1`` (``after_gap``, only during the initialisation) the turn from ``theta0`` by at
+    most ``k max_turn``: what is reachable in k epochs.
+    """
+    if after_gap:
+        return _heading_rule(theta0, bearing, k * max_turn)
+    return _heading_rule(h, bearing, max_turn)
+
+
+@njit(cache=True)
+def shared_epochs(pos: np.ndarray, tgt: np.ndarray, aim: np.ndarray,
+                  k0: int) -> tuple[np.ndarray, np.ndarray]:
+    """The epochs of candidate chains (``pos (C, L, 2)``, ``tgt (C, L)`` from epoch ``k0``)
+    whose position and target are the same for every candidate (the fixed tail of a chain),
+    and their :func:`aim_bearing` (0 elsewhere): computed once for all candidates.
+
+    Returns
+    -------
+    shared : (L,) bool;  bearing : (L,)
+    """
+    C, L = tgt.shape
+    shared = np.zeros(L, dtype=np.bool_)
+    bearing = np.zeros(L)
+    for l in range(L):
+        same = C > 0
+        for c in range(1, C):
+            if (tgt[c, l] != tgt[0, l] or pos[c, l, 0] != pos[0, l, 0]
+                    or pos[c, l, 1] != pos[0, l, 1]):
+                same = False
+                break
+        if same:
+            shared[l] = True
+            bearing[l] = aim_bearing(aim, tgt[0, l], k0 + l, pos[0, l, 0], pos[0, l, 1])
+    return shared, bearing
+
+
+@njit(cache=True)
+def chain_headings_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, prev: np.ndarray,
+                      prev_ok: bool, theta0: float, max_turn: float,
+                      aim: np.ndarray) -> np.ndarray:
+    """Headings ``(C, L)`` of candidate chains from epoch ``k0`` (those of
+    :func:`chain_looks_nb`), each entered from its heading ``prev[c]``."""
+    C, L = tgt.shape
+    th = np.empty((C, L))
+    for c in range(C):
+        h = prev[c]
+        for l in range(L):
+            k = k0 + l
+            h = next_heading(h, aim_bearing(aim, tgt[c, l], k, pos[c, l, 0], pos[c, l, 1]),
+                             k, l == 0 and not prev_ok, theta0, max_turn)
+            th[c, l] = h
+    return th
+
+
 @njit(cache=True)
 def chain_looks_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: float,
                    prev_ok: bool, theta0: float, max_turn: float, aim: np.ndarray,
@@ -411,22 +481,7 @@ def chain_looks_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
     th = np.empty((C, L))
     W = np.zeros((C, L, e, 2, 2))
     weight = np.zeros((C, L, e))
-    # Epochs whose position and target are the same for every candidate (the fixed tail of
-    # a chain) share their bearing: compute it once.
-    shared = np.zeros(L, dtype=np.bool_)
-    shared_bearing = np.zeros(L)
-    for l in range(L):
-        same = True
-        for c in range(1, C):
-            if (tgt[c, l] != tgt[0, l] or pos[c, l, 0] != pos[0, l, 0]
-                    or pos[c, l, 1] != pos[0, l, 1]):
-                same = False
-                break
-        if same and C > 0:
-            j = tgt[0, l]
-            shared[l] = True
-            shared_bearing[l] = math.atan2(aim[j, k0 + l - 1, 1] - pos[0, l, 1],
-                                           aim[j, k0 + l - 1, 0] - pos[0, l, 0])
+    shared, shared_bearing = shared_epochs(pos, tgt, aim, k0)
     for c in range(C):
         h = prev
         for l in range(L):
@@ -437,14 +492,8 @@ def chain_looks_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
                     row, xbar, Cbar, j, (k - 1) * e + 1, e, px, py, probabilistic):
                 th[c, l] = np.nan     # no look of the chain's last epoch can count
                 continue
-            if shared[l]:
-                bearing = shared_bearing[l]
-            else:
-                bearing = math.atan2(aim[j, k - 1, 1] - py, aim[j, k - 1, 0] - px)
-            if l == 0 and not prev_ok:
-                h = _heading_rule(theta0, bearing, k * max_turn)
-            else:
-                h = _heading_rule(h, bearing, max_turn)
+            bearing = shared_bearing[l] if shared[l] else aim_bearing(aim, j, k, px, py)
+            h = next_heading(h, bearing, k, l == 0 and not prev_ok, theta0, max_turn)
             th[c, l] = h
             for s in range(e):
                 t = (k - 1) * e + 1 + s
@@ -483,6 +532,8 @@ def warm_up() -> None:
                            True, 0.0, 0.5, np.ones((1, 1, 2)), np.ones((1, 2, 2)),
                            np.ones((1, 2, 3)), probabilistic, row, all_headings,
                            np.zeros((0, 5)))
+    chain_headings_nb(np.zeros((1, 1, 2)), np.zeros((1, 1), dtype=np.int64), 1, np.zeros(1),
+                      True, 0.0, 0.5, np.ones((1, 1, 2)))
     sum_by_target_nb(np.zeros((1, 1, 1, 2, 2)), np.zeros((1, 1), dtype=np.int64), 1)
     radar.warm_up()
     _WARM = True

@@ -21,7 +21,7 @@ from .._compiled.jit import njit
 
 from ..models.radar import (P_VIS_MIN, look_at_azimuth, look_range, look_range_clear, reach,
                             row_values)
-from ._chains_nb import _heading_rule
+from ._chains_nb import aim_bearing, next_heading, shared_epochs
 
 
 @njit(cache=True, nogil=True)
@@ -79,22 +79,12 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
                 far[j] = False
     # Epochs whose position and target are the same for every candidate: their bearing and
     # the heading-free part of their looks are computed once.
-    shared = np.zeros(L, dtype=np.bool_)
-    sh_bearing = np.zeros(L)
+    shared, sh_bearing = shared_epochs(pos, tgt, aim, k0)
     sh_range = np.zeros((L, e, 3))                   # p, g^2, g
     for l in range(L):
-        same = C > 0
-        for c in range(1, C):
-            if (tgt[c, l] != tgt[0, l] or pos[c, l, 0] != pos[0, l, 0]
-                    or pos[c, l, 1] != pos[0, l, 1]):
-                same = False
-                break
-        if same:
+        if shared[l]:
             j = tgt[0, l]
             k = k0 + l
-            shared[l] = True
-            sh_bearing[l] = math.atan2(aim[j, k - 1, 1] - pos[0, l, 1],
-                                       aim[j, k - 1, 0] - pos[0, l, 0])
             for s in range(e):
                 t = (k - 1) * e + 1 + s
                 sh_range[l, s, 0], sh_range[l, s, 1], sh_range[l, s, 2] = look_range(
@@ -166,7 +156,7 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
         while l < L:
             if l == tail and n_memo > 0:
                 # The tail's heading, as the loop below computes it (tail >= 1).
-                h_in = _heading_rule(h, sh_bearing[tail], max_turn)
+                h_in = next_heading(h, sh_bearing[tail], k0 + tail, False, theta0, max_turn)
                 for x in range(n_kept):
                     if memo_h[x] == h_in and (math.copysign(1.0, memo_h[x])
                                               == math.copysign(1.0, h_in)):
@@ -215,14 +205,8 @@ def chain_pairs_nb(pos: np.ndarray, tgt: np.ndarray, k0: int, e: int, prev: floa
                 # The last epoch's heading has no other use and none of its looks counts.
                 l += 1
                 continue
-            if shared[l]:
-                bearing = sh_bearing[l]
-            else:
-                bearing = math.atan2(aim[j, k - 1, 1] - py, aim[j, k - 1, 0] - px)
-            if l == 0 and not prev_ok:
-                h = _heading_rule(theta0, bearing, k * max_turn)
-            else:
-                h = _heading_rule(h, bearing, max_turn)
+            bearing = sh_bearing[l] if shared[l] else aim_bearing(aim, j, k, px, py)
+            h = next_heading(h, bearing, k, l == 0 and not prev_ok, theta0, max_turn)
             if any_in:
                 for s in range(e):
                     if rng_[s, 0] >= P_VIS_MIN:

@@ -13,9 +13,9 @@ once per such prefix. Phi then separates over targets,
 
 where ``W_ij(a_i)`` is ``(T, 2, 2)``: sensor ``i``'s information about target ``j`` at every
 step under option ``a_i`` (zero where it looks elsewhere or does not see ``j``), and ``f_j``
-is the target's term of Phi, computed by
-:func:`~sensorplan.planners.information.covariance_recursion`
-exactly as :func:`~sensorplan.planners.information.target_information` does. For each target the
+is the target's term of Phi (:func:`~sensorplan.planners.information.phi_terms` of
+:func:`~sensorplan.planners.information.covariance_recursion`, exactly as
+:func:`~sensorplan.planners.information.target_information` computes it). For each target the
 options of a sensor collapse into a few *contribution classes* (all options that never see
 ``j`` share the zero class; with K = 1 the rest differ only by position), so ``f_j`` is
 evaluated once per combination of classes and gathered for every joint plan. A target's
@@ -43,7 +43,7 @@ from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from .base import PlanResult, RngLike, finish, register, start_clock
 from .information import (Context, chain_headings, covariance_recursion, epoch_information,
-                          prepare)
+                          measured, phi_terms, prepare)
 from .problem import TIE_TOL, Lattice, Plan, PlanningProblem
 
 #: Class combinations per batch of the covariance recursion (bounds its temporaries).
@@ -267,10 +267,6 @@ class _TargetTerm:
         self.P0 = np.asarray(ctx.problem.covs[j], dtype=float)
         self.Q = ctx.Q_rows(j)
         self.cumulative = ctx.problem.objective == "cumulative"
-        if self.cumulative:
-            self.ld_ref = float(ctx.ld_bar[j, 1:].sum())
-        else:
-            self.ld_ref = float(ctx.ld_bar[j, -1])
 
     def tabulate(self) -> None:
         """Evaluate ``f_j`` on every class combination once."""
@@ -285,11 +281,11 @@ class _TargetTerm:
             for rep, c in zip(self.reps[1:], idx[1:]):
                 W = W + rep[c]
             P = np.broadcast_to(self.P0, (len(W), 4, 4))
-            # Same recursion and reference terms as information.target_information.
+            # Same recursion and terms as information.target_information.
             _, ld_end, ld_sum = covariance_recursion(P, W, self.ctx.F, self.Q,
                                                      need_sum=self.cumulative)
-            ld = ld_sum if self.cumulative else ld_end
-            out[s:s + _F_BATCH] = 0.5 * (self.ld_ref - ld)
+            out[s:s + _F_BATCH] = phi_terms(self.ctx.ld_bar[self.j], ld_end, ld_sum,
+                                            self.cumulative, measured(W))
         return out
 
 

@@ -31,10 +31,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._compiled.threads import n_threads
-from .._types import FloatArray, IntArray
+from .._types import BoolArray, FloatArray, IntArray
 from ._gains_nb import gains_nb
 from ._pairs_nb import candidate_sets_nb, chain_pairs_nb, game_chains_nb, player_positions_nb
-from .information import Context, _c, chain_looks, covariance_recursion, cv_form, sum_by_target
+from .information import (Context, _c, chain_looks, covariance_recursion, cv_form, measured,
+                          phi_terms, sum_by_target)
 from .problem import TIE_TOL, Plan
 
 
@@ -234,15 +235,19 @@ class GameState:
         W_t = sum_by_target(ctx, self.W, self.tgt)
         _, ld_end, ld_sum = covariance_recursion(np.asarray(ctx.problem.covs), W_t, ctx.F, ctx.Q,
                                                  self.cumulative)
-        phi = float(self._phi_terms(ld_end, ld_sum).sum())
+        phi = float(phi_terms(ctx.ld_bar, ld_end, ld_sum, self.cumulative, measured(W_t)).sum())
         self._phi = (self.version, phi)
         return phi
 
-    def _phi_terms(self, ld_end: FloatArray, ld_sum: FloatArray) -> FloatArray:
-        ctx = self.ctx
-        if ctx.problem.objective == "cumulative":
-            return 0.5 * (ctx.ld_bar[:, 1:].sum(axis=1) - ld_sum)
-        return 0.5 * (ctx.ld_bar[:, -1] - ld_end)
+    def _measured_without(self, i: int, lo: int, hi: int) -> BoolArray:
+        """Which targets the plan measures with sensor i's epochs ``lo .. hi - 1`` (0-based)
+        left out (as :func:`~sensorplan.planners.information.measured` of their sum: looks
+        are positive semidefinite, so a sum is zero only if every look is)."""
+        looks = (self.tgt >= 0) & np.any(self.W != 0.0, axis=(2, 3, 4))       # (N, K)
+        looks[i, lo:hi] = False
+        out = np.zeros(self.ctx.M, dtype=bool)
+        out[self.tgt[looks]] = True
+        return out
 
     def evaluate_chains(self, i: int, k0: int, cand_pos: IntArray,
                         cand_tgt: IntArray) -> FloatArray:
@@ -287,7 +292,10 @@ class GameState:
             np.array([0, len(entry.c_pair)]), entry.c_pair, entry.j_pair, entry.first,
             entry.count, entry.offset, entry.data, entry.delta, entry.rows[None],
             np.array([0, entry.n_cand]), with_base)
-        base = float(self._phi_terms(ld_end, ld_pre + ld_sum).sum()) if with_base else np.nan
+        base = np.nan
+        if with_base:
+            base = float(phi_terms(self.ctx.ld_bar, ld_end, ld_pre + ld_sum, self.cumulative,
+                                   self._measured_without(i, entry.lo, entry.hi)).sum())
         if entry.dups.size:
             gains[entry.dups] = gains[entry.dup_of]     # identical pairs, identical sums
         return gains, base

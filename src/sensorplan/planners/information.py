@@ -22,15 +22,17 @@ import numpy as np
 
 from .._types import BoolArray, FloatArray, IntArray
 from ..models import radar
-from ..models.angles import heading_rule
-from ..models.motion import cv_matrices, predict_covariance, predict_covariances, predict_means
+from ..models.motion import (aim_points, cv_matrices, predict_covariance, predict_covariances,
+                             predict_means)
 from ..models.sensors import radar_table
-from ._chains_nb import chain_looks_nb, covariance_recursion_nb, sum_by_target_nb
+from ._chains_nb import (chain_headings_nb, chain_looks_nb, covariance_recursion_nb,
+                         sum_by_target_nb)
 from .problem import Lattice, Plan, PlanningProblem, build_lattice, move_vectors
 
-#: ``"numba"`` (default) or ``"numpy"``: which implementation of the covariance recursion
-#: and of the chains' headings runs; set ``SENSORPLAN_BACKEND=numpy`` to measure or debug
-#: without those compiled kernels (the radar model itself is always the compiled one).
+#: ``"numba"`` (default) or ``"numpy"``: which implementation of the covariance recursion,
+#: the looks' information along chains and the sums by target runs; set
+#: ``SENSORPLAN_BACKEND=numpy`` to measure or debug without those compiled kernels (the radar
+#: model and the heading chain are always the compiled ones).
 BACKEND = os.environ.get("SENSORPLAN_BACKEND", "numba")
 
 
@@ -127,7 +129,7 @@ def prepare(problem: PlanningProblem) -> Context:
     xbar = predict_means(problem.means, F, T)
     Pbar = predict_covariances(problem.covs, F, Q, T)
     ld_bar = np.linalg.slogdet(Pbar)[1]
-    aim = np.ascontiguousarray(xbar[:, (np.arange(1, K + 1) - 1) * e + 1, :2])
+    aim = aim_points(problem.means, F, K, e)
     lattices = [build_lattice(problem.positions[i], move_vectors(s.moves), K, problem.world)
                 for i, s in enumerate(problem.sensors)]
     Cbar = np.stack([Pbar[..., 0, 0], Pbar[..., 0, 1], Pbar[..., 1, 1]], axis=-1)
@@ -143,7 +145,8 @@ def prepare(problem: PlanningProblem) -> Context:
 def chain_headings(ctx: Context, i: int, k_first: int, positions: FloatArray,
                    targets: IntArray, prev_heading: FloatArray | float,
                    prev_assigned: bool) -> FloatArray:
-    """Headings along a run of consecutive assigned epochs ``k_first ..`` of sensor ``i``.
+    """Headings along a run of consecutive assigned epochs ``k_first ..`` of sensor ``i``
+    (the compiled heading chain, :func:`~sensorplan.planners._chains_nb.chain_headings_nb`).
 
     Parameters
     ----------
@@ -159,20 +162,10 @@ def chain_headings(ctx: Context, i: int, k_first: int, positions: FloatArray,
     -------
     (B, L) headings.
     """
-    max_turn = ctx.max_turn[i]
-    theta0 = ctx.problem.headings[i]
-    out = np.empty(targets.shape)
-    prev = np.asarray(prev_heading, dtype=float)
-    for l in range(targets.shape[1]):
-        k = k_first + l
-        aim = ctx.aim[targets[:, l], k - 1]
-        bearing = np.arctan2(aim[:, 1] - positions[:, l, 1], aim[:, 0] - positions[:, l, 0])
-        if l == 0 and not prev_assigned:
-            prev = heading_rule(theta0, bearing, k * max_turn)
-        else:
-            prev = heading_rule(prev, bearing, max_turn)
-        out[:, l] = prev
-    return out
+    prev = np.broadcast_to(np.asarray(prev_heading, dtype=float), targets.shape[:1])
+    return chain_headings_nb(_c(positions), _c(targets, np.int64), k_first, _c(prev),
+                             bool(prev_assigned), float(ctx.problem.headings[i]),
+                             float(ctx.max_turn[i]), ctx.aim)
 
 
 def epoch_information(ctx: Context, i: int, k: int, positions: FloatArray,
@@ -203,7 +196,7 @@ def chain_looks(ctx: Context, i: int, k_first: int, positions: FloatArray, targe
                 ) -> tuple[FloatArray, FloatArray, BoolArray]:
     """Headings and look information along runs of assigned epochs, in one call.
 
-    :func:`chain_headings` followed by :func:`chain_information` (the numpy reference), or
+    :func:`chain_headings` followed by :func:`chain_information` (the numpy looks), or
     one compiled loop over candidates, epochs and steps.
 
     With ``all_headings=False`` the compiled path may leave the last epoch's heading NaN
@@ -439,19 +432,52 @@ def assigned_runs(assigned: np.ndarray) -> list[tuple[int, int]]:
     return runs
 
 
+def phi_terms(ld_bar: FloatArray, ld_end: FloatArray, ld_sum: FloatArray, cumulative: bool,
+              measured: BoolArray) -> FloatArray:
+    r"""Per-target terms of Phi from the log-dets of the measured covariance recursion.
+
+    .. math::
+        \tfrac12 \log\det \bar P_j(T) - \tfrac12 \log\det P_j(T \mid Z_j)
+        \quad\text{or}\quad
+        \sum_{t=1}^{T} \tfrac12 \log\det \bar P_j(t) - \tfrac12 \log\det P_j(t \mid Z_j)
+
+    (``terminal`` or ``cumulative``). The rule for round-off: an unmeasured target's term is
+    exactly 0 (its two log-dets differ by round-off only), and a measured target's term is
+    at least 0 (a measurement never increases the log-det; a term below 0 is round-off, about
+    eps times the covariance's condition number, up to 1e12 in inputs). Every numpy
+    evaluation of Phi goes through here; the compiled engine's utilities are differences of
+    the same terms before this rule (it moves them by round-off only).
+
+    Parameters
+    ----------
+    ld_bar : (..., T + 1)   log det of ``Pbar_j(t)``, t = 0..T (``Context.ld_bar``)
+    ld_end : (...,)         log det of ``P_j(T | Z_j)``
+    ld_sum : (...,)         sum over t = 1..T of log det ``P_j(t | Z_j)`` (``cumulative``)
+    cumulative : bool       the objective
+    measured : (...,) bool  whether any of the target's looks counts (:func:`measured`)
+
+    Returns
+    -------
+    (...,) float64   nats, >= 0
+    """
+    if cumulative:
+        info = 0.5 * (ld_bar[..., 1:].sum(axis=-1) - ld_sum)
+    else:
+        info = 0.5 * (ld_bar[..., -1] - ld_end)
+    return np.where(measured, np.maximum(info, 0.0), 0.0)
+
+
+def measured(W_target: FloatArray) -> BoolArray:
+    """Whether each target has information, from its summed ``W_target (..., T, 2, 2)``."""
+    return np.any(W_target != 0.0, axis=(-3, -2, -1))
+
+
 def target_information(ctx: Context, W_target: FloatArray) -> FloatArray:
     """Per-target terms of Phi from the summed information ``W_target (M, T, 2, 2)``."""
     P0 = np.asarray(ctx.problem.covs)
     cumulative = ctx.problem.objective == "cumulative"
     _, ld_end, ld_sum = covariance_recursion(P0, W_target, ctx.F, ctx.Q, cumulative)
-    if cumulative:
-        info = 0.5 * (ctx.ld_bar[:, 1:].sum(axis=1) - ld_sum)
-    else:
-        info = 0.5 * (ctx.ld_bar[:, -1] - ld_end)
-    # An unmeasured target's term is exactly 0 (the two log-dets above differ by round-off).
-    # A measurement never increases the log-det, so a measured target's term below 0 is
-    # round-off too (about eps x the covariance's condition number, up to 1e12 in inputs).
-    return np.where(np.any(W_target != 0.0, axis=(1, 2, 3)), np.maximum(info, 0.0), 0.0)
+    return phi_terms(ctx.ld_bar, ld_end, ld_sum, cumulative, measured(W_target))
 
 
 def sum_by_target(ctx: Context, W: FloatArray, targets: IntArray) -> FloatArray:

@@ -371,11 +371,7 @@ _VALID_SENSORS: set[SensorParams] = set()
 
 def _validate_sensor(params: SensorParams, prefix: str) -> None:
     # Sensors are frozen values reused at every decision of a run: validate each once.
-    try:
-        if params in _VALID_SENSORS:
-            return
-    except TypeError:                      # unhashable (array-valued) parameters
-        params.validate(prefix)
+    if params in _VALID_SENSORS:
         return
     params.validate(prefix)
     if len(_VALID_SENSORS) < 10_000:

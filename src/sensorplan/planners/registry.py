@@ -29,12 +29,12 @@ import difflib
 import importlib
 import inspect
 import sys
-import types
 import typing
 from collections.abc import Iterator, Mapping, MutableMapping
-from typing import Any, Literal, Union
+from typing import Any
 
 from ..errors import ConfigError
+from ..limits import coerce
 
 #: Entry-point group through which installed distributions add planners.
 ENTRY_POINT_GROUP = "sensorplan.planners"
@@ -259,46 +259,6 @@ def planner_settings_of(cls: Any) -> dict[str, Any]:
     return {n: hints.get(n, Any) for n in names}
 
 
-def _value_error(hint: Any, value: Any) -> str:
-    """Why ``value`` does not fit type ``hint`` ('' if it does, or if the hint is not one of
-    the plain types a file can hold)."""
-    got = repr(value) if len(repr(value)) <= 40 else repr(value)[:37] + "..."
-    origin = typing.get_origin(hint)
-    if origin in (Union, types.UnionType):
-        args = typing.get_args(hint)
-        if value is None and type(None) in args:
-            return ""
-        errors = [_value_error(a, value) for a in args if a is not type(None)]
-        return "" if "" in errors or not errors else errors[0]
-    if origin is Literal:
-        allowed = typing.get_args(hint)
-        return "" if value in allowed else (
-            f"must be one of {', '.join(repr(a) for a in allowed)}, got {got}")
-    is_bool = isinstance(value, bool) or type(value).__name__ == "bool_"
-    if hint is bool:
-        return "" if is_bool else f"must be true or false, got {got}"
-    if hint is int:
-        return "" if isinstance(value, int) and not is_bool else f"must be an integer, got {got}"
-    if hint is float:
-        ok = isinstance(value, (int, float)) and not is_bool
-        if ok and isinstance(value, int):
-            try:
-                float(value)
-            except OverflowError:          # an integer literal no float can hold, as in files
-                ok = False
-        return "" if ok else f"must be a number, got {got}"
-    if hint is str:
-        return "" if isinstance(value, str) else f"must be a string, got {got}"
-    return ""
-
-
-def _normal(hint: Any, value: Any) -> Any:
-    """``value`` as its field's type where that is a float (``10`` -> ``10.0``)."""
-    if hint is float and isinstance(value, int) and not isinstance(value, bool):
-        return float(value)
-    return value
-
-
 def check_settings(name: Any, params: Mapping[str, Any], prefix: str = "planner", *,
                    strict: bool = True, exclude: Mapping[str, str] | None = None,
                    construct: bool = True, keep_none: bool = False) -> dict[str, Any]:
@@ -352,10 +312,11 @@ def check_settings(name: Any, params: Mapping[str, Any], prefix: str = "planner"
                 message += f" (did you mean {close[0]!r}?)"
             message += f"; allowed: {', '.join(allowed)}" if allowed else "; it takes none"
             raise ConfigError(f"{prefix}.{key}", message)
-        problem = _value_error(fields[key], value)
-        if problem:
-            raise ConfigError(f"{prefix}.{key}", problem)
-        out[key] = _normal(fields[key], value)
+        try:
+            # A planner may take an infinite number (comm_range = inf); its own check decides.
+            out[key] = coerce(fields[key], value, finite=False)
+        except ValueError as exc:
+            raise ConfigError(f"{prefix}.{key}", str(exc)) from None
     if construct:
         instantiate(cls, out, prefix)
     return out

@@ -8,7 +8,8 @@ Every setting is one field of :class:`RunSettings` (or of its nested
 - its section: the table of a scenario file that holds it (``[planning]``, ``[tracker]`` or
   ``[run]``); the key is the field name everywhere (files, study methods, resolved configs);
 - its ``sensorplan simulate`` option names (``--horizon``, ``-K``), if it has any;
-- its rule besides the type annotation: choices, a range or a custom check.
+- its rule besides the type annotation: choices, a :class:`~sensorplan.limits.Range` or a
+  custom check (the type and range errors are worded by :mod:`sensorplan.limits`).
 
 From this one declaration come the checks of ``__post_init__`` (:func:`check_fields`), the
 strict file models (:func:`sensorplan.config.validation.section_model`), the ``simulate`` options
@@ -26,15 +27,13 @@ from __future__ import annotations
 import contextvars
 import dataclasses
 import functools
-import math
-import numbers
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import ConfigError
-from ..limits import MAX_PLAN_STEPS, MAX_Q, MAX_STEPS
+from ..limits import MAX_PLAN_STEPS, MAX_STEPS, RANGES, SIZE_SETTINGS, Range, coerce
 from ..planners.objective import (OBJECTIVES, PLANNING_DETECTIONS, PLANNING_OCCLUSIONS,
                                   VISIBILITY_MODES)
 from ..tracking.registry import tracker_kinds
@@ -64,7 +63,7 @@ class Setting:
     names : callable      known values listed in the help when the list is open (other
                           values may pass ``check``: a planner given as module:Class)
     noun : str            what a value is called in errors: "unknown <noun> 'x'; choose from"
-    ge, gt, le, lt : float or None     bounds; ``gt`` and ``lt`` together read "in (gt, lt)"
+    bounds : Range        the allowed interval of a number ("must be in [1, 1000], got 0")
     check : callable      extra rule: raises ValueError with the message
     """
 
@@ -76,10 +75,7 @@ class Setting:
     choices: tuple[str, ...] | Callable[[], tuple[str, ...]] = ()
     names: Callable[[], tuple[str, ...]] | None = None
     noun: str = "value"
-    ge: float | None = None
-    gt: float | None = None
-    le: float | None = None
-    lt: float | None = None
+    bounds: Range | None = None
     check: Callable[[Any], None] | None = None
 
     def allowed(self) -> tuple[str, ...]:
@@ -91,21 +87,11 @@ class Setting:
         choices = self.allowed()
         if choices and value not in choices:
             raise ValueError(f"unknown {self.noun} {value!r}; choose from {', '.join(choices)}")
-        if self.gt is not None and self.lt is not None:
-            if not self.gt < value < self.lt:
-                raise ValueError(f"must be in ({_num(self.gt)}, {_num(self.lt)}), got {value!r}")
-        for bound, ok, words in ((self.ge, lambda b: value >= b, "greater than or equal to"),
-                                 (self.gt, lambda b: value > b, "greater than"),
-                                 (self.le, lambda b: value <= b, "less than or equal to"),
-                                 (self.lt, lambda b: value < b, "less than")):
-            if bound is not None and not ok(bound):
-                raise ValueError(f"must be {words} {_num(bound)}")
+        message = self.bounds.violation(value) if self.bounds is not None else ""
+        if message:
+            raise ValueError(message)
         if self.check is not None:
             self.check(value)
-
-
-def _num(x: float) -> str:
-    return str(int(x)) if float(x).is_integer() else repr(x)
 
 
 def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
@@ -185,13 +171,9 @@ def _plain(v: Any) -> Any:
 
 
 # numpy is not imported here (the command line's help reads the settings): its scalars are
-# recognised by the numbers ABCs, which numpy registers them with, and by their module.
+# recognised by their module.
 def _is_numpy(v: Any) -> bool:
     return type(v).__module__ == "numpy"
-
-
-def _is_bool(v: Any) -> bool:
-    return isinstance(v, bool) or (_is_numpy(v) and type(v).__name__ in ("bool", "bool_"))
 
 
 @functools.cache
@@ -227,47 +209,6 @@ def declared(cls: type, section: str | None = None) -> list[tuple[dataclasses.Fi
     return out
 
 
-def _is_int(v: Any) -> bool:
-    return isinstance(v, numbers.Integral) and not _is_bool(v)
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, numbers.Real) and not _is_bool(v)
-
-
-def _coerce(tp: Any, v: Any) -> Any:
-    """``v`` as type ``tp`` or ``ValueError(message)``; the wording of the file checks."""
-    got = repr(v) if len(repr(v)) <= 40 else repr(v)[:37] + "..."
-    if tp is int:
-        if not _is_int(v):
-            raise ValueError(f"must be an integer, got {got}")
-        return int(v)
-    if tp is float:
-        if not _is_number(v):
-            raise ValueError(f"must be a number, got {got}")
-        if not math.isfinite(v):
-            raise ValueError("must be a finite number")
-        return float(v)
-    if tp is bool:
-        if not _is_bool(v):
-            raise ValueError(f"must be true or false, got {got}")
-        return bool(v)
-    if tp is str:
-        if not isinstance(v, str):
-            raise ValueError(f"must be a string, got {got}")
-        return v
-    if tp is Mapping or tp is dict:
-        if not isinstance(v, Mapping):
-            raise ValueError(f"must be a table, got {got}")
-        return dict(v)
-    if typing.get_origin(tp) is tuple:
-        if not isinstance(v, (list, tuple)):
-            raise ValueError(f"must be a list, got {got}")
-        inner = typing.get_args(tp)[0]
-        return tuple(_coerce(inner, x) for x in v)
-    raise TypeError(f"settings fields of type {tp!r} are not supported")  # pragma: no cover
-
-
 def check_fields(obj: Any, unchecked: tuple[str, ...] = ()) -> None:
     """Check (and normalise) every field of a settings dataclass from its declaration.
 
@@ -298,7 +239,7 @@ def check_fields(obj: Any, unchecked: tuple[str, ...] = ()) -> None:
         if s is None:
             continue
         try:
-            v = _coerce(field_hint(cls, f.name) if tp is tuple else tp, v)
+            v = coerce(field_hint(cls, f.name) if tp is tuple else tp, v)
             if f.name not in unchecked:
                 s.validate(v)
         except ValueError as exc:
@@ -331,8 +272,9 @@ def _mode_noises(value: tuple[float, ...]) -> None:
         raise ValueError(f"must list at least two modes, got {len(value)}")
     if len(value) > MAX_MODES:
         raise ValueError(f"must list at most {MAX_MODES} modes, got {len(value)}")
-    if any(q < 0 or q > MAX_Q for q in value):
-        raise ValueError(f"every mode's q must be in [0, {MAX_Q:g}], got {list(value)}")
+    q_range = RANGES["process_noise"]
+    if not all(q_range.contains(q) for q in value):
+        raise ValueError(f"every mode's q must be {q_range.text()}, got {list(value)}")
 
 
 @dataclass(frozen=True)
@@ -362,7 +304,8 @@ class TrackerSettings(_Settings):
              "process_noise) or imm (interacting multiple models: CWNA modes with the q's of "
              "mode_process_noise and Markov switching).")
     process_noise: float = setting(
-        1.0, section="tracker", cli=("--tracker-q",), metavar="Q", label="q", ge=0.0, le=MAX_Q,
+        1.0, section="tracker", cli=("--tracker-q",), metavar="Q", label="q",
+        bounds=RANGES["process_noise"],
         help="q (m^2/s^3) of the cv filter; the truth's q is the scenario's process_noise.")
     mode_process_noise: tuple[float, ...] = setting(
         (0.05, 5.0), section="tracker", label="IMM q's", check=_mode_noises,
@@ -377,7 +320,7 @@ class TrackerSettings(_Settings):
         help="Use a detection only inside the validation gate of its track.")
     gate_probability: float = setting(
         0.999, section="tracker", cli=("--gate-probability",), metavar="P",
-        label="gate probability", gt=0.0, lt=1.0,
+        label="gate probability", bounds=Range(0.0, 1.0, lo_open=True, hi_open=True),
         help="Probability that a track's own detection falls inside its gate (the gate is "
              "the chi-square(2) quantile of it).")
     reacquire: bool = setting(
@@ -454,12 +397,12 @@ class RunSettings(_Settings):
         help="Settings of the planner: its constructor's keyword arguments (an unknown key "
              "is an error).")
     horizon: int = setting(
-        1, section="planning", cli=("--horizon", "-K"), metavar="K", label="K", ge=1,
-        le=MAX_PLAN_STEPS,
+        1, section="planning", cli=("--horizon", "-K"), metavar="K", label="K",
+        bounds=Range(1, MAX_PLAN_STEPS),
         help="Planning horizon in epochs (1 = myopic).")
     steps_per_epoch: int = setting(
-        1, section="planning", cli=("--steps-per-epoch", "-e"), metavar="E", label="e", ge=1,
-        le=MAX_PLAN_STEPS,
+        1, section="planning", cli=("--steps-per-epoch", "-e"), metavar="E", label="e",
+        bounds=Range(1, MAX_PLAN_STEPS),
         help="Simulation steps per epoch: a decision every E steps.")
     execution: str = setting(
         "olf", section="planning", cli=("--execution",), metavar="MODE",
@@ -491,7 +434,7 @@ class RunSettings(_Settings):
              "target (no change without buildings); ignore: the planner does not know the "
              "buildings.")
     steps: int = setting(
-        100, section="run", cli=("--steps", "-n"), metavar="N", ge=1, le=MAX_STEPS,
+        100, section="run", cli=("--steps", "-n"), metavar="N", bounds=Range(1, MAX_STEPS),
         help="Simulation steps of the run.")
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
 
@@ -520,6 +463,15 @@ def all_settings(cls: type = RunSettings, prefix: str = ""
         elif "setting" in f.metadata:
             out.append((cls, prefix + f.name, f, f.metadata["setting"]))
     return out
+
+
+def limit_fields(path: Callable[[str, Setting], str], **structure: str) -> dict[str, str]:
+    """The field names for the size limits' errors (:func:`sensorplan.limits.check_run`):
+    each setting they read (:data:`sensorplan.limits.SIZE_SETTINGS`) as the caller's input
+    spells it, ``path(key, setting)``, plus the input's own ``structure`` (``targets``,
+    ``sensors``, ``moves``)."""
+    return {**{p: path(p, s) for _, p, _, s in all_settings() if p in SIZE_SETTINGS},
+            **structure}
 
 
 def default_of(f: dataclasses.Field[Any]) -> Any:

@@ -54,7 +54,8 @@ from ..errors import ConfigError
 from ..limits import check_run, check_study_size
 from ..planners.registry import check_settings, instantiate, planner_class, planner_settings_of
 from ..simulation.scenario import Scenario
-from ..simulation.settings import RunSettings, declared, field_type, is_group
+from ..simulation.settings import (RunSettings, Setting, declared, field_type, is_group,
+                                   limit_fields)
 from .model import STUDY_KEYS, Method, Study
 
 
@@ -239,11 +240,12 @@ def study_from_dict(data: Any, base_dir: str | Path | None = None) -> Study:
         methods.append(_method(i, m, defaults, study_wide, used))
     _unused_defaults(defaults, used, methods)
     for i, m in enumerate(methods):
-        check_run(scenario, m.settings, {
-            "horizon": _origin_of(model.methods[i], "horizon", i),
-            "steps_per_epoch": _origin_of(model.methods[i], "steps_per_epoch", i),
-            "targets": "scenario", "sensors": "scenario", "moves": "scenario",
-            "steps": "steps"})
+        # A planning key comes from the method or [defaults]; a run key is study-wide.
+        def origin(key: str, s: Setting, i: int = i) -> str:
+            return _origin_of(model.methods[i], key, i) if s.section == "planning" else key
+
+        check_run(scenario, m.settings, limit_fields(origin, targets="scenario",
+                                                     sensors="scenario", moves="scenario"))
     check_study_size(model.runs, len(methods), model.steps, len(scenario.targets))
     return Study(scenario=scenario, runs=model.runs, steps=model.steps, seed=model.seed,
                  methods=tuple(methods), description=model.description,
