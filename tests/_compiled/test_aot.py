@@ -355,3 +355,59 @@ def test_an_interrupted_compile_leaves_nothing_half_built(tmp_path: Path) -> Non
     # No module, no half-built directory, no note of a failure that would stop a retry.
     assert sorted(p.name for p in place.iterdir()) == []
     assert not {p for p in builders if _alive(p)}
+
+
+# --------------------------------------------------------- planning times without warm-up
+
+#: Runs a study's method (by index) for a few decisions as a study's worker does, and
+#: records at every reading of the planners' clock whether numba is loaded and how many
+#: compiled kernel versions this process holds.
+TIMED_DECISIONS = """
+import dataclasses, json, sys
+from sensorplan._compiled import jit
+from sensorplan.planners import PLANNERS, anytime
+from sensorplan.study import load_study
+from sensorplan.study.execution import _pool_init, run_task
+
+study = load_study(sys.argv[1])
+m = int(sys.argv[2])
+short = tuple(dataclasses.replace(x, settings=dataclasses.replace(x.settings, steps=6))
+              for x in study.methods)
+study = dataclasses.replace(study, steps=6, methods=short)
+readings, decisions = [], []
+clock = anytime.clock
+def reading():
+    readings.append((jit.is_active(), jit.loaded()))
+    return clock()
+anytime.clock = reading
+cls = PLANNERS[study.methods[m].settings.planner]
+plan = cls.plan
+def timed(self, problem, rng=None):
+    readings.clear()
+    result = plan(self, problem, rng)
+    decisions.append(list(readings))
+    return result
+cls.plan = timed
+_pool_init(study)                     # a worker's start
+run_task(study, 0, m)
+print(json.dumps(decisions))
+"""
+
+
+@pytest.mark.parametrize("method", [0, 2, 3, 5, 6])   # random, myopic (detection
+# ignored), OLF pg K=3, pg-refine, sequential-greedy
+def test_no_decision_of_a_fresh_worker_includes_loading_a_kernel(built: Path,
+                                                                 method: int) -> None:
+    # A study's worker found the ahead-of-time module: its first decision ran it, the
+    # tracker's first step loaded numba, and the second decision waited for numba's
+    # cached kernels (0.05-1.5 s against a few ms).
+    done = subprocess.run([sys.executable, "-c", TIMED_DECISIONS,
+                           str(ROOT / "studies" / "radar.toml"), str(method)],
+                          env=_env(), capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    decisions = json.loads(done.stdout)
+    assert len(decisions) == 3
+    for d in decisions:
+        # While the planner's clock runs: numba's kernels, none loaded or compiled. (The
+        # tracker loads its own between decisions.)
+        assert {tuple(r) for r in d} == {(True, d[0][1])}, decisions

@@ -9,6 +9,7 @@ import re
 import sys
 import tomllib
 from pathlib import Path
+from typing import ClassVar
 
 import pytest
 
@@ -91,3 +92,82 @@ def test_without_pycc_compile_and_plan_fall_back_to_numbas_disk_cache(tmp_path: 
     mine.pop("seconds")
     theirs.pop("seconds")
     assert mine == theirs and mine["planner"] == "pg"
+
+
+# ------------------------------------------------------------- a study's first run
+
+STUDY = """
+runs = 2
+steps = 4
+seed = 5
+[[methods]]
+name = "random"
+planner = "random"
+"""
+
+
+def test_a_pool_study_says_the_first_run_note_once_and_compiles_before_its_workers(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+        capfd: pytest.CaptureFixture[str]) -> None:
+    # Each worker said the note and compiled every kernel itself, at the same time.
+    from sensorplan import study as studies
+    from sensorplan._compiled import cache, prepare
+    from sensorplan.study import execution, parse_study
+
+    monkeypatch.delenv("SENSORPLAN_FIRST_RUN_NOTED", raising=False)
+    # numba's cache holds no kernel of this package, as far as this process can tell (the
+    # workers find the real one: they only load).
+    monkeypatch.setattr(cache, "_has_kernels", lambda root, mine: False)
+    order: list[str] = []
+    warm = prepare.warm_listed
+    monkeypatch.setattr(prepare, "warm_listed", lambda: (order.append("compiled"), warm())[1])
+    pool = execution._process_pool
+
+    def started(*args: object) -> object:
+        order.append(f"workers (noted: {os.environ.get('SENSORPLAN_FIRST_RUN_NOTED')})")
+        return pool(*args)                       # type: ignore[arg-type]
+
+    monkeypatch.setattr(execution, "_process_pool", started)
+    studies.run_study(parse_study(STUDY), tmp_path / "s", workers=2)
+    notes = [line for line in capfd.readouterr().err.splitlines() if "first run" in line]
+    assert notes == ["note: first run: compiling the numerical kernels once (about a minute); "
+                     "they are cached for every later run"]
+    assert order == ["compiled", "workers (noted: 1)"]
+
+
+def test_a_task_that_loaded_kernels_gives_the_eta_no_time_to_extrapolate(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # The first (run, method) of a worker counted its kernels' compilation and the ETA
+    # extrapolated from it: 1,516 s for a study that took 137 s.
+    import dataclasses
+
+    import numpy as np
+
+    from sensorplan import study as studies
+    from sensorplan._compiled.jit import njit
+    from sensorplan.planners import PLANNERS
+    from sensorplan.planners.random_plan import RandomPlanner
+    from sensorplan.study import parse_study
+
+    fresh = njit(lambda x: x + 1.0)                    # compiled at its first call
+
+    @dataclasses.dataclass(frozen=True)
+    class CompilesOnce(RandomPlanner):
+        name: ClassVar[str] = "compiles-once"
+
+        def plan(self, problem, rng=None):              # type: ignore[no-untyped-def]
+            fresh(np.zeros(1))
+            return super().plan(problem, rng)
+
+    monkeypatch.setitem(PLANNERS, "compiles-once", CompilesOnce)
+    calls: list[tuple[int, float | None]] = []
+
+    def progress(done: int, total: int, already: int, seconds: float | None = None) -> None:
+        if done:
+            calls.append((done, seconds))
+
+    text = STUDY.replace('planner = "random"', 'planner = "compiles-once"')
+    studies.run_study(parse_study(text), tmp_path / "s", workers=1, progress=progress)
+    assert [done for done, _ in calls] == [1, 2]
+    assert calls[0][1] is None                          # it compiled: not a unit of work
+    assert isinstance(calls[1][1], float) and calls[1][1] > 0

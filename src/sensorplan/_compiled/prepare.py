@@ -95,6 +95,20 @@ def warm_for_runs() -> None:
     warm_listed()
 
 
+def before_workers() -> None:
+    """Before starting worker processes that each load numba's kernels (a study's pool):
+    the "first run" note is said here, once, and the workers stay quiet (they inherit
+    ``SENSORPLAN_FIRST_RUN_NOTED``); when numba's cache holds no kernel of this package,
+    the listed kernels are compiled here, once, and the workers load them instead of each
+    compiling them at the same time. When numba's usual cache places cannot be written,
+    the private one is chosen (and said) here, for the same reasons.
+    """
+    from .cache import _writable, cache_places, first_run_notice
+
+    if first_run_notice() is not None or not any(_writable(p) for p in cache_places()):
+        warm_listed()
+
+
 # ------------------------------------------------------------------ sensorplan compile
 
 
@@ -184,4 +198,5 @@ def status_line(result: Compiled) -> str:
     return f"compiled kernels: numba's disk cache ({result.why_not})"
 
 
-__all__ = ["Compiled", "compile_kernels", "status_line", "warm_for_runs", "warm_listed"]
+__all__ = ["Compiled", "before_workers", "compile_kernels", "status_line", "warm_for_runs",
+           "warm_listed"]

@@ -42,8 +42,11 @@ THREAD_LIMITS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
 
 def run_task(study: Study, run: int, method: int) -> TaskResult:
     """Simulate method ``method`` (index) on run ``run`` and return its tables."""
+    from .._compiled.jit import loaded
+
     m = study.methods[method]
     _warm()
+    kernels = loaded()
     wall, cpu = time.perf_counter(), time.process_time()
     try:
         episode = run_episode(study.scenario, m.settings, study.run_seed(run))
@@ -54,14 +57,18 @@ def run_task(study: Study, run: int, method: int) -> TaskResult:
                           f"{exc.message} (method {m.name!r}, run {run})") from None
     tables = episode_tables(episode, run, m.name)
     return TaskResult(run, method, tables, time.perf_counter() - wall,
-                      time.process_time() - cpu, float(np.sum(episode.planning_seconds)))
+                      time.process_time() - cpu, float(np.sum(episode.planning_seconds)),
+                      loaded() - kernels)
 
 
 def _warm() -> None:
-    """Load the compiled kernels (once per process), so that no task's time, and no
-    decision's, includes it."""
+    """Load the compiled kernels as a whole run will use them (once per process), so that
+    no task's time, and no decision's, includes it: numba's kernels, since the tracker's
+    first step would load numba anyway (:func:`sensorplan._compiled.prepare.warm_for_runs`)."""
+    from .._compiled.prepare import warm_for_runs
     from ..planners._chains_nb import warm_up
 
+    warm_for_runs()
     warm_up()
 
 
@@ -437,6 +444,12 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
             write_meta(out, study, session, complete=False)
         except OSError as exc:
             raise write_failed(exc) from None
+        if todo and (executor.startswith("process pool") or (
+                scheduler == "local" and processes)):
+            # Said (and, on a fresh cache, compiled) once here, not in every worker.
+            from .._compiled.prepare import before_workers
+
+            before_workers()
         with_seconds = progress is not None and _takes_seconds(progress)
         if progress is not None:
             progress(0, len(todo), len(done))
@@ -464,9 +477,12 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
                 n += 1
                 if progress is not None:
                     if with_seconds:
-                        # a callback that takes it (checked by _takes_seconds)
-                        cast(Callable[..., None], progress)(n, len(todo), len(done),
-                                                            seconds=res.wall)
+                        # a callback that takes it (checked by _takes_seconds); a task that
+                        # loaded or compiled kernels took longer than the next ones will:
+                        # no time to extrapolate from
+                        cast(Callable[..., None], progress)(
+                            n, len(todo), len(done),
+                            seconds=None if res.loaded else res.wall)
                     else:
                         progress(n, len(todo), len(done))
             t0 = time.perf_counter()
