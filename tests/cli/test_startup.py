@@ -62,6 +62,20 @@ def test_version(capsys: pytest.CaptureFixture[str]) -> None:
     assert f'\nversion = "{sensorplan.__version__}"\n' in (ROOT / "pyproject.toml").read_text()
 
 
+def test_make_compiles_the_kernels_after_installing_and_before_its_stamp() -> None:
+    # make demo and make test set up, then compile, then mark the set-up done: an
+    # interrupted compile runs again at the next make.
+    if shutil.which("make") is None:
+        pytest.skip("no make")
+    for target in ("demo", "test"):
+        planned = subprocess.run(["make", "-n", "-B", target], cwd=ROOT, capture_output=True,
+                                 text=True, timeout=60, check=True).stdout.splitlines()
+        install = max(i for i, ln in enumerate(planned) if "pip install" in ln)
+        compiled = [i for i, ln in enumerate(planned) if ln.endswith("sensorplan compile")]
+        stamp = next(i for i, ln in enumerate(planned) if ln.startswith("touch "))
+        assert len(compiled) == 1 and install < compiled[0] < stamp, planned
+
+
 # --------------------------------------------------------------- read-only install
 
 
