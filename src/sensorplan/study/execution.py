@@ -436,6 +436,13 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
                   "planning_seconds": 0.0, "write_seconds": 0.0, "consolidate_seconds": 0.0}
         if not todo and tables_intact(out, study):
             return StudyRun(out, len(study.tasks()), 0, time.perf_counter() - start_wall)
+        if todo and (executor.startswith("process pool") or (
+                scheduler == "local" and processes)):
+            # Said (and, on a fresh cache, compiled) once here, not in every worker;
+            # before any worker or cluster exists, so that a Ctrl-C here leaves none.
+            from .._compiled.prepare import before_workers
+
+            before_workers()
         client = cluster = None
         if todo and scheduler is not None:
             # Connected before anything is reported: a bad address is the only line.
@@ -444,12 +451,6 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
             write_meta(out, study, session, complete=False)
         except OSError as exc:
             raise write_failed(exc) from None
-        if todo and (executor.startswith("process pool") or (
-                scheduler == "local" and processes)):
-            # Said (and, on a fresh cache, compiled) once here, not in every worker.
-            from .._compiled.prepare import before_workers
-
-            before_workers()
         with_seconds = progress is not None and _takes_seconds(progress)
         if progress is not None:
             progress(0, len(todo), len(done))
