@@ -6,10 +6,12 @@ STAMP := $(VENV)/.installed-stamp
 
 .PHONY: demo test test-slow bench bench-study paper horizon browser clean
 
+# The stamp is touched last: an interrupted set-up (or compile) runs again next time.
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e ".[test,stonesoup]"
+	$(BIN)/sensorplan compile
 	touch $(STAMP)
 
 demo: $(STAMP)

@@ -7,8 +7,8 @@ Python, with the argument types they are called with, for the ahead-of-time buil
 It plans every case of the planner reference tests with every planner that takes it, the
 example decision file, and decisions with detection, clutter and buildings, and records each
 call that reaches a kernel from Python. Run it after changing a kernel's arguments; the test
-``tests/_compiled/test_aot.py`` fails when ``sensorplan plan`` would need numba for the example
-file.
+``tests/_compiled/test_aot.py`` fails when ``sensorplan plan`` would need numba for the
+example file.
 """
 
 from __future__ import annotations

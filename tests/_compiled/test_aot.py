@@ -11,8 +11,10 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -122,6 +124,7 @@ def test_a_failed_build_is_said_once_and_numba_does_the_work(
     assert _aot.ensure_built() is None
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 2 and err[0].startswith("note: first plan: compiling")
+    assert "`sensorplan compile` does it ahead" in err[0]
     assert err[1].startswith("note: could not compile the planning kernels ahead of time")
     assert (tmp_path / "aot" / "failed-0123456789abcdef.txt").is_file()
     assert _aot.ensure_built() is None          # remembered: no second try, no second word
@@ -207,7 +210,7 @@ assert out == [(4.0 - 2 * np.pi, 4.0)] * 8, out
 
 def test_a_read_only_install_finds_them_in_its_private_temp_dir(built: Path,
                                                                  tmp_path: Path) -> None:
-    from test_startup import _read_only_copy
+    from cli.test_startup import _read_only_copy    # tests/ is on the path
 
     pkg = _read_only_copy(tmp_path)
     blocker = tmp_path / "blocker"                    # a file: nothing can be made under it
@@ -247,9 +250,14 @@ def test_old_builds_are_pruned_and_used_ones_kept(tmp_path: Path) -> None:
     a, b, c, failed, other = files.values()
     for f in (a, c, failed, other):
         os.utime(f, (old, old))
+    stale, running = tmp_path / "tmpstale", tmp_path / "tmprunning"   # builds' directories
+    for d in (stale, running):
+        (d / "part").mkdir(parents=True)
+    os.utime(stale, (now - 2 * _aot.DAY, now - 2 * _aot.DAY))
     gone = _aot.prune(tmp_path, keep=c, now=now)
-    assert sorted(gone) == sorted([a, failed])     # b is recent, c is the new build
-    assert b.exists() and c.exists() and other.exists()
+    # b is recent, c is the new build; a build killed outright a day ago left its directory
+    assert sorted(gone) == sorted([a, failed, stale])
+    assert b.exists() and c.exists() and other.exists() and running.exists()
 
 
 def test_a_temp_dir_others_can_write_in_is_not_searched(tmp_path: Path,
@@ -262,3 +270,144 @@ def test_a_temp_dir_others_can_write_in_is_not_searched(tmp_path: Path,
     private.chmod(0o777)                # anyone could have put a module there
     assert private / _aot.SUBDIR not in _aot.places()
     assert _kernel_cache._private_dir(str(tmp_path)) != str(private)   # a fresh one instead
+
+
+# ------------------------------------------------------------------ sensorplan compile
+
+
+def test_a_second_compile_with_a_current_build_does_nothing_and_says_so(built: Path) -> None:
+    before = built.stat().st_mtime_ns
+    done = subprocess.run([sys.executable, "-m", "sensorplan", "compile"], env=_env(),
+                          capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    assert done.stderr.splitlines()[-1] == (f"note: compile: everything is current ({built}); "
+                                            "nothing to do")
+    assert done.stdout == f"compiled kernels: {built} and numba's disk cache\n"
+    assert built.stat().st_mtime_ns == before
+    assert not list(built.parent.glob("tmp*"))
+
+
+#: ``sensorplan compile`` with the module's place in a temporary directory (so it builds).
+COMPILE_ELSEWHERE = """
+import sys
+from pathlib import Path
+import sensorplan._compiled.aot as aot
+place = Path(sys.argv[1])
+aot.places = lambda: [place]
+sys.argv = ["sensorplan", "compile"]
+from sensorplan.cli.launch import main
+main()
+"""
+
+
+def _descendants(pid: int) -> set[int]:
+    """The processes below ``pid`` (Linux /proc)."""
+    parents: dict[int, int] = {}
+    for stat_file in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat_file.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        parents[int(stat_file.parent.name)] = int(fields[1])
+    out: set[int] = set()
+    todo = [pid]
+    while todo:
+        p = todo.pop()
+        kids = {c for c, parent in parents.items() if parent == p}
+        todo.extend(kids - out)
+        out |= kids
+    return out
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie has ended; its reaper collects it)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+def test_an_interrupted_compile_leaves_nothing_half_built(tmp_path: Path) -> None:
+    if shutil.which("cc") is None and shutil.which("gcc") is None:
+        pytest.skip("no C compiler: the ahead-of-time build needs one to link")
+    place = tmp_path / "aot"
+    proc = subprocess.Popen([sys.executable, "-c", COMPILE_ELSEWHERE, str(place)], env=_env(),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=ROOT, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 300
+        while not list(place.glob("tmp*")):        # the child is building
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "the build did not start"
+            time.sleep(0.05)
+        builders = _descendants(proc.pid)
+        assert builders
+        os.killpg(proc.pid, signal.SIGINT)         # Ctrl-C in a terminal: the whole group
+        out, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    assert proc.returncode == 130, err
+    assert err.splitlines()[-1] == "error: interrupted" and "Traceback" not in err
+    assert out == ""
+    # No module, no half-built directory, no note of a failure that would stop a retry.
+    assert sorted(p.name for p in place.iterdir()) == []
+    assert not {p for p in builders if _alive(p)}
+
+
+# --------------------------------------------------------- planning times without warm-up
+
+#: Runs a study's method (by index) for a few decisions as a study's worker does, and
+#: records at every reading of the planners' clock whether numba is loaded and how many
+#: compiled kernel versions this process holds.
+TIMED_DECISIONS = """
+import dataclasses, json, sys
+from sensorplan._compiled import jit
+from sensorplan.planners import PLANNERS, anytime
+from sensorplan.study import load_study
+from sensorplan.study.execution import _pool_init, run_task
+
+study = load_study(sys.argv[1])
+m = int(sys.argv[2])
+short = tuple(dataclasses.replace(x, settings=dataclasses.replace(x.settings, steps=6))
+              for x in study.methods)
+study = dataclasses.replace(study, steps=6, methods=short)
+readings, decisions = [], []
+clock = anytime.clock
+def reading():
+    readings.append((jit.is_active(), jit.loaded()))
+    return clock()
+anytime.clock = reading
+cls = PLANNERS[study.methods[m].settings.planner]
+plan = cls.plan
+def timed(self, problem, rng=None):
+    readings.clear()
+    result = plan(self, problem, rng)
+    decisions.append(list(readings))
+    return result
+cls.plan = timed
+_pool_init(study)                     # a worker's start
+run_task(study, 0, m)
+print(json.dumps(decisions))
+"""
+
+
+@pytest.mark.parametrize("method", [0, 2, 3, 5, 6])   # random, myopic (detection
+# ignored), OLF pg K=3, pg-refine, sequential-greedy
+def test_no_decision_of_a_fresh_worker_includes_loading_a_kernel(built: Path,
+                                                                 method: int) -> None:
+    # A study's worker found the ahead-of-time module: its first decision ran it, the
+    # tracker's first step loaded numba, and the second decision waited for numba's
+    # cached kernels (0.05-1.5 s against a few ms).
+    done = subprocess.run([sys.executable, "-c", TIMED_DECISIONS,
+                           str(ROOT / "studies" / "radar.toml"), str(method)],
+                          env=_env(), capture_output=True, text=True, timeout=600, cwd=ROOT)
+    assert done.returncode == 0, done.stderr
+    decisions = json.loads(done.stdout)
+    assert len(decisions) == 3
+    for d in decisions:
+        # While the planner's clock runs: numba's kernels, none loaded or compiled. (The
+        # tracker loads its own between decisions.)
+        assert {tuple(r) for r in d} == {(True, d[0][1])}, decisions

@@ -165,7 +165,8 @@ def load() -> Any | None:
 def prune(dest: Path, keep: Path, now: float | None = None) -> list[Path]:
     """Delete the built modules (and failure notes) in ``dest`` not used for
     :data:`UNUSED_DAYS` days, except ``keep``: each edit of a kernel or upgrade builds a
-    new module, and the old ones would pile up (about 1 MB each).
+    new module, and the old ones would pile up (about 1 MB each); and the temporary
+    directories of builds killed outright, a day old.
 
     Returns
     -------
@@ -173,6 +174,15 @@ def prune(dest: Path, keep: Path, now: float | None = None) -> list[Path]:
     """
     now = time.time() if now is None else now
     gone = []
+    for d in dest.glob("tmp*"):
+        # A build killed outright (SIGKILL, a power cut) left its directory: no build
+        # runs for a day.
+        try:
+            if d.is_dir() and now - d.stat().st_mtime > DAY:
+                shutil.rmtree(d)
+                gone.append(d)
+        except OSError:
+            pass
     for f in [*dest.glob(f"{module_name('*')}{_suffix()}"), *dest.glob("failed-*.txt")]:
         try:
             if f != keep and now - f.stat().st_mtime > UNUSED_DAYS * DAY:
@@ -282,12 +292,95 @@ def build(dest: Path | None = None) -> Path:
     return target
 
 
+def pycc_missing() -> str | None:
+    """Why ``numba.pycc`` cannot be used (None when it can): numba lists it under its
+    deprecation notices, and a numba without it gets numba's kernels only."""
+    import warnings
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")         # its pending-deprecation warning
+            import numba.pycc  # noqa: F401
+    except ImportError as exc:
+        return f"this numba has no numba.pycc: {exc}" if str(exc) else "no numba.pycc"
+    return None
+
+
+def forget_failure(tag_: str) -> None:
+    """Delete the notes of earlier failed builds of ``tag_`` (an explicit build tries again)."""
+    for d in places():
+        try:
+            failed_marker(d, tag_).unlink(missing_ok=True)
+        except OSError:
+            pass
+
+
+def _destination() -> Path | None:
+    dest = next((d for d in places() if _writable(str(d))), None)
+    if dest is None:
+        fallback = _private_dir(tempfile.gettempdir())
+        if fallback is None:
+            return None
+        dest = Path(fallback) / SUBDIR
+    return dest
+
+
+def _clean(dest: Path, keep: set[Path]) -> None:
+    """Delete the temporary build directories in ``dest`` but those in ``keep`` (there
+    before the interrupted build started: another process's)."""
+    for leftover in set(dest.glob("tmp*")) - keep:
+        shutil.rmtree(leftover, ignore_errors=True)
+
+
+def build_in_child() -> tuple[Path | None, str]:
+    """Build the module in a child process (:data:`BUILD`), atomically.
+
+    Returns
+    -------
+    (module, error) : the module's file, or None and the last line of the child's output
+    (then remembered in :func:`failed_marker`: later plans do not try again)
+
+    An interruption (Ctrl-C, SIGTERM) ends the child and deletes its half-built files
+    before it goes on.
+    """
+    tag_ = tag()
+    dest = _destination()
+    if dest is None:
+        return None, "no writable directory"
+    env = {**os.environ, "SENSORPLAN_FIRST_RUN_NOTED": "1"}
+    others = set(dest.glob("tmp*"))
+    try:
+        done = subprocess.run([sys.executable, "-c", BUILD, str(PACKAGE.parent), str(dest)],
+                              env=env, capture_output=True, text=True, check=False)
+    except BaseException:
+        # Interrupted: the child is gone (run() kills it); so is its half-built module.
+        _clean(dest, others)
+        raise
+    found = find(tag_)
+    if done.returncode == 0 and found is not None:
+        return found, ""
+    last = (done.stderr.strip().splitlines() or ["no output"])[-1]
+    if done.returncode < 0 or last.startswith("KeyboardInterrupt"):
+        # Ctrl-C reached the child (the whole process group gets it) before this process
+        # saw it: an interruption, not a failure to remember.
+        _clean(dest, others)
+        raise KeyboardInterrupt
+    try:
+        failed_marker(dest, tag_).write_text(done.stderr)
+    except OSError:
+        pass
+    return None, f"{last}; details: {failed_marker(dest, tag_)}"
+
+
 def ensure_built() -> Path | None:
     """Build the module in a child process if it is missing (saying so on stderr).
 
     Does nothing when ahead-of-time kernels are off, a module exists, an earlier build
-    failed for this code, or nowhere is writable. A failure is said in one line and
+    failed for this code, or nowhere is writable. Without ``numba.pycc`` it says once that
+    the kernels are numba's (remembered like a failure). A failure is said in one line and
     remembered; the caller goes on with numba's kernels either way.
+    ``sensorplan compile`` (:func:`sensorplan._compiled.prepare.compile_kernels`) does the
+    same ahead of need.
     """
     if not enabled():
         return None
@@ -298,35 +391,27 @@ def ensure_built() -> Path | None:
     found = find(tag_)
     if found is not None or _failed(tag_):
         return found
-    dest = next((d for d in places() if _writable(str(d))), None)
-    if dest is None:
-        fallback = _private_dir(tempfile.gettempdir())
-        if fallback is None:
-            return None
-        dest = Path(fallback) / SUBDIR
-    # 31-37 s with numba's kernels cached, 55 s from nothing (2 cores, 2026-12-02).
+    missing = pycc_missing()
+    if missing is not None:
+        dest = _destination()
+        if dest is not None:
+            try:
+                dest.mkdir(parents=True, exist_ok=True)
+                failed_marker(dest, tag_).write_text(missing + "\n")
+            except OSError:
+                pass
+        sys.stderr.write(f"{NOTICE}no ahead-of-time kernels ({missing}): plans use numba's "
+                         "kernels from its disk cache\n")
+        sys.stderr.flush()
+        return None
+    # 25-37 s with numba's kernels cached, 55 s from nothing (2 cores, 2026-12).
     sys.stderr.write(f"{NOTICE}first plan: compiling the planning kernels ahead of time, once "
-                     "(about a minute); later plans start in under a second\n")
+                     "(about half a minute; `sensorplan compile` does it ahead); later plans "
+                     "start in under a second\n")
     sys.stderr.flush()
-    env = {**os.environ, "SENSORPLAN_FIRST_RUN_NOTED": "1"}
-    try:
-        done = subprocess.run([sys.executable, "-c", BUILD, str(PACKAGE.parent), str(dest)],
-                              env=env, capture_output=True, text=True, check=False)
-    except BaseException:
-        # Interrupted: the child is gone (run() kills it); so is its half-built module.
-        for leftover in dest.glob("tmp*"):
-            shutil.rmtree(leftover, ignore_errors=True)
-        raise
-    found = find(tag_)
-    if done.returncode != 0 or found is None:
-        last = (done.stderr.strip().splitlines() or ["no output"])[-1]
-        try:
-            failed_marker(dest, tag_).write_text(done.stderr)
-        except OSError:
-            pass
+    found, error = build_in_child()
+    if found is None:
         sys.stderr.write(f"{NOTICE}could not compile the planning kernels ahead of time "
-                         f"({last}); numba's kernels are used instead (details: "
-                         f"{failed_marker(dest, tag_)})\n")
+                         f"({error}); numba's kernels are used instead\n")
         sys.stderr.flush()
     return found
-

@@ -32,6 +32,9 @@ import numpy as np
 from .cache import ensure_cache, first_run_notice
 
 _KERNELS: list[Kernel] = []
+#: numba's dispatchers of the kernels defined after numba was loaded (the others are
+#: ``_KERNELS``' own).
+_LATE: list[Any] = []
 _NUMBA_GLOBALS: dict[str, Callable[[], dict[str, Any]]] = {}
 _ACTIVE = False
 _LOCK = threading.Lock()
@@ -123,7 +126,9 @@ def njit(*args: Any, **options: Any) -> Any:
         if _ACTIVE:
             import numba
 
-            return numba.njit(**options)(py_func)
+            dispatcher = numba.njit(**options)(py_func)
+            _LATE.append(dispatcher)
+            return dispatcher
         kernel = Kernel(py_func, options)
         _KERNELS.append(kernel)
         return kernel
@@ -183,4 +188,20 @@ def is_active() -> bool:
     return _ACTIVE
 
 
-__all__ = ["Kernel", "activate", "arg_key", "is_active", "njit", "numba_globals"]
+def dispatchers() -> list[Any]:
+    """numba's dispatchers of every kernel of the package defined so far (none before
+    :func:`activate`)."""
+    if not _ACTIVE:
+        return []
+    return [k._dispatcher for k in _KERNELS] + list(_LATE)
+
+
+def loaded() -> int:
+    """How many compiled versions (one per argument types) numba's dispatchers hold in this
+    process, compiled or loaded from the disk cache: a count that grows exactly when a call
+    waits for numba (0 before :func:`activate`)."""
+    return sum(len(d.overloads) for d in dispatchers())
+
+
+__all__ = ["Kernel", "activate", "arg_key", "dispatchers", "is_active", "loaded", "njit",
+           "numba_globals"]

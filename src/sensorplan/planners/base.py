@@ -73,13 +73,17 @@ class Planner(Protocol):
 
 def start_clock(engine: bool = False) -> float:
     """Warm the compiled kernels (and the planning engine's, if ``engine``), then read the
-    clock: ``seconds`` is the planner's own time.
+    clock: ``seconds`` is the planner's own time. In a process that runs numba's kernels,
+    every planning kernel is loaded first (:func:`sensorplan._compiled.prepare.warm_listed`,
+    once per process): numba may have been loaded since the last decision (by a tracker),
+    and its kernels load at their first call.
 
     Returns
     -------
     float   the clock (:data:`sensorplan.planners.anytime.clock`) after the warm-up; pass
             it to :func:`finish`.
     """
+    from .._compiled.jit import is_active
     from . import anytime
     from ._chains_nb import warm_up
 
@@ -88,6 +92,10 @@ def start_clock(engine: bool = False) -> float:
         from .epoch_game import warm_engine
 
         warm_engine()
+    if is_active():
+        from .._compiled.prepare import warm_listed
+
+        warm_listed()
     return anytime.clock()
 
 

@@ -120,8 +120,10 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     schedule = _Schedule(scenario, settings, planner, planner_rng, table, init)
     # Load the compiled kernels now, so that no decision's time includes it (the planners
     # warm them too, before starting their clock; a planner of another package may not).
+    from .._compiled.prepare import warm_for_runs
     from ..planners._chains_nb import warm_up
 
+    warm_for_runs()
     warm_up()
     try:
         for t in range(1, S + 1):

@@ -42,8 +42,11 @@ THREAD_LIMITS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
 
 def run_task(study: Study, run: int, method: int) -> TaskResult:
     """Simulate method ``method`` (index) on run ``run`` and return its tables."""
+    from .._compiled.jit import loaded
+
     m = study.methods[method]
     _warm()
+    kernels = loaded()
     wall, cpu = time.perf_counter(), time.process_time()
     try:
         episode = run_episode(study.scenario, m.settings, study.run_seed(run))
@@ -54,14 +57,18 @@ def run_task(study: Study, run: int, method: int) -> TaskResult:
                           f"{exc.message} (method {m.name!r}, run {run})") from None
     tables = episode_tables(episode, run, m.name)
     return TaskResult(run, method, tables, time.perf_counter() - wall,
-                      time.process_time() - cpu, float(np.sum(episode.planning_seconds)))
+                      time.process_time() - cpu, float(np.sum(episode.planning_seconds)),
+                      loaded() - kernels)
 
 
 def _warm() -> None:
-    """Load the compiled kernels (once per process), so that no task's time, and no
-    decision's, includes it."""
+    """Load the compiled kernels as a whole run will use them (once per process), so that
+    no task's time, and no decision's, includes it: numba's kernels, since the tracker's
+    first step would load numba anyway (:func:`sensorplan._compiled.prepare.warm_for_runs`)."""
+    from .._compiled.prepare import warm_for_runs
     from ..planners._chains_nb import warm_up
 
+    warm_for_runs()
     warm_up()
 
 
@@ -449,6 +456,13 @@ class _Executor:
                  scheduler: str | None, processes: bool) -> None:
         self.study, self.todo, self.workers = study, todo, workers
         self.client = self.cluster = None
+        pool = scheduler is None and workers > 1 and len(todo) > 1
+        if todo and (pool or (scheduler == "local" and processes)):
+            # Said (and, on a fresh cache, compiled) once here, not in every worker;
+            # before any worker or cluster exists, so that a Ctrl-C here leaves none.
+            from .._compiled.prepare import before_workers
+
+            before_workers()
         if scheduler is not None:
             self.name = f"dask {scheduler}" + (f" ({workers} workers)"
                                                if scheduler == "local" else "")
@@ -516,7 +530,8 @@ class _Session:
                 self.timing["planning_seconds"] += res.planning
                 self.ran += 1
                 if progress is not None:
-                    progress(self.ran, todo, self.before, seconds=res.wall)
+                    progress(self.ran, todo, self.before,
+                             seconds=None if res.loaded else res.wall)
             t0 = time.perf_counter()
             self._write(consolidate, self.out, self.study)
             self.timing["consolidate_seconds"] = time.perf_counter() - t0
@@ -548,14 +563,15 @@ class _Session:
 
 
 def _progress_calls(progress: ProgressFn | None) -> Callable[..., None] | None:
-    """The progress callback, called with ``seconds=`` (a pair's compute time) only if it
-    takes it: checked once, not at every pair."""
+    """The progress callback, called with ``seconds=`` (a pair's compute time; None for a
+    pair that loaded or compiled kernels, which the next ones will not: no time to
+    extrapolate from) only if it takes it: checked once, not at every pair."""
     if progress is None:
         return None
     if _takes_seconds(progress):
         return cast(Callable[..., None], progress)
 
-    def call(done: int, total: int, already: int, seconds: float = 0.0) -> None:
+    def call(done: int, total: int, already: int, seconds: float | None = None) -> None:
         progress(done, total, already)
 
     return call

@@ -52,6 +52,8 @@ class TaskResult:
     tables : dict of table name -> dict of column name -> (rows,) array
     wall, cpu : float         the task's wall and process CPU time (s)
     planning : float          wall time inside planner calls (s)
+    loaded : int              compiled kernel versions the task had to load or compile
+                              (0: its time is the simulation's alone)
     """
 
     run: int
@@ -60,6 +62,7 @@ class TaskResult:
     wall: float
     cpu: float
     planning: float
+    loaded: int = 0
 
 
 def episode_tables(episode: Episode, run: int, method: str) -> dict[str, dict[str, np.ndarray]]:
