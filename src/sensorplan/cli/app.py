@@ -127,13 +127,14 @@ def plan(
     from .._compiled.aot import ensure_built
     from ..config import load_decision
     from ..config.files import dumps_result
+    from ..planners.checks import checked_plan
 
     with _bad_input():
         if problem is None:
             raise ConfigError("PROBLEM.json", "is required (--example prints one to start from)")
         decision = load_decision(problem, planner)
         ensure_built()          # a first plan compiles the planning kernels ahead of time
-        result = decision.make_planner().plan(decision.problem)
+        result = checked_plan(decision.make_planner(), decision.problem)
         check_finite(result)
         text = dumps_result(result)
     sys.stdout.write(text + "\n")

@@ -84,6 +84,23 @@ def _reference(cls: Any) -> str:
     return f"{cls.__module__}:{cls.__qualname__}"
 
 
+def planner_label(planner: Any) -> str:
+    """How messages and run headers name a planner (an instance or class).
+
+    Its ``name`` in quotes, as the plan's ``planner`` key has it; for a class that is not
+    built in, followed by where it lives (``'nearest' (nearest_planner:NearestTargetPlanner)``),
+    so that a message about a planner of another package says which code to look at.
+    """
+    cls = planner if isinstance(planner, type) else type(planner)
+    name = getattr(planner, "name", None)
+    if not isinstance(name, str):
+        return _reference(cls)
+    reference = _reference(cls)
+    if BUILTIN.get(name) == reference:
+        return repr(name)
+    return f"{name!r} ({reference})"
+
+
 def _not_a_planner(cls: Any) -> str:
     """Why ``cls`` is not a planner class ('' if it is one)."""
     if not isinstance(cls, type):
@@ -396,5 +413,5 @@ def make_planner(name: str, **params: Any) -> Any:
 
 
 __all__ = ["BUILTIN", "ENTRY_POINT_GROUP", "PLANNERS", "Registry", "check_settings",
-           "instantiate", "make_planner", "planner_class", "planner_names",
+           "instantiate", "make_planner", "planner_class", "planner_label", "planner_names",
            "planner_settings_of", "register", "unknown_planner"]

@@ -47,7 +47,7 @@ from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, wrap_angle
 from ..models.sensors import ALTITUDE, CLUTTER_RATE, SWERLING, radar_table
-from ..planners import make_planner
+from ..planners import checked_plan, make_planner
 from ..planners.problem import PlanningProblem
 from ..tracking.ekf import nees
 from ..tracking.tracker import Tracker
@@ -397,7 +397,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
                         planning_detection=settings.planning_detection,
                         buildings=planning_buildings)
                     start = time.perf_counter()
-                    result = planner.plan(problem, rng=planner_rng)
+                    result = checked_plan(planner, problem, planner_rng, len(decisions))
                     seconds = _own_seconds(result, time.perf_counter() - start)
                     decisions.append((t - 1, seconds, float(result.potential),
                                       _nan_if_none(result.converged), _nan_if_none(result.sweeps)))
