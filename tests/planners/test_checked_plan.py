@@ -88,7 +88,7 @@ def test_check_plan_names_the_first_sensor_and_epoch(problem) -> None:
     check_plan(problem, Plan(good.positions, targets), complete=False)   # allowed then
     positions = np.array(good.positions)
     positions[2, 1] = (-40.0, 10.0)
-    with pytest.raises(PlanError, match=r"^sensor 2 epoch 2: position \[-40.  10.\] is "
+    with pytest.raises(PlanError, match=r"^sensor 2 epoch 2: position \[-40, 10\] is "
                                         r"outside the map \[0, 600\] x \[0, 600\] m$"):
         check_plan(problem, Plan(positions, good.targets))
 

@@ -87,7 +87,7 @@ def read_scenario_file(path: str | Path) -> dict[str, Any]:
             raise ConfigError(str(path), "is a JSON file: a single decision is planned with "
                               "sensorplan plan; simulate reads a scenario TOML file (see "
                               "configs/paper.toml)")
-    return io.read_toml(path)
+    return io.read_input(path, "scenario")
 
 
 def load_simulation(path: str | Path | None = None, preset: str | None = None,

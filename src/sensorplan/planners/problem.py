@@ -70,6 +70,13 @@ class MapRect:
         return ((xy[..., 0] >= -tol) & (xy[..., 0] <= self.width + tol)
                 & (xy[..., 1] >= -tol) & (xy[..., 1] <= self.height + tol))
 
+    def outside(self, xy: Any) -> str:
+        """The message for a ground position ``(2,)`` outside the map: its value and the
+        map's bounds, ``[700, 100] is outside the map [0, 600] x [0, 600] m``."""
+        x, y = (float(v) for v in np.asarray(xy, dtype=float).ravel()[:2])
+        return (f"[{x:g}, {y:g}] is outside the map [0, {self.width:g}] x "
+                f"[0, {self.height:g}] m")
+
 
 @dataclass(frozen=True)
 class Lattice:
@@ -331,7 +338,7 @@ class PlanningProblem:
             if not np.isfinite(self.headings[i]):
                 raise ConfigError(f"sensors[{i}].heading", "must be finite")
             if not self.world.contains(self.positions[i]):
-                raise ConfigError(f"sensors[{i}].position", "is outside the map")
+                raise ConfigError(f"sensors[{i}].position", self.world.outside(self.positions[i]))
 
 
 def check_buildings(buildings: Any, world: MapRect, altitudes: object) -> FloatArray:
@@ -494,9 +501,7 @@ def check_plan(problem: PlanningProblem, plan: Plan, complete: bool = True) -> N
             if not np.isfinite(p).all():
                 raise PlanError(f"position {p} is not a number", i, k + 1)
             if not problem.world.contains(p):
-                raise PlanError(f"position {p} is outside the map [0, "
-                                f"{problem.world.width:g}] x [0, {problem.world.height:g}] m",
-                                i, k + 1)
+                raise PlanError(f"position {problem.world.outside(p)}", i, k + 1)
             if prev_assigned:
                 # One move from a position in R_{k-1}, inside the map: so in R_k too.
                 if np.min(np.abs(p - prev - moves).max(axis=1)) > POSITION_TOL * 10:

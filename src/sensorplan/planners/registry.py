@@ -326,8 +326,9 @@ def check_settings(name: Any, params: Mapping[str, Any], prefix: str = "planner"
     name : str or class
         A planner name (:func:`planner_class`) or class.
     params : mapping
-        Setting -> value. ``None`` values are dropped (the planner keeps its default; a file
-        has no other way to leave a key out) unless ``keep_none``.
+        Setting -> value. ``None`` values of the planner's settings are dropped (the planner
+        keeps its default; a file has no other way to leave a key out) unless
+        ``keep_none``; a key it does not have is an error whatever its value.
     prefix : str
         Errors name ``<prefix>.<key>`` (``planning.planner_params.alpha``); the planner's
         own errors on ``planner.<key>`` are renamed the same way.
@@ -355,10 +356,8 @@ def check_settings(name: Any, params: Mapping[str, Any], prefix: str = "planner"
     allowed = [k for k in fields if k not in exclude]
     out: dict[str, Any] = {}
     for key, value in params.items():
-        if value is None and not keep_none:
-            continue
         key = str(key)
-        if key in exclude:
+        if key in exclude and value is not None:
             raise ConfigError(f"{prefix}.{key}", exclude[key])
         if key not in fields:
             if not strict:
@@ -369,6 +368,8 @@ def check_settings(name: Any, params: Mapping[str, Any], prefix: str = "planner"
                 message += f" (did you mean {close[0]!r}?)"
             message += f"; allowed: {', '.join(allowed)}" if allowed else "; it takes none"
             raise ConfigError(f"{prefix}.{key}", message)
+        if value is None and not keep_none:
+            continue                # only a key the planner has may be left at its default
         problem = _value_error(fields[key], value)
         if problem:
             raise ConfigError(f"{prefix}.{key}", problem)
