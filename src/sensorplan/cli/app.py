@@ -60,6 +60,10 @@ def _options(
 
 #: Exit status for bad input.
 EXIT_BAD_INPUT = 2
+#: Exit status when standard output is closed before everything is written to it
+#: (``sensorplan simulate ... | head -1``): 128 + SIGPIPE, the status a shell reports for a
+#: Unix tool that a closed pipe ended. Nothing is said: the reader chose to stop reading.
+EXIT_STDOUT_CLOSED = 141
 #: Set this environment variable to see the traceback of an unexpected error.
 DEBUG_ENV = "SENSORPLAN_DEBUG"
 
@@ -550,7 +554,8 @@ def main(argv: Sequence[str] | None = None) -> None:
 
     Exit status: 0 success, 2 bad input (file, options or environment), 1 an unexpected
     error (set ``SENSORPLAN_DEBUG=1`` for its traceback) or a Dask cluster that lost a
-    study, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).
+    study, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM), 141 standard output closed
+    before the output was written (a pipe into ``head``), without a word.
     """
     args = list(sys.argv[1:] if argv is None else argv)
     if not args:
@@ -562,6 +567,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             if not {"--help", "-h", "--version"} & set(args):
                 check_environment()
             code = command.main(args=args, prog_name="sensorplan", standalone_mode=False)
+            sys.stdout.flush()          # a closed pipe shows here, not at the interpreter's exit
         if code == 130 and signals.received is not None:
             # typer turns a KeyboardInterrupt (and so a SIGTERM) into a bare status 130.
             term = signals.received == "TERM"
@@ -570,6 +576,13 @@ def main(argv: Sequence[str] | None = None) -> None:
             code = 143 if term else 130
     except Stopped as exc:
         code = exc.code
+    except BrokenPipeError:
+        code = _stdout_closed()
+    except SystemExit as exc:
+        # click and rich end a command whose stdout closed with a bare exit status 1.
+        if not isinstance(exc.__context__, BrokenPipeError):
+            raise
+        code = _stdout_closed()
     except usage_error_class() as exc:
         try:
             field, message = usage_line(exc)
@@ -595,6 +608,17 @@ def main(argv: Sequence[str] | None = None) -> None:
               "traceback)", code=1)
         code = 1
     sys.exit(code if isinstance(code, int) else 0)
+
+
+def _stdout_closed() -> int:
+    """Point standard output at the null device, so that nothing fails or complains when the
+    interpreter flushes it at exit; return :data:`EXIT_STDOUT_CLOSED`."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass                        # not a file descriptor (a test's capture): nothing to do
+    return EXIT_STDOUT_CLOSED
 
 
 if __name__ == "__main__":  # pragma: no cover

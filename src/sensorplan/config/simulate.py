@@ -139,6 +139,12 @@ def load_simulation(path: str | Path | None = None, preset: str | None = None,
         settings = _run_settings(tables, planner_overridden="planner" in given_)
         check_run(scenario, settings, RUN_FIELDS)
     except ConfigError as exc:
+        if exc.field == "tracker.reacquire" and given_.get("gate") is False \
+                and "reacquire" not in given_:
+            # The option given is what to change, not the file key it collided with.
+            raise ConfigError("--no-gate", "re-acquisition needs the gate (it restarts a "
+                              "track from a detection outside it): add --no-reacquire"
+                              ) from None
         raise _rename(exc, renames) from None
     return SimulationConfig(scenario, settings, tables.run.seed)
 
