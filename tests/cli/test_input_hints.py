@@ -35,8 +35,8 @@ DECISION = ROOT / "examples" / "problem.json"
                     "file (sensorplan plan --example prints one)"),
     ("plan", STUDY, "is a study file (it has runs and [[methods]]): a study is run with "
                     "sensorplan study; plan reads a single-decision JSON file"),
-    ("grid", STUDY, "is a study file (it has runs and [[methods]]): a study is run with "
-                    "sensorplan study; grid reads a grid TOML file"),
+    ("grid", QUICK, "is a scenario file (it has [[targets]] and [[sensors]]): a scenario is "
+                    "simulated with sensorplan simulate; grid reads a grid TOML file"),
 ])
 def test_the_wrong_kind_of_file_is_named_with_its_command(
         command: str, path: Path, says: str, tmp_path: Path,
@@ -105,3 +105,12 @@ def test_the_plan_is_still_printed_into_an_open_pipe(tmp_path: Path) -> None:
                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=600)
     assert res.returncode == 0, res.stderr
     assert json.loads(res.stdout)["planner"] == SPEC7["planner"]["name"]
+
+
+def test_a_value_given_to_a_flag_is_named_as_such(tmp_path: Path,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    # "--gate false": the flag takes no value, so "false" becomes the scenario file.
+    line = assert_bad_input(run(capsys, "simulate", "--preset", "paper", "--gate", "false",
+                                "--out", tmp_path / "o"), "false")
+    assert line == ("error: false: no such file (a flag such as --gate takes no value: write "
+                    "--gate or --no-gate, not --gate false)")

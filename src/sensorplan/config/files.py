@@ -238,8 +238,11 @@ def read_input(path: str | Path, kind: str) -> Any:
             f"a {other_format} file"
         raise ConfigError(source, f"is {what}; {READS[kind]}") from None
     # Within TOML the keys tell a scenario, a study and a grid apart; a JSON file is a
-    # decision, whatever keys it lacks.
+    # decision, whatever keys it lacks. A grid is a study with axes: one without them is
+    # a grid that lacks its axes (the model says so).
     found = file_kind(data) if kind != "decision" else None
+    if found == "study" and kind == "grid":
+        found = None
     if found is not None and found not in (kind, "decision"):
         raise ConfigError(source, f"is {KIND_TEXT[found]}; {READS[kind]}")
     return data
