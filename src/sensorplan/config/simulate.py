@@ -40,6 +40,10 @@ class SimulationConfig:
     seed: int
 
 
+#: Words that mean a boolean: given where a scenario file is expected, a flag's value.
+BOOLEAN_WORDS = ("true", "false", "yes", "no", "on", "off")
+
+
 def option_name(key: str) -> str:
     """The ``simulate`` option of an override key: its first declared name, else
     ``--key-with-dashes``."""
@@ -116,6 +120,10 @@ def load_simulation(path: str | Path | None = None, preset: str | None = None,
     unknown = sorted(set(given_) - set(FILE_KEYS))
     if unknown:
         raise ConfigError(option_name(unknown[0]), "is not a simulation setting")
+    if path is not None and str(path).lower() in BOOLEAN_WORDS and not Path(path).exists():
+        # "--gate false": the flag took no value, and the word became the scenario file.
+        raise ConfigError(str(path), f"no such file (a flag such as --gate takes no value: "
+                          f"write --gate or --no-gate, not --gate {path})")
     if path is not None and preset is not None:
         raise ConfigError("--preset", "give a scenario file or --preset, not both")
     if path is None:
