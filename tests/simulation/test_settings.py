@@ -210,3 +210,10 @@ def test_the_tracker_option_lives_in_tracker_settings() -> None:
         paper_scenario(miss_update="none")                      # type: ignore[call-arg]
     s = RunSettings(planner="random", tracker={"miss_update": "none"})
     assert s.tracker == TrackerSettings(miss_update="none")
+
+
+def test_unused_names_what_the_tracker_ignores() -> None:
+    assert TrackerSettings().unused() == ("process_noise",)
+    assert TrackerSettings(model="cv").unused() == ("mode_process_noise", "switching")
+    assert TrackerSettings(gate=False, reacquire=False).unused() == ("process_noise",
+                                                                      "gate_probability")

@@ -410,6 +410,14 @@ class TrackerSettings(_Settings):
             raise ConfigError("reacquire", "needs gate = true (a detection outside the gate "
                               "triggers it)")
 
+    def unused(self) -> tuple[str, ...]:
+        """The settings that change nothing with the others as they are: the cv filter's q
+        (``process_noise``) with the IMM, the IMM's q's and switching with cv, the gate
+        probability without the gate. (A run's header leaves them out.)"""
+        out = ("process_noise",) if self.model == "imm" else ("mode_process_noise",
+                                                              "switching")
+        return out + (() if self.gate else ("gate_probability",))
+
     def tracker_options(self) -> dict[str, Any]:
         """Keyword arguments of :class:`sensorplan.tracking.tracker.Tracker` for these settings."""
         import numpy as np
