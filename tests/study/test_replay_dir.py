@@ -18,7 +18,7 @@ def test_the_folder_is_the_name_or_the_name_with_its_digest() -> None:
     assert replay_dir_name(7, "pg") == "run-00007-pg"
     assert replay_dir_name(7, "a_b") == "run-00007-a_b"
     # An independent spelling of the documented rule: stable across processes and versions.
-    digest = hashlib.sha256("OLF sequential-greedy K=3".encode()).hexdigest()[:6]
+    digest = hashlib.sha256(b"OLF sequential-greedy K=3").hexdigest()[:6]
     assert replay_dir_name(0, "OLF sequential-greedy K=3") == \
         f"run-00000-OLF_sequential-greedy_K_3-{digest}" == \
         "run-00000-OLF_sequential-greedy_K_3-09e94f"
