@@ -113,3 +113,18 @@ def test_check_planner_reports_the_problems_it_declined() -> None:
     assert report.checks == ("feasible_complete_plan",)
     assert report.declined == paper
     assert f"declining {len(paper)} as too large" in str(report)
+
+
+def test_a_wrapper_without_a_name_passes_the_inner_plan_on(problem) -> None:
+    class Recorder:                       # as tests and scripts wrap a planner to watch it
+        def __init__(self, inner):
+            self.inner = inner
+
+        def plan(self, problem, rng=None):
+            return self.inner.plan(problem, rng=rng)
+
+    got = checked_plan(Recorder(make_planner("sequential-greedy")), problem)
+    assert got.planner == "sequential-greedy"
+    with pytest.raises(PlanRejected, match=r"Recorder broke the planner contract \(sensor 0 "
+                                           r"epoch 1\)"):
+        checked_plan(Recorder(Teleport()), problem)
