@@ -11,6 +11,9 @@
 # Run: `python examples/stonesoup_loop.py [--steps 50] [--out stonesoup_loop.png]`
 
 # %%
+"""A Stone Soup tracking loop steered by a sensorplan planner: Stone Soup's truth, EKF and
+tracks; sensorplan's radar, move lattice and manager (pg, K = 3, rolling horizon)."""
+
 from __future__ import annotations
 
 import argparse

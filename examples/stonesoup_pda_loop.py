@@ -17,6 +17,9 @@
 # Run: `python examples/stonesoup_pda_loop.py [--steps 40] [--out stonesoup_pda_loop.png]`
 
 # %%
+"""Missed detections and clutter: the loop of stonesoup_loop.py with Swerling 1 detection
+and about one false alarm per look, tracked by Stone Soup's probabilistic data association."""
+
 from __future__ import annotations
 
 import argparse

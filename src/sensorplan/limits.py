@@ -128,6 +128,8 @@ def _num(x: float | None) -> str:
         return "pi"
     if x == math.pi / 2:
         return "pi/2"
+    if x == 2 * math.pi:
+        return "2pi"
     return f"{x:g}"
 
 
@@ -240,7 +242,8 @@ RANGES: dict[str, Range] = {
     "process_noise": Range(0.0, MAX_Q, "m^2/s^3"),
     "speed": Range(0.0, 1e4, "m/s"),
     "velocity": Range(None, 1e4, "m/s", magnitude=True),
-    "heading": Range(None, 1e6, "rad", magnitude=True),
+    # Any angle is a direction, but one beyond a full turn is degrees written as radians.
+    "heading": Range(None, 2 * math.pi, "rad", magnitude=True),
     "turn_hold": Range(1e-3, 1e6, "s"),
     "max_turn_rate": Range(0.0, math.pi, "rad/s"),
     "fov_half_angle": Range(0.0, math.pi, "rad", lo_open=True),

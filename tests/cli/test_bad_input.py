@@ -1011,7 +1011,8 @@ def test_thread_counts_numba_accepts_or_ignores_run(capsys, tmp_path, monkeypatc
 
 #: A valid decision at the edges of the ranges (a covariance of condition 2.4e10, a radar at
 #: -100 dB): its one look gains next to nothing, and the two log-dets of Phi's term differed
-#: by round-off to -5e-8 nats, printed as a negative potential.
+#: by round-off to -5e-8 nats, printed as a negative potential. (The fuzzer's headings of
+#: -482.3 and -6961.6 rad are given within one turn, as headings now must be.)
 ROUNDOFF_PROBLEM = (
     "{\"dt\": 12.518567162641354, \"steps_per_epoch\": 2, \"horizon\": 3, "
     "\"map\": {\"width\": 100000000.0, \"height\": 600.0}, "
@@ -1029,7 +1030,7 @@ ROUNDOFF_PROBLEM = (
     "\"clutter_rate\": 28.000921767823186, \"max_turn\": 3.141592653589793, "
     "\"fov_half_angle\": 3.141592653589793, \"depression\": 1.5707963267948965e-12, "
     "\"beamwidth\": 0.013181970086359986, \"position\": [50206475.18772748, "
-    "430.1857364025437], \"heading\": -482.3461938448125}, {\"altitude\": 1.0, "
+    "430.1857364025437], \"heading\": 1.4590748080156501}, {\"altitude\": 1.0, "
     "\"moves\": [20.0, 1.1536769904769788, 7.5], \"min_ground_range\": 250.0, "
     "\"max_ground_range\": 450.0, \"snr_ref_db\": -100.0, \"range_ref\": 23734.195204845873, "
     "\"monopulse_slope\": 0.1, \"range_resolution\": 24.248718027163054, "
@@ -1044,7 +1045,7 @@ ROUNDOFF_PROBLEM = (
     "\"clutter_rate\": 5.723776543209204e-05, \"max_turn\": 2.9410544001335934e-09, "
     "\"fov_half_angle\": 3.141592653589793e-12, \"depression\": 0.009328590093166486, "
     "\"position\": [91315945.61337057, 333.1350590561147], "
-    "\"heading\": -6961.607506165455}], \"buildings\": [], \"planner\": {\"name\": \"pg-refine\", "
+    "\"heading\": 0.16181418952689341}], \"buildings\": [], \"planner\": {\"name\": \"pg-refine\", "
     "\"seed\": 2, \"alpha\": 0.6719763092197772, \"beta\": 0.5387509677213832, \"max_inner\": 7, "
     "\"max_outer\": 5}}")
 

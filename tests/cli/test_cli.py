@@ -426,12 +426,16 @@ def test_simulate_has_an_option_per_declared_setting_with_its_default() -> None:
         names = tuple(n for spec in s.cli for n in spec.split("/"))   # "--a/--no-a" flags
         assert tuple(option.opts + option.secondary_opts) == names
         assert option.default is None
-        assert option.is_flag or option.metavar == s.metavar
+        assert option.metavar == ("" if option.is_flag else s.metavar)
         value: Any = defaults
         for part in path.split("."):
             value = getattr(value, part)
-        assert option.help.startswith(s.help.removesuffix("."))
+        if option.is_flag:                      # the flag that is on: --gate or --no-gate
+            value = option.opts[0] if value else option.secondary_opts[0]
+        assert option.help.startswith(s.brief.removesuffix("."))
         assert option.help.endswith(f"[default: {value}]"), option.help
+        assert option.rich_help_panel == {"planning": "Planning", "tracker": "Tracking",
+                                          "run": "Run"}[s.section]
     assert "brute-force" in options["planner"].help            # registered names listed
     assert set(options) == {f.name for _, f, _ in declared} | {"config", "preset", "seed",
                                                                 "out", "animate",

@@ -385,6 +385,18 @@ def test_manager_takes_a_planner_from_outside_with_its_settings(rng, nearest_on_
     assert "did you mean 'standoff'?" in err.value.message
 
 
+def test_manager_refuses_a_plan_that_breaks_the_contract(rng):
+    # The platforms are not moved when the planner's plan cannot be executed.
+    means, covs, positions, headings = _decision(rng)
+    platforms = _platforms(positions, headings)
+    mgr = ss.SensorplanManager(platforms=platforms, planner="broken_planners:Teleport",
+                               horizon=2, rng=2)
+    with pytest.raises(ConfigError, match=r"'teleport' \(broken_planners:Teleport\) broke the "
+                                          r"planner contract \(sensor 0 epoch 1\)"):
+        mgr.choose_actions(ss.to_tracks(means, covs, T0), T0 + datetime.timedelta(seconds=1))
+    assert mgr.last_result is None
+
+
 def test_manager_plans_again_from_the_executed_state(rng):
     means, covs, positions, headings = _decision(rng)
     platforms = _platforms(positions, headings)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import re
 from typing import Any
 
 import pytest
@@ -44,6 +45,10 @@ def test_declarations_are_complete(cls: type, path: str, f: Any, s: Any) -> None
     assert s.section == path.split(".")[0] if "." in path else s.section != "tracker"
     assert s.help.endswith(".") and s.help.count(". ") == 0, "one sentence"
     assert all(name.startswith("-") for name in s.cli)
+    # An option's --help says in a few words what it sets, naming each fixed choice.
+    assert bool(s.brief) == bool(s.cli) and len(s.brief) <= 100
+    if s.cli and not callable(s.choices):
+        assert all(re.search(rf"\b{re.escape(c)}\b", s.brief) for c in s.choices), s.brief
     # The generated file table of its section has exactly this key.
     assert f.name in TABLES[s.section].model_fields
 
@@ -227,3 +232,10 @@ def test_the_size_limits_name_each_setting_as_its_input_spells_it() -> None:
     assert limit_fields(lambda key, s: f"<{s.section}>{key}") == {
         "horizon": "<planning>horizon", "steps_per_epoch": "<planning>steps_per_epoch",
         "steps": "<run>steps"}
+
+
+def test_unused_names_what_the_tracker_ignores() -> None:
+    assert TrackerSettings().unused() == ("process_noise",)
+    assert TrackerSettings(model="cv").unused() == ("mode_process_noise", "switching")
+    assert TrackerSettings(gate=False, reacquire=False).unused() == ("process_noise",
+                                                                      "gate_probability")

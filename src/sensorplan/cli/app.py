@@ -24,12 +24,12 @@ from .guards import (Sigterm, Signals, Stopped, animate_drawable, check_environm
                      check_finite, plot_drawable, quiet_numerics, usage_error_class,
                      usage_line, writing, guard_paths)
 from .guards import Terminated as _Terminated
-from .options import with_setting_options
+from .options import (AGENTS_PANEL, OUTPUT_PANEL, PANELS, no_flag_placeholders,
+                      with_setting_options)
 
 #: For help texts: the built-in names (no installed plugin is looked up for --help);
 #: validation always asks the registry.
-_PLANNER_NAMES = ", ".join(sorted(BUILTIN)) + ", an installed plugin's name or " \
-    "package.module:Class"
+_PLANNER_NAMES = ", ".join(sorted(BUILTIN)) + ", or package.module:Class"
 
 app = typer.Typer(
     name="sensorplan",
@@ -60,6 +60,10 @@ def _options(
 
 #: Exit status for bad input.
 EXIT_BAD_INPUT = 2
+#: Exit status when standard output is closed before everything is written to it
+#: (``sensorplan simulate ... | head -1``): 128 + SIGPIPE, the status a shell reports for a
+#: Unix tool that a closed pipe ended. Nothing is said: the reader chose to stop reading.
+EXIT_STDOUT_CLOSED = 141
 #: Set this environment variable to see the traceback of an unexpected error.
 DEBUG_ENV = "SENSORPLAN_DEBUG"
 
@@ -96,13 +100,11 @@ def _hinted(exc: ConfigError) -> ConfigError:
 def plan(
     problem: Annotated[Path | None, typer.Argument(
         metavar="PROBLEM.json", show_default=False,
-        help="Single-decision file: horizon, targets (mean, cov), sensors "
-             "(position, heading, radar parameters), optional planner settings. "
-             "sensorplan plan --example prints one.")] = None,
+        help="Single-decision file (JSON: horizon, targets, sensors, planner); "
+             "--example prints one.")] = None,
     planner: Annotated[str | None, typer.Option(
         "--planner", metavar="NAME", show_default=False,
-        help=f"Planner to use instead of the file's planner.name ({_PLANNER_NAMES}). "
-             "File settings it does not take are ignored.")] = None,
+        help=f"Planner instead of the file's planner.name ({_PLANNER_NAMES}).")] = None,
     example: Annotated[bool, typer.Option(
         "--example", help="Print a complete decision file (one target, one sensor, the pg "
                           "planner) to start from, and exit.")] = False,
@@ -127,13 +129,14 @@ def plan(
     from .._compiled.aot import ensure_built
     from ..config import load_decision
     from ..config.files import dumps_result
+    from ..planners.checks import checked_plan
 
     with _bad_input():
         if problem is None:
             raise ConfigError("PROBLEM.json", "is required (--example prints one to start from)")
         decision = load_decision(problem, planner)
         ensure_built()          # a first plan compiles the planning kernels ahead of time
-        result = decision.make_planner().plan(decision.problem)
+        result = checked_plan(decision.make_planner(), decision.problem)
         check_finite(result)
         text = dumps_result(result)
     sys.stdout.write(text + "\n")
@@ -145,38 +148,34 @@ def plan(
 def simulate(
     config: Annotated[Path | None, typer.Argument(
         metavar="CONFIG.toml", show_default=False,
-        help="Scenario file (see configs/paper.toml for every key). Without it, --preset "
-             "is used.")] = None,
+        help="Scenario file (configs/paper.toml shows every key). Without it, --preset is "
+             "used.")] = None,
     preset: Annotated[str | None, typer.Option(
-        "--preset", metavar="NAME", show_default=False,
-        help="Built-in scenario instead of a file: 'paper' (5 targets, 3 sensors, "
-             "random start each run). The default when no file is given.")] = None,
+        "--preset", metavar="NAME", show_default=False, rich_help_panel=PANELS["run"],
+        help="Built-in scenario instead of a file: paper (5 targets, 3 sensors). "
+             "[default: paper without a file]")] = None,
     seed: Annotated[int | None, typer.Option(
-        "--seed", metavar="S", show_default=False,
-        help="Seed of the run (truth, initial estimates, noise and planner streams). "
-             "[default: file's run.seed, else 0]")] = None,
+        "--seed", metavar="S", show_default=False, rich_help_panel=PANELS["run"],
+        help="Seed of the run. [default: the file's run.seed, else 0]")] = None,
     out: Annotated[Path, typer.Option(
-        "--out", "-o", metavar="DIR",
+        "--out", "-o", metavar="DIR", rich_help_panel=OUTPUT_PANEL,
         help="Directory for episode.npz (every array of the run) and episode.png.")
     ] = Path("out/simulate"),
     animate: Annotated[bool, typer.Option(
-        "--animate", help="Also write an animation of the run, one frame per step "
-                          "(DIR/episode.gif, or .mp4 with --animation-format mp4).")] = False,
+        "--animate", rich_help_panel=OUTPUT_PANEL,
+        help="Also write an animation, one frame per step (DIR/episode.gif).")] = False,
     animation_format: Annotated[str, typer.Option(
-        "--animation-format", metavar="gif|mp4",
-        help="Format of --animate: gif (always available) or mp4 (needs ffmpeg).")] = "gif",
+        "--animation-format", metavar="gif|mp4", rich_help_panel=OUTPUT_PANEL,
+        help="Format of --animate: gif, or mp4 (needs ffmpeg).")] = "gif",
     **settings: Any,
 ) -> None:
     """Simulate one closed-loop run and summarize it.
 
-    Runs the planner in closed loop on a scenario file or preset, prints tables
-    (RMSE per target and per target kind, measurements and missed looks per sensor,
-    planning time per decision) and writes the run's arrays (DIR/episode.npz, readable with
-    sensorplan.simulation.run.Episode.load) and a figure (DIR/episode.png).
-
-    Options override the scenario file's [planning], [tracker] and [run] tables; a
-    [default] applies when neither sets a value. Bad input exits with status 2 and one line
-    on stderr.
+    Runs the planner in closed loop on a scenario file or preset, prints the tracking
+    errors (RMSE), the sensors' looks and the planning times, and writes the run's arrays
+    (DIR/episode.npz) and a figure (DIR/episode.png). Options override the file's
+    [planning], [tracker] and [run] tables. Bad input exits with status 2 and one line on
+    stderr. Every option in detail: docs/cli.md.
 
     Example: sensorplan simulate --preset paper --planner pg --horizon 3 --steps-per-epoch 2
     """
@@ -226,49 +225,50 @@ def agents(
         metavar="CONFIG.toml", show_default=False,
         help="Scenario file, as for simulate. Without it, --preset is used.")] = None,
     preset: Annotated[str | None, typer.Option(
-        "--preset", metavar="NAME", show_default=False,
-        help="Built-in scenario instead of a file: 'paper'.")] = None,
+        "--preset", metavar="NAME", show_default=False, rich_help_panel=PANELS["run"],
+        help="Built-in scenario instead of a file: paper. [default: paper without a file]")
+    ] = None,
     planner: Annotated[str | None, typer.Option(
-        "--planner", metavar="NAME", show_default=False,
+        "--planner", metavar="NAME", show_default=False, rich_help_panel=AGENTS_PANEL,
         help="The decentralized planner: dec-jsfp, dec-independent or dec-sequential. "
-             "[default: the file's if it is one of these, else dec-jsfp]")] = None,
+             "[default: the file's if it is one, else dec-jsfp]")] = None,
     seed: Annotated[int | None, typer.Option(
-        "--seed", metavar="S", show_default=False,
-        help="Seed of the run. [default: file's run.seed, else 0]")] = None,
+        "--seed", metavar="S", show_default=False, rich_help_panel=PANELS["run"],
+        help="Seed of the run. [default: the file's run.seed, else 0]")] = None,
     out: Annotated[Path, typer.Option(
-        "--out", "-o", metavar="DIR",
+        "--out", "-o", metavar="DIR", rich_help_panel=OUTPUT_PANEL,
         help="Directory for episode.npz, episode.png and agents.json.")] = Path("out/agents"),
     transport: Annotated[str | None, typer.Option(
-        "--transport", metavar="inproc|bus", show_default=False,
-        help="inproc: every agent in this process; bus: one process per agent on ZeroMQ. "
-             "[default: inproc]")] = None,
+        "--transport", metavar="inproc|bus", show_default=False, rich_help_panel=AGENTS_PANEL,
+        help="Agents in this process, or one process each on ZeroMQ. [default: inproc]")
+    ] = None,
     rounds: Annotated[int | None, typer.Option(
-        "--rounds", metavar="R", show_default=False,
-        help="Round budget of a decision (dec-jsfp, dec-independent). [default: 1000]")] = None,
+        "--rounds", metavar="R", show_default=False, rich_help_panel=AGENTS_PANEL,
+        help="Round budget of a decision (dec-jsfp, dec-independent). [default: 1000]")
+    ] = None,
     p_loss: Annotated[float | None, typer.Option(
-        "--p-loss", metavar="P", show_default=False,
+        "--p-loss", metavar="P", show_default=False, rich_help_panel=AGENTS_PANEL,
         help="Probability that a message is lost, in [0, 1]. [default: 0]")] = None,
     delay: Annotated[int | None, typer.Option(
-        "--delay", metavar="D", show_default=False,
+        "--delay", metavar="D", show_default=False, rich_help_panel=AGENTS_PANEL,
         help="Rounds a message takes. [default: 0]")] = None,
     comm_range: Annotated[float | None, typer.Option(
-        "--comm-range", metavar="M", show_default=False,
-        help="Largest ground distance (m) of a working link; inf: unlimited. "
-             "[default: inf]")] = None,
+        "--comm-range", metavar="M", show_default=False, rich_help_panel=AGENTS_PANEL,
+        help="Longest working link (ground distance, m); inf: unlimited. [default: inf]")
+    ] = None,
     agent_mode: Annotated[str | None, typer.Option(
-        "--agent-mode", metavar="jsfp|best-response", show_default=False,
-        help="What the agents play: the paper's JSFP with inertia, or plain best response. "
+        "--agent-mode", metavar="MODE", show_default=False, rich_help_panel=AGENTS_PANEL,
+        help="What the agents play: jsfp (the paper's, with inertia) or best-response. "
              "[default: jsfp]")] = None,
     **settings: Any,
 ) -> None:
     """Run one closed-loop episode with one planning agent per platform.
 
     The platforms negotiate their plans over simulated links (message loss, delay, range)
-    with a decentralized planner: --planner dec-jsfp (default), dec-independent or
-    dec-sequential (docs/decentral.md). Writes what simulate writes (DIR/episode.npz,
-    DIR/episode.png, the timing file) plus DIR/agents.json (every decision's link log),
-    prints simulate's summary and one line on the links. Every agent process ends with the
-    run, also on Ctrl-C or SIGTERM.
+    with a decentralized planner (docs/decentral.md). Writes what simulate writes plus
+    DIR/agents.json (every decision's link log), and prints simulate's summary and a line
+    on the links. Every agent process ends with the run, also on Ctrl-C or SIGTERM. Every
+    option in detail: docs/cli.md.
 
     Example: sensorplan agents --preset paper --steps 20 --transport bus --p-loss 0.1
     """
@@ -334,14 +334,12 @@ def _run_study_command(study_obj: Any, out: Path, workers: int | None,
                     code=1) from None
 
 
-_WORKERS_HELP = ("Worker processes of the local pool (1 runs in this process). With "
-                 "--scheduler local: the LocalCluster's workers. [default: the number of "
-                 "cores]")
+_WORKERS_HELP = ("Worker processes (1: this process; with --scheduler local, the "
+                 "cluster's). [default: the cores]")
 _DEMO_WORKERS_HELP = ("Worker processes of the local pool (1 runs in this process). "
                       "[default: the number of cores]")
-_SCHEDULER_HELP = ("Run on Dask distributed: a scheduler address (tcp://host:8786; its "
-                   "workers need sensorplan installed) or 'local' for a LocalCluster "
-                   "started here.")
+_SCHEDULER_HELP = ("Run on Dask: a scheduler's address (tcp://host:8786) or local (a "
+                   "cluster started here).")
 
 #: The pool and scheduler options of the commands that run studies.
 _WorkersOption = Annotated[int | None, typer.Option(
@@ -353,8 +351,7 @@ _SchedulerOption = Annotated[str | None, typer.Option(
 def study(
     study_file: Annotated[Path, typer.Argument(
         metavar="STUDY.toml", show_default=False,
-        help="Study file: scenario (preset or file), runs, steps, seed and [[methods]] "
-             "(see studies/paper.toml and docs/studies.md).")],
+        help="Study file: scenario, runs, steps, seed, [[methods]] (studies/paper.toml).")],
     out: Annotated[Path | None, typer.Option(
         "--out", "-o", metavar="DIR", show_default=False,
         help="Study directory (created; an existing one of the same study is resumed). "
@@ -395,8 +392,8 @@ def study(
 def grid(
     grid_file: Annotated[Path, typer.Argument(
         metavar="GRID.toml", show_default=False,
-        help="Grid file: a study file plus design, [[axes]] (feature, values, base) and "
-             "[[comparisons]] (see studies/lookahead_map.toml and docs/studies.md).")],
+        help="Grid file: a study file plus design, [[axes]] and [[comparisons]] "
+             "(studies/lookahead_map.toml).")],
     out: Annotated[Path | None, typer.Option(
         "--out", "-o", metavar="DIR", show_default=False,
         help="Grid directory (created; an existing one of the same grid is resumed). "
@@ -566,12 +563,19 @@ def compile_kernels() -> None:
 # ------------------------------------------------------------------------------- main
 
 
+def cli_command() -> Any:
+    """The click command of :data:`app` as ``main`` runs it: path arguments checked as they
+    are parsed, and no value placeholder shown for a flag."""
+    return no_flag_placeholders(guard_paths(typer.main.get_command(app)))
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     """Console entry point: run the app, map every failure to an exit status and one line.
 
     Exit status: 0 success, 2 bad input (file, options or environment), 1 an unexpected
     error (set ``SENSORPLAN_DEBUG=1`` for its traceback) or a Dask cluster that lost a
-    study, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).
+    study, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM), 141 standard output closed
+    before the output was written (a pipe into ``head``), without a word.
     """
     args = list(sys.argv[1:] if argv is None else argv)
     if not args:
@@ -579,10 +583,11 @@ def main(argv: Sequence[str] | None = None) -> None:
     signals = Signals()
     try:
         with quiet_numerics(DEBUG_ENV), signals:
-            command = guard_paths(typer.main.get_command(app))  # Ctrl-C here: one line
+            command = cli_command()                             # Ctrl-C here: one line
             if not {"--help", "-h", "--version"} & set(args):
                 check_environment()
             code = command.main(args=args, prog_name="sensorplan", standalone_mode=False)
+            sys.stdout.flush()          # a closed pipe shows here, not at the interpreter's exit
         if code == 130 and signals.received is not None:
             # typer turns a KeyboardInterrupt (and so a SIGTERM) into a bare status 130.
             term = signals.received == "TERM"
@@ -591,6 +596,13 @@ def main(argv: Sequence[str] | None = None) -> None:
             code = 143 if term else 130
     except Stopped as exc:
         code = exc.code
+    except BrokenPipeError:
+        code = _stdout_closed()
+    except SystemExit as exc:
+        # click and rich end a command whose stdout closed with a bare exit status 1.
+        if not isinstance(exc.__context__, BrokenPipeError):
+            raise
+        code = _stdout_closed()
     except usage_error_class() as exc:
         try:
             field, message = usage_line(exc)
@@ -616,6 +628,17 @@ def main(argv: Sequence[str] | None = None) -> None:
               "traceback)", code=1)
         code = 1
     sys.exit(code if isinstance(code, int) else 0)
+
+
+def _stdout_closed() -> int:
+    """Point standard output at the null device, so that nothing fails or complains when the
+    interpreter flushes it at exit; return :data:`EXIT_STDOUT_CLOSED`."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass                        # not a file descriptor (a test's capture): nothing to do
+    return EXIT_STDOUT_CLOSED
 
 
 if __name__ == "__main__":  # pragma: no cover

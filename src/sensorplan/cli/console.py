@@ -142,19 +142,39 @@ def run_with_progress(run_episode: Any, cfg: Any) -> Any:
 MAX_ROWS = 20
 
 
+def planner_title(planner: str) -> str:
+    """How a run's header names the planner given as ``planner``: its ``name``, as the plan
+    file's ``planner`` key says it, followed by its ``module:Class`` when it is not built in
+    (``midband (myplanner:MidBandNearest)``)."""
+    from ..errors import ConfigError
+    from ..planners.registry import planner_class, planner_label
+
+    try:
+        cls = planner_class(planner)
+    except ConfigError:                 # not importable here: the name the run was given
+        return planner
+    label = planner_label(cls)
+    return label.replace(repr(cls.name), cls.name, 1)
+
+
 def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
     import numpy as np
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
 
     from ..study.metrics import LOST_THRESHOLD, NEES_HIGH, episode_consistency, episode_errors
 
     console = Console()
     s = cfg.settings
-    console.print(f"[bold]{s.planner}[/], K = {s.horizon}, e = {s.steps_per_epoch}, "
-                  f"{s.execution.upper()}, {s.steps} steps, seed {cfg.seed}", highlight=False)
+    console.print(f"[bold]{escape(planner_title(s.planner))}[/], K = {s.horizon}, "
+                  f"e = {s.steps_per_epoch}, {s.execution.upper()}, {s.steps} steps, "
+                  f"seed {cfg.seed}", highlight=False)
+    # Only the tracker settings that act with the others as they are (no cv q with the IMM).
+    unused = s.tracker.unused()
     tracker = ", ".join(f"{meta.label or f.name} {getattr(s.tracker, f.name)}"
-                        for _, path, f, meta in all_settings() if path.startswith("tracker."))
+                        for _, path, f, meta in all_settings()
+                        if path.startswith("tracker.") and f.name not in unused)
     console.print(f"visibility {s.visibility}, objective {s.objective}, {tracker}",
                   highlight=False)
 
@@ -227,7 +247,9 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
                   stat(secs, ".2f", np.max), stat(np.asarray(episode.potential), ".3f"),
                   stat(conv, ".0%"), stat(sweeps, ".1f"))
     console.print(plans)
-    console.print("wrote " + ", ".join(str(p) for p in written), highlight=False)
+    for path in written:
+        # One path a line, never broken: it is there to be copied.
+        console.print(f"wrote {path}", soft_wrap=True, markup=False, highlight=False)
 
 
 def study_progress(label: str, parallel: int = 1) -> Any:

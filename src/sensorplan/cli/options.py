@@ -1,5 +1,12 @@
 """The run-setting options of ``sensorplan simulate`` and ``agents``, generated from the
-settings' declarations (:mod:`sensorplan.simulation.settings`)."""
+settings' declarations (:mod:`sensorplan.simulation.settings`), and how every command's
+``--help`` is laid out.
+
+``--help`` is meant to be read at 80 columns: options are grouped in panels (one per
+settings section, plus the commands' own), each says in a few words what it sets, and
+docs/cli.md gives the details of every option. A flag shows no value placeholder: it
+takes none.
+"""
 
 from __future__ import annotations
 
@@ -10,24 +17,34 @@ import typer
 
 from ..simulation.settings import all_settings, default_of, field_type
 
+#: The ``--help`` panel of each settings section, and of the commands' own options.
+PANELS = {"planning": "Planning", "tracker": "Tracking", "run": "Run"}
+OUTPUT_PANEL = "Output"
+AGENTS_PANEL = "Agents and links"
+
 
 def setting_options(skip: tuple[str, ...] = ()) -> list[inspect.Parameter]:
     """An option of ``simulate`` for every run setting that declares option names (but those
-    in ``skip``), with its help, value placeholder and default from the declaration
-    (sensorplan.simulation.settings)."""
+    in ``skip``), with its brief help, value placeholder, default and panel from the
+    declaration (sensorplan.simulation.settings)."""
     params = []
     for cls, _, f, s in all_settings():
         if not s.cli or f.name in skip:
             continue
-        # Choices known only at run time cannot be written into the help sentence.
+        text = (s.brief or s.help).removesuffix(".")
+        # Choices known only at run time (or open lists) cannot be written into the brief.
         if callable(s.choices):
-            text = s.help.removesuffix(".") + f" ({', '.join(s.allowed())})."
+            text += f" ({', '.join(s.allowed())})"
         elif s.names is not None:
-            text = s.help.removesuffix(".") + f" ({', '.join(s.names())}, ...)."
-        else:
-            text = s.help
-        option = typer.Option(*s.cli, metavar=s.metavar, show_default=False,
-                              help=f"{text} [default: {default_of(f)}]")
+            text += f" ({', '.join(s.names())}, ...)"
+        flag = field_type(cls, f.name) is bool
+        default = default_of(f)
+        if flag:                            # the flag that is on by default: "--gate"
+            on, _, off = s.cli[0].partition("/")
+            default = on if default else off
+        option = typer.Option(*s.cli, metavar="" if flag else s.metavar, show_default=False,
+                              rich_help_panel=PANELS[s.section],
+                              help=f"{text}. [default: {default}]")
         params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=None,
                                         annotation=Annotated[field_type(cls, f.name) | None,
                                                              option]))
@@ -42,4 +59,19 @@ def with_setting_options(command: Any, skip: tuple[str, ...] = ()) -> Any:
              for p in inspect.signature(command, eval_str=True).parameters.values()
              if p.kind is not inspect.Parameter.VAR_KEYWORD]
     command.__signature__ = inspect.Signature(fixed[:2] + setting_options(skip) + fixed[2:])
+    return command
+
+
+def no_flag_placeholders(command: Any) -> Any:
+    """``command`` (a click group) with no value placeholder shown for any flag of it or of
+    its subcommands, ``--help`` included: typer shows ``<bool>`` for a flag, which reads as
+    if it took a value (``--gate false`` would then name a scenario file ``false``)."""
+    for cmd in [command, *getattr(command, "commands", {}).values()]:
+        ctx = typer.Context(cmd, info_name=cmd.name,
+                            help_option_names=["-h", "--help"])   # as the app's settings
+        # The help option is made on first use; make it now, so that it can be changed.
+        params = [*cmd.params, cmd.get_help_option(ctx)]
+        for param in params:
+            if param is not None and getattr(param, "is_flag", False):
+                param.metavar = ""
     return command

@@ -8,17 +8,18 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from pydantic import ConfigDict
+from pydantic import ConfigDict, ValidationInfo, field_validator
 
 from ..errors import ConfigError
 from ..limits import (MAX_SENSORS, MAX_TARGETS, RANGES, check_count, check_covariance_scale,
                       check_decision_size, check_sensor_precision)
 from ..planners.problem import MapRect, PlanningProblem, check_covariance
+from ..simulation.scenario import HEADING_HINT
 from ..simulation.settings import RunSettings, limit_fields
 from . import files as io
 from .planners import build_planner, planner_settings
 from .validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict,
-                         Vec2, Vec4, setting_type, validate)
+                         Vec2, Vec4, one_spelling, radians_of, setting_type, validate)
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..planners import Planner
@@ -55,7 +56,13 @@ class DecisionTarget(Strict):
 
 class DecisionSensor(SensorParamsModel):
     position: Vec2
-    heading: float
+    heading: float | None = None            # one of the two is required (checked after)
+    heading_deg: float | None = None
+
+    @field_validator("heading_deg")
+    @classmethod
+    def _heading_once(cls, value: float | None, info: ValidationInfo) -> float | None:
+        return one_spelling("heading", value, info.data.get("heading"))
 
 
 class DecisionPlanner(Strict):
@@ -124,7 +131,11 @@ def _check_magnitudes(model: DecisionFile) -> None:
             RANGES["velocity"].check(v, f"targets[{j}].mean")
         check_covariance_scale(_pd_or_none(t.cov, f"targets[{j}].cov"), f"targets[{j}].cov")
     for i, s in enumerate(model.sensors):
-        RANGES["heading"].check(s.heading, f"sensors[{i}].heading")
+        if s.heading is None and s.heading_deg is None:
+            raise ConfigError(f"sensors[{i}].heading", "is required (in radians; or "
+                              "heading_deg in degrees)")
+        if s.heading is not None:
+            RANGES["heading"].check(s.heading, f"sensors[{i}].heading", HEADING_HINT)
     for name in ("dt", "process_noise"):
         RANGES[name].check(getattr(model, name), name)
     for name in ("width", "height"):
@@ -162,7 +173,8 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
         means=np.array([t.mean for t in model.targets], dtype=float),
         covs=np.array([t.cov for t in model.targets], dtype=float),
         positions=np.array([s.position for s in model.sensors], dtype=float),
-        headings=np.array([s.heading for s in model.sensors], dtype=float),
+        headings=np.array([radians_of(s, "heading", None) for s in model.sensors],
+                          dtype=float),
         sensors=tuple(s.params() for s in model.sensors),
         horizon=model.horizon, steps_per_epoch=model.steps_per_epoch, dt=model.dt,
         process_noise=model.process_noise, world=MapRect(model.map.width, model.map.height),
@@ -189,7 +201,7 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
 
 def load_decision(path: str | Path, planner: str | None = None) -> Decision:
     """:func:`decision_from_dict` on a JSON file."""
-    data = io.read_json(path)
+    data = io.read_input(path, "decision")
     if not isinstance(data, dict):
         raise ConfigError(str(path), f"must hold a JSON object ({{...}}) with the decision's "
                           f"keys, got a {type(data).__name__}")

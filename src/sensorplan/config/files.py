@@ -169,6 +169,85 @@ def parse_toml(text: str, source: str = "<toml>") -> dict[str, Any]:
     return data
 
 
+# ----------------------------------------------------------- the kinds of input file
+
+#: What each command reads, for the hint when it is given another kind of file.
+READS = {
+    "decision": "plan reads a single-decision JSON file (sensorplan plan --example prints one)",
+    "scenario": "simulate reads a scenario TOML file (see configs/paper.toml)",
+    "study": "study reads a study TOML file (see studies/paper.toml)",
+    "grid": "grid reads a grid TOML file (see studies/lookahead_map.toml)",
+}
+#: Each kind of input file, as the hint names it and the command that reads it.
+KIND_TEXT = {
+    "decision": "a single-decision file: a decision is planned with sensorplan plan",
+    "scenario": "a scenario file (it has [[targets]] and [[sensors]]): a scenario is "
+                "simulated with sensorplan simulate",
+    "study": "a study file (it has runs and [[methods]]): a study is run with sensorplan study",
+    "grid": "a grid file (it has [[axes]]): a grid is run with sensorplan grid",
+}
+
+
+def file_kind(data: Any) -> str | None:
+    """Which kind of input file parsed ``data`` is, by keys only that kind has (None when
+    they do not tell): a grid has ``axes``, a study ``runs`` or ``methods`` and no
+    ``targets``, a scenario ``targets`` or ``sensors`` and none of ``runs``, ``methods`` and
+    ``horizon``, a decision ``horizon`` and ``targets`` at the top level."""
+    if not isinstance(data, dict):
+        return None
+    keys = set(data)
+    if "axes" in keys:
+        return "grid"
+    if keys & {"runs", "methods"} and not keys & {"targets", "sensors"}:
+        return "study"
+    if {"horizon", "targets"} <= keys:
+        return "decision"
+    if keys & {"targets", "sensors"} and not keys & {"runs", "methods", "horizon"}:
+        return "scenario"
+    return None
+
+
+def read_input(path: str | Path, kind: str) -> Any:
+    """Read input file ``path`` of ``kind`` (a key of :data:`READS`): JSON for a decision,
+    TOML for the others.
+
+    A file of another kind, or in the other format, is refused with one line that says what
+    the file is, which command reads it and what this one reads (``runs/x.toml: is a study
+    file (...): a study is run with sensorplan study; simulate reads a scenario TOML
+    file``).
+
+    Raises
+    ------
+    ConfigError
+        Naming the file: unreadable, invalid in both formats (the error of the expected one),
+        or a file of another kind.
+    """
+    text = _read_text(path)
+    source = str(path)
+    parse, other, other_format = ((parse_json, parse_toml, "TOML") if kind == "decision"
+                                  else (parse_toml, parse_json, "JSON"))
+    try:
+        data = parse(text, source)
+    except ConfigError as exc:
+        try:
+            alt = other(text, source)
+        except ConfigError:
+            raise exc from None
+        found = file_kind(alt)
+        what = KIND_TEXT[found] if found is not None and found != kind else \
+            f"a {other_format} file"
+        raise ConfigError(source, f"is {what}; {READS[kind]}") from None
+    # Within TOML the keys tell a scenario, a study and a grid apart; a JSON file is a
+    # decision, whatever keys it lacks. A grid is a study with axes: one without them is
+    # a grid that lacks its axes (the model says so).
+    found = file_kind(data) if kind != "decision" else None
+    if found == "study" and kind == "grid":
+        found = None
+    if found is not None and found not in (kind, "decision"):
+        raise ConfigError(source, f"is {KIND_TEXT[found]}; {READS[kind]}")
+    return data
+
+
 def result_to_dict(result: PlanResult) -> dict[str, Any]:
     """A planner's result as the output object of ``sensorplan plan``.
 

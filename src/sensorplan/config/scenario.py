@@ -100,19 +100,27 @@ class ScenarioTarget(Strict):
     position: Vec2 | None = None
     speed: Annotated[float, in_range(RANGES["speed"])] | None = None
     heading: float | None = None
+    heading_deg: float | None = None
     turn_hold: float = _TS.turn_hold
     max_turn_rate: float | None = None
     max_turn_rate_deg: float | None = None
 
-    @field_validator("max_turn_rate_deg")
+    @field_validator("max_turn_rate_deg", "heading_deg")
     @classmethod
     def _one_spelling(cls, value: float | None, info: ValidationInfo) -> float | None:
-        return one_spelling("max_turn_rate", value, info.data.get("max_turn_rate"))
+        name = str(info.field_name).removesuffix("_deg")
+        return one_spelling(name, value, info.data.get(name))
 
 
 class ScenarioSensor(SensorParamsModel):
     position: Vec2 | None = None
     heading: float | None = None
+    heading_deg: float | None = None
+
+    @field_validator("heading_deg")
+    @classmethod
+    def _heading_once(cls, value: float | None, info: ValidationInfo) -> float | None:
+        return one_spelling("heading", value, info.data.get("heading"))
 
 
 class SettingsTables(Strict):
@@ -147,13 +155,14 @@ class ScenarioFile(Strict):
         targets = tuple(
             TargetSpec(kind=t.kind,
                        position=None if t.position is None else (t.position[0], t.position[1]),
-                       speed=t.speed, heading=t.heading, turn_hold=t.turn_hold,
+                       speed=t.speed, heading=radians_of(t, "heading", None),
+                       turn_hold=t.turn_hold,
                        max_turn_rate=radians_of(t, "max_turn_rate", _TS.max_turn_rate))
             for t in self.targets or ())
         sensors = tuple(
             SensorSpec(params=s.params(),
                        position=None if s.position is None else (s.position[0], s.position[1]),
-                       heading=s.heading)
+                       heading=radians_of(s, "heading", None))
             for s in self.sensors)
         ini = self.initial
         scenario = Scenario(

@@ -39,6 +39,10 @@ class SimulationConfig:
     seed: int
 
 
+#: Words that mean a boolean: given where a scenario file is expected, a flag's value.
+BOOLEAN_WORDS = ("true", "false", "yes", "no", "on", "off")
+
+
 def option_name(key: str) -> str:
     """The ``simulate`` option of an override key: its first declared name, else
     ``--key-with-dashes``."""
@@ -86,7 +90,7 @@ def read_scenario_file(path: str | Path) -> dict[str, Any]:
             raise ConfigError(str(path), "is a JSON file: a single decision is planned with "
                               "sensorplan plan; simulate reads a scenario TOML file (see "
                               "configs/paper.toml)")
-    return io.read_toml(path)
+    return io.read_input(path, "scenario")
 
 
 def load_simulation(path: str | Path | None = None, preset: str | None = None,
@@ -115,6 +119,10 @@ def load_simulation(path: str | Path | None = None, preset: str | None = None,
     unknown = sorted(set(given_) - set(FILE_KEYS))
     if unknown:
         raise ConfigError(option_name(unknown[0]), "is not a simulation setting")
+    if path is not None and str(path).lower() in BOOLEAN_WORDS and not Path(path).exists():
+        # "--gate false": the flag took no value, and the word became the scenario file.
+        raise ConfigError(str(path), f"no such file (a flag such as --gate takes no value: "
+                          f"write --gate or --no-gate, not --gate {path})")
     if path is not None and preset is not None:
         raise ConfigError("--preset", "give a scenario file or --preset, not both")
     if path is None:
@@ -138,6 +146,12 @@ def load_simulation(path: str | Path | None = None, preset: str | None = None,
         settings = _run_settings(tables, planner_overridden="planner" in given_)
         check_run(scenario, settings, RUN_FIELDS)
     except ConfigError as exc:
+        if exc.field == "tracker.reacquire" and given_.get("gate") is False \
+                and "reacquire" not in given_:
+            # The option given is what to change, not the file key it collided with.
+            raise ConfigError("--no-gate", "re-acquisition needs the gate (it restarts a "
+                              "track from a detection outside it): add --no-reacquire"
+                              ) from None
         raise _rename(exc, renames) from None
     return SimulationConfig(scenario, settings, tables.run.seed)
 

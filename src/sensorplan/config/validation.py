@@ -105,7 +105,7 @@ def _degrees_range(name: str) -> Range:
     r = RANGES[name]
     return Range(None if r.lo is None else math.degrees(r.lo),
                  None if r.hi is None else math.degrees(r.hi), r.unit.replace("rad", "deg"),
-                 r.lo_open, r.hi_open)
+                 r.lo_open, r.hi_open, r.magnitude)
 
 
 def one_spelling(name: str, value: float | None, given: Any) -> float | None:

@@ -14,7 +14,8 @@ Everything a planner needs, including one written outside this package (docs/pla
   (a sensor's moves), :func:`check_plan` (feasibility), :func:`potential` (Phi),
   :data:`TIE_TOL`;
 - the contract: :func:`check_planner` runs the named checks every planner must pass
-  (:data:`CHECKS`).
+  (:data:`CHECKS`) and returns a :class:`CheckReport`; :func:`checked_plan` plans one
+  decision and refuses (:class:`PlanRejected`) a result that cannot be executed.
 
 Importing this package loads only the registry (no numpy, no kernels, no planner); every
 other name is imported on first use.
@@ -27,7 +28,8 @@ from .registry import (ENTRY_POINT_GROUP, PLANNERS, make_planner, planner_class,
 
 if TYPE_CHECKING:  # pragma: no cover
     from .base import PlanResult, Planner, RngLike, finish, make_rng, prepare, start_clock
-    from .checks import CHECKS, PlannerCheckError, check_planner
+    from .checks import (CHECKS, CheckReport, PlannerCheckError, PlanRejected, check_planner,
+                         checked_plan)
     from .information import potential
     from .problem import TIE_TOL, Plan, PlanningProblem, check_plan, move_vectors
 
@@ -40,7 +42,8 @@ def __getattr__(name: str) -> Any:
     elif name in ("PlanResult", "Planner", "RngLike", "finish", "make_rng", "prepare",
                   "start_clock"):
         from . import base as module  # type: ignore[no-redef]
-    elif name in ("CHECKS", "PlannerCheckError", "check_planner"):
+    elif name in ("CHECKS", "CheckReport", "PlannerCheckError", "PlanRejected",
+                  "check_planner", "checked_plan"):
         from . import checks as module  # type: ignore[no-redef]
     elif name == "potential":
         from . import information as module  # type: ignore[no-redef]
@@ -51,8 +54,8 @@ def __getattr__(name: str) -> Any:
     return value
 
 
-__all__ = ["CHECKS", "ENTRY_POINT_GROUP", "PLANNERS", "TIE_TOL", "Plan", "PlanResult",
-           "Planner", "PlannerCheckError", "PlanningProblem", "RngLike", "check_plan",
-           "check_planner", "finish", "make_planner", "make_rng", "move_vectors",
-           "planner_class", "planner_names", "potential", "prepare", "register",
-           "start_clock"]
+__all__ = ["CHECKS", "ENTRY_POINT_GROUP", "PLANNERS", "TIE_TOL", "CheckReport", "Plan",
+           "PlanRejected", "PlanResult", "Planner", "PlannerCheckError", "PlanningProblem",
+           "RngLike", "check_plan", "check_planner", "checked_plan", "finish", "make_planner",
+           "make_rng", "move_vectors", "planner_class", "planner_names", "potential",
+           "prepare", "register", "start_clock"]

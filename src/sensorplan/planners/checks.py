@@ -10,10 +10,16 @@ these checks for every registered planner.
 A planner may decline a problem that is too large for it by raising a
 :class:`~sensorplan.errors.ConfigError` on one of its settings (``planner.max_plans``, as
 ``brute-force`` does); the checks skip such a problem, but declining a tiny one fails.
+
+The same rules guard every decision that is executed: :func:`checked_plan` calls a planner
+and refuses its result (:class:`PlanRejected`) unless it is well formed, complete and
+feasible, so a planner that breaks its contract stops a run before anything of its plan
+is carried out.
 """
 
 from __future__ import annotations
 
+import contextvars
 import dataclasses
 import math
 from collections.abc import Callable, Iterable, Iterator
@@ -25,8 +31,8 @@ from ..errors import ConfigError
 from .base import PlanResult
 from .contract_problems import ContractProblem, contract_problems
 from .information import potential
-from .problem import TIE_TOL, Plan, PlanningProblem, check_plan
-from .registry import make_planner, planner_class
+from .problem import TIE_TOL, Plan, PlanError, PlanningProblem, check_plan
+from .registry import make_planner, planner_class, planner_label
 
 #: The seed passed as ``rng`` to every ``plan`` call of the checks.
 SEED = 3
@@ -57,16 +63,27 @@ class _Failure(Exception):
         self.problem, self.detail = problem, detail
 
 
+#: While :func:`check_planner` runs: each contract problem planned -> whether it was declined.
+_SEEN: contextvars.ContextVar[dict[str, bool] | None] = contextvars.ContextVar(
+    "sensorplan_checks_seen", default=None)
+
+
 def _plan(planner: Any, case: ContractProblem) -> PlanResult | None:
     """``planner.plan(problem, rng=SEED)``; None if the planner declines a large problem."""
+    seen = _SEEN.get()
     try:
-        return planner.plan(case.problem, rng=SEED)
+        result = planner.plan(case.problem, rng=SEED)
     except ConfigError as exc:
         if case.tiny or not exc.field.startswith("planner."):
             raise _Failure(case.label, f"plan raised ConfigError({exc})") from exc
+        if seen is not None:
+            seen[case.label] = seen.get(case.label, True)
         return None
     except Exception as exc:  # noqa: BLE001 - any error of the planner fails the check
         raise _Failure(case.label, f"plan raised {type(exc).__name__}: {exc}") from exc
+    if seen is not None:
+        seen[case.label] = False
+    return result
 
 
 def _results(planner: Any, tiny_only: bool = False
@@ -96,12 +113,14 @@ def check_result_well_formed(planner: Any) -> None:
             raise _Failure(case.label, problem)
 
 
-def _result_problem(planner: Any, p: PlanningProblem, res: Any) -> str:
-    """What is wrong with result ``res`` of ``planner`` on ``p`` ('' if nothing)."""
+def _result_problem(planner: Any, p: PlanningProblem, res: Any,
+                    named: bool = True) -> str:
+    """What is wrong with result ``res`` of ``planner`` on ``p`` ('' if nothing); with
+    ``named`` False, the result's name is not compared with a planner that has none."""
     N, K, M = p.n_sensors, p.horizon, p.n_targets
     if not isinstance(res, PlanResult):
         return f"plan returned {type(res).__name__}, not a PlanResult"
-    if res.planner != planner.name:
+    if (named or hasattr(planner, "name")) and res.planner != planner.name:
         return f"result.planner is {res.planner!r}, not the planner's name {planner.name!r}"
     if not isinstance(res.plan, Plan):
         return f"result.plan is {type(res.plan).__name__}, not a Plan"
@@ -221,7 +240,34 @@ CHECKS: dict[str, Callable[[Any], None]] = {
 }
 
 
-def check_planner(planner: Any, checks: Iterable[str] | None = None) -> None:
+@dataclasses.dataclass(frozen=True)
+class CheckReport:
+    """What :func:`check_planner` ran on a planner that passed every check.
+
+    Attributes
+    ----------
+    planner : str                the planner's name
+    checks : tuple of str        the checks run, in order (keys of :data:`CHECKS`)
+    problems : tuple of str      the contract problems it planned (labels such as
+                                 ``tiny[0] (probabilistic, terminal)``)
+    declined : tuple of str      those of ``problems`` it declined as too large (allowed
+                                 for problems that are not tiny; no check ran on them)
+    """
+
+    planner: str
+    checks: tuple[str, ...]
+    problems: tuple[str, ...]
+    declined: tuple[str, ...] = ()
+
+    def __str__(self) -> str:
+        text = (f"planner {self.planner!r} passed {len(self.checks)} check(s) "
+                f"({', '.join(self.checks)}) on {len(self.problems)} problem(s)")
+        if self.declined:
+            text += f", declining {len(self.declined)} as too large ({', '.join(self.declined)})"
+        return text
+
+
+def check_planner(planner: Any, checks: Iterable[str] | None = None) -> CheckReport:
     """Run the contract's named checks on ``planner``; raise on the first failure.
 
     Parameters
@@ -231,6 +277,11 @@ def check_planner(planner: Any, checks: Iterable[str] | None = None) -> None:
         :func:`~sensorplan.planners.make_planner` (default settings).
     checks : iterable of str, optional
         Names of :data:`CHECKS` to run (default: all, in order).
+
+    Returns
+    -------
+    CheckReport
+        The checks run and the problems planned (``print`` it for one line).
 
     Raises
     ------
@@ -242,7 +293,9 @@ def check_planner(planner: Any, checks: Iterable[str] | None = None) -> None:
     Examples
     --------
     >>> from sensorplan.planners import check_planner
-    >>> check_planner("sequential-greedy", checks=["feasible_complete_plan"])
+    >>> report = check_planner("sequential-greedy", checks=["feasible_complete_plan"])
+    >>> report.checks
+    ('feasible_complete_plan',)
     """
     if isinstance(planner, str):
         planner = make_planner(planner)
@@ -251,16 +304,110 @@ def check_planner(planner: Any, checks: Iterable[str] | None = None) -> None:
     if unknown:
         raise ValueError(f"unknown check {unknown[0]!r}; choose from {', '.join(CHECKS)}")
     label = str(getattr(planner, "name", type(planner).__name__))
-    for name in names:
-        try:
-            CHECKS[name](planner)
-        except _Failure as exc:
-            raise PlannerCheckError(name, label, exc.problem, exc.detail) from exc.__cause__
-        except Exception as exc:  # noqa: BLE001 - e.g. a result of the wrong shape
-            raise PlannerCheckError(name, label, "", f"{type(exc).__name__}: {exc}") from exc
+    seen: dict[str, bool] = {}
+    token = _SEEN.set(seen)
+    try:
+        for name in names:
+            try:
+                CHECKS[name](planner)
+            except _Failure as exc:
+                raise PlannerCheckError(name, label, exc.problem, exc.detail) from exc.__cause__
+            except Exception as exc:  # noqa: BLE001 - e.g. a result of the wrong shape
+                raise PlannerCheckError(name, label, "", f"{type(exc).__name__}: {exc}") from exc
+    finally:
+        _SEEN.reset(token)
+    return CheckReport(label, tuple(names), tuple(seen),
+                       tuple(p for p, declined in seen.items() if declined))
 
 
-__all__ = ["CHECKS", "SEED", "PlannerCheckError", "check_feasible_complete_plan",
+# ------------------------------------------------------------- every executed decision
+
+
+class PlanRejected(ConfigError):
+    """A planner's result cannot be executed: nothing of it was.
+
+    The field is ``planner``; the message names the planner, the decision (when known), the
+    sensor and the epoch, and what is wrong.
+
+    Attributes
+    ----------
+    planner : str            the planner's label (:func:`.registry.planner_label`)
+    detail : str             what is wrong
+    sensor, epoch : int or None
+                             the first sensor and epoch (1..K) whose action is wrong; None
+                             when the result as a whole is (a wrong shape, a bad Phi)
+    decision : int or None   the decision's index in its run (0 = the first)
+    """
+
+    def __init__(self, planner: str, detail: str, sensor: int | None = None,
+                 epoch: int | None = None, decision: int | None = None) -> None:
+        self.planner, self.detail = planner, detail
+        self.sensor, self.epoch, self.decision = sensor, epoch, decision
+        where = [] if decision is None else [f"decision {decision}"]
+        if sensor is not None:
+            where.append(f"sensor {sensor} epoch {epoch}")
+        at = f" ({', '.join(where)})" if where else ""
+        super().__init__("planner", f"{planner} broke the planner contract{at}: {detail}; "
+                                    "nothing of its plan was executed")
+
+    def __reduce__(self) -> tuple[type, tuple[Any, ...]]:  # type: ignore[override]
+        return (type(self), (self.planner, self.detail, self.sensor, self.epoch,
+                             self.decision))
+
+
+def check_result(planner: Any, problem: PlanningProblem, result: Any,
+                 decision: int | None = None) -> None:
+    """Refuse ``result`` of ``planner`` on ``problem`` unless it can be executed.
+
+    The rules are the contract's (``result_well_formed`` and ``feasible_complete_plan``):
+    a :class:`PlanResult` with the planner's name, the right shapes and a finite Phi >= 0,
+    whose plan assigns every sensor in every epoch a target that exists and a position in
+    the map one move from the last. Phi is not recomputed here (``check_planner`` does).
+
+    Raises
+    ------
+    PlanRejected
+        Naming the planner, ``decision``, the first wrong sensor and epoch, and the rule.
+    """
+    label = planner_label(planner)
+    # A wrapper without a name of its own (one that records or times another planner)
+    # passes the inner planner's result on: its plan is what is checked.
+    problem_text = _result_problem(planner, problem, result, named=False)
+    if problem_text:
+        raise PlanRejected(label, problem_text, decision=decision)
+    try:
+        check_plan(problem, result.plan, complete=True)
+    except PlanError as exc:
+        raise PlanRejected(label, exc.detail, exc.sensor, exc.epoch, decision) from None
+
+
+def checked_plan(planner: Any, problem: PlanningProblem, rng: Any = None,
+                 decision: int | None = None) -> PlanResult:
+    """``planner.plan(problem, rng=rng)``, refused unless its result can be executed.
+
+    Every place that carries out a plan (``sensorplan plan``, the closed loop of
+    ``simulate``, studies and agents, the Stone Soup manager) plans through this function,
+    so a planner of any origin is held to the same rules (:func:`check_result`).
+
+    Parameters
+    ----------
+    planner : Planner
+    problem : PlanningProblem
+    rng : Generator, int or None     passed on to ``planner.plan``
+    decision : int, optional         the decision's index in its run, for the error
+
+    Raises
+    ------
+    PlanRejected
+        The result breaks the contract (see :func:`check_result`).
+    """
+    result = planner.plan(problem, rng=rng)
+    check_result(planner, problem, result, decision)
+    return result
+
+
+__all__ = ["CHECKS", "SEED", "CheckReport", "PlanRejected", "PlannerCheckError",
+           "check_feasible_complete_plan", "check_result", "checked_plan",
            "check_input_not_mutated", "check_never_above_brute_force", "check_planner",
            "check_potential_matches_recomputation", "check_result_well_formed",
            "check_same_seed_same_plan"]

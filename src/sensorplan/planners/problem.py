@@ -70,6 +70,13 @@ class MapRect:
         return ((xy[..., 0] >= -tol) & (xy[..., 0] <= self.width + tol)
                 & (xy[..., 1] >= -tol) & (xy[..., 1] <= self.height + tol))
 
+    def outside(self, xy: Any) -> str:
+        """The message for a ground position ``(2,)`` outside the map: its value and the
+        map's bounds, ``[700, 100] is outside the map [0, 600] x [0, 600] m``."""
+        x, y = (float(v) for v in np.asarray(xy, dtype=float).ravel()[:2])
+        return (f"[{x:g}, {y:g}] is outside the map [0, {self.width:g}] x "
+                f"[0, {self.height:g}] m")
+
 
 @dataclass(frozen=True)
 class Lattice:
@@ -331,7 +338,7 @@ class PlanningProblem:
             if not np.isfinite(self.headings[i]):
                 raise ConfigError(f"sensors[{i}].heading", "must be finite")
             if not self.world.contains(self.positions[i]):
-                raise ConfigError(f"sensors[{i}].position", "is outside the map")
+                raise ConfigError(f"sensors[{i}].position", self.world.outside(self.positions[i]))
 
 
 def check_buildings(buildings: Any, world: MapRect, altitudes: object) -> FloatArray:
@@ -435,23 +442,51 @@ class Plan:
                    np.full((n_sensors, horizon), -1, dtype=np.int64))
 
 
+class PlanError(ValueError):
+    """A plan that is not feasible for its problem (:func:`check_plan`).
+
+    Attributes
+    ----------
+    sensor : int or None     the first sensor whose action is wrong (None: the whole plan)
+    epoch : int or None      its epoch, 1..K (None: the whole plan)
+    detail : str             what is wrong, without the sensor and epoch
+    """
+
+    def __init__(self, detail: str, sensor: int | None = None,
+                 epoch: int | None = None) -> None:
+        self.sensor, self.epoch, self.detail = sensor, epoch, detail
+        where = "" if sensor is None else f"sensor {sensor} epoch {epoch}: "
+        super().__init__(where + detail)
+
+    def __reduce__(self) -> tuple[type, tuple[str, int | None, int | None]]:
+        # Rebuilt from its parts, so that it crosses process boundaries intact.
+        return (type(self), (self.detail, self.sensor, self.epoch))
+
+
 def check_plan(problem: PlanningProblem, plan: Plan, complete: bool = True) -> None:
-    """Raise ``ValueError`` unless ``plan`` is feasible for ``problem``.
+    """Raise :class:`PlanError` (a ``ValueError``) unless ``plan`` is feasible for ``problem``.
 
     Checks shapes, that targets exist, that every position lies in the map and in ``R_k``
     and differs from the previous assigned position by a move (from ``p_0`` at k = 1).
-    With ``complete`` every player must be assigned.
+    With ``complete`` every player must be assigned. The error names the first sensor and
+    epoch (sensor-major order) that breaks a rule.
     """
-    N, K = problem.n_sensors, problem.horizon
+    N, K, M = problem.n_sensors, problem.horizon, problem.n_targets
     if plan.positions.shape != (N, K, 2) or plan.targets.shape != (N, K):
-        raise ValueError(f"plan must have shapes ({N}, {K}, 2) and ({N}, {K})")
-    if complete and not plan.assigned.all():
-        raise ValueError("plan has unassigned players")
-    if np.any(plan.targets >= problem.n_targets) or np.any(plan.targets < -1):
-        raise ValueError("plan refers to a target that does not exist")
+        raise PlanError(f"plan has shapes {plan.positions.shape} and {plan.targets.shape}, "
+                        f"expected ({N}, {K}, 2) and ({N}, {K})")
+    lowest = 0 if complete else -1
+    bad = (plan.targets >= M) | (plan.targets < lowest)
+    if bad.any():
+        i, k = (int(v) for v in np.argwhere(bad)[0])
+        j = int(plan.targets[i, k])
+        if j == -1:
+            raise PlanError("no action (every sensor needs a move and a target in every "
+                            "epoch)", i, k + 1)
+        raise PlanError(f"target {j} does not exist (the targets are 0..{M - 1})", i, k + 1)
     for i, s in enumerate(problem.sensors):
         moves = move_vectors(s.moves)
-        lat = build_lattice(problem.positions[i], moves, K, problem.world)
+        lat: Lattice | None = None
         prev = problem.positions[i]
         prev_assigned = True
         for k in range(K):
@@ -459,9 +494,18 @@ def check_plan(problem: PlanningProblem, plan: Plan, complete: bool = True) -> N
                 prev_assigned = False
                 continue
             p = plan.positions[i, k]
-            if lat.index_of(k + 1, p) < 0:
-                raise ValueError(f"sensor {i} epoch {k + 1}: position {p} not reachable")
-            if prev_assigned and np.min(np.abs(p - prev - moves).max(axis=1)) > POSITION_TOL * 10:
-                raise ValueError(f"sensor {i} epoch {k + 1}: position {p} is not one move "
-                                 f"from {prev}")
+            if not np.isfinite(p).all():
+                raise PlanError(f"position {p} is not a number", i, k + 1)
+            if not problem.world.contains(p):
+                raise PlanError(f"position {problem.world.outside(p)}", i, k + 1)
+            if prev_assigned:
+                # One move from a position in R_{k-1}, inside the map: so in R_k too.
+                if np.min(np.abs(p - prev - moves).max(axis=1)) > POSITION_TOL * 10:
+                    raise PlanError(f"position {p} is not one move from {prev}", i, k + 1)
+            else:
+                if lat is None:
+                    lat = build_lattice(problem.positions[i], moves, K, problem.world)
+                if lat.index_of(k + 1, p) < 0:
+                    raise PlanError(f"position {p} is not reachable from "
+                                    f"{problem.positions[i]} in {k + 1} epochs", i, k + 1)
             prev, prev_assigned = p, True

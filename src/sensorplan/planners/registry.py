@@ -84,6 +84,23 @@ def _reference(cls: Any) -> str:
     return f"{cls.__module__}:{cls.__qualname__}"
 
 
+def planner_label(planner: Any) -> str:
+    """How messages and run headers name a planner (an instance or class).
+
+    Its ``name`` in quotes, as the plan's ``planner`` key has it; for a class that is not
+    built in, followed by where it lives (``'nearest' (nearest_planner:NearestTargetPlanner)``),
+    so that a message about a planner of another package says which code to look at.
+    """
+    cls = planner if isinstance(planner, type) else type(planner)
+    name = getattr(planner, "name", None)
+    if not isinstance(name, str):
+        return _reference(cls)
+    reference = _reference(cls)
+    if BUILTIN.get(name) == reference:
+        return repr(name)
+    return f"{name!r} ({reference})"
+
+
 def _not_a_planner(cls: Any) -> str:
     """Why ``cls`` is not a planner class ('' if it is one)."""
     if not isinstance(cls, type):
@@ -269,8 +286,9 @@ def check_settings(name: Any, params: Mapping[str, Any], prefix: str = "planner"
     name : str or class
         A planner name (:func:`planner_class`) or class.
     params : mapping
-        Setting -> value. ``None`` values are dropped (the planner keeps its default; a file
-        has no other way to leave a key out) unless ``keep_none``.
+        Setting -> value. ``None`` values of the planner's settings are dropped (the planner
+        keeps its default; a file has no other way to leave a key out) unless
+        ``keep_none``; a key it does not have is an error whatever its value.
     prefix : str
         Errors name ``<prefix>.<key>`` (``planning.planner_params.alpha``); the planner's
         own errors on ``planner.<key>`` are renamed the same way.
@@ -298,10 +316,8 @@ def check_settings(name: Any, params: Mapping[str, Any], prefix: str = "planner"
     allowed = [k for k in fields if k not in exclude]
     out: dict[str, Any] = {}
     for key, value in params.items():
-        if value is None and not keep_none:
-            continue
         key = str(key)
-        if key in exclude:
+        if key in exclude and value is not None:
             raise ConfigError(f"{prefix}.{key}", exclude[key])
         if key not in fields:
             if not strict:
@@ -312,6 +328,8 @@ def check_settings(name: Any, params: Mapping[str, Any], prefix: str = "planner"
                 message += f" (did you mean {close[0]!r}?)"
             message += f"; allowed: {', '.join(allowed)}" if allowed else "; it takes none"
             raise ConfigError(f"{prefix}.{key}", message)
+        if value is None and not keep_none:
+            continue                # only a key the planner has may be left at its default
         try:
             # A planner may take an infinite number (comm_range = inf); its own check decides.
             out[key] = coerce(fields[key], value, finite=False)
@@ -357,5 +375,5 @@ def make_planner(name: str, **params: Any) -> Any:
 
 
 __all__ = ["BUILTIN", "ENTRY_POINT_GROUP", "PLANNERS", "Registry", "check_settings",
-           "instantiate", "make_planner", "planner_class", "planner_names",
+           "instantiate", "make_planner", "planner_class", "planner_label", "planner_names",
            "planner_settings_of", "register", "unknown_planner"]

@@ -15,6 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from ..study.features import axis_title
+
 #: Colour map of the differences: diverging, colour-blind safe (ColorBrewer RdBu),
 #: blue below zero (the method better), red above.
 CMAP = "RdBu_r"
@@ -52,8 +54,8 @@ def heatmap_panels(info: dict[str, Any]) -> list[Panel]:
         for i, a in enumerate(axes):
             row = tuple(by_index.get(base[:i] + (k,) + base[i + 1:])
                         for k in range(len(a["labels"])))
-            panels.append(Panel(a["name"], (a["name"],), tuple(a["labels"]), (row,),
-                                (), (a["base_index"],)))
+            panels.append(Panel(a["name"], (axis_title(a["name"]),), tuple(a["labels"]),
+                                (row,), (), (a["base_index"],)))
         return panels
 
     def bases(a: dict[str, Any]) -> tuple[int, ...]:
@@ -62,7 +64,8 @@ def heatmap_panels(info: dict[str, Any]) -> list[Panel]:
     if len(axes) == 1:
         a = axes[0]
         row = tuple(by_index.get((k,)) for k in range(len(a["labels"])))
-        return [Panel(a["name"], (a["name"],), tuple(a["labels"]), (row,), (), bases(a))]
+        return [Panel(a["name"], (axis_title(a["name"]),), tuple(a["labels"]), (row,), (),
+                      bases(a))]
     a, b, rest = axes[0], axes[1], axes[2:]
     panels = []
     for combo in itertools.product(*(range(len(x["labels"])) for x in rest)):
@@ -70,7 +73,7 @@ def heatmap_panels(info: dict[str, Any]) -> list[Panel]:
                       for r in range(len(a["labels"])))
         title = ", ".join(f"{x['name']} = {x['labels'][k]}" for x, k in zip(rest, combo))
         panels.append(Panel(title, tuple(a["labels"]), tuple(b["labels"]), slugs, bases(a),
-                            bases(b), a["name"], b["name"]))
+                            bases(b), axis_title(a["name"]), axis_title(b["name"])))
     return panels
 
 
@@ -220,7 +223,7 @@ def draw_axis_lines(info: dict[str, Any], methods: Any, path: Path) -> Path | No
             ax.set_xticks(range(len(a["labels"])),
                           [t + (" (base)" if k == a["base_index"] else "")
                            for k, t in enumerate(a["labels"])], fontsize=8)
-            ax.set_xlabel(a["name"])
+            ax.set_xlabel(axis_title(a["name"]))
             ax.set_ylabel(label)
             ax.grid(alpha=0.3)
     grid[0, 0].legend(fontsize=8)

@@ -42,7 +42,7 @@ from ..errors import ConfigError
 from ..models.angles import heading_rule
 from ..models.motion import cv_matrices
 from ..models.sensors import radar_table
-from ..planners import make_planner
+from ..planners import checked_plan, make_planner
 from ..planners.problem import PlanningProblem
 from ..tracking.base import Tracker, TrackSet
 from ..tracking.registry import tracker_class
@@ -215,7 +215,7 @@ class _Schedule:
             world=self.scenario.world, visibility=s.visibility, objective=s.objective,
             planning_detection=s.planning_detection, buildings=self.buildings)
         start = time.perf_counter()
-        result = self.planner.plan(problem, rng=self.rng)
+        result = checked_plan(self.planner, problem, self.rng, len(record.decisions))
         seconds = _own_seconds(result, time.perf_counter() - start)
         record.decision(t - 1, seconds, float(result.potential),
                         _nan_if_none(result.converged), _nan_if_none(result.sweeps))

@@ -31,6 +31,8 @@ TARGET_KINDS = ("cv", "dubins")
 #: paper's 600 m map).
 TARGET_BOX = (1, 5, 6)
 SENSOR_BOX = (1, 11, 12)
+#: Added to the error of a heading beyond a full turn: most likely degrees.
+HEADING_HINT = " (angles are in radians; degrees are written heading_deg)"
 
 
 @dataclass(frozen=True)
@@ -221,8 +223,7 @@ class Scenario:
                 raise ConfigError(f"targets[{j}].kind", f"must be one of {TARGET_KINDS}")
             if t.position is not None and not (np.all(np.isfinite(t.position))
                                                and self.world.contains(np.array(t.position))):
-                raise ConfigError(f"targets[{j}].position", f"is outside the map [0, {W:g}] "
-                                  f"x [0, {H:g}]")
+                raise ConfigError(f"targets[{j}].position", self.world.outside(t.position))
             if t.turn_hold <= 0 or not math.isfinite(t.turn_hold):
                 raise ConfigError(f"targets[{j}].turn_hold", "must be a finite number > 0")
             if t.max_turn_rate < 0 or not math.isfinite(t.max_turn_rate):
@@ -239,15 +240,14 @@ class Scenario:
             if t.speed is not None:
                 RANGES["speed"].check(t.speed, f"targets[{j}].speed")
             if t.heading is not None:
-                RANGES["heading"].check(t.heading, f"targets[{j}].heading")
+                RANGES["heading"].check(t.heading, f"targets[{j}].heading", HEADING_HINT)
         for i, s in enumerate(self.sensors):
             s.params.validate(f"sensors[{i}]")
             if s.position is not None and not (np.all(np.isfinite(s.position))
                                                and self.world.contains(np.array(s.position))):
-                raise ConfigError(f"sensors[{i}].position", f"is outside the map [0, {W:g}] "
-                                  f"x [0, {H:g}]")
+                raise ConfigError(f"sensors[{i}].position", self.world.outside(s.position))
             if s.heading is not None:
-                RANGES["heading"].check(s.heading, f"sensors[{i}].heading")
+                RANGES["heading"].check(s.heading, f"sensors[{i}].heading", HEADING_HINT)
         self._validate_buildings()
         self._validate_population()
 

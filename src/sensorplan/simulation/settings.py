@@ -4,7 +4,8 @@ Every setting is one field of :class:`RunSettings` (or of its nested
 :class:`TrackerSettings`) declared with :func:`setting`, whose metadata (a
 :class:`Setting`) says everything the rest of the package needs:
 
-- its one-sentence help text;
+- its one-sentence help text (the docs), and for ``--help`` a brief one that fits a line
+  or two at 80 columns;
 - its section: the table of a scenario file that holds it (``[planning]``, ``[tracker]`` or
   ``[run]``); the key is the field name everywhere (files, study methods, resolved configs);
 - its ``sensorplan simulate`` option names (``--horizon``, ``-K``), if it has any;
@@ -52,7 +53,9 @@ class Setting:
 
     Attributes
     ----------
-    help : str            one sentence for ``--help`` and the docs
+    help : str            one sentence for the docs (docs/cli.md lists every option)
+    brief : str           a few words for ``--help`` (its choices are added); '' for
+                          settings without options
     section : str         ``planning``, ``tracker`` or ``run`` (see the module docstring)
     cli : tuple of str    option names of ``sensorplan simulate`` (none: file-only setting)
     metavar : str         the option's value placeholder
@@ -69,6 +72,7 @@ class Setting:
 
     help: str
     section: str
+    brief: str = ""
     cli: tuple[str, ...] = ()
     metavar: str = "VALUE"
     label: str = ""
@@ -290,21 +294,24 @@ class TrackerSettings(_Settings):
 
     kind: str = setting(
         "known", section="tracker", cli=("--tracker",), metavar="KIND", label="tracker",
-        choices=tracker_kinds, noun="tracker kind",
+        choices=tracker_kinds, noun="tracker kind", brief="The tracker (kind)",
         help="The tracker: known (one track per target known from the start, the paper's).")
     miss_update: str = setting(
         "negative", section="tracker", cli=("--miss-update",), metavar="MODE",
+        brief="A look that misses: negative (update with it) or none (the paper's)",
         label="miss update", choices=MISS_UPDATES, noun="miss update",
         help="Tracker's reaction to a look that misses its target: negative (update with the "
              "negative information) or none (the paper's).")
     model: str = setting(
         "imm", section="tracker", cli=("--tracker-model",), metavar="MODEL",
+        brief="The tracker's motion model: cv or imm",
         label="model", choices=TRACKER_MODELS, noun="tracker model",
         help="The filter's motion model: cv (one constant-velocity model with q = "
              "process_noise) or imm (interacting multiple models: CWNA modes with the q's of "
              "mode_process_noise and Markov switching).")
     process_noise: float = setting(
         1.0, section="tracker", cli=("--tracker-q",), metavar="Q", label="q",
+        brief="q of the cv tracker (m^2/s^3)",
         bounds=RANGES["process_noise"],
         help="q (m^2/s^3) of the cv filter; the truth's q is the scenario's process_noise.")
     mode_process_noise: tuple[float, ...] = setting(
@@ -317,24 +324,29 @@ class TrackerSettings(_Settings):
              "each mode in one step (rows sum to 1).")
     gate: bool = setting(
         True, section="tracker", cli=("--gate/--no-gate",), label="gate",
+        brief="Use only detections inside the track's gate",
         help="Use a detection only inside the validation gate of its track.")
     gate_probability: float = setting(
         0.999, section="tracker", cli=("--gate-probability",), metavar="P",
         label="gate probability", bounds=Range(0.0, 1.0, lo_open=True, hi_open=True),
+        brief="Probability that a track's own detection is inside its gate",
         help="Probability that a track's own detection falls inside its gate (the gate is "
              "the chi-square(2) quantile of it).")
     reacquire: bool = setting(
         True, section="tracker", cli=("--reacquire/--no-reacquire",), label="re-acquire",
+        brief="Restart a track from a detection outside the gate (needs --gate)",
         help="Restart a track from a detection of its target outside the gate (needs the "
              "gate; off when false alarms are on).")
     association: str = setting(
         "pda", section="tracker", cli=("--association",), metavar="NAME",
+        brief="How detections among false alarms update a track: pda or nearest",
         label="association", choices=ASSOCIATIONS, noun="association",
         help="How a look's detections update its track when the sensor reports false "
              "alarms: pda (probabilistic data association over the gated detections) or "
              "nearest (the gated detection closest to the track).")
     known_map: bool = setting(
         True, section="tracker", cli=("--known-map/--no-known-map",), label="known map",
+        brief="Keep tracks inside the map",
         help="Truncate a track that leaves the map to the map (targets never leave it).")
 
     def __post_init__(self) -> None:
@@ -345,6 +357,14 @@ class TrackerSettings(_Settings):
         if self.reacquire and not self.gate:
             raise ConfigError("reacquire", "needs gate = true (a detection outside the gate "
                               "triggers it)")
+
+    def unused(self) -> tuple[str, ...]:
+        """The settings that change nothing with the others as they are: the cv filter's q
+        (``process_noise``) with the IMM, the IMM's q's and switching with cv, the gate
+        probability without the gate. (A run's header leaves them out.)"""
+        out = ("process_noise",) if self.model == "imm" else ("mode_process_noise",
+                                                              "switching")
+        return out + (() if self.gate else ("gate_probability",))
 
     def tracker_options(self) -> dict[str, Any]:
         """Keyword arguments of :class:`sensorplan.tracking.tracker.KnownTargetTracker` for
@@ -389,6 +409,7 @@ class RunSettings(_Settings):
 
     planner: str = setting(
         "pg", section="planning", cli=("--planner",), metavar="NAME", noun="planner",
+        brief="Planner: a name or package.module:Class",
         names=builtin_planners, check=known_planner,
         help="Planner that chooses the sensors' moves and looks: a planner name or "
              "package.module:Class.")
@@ -398,43 +419,53 @@ class RunSettings(_Settings):
              "is an error).")
     horizon: int = setting(
         1, section="planning", cli=("--horizon", "-K"), metavar="K", label="K",
+        brief="Planning horizon in epochs (1 = myopic)",
         bounds=Range(1, MAX_PLAN_STEPS),
         help="Planning horizon in epochs (1 = myopic).")
     steps_per_epoch: int = setting(
         1, section="planning", cli=("--steps-per-epoch", "-e"), metavar="E", label="e",
+        brief="Simulation steps per epoch: a decision every E steps",
         bounds=Range(1, MAX_PLAN_STEPS),
         help="Simulation steps per epoch: a decision every E steps.")
     execution: str = setting(
         "olf", section="planning", cli=("--execution",), metavar="MODE",
+        brief="Replan after all K epochs (ol) or after the first (olf)",
         choices=EXECUTIONS, noun="execution mode",
         help="ol: execute all K epochs of a plan, then replan; olf: execute the first epoch, "
              "then replan (rolling horizon).")
     visibility: str = setting(
         "probabilistic", section="planning", cli=("--visibility",), metavar="MODE",
+        brief="Planned looks count: probabilistic (by their chance of a view) or mean (iff "
+              "the mean is seen)",
         choices=VISIBILITY_MODES, noun="visibility mode",
         help="Which planned looks count in the planning objective: probabilistic (weighted "
              "by the chance the target is in view) or mean (the paper's: iff the predicted "
              "mean is in view).")
     objective: str = setting(
         "cumulative", section="planning", cli=("--objective",), metavar="NAME",
+        brief="Information summed over the horizon (cumulative) or at its end (terminal, "
+              "the paper's)",
         choices=OBJECTIVES, noun="objective",
         help="cumulative (information summed over the horizon's steps; the default, chosen "
              "by the lookahead map in docs/results.md) or terminal (at the horizon's end, "
              "the paper's).")
     planning_detection: str = setting(
         "aware", section="planning", cli=("--planning-detection",), metavar="MODE",
+        brief="Planning counts detection and clutter (aware) or not (ignore)",
         label="detection in planning", choices=PLANNING_DETECTIONS, noun="planning detection",
         help="aware: a planned look's information counts its detection probability and the "
              "clutter (no change for ideal sensors without false alarms); ignore: only "
              "whether the target is in view.")
     planning_occlusion: str = setting(
         "aware", section="planning", cli=("--planning-occlusion",), metavar="MODE",
+        brief="Planning counts buildings that hide targets (aware) or not (ignore)",
         label="occlusion in planning", choices=PLANNING_OCCLUSIONS, noun="planning occlusion",
         help="aware: a planned look counts with the probability that no building hides the "
              "target (no change without buildings); ignore: the planner does not know the "
              "buildings.")
     steps: int = setting(
         100, section="run", cli=("--steps", "-n"), metavar="N", bounds=Range(1, MAX_STEPS),
+        brief="Simulation steps of the run",
         help="Simulation steps of the run.")
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
 

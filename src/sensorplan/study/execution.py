@@ -26,6 +26,7 @@ import numpy as np
 
 from ..config.files import ensure_out_dir, write_failed
 from ..errors import ConfigError
+from ..planners.checks import PlanRejected
 from ..simulation.run import run_episode
 from .model import Study
 from .storage import (check_parts, clean_temporaries, consolidate, git_describe, locked, now,
@@ -50,6 +51,10 @@ def run_task(study: Study, run: int, method: int) -> TaskResult:
     wall, cpu = time.perf_counter(), time.process_time()
     try:
         episode = run_episode(study.scenario, m.settings, study.run_seed(run))
+    except PlanRejected as exc:
+        # A planner that breaks its contract invalidates the comparison: the study stops.
+        raise ConfigError(f"methods[{method}].planner",
+                          f"{exc.message} (method {m.name!r}, run {run})") from None
     except ConfigError as exc:
         # A planner refusing mid-run (brute force above max_plans) names its own setting.
         field = exc.field.removeprefix("planner.").removeprefix("planner")

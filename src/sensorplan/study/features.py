@@ -109,6 +109,22 @@ SCENARIO_FEATURES: dict[str, Callable[[Scenario, Any], Scenario]] = {
     "snr_ref_db": snr_ref_db, "clutter_rate": clutter_rate}
 #: Every feature a grid axis may name.
 FEATURES = (*SCENARIO_FEATURES, "setting")
+#: What a figure calls the axis of each scenario feature: its name, then what its values
+#: are, in their unit (the values stay as the grid file writes them).
+AXIS_TITLES = {
+    "sensor_speed": "sensor_speed (x the moves)",
+    "min_ground_range": "min_ground_range (m)",
+    "town": "town: half width of a block (m)",
+    "snr_ref_db": "snr_ref_db (dB)",
+    "clutter_rate": "clutter_rate (per look)",
+}
+
+
+def axis_title(name: str) -> str:
+    """The title of a grid axis in figures (:data:`AXIS_TITLES`; a ``setting`` axis's key
+    as it is): ``town`` reads as the half width of a block, so that its values 20, 30, 40
+    are blocks 40, 60, 80 m wide."""
+    return AXIS_TITLES.get(name, name)
 #: Per-method settings a ``setting`` axis may set directly (not the planner, not the
 #: study-wide ones such as ``steps``).
 METHOD_SETTINGS = tuple(path for _, path, _, s in all_settings()

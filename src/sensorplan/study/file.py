@@ -139,7 +139,7 @@ def _study_scenario(model: StudyScenarioModel, base_dir: Path | None) -> tuple[S
     if not path.is_absolute() and base_dir is not None:
         path = base_dir / path
     try:
-        data = io.read_toml(path)
+        data = io.read_input(path, "scenario")
         return scenario_from_dict(data), f"file {path}"
     except ConfigError as exc:
         where = exc.field if exc.field == str(path) else f"{path}: {exc.field}"
@@ -255,7 +255,7 @@ def study_from_dict(data: Any, base_dir: str | Path | None = None) -> Study:
 def load_study(path: str | Path) -> Study:
     """:func:`study_from_dict` on a TOML file (a relative scenario file is relative to it)."""
     path = Path(path)
-    return study_from_dict(io.read_toml(path), base_dir=path.parent)
+    return study_from_dict(io.read_input(path, "study"), base_dir=path.parent)
 
 
 def parse_study(text: str, source: str = "<study>", base_dir: str | Path | None = None

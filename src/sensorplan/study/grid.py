@@ -350,4 +350,4 @@ def grid_from_dict(data: Any, base_dir: str | Path | None = None) -> Grid:
 def load_grid(path: str | Path) -> Grid:
     """:func:`grid_from_dict` on a TOML file (a relative scenario file is relative to it)."""
     path = Path(path)
-    return grid_from_dict(io.read_toml(path), base_dir=path.parent)
+    return grid_from_dict(io.read_input(path, "grid"), base_dir=path.parent)

@@ -10,6 +10,7 @@ same code they agree to the last bit.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from dataclasses import dataclass, field
@@ -218,7 +219,13 @@ def _compare(episode: Episode, steps: Any, sensors: Any) -> dict[str, float]:
 
 
 def replay_dir_name(run: int, method: str) -> str:
-    """Default output folder of a replay: ``run-00007-OLF_pg_K_3`` (a file-name-safe
-    spelling of the method)."""
-    safe = "".join(c if c.isalnum() or c in "-." else "_" for c in method).strip("_")
-    return f"run-{run:05d}-{safe or 'method'}"
+    """Default output folder of a replay: ``run-00007-pg`` for a method whose name is safe
+    in a file name (letters, digits, ``-``, ``.``, ``_``), else the name with every other
+    character written ``_`` and the first 6 hex digits of the name's SHA-256 appended
+    (``run-00007-OLF_pg_K_3-<6 hex>``), so that two methods never share a folder (``a b``
+    and ``a_b``) and a method always gets the same one."""
+    safe = "".join(c if c.isalnum() or c in "-._" else "_" for c in method)
+    if safe != method or not safe:
+        digest = hashlib.sha256(method.encode("utf-8", "surrogatepass")).hexdigest()[:6]
+        safe = f"{safe.strip('_') or 'method'}-{digest}"
+    return f"run-{run:05d}-{safe}"

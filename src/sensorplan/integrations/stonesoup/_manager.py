@@ -25,7 +25,7 @@ from stonesoup.updater import Updater
 from ..._types import FloatArray
 from ...errors import ConfigError
 from ...models.motion import cv_matrices
-from ...planners import PlanResult, make_planner
+from ...planners import PlanResult, checked_plan, make_planner
 from ...planners.objective import PLANNING_DETECTIONS
 from ...planners.problem import POSITION_TOL, PlanningProblem, move_vectors
 
@@ -248,7 +248,7 @@ class SensorplanManager(SensorManager):
             return [config]
         problem, ordered = self.build_problem(ordered)
         start = np.stack([r.ground_position for _, r in pairs])     # world, as planned from
-        result = self._planner.plan(problem, rng=self._rng)
+        result = checked_plan(self._planner, problem, self._rng)
         # Aim points from the world-frame means, as the planner aims in its frame.
         F, _ = cv_matrices(problem.dt, 0.0)
         means, _ = from_tracks(ordered, self.position_mapping, self.velocity_mapping)
