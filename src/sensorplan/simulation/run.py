@@ -114,7 +114,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     truth_model = make_population(scenario, init.truth, truth_rng,
                                   np.random.default_rng(streams["births"]))
     tracker = make_tracker(scenario, settings, init.estimate, table)
-    sensing = Sensing(table, scenario.building_array, streams, S)
+    sensing = Sensing(table, scenario.building_array, streams, S, scenario.look_detects)
     record = Recorder(S, len(init.truth), N)
     record.start(init.truth, tracker.tracks(), init.positions, init.headings)
     schedule = _Schedule(scenario, settings, planner, planner_rng, table, init)
@@ -160,6 +160,7 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
         restart_velocity_var=(P0[2, 2], P0[3, 3]), buildings=scenario.building_array,
         miss_update=_miss_update_kernel() if settings.tracker.miss_update == "negative"
         else None,
+        detects_all=scenario.look_detects == "all",
         **settings.tracker.tracker_options())
 
 

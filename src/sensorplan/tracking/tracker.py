@@ -128,6 +128,10 @@ class KnownTargetTracker(ModeMixture):
     miss_update : callable, optional
         The missed-look update :meth:`update` applies to a look that returned no detection
         (:func:`sensorplan.tracking.missed.miss_update`); None: a miss changes nothing.
+    detects_all : bool
+        A look returns every target in view, not only the one it points at: a look's
+        detections are then associated with its target's track (the nearest gated one
+        without false alarms, PDA with them).
     """
 
     def __init__(self, means: FloatArray, covs: FloatArray, dt: float, table: FloatArray, *,
@@ -137,7 +141,8 @@ class KnownTargetTracker(ModeMixture):
                  world: tuple[float, float] | None = None,
                  buildings: FloatArray | None = None,
                  restart_velocity_var: tuple[float, float] = (4.0, 4.0),
-                 miss_update: Callable[..., Any] | None = None) -> None:
+                 miss_update: Callable[..., Any] | None = None,
+                 detects_all: bool = False) -> None:
         super().__init__(means, covs, dt, process_noise=process_noise,
                          mode_process_noise=mode_process_noise, switching=switching)
         self.table = np.ascontiguousarray(table, dtype=float)
@@ -155,8 +160,11 @@ class KnownTargetTracker(ModeMixture):
         self.restart_velocity_var = np.asarray(restart_velocity_var, dtype=float)
         self.miss_update = miss_update
         # A look at target j returns j's detection only, when no sensor misses a target in
-        # view or reports false alarms: detections then update as one batch.
-        self.imperfect = bool(self.table[:, SWERLING].any() or self.table[:, CLUTTER_RATE].any())
+        # view or reports false alarms and a look detects only its target: detections then
+        # update as one batch.
+        self.detects_all = detects_all
+        self.imperfect = bool(self.table[:, SWERLING].any() or self.table[:, CLUTTER_RATE].any()
+                              or detects_all)
 
     # ---------------------------------------------------------------- the tracker protocol
     def tracks(self) -> TrackSet:
@@ -176,7 +184,9 @@ class KnownTargetTracker(ModeMixture):
         M, L = len(self.means), len(looks.sensors)
         sensors, aims = np.asarray(looks.sensors), np.asarray(looks.aims)
         pos, head = np.asarray(looks.positions), np.asarray(looks.headings)
-        counts = looks.counts
+        # a look aimed at no target (its detections are no target's in particular) is not
+        # this tracker's to use
+        counts = np.where(aims >= 0, looks.counts, -1)
         negative, inflated = np.zeros(M, dtype=bool), np.zeros(M, dtype=bool)
         restarted, corrected = np.zeros(M, dtype=bool), np.zeros(M, dtype=bool)
         used, discarded = np.zeros(L, dtype=np.int64), np.zeros(L, dtype=np.int64)
@@ -360,7 +370,7 @@ class KnownTargetTracker(ModeMixture):
             if Z.shape[0] == 0:
                 continue
             clutter = self.table[i, CLUTTER_RATE] > 0.0
-            if not clutter:
+            if not clutter and not self.detects_all:
                 if Z.shape[0] != 1:
                     raise ValueError(f"look {n}: {Z.shape[0]} detections from a sensor "
                                      "without false alarms")
@@ -384,6 +394,15 @@ class KnownTargetTracker(ModeMixture):
                 if kernel is not None:
                     neg, _ = self._miss_one(i, j, sensor_xy[n], heading[n], kernel)
                     negative |= neg
+                continue
+            if not clutter:
+                # Every detection is some target's: the gated one nearest the track is its
+                # target's (a detection outside the gate is another target's, never a
+                # reason to restart).
+                k = int(np.argmin(mahalanobis2(nu[ok], S[ok]))) if self.gate is not None else 0
+                self._update_modes(np.zeros(1, dtype=np.int64), np.array([i]), np.array([j]),
+                                   gated[k:k + 1], sensor_xy[n:n + 1], heading[n:n + 1])
+                used[n] = 1
                 continue
             if self.association == "nearest":
                 gated = gated[[int(np.argmin(mahalanobis2(nu[ok], S[ok])))]] \
