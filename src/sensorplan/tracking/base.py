@@ -124,4 +124,5 @@ class Tracker(Protocol):
 #: when used.
 TRACKERS: dict[str, str] = {
     "known": "sensorplan.tracking.tracker:KnownTargetTracker",
+    "pmb": "sensorplan.tracking.pmb.tracker:PMBTracker",
 }

@@ -1,0 +1,424 @@
+r"""The track-oriented Poisson multi-Bernoulli (PMB) tracker.
+
+Williams (2015, "Marginal multi-Bernoulli filters: RFS derivation of MHT, JIPDA and
+association-based MeMBer") and García-Fernández, Williams, Granström and Svensson (2018,
+"Poisson multi-Bernoulli mixture filter: direct derivation and implementation"): the
+targets are the union of a Poisson process of targets never detected (intensity
+:math:`D_u`, :mod:`sensorplan.tracking.pmb.undetected`) and independent Bernoullis, each a
+target that exists with probability :math:`r_i` with a Gaussian density
+(:mod:`sensorplan.tracking.pmb.bernoulli`). It meets the tracker protocol of
+:mod:`sensorplan.tracking.base` for the radar and for the linear position sensor
+(:mod:`sensorplan.tracking.pmb.sensing`).
+
+**Predict** (every step). Each Bernoulli: the motion model's Kalman prediction (CWNA with
+the tracker's ``process_noise``, or a given ``(F, Q)``) and :math:`r \leftarrow p_S r`.
+With ``die_outside_map`` (edge births: a target that leaves the map dies) the survival
+also requires the target to stay on the map: a density whose mean or 3-sigma box leaves it
+is truncated to the map (:func:`sensorplan.tracking.known_map.map_constraint`) and
+:math:`r` is multiplied by its mass on the map. :math:`D_u`: survival and births.
+
+**Update** (each look, in sensor order, with its detections :math:`z_1..z_m`):
+
+1. Every Bernoulli's missed-look hypothesis: :math:`\bar P_i`, its detection probability
+   integrated over its density by the missed-look quadrature (occlusion included), and its
+   density given no detection (:meth:`Sensing.miss`).
+2. Gating: detection :math:`j` is a candidate for Bernoulli :math:`i` when its innovation's
+   squared Mahalanobis distance is below the chi-square(2) quantile of
+   ``gate_probability``; likewise for the cells of :math:`D_u`.
+3. Weights: miss :math:`1 - r_i + r_i (1 - \bar P_i) = 1 - r_i \bar P_i`; detection
+   :math:`r_i P_d\, l_{ij}` (``l`` the Gaussian likelihood, 0 outside the gate, ``P_d`` at
+   the Bernoulli's predicted position); new :math:`\lambda_u(z_j) + \kappa(z_j)`
+   (undetected intensity's detection weight plus the clutter intensity). Marginal
+   association probabilities by loopy belief propagation
+   (:func:`~sensorplan.tracking.pmb.association.association_lbp`).
+4. Track-oriented merge. Bernoulli :math:`i` becomes the mixture of its hypotheses: missed
+   (weight :math:`p^{miss}_i`, existence :math:`r_i (1 - \bar P_i) / (1 - r_i \bar P_i)`,
+   the missed-look density) and detected by :math:`z_j` (weight :math:`p^{det}_{ij}`,
+   existence 1, the EKF update), so
+   :math:`r'_i = p^{miss}_i r^{miss}_i + \sum_j p^{det}_{ij}`, and its density the
+   moment-matched mixture with weights :math:`p^{miss}_i r^{miss}_i / r'_i` and
+   :math:`p^{det}_{ij} / r'_i`. A Bernoulli that the look could not have detected
+   (:math:`\bar P_i = 0`) and that gates no detection is left exactly as it was.
+5. Each detection :math:`z_j` starts a Bernoulli with existence
+   :math:`p^{new}_j\, \lambda_u(z_j) / (\lambda_u(z_j) + \kappa(z_j))` and the density of
+   the gated cells' components updated by :math:`z_j`, weighted by their shares of
+   :math:`\lambda_u(z_j)` and moment matched; it gets the next unused label. One below
+   the pruning threshold is not created (its label is not used).
+6. :math:`D_u` is thinned by the look; Bernoullis with :math:`r` below
+   ``prune_threshold`` are dropped.
+
+Missed looks are the same update with no detection: step 4 leaves :math:`r'_i` and the
+missed-look density. The missed-look probability :math:`\bar P` ignores the gate (a
+target detected outside its gate would start a new Bernoulli; at the default gate
+probability 0.999 the difference is 1e-3 of :math:`\bar P`).
+
+**Reporting**. :meth:`tracks` reports the Bernoullis with :math:`r \ge`
+``report_threshold``, with their existence and labels. Each Bernoulli holds a single
+constant-velocity EKF; the known-target tracker's IMM modes are not offered here.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..._types import BoolArray, FloatArray, IntArray
+from ...models.linear import LinearSensor
+from ...models.motion import cv_matrices
+from ..base import Looks, TrackSet, UpdateRecord
+from ..ekf import predict as kalman_predict
+from ..known_map import map_constraint
+from ..tracker import gate_threshold
+from . import undetected
+from .association import AssociationMarginals, association_lbp
+from .bernoulli import (Bernoullis, PairTerms, missed_existence, mixture_moments, pair_terms,
+                        updates)
+from .sensing import Look, make_sensing
+
+#: Smallest association weight of a miss or a new detection: the ratio form of belief
+#: propagation needs both positive (a Bernoulli surely there and surely detectable, or a
+#: detection that neither clutter nor an undetected target can explain, gets this).
+MIN_WEIGHT = 1e-300
+
+
+@dataclass(frozen=True)
+class Candidates:
+    r"""The undetected intensity's cells a look could detect, as Gaussians.
+
+    Attributes
+    ----------
+    means : (k, 4), covs : (k, 4, 4)   the cells' components
+    terms : PairTerms or None           their pairs with the look's detections
+    weights : (k, m)                    :math:`w_c P_d v\, N(z_j; h_c, S_c)`, 0 outside
+                                        the gate
+    """
+
+    means: FloatArray
+    covs: FloatArray
+    terms: PairTerms | None
+    weights: FloatArray
+
+
+@dataclass(frozen=True)
+class LookOutcome:
+    """What one look's update did.
+
+    Attributes
+    ----------
+    used : int          detections gated with at least one Bernoulli
+    discarded : int     detections gated with none that started no Bernoulli (clutter)
+    touched : (n,) bool the Bernoullis (present before the look) the look updated
+    negative : (n,) bool  those the look could have detected (``Pbar > 0``)
+    inflated : (n,) bool  those whose missed-look density was inflated
+    weights : (w_miss (n,), w_det (n, m), w_new (m,)) or None
+        the association weights (None for a look without detections)
+    marginals : AssociationMarginals or None
+        their marginal association probabilities
+    """
+
+    used: int
+    discarded: int
+    touched: BoolArray
+    negative: BoolArray
+    inflated: BoolArray
+    weights: tuple[FloatArray, FloatArray, FloatArray] | None = None
+    marginals: AssociationMarginals | None = None
+
+
+class PMBTracker:
+    """Track-oriented Poisson multi-Bernoulli tracker (see the module docstring).
+
+    Parameters
+    ----------
+    measurement : (N, C) radar table, or LinearSensor
+        The sensors: the radar table of :func:`sensorplan.models.sensors.radar_table`
+        (``Looks.sensors`` index its rows), or the linear position sensor that scans its
+        whole area (:mod:`sensorplan.models.linear`; one scan per look).
+    dt : float > 0
+        Step (s).
+    world : (W, H)
+        The map ``[0, W] x [0, H]`` (m) the undetected intensity's grid covers.
+    means : (M, 4), optional
+        Targets known at the start, each a Bernoulli (labels ``0..M-1``).
+    covs : (M, 4, 4) or (4, 4), optional
+        Their covariances (needed with ``means``).
+    existence : float or (M,)
+        Their existence probabilities (default 1: known to exist).
+    process_noise : float
+        q of the CWNA motion model (m^2/s^3); default 0.05, the paper's filter.
+    motion : (F, Q), optional
+        Another linear-Gaussian motion model ``(4, 4)`` each (e.g. a benchmark's discrete
+        white-noise acceleration); replaces the CWNA one.
+    survival_probability : float in (0, 1]
+        :math:`p_S` per step, of Bernoullis and undetected targets; default 0.99.
+    births : {"none", "edges", "uniform"} or (C,) array
+        The birth intensity: expected births per step spread over the boundary cells, over
+        every cell, or given per cell (row-major, :class:`~.undetected.Grid`).
+    birth_rate : float >= 0
+        Expected births per step over the map (with a named ``births``).
+    initial_undetected : float >= 0
+        Expected number of targets present but not known at the start, spread evenly over
+        the cells (default 0).
+    resolution : float > 0
+        Largest side of a grid cell (m); default 25 (a 24 x 24 grid on the 600 m map).
+    velocity_var : float > 0
+        Prior variance of each velocity component of an undetected target (m^2/s^2);
+        default 10.5, the paper's targets' (speeds uniform in [3, 6] m/s in a uniform
+        direction: E[s^2] / 2 = 10.5).
+    gate_probability : float in (0, 1)
+        Chi-square gate of every innovation; default 0.999 (the known-target tracker's).
+    prune_threshold : float in [0, 1)
+        Bernoullis below this existence are dropped; default 1e-3.
+    report_threshold : float in (0, 1)
+        :meth:`tracks` reports Bernoullis with at least this existence; default 0.5.
+    die_outside_map : bool
+        Targets that leave the map die (edge births): survival requires staying on the map.
+    buildings : (K, 5), optional
+        Buildings ``x0, y0, x1, y1, height`` that hide targets from the radar.
+    """
+
+    def __init__(self, measurement: FloatArray | LinearSensor, dt: float,
+                 world: tuple[float, float], *, means: FloatArray | None = None,
+                 covs: FloatArray | None = None, existence: float | FloatArray = 1.0,
+                 process_noise: float = 0.05,
+                 motion: tuple[FloatArray, FloatArray] | None = None,
+                 survival_probability: float = 0.99, births: str | FloatArray = "none",
+                 birth_rate: float = 0.0, initial_undetected: float = 0.0,
+                 resolution: float = 25.0, velocity_var: float = 10.5,
+                 gate_probability: float = 0.999, prune_threshold: float = 1e-3,
+                 report_threshold: float = 0.5, die_outside_map: bool = False,
+                 buildings: FloatArray | None = None) -> None:
+        if not 0.0 < survival_probability <= 1.0:
+            raise ValueError(f"survival_probability must be in (0, 1], got "
+                             f"{survival_probability!r}")
+        if not 0.0 <= prune_threshold < 1.0:
+            raise ValueError(f"prune_threshold must be in [0, 1), got {prune_threshold!r}")
+        if not 0.0 < report_threshold < 1.0:
+            raise ValueError(f"report_threshold must be in (0, 1), got {report_threshold!r}")
+        if not (math.isfinite(initial_undetected) and initial_undetected >= 0.0):
+            raise ValueError(f"initial_undetected must be >= 0, got {initial_undetected!r}")
+        if not (math.isfinite(process_noise) and process_noise >= 0.0):
+            raise ValueError(f"process_noise must be >= 0, got {process_noise!r}")
+        self.sensing = make_sensing(measurement, buildings)
+        self.dt = float(dt)
+        self.process_noise = float(process_noise)
+        if motion is None:
+            self.F, self.Q = cv_matrices(self.dt, self.process_noise)
+        else:
+            self.F, self.Q = (np.array(a, dtype=float).reshape(4, 4) for a in motion)
+        self.survival_probability = float(survival_probability)
+        self.gate = gate_threshold(gate_probability)
+        self.gate_probability = float(gate_probability)
+        self.prune_threshold = float(prune_threshold)
+        self.report_threshold = float(report_threshold)
+        self.die_outside_map = bool(die_outside_map)
+        self.world = (float(world[0]), float(world[1]))
+        self.grid = undetected.make_grid(*self.world, resolution, velocity_var)
+        if isinstance(births, str):
+            self.births = undetected.birth_intensity(self.grid, births, birth_rate)
+        else:
+            self.births = np.array(births, dtype=float).reshape(-1)
+            if self.births.shape != (self.grid.size,) or not (
+                    np.all(np.isfinite(self.births)) and np.all(self.births >= 0.0)):
+                raise ValueError(f"births must be {self.grid.size} expected births >= 0, "
+                                 "one per cell")
+        self.undetected = np.full(self.grid.size, float(initial_undetected) / self.grid.size)
+        if means is None:
+            m0, P0 = np.zeros((0, 4)), np.zeros((0, 4, 4))
+        else:
+            if covs is None:
+                raise ValueError("covs are needed with means")
+            m0 = np.array(means, dtype=float).reshape(-1, 4)
+            P0 = np.array(np.broadcast_to(covs, m0.shape + (4,)), dtype=float)
+        r0 = np.array(np.broadcast_to(np.asarray(existence, dtype=float), (len(m0),)))
+        if np.any((r0 < 0.0) | (r0 > 1.0)):
+            raise ValueError("existence must be in [0, 1]")
+        self.bern = Bernoullis(r0, m0, P0, np.arange(len(m0), dtype=np.int64))
+        self.next_label = len(m0)
+
+    # ---------------------------------------------------------------- the tracker protocol
+    def _reported(self) -> BoolArray:
+        return self.bern.r >= self.report_threshold
+
+    def tracks(self) -> TrackSet:
+        """The Bernoullis with existence at least ``report_threshold`` (copies)."""
+        k = self._reported()
+        b = self.bern
+        return TrackSet(b.means[k], b.covs[k], b.r[k], b.labels[k])
+
+    def planning_process_noise(self) -> float | FloatArray:
+        """q of the CWNA motion model the planner predicts every track with."""
+        return self.process_noise
+
+    def predict(self) -> BoolArray:
+        """Predict the Bernoullis and the undetected intensity one step.
+
+        Returns
+        -------
+        (T,) bool: of the tracks reported before the predict, those the map truncated
+        (only with ``die_outside_map``).
+        """
+        b = self.bern
+        reported = self._reported()
+        corrected = np.zeros(len(b), dtype=bool)
+        if len(b):
+            b.means, b.covs = kalman_predict(b.means, b.covs, self.F, self.Q)
+            b.r = self.survival_probability * b.r
+            if self.die_outside_map:
+                m, P, applied, log_mass = map_constraint(b.means, b.covs, *self.world)
+                b.means, b.covs = m, P
+                b.r = b.r * np.exp(log_mass)
+                corrected = applied
+        self.undetected = undetected.predict(self.undetected, self.survival_probability,
+                                             self.births)
+        out = corrected[reported]
+        self._prune()
+        return out
+
+    def update(self, looks: Looks) -> UpdateRecord:
+        """Update with one step's looks, in the given (sensor) order (see the module
+        docstring); the looks' aims are not used."""
+        L = len(looks.sensors)
+        labels_before = self.bern.labels[self._reported()]
+        T = len(labels_before)
+        negative = np.zeros(T, dtype=bool)
+        inflated = np.zeros(T, dtype=bool)
+        used = np.zeros(L, dtype=np.int64)
+        discarded = np.zeros(L, dtype=np.int64)
+        for n in range(L):
+            look = Look(int(looks.sensors[n]), np.asarray(looks.positions[n], dtype=float),
+                        float(looks.headings[n]))
+            Z = np.asarray(looks.detections[n], dtype=float).reshape(-1, 2)
+            present = self.bern.labels
+            out = self.update_look(look, Z)
+            used[n], discarded[n] = out.used, out.discarded
+            k = np.isin(labels_before, present[out.negative])
+            negative |= k
+            inflated |= np.isin(labels_before, present[out.inflated])
+        return UpdateRecord(negative, inflated, np.zeros(T, dtype=bool),
+                            np.zeros(T, dtype=bool), used, discarded)
+
+    # ---------------------------------------------------------------- one look
+    def update_look(self, look: Look, Z: FloatArray) -> LookOutcome:
+        """Update the Bernoullis and the undetected intensity with one look's detections
+        ``Z (m, 2)`` (steps 1-6 of the module docstring)."""
+        b, s = self.bern, self.sensing
+        n, m = len(b), len(Z)
+        # 1. Missed-look hypotheses.
+        if n:
+            mm, mP, pbar, inflated = s.miss(b.means, b.covs, look)
+            blind = pbar <= 0.0
+            mm[blind], mP[blind] = b.means[blind], b.covs[blind]
+        else:
+            mm, mP, pbar, inflated = b.means, b.covs, np.zeros(0), np.zeros(0, dtype=bool)
+        detect = s.detectable(self.grid.centres, look)                       # (C,)
+        terms: PairTerms | None = None
+        gated = np.zeros((n, m), dtype=bool)
+        p_det, p_miss = np.zeros((n, m)), np.ones(n)
+        started, r_new = np.zeros(m, dtype=bool), np.zeros(m)
+        cand: Candidates | None = None
+        weights, marg = None, None
+        if m:
+            # 2-3. Gating, association weights and their marginals.
+            w_det = np.zeros((n, m))
+            if n:
+                terms = pair_terms(s, look, b.means, b.covs, Z, self.gate)
+                gated = terms.gated
+                w_det = np.where(gated, np.exp(terms.log_lik), 0.0) * (
+                    b.r * s.detection_probability(b.means[:, :2], look))[:, None]
+            cand = self._candidates(look, Z, detect)
+            lam_u = cand.weights.sum(axis=0)                                 # (m,)
+            w_new = lam_u + s.clutter(Z, look)
+            weights = (np.maximum(1.0 - b.r * pbar, MIN_WEIGHT), w_det,
+                       np.maximum(w_new, MIN_WEIGHT))
+            marg = association_lbp(*weights)
+            p_det, p_miss = marg.p_det, marg.p_miss
+            # 5 (computed before the merge changes the arrays; appended after it).
+            with np.errstate(divide="ignore", invalid="ignore"):
+                r_new = np.where(w_new > 0.0, marg.p_new * lam_u / w_new, 0.0)
+            started = r_new >= max(self.prune_threshold, np.finfo(float).tiny)
+        # 4. Track-oriented merge of every Bernoulli the look touched.
+        touched = (pbar > 0.0) | gated.any(axis=1)
+        if touched.any():
+            self._merge(np.flatnonzero(touched), mm, mP, pbar, p_miss, p_det, terms)
+        if cand is not None and started.any():
+            self._start(r_new, started, cand)
+        # 6. Thin the undetected intensity; prune.
+        self.undetected = undetected.thin(self.undetected, detect)
+        in_gate = gated.any(axis=0)
+        outcome = LookOutcome(int(in_gate.sum()), int((~in_gate & ~started).sum()), touched,
+                              pbar > 0.0, inflated & (pbar > 0.0), weights, marg)
+        self._prune()
+        return outcome
+
+    def _candidates(self, look: Look, Z: FloatArray, detect: FloatArray) -> Candidates:
+        r"""The cells of the undetected intensity that the look could detect, and each one's
+        weight for each detection (step 3's :math:`\lambda_u` terms)."""
+        cells = np.flatnonzero((detect > 0.0) & (self.undetected > 0.0))
+        means = np.zeros((cells.size, 4))
+        means[:, :2] = self.grid.centres[cells]
+        covs = np.broadcast_to(self.grid.cov, (cells.size, 4, 4))
+        if cells.size == 0:
+            return Candidates(means, covs, None, np.zeros((0, len(Z))))
+        terms = pair_terms(self.sensing, look, means, covs, Z, self.gate)
+        weights = np.where(terms.gated, np.exp(terms.log_lik), 0.0) * (
+            self.undetected[cells] * detect[cells])[:, None]
+        return Candidates(means, covs, terms, weights)
+
+    def _merge(self, rows: IntArray, mm: FloatArray, mP: FloatArray, pbar: FloatArray,
+               p_miss: FloatArray, p_det: FloatArray, terms: PairTerms | None) -> None:
+        """Step 4 for Bernoullis ``rows``: the moment-matched mixture of their missed and
+        detected hypotheses."""
+        b = self.bern
+        k = len(rows)
+        w_miss = p_miss[rows] * missed_existence(b.r[rows], pbar[rows])      # (k,)
+        if terms is not None:
+            sub = np.zeros(terms.gated.shape, dtype=bool)
+            sub[rows] = terms.gated[rows]
+            pi, pj = np.nonzero(sub)
+            xu, Pu = updates(b.means, b.covs, terms, pi, pj)
+            w_det = p_det[pi, pj]
+            group = np.searchsorted(rows, pi)
+        else:
+            xu, Pu, w_det = np.zeros((0, 4)), np.zeros((0, 4, 4)), np.zeros(0)
+            group = np.zeros(0, dtype=np.int64)
+        r_post = w_miss + np.bincount(group, weights=w_det, minlength=k)
+        weights = np.concatenate([w_miss, w_det])
+        groups = np.concatenate([np.arange(k), group])
+        alive = np.flatnonzero(r_post > 0.0)
+        use = weights > 0.0
+        # A Bernoulli with no hypothesis of positive weight has r' = 0 (pruned below): it
+        # keeps its prior moments meanwhile.
+        new_m, new_P = b.means[rows], b.covs[rows]
+        if alive.size:
+            remap = np.full(k, -1)
+            remap[alive] = np.arange(alive.size)
+            means = np.concatenate([mm[rows], xu])[use]
+            covs = np.concatenate([mP[rows], Pu])[use]
+            new_m[alive], new_P[alive] = mixture_moments(weights[use], means, covs,
+                                                         remap[groups[use]], alive.size)
+        b.r = b.r.copy()
+        b.r[rows] = np.minimum(r_post, 1.0)
+        b.means, b.covs = b.means.copy(), b.covs.copy()
+        b.means[rows], b.covs[rows] = new_m, new_P
+
+    def _start(self, r_new: FloatArray, started: BoolArray, cand: Candidates) -> None:
+        """Step 5: a Bernoulli for each detection of ``started``, from its gated cells."""
+        cols = np.flatnonzero(started)
+        ci, cj = np.nonzero(cand.weights[:, cols] > 0.0)                     # (K,) pairs
+        assert cand.terms is not None              # a started detection has a cell's weight
+        xu, Pu = updates(cand.means, cand.covs, cand.terms, ci, cols[cj])
+        gm, gP = mixture_moments(cand.weights[ci, cols[cj]], xu, Pu, cj, len(cols))
+        labels = np.arange(self.next_label, self.next_label + len(cols), dtype=np.int64)
+        self.next_label += len(cols)
+        self.bern.append(np.minimum(r_new[cols], 1.0), gm, gP, labels)
+
+    def _prune(self) -> None:
+        keep = self.bern.r >= self.prune_threshold
+        if not keep.all():
+            self.bern.keep(keep)
+
+
+__all__ = ["MIN_WEIGHT", "LookOutcome", "PMBTracker"]
