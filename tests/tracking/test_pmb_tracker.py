@@ -495,3 +495,102 @@ def test_on_tree_shaped_graphs_the_marginals_equal_exact_enumeration() -> None:
         np.testing.assert_allclose(tr.bern.r[:n], exact.p_miss * r_miss + exact.p_det.sum(1),
                                    rtol=0, atol=1e-9)
     assert checked >= 10, checked
+
+
+# ----------------------------------------------------------------------------- the kernels
+
+
+@pytest.mark.parametrize("detection", ["ideal", "swerling1"])
+@pytest.mark.parametrize("with_buildings", [False, True])
+def test_the_quadrature_fast_paths_give_the_radar_models_numbers(detection: str,
+                                                                 with_buildings: bool) -> None:
+    # Densities all around a look, of every size: the classes skip or shortcut the radar's
+    # quadrature call; the probabilities must be the call's, bit for bit.
+    from sensorplan.tracking.pmb.sensing import INSIDE, OUTSIDE, PARTLY, RadarSensing
+
+    table = radar_table(SensorParams(detection=detection))
+    box = np.array([[380.0, 20.0, 420.0, 90.0, 80.0]]) if with_buildings else None
+    s = RadarSensing(table, box)
+    rng = np.random.default_rng(4)
+    B = 300
+    ang = rng.uniform(-1.2, 1.2, B)
+    g = rng.uniform(100.0, 600.0, B)
+    means = np.column_stack([g * np.cos(ang), g * np.sin(ang), rng.normal(0, 2, (B, 2))])
+    covs = np.stack([spd(rng, np.array([sd, sd * rng.uniform(0.3, 1.5), 1.0, 1.0]))
+                     for sd in rng.uniform(0.5, 60.0, B)])
+    look = Look(0, np.zeros(2), 0.2)
+    rows, p, chol = s.quadrature(means, covs, look)
+    kinds = s.classify(means, covs, look)
+    assert {OUTSIDE, INSIDE, PARTLY} <= set(kinds.tolist())
+    full = radar.detectable_quadrature(table, np.zeros(B, dtype=np.int64), means[:, :2],
+                                       np.linalg.cholesky(covs), standard_points(),
+                                       np.full(B, 0.2), np.zeros((B, 2)), box)
+    np.testing.assert_array_equal(p, full[rows])
+    others = np.setdiff1d(np.arange(B), rows)
+    assert others.size and not full[others].any()                # skipped: nothing seen
+    np.testing.assert_array_equal(chol, np.linalg.cholesky(covs[rows]))
+    # The cells' detection probabilities the same way.
+    cells = undetected.make_grid(600.0, 600.0, 25.0, 1.0).centres - [0.0, 300.0]
+    ref = radar.detectable_points(table, np.array([0]), cells[None, :, 0], cells[None, :, 1],
+                                  np.array([0.2]), np.zeros((1, 2)), box)[0]
+    np.testing.assert_array_equal(s.detectable(cells, look), ref)
+
+
+def test_pair_terms_and_updates_equal_numpy_solves() -> None:
+    from sensorplan.tracking.pmb.bernoulli import pair_terms, updates
+    from sensorplan.tracking.pmb.sensing import RadarSensing
+
+    table = radar_table(SensorParams())
+    s = RadarSensing(table)
+    rng = np.random.default_rng(8)
+    B, m = 7, 5
+    means = np.column_stack([rng.uniform(280, 380, B), rng.uniform(-60, 60, B),
+                             rng.normal(0, 2, (B, 2))])
+    covs = np.stack([spd(rng, np.array([9.0, 6.0, 1.0, 1.0])) for _ in range(B)])
+    look = Look(0, np.zeros(2), 0.0)
+    h, Hp, var, _ = radar.measure_looks(table, np.zeros(B, dtype=np.int64), means[:, :2],
+                                        np.zeros((B, 2)), np.zeros(B))
+    Z = h[:m] + rng.normal(0, 1, (m, 2)) * [2.0, 0.004]
+    t = pair_terms(s, look, means, covs, Z, 13.8)
+    S = Hp @ covs[:, :2, :2] @ np.swapaxes(Hp, -1, -2) + np.stack([np.diag(v) for v in var])
+    nu = Z[None] - h[:, None]
+    nu[..., 1] = wrap_angle(nu[..., 1])
+    d2 = np.einsum("bmi,bim->bm", nu, np.linalg.solve(S, np.swapaxes(nu, -1, -2)))
+    ll = -0.5 * d2 - 0.5 * np.linalg.slogdet(S)[1][:, None] - math.log(2 * math.pi)
+    np.testing.assert_allclose(t.nu, nu, rtol=EXACT, atol=1e-15)
+    np.testing.assert_allclose(t.d2, d2, rtol=1e-10)
+    np.testing.assert_allclose(t.log_lik, ll, rtol=1e-12, atol=1e-12)
+    assert t.gated.tolist() == (d2 < 13.8).tolist()
+    np.testing.assert_allclose(t.lik, np.where(d2 < 13.8, np.exp(ll), 0.0), rtol=1e-12)
+    rows, cols = np.nonzero(t.gated)
+    x, P = updates(means, covs, t, rows, cols)
+    for k, (i, j) in enumerate(zip(rows, cols)):
+        H = np.hstack([Hp[i], np.zeros((2, 2))])
+        K = covs[i] @ H.T @ np.linalg.inv(S[i])
+        np.testing.assert_allclose(x[k], means[i] + K @ nu[i, j], rtol=EXACT, atol=1e-9)
+        np.testing.assert_allclose(P[k], (np.eye(4) - K @ H) @ covs[i], rtol=1e-9, atol=1e-9)
+    assert len(rows) >= 3
+
+
+def test_mixture_moments_equal_a_plain_loop() -> None:
+    from sensorplan.tracking.pmb.bernoulli import mixture_moments
+
+    rng = np.random.default_rng(2)
+    K, G = 12, 4
+    w = rng.uniform(0.0, 1.0, K)
+    groups = rng.integers(0, G - 1, K)                 # the last group gets nothing
+    x = rng.normal(0, 10, (K, 4))
+    P = np.stack([spd(rng, np.ones(4)) for _ in range(K)])
+    total, m, C = mixture_moments(G, (w[:5], groups[:5], x[:5], P[:5]),
+                                  (w[5:], groups[5:], x[5:], P[5:]))
+    for g in range(G):
+        k = groups == g
+        np.testing.assert_allclose(total[g], w[k].sum(), rtol=EXACT)
+        if not k.any():
+            assert total[g] == 0.0
+            continue
+        b = w[k] / w[k].sum()
+        mean = b @ x[k]
+        cov = sum(bi * (Pi + np.outer(xi - mean, xi - mean)) for bi, xi, Pi in zip(b, x[k], P[k]))
+        np.testing.assert_allclose(m[g], mean, rtol=EXACT, atol=1e-12)
+        np.testing.assert_allclose(C[g], cov, rtol=EXACT, atol=1e-12)

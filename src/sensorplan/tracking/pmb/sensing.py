@@ -4,10 +4,10 @@ The filter is generic over the model through :class:`Sensing`: the predicted mea
 its Jacobian and noise at ground positions, the probability that a look detects a target
 at a point (its detection probability inside the look's sensing region and in sight, 0
 elsewhere), the detection probability the detection hypotheses use, the clutter intensity
-at the detections, and the missed-look update of Gaussian densities (with the probability
-:math:`\bar P` of detection each puts on the look). Every number comes from the model's own
-module: :mod:`sensorplan.models.radar` (through the tracker's filter and missed-look
-steps) or :mod:`sensorplan.models.linear`.
+at the detections, and the probability of detection at each point of the missed-look
+quadrature of a Gaussian density (the 512 points of
+:func:`sensorplan.tracking.missed.standard_points`). Every number comes from the model's
+own module: :mod:`sensorplan.models.radar` or :mod:`sensorplan.models.linear`.
 
 A look is :class:`Look`: the sensor's row, its ground position and heading (the linear
 sensor ignores all three: it always scans its whole area).
@@ -20,15 +20,28 @@ the undetected intensity, and the clutter intensity) are in the same space.
 
 from __future__ import annotations
 
+import functools
+import math
 from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
 
-from ..._types import BoolArray, FloatArray
+from ..._types import FloatArray, IntArray
+from ..._compiled.jit import njit
 from ...models import linear, radar
 from ...models.angles import wrap_angle
-from ..missed import MIN_OUTSIDE, miss_update, standard_points
+from ...models.radar import detection_probability, wrap
+from ...models.sensors import ALTITUDE2, FOV, G_MAX, G_MIN
+from ..missed import standard_points
+
+#: The largest distance of a missed-look quadrature point's position coordinates from 0.
+_RHO = float(np.max(np.hypot(standard_points()[:, 0], standard_points()[:, 1])))
+#: Margin (m, rad) of the tests that a look cannot see any, or sees all, of a density's
+#: quadrature points: far above their rounding.
+_MARGIN = 1e-6
+#: Classes of a density for a look (:func:`_classify`).
+OUTSIDE, INSIDE, PARTLY = 0, 1, 2
 
 
 @dataclass(frozen=True)
@@ -43,6 +56,17 @@ class Look:
 
 class Sensing(Protocol):
     """A measurement model as the PMB update uses it (see the module docstring)."""
+
+    #: Whether the measurement's second coordinate is an angle (its innovations wrapped).
+    angular: bool
+
+    def quadrature(self, means: FloatArray, covs: FloatArray, look: Look
+                   ) -> tuple[IntArray, FloatArray, FloatArray]:
+        """The densities ``(B, 4)``, ``(B, 4, 4)`` the look may see, ``rows (k,)``; for
+        each, the probability ``p (k, S)`` that the look detects a target at each
+        quadrature point ``m + L x_s``, and ``L (k, 4, 4)``. The others' points all lie
+        where the look detects nothing."""
+        ...
 
     def measure(self, xy: FloatArray, look: Look
                 ) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -68,23 +92,22 @@ class Sensing(Protocol):
         """``(m,)`` the clutter intensity at detections ``(m, 2)``."""
         ...
 
-    def miss(self, means: FloatArray, covs: FloatArray, look: Look
-             ) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray]:
-        """The missed-look update of densities ``(B, 4)``, ``(B, 4, 4)``: their means and
-        covariances given no detection, :math:`\\bar P` ``(B,)`` and which were inflated."""
-        ...
-
 
 class RadarSensing:
-    """The radar (:mod:`sensorplan.models.radar`), with the scenario's buildings.
+    r"""The radar (:mod:`sensorplan.models.radar`), with the scenario's buildings.
 
-    The missed-look update is the known-target tracker's
-    (:func:`sensorplan.tracking.missed.miss_update`: 512 quadrature points, occlusion,
-    its inflation rule when 95 % or more of the density is inside the look) with no gate
-    factor, so the probability mass it removes is :math:`\\bar P` exactly. A detection
-    hypothesis takes the radar's detection probability at the track's predicted range (the
-    detection itself lies in the sensing region, so the field of view is not applied
-    again).
+    The quadrature's detection probabilities are the radar's
+    (:func:`sensorplan.models.radar.detectable_quadrature`, the call the known-target
+    tracker's missed-look update makes: field of view, line of sight, detection
+    probability). Two classes of density are served without that call, with the same
+    numbers: those whose points all lie outside the sensing region (0), and, without
+    buildings, those whose points all lie inside it (each point's detection probability
+    at its range: no field-of-view test to make). The class comes from a disc around the
+    mean that holds every point (radius: the points' largest position norm times the
+    spectral norm of the position block of the Cholesky factor, the square root of the
+    position covariance's largest eigenvalue). A detection hypothesis takes the radar's
+    detection probability at the track's predicted range (the detection lies in the
+    sensing region, so the field of view is not applied again).
     """
 
     angular = True
@@ -94,12 +117,40 @@ class RadarSensing:
         self.buildings = None if buildings is None or len(buildings) == 0 else np.asarray(
             buildings, dtype=float).reshape(-1, 5)
 
+    def classify(self, means: FloatArray, covs: FloatArray, look: Look) -> IntArray:
+        """``(B,)`` :data:`OUTSIDE`, :data:`INSIDE` or :data:`PARTLY`: where a density's
+        quadrature points lie relative to the look's sensing region (range band, azimuth
+        wedge) by the disc test of the class docstring; PARTLY when unsure."""
+        return _classify(self.table[look.sensor], np.ascontiguousarray(means),
+                         np.ascontiguousarray(covs), np.asarray(look.xy, dtype=float),
+                         float(look.heading), _RHO, _MARGIN)
+
+    def quadrature(self, means: FloatArray, covs: FloatArray, look: Look
+                   ) -> tuple[IntArray, FloatArray, FloatArray]:
+        x = standard_points()
+        kind = self.classify(means, covs, look)
+        if self.buildings is not None:
+            kind[kind == INSIDE] = PARTLY           # the line of sight is tested per point
+        # The densities the look may see, those wholly inside first.
+        inside, partly = np.flatnonzero(kind == INSIDE), np.flatnonzero(kind == PARTLY)
+        rows = np.concatenate([inside, partly])
+        chol = np.linalg.cholesky(covs[rows])
+        base = means[rows, :2] - look.xy
+        k = inside.size
+        parts = [_detect_inside(self.table[look.sensor], base[:k], chol[:k], x)]
+        if partly.size:
+            parts.append(radar.detectable_quadrature(
+                self.table, np.full(partly.size, look.sensor, dtype=np.int64), base[k:],
+                chol[k:], x, np.full(partly.size, float(look.heading)),
+                None if self.buildings is None else np.broadcast_to(look.xy, (partly.size, 2)),
+                self.buildings))
+        return rows, np.concatenate(parts) if len(parts) > 1 else parts[0], chol
+
     def measure(self, xy: FloatArray, look: Look
                 ) -> tuple[FloatArray, FloatArray, FloatArray]:
         B = len(xy)
         h, Hp, var, _ = radar.measure_looks(self.table, np.full(B, look.sensor, dtype=np.int64),
-                                            xy, np.broadcast_to(look.xy, (B, 2)),
-                                            np.full(B, float(look.heading)))
+                                            xy, look.xy, np.full(B, float(look.heading)))
         return h, Hp, var
 
     def residual(self, z: FloatArray, h: FloatArray) -> FloatArray:
@@ -108,40 +159,94 @@ class RadarSensing:
         return nu
 
     def detectable(self, xy: FloatArray, look: Look) -> FloatArray:
-        d = np.asarray(xy, dtype=float) - look.xy
-        return radar.detectable_points(self.table, np.array([look.sensor]), d[None, :, 0],
-                                       d[None, :, 1], np.array([float(look.heading)]),
-                                       np.asarray(look.xy, dtype=float)[None],
-                                       self.buildings)[0]
+        xy = np.asarray(xy, dtype=float)
+        # The model tests the points that are not certainly outside the sensing region.
+        near = np.flatnonzero(_classify(self.table[look.sensor], xy,
+                                        _no_spread(len(xy)), np.asarray(look.xy, dtype=float),
+                                        float(look.heading), 0.0, _MARGIN) != OUTSIDE)
+        out = np.zeros(len(xy))
+        d = xy[near] - look.xy
+        out[near] = radar.detectable_points(self.table, np.array([look.sensor]),
+                                            d[None, :, 0], d[None, :, 1],
+                                            np.array([float(look.heading)]),
+                                            np.asarray(look.xy, dtype=float)[None],
+                                            self.buildings)[0]
+        return out
 
     def detection_probability(self, xy: FloatArray, look: Look) -> FloatArray:
-        B = len(xy)
-        return radar.detection_probabilities(self.table, np.full(B, look.sensor, dtype=np.int64),
-                                             xy, np.broadcast_to(look.xy, (B, 2)))
+        return radar.detection_probabilities(self.table,
+                                             np.full(len(xy), look.sensor, dtype=np.int64),
+                                             xy, look.xy)
 
     def clutter(self, z: FloatArray, look: Look) -> FloatArray:
         return radar.clutter_densities(self.table[look.sensor], np.asarray(z)[:, 0],
                                        in_region=True)
 
-    def miss(self, means: FloatArray, covs: FloatArray, look: Look
-             ) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray]:
-        m, P, inflated, pbar = miss_update(means, covs, np.asarray(look.xy, dtype=float),
-                                           np.full(len(means), float(look.heading)),
-                                           self.table, look.sensor, gate_probability=1.0,
-                                           buildings=self.buildings, return_fraction=True)
-        return m, P, pbar, np.asarray(inflated, dtype=bool)
+
+@functools.lru_cache(maxsize=4)
+def _no_spread(n: int) -> FloatArray:
+    """``(n, 4, 4)`` zeros (read-only): points as densities of no spread."""
+    out = np.zeros((n, 4, 4))
+    out.flags.writeable = False
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _classify(row: np.ndarray, means: np.ndarray, covs: np.ndarray, sxy: np.ndarray,
+              heading: float, rho_max: float, margin: float) -> np.ndarray:
+    """Each density's disc against the range band and the azimuth wedge: OUTSIDE, INSIDE
+    (wedge narrower than a right angle, so that every point in it is in front of the
+    boresight plane too) or PARTLY. The disc: centred on the mean, radius ``rho_max``
+    times the spectral norm of the position block of the Cholesky factor (the square root
+    of the position covariance's largest eigenvalue)."""
+    B = means.shape[0]
+    out = np.empty(B, dtype=np.int64)
+    gmin, gmax, fov = row[G_MIN], row[G_MAX], row[FOV]
+    for b in range(B):
+        a, c, o = covs[b, 0, 0], covs[b, 1, 1], covs[b, 0, 1]
+        rho = rho_max * math.sqrt(0.5 * (a + c) + math.hypot(0.5 * (a - c), o))
+        dx, dy = means[b, 0] - sxy[0], means[b, 1] - sxy[1]
+        g = math.sqrt(dx * dx + dy * dy)
+        if g + rho < gmin - margin or g - rho > gmax + margin:
+            out[b] = 0
+            continue
+        if g <= rho + margin:
+            out[b] = 2
+            continue
+        off = abs(wrap(math.atan2(dy, dx) - heading))
+        spread = math.asin(rho / g)
+        if off - spread > fov + margin:
+            out[b] = 0
+        elif (g - rho > gmin + margin and g + rho < gmax - margin
+              and off + spread < fov - margin and fov < 0.5 * math.pi - margin):
+            out[b] = 1
+        else:
+            out[b] = 2
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _detect_inside(row: np.ndarray, base: np.ndarray, chol: np.ndarray, x: np.ndarray
+                   ) -> np.ndarray:
+    """The radar's detection probability at the quadrature points of densities whose
+    points all lie in the sensing region, their ground offsets formed as
+    :func:`sensorplan.models.radar.detectable_quadrature` forms them (the same numbers)."""
+    B, S = base.shape[0], x.shape[0]
+    out = np.empty((B, S))
+    alt2 = row[ALTITUDE2]
+    for b in range(B):
+        b0, b1 = base[b, 0], base[b, 1]
+        l00, l10, l11 = chol[b, 0, 0], chol[b, 1, 0], chol[b, 1, 1]
+        for s in range(S):
+            dx = b0 + l00 * x[s, 0]
+            dy = b1 + l10 * x[s, 0] + l11 * x[s, 1]
+            out[b, s] = detection_probability(row, dx * dx + dy * dy + alt2)
+    return out
 
 
 class LinearSensing:
-    """The linear position sensor (:mod:`sensorplan.models.linear`).
-
-    Its detection probability is the same everywhere in its area, so a miss changes a
-    density only where the density reaches beyond the area (the points outside keep their
-    weight, those inside keep :math:`1 - P_d`): the moments of the weighted quadrature
-    points of the known-target tracker's missed-look update (the same 512 points), with no
-    inflation rule (that rule is the radar's). A density whose points all have the same
-    detection probability is left exactly as it was.
-    """
+    """The linear position sensor (:mod:`sensorplan.models.linear`): its detection
+    probability is the same everywhere in its area and 0 outside it."""
 
     angular = False
 
@@ -149,6 +254,14 @@ class LinearSensing:
         self.sensor = sensor
         self._kappa = linear.clutter_density(sensor)
         self._eye = np.eye(2)
+
+    def quadrature(self, means: FloatArray, covs: FloatArray, look: Look
+                   ) -> tuple[IntArray, FloatArray, FloatArray]:
+        x = standard_points()
+        chol = np.asarray(np.linalg.cholesky(covs), dtype=float)
+        xy = means[:, None, :2] + x[None, :, :2] @ np.swapaxes(chol[:, :2, :2], -1, -2)
+        rows = np.arange(len(means), dtype=np.int64)
+        return rows, linear.detection_probabilities(self.sensor, xy), chol
 
     def measure(self, xy: FloatArray, look: Look
                 ) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -168,31 +281,6 @@ class LinearSensing:
     def clutter(self, z: FloatArray, look: Look) -> FloatArray:
         return np.full(len(z), self._kappa)
 
-    def miss(self, means: FloatArray, covs: FloatArray, look: Look
-             ) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray]:
-        x = standard_points()
-        S = len(x)
-        L = np.linalg.cholesky(covs)                                         # (B, 4, 4)
-        xy = means[:, None, :2] + x[None, :, :2] @ np.swapaxes(L[:, :2, :2], -1, -2)
-        p = linear.detection_probabilities(self.sensor, xy)                  # (B, S)
-        uniform = p.min(axis=1) == p.max(axis=1)
-        pbar = np.where(uniform, p[:, 0], p.sum(axis=1) / S)
-        new_m, new_P = means.copy(), covs.copy()
-        w = 1.0 - p
-        kept = w.sum(axis=1)
-        # Equal weights leave the density as it was, and Pbar is their common value (exactly,
-        # rather than to the points' rounding); so does a look that removed nearly every
-        # point (its existence is then nearly 0 and the density no longer matters).
-        change = ~uniform & (kept >= MIN_OUTSIDE)
-        if change.any():
-            wc, Lc = w[change] / kept[change, None], L[change]
-            mu = wc @ x                                                      # (b, 4)
-            C = np.einsum("bs,si,sj->bij", wc, x, x) - mu[:, :, None] * mu[:, None, :]
-            new_m[change] = means[change] + (Lc @ mu[:, :, None])[:, :, 0]
-            Pn = Lc @ C @ np.swapaxes(Lc, -1, -2)
-            new_P[change] = 0.5 * (Pn + np.swapaxes(Pn, -1, -2))
-        return new_m, new_P, pbar, np.zeros(len(means), dtype=bool)
-
 
 def make_sensing(measurement: FloatArray | linear.LinearSensor,
                  buildings: FloatArray | None = None) -> RadarSensing | LinearSensing:
@@ -204,4 +292,5 @@ def make_sensing(measurement: FloatArray | linear.LinearSensor,
     return RadarSensing(measurement, buildings)
 
 
-__all__ = ["LinearSensing", "Look", "RadarSensing", "Sensing", "make_sensing"]
+__all__ = ["INSIDE", "OUTSIDE", "PARTLY", "LinearSensing", "Look", "RadarSensing", "Sensing",
+           "make_sensing"]

@@ -21,7 +21,9 @@ is truncated to the map (:func:`sensorplan.tracking.known_map.map_constraint`) a
 
 1. Every Bernoulli's missed-look hypothesis: :math:`\bar P_i`, its detection probability
    integrated over its density by the missed-look quadrature (occlusion included), and its
-   density given no detection (:meth:`Sensing.miss`).
+   density given no detection, the quadrature's weighted moments
+   (:func:`~sensorplan.tracking.pmb.bernoulli.missed_look`: the known-target tracker's
+   rule for imperfect detection, without its inflation).
 2. Gating: detection :math:`j` is a candidate for Bernoulli :math:`i` when its innovation's
    squared Mahalanobis distance is below the chi-square(2) quantile of
    ``gate_probability``; likewise for the cells of :math:`D_u`.
@@ -64,7 +66,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..._types import BoolArray, FloatArray, IntArray
+from ..._types import BoolArray, FloatArray
 from ...models.linear import LinearSensor
 from ...models.motion import cv_matrices
 from ..base import Looks, TrackSet, UpdateRecord
@@ -72,8 +74,9 @@ from ..ekf import predict as kalman_predict
 from ..known_map import map_constraint
 from ..tracker import gate_threshold
 from . import undetected
+from . import hypotheses as hyp
 from .association import AssociationMarginals, association_lbp
-from .bernoulli import (Bernoullis, PairTerms, missed_existence, mixture_moments, pair_terms,
+from .bernoulli import (Bernoullis, missed_existence, missed_look, mixture_moments, pair_terms,
                         updates)
 from .sensing import Look, make_sensing
 
@@ -81,24 +84,6 @@ from .sensing import Look, make_sensing
 #: propagation needs both positive (a Bernoulli surely there and surely detectable, or a
 #: detection that neither clutter nor an undetected target can explain, gets this).
 MIN_WEIGHT = 1e-300
-
-
-@dataclass(frozen=True)
-class Candidates:
-    r"""The undetected intensity's cells a look could detect, as Gaussians.
-
-    Attributes
-    ----------
-    means : (k, 4), covs : (k, 4, 4)   the cells' components
-    terms : PairTerms or None           their pairs with the look's detections
-    weights : (k, m)                    :math:`w_c P_d v\, N(z_j; h_c, S_c)`, 0 outside
-                                        the gate
-    """
-
-    means: FloatArray
-    covs: FloatArray
-    terms: PairTerms | None
-    weights: FloatArray
 
 
 @dataclass(frozen=True)
@@ -111,7 +96,6 @@ class LookOutcome:
     discarded : int     detections gated with none that started no Bernoulli (clutter)
     touched : (n,) bool the Bernoullis (present before the look) the look updated
     negative : (n,) bool  those the look could have detected (``Pbar > 0``)
-    inflated : (n,) bool  those whose missed-look density was inflated
     weights : (w_miss (n,), w_det (n, m), w_new (m,)) or None
         the association weights (None for a look without detections)
     marginals : AssociationMarginals or None
@@ -122,7 +106,6 @@ class LookOutcome:
     discarded: int
     touched: BoolArray
     negative: BoolArray
-    inflated: BoolArray
     weights: tuple[FloatArray, FloatArray, FloatArray] | None = None
     marginals: AssociationMarginals | None = None
 
@@ -225,6 +208,9 @@ class PMBTracker:
                 raise ValueError(f"births must be {self.grid.size} expected births >= 0, "
                                  "one per cell")
         self.undetected = np.full(self.grid.size, float(initial_undetected) / self.grid.size)
+        self._cell_means = np.zeros((self.grid.size, 4))
+        self._cell_means[:, :2] = self.grid.centres
+        self._cell_covs = np.broadcast_to(self.grid.cov, (self.grid.size, 4, 4))
         if means is None:
             m0, P0 = np.zeros((0, 4)), np.zeros((0, 4, 4))
         else:
@@ -294,9 +280,10 @@ class PMBTracker:
             present = self.bern.labels
             out = self.update_look(look, Z)
             used[n], discarded[n] = out.used, out.discarded
-            k = np.isin(labels_before, present[out.negative])
-            negative |= k
-            inflated |= np.isin(labels_before, present[out.inflated])
+            if T and out.negative.any():
+                # Labels ascend in both arrays: the present Bernoulli of each reported one.
+                at = np.minimum(np.searchsorted(present, labels_before), len(present) - 1)
+                negative |= (present[at] == labels_before) & out.negative[at]
         return UpdateRecord(negative, inflated, np.zeros(T, dtype=bool),
                             np.zeros(T, dtype=bool), used, discarded)
 
@@ -307,113 +294,66 @@ class PMBTracker:
         b, s = self.bern, self.sensing
         n, m = len(b), len(Z)
         # 1. Missed-look hypotheses.
+        pbar, mm, mP = np.zeros(n), b.means, b.covs
         if n:
-            mm, mP, pbar, inflated = s.miss(b.means, b.covs, look)
-            blind = pbar <= 0.0
-            mm[blind], mP[blind] = b.means[blind], b.covs[blind]
-        else:
-            mm, mP, pbar, inflated = b.means, b.covs, np.zeros(0), np.zeros(0, dtype=bool)
+            seen, p, chol = s.quadrature(b.means, b.covs, look)
+            if seen.size:
+                m_, P_, pbar[seen] = missed_look(b.means[seen], b.covs[seen], chol, p)
+                mm, mP = b.means.copy(), b.covs.copy()
+                mm[seen], mP[seen] = m_, P_
         detect = s.detectable(self.grid.centres, look)                       # (C,)
-        terms: PairTerms | None = None
-        gated = np.zeros((n, m), dtype=bool)
-        p_det, p_miss = np.zeros((n, m)), np.ones(n)
-        started, r_new = np.zeros(m, dtype=bool), np.zeros(m)
-        cand: Candidates | None = None
-        weights, marg = None, None
-        if m:
-            # 2-3. Gating, association weights and their marginals.
-            w_det = np.zeros((n, m))
-            if n:
-                terms = pair_terms(s, look, b.means, b.covs, Z, self.gate)
-                gated = terms.gated
-                w_det = np.where(gated, np.exp(terms.log_lik), 0.0) * (
-                    b.r * s.detection_probability(b.means[:, :2], look))[:, None]
-            cand = self._candidates(look, Z, detect)
-            lam_u = cand.weights.sum(axis=0)                                 # (m,)
-            w_new = lam_u + s.clutter(Z, look)
-            weights = (np.maximum(1.0 - b.r * pbar, MIN_WEIGHT), w_det,
-                       np.maximum(w_new, MIN_WEIGHT))
-            marg = association_lbp(*weights)
-            p_det, p_miss = marg.p_det, marg.p_miss
-            # 5 (computed before the merge changes the arrays; appended after it).
-            with np.errstate(divide="ignore", invalid="ignore"):
-                r_new = np.where(w_new > 0.0, marg.p_new * lam_u / w_new, 0.0)
-            started = r_new >= max(self.prune_threshold, np.finfo(float).tiny)
-        # 4. Track-oriented merge of every Bernoulli the look touched.
-        touched = (pbar > 0.0) | gated.any(axis=1)
-        if touched.any():
-            self._merge(np.flatnonzero(touched), mm, mP, pbar, p_miss, p_det, terms)
-        if cand is not None and started.any():
-            self._start(r_new, started, cand)
-        # 6. Thin the undetected intensity; prune.
-        self.undetected = undetected.thin(self.undetected, detect)
-        in_gate = gated.any(axis=0)
-        outcome = LookOutcome(int(in_gate.sum()), int((~in_gate & ~started).sum()), touched,
-                              pbar > 0.0, inflated & (pbar > 0.0), weights, marg)
-        self._prune()
-        return outcome
-
-    def _candidates(self, look: Look, Z: FloatArray, detect: FloatArray) -> Candidates:
-        r"""The cells of the undetected intensity that the look could detect, and each one's
-        weight for each detection (step 3's :math:`\lambda_u` terms)."""
+        if m == 0:
+            # A missed look: r' and the missed-look density.
+            rows = np.flatnonzero(pbar > 0.0)
+            if rows.size:
+                b.r = b.r.copy()
+                b.r[rows] = missed_existence(b.r[rows], pbar[rows])
+                b.means, b.covs = mm, mP
+            self.undetected = undetected.thin(self.undetected, detect)
+            self._prune()
+            return LookOutcome(0, 0, pbar > 0.0, pbar > 0.0)
+        # 2. Gating: the Bernoullis and the cells the look could detect, in one batch.
         cells = np.flatnonzero((detect > 0.0) & (self.undetected > 0.0))
-        means = np.zeros((cells.size, 4))
-        means[:, :2] = self.grid.centres[cells]
-        covs = np.broadcast_to(self.grid.cov, (cells.size, 4, 4))
-        if cells.size == 0:
-            return Candidates(means, covs, None, np.zeros((0, len(Z))))
-        terms = pair_terms(self.sensing, look, means, covs, Z, self.gate)
-        weights = np.where(terms.gated, np.exp(terms.log_lik), 0.0) * (
-            self.undetected[cells] * detect[cells])[:, None]
-        return Candidates(means, covs, terms, weights)
-
-    def _merge(self, rows: IntArray, mm: FloatArray, mP: FloatArray, pbar: FloatArray,
-               p_miss: FloatArray, p_det: FloatArray, terms: PairTerms | None) -> None:
-        """Step 4 for Bernoullis ``rows``: the moment-matched mixture of their missed and
-        detected hypotheses."""
-        b = self.bern
-        k = len(rows)
-        w_miss = p_miss[rows] * missed_existence(b.r[rows], pbar[rows])      # (k,)
-        if terms is not None:
-            sub = np.zeros(terms.gated.shape, dtype=bool)
-            sub[rows] = terms.gated[rows]
-            pi, pj = np.nonzero(sub)
-            xu, Pu = updates(b.means, b.covs, terms, pi, pj)
-            w_det = p_det[pi, pj]
-            group = np.searchsorted(rows, pi)
-        else:
-            xu, Pu, w_det = np.zeros((0, 4)), np.zeros((0, 4, 4)), np.zeros(0)
-            group = np.zeros(0, dtype=np.int64)
-        r_post = w_miss + np.bincount(group, weights=w_det, minlength=k)
-        weights = np.concatenate([w_miss, w_det])
-        groups = np.concatenate([np.arange(k), group])
-        alive = np.flatnonzero(r_post > 0.0)
-        use = weights > 0.0
-        # A Bernoulli with no hypothesis of positive weight has r' = 0 (pruned below): it
-        # keeps its prior moments meanwhile.
-        new_m, new_P = b.means[rows], b.covs[rows]
-        if alive.size:
-            remap = np.full(k, -1)
-            remap[alive] = np.arange(alive.size)
-            means = np.concatenate([mm[rows], xu])[use]
-            covs = np.concatenate([mP[rows], Pu])[use]
-            new_m[alive], new_P[alive] = mixture_moments(weights[use], means, covs,
-                                                         remap[groups[use]], alive.size)
+        means = np.concatenate([b.means, self._cell_means[cells]])
+        covs = np.concatenate([b.covs, self._cell_covs[:cells.size]])
+        terms = pair_terms(s, look, means, covs, Z, self.gate)
+        # 3. Association weights and their marginals.
+        w = hyp.weights(terms.lik, b.r, s.detection_probability(b.means[:, :2], look), pbar,
+                        self.undetected[cells] * detect[cells], s.clutter(Z, look),
+                        MIN_WEIGHT)
+        marg = association_lbp(w.w_miss, w.w_det, w.w_new)
+        # 4-5. Every hypothesis: missed (the rows the look updates), detected (gated
+        # Bernoulli pairs), new (gated cells of the detections that start a Bernoulli);
+        # the detected and new ones are EKF updates of one batch; each Bernoulli's mixture
+        # is moment matched.
+        h = hyp.hypotheses(marg.p_det, marg.p_new, w, pbar, self.prune_threshold)
+        rows, started = h.rows, h.started
+        xu, Pu = updates(means, covs, terms, h.gauss, h.det)
+        w_miss = marg.p_miss[rows] * missed_existence(b.r[rows], pbar[rows])
+        total, gm, gP = mixture_moments(rows.size + started.size,
+                                        (w_miss, np.arange(rows.size), mm[rows], mP[rows]),
+                                        (h.weight, h.group, xu, Pu))
+        # r' of the Bernoulli rows: their missed and detected hypotheses' weights. One
+        # with none of positive weight has r' = 0 (pruned below) and keeps its moments.
+        r_post = total[:rows.size]
+        live = np.flatnonzero(r_post > 0.0)
         b.r = b.r.copy()
         b.r[rows] = np.minimum(r_post, 1.0)
         b.means, b.covs = b.means.copy(), b.covs.copy()
-        b.means[rows], b.covs[rows] = new_m, new_P
-
-    def _start(self, r_new: FloatArray, started: BoolArray, cand: Candidates) -> None:
-        """Step 5: a Bernoulli for each detection of ``started``, from its gated cells."""
-        cols = np.flatnonzero(started)
-        ci, cj = np.nonzero(cand.weights[:, cols] > 0.0)                     # (K,) pairs
-        assert cand.terms is not None              # a started detection has a cell's weight
-        xu, Pu = updates(cand.means, cand.covs, cand.terms, ci, cols[cj])
-        gm, gP = mixture_moments(cand.weights[ci, cols[cj]], xu, Pu, cj, len(cols))
-        labels = np.arange(self.next_label, self.next_label + len(cols), dtype=np.int64)
-        self.next_label += len(cols)
-        self.bern.append(np.minimum(r_new[cols], 1.0), gm, gP, labels)
+        b.means[rows[live]], b.covs[rows[live]] = gm[live], gP[live]
+        if started.size:
+            labels = np.arange(self.next_label, self.next_label + started.size, dtype=np.int64)
+            self.next_label += started.size
+            b.append(np.minimum(h.r_new, 1.0), gm[rows.size:], gP[rows.size:], labels)
+        # 6. Thin the undetected intensity; prune.
+        self.undetected = undetected.thin(self.undetected, detect)
+        in_gate = int(np.count_nonzero(terms.gated[:n].any(axis=0)))
+        touched = np.zeros(n, dtype=bool)
+        touched[rows] = True
+        outcome = LookOutcome(in_gate, m - in_gate - h.started_alone, touched, pbar > 0.0,
+                              (w.w_miss, w.w_det, w.w_new), marg)
+        self._prune()
+        return outcome
 
     def _prune(self) -> None:
         keep = self.bern.r >= self.prune_threshold
