@@ -20,7 +20,6 @@ the undetected intensity, and the clutter intensity) are in the same space.
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 from typing import Protocol
@@ -159,19 +158,11 @@ class RadarSensing:
         return nu
 
     def detectable(self, xy: FloatArray, look: Look) -> FloatArray:
-        xy = np.asarray(xy, dtype=float)
-        # The model tests the points that are not certainly outside the sensing region.
-        near = np.flatnonzero(_classify(self.table[look.sensor], xy,
-                                        _no_spread(len(xy)), np.asarray(look.xy, dtype=float),
-                                        float(look.heading), 0.0, _MARGIN) != OUTSIDE)
-        out = np.zeros(len(xy))
-        d = xy[near] - look.xy
-        out[near] = radar.detectable_points(self.table, np.array([look.sensor]),
-                                            d[None, :, 0], d[None, :, 1],
-                                            np.array([float(look.heading)]),
-                                            np.asarray(look.xy, dtype=float)[None],
-                                            self.buildings)[0]
-        return out
+        d = np.asarray(xy, dtype=float) - look.xy
+        return radar.detectable_points(self.table, np.array([look.sensor]), d[None, :, 0],
+                                       d[None, :, 1], np.array([float(look.heading)]),
+                                       np.asarray(look.xy, dtype=float)[None],
+                                       self.buildings)[0]
 
     def detection_probability(self, xy: FloatArray, look: Look) -> FloatArray:
         return radar.detection_probabilities(self.table,
@@ -181,14 +172,6 @@ class RadarSensing:
     def clutter(self, z: FloatArray, look: Look) -> FloatArray:
         return radar.clutter_densities(self.table[look.sensor], np.asarray(z)[:, 0],
                                        in_region=True)
-
-
-@functools.lru_cache(maxsize=4)
-def _no_spread(n: int) -> FloatArray:
-    """``(n, 4, 4)`` zeros (read-only): points as densities of no spread."""
-    out = np.zeros((n, 4, 4))
-    out.flags.writeable = False
-    return out
 
 
 @njit(cache=True, error_model="numpy")
