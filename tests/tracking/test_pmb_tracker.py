@@ -340,10 +340,12 @@ def test_pruning_and_reporting_thresholds() -> None:
                                             ("survival_probability", 0.0),
                                             ("gate_probability", 1.0),
                                             ("initial_undetected", -1.0), ("births", "sides"),
-                                            ("resolution", 0.0), ("velocity_var", -1.0)])
+                                            ("resolution", 0.0), ("velocity_var", -1.0),
+                                            ("dt", 0.0)])
 def test_bad_settings_are_refused(key: str, value: object) -> None:
+    kwargs: dict = {"dt": 1.0, "world": (300.0, 300.0), key: value}
     with pytest.raises(ValueError):
-        PMBTracker(linear.williams15(), 1.0, (300.0, 300.0), **{key: value})
+        PMBTracker(linear.williams15(), **kwargs)
 
 
 def run_linear(tr: PMBTracker, truth: list[np.ndarray], sensor: linear.LinearSensor,
@@ -563,7 +565,8 @@ def test_pair_terms_and_updates_equal_numpy_solves() -> None:
     assert t.gated.tolist() == (d2 < 13.8).tolist()
     np.testing.assert_allclose(t.lik, np.where(d2 < 13.8, np.exp(ll), 0.0), rtol=1e-12)
     rows, cols = np.nonzero(t.gated)
-    x, P = updates(means, covs, t, rows, cols)
+    unique, which = np.unique(rows, return_inverse=True)
+    x, P = updates(means, covs, t, unique, which, cols)
     for k, (i, j) in enumerate(zip(rows, cols)):
         H = np.hstack([Hp[i], np.zeros((2, 2))])
         K = covs[i] @ H.T @ np.linalg.inv(S[i])

@@ -158,17 +158,56 @@ def _pairs(h: np.ndarray, Hp: np.ndarray, var: np.ndarray, C: np.ndarray, Z: np.
     return nu, d2, log_lik, gated, lik
 
 
-def updates(means: FloatArray, covs: FloatArray, terms: PairTerms, rows: IntArray,
-            cols: IntArray) -> tuple[FloatArray, FloatArray]:
-    """EKF (Joseph-form) updates of Gaussians ``rows`` with detections ``cols``, ``(K,)``
-    pairs of ``terms``: means ``(K, 4)`` and covariances ``(K, 4, 4)``."""
-    if len(rows) == 0:
+def updates(means: FloatArray, covs: FloatArray, terms: PairTerms, unique: IntArray,
+            which: IntArray, cols: IntArray) -> tuple[FloatArray, FloatArray]:
+    r"""EKF updates of the Gaussians ``unique[which]`` with detections ``cols``, ``(K,)``
+    pairs of ``terms``: means ``(K, 4)`` and covariances ``(K, 4, 4)``.
+
+    A Gaussian is linearised at its own mean, so its gain :math:`K = P H'^T S^{-1}` and
+    updated covariance are the same for every detection it gates: the covariance is the
+    tracker's Joseph-form update (:func:`sensorplan.tracking.ekf.position_update`), once
+    per distinct Gaussian ``unique``; the means :math:`x + K \nu_j` are formed per pair, the
+    gain through the Cholesky factor of ``S`` (no inverse).
+    """
+    if len(cols) == 0:
         return np.zeros((0, 4)), np.zeros((0, 4, 4))
-    return position_update(np.ascontiguousarray(means[rows]),
-                           np.ascontiguousarray(covs[rows]),
-                           np.ascontiguousarray(terms.nu[rows, cols]),
-                           np.ascontiguousarray(terms.Hp[rows]),
-                           np.ascontiguousarray(terms.var[rows]))
+    _, P_post = position_update(np.ascontiguousarray(means[unique]),
+                                np.ascontiguousarray(covs[unique]), np.zeros((len(unique), 2)),
+                                np.ascontiguousarray(terms.Hp[unique]),
+                                np.ascontiguousarray(terms.var[unique]))
+    x_post = _gain_means(means, covs, np.ascontiguousarray(terms.Hp), terms.var, terms.nu,
+                         np.ascontiguousarray(unique[which]),
+                         np.ascontiguousarray(cols, dtype=np.int64))
+    return x_post, P_post[which]
+
+
+@njit(cache=True, error_model="numpy")
+def _gain_means(means: np.ndarray, covs: np.ndarray, Hp: np.ndarray, var: np.ndarray,
+                nu: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """``x_b + K_b nu_bj`` of each pair: ``K S = G``, ``G = P[:, :2] H'^T`` (the columns the
+    position measurement sees), ``S = H' P_pos H'^T + diag(var)``, solved with the 2 x 2
+    Cholesky factor of ``S``."""
+    out = np.empty((rows.shape[0], 4))
+    G = np.empty((4, 2))
+    for t in range(rows.shape[0]):
+        b, j = rows[t], cols[t]
+        a00, a01, a10, a11 = Hp[b, 0, 0], Hp[b, 0, 1], Hp[b, 1, 0], Hp[b, 1, 1]
+        for i in range(4):
+            G[i, 0] = covs[b, i, 0] * a00 + covs[b, i, 1] * a01
+            G[i, 1] = covs[b, i, 0] * a10 + covs[b, i, 1] * a11
+        s00 = a00 * G[0, 0] + a01 * G[1, 0] + var[b, 0]
+        s01 = a00 * G[0, 1] + a01 * G[1, 1]
+        s11 = a10 * G[0, 1] + a11 * G[1, 1] + var[b, 1]
+        l00 = math.sqrt(s00)
+        l10 = s01 / l00
+        l11 = math.sqrt(s11 - l10 * l10)
+        y0 = nu[b, j, 0] / l00                          # S^-1 nu: forward, then back
+        y1 = (nu[b, j, 1] - l10 * y0) / l11
+        v1 = y1 / l11
+        v0 = (y0 - l10 * v1) / l00
+        for i in range(4):
+            out[t, i] = means[b, i] + G[i, 0] * v0 + G[i, 1] * v1
+    return out
 
 
 def mixture_moments(n_groups: int, *parts: tuple[FloatArray, IntArray, FloatArray, FloatArray]

@@ -94,7 +94,9 @@ class Hypotheses:
     started : (s,) int    the detections that start a Bernoulli, ascending
     r_new : (s,)          their existence :math:`p^{new}_j \lambda_u / (\lambda_u + \kappa)`
     gauss : (K,) int      the Gaussian of each update hypothesis (a Bernoulli ``< n``, a
-                          cell ``n + c``)
+                          cell ``n + c``), ascending
+    unique : (U,) int     the distinct Gaussians of ``gauss``, ascending
+    which : (K,) int      the index in ``unique`` of each hypothesis' Gaussian
     det : (K,) int        its detection
     weight : (K,)         its weight: :math:`p^{det}_{ij}` (a Bernoulli's), the cell's
                           part of :math:`\lambda_u(z_j)` (a new Bernoulli's)
@@ -106,6 +108,8 @@ class Hypotheses:
     started: IntArray
     r_new: FloatArray
     gauss: IntArray
+    unique: IntArray
+    which: IntArray
     det: IntArray
     weight: FloatArray
     group: IntArray
@@ -117,17 +121,18 @@ def hypotheses(p_det: FloatArray, p_new: FloatArray, w: Weights, pbar: FloatArra
     """The hypotheses of a look (see :class:`Hypotheses`); a detection starts a Bernoulli
     when its existence is at least ``prune_threshold`` and the undetected intensity gave it
     weight."""
-    rows, started, r_new, gauss, det, weight, group, alone = _hypotheses(
+    rows, started, r_new, gauss, unique, which, det, weight, group, alone = _hypotheses(
         np.ascontiguousarray(p_det), np.ascontiguousarray(p_new), w.w_det, w.cell, w.lam_u,
         w.w_new, np.ascontiguousarray(pbar), float(prune_threshold))
-    return Hypotheses(rows, started, r_new, gauss, det, weight, group, int(alone))
+    return Hypotheses(rows, started, r_new, gauss, unique, which, det, weight, group,
+                      int(alone))
 
 
 @njit(cache=True, error_model="numpy")
 def _hypotheses(p_det: np.ndarray, p_new: np.ndarray, w_det: np.ndarray, cell: np.ndarray,
                 lam_u: np.ndarray, w_new: np.ndarray, pbar: np.ndarray, prune: float
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                           np.ndarray, np.ndarray, int]:
+                           np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     n, m = w_det.shape
     k = cell.shape[0]
     # The Bernoullis the look updates and each one's mixture index.
@@ -188,7 +193,17 @@ def _hypotheses(p_det: np.ndarray, p_new: np.ndarray, w_det: np.ndarray, cell: n
             if mark[j] >= 0 and cell[c, j] > 0.0:
                 gauss[t], det[t], weight[t], group[t] = n + c, j, cell[c, j], q + mark[j]
                 t += 1
-    return rows, started, r_new, gauss, det, weight, group, alone
+    # The distinct Gaussians (gauss ascends: Bernoulli pairs row by row, then cells).
+    which = np.empty(K, dtype=np.int64)
+    U = 0
+    for t in range(K):
+        if t == 0 or gauss[t] != gauss[t - 1]:
+            U += 1
+        which[t] = U - 1
+    unique = np.empty(U, dtype=np.int64)
+    for t in range(K):
+        unique[which[t]] = gauss[t]
+    return rows, started, r_new, gauss, unique, which, det, weight, group, alone
 
 
 __all__ = ["Hypotheses", "Weights", "hypotheses", "weights"]

@@ -57,6 +57,13 @@ probability 0.999 the difference is 1e-3 of :math:`\bar P`).
 **Reporting**. :meth:`tracks` reports the Bernoullis with :math:`r \ge`
 ``report_threshold``, with their existence and labels. Each Bernoulli holds a single
 constant-velocity EKF; the known-target tracker's IMM modes are not offered here.
+
+**Arrays**. A look's work is batched: the quadrature of every Bernoulli at once, one
+compiled pass over every (Bernoulli or cell, detection) pair for the innovations and
+likelihoods (:func:`~sensorplan.tracking.pmb.bernoulli.pair_terms`), one for the weights
+and one for the hypotheses the marginals leave (:mod:`sensorplan.tracking.pmb.hypotheses`),
+one batch of EKF updates and one of mixtures. docs/tracking_pmb.md has the model, the
+parameters and their sources, and what is approximated.
 """
 
 from __future__ import annotations
@@ -184,6 +191,8 @@ class PMBTracker:
             raise ValueError(f"initial_undetected must be >= 0, got {initial_undetected!r}")
         if not (math.isfinite(process_noise) and process_noise >= 0.0):
             raise ValueError(f"process_noise must be >= 0, got {process_noise!r}")
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"dt must be > 0, got {dt!r}")
         self.sensing = make_sensing(measurement, buildings)
         self.dt = float(dt)
         self.process_noise = float(process_noise)
@@ -328,7 +337,7 @@ class PMBTracker:
         # is moment matched.
         h = hyp.hypotheses(marg.p_det, marg.p_new, w, pbar, self.prune_threshold)
         rows, started = h.rows, h.started
-        xu, Pu = updates(means, covs, terms, h.gauss, h.det)
+        xu, Pu = updates(means, covs, terms, h.unique, h.which, h.det)
         w_miss = marg.p_miss[rows] * missed_existence(b.r[rows], pbar[rows])
         total, gm, gP = mixture_moments(rows.size + started.size,
                                         (w_miss, np.arange(rows.size), mm[rows], mP[rows]),
