@@ -367,11 +367,29 @@ def _missed_moments(means: np.ndarray, covs: np.ndarray, chol: np.ndarray, p: np
             pbar[b] = lo                     # the same everywhere: the density unchanged
             continue
         pbar[b] = total / S
-        sums[:] = 0.0
+        # The 15 weighted sums in registers (an array accumulator is stored back on every
+        # point: three times slower).
+        a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = a8 = a9 = a10 = a11 = a12 = a13 = a14 = 0.0
         for s in range(S):
             w = 1.0 - p[b, s]
-            for q in range(15):
-                sums[q] += w * terms[s, q]
+            a0 += w * terms[s, 0]
+            a1 += w * terms[s, 1]
+            a2 += w * terms[s, 2]
+            a3 += w * terms[s, 3]
+            a4 += w * terms[s, 4]
+            a5 += w * terms[s, 5]
+            a6 += w * terms[s, 6]
+            a7 += w * terms[s, 7]
+            a8 += w * terms[s, 8]
+            a9 += w * terms[s, 9]
+            a10 += w * terms[s, 10]
+            a11 += w * terms[s, 11]
+            a12 += w * terms[s, 12]
+            a13 += w * terms[s, 13]
+            a14 += w * terms[s, 14]
+        sums[0], sums[1], sums[2], sums[3], sums[4] = a0, a1, a2, a3, a4
+        sums[5], sums[6], sums[7], sums[8], sums[9] = a5, a6, a7, a8, a9
+        sums[10], sums[11], sums[12], sums[13], sums[14] = a10, a11, a12, a13, a14
         kept = sums[0]
         if kept < min_kept:
             continue                         # removed almost entirely: r' is nearly 0
