@@ -428,3 +428,36 @@ def test_a_run_records_its_reported_tracks_as_a_set(tmp_path) -> None:
     for name in ("alive", "track_step", "track_label", "track_mean", "track_cov",
                  "track_existence"):
         np.testing.assert_array_equal(getattr(back, name), getattr(ep, name))
+
+
+def test_a_multi_target_tracker_finds_targets_nobody_named() -> None:
+    import dataclasses
+
+    from sensorplan.simulation.scenario import radar_scenario
+    from sensorplan.study.set_metrics import episode_set_metrics
+
+    # Targets born at the edges, none known to the tracker: every track is a found one.
+    sc = dataclasses.replace(radar_scenario(), births="edges", birth_rate=0.05,
+                             initial_targets=2, look_detects="all")
+    s = RunSettings(planner="pg", steps=60, tracker=TrackerSettings(kind="pmb"))
+    ep = run_episode(sc, s, 7)
+    assert ep.alive[0].sum() == 2 and ep.alive.shape[1] >= 2
+    sm = episode_set_metrics(ep, c=50.0)
+    assert np.all(np.isfinite(sm.gospa.distance))
+    # Tracks are reported once found; a reported track's label is kept for its life.
+    assert len(np.unique(ep.track_label[ep.track_step > 30])) > 0
+    assert ((ep.track_existence >= 0.5) & (ep.track_existence <= 1.0)).all()
+    # half the run's steps end with every live target within c of a reported track
+    found = sm.gospa.missed == 0
+    assert found.mean() > 0.5, found.mean()
+
+
+def test_a_multi_target_tracker_needs_looks_that_detect_every_target(tmp_path, capsys) -> None:
+    from cli_helpers import run
+
+    f = tmp_path / "s.toml"
+    f.write_text('[tracker]\nkind = "pmb"\n[[targets]]\nkind = "cv"\n[[sensors]]\n')
+    code, out, err = run(capsys, "simulate", f, "--steps", "3", "--out", tmp_path / "o")
+    assert (code, out) == (2, "")
+    assert err.splitlines() == ["error: look_detects: a multi-target tracker needs looks that "
+                                "detect every live target in view: look_detects = 'all'"]

@@ -105,6 +105,12 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
     return field(default=default, default_factory=default_factory, metadata=meta)
 
 
+def _births() -> tuple[str, ...]:
+    from ..models.population import BIRTHS
+
+    return BIRTHS
+
+
 def builtin_planners() -> tuple[str, ...]:
     """The built-in planner names, sorted (for help texts: no plugin is looked up)."""
     from ..planners.registry import BUILTIN
@@ -295,7 +301,9 @@ class TrackerSettings(_Settings):
     kind: str = setting(
         "known", section="tracker", cli=("--tracker",), metavar="KIND", label="tracker",
         choices=tracker_kinds, noun="tracker kind", brief="The tracker (kind)",
-        help="The tracker: known (one track per target known from the start, the paper's).")
+        help="The tracker: known (one track per target known from the start, the paper's) "
+             "or pmb (a Poisson multi-Bernoulli tracker that finds, confirms and deletes "
+             "targets).")
     miss_update: str = setting(
         "negative", section="tracker", cli=("--miss-update",), metavar="MODE",
         brief="A look that misses: negative (update with it) or none (the paper's)",
@@ -348,6 +356,32 @@ class TrackerSettings(_Settings):
         True, section="tracker", cli=("--known-map/--no-known-map",), label="known map",
         brief="Keep tracks inside the map",
         help="Truncate a track that leaves the map to the map (targets never leave it).")
+    births: str = setting(
+        "edges", section="tracker", label="tracker births", choices=lambda: _births(),
+        noun="births",
+        help="A multi-target tracker's model of where targets are born: edges (on the map's "
+             "boundary; a track that leaves the map dies), uniform (anywhere) or none.")
+    birth_rate: float = setting(
+        0.02, section="tracker", label="tracker birth rate", bounds=Range(0.0, 100.0),
+        help="A multi-target tracker's expected number of births per step over the map.")
+    survival_probability: float = setting(
+        0.99, section="tracker", label="tracker survival",
+        bounds=Range(0.0, 1.0, lo_open=True),
+        help="A multi-target tracker's probability that a target survives a step.")
+    report_threshold: float = setting(
+        0.5, section="tracker", label="report threshold",
+        bounds=Range(0.0, 1.0, lo_open=True, hi_open=True),
+        help="A multi-target tracker reports (and plans on) the tracks whose probability of "
+             "existence is at least this.")
+    prune_threshold: float = setting(
+        1e-3, section="tracker", label="prune threshold",
+        bounds=Range(0.0, 1.0, hi_open=True),
+        help="A multi-target tracker forgets the tracks whose probability of existence falls "
+             "below this.")
+    grid_resolution: float = setting(
+        25.0, section="tracker", label="grid resolution", bounds=Range(1.0, 1e5),
+        help="Side (m) of the map cells on which a multi-target tracker keeps the expected "
+             "number of targets not yet detected.")
 
     def __post_init__(self) -> None:
         check_fields(self)
