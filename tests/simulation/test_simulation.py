@@ -450,6 +450,17 @@ def test_a_multi_target_tracker_finds_targets_nobody_named() -> None:
     # half the run's steps end with every live target within c of a reported track
     found = sm.gospa.missed == 0
     assert found.mean() > 0.5, found.mean()
+    # each live target's error is that of the track GOSPA assigns to it (NaN without one)
+    from sensorplan.study.set_metrics import with_assigned_tracks
+
+    a = with_assigned_tracks(ep)
+    steps, ids = np.nonzero(ep.alive[1:])
+    for k in np.flatnonzero(sm.assigned)[::7]:
+        t, j = steps[k] + 1, ids[k]
+        row = np.flatnonzero((ep.track_step == t) & (ep.track_label == sm.label[k]))
+        np.testing.assert_array_equal(a.estimate[t, j], ep.track_mean[row[0]])
+        assert a.error[t, j] == np.hypot(*(ep.truth[t, j, :2] - ep.track_mean[row[0], :2]))
+    assert np.isnan(a.error[steps[~sm.assigned] + 1, ids[~sm.assigned]]).all()
 
 
 def test_a_multi_target_tracker_needs_looks_that_detect_every_target(tmp_path, capsys) -> None:
