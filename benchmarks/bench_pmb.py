@@ -1,5 +1,5 @@
 """Benchmark: one PMB update with 10 Bernoullis and 10 detections per look, 3 radar looks
-(docs/pmb_bench.md).
+(docs/benchmarks.md, "One PMB update").
 
 The paper's map (600 x 600 m, the default 25 m grid: 576 cells of undetected intensity with
 ``--undetected`` (2) expected undetected targets), three Swerling 1 radars at the paper's
