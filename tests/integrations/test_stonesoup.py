@@ -980,6 +980,69 @@ def test_a_radar_offset_from_its_platform_is_refused(rng):
             ss.to_tracks(means, covs, T0), T0)
 
 
+def test_a_radar_at_another_height_than_its_altitude_is_refused(rng):
+    means, covs, positions, headings = _decision(rng, n_sensors=1)
+    tracks = ss.to_tracks(means, covs, T0)
+    (platform,) = _platforms(positions, headings, altitudes=(100.0,))
+    radar = platform.sensors[0]
+    radar.params = SensorParams(altitude=500.0)              # the platform flies at z = 100
+    truth = ss.to_ground_truth_state(means[0], T0)
+    message = ("params.altitude: is 500 m, but the radar is at z = 100 m (its platform's z "
+               "plus the mounting offset); the radar measures from params.altitude, so make "
+               "them equal: SensorParams(altitude=100), or the platform at z = 500")
+    for use in (lambda: radar.measure([truth]), lambda: radar.measurement_model,
+                lambda: radar.is_detectable(truth), lambda: radar.detection_probability(truth),
+                lambda: radar.clutter_spatial_density()):
+        with pytest.raises(ConfigError) as err:
+            use()
+        assert str(err.value) == message
+    with pytest.raises(ConfigError) as err:
+        ss.SensorplanManager(platforms=[platform]).choose_actions(
+            tracks, T0 + datetime.timedelta(seconds=1))
+    assert err.value.field == "sensors[0].params.altitude"
+    # The radar's height is the platform's z plus the mounting offset's: a platform on the
+    # ground carrying the radar 500 m up is the radar at 500 m, and plans as one at z = 500.
+    radar.mounting_offset = np.array([[0.0], [0.0], [400.0]])
+    (level,) = _platforms(positions, headings, altitudes=(500.0,))
+    for p in (platform, level):
+        p.sensors[0].params = SensorParams(altitude=500.0)
+    plans = [ss.SensorplanManager(platforms=[p], horizon=2).choose_actions(
+        tracks, T0 + datetime.timedelta(seconds=1)) for p in (platform, level)]
+    assert [np.ravel(a.target_value).tolist() for a in plans[0][0][platform]] == \
+        [np.ravel(a.target_value)[:2].tolist() + [100.0] for a in plans[1][0][level]]
+    # A 2-D platform has no height: params.altitude alone counts.
+    flat = FixedPlatform(movement_controller=ss.LatticeMovable(
+        states=[State([[positions[0, 0]], [positions[0, 1]]], timestamp=T0)],
+        position_mapping=(0, 1)), sensors=[ss.SensorplanRadar(params=SensorParams(
+            altitude=500.0), heading=float(headings[0]))])
+    assert flat.sensors[0].measurement_model.params.altitude == 500.0
+
+
+@pytest.mark.parametrize("e", [1, 2])
+def test_choose_actions_refuses_a_timestamp_other_than_the_first_epochs_end(rng, e):
+    means, covs, positions, headings = _decision(rng, n_sensors=2)
+    tracks = ss.to_tracks(means, covs, T0)
+    manager = ss.SensorplanManager(platforms=_platforms(positions, headings), horizon=2,
+                                   steps_per_epoch=e, dt=1.0, rng=0)
+    steps = "" if e == 1 else "2 x 1 s = "
+    for gap, fix in ((10.0, f" (or set dt={10 / e:g} for epochs of 10 s)"), (0.0, ""),
+                     (e + 0.5, f" (or set dt={(e + 0.5) / e:g} for epochs of {e + 0.5:g} s)")):
+        with pytest.raises(ConfigError) as err:
+            manager.choose_actions(tracks, T0 + datetime.timedelta(seconds=gap))
+        assert str(err.value) == (
+            f"timestamp: is {gap:g} s after the tracks' time, but this manager plans epochs "
+            f"of steps_per_epoch x dt = {steps}{e} s: give the end of the first epoch, the "
+            f"tracks' time + {e} s{fix}")
+        assert manager.last_result is None                  # nothing was planned
+    (config,) = manager.choose_actions(tracks, T0 + datetime.timedelta(seconds=e))
+    assert len(config) == 4 and manager.last_result is not None
+    # With dt = 10 s the 10 s gap is one epoch (e = 1): the manager plans 10 s steps.
+    slow = ss.SensorplanManager(platforms=_platforms(positions, headings), dt=10.0 / e,
+                                steps_per_epoch=e, rng=0)
+    slow.choose_actions(tracks, T0 + datetime.timedelta(seconds=10))
+    assert slow.last_problem is not None and slow.last_problem.dt == 10.0 / e
+
+
 # ------------------------------------------------------------------- Stone Soup YAML
 
 
