@@ -460,6 +460,64 @@ def test_mi_reward_equals_the_potential_of_the_equivalent_plan(rng):
     assert checked == 100 and nonzero >= 10
 
 
+def test_stonesoups_expected_kl_divergence_with_our_radar_is_kl_of_prior_to_posterior(rng):
+    """What docs/stonesoup.md says Stone Soup's own information reward computes with our
+    radar and Gaussian tracks: for every track whose predicted mean is in a radar's field of
+    view (all of them, not only the aimed one), KL(prediction || update) at a noise-free
+    measurement at that mean, 0.5 (log det P+ - log det P- - n + tr(P+^-1 P-)), which is not
+    the mutual information 0.5 log det P- / det P+ of our potential. One platform, so the
+    order of Stone Soup's set of sensors cannot matter."""
+    import copy
+
+    from stonesoup.sensormanager.reward import ExpectedKLDivergence
+
+    from radar_reference import visible as ref_visible
+
+    q = 0.05
+    F, Q = cv_matrices(1.0, q)
+    predictor, updater = ExtendedKalmanPredictor(_transition(q)), ExtendedKalmanUpdater(None)
+    reward = ExpectedKLDivergence(predictor=predictor, updater=updater)
+    t1 = T0 + datetime.timedelta(seconds=1)
+    checked = several = 0
+    for _ in range(30):
+        means, covs, positions, headings = _decision(rng, n_sensors=1, n_targets=4)
+        covs = np.stack([_covariance(rng) for _ in range(4)])
+        (platform,) = _platforms(positions, headings)
+        radar = platform.sensors[0]
+        tracks = ss.to_tracks(means, covs, T0)
+        ss.set_aim_candidates([radar], tracks, 1.0)
+        (mg,), (ag,) = platform.actions(t1), radar.actions(t1)
+        move = list(mg)[rng.integers(len(list(mg)))]
+        aim = list(ag)[rng.integers(4)]
+        config = {platform: (move,), radar: (aim,)}
+        value = reward(config, set(tracks), t1)
+        # Independently: act a copy, predict with the core's filter, test the field of view
+        # with the reference model, update with the core's EKF at z = h(predicted mean).
+        acted = copy.deepcopy(platform)
+        acted.add_actions([move])
+        acted.act(t1)
+        seen = acted.sensors[0]
+        seen.add_actions([aim])
+        seen.act(t1)
+        xy, heading = seen.ground_position, seen.heading
+        xp, Pp = ekf.predict(means, covs, F, Q)
+        expected, in_view = 0.0, 0
+        for j in range(4):
+            if not ref_visible(xp[j], xy, heading, radar.params):
+                continue
+            z = measure(xp[j], xy, radar.params.altitude)
+            _, P1 = ekf.update(xp[j:j + 1], Pp[j:j + 1], z[None], xy[None],
+                               np.array([heading]), radar_table(radar.params))
+            a, b = Pp[j], P1[0]
+            expected += 0.5 * (np.linalg.slogdet(b)[1] - np.linalg.slogdet(a)[1] - 4
+                               + np.trace(np.linalg.solve(b, a)))
+            in_view += 1
+        assert value == pytest.approx(expected, rel=1e-7, abs=1e-9)
+        checked += 1
+        several += in_view >= 2
+    assert checked == 30 and several >= 3
+
+
 def test_stonesoup_brute_force_with_the_mi_reward_finds_our_optimum(rng):
     from stonesoup.sensormanager import BruteForceSensorManager, GreedySensorManager
 
