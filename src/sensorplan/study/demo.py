@@ -55,7 +55,8 @@ PAPER_DEMO_STUDY = '''\
 # miss updates), a few short paired runs, the paper's planners plus the references. Under
 # two minutes on 2 cores, report included:
 #   sensorplan demo --scenario paper             (writes out/demo-paper)
-#   sensorplan study studies/demo_paper.toml --out out/demo-paper && sensorplan report out/demo-paper
+#   sensorplan study studies/demo_paper.toml --out out/demo-paper
+#   sensorplan report out/demo-paper
 description = "Demo: the paper scenario with our defaults, 12 short paired runs"
 runs = 12
 steps = 60
