@@ -4,10 +4,16 @@ Both parts run in one process on the same scenario: the paper's world (600 m map
 20/40 m, radars at 490/500/510 m, M = 5 targets), Stone Soup's own tracking types, our radar
 as a Stone Soup sensor (``sensorplan.integrations.stonesoup``).
 
+Stone Soup's managers run with two rewards:
+:class:`~sensorplan.integrations.stonesoup.MutualInformationReward` (the bridge's; Stone
+Soup's predictor and updater on our measurement model; the same objective as ours) and
+Stone Soup's own ``ExpectedKLDivergence`` (methods marked EKL; another objective: it counts
+every track in a radar's field of view and scores KL(prediction || update), see
+docs/stonesoup.md).
+
 **One decision** (K = 1, e = 1, ``visibility = "mean"``), N = 1, 2, 3 platforms, several
 random instances: Stone Soup's ``BruteForceSensorManager`` and ``GreedySensorManager`` with
-:class:`~sensorplan.integrations.stonesoup.MutualInformationReward` (Stone Soup's predictor and
-updater on our measurement model; the same objective as ours) against our ``brute-force`` and
+either reward against our ``brute-force`` and
 ``pg`` behind :class:`~sensorplan.integrations.stonesoup.SensorplanManager`. Measured: wall
 and CPU time of ``choose_actions`` and the chosen joint action's information, evaluated by one
 evaluator, :func:`sensorplan.planners.information.potential`, on the equivalent plan (the mapping
@@ -22,7 +28,7 @@ N = 3 runs check it). Instances are the first seeds (from 1000) where a look can
 **Closed loop**, ``--seeds`` runs of ``--steps`` steps (paper scenario, common random numbers
 per seed: the same truth, initial estimates and measurement noise for every method; Stone
 Soup EKF tracks; a missed look changes nothing, as in Stone Soup): Stone Soup greedy and MCTS
-(``MonteCarloTreeSearchSensorManager``, its defaults: 100 iterations) with the MI reward,
+(``MonteCarloTreeSearchSensorManager``, its defaults: 100 iterations) with either reward,
 against ``pg`` with K = 1 and K = 3 (OLF, decide every step; our default probabilistic
 visibility) and ``pg`` K = 1 with ``visibility = "mean"`` (the objective Stone Soup's reward
 computes). Reported: position RMSE (mean over runs with a 95 % t-interval, median, share of
@@ -33,7 +39,7 @@ Run::
 
     .venv/bin/python benchmarks/vs_stonesoup.py [--part all|decision|closed] [--instances 3]
         [--seeds 10] [--steps 50] [--sample 1000] [--out out/vs_stonesoup]
-        [--figures docs/figures]
+        [--figures docs/figures] [--closed-methods NAME,NAME,...]
 
 Other processes share the machine's 2 cores: CPU time (``time.process_time``) is reported
 next to wall time.
