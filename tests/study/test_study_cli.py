@@ -193,3 +193,8 @@ def test_real_demo(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     assert code == 0, err
     assert (tmp_path / "demo" / "report" / "report.html").exists()
     assert "report:" in stdout
+    # The shipped demo's verdict, as docs/results.md section 10 reports it for its seed
+    # (runs are the same for any worker count, so this is the run a user gets).
+    summary = (tmp_path / "demo" / "report" / "summary.md").read_text()
+    assert "**Lookahead paid:**" in summary
+    assert "OLF pg K=3 \u2212 myopic = -3.8 m [-7.4, -0.2]" in summary
