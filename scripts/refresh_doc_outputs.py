@@ -21,6 +21,9 @@ Options of a checked block, after ``checked`` and separated by ``;``:
 ``given: FILE``
     FILE is an input the block shows with ``$ cat FILE``: it is written from that output
     before the commands run.
+``needs: MODULE``
+    the commands import an optional dependency (``stonesoup``): the test skips the block,
+    with that reason, where it is not installed.
 
 How a block runs. All its commands run in one ``bash``, in order, in an empty temporary
 directory that links the repository's ``examples``, ``configs`` and ``studies``, with
@@ -201,8 +204,8 @@ def marker_problem(block: Block) -> str | None:
         return "shows a command's output but has no marker" if block.shows_output else None
     if block.checked:
         for key, values in block.options.items():
-            if key not in ("times", "given"):
-                return f"unknown option {key!r} (times, given)"
+            if key not in ("times", "given", "needs"):
+                return f"unknown option {key!r} (times, given, needs)"
             if key == "times":
                 for v in values:
                     try:

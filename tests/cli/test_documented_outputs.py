@@ -49,6 +49,8 @@ def test_excluded_outputs_say_when_they_were_measured_and_why() -> None:
 
 @pytest.mark.parametrize("block", CHECKED, ids=[b.name for b in CHECKED])
 def test_documented_output_is_what_the_command_prints(block) -> None:
+    for module in block.options.get("needs", []):
+        pytest.importorskip(module, reason=f"{block.name} runs {module}, not installed")
     problems = docs.compare(block, docs.run_block(block))
     assert not problems, f"{block.name}: stale; {HINT}:\n" + "\n".join(problems)
 
