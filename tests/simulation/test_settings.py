@@ -237,7 +237,11 @@ def test_the_size_limits_name_each_setting_as_its_input_spells_it() -> None:
 
 
 def test_unused_names_what_the_tracker_ignores() -> None:
-    assert TrackerSettings().unused() == ("process_noise",)
-    assert TrackerSettings(model="cv").unused() == ("mode_process_noise", "switching")
+    from sensorplan.simulation.settings import MULTI_TARGET_SETTINGS as MT
+
+    assert TrackerSettings().unused() == ("process_noise", *MT)
+    assert TrackerSettings(model="cv").unused() == ("mode_process_noise", "switching", *MT)
     assert TrackerSettings(gate=False, reacquire=False).unused() == ("process_noise",
-                                                                      "gate_probability")
+                                                                      "gate_probability", *MT)
+    assert "births" not in TrackerSettings(kind="pmb").unused()
+    assert "model" in TrackerSettings(kind="pmb").unused()

@@ -105,6 +105,11 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
     return field(default=default, default_factory=default_factory, metadata=meta)
 
 
+#: The settings only a multi-target tracker reads.
+MULTI_TARGET_SETTINGS = ("births", "birth_rate", "survival_probability", "report_threshold",
+                         "prune_threshold", "grid_resolution")
+
+
 def _births() -> tuple[str, ...]:
     from ..models.population import BIRTHS
 
@@ -395,10 +400,15 @@ class TrackerSettings(_Settings):
     def unused(self) -> tuple[str, ...]:
         """The settings that change nothing with the others as they are: the cv filter's q
         (``process_noise``) with the IMM, the IMM's q's and switching with cv, the gate
-        probability without the gate. (A run's header leaves them out.)"""
+        probability without the gate, a multi-target tracker's settings with the tracker of
+        known targets and that tracker's with a multi-target one. (A run's header leaves
+        them out.)"""
+        if self.kind != "known":               # a multi-target tracker: cv, its own births
+            return ("miss_update", "model", "mode_process_noise", "switching", "gate",
+                    "reacquire", "association", "known_map")
         out = ("process_noise",) if self.model == "imm" else ("mode_process_noise",
                                                               "switching")
-        return out + (() if self.gate else ("gate_probability",))
+        return out + (() if self.gate else ("gate_probability",)) + MULTI_TARGET_SETTINGS
 
     def tracker_options(self) -> dict[str, Any]:
         """Keyword arguments of :class:`sensorplan.tracking.tracker.KnownTargetTracker` for
