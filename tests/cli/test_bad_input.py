@@ -1102,3 +1102,24 @@ def test_an_integer_no_float_can_hold_in_planner_settings_is_one_line(capsys, tm
     # an integer that fits is still a number of its own
     doc["planner"] = {"name": "dec-jsfp", "comm_range": 10 ** 300, "rounds": 2}
     assert plan(capsys, tmp_path, doc)[0] == 0
+
+
+def test_a_ctrl_c_before_the_commands_own_handling_is_one_line(monkeypatch, capsys) -> None:
+    # The window between the launcher's imports and the command's try block: a Ctrl-C
+    # there once printed a traceback (seen under load on a fresh clone).
+    from sensorplan.cli import app, launch
+
+    def interrupted(argv=None):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(app, "main", interrupted)
+    monkeypatch.setattr(sys, "argv", ["sensorplan", "--version"])
+    old_int, old_term = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
+    try:
+        with pytest.raises(SystemExit) as info:
+            launch.main()
+    finally:
+        signal.signal(signal.SIGINT, old_int)
+        signal.signal(signal.SIGTERM, old_term)
+    assert info.value.code == 130
+    assert capsys.readouterr().err == "error: interrupted\n"
