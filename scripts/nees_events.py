@@ -144,7 +144,8 @@ def _truth_in_view(ep: Any, table: np.ndarray) -> np.ndarray:
 def _position_nees(ep: Any) -> np.ndarray:
     """NEES of the ground position alone (chi-square(2) for an honest filter), ``(S+1, M)``."""
     d = ep.truth[..., :2] - ep.estimate[..., :2]
-    return np.einsum("...i,...i->...", d, np.linalg.solve(ep.cov[..., :2, :2], d[..., None])[..., 0])
+    w = np.linalg.solve(ep.cov[..., :2, :2], d[..., None])[..., 0]
+    return np.einsum("...i,...i->...", d, w)
 
 
 def collect(study_path: str, method: str, runs: int, seed: int, assignments: list[str],

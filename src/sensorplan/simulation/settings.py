@@ -388,6 +388,11 @@ class TrackerSettings(_Settings):
     known_map: bool = setting(
         True, section="tracker", cli=("--known-map/--no-known-map",), label="known map",
         help="Truncate a track that leaves the map to the map (targets never leave it).")
+    known_buildings: bool = setting(
+        True, section="tracker", cli=("--known-buildings/--no-known-buildings",),
+        label="known buildings",
+        help="Restrict a track that reaches into a building to the outside of the "
+             "buildings (targets never enter one).")
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -407,7 +412,8 @@ class TrackerSettings(_Settings):
                     mode_process_noise=self.mode_process_noise if imm else None,
                     switching=np.array(self.switching) if imm else None,
                     gate_probability=self.gate_probability if self.gate else None,
-                    reacquire=self.reacquire, association=self.association)
+                    reacquire=self.reacquire, association=self.association,
+                    known_buildings=self.known_buildings)
 
 
 @dataclass(frozen=True)
