@@ -32,7 +32,8 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
                      "tracker.miss_update", "tracker.model", "tracker.process_noise",
                      "tracker.mode_process_noise", "tracker.switching", "tracker.gate",
                      "tracker.gate_probability", "tracker.reacquire", "tracker.association",
-                     "tracker.known_map", "tracker.known_buildings"]
+                     "tracker.known_map", "tracker.known_buildings",
+                     "tracker.reflect_walls"]
 
 
 @pytest.mark.parametrize("cls,path,f,s", DECLARED, ids=[d[1] for d in DECLARED])

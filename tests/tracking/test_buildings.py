@@ -204,3 +204,19 @@ def test_without_buildings_the_option_changes_nothing(known):
         t.predict()
     np.testing.assert_array_equal(a.means, b.means)
     np.testing.assert_array_equal(a.covs, b.covs)
+
+
+def test_with_reflect_walls_a_track_turns_at_the_map_wall_as_the_target_does():
+    """The map's walls, with ``reflect_walls``: a nearly certain track 2 m before the east
+    wall at 5 m/s comes back 3 m inside with its velocity reversed; without the option the
+    known map only truncates it (it stays at the wall, still heading out)."""
+    m = np.array([[598.0, 300.0, 5.0, 0.0]])
+    P = np.diag([1e-4, 1e-4, 1e-6, 1e-6])[None]
+    for reflect in (True, False):
+        t = KnownTargetTracker(m, P, 1.0, radar_table((PARAMS,)), process_noise=1e-6,
+                               world=(600.0, 600.0), reflect_walls=reflect)
+        t.predict()
+        if reflect:
+            np.testing.assert_allclose(t.means[0], [597.0, 300.0, -5.0, 0.0], atol=1e-3)
+        else:
+            assert t.means[0, 0] <= 600.0 and t.means[0, 2] > 4.0

@@ -393,6 +393,11 @@ class TrackerSettings(_Settings):
         label="known buildings",
         help="Restrict a track that reaches into a building to the outside of the "
              "buildings (targets never enter one).")
+    reflect_walls: bool = setting(
+        False, section="tracker", cli=("--reflect-walls/--no-reflect-walls",),
+        label="reflect walls",
+        help="Predict the part of a track that leaves the map reflected off its walls, as "
+             "targets are (needs known_map).")
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -413,7 +418,7 @@ class TrackerSettings(_Settings):
                     switching=np.array(self.switching) if imm else None,
                     gate_probability=self.gate_probability if self.gate else None,
                     reacquire=self.reacquire, association=self.association,
-                    known_buildings=self.known_buildings)
+                    known_buildings=self.known_buildings, reflect_walls=self.reflect_walls)
 
 
 @dataclass(frozen=True)

@@ -484,3 +484,45 @@ def _reflected_moments(means: FloatArray, chol: FloatArray, inside: BoolArray, x
     d = pts - mean[:, None, :]
     cov = np.einsum("bs,bsi,bsj->bij", keep, d, d) / safe[:, None, None]
     return mean, 0.5 * (cov + np.swapaxes(cov, -1, -2)), n.astype(np.int64)
+
+
+def map_reflection(means: FloatArray, covs: FloatArray, width: float, height: float, *,
+                   points: FloatArray | None = None, n_sigma: float = N_SIGMA
+                   ) -> tuple[FloatArray, FloatArray, BoolArray]:
+    r"""Predicted tracks after the map's walls, as the targets meet them.
+
+    Targets reflect off the walls of ``[0, W] x [0, H]``: a position that left the map is
+    mirrored back in and that velocity component reverses
+    (:func:`sensorplan.models.truth.mirror`, the targets' own rule). Each track whose mean
+    or ``n_sigma`` box leaves the map is replaced by the moments of its quadrature points
+    (the missed-look update's 512) after that rule; the mass is kept, so the result is on
+    the map with the reflected part's velocities reversed. Tracks inside are untouched.
+
+    Returns
+    -------
+    means : (..., 4);  covs : (..., 4, 4);  applied : (...) bool
+    """
+    from ..models.truth import mirror
+    from .missed import _point_set
+
+    x, _ = _point_set(points)
+    means = np.asarray(means, dtype=float)
+    shape = means.shape[:-1]
+    m = np.array(means, dtype=float).reshape(-1, 4)
+    P = np.array(np.broadcast_to(covs, shape + (4, 4)), dtype=float).reshape(-1, 4, 4)
+    applied = outside(m, P, width, height, n_sigma)
+    rows = np.flatnonzero(applied)
+    if rows.size:
+        L = np.linalg.cholesky(P[rows])
+        pts = m[rows, None, :] + np.einsum("bij,sj->bsi", L, x)                # (B, S, 4)
+        folded, flipped = mirror(pts[..., :2], np.array([width, height]))
+        moved = (folded != pts[..., :2]).any(axis=(1, 2))
+        pts[..., :2] = folded
+        pts[..., 2:] = np.where(flipped, -pts[..., 2:], pts[..., 2:])
+        mean = pts.mean(axis=1)
+        d = pts - mean[:, None, :]
+        cov = np.einsum("bsi,bsj->bij", d, d) / pts.shape[1]
+        r = rows[moved]
+        m[r], P[r] = mean[moved], 0.5 * (cov[moved] + np.swapaxes(cov[moved], -1, -2))
+        applied[rows[~moved]] = False
+    return m.reshape(shape + (4,)), P.reshape(shape + (4, 4)), applied.reshape(shape)

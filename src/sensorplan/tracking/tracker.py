@@ -55,7 +55,7 @@ from .association import ASSOCIATIONS, GATE_DOF, gate_threshold, pda_update
 from .base import Looks, TrackSet, UpdateRecord
 from .ekf import innovations, mahalanobis2, position_update, update, update_rounds
 from .imm import ModeMixture, stationary
-from .known_map import building_constraint, map_constraint
+from .known_map import building_constraint, map_constraint, map_reflection
 
 __all__ = ["ASSOCIATIONS", "KnownTargetTracker", "LookResults", "SetResults", "gate_threshold",
            "stationary"]
@@ -129,6 +129,9 @@ class KnownTargetTracker(ModeMixture):
     known_buildings : bool
         Restrict the tracks to the outside of the buildings' footprints after every
         predict and update (targets never enter a building); needs ``buildings``.
+    reflect_walls : bool
+        After every predict, reflect the part of each track that left the map off its walls
+        (as the targets are) before the map's truncation; needs ``world``.
     restart_velocity_var : (2,)
         Velocity variances (m^2/s^2) of a restarted track.
     miss_update : callable, optional
@@ -142,6 +145,7 @@ class KnownTargetTracker(ModeMixture):
                  reacquire: bool = False, association: str = "pda",
                  world: tuple[float, float] | None = None,
                  buildings: FloatArray | None = None, known_buildings: bool = False,
+                 reflect_walls: bool = False,
                  restart_velocity_var: tuple[float, float] = (4.0, 4.0),
                  miss_update: Callable[..., Any] | None = None) -> None:
         super().__init__(means, covs, dt, process_noise=process_noise,
@@ -159,6 +163,7 @@ class KnownTargetTracker(ModeMixture):
         self.buildings = None if buildings is None or len(buildings) == 0 else np.asarray(
             buildings, dtype=float).reshape(-1, 5)
         self.known_buildings = bool(known_buildings) and self.buildings is not None
+        self.reflect_walls = bool(reflect_walls) and world is not None
         self.restart_velocity_var = np.asarray(restart_velocity_var, dtype=float)
         self.miss_update = miss_update
         # A look at target j returns j's detection only, when no sensor misses a target in
@@ -226,8 +231,23 @@ class KnownTargetTracker(ModeMixture):
         (M,) bool: tracks the map constraint corrected.
         """
         self.predict_modes()
-        hit = self.apply_map()
+        hit = self.reflect_off_map()
+        hit |= self.apply_map()
         return hit | self.apply_buildings(reflect_dt=self.dt)
+
+    def reflect_off_map(self) -> BoolArray:
+        """Reflect the modes that left the map off its walls (no-op unless
+        ``reflect_walls``)."""
+        M = len(self.means)
+        if not self.reflect_walls:
+            return np.zeros(M, dtype=bool)
+        assert self.world is not None
+        m, P, applied = map_reflection(self.mode_means, self.mode_covs, *self.world)
+        hit = np.asarray(applied.any(axis=1))
+        if hit.any():
+            self.mode_means, self.mode_covs = m, P
+            self.combine(np.flatnonzero(hit))
+        return hit
 
     def apply_map(self) -> BoolArray:
         """Truncate the modes that leave the map to it (no-op without a map)."""
