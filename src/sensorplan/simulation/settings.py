@@ -389,10 +389,10 @@ class TrackerSettings(_Settings):
         True, section="tracker", cli=("--known-map/--no-known-map",), label="known map",
         help="Truncate a track that leaves the map to the map (targets never leave it).")
     known_buildings: bool = setting(
-        True, section="tracker", cli=("--known-buildings/--no-known-buildings",),
+        False, section="tracker", cli=("--known-buildings/--no-known-buildings",),
         label="known buildings",
-        help="Restrict a track that reaches into a building to the outside of the "
-             "buildings (targets never enter one).")
+        help="Keep tracks out of the buildings (targets never enter one) and predict them "
+             "turning at the walls, as targets do.")
     reflect_walls: bool = setting(
         False, section="tracker", cli=("--reflect-walls/--no-reflect-walls",),
         label="reflect walls",
