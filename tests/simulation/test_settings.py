@@ -35,7 +35,8 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
                      "tracker.process_noise",
                      "tracker.mode_process_noise", "tracker.switching", "tracker.gate",
                      "tracker.gate_probability", "tracker.reacquire", "tracker.association",
-                     "tracker.known_map", "tracker.births", "tracker.birth_rate",
+                     "tracker.known_map", "tracker.known_buildings",
+                     "tracker.reflect_walls", "tracker.births", "tracker.birth_rate",
                      "tracker.survival_probability", "tracker.report_threshold",
                      "tracker.prune_threshold", "tracker.grid_resolution"]
 

@@ -361,6 +361,14 @@ class TrackerSettings(_Settings):
         True, section="tracker", cli=("--known-map/--no-known-map",), label="known map",
         brief="Keep tracks inside the map",
         help="Truncate a track that leaves the map to the map (targets never leave it).")
+    known_buildings: bool = setting(
+        False, section="tracker", label="known buildings",
+        help="Keep tracks out of the buildings (targets never enter one) and predict them "
+             "turning at the walls, as targets do.")
+    reflect_walls: bool = setting(
+        False, section="tracker", label="reflect walls",
+        help="Predict the part of a track that leaves the map reflected off its walls, as "
+             "targets are (needs known_map).")
     births: str = setting(
         "edges", section="tracker", label="tracker births", choices=lambda: _births(),
         noun="births",
@@ -405,7 +413,8 @@ class TrackerSettings(_Settings):
         them out.)"""
         if self.kind != "known":               # a multi-target tracker: cv, its own births
             return ("miss_update", "model", "mode_process_noise", "switching", "gate",
-                    "reacquire", "association", "known_map")
+                    "reacquire", "association", "known_map", "known_buildings",
+                    "reflect_walls")
         out = ("process_noise",) if self.model == "imm" else ("mode_process_noise",
                                                               "switching")
         return out + (() if self.gate else ("gate_probability",)) + MULTI_TARGET_SETTINGS
@@ -420,7 +429,8 @@ class TrackerSettings(_Settings):
                     mode_process_noise=self.mode_process_noise if imm else None,
                     switching=np.array(self.switching) if imm else None,
                     gate_probability=self.gate_probability if self.gate else None,
-                    reacquire=self.reacquire, association=self.association)
+                    reacquire=self.reacquire, association=self.association,
+                    known_buildings=self.known_buildings, reflect_walls=self.reflect_walls)
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,10 @@ Bar-Shalom 1988). The options, each switchable:
   :math:`J R J^T` (:func:`sensorplan.models.radar.inverse`), velocity mean zero with the initial
   velocity variances, no cross-covariance, IMM mode probabilities at their initial values.
 - **The known map** (:mod:`sensorplan.tracking.known_map`): after the predict and after the updates,
-  every mode whose mean or 3-sigma box leaves the map is truncated to the map.
+  every mode whose mean or 3-sigma box leaves the map is truncated to the map, and (known
+  buildings) every mode whose 3-sigma box reaches into a building is restricted to the
+  outside of the footprints: no target is ever inside one, and a look can never show that
+  it is not there (a building hides its own footprint from every sensor).
 - **Missed looks** (:mod:`sensorplan.tracking.missed`): a look that missed applies its negative
   information to every mode; an IMM mode's likelihood of the miss is the probability mass it
   puts outside the sensing region.
@@ -52,7 +55,7 @@ from .association import ASSOCIATIONS, GATE_DOF, gate_threshold, pda_update
 from .base import Looks, TrackSet, UpdateRecord
 from .ekf import innovations, mahalanobis2, position_update, update, update_rounds
 from .imm import ModeMixture, stationary
-from .known_map import map_constraint
+from .known_map import building_constraint, map_constraint, map_reflection
 
 __all__ = ["ASSOCIATIONS", "KnownTargetTracker", "LookResults", "SetResults", "gate_threshold",
            "stationary"]
@@ -123,6 +126,12 @@ class KnownTargetTracker(ModeMixture):
     buildings : (K, 5), optional
         Buildings ``x0, y0, x1, y1, height`` that can hide targets: a missed look learns
         nothing about the places they hide.
+    known_buildings : bool
+        Restrict the tracks to the outside of the buildings' footprints after every
+        predict and update (targets never enter a building); needs ``buildings``.
+    reflect_walls : bool
+        After every predict, reflect the part of each track that left the map off its walls
+        (as the targets are) before the map's truncation; needs ``world``.
     restart_velocity_var : (2,)
         Velocity variances (m^2/s^2) of a restarted track.
     miss_update : callable, optional
@@ -139,7 +148,8 @@ class KnownTargetTracker(ModeMixture):
                  switching: FloatArray | None = None, gate_probability: float | None = None,
                  reacquire: bool = False, association: str = "pda",
                  world: tuple[float, float] | None = None,
-                 buildings: FloatArray | None = None,
+                 buildings: FloatArray | None = None, known_buildings: bool = False,
+                 reflect_walls: bool = False,
                  restart_velocity_var: tuple[float, float] = (4.0, 4.0),
                  miss_update: Callable[..., Any] | None = None,
                  detects_all: bool = False) -> None:
@@ -157,6 +167,8 @@ class KnownTargetTracker(ModeMixture):
         self.world = world
         self.buildings = None if buildings is None or len(buildings) == 0 else np.asarray(
             buildings, dtype=float).reshape(-1, 5)
+        self.known_buildings = bool(known_buildings) and self.buildings is not None
+        self.reflect_walls = bool(reflect_walls) and world is not None
         self.restart_velocity_var = np.asarray(restart_velocity_var, dtype=float)
         self.miss_update = miss_update
         # A look at target j returns j's detection only, when no sensor misses a target in
@@ -210,6 +222,10 @@ class KnownTargetTracker(ModeMixture):
             restarted[aims[i][one.restarted]] = True
             corrected |= one.map_corrected
             used[i], discarded[i] = one.used, one.gated_out
+        # A missed look has conditioned on the footprints already (jointly with the miss);
+        # a detection can move a track into a building.
+        if i.size:
+            corrected |= self.apply_buildings(targets=np.unique(aims[i]))
         return UpdateRecord(negative, inflated, restarted, corrected, used, discarded,
                             gated_out)
 
@@ -225,7 +241,23 @@ class KnownTargetTracker(ModeMixture):
         (M,) bool: tracks the map constraint corrected.
         """
         self.predict_modes()
-        return self.apply_map()
+        hit = self.reflect_off_map()
+        hit |= self.apply_map()
+        return hit | self.apply_buildings(reflect_dt=self.dt)
+
+    def reflect_off_map(self) -> BoolArray:
+        """Reflect the modes that left the map off its walls (no-op unless
+        ``reflect_walls``)."""
+        M = len(self.means)
+        if not self.reflect_walls:
+            return np.zeros(M, dtype=bool)
+        assert self.world is not None
+        m, P, applied = map_reflection(self.mode_means, self.mode_covs, *self.world)
+        hit = np.asarray(applied.any(axis=1))
+        if hit.any():
+            self.mode_means, self.mode_covs = m, P
+            self.combine(np.flatnonzero(hit))
+        return hit
 
     def apply_map(self) -> BoolArray:
         """Truncate the modes that leave the map to it (no-op without a map)."""
@@ -239,6 +271,30 @@ class KnownTargetTracker(ModeMixture):
             idx = np.flatnonzero(hit)
             self.reweight(idx, log_mass[idx])
             self.combine(idx)
+        return hit
+
+    def apply_buildings(self, reflect_dt: float | None = None,
+                        targets: IntArray | None = None) -> BoolArray:
+        """Restrict the modes of ``targets`` (default all) that reach into a building to
+        the outside of the footprints (no-op without known buildings); with ``reflect_dt``
+        (after a predict) the points that entered a building during the step are reflected
+        at its walls first, as the targets are. Returns the tracks it changed ``(M,)``."""
+        M = len(self.means)
+        hit = np.zeros(M, dtype=bool)
+        if not self.known_buildings:
+            return hit
+        assert self.buildings is not None
+        rows = np.arange(M) if targets is None else np.asarray(targets, dtype=np.int64)
+        m, P, applied, log_mass = building_constraint(self.mode_means[rows],
+                                                      self.mode_covs[rows], self.buildings,
+                                                      reflect_dt=reflect_dt)
+        changed = np.asarray(applied.any(axis=1))
+        if changed.any():
+            idx = rows[changed]
+            self.mode_means[idx], self.mode_covs[idx] = m[changed], P[changed]
+            self.reweight(idx, log_mass[changed])
+            self.combine(idx)
+            hit[idx] = True
         return hit
 
     # ---------------------------------------------------------------- missed looks
@@ -273,6 +329,8 @@ class KnownTargetTracker(ModeMixture):
                 "gate_probability": self.gate_probability}
             if self.buildings is not None:
                 gate_kw["buildings"] = self.buildings
+                if self.known_buildings:
+                    gate_kw["footprints"] = self.buildings
             if self.n_modes == 1:
                 m, P, infl = kernel(self.mode_means[j, 0], self.mode_covs[j, 0], sensor_xy[rnd],
                                     heading[rnd], self.table, i, **gate_kw)
