@@ -1102,3 +1102,22 @@ def test_an_integer_no_float_can_hold_in_planner_settings_is_one_line(capsys, tm
     # an integer that fits is still a number of its own
     doc["planner"] = {"name": "dec-jsfp", "comm_range": 10 ** 300, "rounds": 2}
     assert plan(capsys, tmp_path, doc)[0] == 0
+
+
+@pytest.mark.parametrize("command", ["simulate", "agents"])
+def test_a_flag_given_a_value_after_the_scenario_file_names_the_value(capsys, tmp_path,
+                                                                       command) -> None:
+    # "simulate FILE --gate false": with the file given, the flag's "false" is an extra
+    # argument, which ended as "error: usage: Got unexpected extra argument(s) (false)".
+    line = assert_bad_input(run(capsys, command, QUICK, "--gate", "false", "--steps", "1",
+                                "--out", tmp_path / "o"), "false")
+    assert line == ("error: false: unexpected extra argument (a flag such as --gate takes no "
+                    "value: write --gate or --no-gate, not --gate false)")
+
+
+def test_an_extra_argument_is_named(capsys, tmp_path) -> None:
+    decision = ROOT / "examples" / "problem.json"
+    line = assert_bad_input(run(capsys, "plan", decision, "second.json"), "second.json")
+    assert line == "error: second.json: unexpected extra argument (plan takes one file)"
+    line = assert_bad_input(run(capsys, "study", tmp_path / "a.toml", "b c", "d"), "b c")
+    assert line == "error: b c: unexpected extra argument (study takes one file)"
