@@ -13,6 +13,7 @@ from __future__ import annotations
 import copy
 import json
 import math
+import re
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -64,6 +65,101 @@ STUDY_DOC: dict[str, Any] = {
                 {"name": "pg", "planner": "pg", "horizon": 1,
                  "planner_params": {"max_inner": 10, "max_outer": 3}}],
 }
+
+# Documents that also use the keys added since (births and deaths, scripted truths, the
+# tracker's kind, headings in degrees, detection and clutter, buildings, the decentralized
+# planners' settings), each valid as it stands.
+
+PLAN_DOC_NEW: dict[str, Any] = {
+    **PLAN_DOC, "planning_detection": "aware",
+    "sensors": [{**PLAN_DOC["sensors"][0], "detection": "swerling1",
+                 "false_alarm_probability": 1e-4, "clutter_rate": 0.5},
+                {"position": [500, 300], "heading_deg": 170, "altitude": 490,
+                 "fov_half_angle_deg": 30, "max_turn_deg": 45}],
+    "buildings": [{"box": [250, 250, 300, 300], "height": 60},
+                  {"box": [350, 100, 400, 150], "height": 30}],
+    "planner": {"name": "pg", "max_inner": 10, "max_outer": 3, "seed": 2},
+}
+
+SCENARIO_DOC_NEW: dict[str, Any] = {
+    "dt": 1.0, "process_noise": 0.05,
+    "births": "none", "birth_rate": 0.0, "survival_probability": 1.0, "initial_targets": 2,
+    "map": {"width": 600.0, "height": 600.0},
+    "initial": {"target_box": [100.0, 500.0], "speed_range": [3.0, 6.0]},
+    "planning": {"planner": "pg", "horizon": 1, "steps_per_epoch": 1,
+                 "planning_detection": "aware", "planning_occlusion": "aware",
+                 "planner_params": {"max_inner": 10}},
+    "tracker": {"kind": "known", "miss_update": "negative", "model": "imm",
+                "association": "pda", "gate": True, "reacquire": False},
+    "run": {"steps": 3, "seed": 1},
+    "targets": [{"kind": "cv", "position": [300.0, 250.0], "speed": 4.0, "heading_deg": 30.0},
+                {"kind": "dubins", "turn_hold": 10.0, "max_turn_rate_deg": 6.0}],
+    "sensors": [{"altitude": 490.0, "position": [100.0, 100.0], "heading_deg": 45.0,
+                 "detection": "swerling1", "false_alarm_probability": 1e-4,
+                 "clutter_rate": 0.5},
+                {"altitude": 510.0, "max_turn": 0.78, "depression_deg": 40.0}],
+    "buildings": [{"box": [400.0, 400.0, 450.0, 450.0], "height": 40.0}],
+}
+
+#: A scenario whose targets are born and die (refused by the tracker of known targets, the
+#: only kind so far: the error must name what to change).
+SCENARIO_DOC_BIRTHS: dict[str, Any] = {
+    **SCENARIO_DOC_NEW, "births": "edges", "birth_rate": 0.2, "survival_probability": 0.98,
+    "initial_targets": 1,
+}
+
+#: A published benchmark's scripted truth: its map and dt, no [[targets]].
+SCENARIO_DOC_SCRIPTED: dict[str, Any] = {
+    "scripted": "williams15", "dt": 1.0, "map": {"width": 300.0, "height": 300.0},
+    "run": {"steps": 3, "seed": 2}, "tracker": {"kind": "known"},
+    "sensors": [{"altitude": 300.0, "heading_deg": 10.0, "min_ground_range": 50.0,
+                 "max_ground_range": 250.0}],
+}
+
+#: A scenario for ``sensorplan agents``: a decentralized planner and its link settings.
+AGENTS_DOC: dict[str, Any] = {
+    **SCENARIO_DOC_NEW,
+    "planning": {"planner": "dec-jsfp", "horizon": 1,
+                 "planner_params": {"rounds": 30, "p_loss": 0.1, "delay": 1,
+                                    "comm_range": 400.0, "mode": "jsfp"}},
+}
+
+STUDY_DOC_NEW: dict[str, Any] = {
+    "description": "fuzz", "runs": 1, "steps": 2, "seed": 3,
+    "scenario": {"preset": "radar"},
+    "defaults": {"steps_per_epoch": 1, "planning_detection": "aware",
+                 "tracker": {"kind": "known", "miss_update": "none", "model": "cv"}},
+    "methods": [{"name": "rnd", "planner": "random"},
+                {"name": "seq", "planner": "dec-sequential",
+                 "planner_params": {"p_loss": 0.1, "comm_range": 300.0},
+                 "tracker": {"association": "nearest"}}],
+}
+
+GRID_DOC: dict[str, Any] = {
+    "description": "fuzz grid", "runs": 1, "steps": 2, "seed": 5, "design": "star",
+    "scenario": {"preset": "radar"},
+    "defaults": {"steps_per_epoch": 1, "tracker": {"kind": "known"}},
+    "axes": [{"feature": "clutter_rate", "values": [0.0, 1.0], "base": 0.0},
+             {"feature": "setting", "key": "planner_params.p_loss", "values": [0.0, 0.2],
+              "base": 0.0}],
+    "methods": [{"name": "rnd", "planner": "random"},
+                {"name": "dj", "planner": "dec-jsfp", "planner_params": {"rounds": 20}}],
+    "comparisons": [{"method": "dj", "reference": "rnd", "label": "dj vs rnd"}],
+}
+
+#: Other axes a grid document may have instead (values kept few and small).
+GRID_AXES: list[dict[str, Any]] = [
+    {"feature": "sensor_speed", "values": [0.5, 1.0], "base": 1.0},
+    {"feature": "min_ground_range", "values": [150.0, 250.0], "base": 250.0},
+    {"feature": "town", "values": [0.0, 30.0], "base": 0.0},
+    {"feature": "snr_ref_db", "values": [15.0, float("inf")], "base": 15.0},
+    {"feature": "clutter_rate", "values": [0.0, 2.0], "base": 0.0},
+    {"feature": "setting", "key": "horizon", "values": [1, 2], "base": 1},
+    {"feature": "setting", "key": "tracker.miss_update", "values": ["negative", "none"],
+     "base": "negative"},
+    {"feature": "setting", "key": "tracker.kind", "values": ["known"], "base": "known"},
+    {"feature": "setting", "key": "planner_params.rounds", "values": [5, 20], "base": 20},
+]
 
 #: Keys whose value sets how much work a valid document asks for: their mutations draw
 #: values that are refused or small, never a valid but hours-long request (the size
@@ -148,11 +244,33 @@ def _parent(doc: Any, path: tuple[Any, ...]) -> Any:
     return doc
 
 
+#: The keys added most recently (targets born and dying, scripted truths, the tracker's
+#: kind, headings in degrees, the radar's detection keys, buildings): a focused mutation
+#: (``mutate(..., focus=NEW_KEYS)``) picks a path through one of them two times in three.
+NEW_KEYS = ("heading_deg", "births", "birth_rate", "survival_probability", "initial_targets",
+            "scripted", "kind", "tracker", "detection", "false_alarm_probability",
+            "clutter_rate", "buildings", "planning_detection", "planning_occlusion")
+
+
 @st.composite
-def mutate(draw: st.DrawFn, base: dict[str, Any], json_doc: bool) -> tuple[Any, list[str]]:
-    """A mutated copy of ``base`` and the list of what was done (for failure reports)."""
+def mutate(draw: st.DrawFn, base: dict[str, Any], json_doc: bool,
+           focus: tuple[str, ...] = (), log: list[dict[str, Any]] | None = None
+           ) -> tuple[Any, list[str]]:
+    """A mutated copy of ``base`` and the list of what was done (for failure reports).
+
+    ``focus``: key names that two mutations in three aim at (a path through one of them),
+    and that ``add`` also draws. ``log``: receives one record per mutation (``kind``,
+    ``path``, ``old``, ``new``, ...), for an oracle of what the command must say. Without
+    either, the draws are those of earlier versions (the derandomized suite keeps its
+    cases).
+    """
     doc = copy.deepcopy(base)
     done: list[str] = []
+
+    def record(**what: Any) -> None:
+        if log is not None:
+            log.append(what)
+
     for _ in range(draw(st.integers(1, 3))):
         all_paths = paths(doc)
         kinds = ["replace"] * 6 + ["delete", "delete", "add", "add", "duplicate", "shape",
@@ -161,17 +279,24 @@ def mutate(draw: st.DrawFn, base: dict[str, Any], json_doc: bool) -> tuple[Any, 
         if kind == "root":
             doc = draw(st.sampled_from([[], "x", 1, None, [doc], deep(5000, "{}")]))
             done.append(f"root -> {_short(doc)}")
+            record(kind="root", path=(), new=doc)
             break
         if not all_paths:
             break
-        path = draw(st.sampled_from(all_paths))
+        if focus and draw(st.integers(0, 2)) < 2:
+            aimed = [p for p in all_paths if any(str(x) in focus for x in p)]
+            path = draw(st.sampled_from(aimed or all_paths))
+        else:
+            path = draw(st.sampled_from(all_paths))
         parent = _parent(doc, path)
         key = path[-1]
         if kind == "replace":
             new = draw(size_values() if key in SIZE_KEYS else values())
+            record(kind="replace", path=path, old=parent[key], new=new)
             parent[key] = new
             done.append(f"{_fmt(path)} = {_short(new)}")
         elif kind == "delete":
+            record(kind="delete", path=path, old=parent[key])
             if isinstance(parent, dict):
                 del parent[key]
             else:
@@ -181,14 +306,18 @@ def mutate(draw: st.DrawFn, base: dict[str, Any], json_doc: bool) -> tuple[Any, 
             table = parent if isinstance(parent, dict) else doc
             if not isinstance(table, dict):
                 continue
-            name = draw(st.one_of(st.sampled_from(["fov_half_angle_deg", "max_turn_deg",
-                                                   "depression_deg", "beamwidth_deg",
-                                                   "max_turn_rate_deg", "horizn", "\ud800",
-                                                   "a\x1b[31mb\x07", "x" * 5000, ""]),
-                                  st.text(min_size=1, max_size=12)))
+            names = st.sampled_from(["fov_half_angle_deg", "max_turn_deg", "depression_deg",
+                                     "beamwidth_deg", "max_turn_rate_deg", "horizn",
+                                     "\ud800", "a\x1b[31mb\x07", "x" * 5000, ""])
+            if focus:
+                names = st.one_of(names, st.sampled_from(focus))
+            name = draw(st.one_of(names, st.text(min_size=1, max_size=12)))
             if not json_doc and any("\ud800" <= c <= "\udfff" for c in name):
                 name = "surrogate"
-            table[name] = draw(values())
+            value = draw(values())
+            where = path[:-1] if table is parent else ()
+            record(kind="add", path=where + (name,), new=value, existed=name in table)
+            table[name] = value
             done.append(f"add {_fmt(path[:-1] + (name,))}")
         elif kind == "duplicate":
             if not isinstance(parent, dict):
@@ -201,6 +330,7 @@ def mutate(draw: st.DrawFn, base: dict[str, Any], json_doc: bool) -> tuple[Any, 
             else:
                 grand[path[-2]] = dup
             done.append(f"duplicate {_fmt(path)}")
+            record(kind="duplicate", path=path)
         elif kind == "shape":
             v = parent[key]
             if isinstance(v, list):
@@ -209,8 +339,10 @@ def mutate(draw: st.DrawFn, base: dict[str, Any], json_doc: bool) -> tuple[Any, 
                                "empty": []}[choice]
                 done.append(f"{_fmt(path)} {choice}")
             else:
+                choice = "listed"
                 parent[key] = [v, v]
                 done.append(f"{_fmt(path)} listed")
+            record(kind="shape", path=path, old=v, choice=choice)
         elif kind == "degrees":
             if isinstance(parent, dict) and isinstance(parent.get(key), (int, float)) \
                     and not isinstance(parent.get(key), bool):
@@ -218,6 +350,8 @@ def mutate(draw: st.DrawFn, base: dict[str, Any], json_doc: bool) -> tuple[Any, 
                 both = draw(st.booleans())
                 name = draw(st.sampled_from(["fov_half_angle", "max_turn", "depression",
                                              "beamwidth", "max_turn_rate"]))
+                record(kind="degrees", path=path[:-1] + (name,), new=angle, both=both,
+                       deg_existed=name + "_deg" in parent)
                 if both:
                     parent[name] = 0.5
                     parent[name + "_deg"] = angle
@@ -340,6 +474,39 @@ def document(draw: st.DrawFn, base: dict[str, Any], json_doc: bool) -> tuple[str
     return text, done
 
 
+TEXT_DAMAGE = ("cut", "nul", "xff", "quote", "bracket", "bom", "crlf", "repeat", "utf16",
+               "empty")
+
+
+@st.composite
+def damaged(draw: st.DrawFn, text: str) -> tuple[bytes, str]:
+    """The bytes of ``text`` after one text-level change, and its name: cut short, a NUL,
+    0xFF, a quote or a bracket inserted, a BOM, CRLF line ends, a line repeated, UTF-16,
+    or emptied."""
+    how = draw(st.sampled_from(TEXT_DAMAGE))
+    data = text.encode("utf-8", "surrogatepass")
+    at = draw(st.integers(0, max(0, len(data) - 1)))
+    if how == "cut":
+        data = data[:at]
+    elif how in ("nul", "xff", "quote", "bracket"):
+        data = data[:at] + {"nul": b"\x00", "xff": b"\xff", "quote": b'"',
+                            "bracket": b"["}[how] + data[at:]
+    elif how == "bom":
+        data = b"\xef\xbb\xbf" + data
+    elif how == "crlf":
+        data = data.replace(b"\n", b"\r\n")
+    elif how == "repeat":
+        lines = data.split(b"\n")
+        k = draw(st.integers(0, max(0, len(lines) - 1)))
+        data = b"\n".join(lines[:k + 1] + lines[k:])
+    elif how == "utf16":
+        data = text.encode("utf-16", "surrogatepass")
+    else:
+        data = b""
+    return data, f"text {how}" + (f" at {at}" if how in ("cut", "nul", "xff", "quote",
+                                                          "bracket") else "")
+
+
 # ------------------------------------------------------------------------- contract
 
 
@@ -365,13 +532,38 @@ def _no_constant(name: str) -> Any:
     raise ValueError(f"non-finite number {name} in the output")
 
 
-def check_outcome(o: Outcome, command: str, progress_prefixes: tuple[str, ...] = ()) -> None:
+#: A plain progress line (sensorplan.cli.console.PlainProgress): ``LABEL: 3/6 (run,
+#: method) pairs done, 6 s elapsed, ETA 5 s``.
+PROGRESS = re.compile(r"^.*: \d+/\d+( [^,]*)? done( \(\d+ already done before\))?, "
+                      r"\d+ s elapsed(, ETA \d+ s)?$")
+
+
+def check_outcome(o: Outcome, command: str, progress_prefixes: tuple[str, ...] = (), *,
+                  interrupted: bool = False, closed_stdout: bool = False) -> None:
     """The contract: exit 2 with exactly one stderr line ``error: <field>: <message>``
     naming a field, nothing on stdout, no traceback; or success (exit 0) with a valid
-    result and nothing on stderr but progress lines."""
+    result and nothing on stderr but progress lines.
+
+    ``interrupted``: the case sent a Ctrl-C, so 130 (or 143) with one line besides progress
+    is allowed too. ``closed_stdout``: the reader closed standard output first, so 141 with
+    nothing but progress on stderr is allowed (what a shell reports for ``| head -1``),
+    and a success has no output to check."""
     where = f"{command}: exit {o.code}\nstdout: {o.out[:300]!r}\nstderr: {o.err[:600]!r}"
     assert "Traceback" not in o.err, where
     assert "Warning" not in o.err, where
+
+    def progress(line: str) -> bool:
+        return line.startswith(progress_prefixes) or bool(PROGRESS.match(line))
+
+    if interrupted and o.code in (130, 143):
+        said = [line for line in o.err.splitlines() if not progress(line)]
+        assert len(said) == 1, where
+        assert said[0].startswith(("error: interrupted", "error: terminated",
+                                   "interrupted")), where
+        return
+    if closed_stdout and o.code == 141:
+        assert all(progress(line) for line in o.err.splitlines()), where
+        return
     if o.code == 2:
         lines = o.err.splitlines()
         assert len(lines) == 1, where
@@ -386,8 +578,8 @@ def check_outcome(o: Outcome, command: str, progress_prefixes: tuple[str, ...] =
         return
     assert o.code == 0, where
     for line in o.err.splitlines():
-        assert line.startswith(progress_prefixes), where
-    if command == "plan":
+        assert progress(line), where
+    if command == "plan" and not closed_stdout:
         result = json.loads(o.out, parse_constant=_no_constant)
         assert _finite_numbers(result), where
         assert set(result) >= {"planner", "plan", "potential", "information", "seconds"}, where

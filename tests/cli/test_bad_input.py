@@ -1123,3 +1123,45 @@ def test_a_ctrl_c_before_the_commands_own_handling_is_one_line(monkeypatch, caps
         signal.signal(signal.SIGTERM, old_term)
     assert info.value.code == 130
     assert capsys.readouterr().err == "error: interrupted\n"
+
+
+@pytest.mark.parametrize("command", ["simulate", "agents"])
+def test_a_flag_given_a_value_after_the_scenario_file_names_the_value(capsys, tmp_path,
+                                                                       command) -> None:
+    # "simulate FILE --gate false": with the file given, the flag's "false" is an extra
+    # argument, which ended as "error: usage: Got unexpected extra argument(s) (false)".
+    line = assert_bad_input(run(capsys, command, QUICK, "--gate", "false", "--steps", "1",
+                                "--out", tmp_path / "o"), "false")
+    assert line == ("error: false: unexpected extra argument (a flag such as --gate takes no "
+                    "value: write --gate or --no-gate, not --gate false)")
+
+
+def test_an_extra_argument_is_named(capsys, tmp_path) -> None:
+    decision = ROOT / "examples" / "problem.json"
+    line = assert_bad_input(run(capsys, "plan", decision, "second.json"), "second.json")
+    assert line == "error: second.json: unexpected extra argument (plan takes one file)"
+    line = assert_bad_input(run(capsys, "study", tmp_path / "a.toml", "b c", "d"), "b c")
+    assert line == "error: b c: unexpected extra argument (study takes one file)"
+
+
+def test_a_key_no_planner_of_the_file_takes_is_refused_even_with_another_planner(
+        capsys, tmp_path) -> None:
+    # --planner drops the file's settings the new planner does not take; a key the file's
+    # own planner does not have either (a typo) was dropped with them, without a word.
+    doc = spec7()
+    doc["planner"] = {"name": "pg", "max_iner": 3}
+    assert_bad_input(plan(capsys, tmp_path, doc), "planner.max_iner")
+    f = tmp_path / "problem.json"
+    line = assert_bad_input(run(capsys, "plan", f, "--planner", "random"), "planner.max_iner")
+    assert "did you mean 'max_inner'?" in line
+    toml = ('[planning]\nplanner = "pg"\n[planning.planner_params]\nmax_iner = 3\n' + ONE)
+    assert_bad_input(simulate(capsys, tmp_path, toml, "--steps", "1", "--planner", "random"),
+                     "planning.planner_params.max_iner")
+    assert_bad_input(run(capsys, "agents", tmp_path / "scenario.toml", "--steps", "1",
+                         "--planner", "dec-jsfp", "--out", tmp_path / "a"),
+                     "planning.planner_params.max_iner")
+    # the settings of the file's own planner are still dropped quietly for another one
+    doc["planner"] = {"name": "pg", "max_inner": 3, "alpha": 0.5}
+    code, out, err = plan(capsys, tmp_path, doc)
+    assert code == 0, err
+    assert run(capsys, "plan", f, "--planner", "random")[0] == 0

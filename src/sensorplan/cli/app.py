@@ -615,7 +615,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         code = _stdout_closed()
     except usage_error_class() as exc:
         try:
-            field, message = usage_line(exc)
+            field, message = usage_line(exc, args)
         except Exception:  # noqa: BLE001 - never a traceback for a usage error
             field, message = "usage", str(exc)
         _fail(field, message)

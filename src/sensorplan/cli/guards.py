@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
@@ -334,8 +334,9 @@ def usage_error_class() -> type[BaseException]:
     return next(c for c in typer.BadParameter.__mro__ if c.__name__ == "UsageError")
 
 
-def usage_line(exc: Any) -> tuple[str, str]:
-    """(field, message) of a command-line usage error."""
+def usage_line(exc: Any, argv: Sequence[str] = ()) -> tuple[str, str]:
+    """(field, message) of a command-line usage error (``argv``: the command line, to
+    name an extra argument whole)."""
     param = getattr(exc, "param", None)
     if param is not None:
         opts = [o for o in getattr(param, "opts", []) if o.startswith("--")]
@@ -350,4 +351,30 @@ def usage_line(exc: Any) -> tuple[str, str]:
         if message.startswith(prefix):
             message = "no such option" + message[len(prefix):]
         return option, message
+    extra = _extra_argument(exc, argv)
+    if extra is not None:
+        return extra
     return "usage", exc.format_message()
+
+
+def _extra_argument(exc: Any, argv: Sequence[str]) -> tuple[str, str] | None:
+    """(field, message) of an argument beyond the command's one file (``plan a.json
+    b.json``, or ``simulate FILE --gate false``, where the flag takes no value): the
+    argument, and for a word that reads as a flag's value, the flag's hint."""
+    import re
+
+    from ..config.simulate import BOOLEAN_WORDS
+
+    match = re.match(r"Got unexpected extra arguments?(?:\(s\))? \((.*)\)$",
+                     exc.format_message())
+    if match is None:
+        return None
+    listed = match.group(1)          # the extra arguments, joined by spaces
+    whole = [a for a in argv if listed == a or listed.startswith(a + " ")]
+    first = max(whole, key=len) if whole else listed.split(" ")[0]
+    if first.lower() in BOOLEAN_WORDS:
+        return first, (f"unexpected extra argument (a flag such as --gate takes no value: "
+                       f"write --gate or --no-gate, not --gate {first})")
+    command = getattr(getattr(exc, "ctx", None), "info_name", None)
+    return first, "unexpected extra argument" + (f" ({command} takes one file)"
+                                                  if command else "")

@@ -17,7 +17,7 @@ from ..planners.problem import MapRect, PlanningProblem, check_covariance
 from ..simulation.scenario import HEADING_HINT
 from ..simulation.settings import RunSettings, limit_fields
 from . import files as io
-from .planners import build_planner, planner_settings
+from .planners import build_planner, planner_settings, replaced_planner_settings
 from .validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict,
                          Vec2, Vec4, one_spelling, radians_of, setting_type, validate)
 
@@ -195,7 +195,8 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
     else:
         # The file's settings were written for its own planner: keep those the new one takes.
         name = planner
-        settings = planner_settings(name, params, name_field="--planner", strict=False)
+        settings = replaced_planner_settings(model.planner.name, name, params,
+                                             name_field="--planner", params_field="planner")
     return Decision(problem, name, settings)
 
 

@@ -53,6 +53,27 @@ def planner_settings(name: str, params: Mapping[str, Any], name_field: str = "pl
     return check_settings(cls, params, params_field, strict=strict, exclude=exclude)
 
 
+def replaced_planner_settings(own: str, name: str, params: Mapping[str, Any],
+                              name_field: str, params_field: str, *,
+                              exclude: Mapping[str, str] | None = None) -> dict[str, Any]:
+    """The settings of a file written for planner ``own``, for planner ``name`` that
+    replaces it (``--planner``): a key ``own`` does not have either (a typo) is still an
+    error naming ``params_field.key``; of the others, those ``name`` takes are checked and
+    kept, the rest dropped. An ``own`` that names no planner is not checked (the option
+    replaces it)."""
+    from ..planners.registry import check_settings as _check
+
+    try:
+        own_cls = planner_class(own, "planner")
+    except ConfigError:
+        own_cls = None
+    if own_cls is not None:
+        # Keys only: the values of settings the new planner drops are never used.
+        _check(own_cls, dict.fromkeys(params), params_field, construct=False)
+    return planner_settings(name, params, name_field, params_field, strict=False,
+                            exclude=exclude)
+
+
 def build_planner(name: str, settings: Mapping[str, Any], field: str = "planner") -> Planner:
     """The planner ``name`` with checked ``settings``; failures name ``field``'s keys."""
     return instantiate(planner_class(name, field + ".name"), settings, field)

@@ -13,7 +13,7 @@ from ..simulation.scenario import PRESETS as SCENARIO_PRESETS
 from ..simulation.scenario import Scenario
 from ..simulation.settings import RunSettings, all_settings, limit_fields
 from . import files as io
-from .planners import RUN_SEED, planner_settings
+from .planners import RUN_SEED, planner_settings, replaced_planner_settings
 from .scenario import ScenarioFile, SettingsTables
 from .validation import given, validate
 
@@ -130,6 +130,8 @@ def load_simulation(path: str | Path | None = None, preset: str | None = None,
         data: dict[str, Any] = {}
     else:
         data = read_scenario_file(path)
+    planning = data.get("planning")
+    own = planning.get("planner") if isinstance(planning, dict) else None   # the file's own
     renames: dict[str, str] = {}
     for key, value in given_.items():
         section, name = FILE_KEYS[key]
@@ -143,7 +145,8 @@ def load_simulation(path: str | Path | None = None, preset: str | None = None,
         else:
             tables = validate(ScenarioFile, data)
             scenario = tables.scenario()
-        settings = _run_settings(tables, planner_overridden="planner" in given_)
+        settings = _run_settings(tables, planner_overridden="planner" in given_,
+                                 own_planner=own if isinstance(own, str) else None)
         check_run(scenario, settings, RUN_FIELDS)
     except ConfigError as exc:
         if exc.field == "tracker.reacquire" and given_.get("gate") is False \
@@ -156,18 +159,26 @@ def load_simulation(path: str | Path | None = None, preset: str | None = None,
     return SimulationConfig(scenario, settings, tables.run.seed)
 
 
-def _run_settings(tables: Any, planner_overridden: bool = False) -> RunSettings:
-    """RunSettings from a file's settings tables: given keys, else the fields' defaults."""
+def _run_settings(tables: Any, planner_overridden: bool = False,
+                  own_planner: str | None = None) -> RunSettings:
+    """RunSettings from a file's settings tables: given keys, else the fields' defaults
+    (``own_planner``: the file's planner, when ``--planner`` replaced it)."""
     planning, run = given(tables.planning), given(tables.run)
     run.pop("seed", None)
     kwargs: dict[str, Any] = {**planning, **run, "tracker": given(tables.tracker)}
-    name = kwargs.get("planner", RunSettings.__dataclass_fields__["planner"].default)
-    # With --planner the file's settings were meant for its own planner: keep those the new
-    # one takes.
-    kwargs["planner_params"] = planner_settings(
-        name, kwargs.pop("planner_params", {}), name_field="planning.planner",
-        params_field="planning.planner_params", strict=not planner_overridden,
-        exclude=RUN_SEED)
+    default = RunSettings.__dataclass_fields__["planner"].default
+    name = kwargs.get("planner", default)
+    params = kwargs.pop("planner_params", {})
+    if planner_overridden:
+        # The file's settings were meant for its own planner: a key it does not take is
+        # still an error; of the others, keep those the new one takes.
+        kwargs["planner_params"] = replaced_planner_settings(
+            own_planner or str(default), name, params, name_field="planning.planner",
+            params_field="planning.planner_params", exclude=RUN_SEED)
+    else:
+        kwargs["planner_params"] = planner_settings(
+            name, params, name_field="planning.planner",
+            params_field="planning.planner_params", exclude=RUN_SEED)
     try:
         return RunSettings(**kwargs)
     except ConfigError as exc:
