@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from pydantic import ConfigDict, ValidationInfo, field_validator
+from pydantic import ConfigDict
 
 from ..errors import ConfigError
 from ..limits import (MAX_SENSORS, MAX_TARGETS, RANGES, check_count, check_covariance_scale,
@@ -19,7 +19,7 @@ from ..simulation.settings import RunSettings, limit_fields
 from . import files as io
 from .planners import build_planner, planner_settings, replaced_planner_settings
 from .validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict,
-                         Vec2, Vec4, one_spelling, radians_of, setting_type, validate)
+                         Vec2, Vec4, radians_of, setting_type, validate)
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..planners import Planner
@@ -58,11 +58,6 @@ class DecisionSensor(SensorParamsModel):
     position: Vec2
     heading: float | None = None            # one of the two is required (checked after)
     heading_deg: float | None = None
-
-    @field_validator("heading_deg")
-    @classmethod
-    def _heading_once(cls, value: float | None, info: ValidationInfo) -> float | None:
-        return one_spelling("heading", value, info.data.get("heading"))
 
 
 class DecisionPlanner(Strict):

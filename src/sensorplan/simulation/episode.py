@@ -278,9 +278,7 @@ class Recorder:
         self._tracks(0, tracks)
 
     def _tracks(self, t: int, tracks: TrackSet) -> None:
-        # copies: a tracker's arrays change with its next step
-        self.tracks.append((t, TrackSet(np.array(tracks.means), np.array(tracks.covs),
-                                        np.array(tracks.existence), np.array(tracks.labels))))
+        self.tracks.append((t, tracks.copy()))
 
     def pose(self, t: int, positions: FloatArray, headings: FloatArray) -> None:
         self.arrays["sensor_positions"][t] = positions

@@ -34,7 +34,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import ConfigError
-from ..limits import MAX_PLAN_STEPS, MAX_STEPS, RANGES, SIZE_SETTINGS, Range, coerce
+from ..limits import (MAX_PLAN_STEPS, MAX_STEPS, RANGES, SIZE_SETTINGS, Param, Range,
+                      coerce)
 from ..planners.objective import (OBJECTIVES, PLANNING_DETECTIONS, PLANNING_OCCLUSIONS,
                                   VISIBILITY_MODES)
 from ..tracking.registry import tracker_kinds
@@ -47,9 +48,11 @@ ASSOCIATIONS = ("pda", "nearest")
 SECTIONS = ("planning", "tracker", "run")
 
 
-@dataclass(frozen=True)
-class Setting:
-    """How one run setting is written, checked and documented (a field's metadata).
+@dataclass(frozen=True, kw_only=True)
+class Setting(Param):
+    """How one run setting is written, checked and documented (a field's metadata): a
+    :class:`~sensorplan.limits.Param` (its help, brief, option names, placeholder and rule)
+    with the table that holds it.
 
     Attributes
     ----------
@@ -58,44 +61,15 @@ class Setting:
                           settings without options
     section : str         ``planning``, ``tracker`` or ``run`` (see the module docstring)
     cli : tuple of str    option names of ``sensorplan simulate`` (none: file-only setting)
-    metavar : str         the option's value placeholder
     label : str           short column heading in reports (default: the key)
-    choices : tuple or callable
-                          allowed values (strings), or a function returning them when they
-                          are only known at run time
     names : callable      known values listed in the help when the list is open (other
                           values may pass ``check``: a planner given as module:Class)
-    noun : str            what a value is called in errors: "unknown <noun> 'x'; choose from"
-    bounds : Range        the allowed interval of a number ("must be in [1, 1000], got 0")
-    check : callable      extra rule: raises ValueError with the message
     """
 
     help: str
     section: str
-    brief: str = ""
-    cli: tuple[str, ...] = ()
-    metavar: str = "VALUE"
     label: str = ""
-    choices: tuple[str, ...] | Callable[[], tuple[str, ...]] = ()
     names: Callable[[], tuple[str, ...]] | None = None
-    noun: str = "value"
-    bounds: Range | None = None
-    check: Callable[[Any], None] | None = None
-
-    def allowed(self) -> tuple[str, ...]:
-        """The allowed values (empty: no list)."""
-        return self.choices() if callable(self.choices) else self.choices
-
-    def validate(self, value: Any) -> None:
-        """Raise ``ValueError(message)`` if a value of the right type breaks the rule."""
-        choices = self.allowed()
-        if choices and value not in choices:
-            raise ValueError(f"unknown {self.noun} {value!r}; choose from {', '.join(choices)}")
-        message = self.bounds.violation(value) if self.bounds is not None else ""
-        if message:
-            raise ValueError(message)
-        if self.check is not None:
-            self.check(value)
 
 
 def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,

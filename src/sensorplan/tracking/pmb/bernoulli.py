@@ -33,6 +33,7 @@ import numpy as np
 from ..._compiled.jit import njit
 from ..._types import BoolArray, FloatArray, IntArray
 from ...models.radar import wrap
+from ..base import Rows
 from ..ekf import position_update
 from ..missed import MIN_OUTSIDE, standard_points
 from .sensing import Look, Sensing
@@ -42,25 +43,17 @@ _TINY = float(np.finfo(float).tiny)
 
 
 @dataclass
-class Bernoullis:
+class Bernoullis(Rows):
     """Every Bernoulli's existence, density and label (arrays replaced, never resized in
-    place).
-
-    Attributes
-    ----------
-    r : (n,)            existence probabilities in [0, 1]
-    means : (n, 4)      ``[x, y, vx, vy]`` (m, m/s)
-    covs : (n, 4, 4)
-    labels : (n,) int   ascending, never reused
+    place): ``r (n,)``, the existence probabilities in [0, 1], and one row per Bernoulli of
+    the arrays a :class:`~sensorplan.tracking.base.TrackSet` reports (``means``, ``covs``,
+    ``labels``; labels ascending, never reused).
     """
 
     r: FloatArray
     means: FloatArray
     covs: FloatArray
     labels: IntArray
-
-    def __len__(self) -> int:
-        return len(self.r)
 
     def keep(self, rows: BoolArray | IntArray) -> None:
         """Keep only ``rows`` (a mask or ascending indices)."""
