@@ -292,7 +292,9 @@ class GNNTracker:
             keep = ~dead
         else:
             missed, keep = np.zeros(0, dtype=np.int64), np.zeros(0, dtype=bool)
-        free = np.setdiff1d(np.arange(m), assigned[assigned >= 0])
+        unassigned = np.ones(m, dtype=bool)
+        unassigned[assigned[assigned >= 0]] = False
+        free = np.flatnonzero(unassigned)
         started = 0
         if free.size:
             detect = self.sensing.detectable(self.grid.centres, look)

@@ -467,8 +467,10 @@ def first_detection(sensing: Sensing, look: Look, cell_means: FloatArray,
     cell, det = np.nonzero(w * found[None])
     if cell.size == 0:
         return found, np.zeros((0, 4)), np.zeros((0, 4, 4))
-    unique, which = np.unique(cell, return_inverse=True)
-    xu, Pu = updates(cell_means, cell_covs, terms, unique, which.reshape(-1), det)
+    # cell ascends (np.nonzero is row-major): its distinct values and each pair's index.
+    first = np.concatenate([[True], cell[1:] != cell[:-1]])
+    unique, which = cell[first], np.cumsum(first) - 1
+    xu, Pu = updates(cell_means, cell_covs, terms, unique, which, det)
     group = np.cumsum(found) - 1
     _, means, covs = mixture_moments(int(found.sum()), (w[cell, det], group[det], xu, Pu))
     return found, means, covs
