@@ -44,9 +44,9 @@ with existence 1 (a GNN tracker has no probability of existence; confirmation is
 decision that the track is real).
 
 The defaults, 2 hits in 3 looks to confirm and 5 missed looks to delete, are the common
-radar ones (Blackman and Popoli 1999, "Design and Analysis of Modern Tracking Systems",
-section 6.3, M-of-N confirmation; Bar-Shalom, Willett and Tian 2011, "Tracking and Data
-Fusion", "2/2 & m/n" logic).
+radar ones: the history logic of Blackman and Popoli (1999, "Design and Analysis of Modern
+Tracking Systems"), with the defaults of MATLAB's ``radarTracker`` and ``trackerGNN``
+(``ConfirmationThreshold [2 3]``, ``DeletionThreshold [5 5]``).
 """
 
 from __future__ import annotations
