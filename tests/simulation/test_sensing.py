@@ -75,3 +75,15 @@ def test_an_unknown_look_detects_is_refused() -> None:
     with pytest.raises(ValueError, match="look_detects"):
         Sensing(radar_table((SensorParams(),)), np.zeros((0, 5)), run_streams(1), 2,
                 look_detects="some")
+
+
+def test_a_look_aimed_at_a_track_beyond_the_target_slots_sees_no_target_of_its_own() -> None:
+    # A multi-target tracker may report more tracks than there are target slots (a false
+    # track): aiming at track 4 of 3 targets once raised IndexError.
+    table = radar_table((SensorParams(),) * 3)
+    truth, pos, head = scene(np.random.default_rng(3), M=3)
+    s = Sensing(table, np.zeros((0, 5)), run_streams(4), STEPS, look_detects="all")
+    looks, sensed = s.look(1, truth, pos, head, np.array([4, 0, -1]))
+    assert not sensed.seen[0] and sensed.missed[0] and not sensed.missed[2]
+    # its detections are still every live target it sees
+    assert len(looks.detections[0]) == sensed.measured[:, 0].sum()

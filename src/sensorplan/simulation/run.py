@@ -154,6 +154,14 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
     P0 = np.array(scenario.initial_cov)
     cls = tracker_class(settings.tracker.kind)
     tr = settings.tracker
+    if tr.kind == "gnn":
+        return cls(
+            table, scenario.dt, (scenario.world.width, scenario.world.height),
+            means=estimate, covs=P0, process_noise=tr.process_noise,
+            resolution=tr.grid_resolution, gate_probability=tr.gate_probability,
+            confirm_hits=tr.confirm_hits, confirm_looks=tr.confirm_looks,
+            delete_misses=tr.delete_misses, die_outside_map=tr.births == "edges",
+            buildings=scenario.building_array)
     if tr.kind != "known":
         return cls(
             table, scenario.dt, (scenario.world.width, scenario.world.height),

@@ -181,7 +181,9 @@ class Sensing:
                 false[n] = clutter[1][n]
             detections.append(np.concatenate([own, extra]))
         aimed_seen = np.zeros(N, dtype=bool)
-        on = i[aimed[i] >= 0]
+        # A multi-target tracker's aim is a track index, which may pass the target slots
+        # (more tracks than targets: false or stale tracks); no target of its own was seen.
+        on = i[(aimed[i] >= 0) & (aimed[i] < M)]
         aimed_seen[on] = measured[aimed[on], on]
         looks = Looks(sensors=i, aims=aimed[i], positions=positions[i], headings=headings[i],
                       detections=tuple(detections))

@@ -79,9 +79,11 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
     return field(default=default, default_factory=default_factory, metadata=meta)
 
 
+#: The settings only the PMB tracker reads, and only the GNN tracker.
+PMB_SETTINGS = ("birth_rate", "survival_probability", "report_threshold", "prune_threshold")
+GNN_SETTINGS = ("confirm_hits", "confirm_looks", "delete_misses")
 #: The settings only a multi-target tracker reads.
-MULTI_TARGET_SETTINGS = ("births", "birth_rate", "survival_probability", "report_threshold",
-                         "prune_threshold", "grid_resolution")
+MULTI_TARGET_SETTINGS = ("births", *PMB_SETTINGS, "grid_resolution", *GNN_SETTINGS)
 
 
 def _births() -> tuple[str, ...]:
@@ -280,9 +282,10 @@ class TrackerSettings(_Settings):
     kind: str = setting(
         "known", section="tracker", cli=("--tracker",), metavar="KIND", label="tracker",
         choices=tracker_kinds, noun="tracker kind", brief="The tracker (kind)",
-        help="The tracker: known (one track per target known from the start, the paper's) "
-             "or pmb (a Poisson multi-Bernoulli tracker that finds, confirms and deletes "
-             "targets).")
+        help="The tracker: known (one track per target known from the start, the paper's), "
+             "pmb (a Poisson multi-Bernoulli tracker that finds, confirms and deletes "
+             "targets) or gnn (global nearest neighbour association with M-of-N track "
+             "logic, the engineer's baseline).")
     miss_update: str = setting(
         "negative", section="tracker", cli=("--miss-update",), metavar="MODE",
         brief="A look that misses: negative (update with it) or none (the paper's)",
@@ -368,13 +371,29 @@ class TrackerSettings(_Settings):
     grid_resolution: float = setting(
         25.0, section="tracker", label="grid resolution", bounds=Range(1.0, 1e5),
         help="Side (m) of the map cells on which a multi-target tracker keeps the expected "
-             "number of targets not yet detected.")
+             "number of targets not yet detected (the GNN tracker: from which it starts a "
+             "track).")
+    confirm_hits: int = setting(
+        2, section="tracker", label="confirm hits", bounds=Range(1, 100),
+        help="The GNN tracker confirms a tentative track at this many hits within its first "
+             "confirm_looks looks at it (at most confirm_looks).")
+    confirm_looks: int = setting(
+        3, section="tracker", label="confirm looks", bounds=Range(1, 100),
+        help="The looks at a tentative track within which the GNN tracker needs confirm_hits "
+             "hits, or deletes it.")
+    delete_misses: int = setting(
+        5, section="tracker", label="delete misses", bounds=Range(1, 1000),
+        help="The GNN tracker deletes a track after this many consecutive missed looks at it "
+             "(a look whose sensing region holds its predicted position, in sight).")
 
     def __post_init__(self) -> None:
         check_fields(self)
         if len(self.switching) != len(self.mode_process_noise):
             raise ConfigError("switching", f"must have one row per mode "
                               f"({len(self.mode_process_noise)}), got {len(self.switching)}")
+        if self.confirm_hits > self.confirm_looks:
+            raise ConfigError("confirm_hits", f"must be at most confirm_looks "
+                              f"({self.confirm_looks}), got {self.confirm_hits}")
         if self.reacquire and not self.gate:
             raise ConfigError("reacquire", "needs gate = true (a detection outside the gate "
                               "triggers it)")
@@ -383,12 +402,13 @@ class TrackerSettings(_Settings):
         """The settings that change nothing with the others as they are: the cv filter's q
         (``process_noise``) with the IMM, the IMM's q's and switching with cv, the gate
         probability without the gate, a multi-target tracker's settings with the tracker of
-        known targets and that tracker's with a multi-target one. (A run's header leaves
+        known targets, that tracker's with a multi-target one, and the PMB's and the GNN's
+        own settings with the other. (A run's header leaves
         them out.)"""
         if self.kind != "known":               # a multi-target tracker: cv, its own births
             return ("miss_update", "model", "mode_process_noise", "switching", "gate",
                     "reacquire", "association", "known_map", "known_buildings",
-                    "reflect_walls")
+                    "reflect_walls") + (PMB_SETTINGS if self.kind == "gnn" else GNN_SETTINGS)
         out = ("process_noise",) if self.model == "imm" else ("mode_process_noise",
                                                               "switching")
         return out + (() if self.gate else ("gate_probability",)) + MULTI_TARGET_SETTINGS
