@@ -10,7 +10,9 @@ ANEES of assigned tracks (target-steps whose estimate is within c: the track GOS
 for a multi-target tracker, the target's own track for the tracker of known targets).
 Across runs: mean with its 95 % t-interval, median and max; then the paired differences
 METHOD - REFERENCE per run (mean with its paired 95 % t-interval, median with its
-order-statistic interval, share of runs below 0). Markdown on stdout.
+order-statistic interval, share of runs below 0); then where METHOD lost its targets: the
+distance to the map's nearest wall at the start of each lost target's longest stretch
+without a track, against all of its live target-steps. Markdown on stdout.
 
     python scripts/search_conditions.py GRID_DIR [--method pmb --reference known]
 """
@@ -25,7 +27,8 @@ from typing import Any
 import numpy as np
 
 from sensorplan.study.metrics import median_interval, t_interval
-from sensorplan.study.set_metrics import GOSPA_CUTOFF, set_metrics
+from sensorplan._types import FloatArray
+from sensorplan.study.set_metrics import GOSPA_CUTOFF, LOST_STEPS, set_metrics
 from sensorplan.study.storage import load_study_dir
 
 #: What each per-run metric is called in the tables, and how many decimals it gets.
@@ -68,6 +71,35 @@ def anees_assigned(tables: Any) -> dict[str, tuple[float, int]]:
             for m, g in s.groupby("method", observed=True)}
 
 
+def lost_at_walls(tables: Any, method: str) -> tuple[FloatArray, FloatArray]:
+    """Distance (m) to the map's nearest wall of each target ``method`` lost, at the first
+    step of its longest stretch without a track within c; and of every live target-step.
+
+    A target-step has no track within c where its error is missing (a multi-target
+    tracker) or at least c (the tracker of known targets' own track)."""
+    w, h = tables.study.scenario.world.width, tables.study.scenario.world.height
+    s = tables.steps[(tables.steps["step"] >= 1) & (tables.steps["method"] == method)]
+    s = s.sort_values(["run", "target", "step"])
+    xy = s[["x", "y"]].to_numpy(float)
+    wall = np.minimum(np.minimum(xy[:, 0], w - xy[:, 0]), np.minimum(xy[:, 1], h - xy[:, 1]))
+    gap = ~(s["error"].to_numpy(float) < GOSPA_CUTOFF)
+    key = s["run"].to_numpy(np.int64) * 1_000_000 + s["target"].to_numpy(np.int64)
+    out = []
+    for rows in np.split(np.arange(len(s)), np.flatnonzero(np.diff(key)) + 1):
+        best = cur = start = first = 0
+        for k in rows:
+            if gap[k]:
+                start = k if cur == 0 else start
+                cur += 1
+                if cur > best:
+                    best, first = cur, start
+            else:
+                cur = 0
+        if best >= LOST_STEPS:
+            out.append(wall[first])
+    return np.asarray(out, dtype=float), wall
+
+
 def cell_tables(cell_dir: Path, method: str, reference: str) -> list[str]:
     tables = load_study_dir(cell_dir)
     runs = per_run(tables)
@@ -96,6 +128,12 @@ def cell_tables(cell_dir: Path, method: str, reference: str) -> list[str]:
         out.append(f"| {label} | {mean:.{dec}f} [{lo:.{dec}f}, {hi:.{dec}f}] | "
                    f"{med:.{dec}f} [{mlo:.{dec}f}, {mhi:.{dec}f}] | {(d < 0).sum()} | "
                    f"{(d > 0).sum()} |")
+    lost, wall = lost_at_walls(tables, method)
+    if lost.size:
+        out += ["", f"Where {method} lost its {lost.size} targets: within 50 m of a wall "
+                f"{100 * (lost < 50).mean():.0f} % (of all its live target-steps: "
+                f"{100 * (wall < 50).mean():.0f} %), within 25 m {100 * (lost < 25).mean():.0f} "
+                f"%, median distance {np.median(lost):.0f} m."]
     return out
 
 

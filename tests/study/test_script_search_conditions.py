@@ -94,6 +94,10 @@ def test_the_scripts_rows_match_a_direct_computation(cell: Path) -> None:
     d = (wide["pmb"] - wide["known"]).to_numpy(float)
     lo, hi = stats.ttest_rel(wide["pmb"], wide["known"]).confidence_interval()
     text = "\n".join(_script().cell_tables(cell, "pmb", "known"))
+    # the wall distances: one per target pmb lost (the same count as the lost column)
+    at, wall = _script().lost_at_walls(load_study_dir(cell), "pmb")
+    assert at.size == runs.xs("pmb")["lost"].sum()
+    assert wall.size == (steps["method"] == "pmb").sum() and (wall >= 0).all()
     assert f"| mean GOSPA (m) | {d.mean():.2f} [{lo:.2f}, {hi:.2f}] |" in text
 
 
