@@ -77,13 +77,19 @@ def test_an_unknown_look_detects_is_refused() -> None:
                 look_detects="some")
 
 
-def test_a_look_aimed_at_a_track_beyond_the_target_slots_sees_no_target_of_its_own() -> None:
-    # A multi-target tracker may report more tracks than there are target slots (a false
-    # track): aiming at track 4 of 3 targets once raised IndexError.
-    table = radar_table((SensorParams(),) * 3)
-    truth, pos, head = scene(np.random.default_rng(3), M=3)
-    s = Sensing(table, np.zeros((0, 5)), run_streams(4), STEPS, look_detects="all")
-    looks, sensed = s.look(1, truth, pos, head, np.array([4, 0, -1]))
-    assert not sensed.seen[0] and sensed.missed[0] and not sensed.missed[2]
-    # its detections are still every live target it sees
-    assert len(looks.detections[0]) == sensed.measured[:, 0].sum()
+def test_a_multi_target_trackers_aims_are_tracks_not_targets() -> None:
+    # A multi-target tracker can report more tracks than there are targets (a track started
+    # from a false alarm): an aim at track 12 of 12 targets must not be read as a target.
+    table = radar_table((SensorParams(clutter_rate=2.0),) * 3)
+    truth, pos, head = scene(np.random.default_rng(4))
+    tracks = Sensing(table, np.zeros((0, 5)), run_streams(6), STEPS, look_detects="all",
+                     aims_at_targets=False)
+    targets = Sensing(table, np.zeros((0, 5)), run_streams(6), STEPS, look_detects="all")
+    looks, sensed = tracks.look(2, truth, pos, head, np.array([12, 0, -1]))
+    ref_looks, ref = targets.look(2, truth, pos, head, np.array([-1, -1, -1]))
+    np.testing.assert_array_equal(looks.aims, [12, 0, -1])     # the tracker gets its aims
+    assert not sensed.missed.any() and not sensed.seen.any()   # no look has a target to miss
+    np.testing.assert_array_equal(sensed.measured, ref.measured)
+    np.testing.assert_array_equal(sensed.false_alarms, ref.false_alarms)
+    for a, b in zip(looks.detections, ref_looks.detections, strict=True):
+        np.testing.assert_array_equal(a, b)

@@ -114,8 +114,10 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     truth_model = make_population(scenario, init.truth, truth_rng,
                                   np.random.default_rng(streams["births"]))
     tracker = make_tracker(scenario, settings, init.estimate, table)
-    sensing = Sensing(table, scenario.building_array, streams, S, scenario.look_detects)
-    record = Recorder(S, len(init.truth), N)
+    known = settings.tracker.kind == "known"
+    sensing = Sensing(table, scenario.building_array, streams, S, scenario.look_detects,
+                      aims_at_targets=known)
+    record = Recorder(S, len(init.truth), N, known_targets=known)
     record.start(init.truth, tracker.tracks(), init.positions, init.headings)
     schedule = _Schedule(scenario, settings, planner, planner_rng, table, init)
     # Load the compiled kernels now, so that no decision's time includes it (the planners
