@@ -232,9 +232,11 @@ def test_brute_force_finds_the_best_weighted_plan(case: int) -> None:
     assert plain.potential > result.potential
 
 
-#: Every planner that takes the problems below (all registered ones; brute force is tiny).
-DETERMINISTIC = ("pg", "pg-refine", "sequential-greedy", "brute-force", "dec-jsfp",
-                 "dec-sequential", "dec-independent")
+#: The planners that choose by Phi (brute force on a tiny problem), and two with a time
+#: budget (the anytime path).
+DETERMINISTIC = [(name, {}) for name in ("pg", "pg-refine", "sequential-greedy", "brute-force",
+                                          "dec-jsfp", "dec-sequential", "dec-independent")]
+DETERMINISTIC += [("pg", {"time_budget": 60.0}), ("sequential-greedy", {"time_budget": 60.0})]
 
 
 @pytest.mark.parametrize("name", sorted(PLANNERS))
@@ -267,17 +269,17 @@ def twin_targets(n_sensors: int, horizon: int) -> PlanningProblem:
                            horizon=horizon, world=MapRect(800.0, 800.0))
 
 
-@pytest.mark.parametrize("name", DETERMINISTIC)
+@pytest.mark.parametrize(("name", "params"), DETERMINISTIC)
 @pytest.mark.parametrize("r1", [0.3, 1.0])
-def test_a_target_with_r_0_is_never_preferred(name: str, r1: float) -> None:
+def test_a_target_with_r_0_is_never_preferred(name: str, params: dict, r1: float) -> None:
     """Twin targets, the first with r = 0: every look that counts goes to the second, and the
     first's term is exactly 0. (Without weights some look goes to the first: the tie rule
     prefers the lower index, and a second target is worth more than a second look.)"""
     N, K = (1, 2) if name == "brute-force" else (3, 2)
     problem = twin_targets(N, K)
-    twins = make_planner(name).plan(problem, rng=0)
+    twins = make_planner(name, **params).plan(problem, rng=0)
     assert np.any(twins.plan.targets[twins.measurements > 0] == 0)
-    result = make_planner(name).plan(with_existence(problem, [0.0, r1]), rng=0)
+    result = make_planner(name, **params).plan(with_existence(problem, [0.0, r1]), rng=0)
     looks = result.measurements > 0
     assert looks.any()
     assert np.all(result.plan.targets[looks] == 1)
