@@ -318,10 +318,10 @@ def test_runtime_warnings_never_reach_stderr(capsys, tmp_path, monkeypatch) -> N
 
     original = sio.dumps_result
 
-    def noisy(result: Any) -> str:
+    def noisy(result: Any, *args: Any) -> str:
         np.float64(1e308) * 10                        # RuntimeWarning: overflow
         warnings.warn("invalid value encountered", RuntimeWarning, stacklevel=1)
-        return original(result)
+        return original(result, *args)
 
     monkeypatch.setattr(sio, "dumps_result", noisy)
     with warnings.catch_warnings():

@@ -113,8 +113,9 @@ def plan(
 
     The output has the keys planner, plan (plan[i][k-1] is sensor i's action in epoch k:
     epoch, position, heading, target, measurements), potential (Phi, nats), information
-    (Phi's term per target), converged and sweeps (pg and pg-refine only) and seconds (the
-    planner's own time). Bad input exits with status 2 and one line on stderr.
+    (Phi's term per target), existence (when the file gives a target's probability of
+    existence, which weights its term), converged and sweeps (pg and pg-refine only) and
+    seconds (the planner's own time). Bad input exits with status 2 and one line on stderr.
 
     Example: sensorplan plan --example > problem.json; sensorplan plan problem.json
     """
@@ -138,7 +139,8 @@ def plan(
         ensure_built()          # a first plan compiles the planning kernels ahead of time
         result = checked_plan(decision.make_planner(), decision.problem)
         check_finite(result)
-        text = dumps_result(result)
+        text = dumps_result(result, decision.problem.existence
+                            if decision.existence_given else None)
     sys.stdout.write(text + "\n")
 
 

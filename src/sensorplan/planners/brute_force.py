@@ -13,7 +13,8 @@ once per such prefix. Phi then separates over targets,
 
 where ``W_ij(a_i)`` is ``(T, 2, 2)``: sensor ``i``'s information about target ``j`` at every
 step under option ``a_i`` (zero where it looks elsewhere or does not see ``j``), and ``f_j``
-is the target's term of Phi (:func:`~sensorplan.planners.information.phi_terms` of
+is the target's term of Phi, weighted by its probability of existence
+(:func:`~sensorplan.planners.information.phi_terms` of
 :func:`~sensorplan.planners.information.covariance_recursion`, exactly as
 :func:`~sensorplan.planners.information.target_information` computes it). For each target the
 options of a sensor collapse into a few *contribution classes* (all options that never see
@@ -287,7 +288,8 @@ class _TargetTerm:
             _, ld_end, ld_sum = covariance_recursion(P, W, self.ctx.F, self.Q,
                                                      need_sum=self.cumulative)
             out[s:s + _F_BATCH] = phi_terms(self.ctx.ld_bar[self.j], ld_end, ld_sum,
-                                            self.cumulative, measured(W))
+                                            self.cumulative, measured(W),
+                                            self.ctx.existence[self.j])
         return out
 
 

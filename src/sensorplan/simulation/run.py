@@ -245,7 +245,8 @@ class _Schedule:
             headings=self.headings, sensors=self.sensors, horizon=s.horizon,
             steps_per_epoch=s.steps_per_epoch, dt=self.scenario.dt, process_noise=q,
             world=self.scenario.world, visibility=s.visibility, objective=s.objective,
-            planning_detection=s.planning_detection, buildings=self.buildings)
+            planning_detection=s.planning_detection, buildings=self.buildings,
+            existence=tracks.existence)
         start = time.perf_counter()
         result = checked_plan(self.planner, problem, self.rng, len(record.decisions))
         seconds = _own_seconds(result, time.perf_counter() - start)
