@@ -1195,3 +1195,19 @@ def test_a_gnn_run_reports_gospa(capsys: pytest.CaptureFixture[str], tmp_path: P
     text = " ".join(out.split())                       # the console wraps long lines
     assert "tracker gnn" in text and "delete misses 3" in text and "GOSPA (c = 50 m)" in text
     assert "report threshold" not in text              # the PMB's own settings are not shown
+
+
+def test_a_signal_inside_the_process_pools_code_waits_for_it() -> None:
+    # A SIGTERM raised inside concurrent.futures' lock-taking code once left a lock held and
+    # the stopped study hung at exit. A done-callback runs inside that code (its frame is
+    # on the stack here): the handler must defer there, and not in our own frame.
+    from concurrent.futures import Future
+
+    from sensorplan.cli.guards import lands_unraisable
+
+    seen: list[bool] = []
+    done: Future[int] = Future()
+    done.set_result(1)
+    done.add_done_callback(lambda f: seen.append(lands_unraisable(sys._getframe())))
+    assert seen == [True]
+    assert not lands_unraisable(sys._getframe())

@@ -215,7 +215,13 @@ def lands_unraisable(frame: Any) -> bool:
       could leave a dispatcher with an exception set (``SystemError``). scipy's Sobol
       generator reads its tables in a Cython function that drops exceptions: an interrupt
       there left them unfilled and the run failed later. Each of these steps takes
-      milliseconds (one kernel's compilation at worst).
+      milliseconds (one kernel's compilation at worst);
+    * the standard library's ``concurrent.futures``, whose Python code takes its futures'
+      and executor's locks in ``__enter__`` methods and loops: an exception landing between
+      taking a lock and the ``with`` block that releases it leaves the lock held, and the
+      executor's management thread (joined when the interpreter exits) waits on it for
+      ever: a study stopped by SIGTERM once hung there. A study waits in it at most
+      0.2 s at a time (:mod:`sensorplan.study.execution`).
     """
     roots = _callback_roots()
     while frame is not None:
@@ -231,10 +237,10 @@ def lands_unraisable(frame: Any) -> bool:
 
 
 def _callback_roots() -> tuple[str, ...]:
-    """The package directories of numba, llvmlite and scipy, those that are loaded (a
-    package that is not loaded runs no code; this never imports one)."""
+    """The directories of ``concurrent.futures`` and of numba, llvmlite and scipy where
+    loaded (a package that is not loaded runs no code; this never imports one)."""
     roots = []
-    for name in ("numba", "llvmlite", "scipy"):
+    for name in ("concurrent.futures", "numba", "llvmlite", "scipy"):
         module = sys.modules.get(name)
         file = getattr(module, "__file__", None)
         if file:

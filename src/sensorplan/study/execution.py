@@ -133,6 +133,10 @@ def _in_process(study: Study, tasks: Sequence[tuple[int, int]]) -> Iterator[Task
         yield run_task(study, r, m)
 
 
+#: Longest wait for a worker's result before the study's own code runs again.
+WAIT_SECONDS = 0.2
+
+
 def _process_pool(study: Study, tasks: Sequence[tuple[int, int]],
                   workers: int) -> Iterator[TaskResult]:
     # 'spawn' (not fork): workers start from a clean interpreter, which is portable and
@@ -152,7 +156,11 @@ def _process_pool(study: Study, tasks: Sequence[tuple[int, int]],
                     if len(pending) >= 2 * workers:
                         break
             while pending:
-                done, pending = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
+                # Back in this frame every 0.2 s: the command line's Ctrl-C and SIGTERM
+                # handlers defer while concurrent.futures' code runs (an exception raised
+                # inside it can leave its locks held), so this is where they land.
+                done, pending = cf.wait(pending, timeout=WAIT_SECONDS,
+                                        return_when=cf.FIRST_COMPLETED)
                 for fut in done:
                     nxt = next(todo, None)
                     if nxt is not None:
