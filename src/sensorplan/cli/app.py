@@ -184,6 +184,9 @@ def simulate(
 
     with _bad_input():
         cfg = load_simulation(config, preset, {**settings, "seed": seed})
+        if animate and cfg.scenario.scan is not None:
+            raise ConfigError("--animate", f"the {cfg.scenario.scan} scan has no platforms "
+                              "to animate (the run's figures draw them)")
         if animate:
             from ..figures.animation import check_format
 
@@ -206,8 +209,13 @@ def simulate(
     png = out / "episode.png"
     with _bad_input(), writing(out):
         timing = episode.save(npz)
-        plot_drawable(episode, cfg.scenario, png)
-        written = [npz, png, timing]
+        written = [npz, timing]
+        if cfg.scenario.scan is None:
+            plot_drawable(episode, cfg.scenario, png)
+            written.insert(1, png)
+        else:
+            sys.stderr.write(f"note: no episode.png for the {cfg.scenario.scan} scan (the run "
+                             "figure draws platforms; it has none)\n")
         if animate:
             written.append(animate_drawable(episode, cfg.scenario,
                                             out / f"episode.{animation_format}"))
