@@ -203,6 +203,10 @@ class Vo12:
         return np.array(self.source_birth_sites) + self.offset
 
 
+#: The kind a scripted benchmark's targets are recorded as: both benchmarks' targets move
+#: with a constant-velocity model (Williams15's CWNA, Vo12's noiseless constant velocity).
+TARGET_KIND = "cv"
+
 WILLIAMS15 = Williams15()
 VO12 = Vo12()
 #: The scripted benchmarks by name (a scenario's ``scripted`` key).

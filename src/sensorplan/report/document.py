@@ -450,8 +450,9 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
                "s per run", "converged", "sweeps", "mean Phi (nats)"], rows,
               caption="planning time is wall-clock time of the planner call (depends on "
                       "the machine and its load)")
-    doc.figure("planning_time", figs["planning_time"])
-    doc.figure("convergence", figs["convergence"])
+    for name in ("planning_time", "convergence"):
+        if name in figs:                      # none for a scan study: nothing is planned
+            doc.figure(name, figs[name])
     if "horizon" in figs:
         doc.figure("horizon", figs["horizon"])
 

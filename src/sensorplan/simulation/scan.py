@@ -29,7 +29,7 @@ from scipy.special import ndtr
 from .._types import FloatArray
 from ..models import linear
 from ..models.motion import cv_matrices
-from ..models.scripted import BENCHMARKS, Vo12, Williams15, dwna_matrices
+from ..models.scripted import BENCHMARKS, TARGET_KIND, Vo12, Williams15, dwna_matrices
 from ..tracking.base import Looks
 from ..tracking.pmb.tracker import PMBTracker
 from ..tracking.pmb.undetected import make_grid
@@ -153,5 +153,5 @@ def run_scan_episode(scenario: Scenario, settings: RunSettings,
                     update)
         if progress is not None:
             progress(t, S)
-    kinds = ("cv",) * record.arrays["alive"].shape[1]
+    kinds = (TARGET_KIND,) * record.arrays["alive"].shape[1]
     return record.episode(kinds, settings, seed)

@@ -19,7 +19,7 @@ import numpy as np
 from .._types import FloatArray
 from ..errors import ConfigError
 from ..models.population import BIRTHS, Population, PopulationTruth
-from ..models.scripted import BENCHMARKS, scripted_truth
+from ..models.scripted import BENCHMARKS, TARGET_KIND, scripted_truth
 from ..models.sensors import SensorParams
 from ..models.truth import TruthModel, inside_buildings
 from ..planners.problem import MapRect, check_buildings, check_covariance
@@ -167,6 +167,10 @@ class Scenario:
 
     @property
     def target_kinds(self) -> tuple[str, ...]:
+        """The targets' kinds: the templates' (born targets cycle through them), or the one
+        kind of a scripted truth's targets (:data:`~sensorplan.models.scripted.TARGET_KIND`)."""
+        if self.scripted is not None:
+            return (TARGET_KIND,)
         return tuple(t.kind for t in self.targets)
 
     @property
