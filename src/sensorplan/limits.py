@@ -507,6 +507,10 @@ def check_run(scenario: Any, settings: Any, fields: dict[str, str]) -> None:
     if settings.tracker.kind != "known" and scenario.look_detects != "all":
         raise ConfigError("look_detects", "a multi-target tracker needs looks that detect "
                           "every live target in view: look_detects = 'all'")
+    most = getattr(scenario, "truth_steps", None)
+    if most is not None and settings.steps > most:
+        raise ConfigError(fields["steps"], f"must be at most {most} (the scripted "
+                          f"{scenario.scripted} truth's length), got {settings.steps}")
     M, N = len(scenario.targets), len(scenario.sensors)
     check_decision_size(settings.horizon, settings.steps_per_epoch, M,
                         [s.params.moves for s in scenario.sensors], scenario.world.width,

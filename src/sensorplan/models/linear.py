@@ -159,5 +159,6 @@ def scan(sensor: LinearSensor, xy: FloatArray, rng: np.random.Generator
     return np.concatenate([z, clutter]), detected
 
 
-__all__ = ["H", "LinearSensor", "benchmark_sensor", "clutter_density", "detection_probabilities", "in_area",
-           "jacobian", "measure", "noise", "scan", "vo12", "williams15"]
+__all__ = ["H", "LinearSensor", "benchmark_sensor", "clutter_density",
+           "detection_probabilities", "in_area", "jacobian", "measure", "noise", "scan",
+           "vo12", "williams15"]

@@ -29,12 +29,13 @@ from scipy.special import ndtr
 from .._types import FloatArray
 from ..models import linear
 from ..models.motion import cv_matrices
-from ..models.scripted import BENCHMARKS, TARGET_KIND, Vo12, Williams15, dwna_matrices
+from ..models.scripted import (BENCHMARKS, TARGET_KIND, Vo12, Williams15, dwna_matrices,
+                               scripted_truth)
 from ..tracking.base import Looks
 from ..tracking.pmb.tracker import PMBTracker
 from ..tracking.pmb.undetected import make_grid
 from .episode import Episode, Recorder, Sensed
-from .scenario import Scenario, make_population
+from .scenario import Scenario
 from .settings import RunSettings
 
 
@@ -124,8 +125,7 @@ def run_scan_episode(scenario: Scenario, settings: RunSettings,
     as one sensor at the map's centre (heading 0) that looks at no track."""
     assert scenario.scan is not None
     S = settings.steps
-    truth = make_population(scenario, np.zeros((0, 4)), np.random.default_rng(streams["truth"]),
-                            np.random.default_rng(streams["births"]))
+    truth = scripted_truth(scenario.scan, np.random.default_rng(streams["truth"]))
     if S > truth.steps:
         raise ValueError(f"the {scenario.scan} truth has {truth.steps} steps, not {S}")
     sensor = linear.benchmark_sensor(scenario.scan)

@@ -182,6 +182,11 @@ class Scenario:
         return len(self.targets) if self.initial_targets is None else self.initial_targets
 
     @property
+    def truth_steps(self) -> int | None:
+        """The most steps a run can have: a scripted truth's length (None: no limit)."""
+        return None if self.scripted is None else BENCHMARKS[self.scripted].steps
+
+    @property
     def known_targets(self) -> bool:
         """Whether the targets are exactly the initial ones for the whole run (no births,
         no deaths, no scripted truth): the paper's setting."""
@@ -330,6 +335,9 @@ class Scenario:
         if bench is None:
             raise ConfigError("scan", f"unknown scan sensor {self.scan!r}; choose from "
                               f"{', '.join(BENCHMARKS)}")
+        if self.scripted != self.scan:
+            raise ConfigError("scan", f"the {self.scan} scan needs its benchmark's truth: "
+                              f"scripted = {self.scan!r}")
         if self.sensors:
             raise ConfigError("sensors", "must be empty with scan: the scan sensor sees the "
                               "whole map every step, there are no platforms")

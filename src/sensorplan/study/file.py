@@ -154,7 +154,7 @@ def _no_planning(i: int, m: Any, defaults: dict[str, Any], scan: str) -> None:
     """Refuse method ``i``'s planning keys (its own or from ``[defaults]``) for a scan
     scenario: its sensor sees the whole map every step, nothing is planned."""
     own = given(m)
-    for f, s in declared(RunSettings, "planning"):
+    for f, _ in declared(RunSettings, "planning"):
         at = (f"methods[{i}].{f.name}" if f.name in own else
               f"defaults.{f.name}" if f.name in defaults else None)
         if at is not None:
