@@ -119,3 +119,10 @@ def test_bad_study_keys_of_a_scan_preset_exit_2_naming_them(extra, field, tmp_pa
     study.write_text(f'runs = 1\nsteps = 2\n{head}[scenario]\npreset = "williams15"\n'
                      f"[{rest}")
     assert_bad_input(run(capsys, "study", study, "--out", tmp_path / "o"), field)
+
+
+@pytest.mark.parametrize("name", ["williams15", "vo12"])
+def test_agents_refuse_a_scan_preset(name, tmp_path, capsys):
+    line = assert_bad_input(run(capsys, "agents", "--preset", name, "--steps", "2", "--out",
+                                tmp_path / "o"), "--preset")
+    assert "no platforms" in line

@@ -525,10 +525,11 @@ class RunSettings(_Settings):
     gospa_c: float = setting(
         50.0, section="run", cli=("--gospa-c",), metavar="C", label="GOSPA c",
         bounds=Range(0.0, 1e7, lo_open=True),
-        brief="GOSPA cut-off distance c (m) of the run's set metrics",
-        help="Cut-off distance c (m) of GOSPA (alpha = 2, p = 2): a track farther than c from "
-             "every target is false, a target farther than c from every track missed. "
-             "Presets may set their own (williams15: 10, vo12: 100).")
+        brief="GOSPA cut-off distance c (m) of the run's set metrics (williams15 and "
+              "vo12 set 10 and 100)",
+        help="Cut-off distance c (m) of GOSPA (alpha = 2, p = 2), beyond which a track is "
+             "false and a target missed; presets may set their own (williams15: 10, vo12: "
+             "100).")
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
 
     def __post_init__(self) -> None:
