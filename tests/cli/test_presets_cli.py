@@ -42,6 +42,12 @@ def test_a_tiny_study_of_each_preset_and_its_report(name, c, tmp_path, capsys):
     code, _, err = run(capsys, "report", out)
     assert code == 0, err
     assert f"cut-off c = {c:g} m" in (out / "report" / "summary.md").read_text()
+    # A replay re-simulates the run exactly (the set records of a multi-target tracker).
+    code, text, err = run(capsys, "replay", out, "--run", "0", "--method", "m",
+                          "--no-animate", "--out", tmp_path / "replay")
+    assert code == 0, err
+    assert "identical to the stored run 0" in text
+    assert (tmp_path / "replay" / "episode.png").exists() == (name == "search")
 
 
 def test_a_study_sets_its_own_gospa_cutoff(tmp_path, capsys):
