@@ -29,6 +29,7 @@ import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
 from .._types import BoolArray, FloatArray, IntArray
+from ..simulation.settings import RunSettings, default_of
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..simulation.episode import Episode
@@ -573,7 +574,7 @@ def _int_column(x: npt.ArrayLike, name: str, rows: int | None = None) -> IntArra
 
 
 #: GOSPA's default cut-off distance (m): the run setting ``gospa_c``'s default.
-GOSPA_CUTOFF = 50.0
+GOSPA_CUTOFF: float = default_of(RunSettings.__dataclass_fields__["gospa_c"])
 
 
 def episode_set_metrics(episode: Episode, c: float | None = None) -> SetMetrics:
