@@ -605,9 +605,17 @@ def check_run(scenario: Any, settings: Any, fields: dict[str, str]) -> None:
                           "a tracker of known targets needs every target known from the "
                           "start (births = 'none', survival_probability = 1, no scripted "
                           "truth); choose a multi-target tracker")
+    if getattr(scenario, "scan", None) is not None and settings.tracker.kind != "pmb":
+        raise ConfigError(fields.get("tracker.kind", "tracker.kind"),
+                          f"the {scenario.scan} scan's linear sensor is tracked by the pmb "
+                          f"tracker only, got {settings.tracker.kind!r}")
     if settings.tracker.kind != "known" and scenario.look_detects != "all":
         raise ConfigError("look_detects", "a multi-target tracker needs looks that detect "
                           "every live target in view: look_detects = 'all'")
+    most = getattr(scenario, "truth_steps", None)
+    if most is not None and settings.steps > most:
+        raise ConfigError(fields["steps"], f"must be at most {most} (the scripted "
+                          f"{scenario.scripted} truth's length), got {settings.steps}")
     M, N = len(scenario.targets), len(scenario.sensors)
     check_decision_size(settings.horizon, settings.steps_per_epoch, M,
                         [s.params.moves for s in scenario.sensors], scenario.world.width,

@@ -31,7 +31,7 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
     paths = [path for _, path, _, _ in DECLARED]
     assert paths == ["planner", "planner_params", "horizon", "steps_per_epoch", "execution",
                      "visibility", "objective", "planning_detection", "planning_occlusion", "steps",
-                     "tracker.kind", "tracker.miss_update", "tracker.model",
+                     "gospa_c", "tracker.kind", "tracker.miss_update", "tracker.model",
                      "tracker.process_noise",
                      "tracker.mode_process_noise", "tracker.switching", "tracker.gate",
                      "tracker.gate_probability", "tracker.reacquire", "tracker.association",
@@ -131,7 +131,7 @@ def test_values_are_normalised_and_round_trip_through_dicts() -> None:
     assert d == {"planner": "random", "planner_params": {"seed": 2}, "horizon": 3,
                  "steps_per_epoch": 1, "execution": "olf", "visibility": "probabilistic",
                  "objective": "cumulative", "planning_detection": "aware",
-                 "planning_occlusion": "aware", "steps": 100}
+                 "planning_occlusion": "aware", "steps": 100, "gospa_c": 50.0}
     assert tracker["miss_update"] == "none"
     assert tracker == json.loads(json.dumps(
         {f.name: getattr(TrackerSettings(), f.name)

@@ -660,3 +660,23 @@ def test_gospa_summary_and_curves_match_direct_computations(serial_dir: Path) ->
         step3 = g.loc[g["step"] == 3, "gospa"].mean()
         got = curves[(curves["method"] == method) & (curves["step"] == 3)]["gospa"]
         np.testing.assert_allclose(got.to_numpy(), [step3], rtol=1e-12)
+
+
+def test_a_study_directory_written_before_gospa_c_is_the_same_study(tmp_path: Path) -> None:
+    """config.resolved.json gained the study-wide GOSPA cut-off: a directory without it
+    reads back with the default (50 m) and resumes as the same study; another cut-off is
+    a different study (its GOSPA tables would differ)."""
+    study = parse_study("runs = 1\nsteps = 2\n[[methods]]\nname = \"r\"\nplanner = \"random\"\n")
+    assert studies.run_study(study, tmp_path, workers=1).ran == 1
+    config = tmp_path / "config.resolved.json"
+    old = json.loads(config.read_text())
+    assert old["gospa_c"] == 50.0
+    del old["gospa_c"]
+    config.write_text(json.dumps(old))
+    back = studies.Study.from_resolved(old)
+    assert back.methods[0].settings.gospa_c == 50.0
+    assert studies.run_study(study, tmp_path, workers=1).ran == 0
+    other = parse_study("runs = 1\nsteps = 2\ngospa_c = 20.0\n[[methods]]\nname = \"r\"\n"
+                        "planner = \"random\"\n")
+    with pytest.raises(ConfigError, match=r"gospa_c \(50.0 -> 20.0\)"):
+        studies.run_study(other, tmp_path, workers=1)

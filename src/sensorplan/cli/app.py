@@ -154,7 +154,8 @@ def simulate(
              "used.")] = None,
     preset: Annotated[str | None, typer.Option(
         "--preset", metavar="NAME", show_default=False, rich_help_panel=PANELS["run"],
-        help="Built-in scenario instead of a file: paper (5 targets, 3 sensors). "
+        help="Built-in scenario instead of a file: paper, radar, urban, slow, swarm "
+             "(docs/model.md), search, williams15 or vo12 (docs/tracking_pmb.md). "
              "[default: paper without a file]")] = None,
     seed: Annotated[int | None, typer.Option(
         "--seed", metavar="S", show_default=False, rich_help_panel=PANELS["run"],
@@ -186,6 +187,9 @@ def simulate(
 
     with _bad_input():
         cfg = load_simulation(config, preset, {**settings, "seed": seed})
+        if animate and cfg.scenario.scan is not None:
+            raise ConfigError("--animate", f"the {cfg.scenario.scan} scan has no platforms "
+                              "to animate (the run's figures draw them)")
         if animate:
             from ..figures.animation import check_format
 
@@ -208,8 +212,13 @@ def simulate(
     png = out / "episode.png"
     with _bad_input(), writing(out):
         timing = episode.save(npz)
-        plot_drawable(episode, cfg.scenario, png)
-        written = [npz, png, timing]
+        written = [npz, timing]
+        if cfg.scenario.scan is None:
+            plot_drawable(episode, cfg.scenario, png)
+            written.insert(1, png)
+        else:
+            sys.stderr.write(f"note: no episode.png for the {cfg.scenario.scan} scan (the run "
+                             "figure draws platforms; it has none)\n")
         if animate:
             written.append(animate_drawable(episode, cfg.scenario,
                                             out / f"episode.{animation_format}"))

@@ -78,10 +78,17 @@ def replay_command(study_dir: Path, run: int, method: str, out: Path | None, ani
     ensure_out_dir(target)                      # before the simulation, not after it
     rep = replay_run(study_dir, run, method)
     npz, png = target / "episode.npz", target / "episode.png"
+    scan = rep.study.scenario.scan
     with writing(target):          # a full disk or lost permissions: one line naming --out
         written = [npz, png, rep.episode.save(npz)]
-        plot_drawable(rep.episode, rep.study.scenario, png)
-        if animate:
+        if scan is not None:
+            # The run's figures draw platforms; a scan has none.
+            written.remove(png)
+            sys.stderr.write(f"note: no episode.png or animation for the {scan} scan (the "
+                             "run figures draw platforms; it has none)\n")
+        else:
+            plot_drawable(rep.episode, rep.study.scenario, png)
+        if animate and scan is None:
             written.append(animate_drawable(rep.episode, rep.study.scenario,
                                             target / f"episode.{animation_format}"))
     cfg = SimpleNamespace(scenario=rep.study.scenario, settings=rep.method.settings,

@@ -167,15 +167,22 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
 
     console = Console()
     s = cfg.settings
-    console.print(f"[bold]{escape(planner_title(s.planner))}[/], K = {s.horizon}, "
-                  f"e = {s.steps_per_epoch}, {s.execution.upper()}, {s.steps} steps, "
-                  f"seed {cfg.seed}", highlight=False)
+    scan = cfg.scenario.scan
+    if scan is not None:
+        console.print(f"[bold]{escape(scan)} scan[/] (its linear sensor sees the whole map "
+                      f"every step; nothing is planned), {s.steps} steps, seed {cfg.seed}",
+                      highlight=False)
+    else:
+        console.print(f"[bold]{escape(planner_title(s.planner))}[/], K = {s.horizon}, "
+                      f"e = {s.steps_per_epoch}, {s.execution.upper()}, {s.steps} steps, "
+                      f"seed {cfg.seed}", highlight=False)
     # Only the tracker settings that act with the others as they are (no cv q with the IMM).
     unused = s.tracker.unused()
     tracker = ", ".join(f"{meta.label or f.name} {getattr(s.tracker, f.name)}"
                         for _, path, f, meta in all_settings()
                         if path.startswith("tracker.") and f.name not in unused)
-    console.print(f"visibility {s.visibility}, objective {s.objective}, {tracker}",
+    console.print(tracker if scan is not None else
+                  f"visibility {s.visibility}, objective {s.objective}, {tracker}",
                   highlight=False)
 
     measured = np.asarray(episode.measured)[1:]                # (S, M, N)
@@ -209,15 +216,26 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
                   f"{100 * c['high_share']:.1f} % of target-steps (1 % when honest), "
                   f"{c['restarts']} restarts, {c['map_corrections']} map corrections",
                   highlight=False)
-    from ..study.set_metrics import GOSPA_CUTOFF, episode_set_metrics
+    from ..study.set_metrics import episode_set_metrics
 
-    sm = episode_set_metrics(episode, GOSPA_CUTOFF)
+    sm = episode_set_metrics(episode)
     g = sm.gospa
-    console.print(f"GOSPA (c = {GOSPA_CUTOFF:g} m): mean {g.distance.mean():.1f} m over steps "
+    console.print(f"GOSPA (c = {s.gospa_c:g} m): mean {g.distance.mean():.1f} m over steps "
                   f"1..S; its parts, mean m^2: localisation {g.localisation.mean():.1f}, "
                   f"missed {g.missed.mean():.1f}, false {g.false.mean():.1f}; false tracks "
                   f"per step {sm.false_tracks.mean():.2f}; targets lost "
                   f"{sm.targets.targets_lost}", highlight=False)
+    if scan is not None:
+        # One scan a step, no platforms and no decisions: the detections say it all.
+        det = np.asarray(episode.detections)[1:, 0]
+        fa = np.asarray(episode.false_alarms)[1:, 0]
+        console.print(f"scans: {det.size}, detections per scan {det.mean():.1f} (false alarms "
+                      f"{fa.mean():.1f}); target detections {int(measured.sum())} of "
+                      f"{int(np.asarray(episode.alive)[1:].sum())} live target-steps",
+                      highlight=False)
+        for path in written:
+            console.print(f"wrote {path}", soft_wrap=True, markup=False, highlight=False)
+        return
 
     looked = np.asarray(episode.looked)[1:]                    # (S, N)
     missed = np.asarray(episode.missed)[1:]                    # (S, N)

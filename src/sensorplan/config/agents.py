@@ -19,7 +19,7 @@ from typing import Any
 from ..errors import ConfigError
 from ..limits import check_bus_agents
 from ..planners.registry import check_settings
-from .simulate import SimulationConfig, load_simulation
+from .simulate import SimulationConfig, load_simulation, preset_scenario
 
 #: The decentralized planners, one agent per platform (docs/decentral.md).
 DECENTRAL = ("dec-jsfp", "dec-independent", "dec-sequential")
@@ -54,6 +54,10 @@ def load_agents(path: str | Path | None = None, preset: str | None = None,
     if chosen is not None and chosen not in DECENTRAL:
         raise ConfigError("--planner", f"must be a decentralized planner ({', '.join(DECENTRAL)}"
                           f"), got {chosen!r}")
+    scan = preset_scenario(preset, "--preset").scan if path is None else None
+    if scan is not None:
+        raise ConfigError("--preset", f"the {scan} scan has no platforms to run agents on "
+                          "(its linear sensor sees the whole map every step): use simulate")
     cfg = load_simulation(path, preset, overrides)
     if cfg.settings.planner not in DECENTRAL:
         cfg = load_simulation(path, preset, {**overrides, "planner": DECENTRAL[0]})

@@ -1,6 +1,7 @@
 """Scenario files (TOML): their strict model, reading and writing.
 
-Every key is optional except ``targets`` (optional with ``scripted``) and ``sensors``;
+Every key is optional except ``targets`` (optional with ``scripted``) and ``sensors``
+(optional with ``scan``);
 angles in radians, or in degrees under the same key with ``_deg`` appended
 (``fov_half_angle_deg = 30``; one of the two); defaults as below (``configs/paper.toml``
 spells out every key)::
@@ -19,6 +20,8 @@ spells out every key)::
                                   # own births, deaths and trajectories, map and dt
     look_detects = "target"       # a look detects only its target (the paper's), or "all":
                                   # every live target in its sensing region
+    # scan = "williams15"         # the benchmark's linear sensor scans the whole map every
+                                  # step instead of the [[sensors]] (none then; "vo12")
 
     [map]
     width = 600.0                 # m
@@ -137,11 +140,12 @@ class ScenarioFile(Strict):
     initial_targets: int | None = None
     scripted: str | None = None
     look_detects: Annotated[str, choice(LOOK_DETECTS, "look_detects")] = _SC.look_detects
+    scan: str | None = None
     map: MapModel = MapModel()
     initial: InitialModel = InitialModel()
     tracker: TrackerTable = TrackerTable()  # type: ignore[valid-type]
     targets: list[ScenarioTarget] | None = None
-    sensors: list[ScenarioSensor]
+    sensors: list[ScenarioSensor] | None = None
     buildings: list[BuildingModel] = []
     planning: PlanningTable = PlanningTable()  # type: ignore[valid-type]
     run: RunTable = RunTable()  # type: ignore[valid-type]
@@ -150,6 +154,8 @@ class ScenarioFile(Strict):
         if self.targets is None and self.scripted is None:
             # Required unless a scripted truth brings its own targets.
             raise ConfigError("targets", "is required")
+        if self.sensors is None and self.scan is None:
+            raise ConfigError("sensors", "is required")
         targets = tuple(
             TargetSpec(kind=t.kind,
                        position=None if t.position is None else (t.position[0], t.position[1]),
@@ -161,7 +167,7 @@ class ScenarioFile(Strict):
             SensorSpec(params=s.params(),
                        position=None if s.position is None else (s.position[0], s.position[1]),
                        heading=radians_of(s, "heading", None))
-            for s in self.sensors)
+            for s in self.sensors or ())
         ini = self.initial
         scenario = Scenario(
             world=MapRect(self.map.width, self.map.height), dt=self.dt,
@@ -175,7 +181,7 @@ class ScenarioFile(Strict):
             buildings=tuple(b.row() for b in self.buildings), births=self.births,
             birth_rate=self.birth_rate, survival_probability=self.survival_probability,
             initial_targets=self.initial_targets, scripted=self.scripted,
-            look_detects=self.look_detects)
+            look_detects=self.look_detects, scan=self.scan)
         for i, spec in enumerate(scenario.sensors):
             check_sensor_precision(spec.params, f"sensors[{i}]")
         return scenario
@@ -243,6 +249,8 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
         population["scripted"] = scenario.scripted
     if scenario.look_detects != _SC.look_detects:
         population["look_detects"] = scenario.look_detects
+    if scenario.scan is not None:
+        population["scan"] = scenario.scan
     return {
         "dt": float(scenario.dt), "process_noise": float(scenario.process_noise),
         **population,

@@ -9,8 +9,8 @@ from typing import Any
 
 from ..errors import ConfigError
 from ..limits import check_run
+from ..simulation.scenario import PRESET_SETTINGS, Scenario
 from ..simulation.scenario import PRESETS as SCENARIO_PRESETS
-from ..simulation.scenario import Scenario
 from ..simulation.settings import RunSettings, all_settings, limit_fields
 from . import files as io
 from .planners import RUN_SEED, planner_settings, replaced_planner_settings
@@ -127,7 +127,9 @@ def load_simulation(path: str | Path | None = None, preset: str | None = None,
         raise ConfigError("--preset", "give a scenario file or --preset, not both")
     if path is None:
         scenario = preset_scenario(preset, "--preset")
-        data: dict[str, Any] = {}
+        # The preset's own settings, as a file's tables would give them.
+        data: dict[str, Any] = {section: dict(values) for section, values in
+                                PRESET_SETTINGS.get(preset or "paper", {}).items()}
     else:
         data = read_scenario_file(path)
     planning = data.get("planning")
@@ -145,6 +147,7 @@ def load_simulation(path: str | Path | None = None, preset: str | None = None,
         else:
             tables = validate(ScenarioFile, data)
             scenario = tables.scenario()
+        _no_planning_with_scan(scenario, given(tables.planning), given_)
         settings = _run_settings(tables, planner_overridden="planner" in given_,
                                  own_planner=own if isinstance(own, str) else None)
         check_run(scenario, settings, RUN_FIELDS)
@@ -157,6 +160,24 @@ def load_simulation(path: str | Path | None = None, preset: str | None = None,
                               ) from None
         raise _rename(exc, renames) from None
     return SimulationConfig(scenario, settings, tables.run.seed)
+
+
+def _no_planning_with_scan(scenario: Scenario, planning: Mapping[str, Any],
+                           options: Mapping[str, Any]) -> None:
+    """Refuse planning settings for a scenario whose sensor scans the whole map (``scan``):
+    there is nothing to plan, so a planner or horizon given would be silently ignored."""
+    if scenario.scan is None:
+        return
+    planning_keys = [f.name for _, _, f, s in all_settings() if s.section == "planning"]
+    for key in planning_keys:
+        if key in options:
+            field = option_name(key)
+        elif key in planning:
+            field = f"planning.{key}"
+        else:
+            continue
+        raise ConfigError(field, f"planning does not apply to the {scenario.scan} scan (its "
+                          "linear sensor sees the whole map every step): leave it out")
 
 
 def _run_settings(tables: Any, planner_overridden: bool = False,

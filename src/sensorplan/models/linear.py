@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._types import BoolArray, FloatArray
+from .scripted import BENCHMARKS
 
 #: The measurement matrix: the state's position.
 H = np.array([[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]])
@@ -76,18 +77,25 @@ class LinearSensor:
         return (x1 - x0) * (y1 - y0)
 
 
+def benchmark_sensor(name: str) -> LinearSensor:
+    """The sensor of the scripted benchmark ``name``
+    (:data:`sensorplan.models.scripted.BENCHMARKS`): its whole map, its Pd, false alarms per
+    scan and measurement variance, as its source sets them."""
+    bench = BENCHMARKS[name]
+    return LinearSensor(area=(0.0, 0.0, *bench.world_size), noise_var=bench.measurement_var,
+                        detection_probability=bench.p_detect, clutter_rate=bench.clutter)
+
+
 def williams15() -> LinearSensor:
     """The ``williams15`` benchmark's sensor (after Williams 2015): 300 x 300 m, Pd 0.9, 10
     false alarms per scan, R = I."""
-    return LinearSensor(area=(0.0, 0.0, 300.0, 300.0), noise_var=1.0,
-                        detection_probability=0.9, clutter_rate=10.0)
+    return benchmark_sensor("williams15")
 
 
 def vo12() -> LinearSensor:
     """The ``vo12`` benchmark's sensor (after Vo and Vo 2012): 2000 x 2000 m, Pd 0.98, 30
     false alarms per scan, R = 100 I."""
-    return LinearSensor(area=(0.0, 0.0, 2000.0, 2000.0), noise_var=100.0,
-                        detection_probability=0.98, clutter_rate=30.0)
+    return benchmark_sensor("vo12")
 
 
 def measure(sensor: LinearSensor, xy: FloatArray) -> FloatArray:
@@ -151,5 +159,6 @@ def scan(sensor: LinearSensor, xy: FloatArray, rng: np.random.Generator
     return np.concatenate([z, clutter]), detected
 
 
-__all__ = ["H", "LinearSensor", "clutter_density", "detection_probabilities", "in_area",
-           "jacobian", "measure", "noise", "scan", "vo12", "williams15"]
+__all__ = ["H", "LinearSensor", "benchmark_sensor", "clutter_density",
+           "detection_probabilities", "in_area", "jacobian", "measure", "noise", "scan",
+           "vo12", "williams15"]

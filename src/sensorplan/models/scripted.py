@@ -42,7 +42,11 @@ walls (the sources have none) and stay alive if they leave it.
     velocity); its filter model is discrete white-noise acceleration with ``sigma_v = 5``
     m/s^2 (``Q = sigma_v^2 B B^T``, ``B = [T^2/2; T]`` per axis), available here as
     ``Vo12.truth_sigma_v`` (0: the source's noiseless truth). **Redrawn per run: no** (the
-    truth is deterministic).
+    truth is deterministic). The sensor and filter settings are those of the toolbox's
+    labelled RFS (LMB and GLMB) linear example, ``glmb/gms/gen_model.m`` (Vo, Vo and
+    Hoang; Vo and Vo 2013): ``P_D = 0.98``, 30 false alarms per scan uniform over the
+    region, ``R = 100 I``, ``P_S = 0.99``, four birth terms of weight 0.03 (the toolbox's
+    GM-PHD and CPHD demos use 60 and 50 false alarms instead).
 """
 
 from __future__ import annotations
@@ -147,10 +151,13 @@ class Vo12(_Benchmark):
 
     The source's filter and sensor settings, recorded here for the presets that use them
     (not used by the truth): ``sigma_v = 5`` (DWNA filter model), ``p_survive = 0.99``,
-    ``p_detect = 0.98``, ``R = 100 I`` (``measurement_var``, m^2), birth intensity: four
-    Gaussian components of weight ``birth_weight = 0.03`` each at ``source_birth_sites``
-    with zero velocity and covariance ``diag(birth_std)^2``. The clutter rate is not fixed
-    here: the toolbox's GM-PHD demo uses 60 false alarms per scan, its CPHD demo 50.
+    ``p_detect = 0.98``, ``clutter = 30`` false alarms per scan uniform over the region,
+    ``R = 100 I`` (``measurement_var``, m^2), birth intensity: four Gaussian components of
+    weight ``birth_weight = 0.03`` each at ``source_birth_sites`` with zero velocity and
+    covariance ``diag(birth_std)^2`` (the labelled RFS example's ``gen_model.m``; it
+    writes the first site as ``(0.1, 0.1)``, a nudge off the origin kept at ``(0, 0)``
+    here, where the targets start). ``gospa_c = 100`` m: the cut-off of the labelled RFS
+    papers' OSPA, used as this benchmark's GOSPA cut-off.
     """
 
     world_size: tuple[float, float] = (2000.0, 2000.0)
@@ -176,7 +183,9 @@ class Vo12(_Benchmark):
     truth_sigma_v: float = 0.0
     sigma_v: float = 5.0
     p_detect: float = 0.98
+    clutter: float = 30.0
     measurement_var: float = 100.0
+    gospa_c: float = 100.0
     birth_weight: float = 0.03
     source_birth_sites: tuple[tuple[float, float], ...] = (
         (0.0, 0.0), (400.0, -600.0), (-800.0, -200.0), (-200.0, 800.0))
@@ -203,6 +212,10 @@ class Vo12(_Benchmark):
         """``(4, 2)`` birth-site positions on this package's map."""
         return np.array(self.source_birth_sites) + self.offset
 
+
+#: The kind a scripted benchmark's targets are recorded as: both benchmarks' targets move
+#: with a constant-velocity model (Williams15's CWNA, Vo12's noiseless constant velocity).
+TARGET_KIND = "cv"
 
 WILLIAMS15 = Williams15()
 VO12 = Vo12()

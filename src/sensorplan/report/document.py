@@ -22,7 +22,6 @@ from ..study.metrics import (DIVERGED_THRESHOLD, LOST_THRESHOLD, consistency, go
                              gospa_summary, kinds_with_all, nees_over_time, paired_differences,
                              planning_summary, references, rmse_over_time, run_metrics,
                              sensing_summary, summary)
-from ..study.set_metrics import GOSPA_CUTOFF
 from ..study.model import Method
 from ..study.storage import StudyTables, load_study_dir
 from .figures import FIGURES, draw_figures
@@ -255,7 +254,7 @@ def write_report(study_dir: str | Path, out: str | Path | None = None) -> Report
                f"{shlex.quote(top.best)}") if worst is not None else None
     doc = _document(t, rmse, lost, diffs, plan, sensing, figs, honest, lines, single,
                     example)
-    _gospa_section(doc, gospa, figs)
+    _gospa_section(doc, gospa, figs, _gospa_c(t.study))
     title = f"sensorplan study report: {study_dir.name}"
     md = out / "summary.md"
     page = out / "report.html"
@@ -264,10 +263,15 @@ def write_report(study_dir: str | Path, out: str | Path | None = None) -> Report
     return ReportFiles(page, md, figs, t.complete, len(t.runs_done))
 
 
-def _gospa_section(doc: _Doc, gospa: Any, figs: dict[str, Path]) -> None:
-    """The multi-target error: GOSPA per method and its parts."""
+def _gospa_c(study: Any) -> float:
+    """The study's GOSPA cut-off (m): a study-wide setting, the same for every method."""
+    return float(study.methods[0].settings.gospa_c)
+
+
+def _gospa_section(doc: _Doc, gospa: Any, figs: dict[str, Path], c: float) -> None:
+    """The multi-target error: GOSPA per method and its parts, with the cut-off ``c`` (m)."""
     doc.h(2, "GOSPA (the reported tracks against the live targets)")
-    doc.p(f"GOSPA (alpha = 2, p = 2, cut-off c = {GOSPA_CUTOFF:g} m) compares the set of "
+    doc.p(f"GOSPA (alpha = 2, p = 2, cut-off c = {c:g} m) compares the set of "
           "reported tracks with the set of live targets at every step: its square is the "
           "localisation error of the assigned pairs plus c^2/2 for each missed target and "
           "for each false track. Per run its mean over the steps; across runs the mean with "
@@ -446,8 +450,9 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
                "s per run", "converged", "sweeps", "mean Phi (nats)"], rows,
               caption="planning time is wall-clock time of the planner call (depends on "
                       "the machine and its load)")
-    doc.figure("planning_time", figs["planning_time"])
-    doc.figure("convergence", figs["convergence"])
+    for name in ("planning_time", "convergence"):
+        if name in figs:                      # none for a scan study: nothing is planned
+            doc.figure(name, figs[name])
     if "horizon" in figs:
         doc.figure("horizon", figs["horizon"])
 

@@ -71,10 +71,11 @@ def draw_figures(t: StudyTables, out: Path, stats: dict[str, Any]) -> dict[str, 
         "lost_share": _fig_lost(stats["lost"], t, out / "lost_share.png"),
         "nees_time": _fig_nees_time(stats["nees"], t, colors, out / "nees_time.png"),
         "paired_differences": _fig_paired(stats["diffs"], t, out / "paired_differences.png"),
-        "planning_time": _fig_planning(t, colors, out / "planning_time.png"),
-        "convergence": _fig_convergence(stats["plan"], t, out / "convergence.png"),
         "gospa_time": _fig_gospa_time(stats["gospa"], t, colors, out / "gospa_time.png"),
     }
+    if len(t.decisions):             # a scan study plans nothing
+        figs["planning_time"] = _fig_planning(t, colors, out / "planning_time.png")
+        figs["convergence"] = _fig_convergence(stats["plan"], t, out / "convergence.png")
     groups = horizon_groups(t.study)
     if groups:
         figs["horizon"] = _fig_horizon(groups, stats["rmse"], t, out / "horizon.png")
@@ -127,6 +128,8 @@ def _fig_scenario(t: StudyTables, path: Path) -> Path:
     # line style.
     for j, kind in enumerate(study.scenario.target_kinds):
         g = steps[steps["target"] == j].sort_values("step")
+        if g.empty:                  # a template no target of this run was born from yet
+            continue
         color = target_color(j)
         style: Any = "-" if kind == "cv" else "--"
         ax.plot(g["x"], g["y"], style, color=color, linewidth=1.6)

@@ -103,6 +103,11 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     streams = run_streams(seed)
     seed_ss = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(
         int(seed))
+    if scenario.scan is not None:
+        # A benchmark's sensor scans the whole map: nothing to plan.
+        from .scan import run_scan_episode
+
+        return run_scan_episode(scenario, settings, streams, seed_ss, progress)
     truth_rng = np.random.default_rng(streams["truth"])
     planner_rng = np.random.default_rng(streams["planner"])
     planner = make_planner(settings.planner, **settings.planner_params)
@@ -146,7 +151,12 @@ def run_episode(scenario: Scenario, settings: RunSettings,
         close = getattr(planner, "close", None)
         if callable(close):
             close()
-    return record.episode(scenario.target_kinds, settings, seed_ss)
+    # Every target slot's kind: born targets take the templates in turn (slot s moves as
+    # template s mod T).
+    kinds = scenario.target_kinds
+    slots = record.arrays["alive"].shape[1]
+    return record.episode(tuple(kinds[s % len(kinds)] for s in range(slots)), settings,
+                          seed_ss)
 
 
 def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray,

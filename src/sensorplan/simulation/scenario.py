@@ -19,7 +19,7 @@ import numpy as np
 from .._types import FloatArray
 from ..errors import ConfigError
 from ..models.population import BIRTHS, Population, PopulationTruth
-from ..models.scripted import BENCHMARKS, scripted_truth
+from ..models.scripted import BENCHMARKS, TARGET_KIND, scripted_truth
 from ..models.sensors import SensorParams
 from ..models.truth import TruthModel, inside_buildings
 from ..planners.problem import MapRect, check_buildings, check_covariance
@@ -110,6 +110,10 @@ class Scenario:
     scripted : str or None           a published benchmark's scripted truth
                                      (:data:`sensorplan.models.scripted.BENCHMARKS`) instead
                                      of drawn targets; its map and step are the benchmark's
+    scan : str or None               a published benchmark's linear position sensor
+                                     (:func:`sensorplan.models.linear.benchmark_sensor`)
+                                     that scans the whole map every step, instead of the
+                                     platforms (``sensors`` is then empty): nothing to plan
     """
 
     world: MapRect = field(default_factory=MapRect)
@@ -129,6 +133,7 @@ class Scenario:
     initial_targets: int | None = None
     scripted: str | None = None
     look_detects: str = "target"
+    scan: str | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "targets", tuple(self.targets))
@@ -162,6 +167,10 @@ class Scenario:
 
     @property
     def target_kinds(self) -> tuple[str, ...]:
+        """The targets' kinds: the templates' (born targets cycle through them), or the one
+        kind of a scripted truth's targets (:data:`~sensorplan.models.scripted.TARGET_KIND`)."""
+        if self.scripted is not None:
+            return (TARGET_KIND,)
         return tuple(t.kind for t in self.targets)
 
     @property
@@ -171,6 +180,11 @@ class Scenario:
         if self.scripted is not None:
             return 0
         return len(self.targets) if self.initial_targets is None else self.initial_targets
+
+    @property
+    def truth_steps(self) -> int | None:
+        """The most steps a run can have: a scripted truth's length (None: no limit)."""
+        return None if self.scripted is None else BENCHMARKS[self.scripted].steps
 
     @property
     def known_targets(self) -> bool:
@@ -198,7 +212,7 @@ class Scenario:
             RANGES["length"].check(v, f"map.{name}")
         if not self.targets and self.scripted is None:
             raise ConfigError("targets", "at least one target is required")
-        if not self.sensors:
+        if not self.sensors and self.scan is None:
             raise ConfigError("sensors", "at least one sensor is required")
         check_count(len(self.targets), MAX_TARGETS, "targets", "targets")
         check_count(len(self.sensors), MAX_SENSORS, "sensors", "sensors")
@@ -296,6 +310,7 @@ class Scenario:
             if n0 == 0 and self.births == "none" and self.scripted is None:
                 raise ConfigError("initial_targets", 'is 0 with births = "none": there would '
                                   "be no targets")
+        self._validate_scan()
         if self.scripted is not None:
             bench = BENCHMARKS.get(self.scripted)
             if bench is None:
@@ -311,6 +326,32 @@ class Scenario:
                 if have != want:
                     raise ConfigError(key, f"must be {want:g} for the scripted "
                                       f"{self.scripted} truth, got {have:g}")
+
+    def _validate_scan(self) -> None:
+        """The ``scan`` key: a benchmark's linear sensor covering exactly the map."""
+        if self.scan is None:
+            return
+        bench = BENCHMARKS.get(self.scan)
+        if bench is None:
+            raise ConfigError("scan", f"unknown scan sensor {self.scan!r}; choose from "
+                              f"{', '.join(BENCHMARKS)}")
+        if self.scripted != self.scan:
+            raise ConfigError("scan", f"the {self.scan} scan needs its benchmark's truth: "
+                              f"scripted = {self.scan!r}")
+        if self.sensors:
+            raise ConfigError("sensors", "must be empty with scan: the scan sensor sees the "
+                              "whole map every step, there are no platforms")
+        if self.buildings:
+            raise ConfigError("buildings", "must be empty with scan: the linear sensor sees "
+                              "through them")
+        if self.look_detects != "all":
+            raise ConfigError("look_detects", "must be 'all' with scan: a scan detects every "
+                              "live target on the map")
+        for key, have, want in (("map.width", self.world.width, bench.world_size[0]),
+                                ("map.height", self.world.height, bench.world_size[1])):
+            if have != want:
+                raise ConfigError(key, f"must be {want:g}: the {self.scan} scan covers "
+                                  f"{bench.world_size[0]:g} x {bench.world_size[1]:g} m")
 
     def _validate_buildings(self) -> None:
         check_buildings(self.buildings, self.world, [s.params.altitude for s in self.sensors])
@@ -411,11 +452,14 @@ def search_scenario() -> Scenario:
     ``radar`` preset's conditions (:data:`RADAR_DETECTION`), the first 3 of the paper's
     targets known at the start and Poisson births at the map's edges at
     :data:`SEARCH_BIRTH_RATE` per step (templates cycled: 3 ``cv`` to 2 ``dubins``); a
-    target dies when it leaves the map (survival 1 otherwise). Initial states, births and
-    sensor poses are drawn from each run's seed.
+    target dies when it leaves the map (survival 1 otherwise). Every look detects every
+    live target in its sensing region (``look_detects = "all"``). Initial states, births
+    and sensor poses are drawn from each run's seed; the preset runs the ``pmb`` tracker
+    for 200 steps (:data:`PRESET_SETTINGS`).
     """
     return dataclasses.replace(radar_scenario(), births="edges",
-                               birth_rate=SEARCH_BIRTH_RATE, initial_targets=3)
+                               birth_rate=SEARCH_BIRTH_RATE, initial_targets=3,
+                               look_detects="all")
 
 
 def benchmark_scenario(name: str, sensors: tuple[SensorSpec, ...]) -> Scenario:
@@ -427,10 +471,46 @@ def benchmark_scenario(name: str, sensors: tuple[SensorSpec, ...]) -> Scenario:
                     scripted=name)
 
 
+def scan_scenario(name: str) -> Scenario:
+    """The published benchmark ``name`` as its source runs it: its scripted truth
+    (:data:`sensorplan.models.scripted.BENCHMARKS`) on its map, seen each step by its
+    linear position sensor covering the whole map (``scan``), with no platforms."""
+    bench = BENCHMARKS[name]
+    return Scenario(world=MapRect(*bench.world_size), dt=bench.dt, scripted=name, scan=name,
+                    look_detects="all")
+
+
+def williams15_scenario() -> Scenario:
+    """Williams (2015)'s benchmark: 4 targets coalescing at step 41 on 300 x 300 m, one
+    dying there; Pd 0.9, 10 false alarms per scan, R = I (:func:`scan_scenario`)."""
+    return scan_scenario("williams15")
+
+
+def vo12_scenario() -> Scenario:
+    """The labelled RFS papers' linear benchmark (Vo, Vo and Hoang): 12 targets born at
+    steps 1, 20, 40, 60 and 80 from 4 sites on 2000 x 2000 m; Pd 0.98, 30 false alarms per
+    scan, R = 100 I (:func:`scan_scenario`)."""
+    return scan_scenario("vo12")
+
+
 #: Built-in scenarios by name (``--preset``, a study's ``scenario.preset``).
 PRESETS: dict[str, Callable[[], Scenario]] = {"paper": paper_scenario, "radar": radar_scenario,
                                               "urban": urban_scenario, "swarm": swarm_scenario,
-                                              "slow": slow_scenario}
+                                              "slow": slow_scenario, "search": search_scenario,
+                                              "williams15": williams15_scenario,
+                                              "vo12": vo12_scenario}
+
+#: The run settings a preset brings, by section (``tracker``, ``run``), as a scenario
+#: file's tables would: a given option, file key or study key replaces them. The scan
+#: presets set their length and GOSPA cut-off from their sources.
+PRESET_SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
+    "search": {"tracker": {"kind": "pmb"}, "run": {"steps": 200}},
+    "williams15": {"tracker": {"kind": "pmb"},
+                   "run": {"steps": BENCHMARKS["williams15"].steps,
+                           "gospa_c": BENCHMARKS["williams15"].gospa_c}},
+    "vo12": {"tracker": {"kind": "pmb"},
+             "run": {"steps": BENCHMARKS["vo12"].steps, "gospa_c": BENCHMARKS["vo12"].gospa_c}},
+}
 
 
 @dataclass(frozen=True)

@@ -446,6 +446,7 @@ class RunSettings(_Settings):
     planning_detection : {"aware", "ignore"}
     planning_occlusion : {"aware", "ignore"}
     steps : int                    simulation steps S (>= 1)
+    gospa_c : float                GOSPA cut-off c (m, > 0) of the run's set metrics
     tracker : TrackerSettings      (a mapping is accepted and converted)
 
     Raises
@@ -515,6 +516,14 @@ class RunSettings(_Settings):
         100, section="run", cli=("--steps", "-n"), metavar="N", bounds=Range(1, MAX_STEPS),
         brief="Simulation steps of the run",
         help="Simulation steps of the run.")
+    gospa_c: float = setting(
+        50.0, section="run", cli=("--gospa-c",), metavar="C", label="GOSPA c",
+        bounds=Range(0.0, 1e7, lo_open=True),
+        brief="GOSPA cut-off distance c (m) of the run's set metrics (williams15 and "
+              "vo12 set 10 and 100)",
+        help="Cut-off distance c (m) of GOSPA (alpha = 2, p = 2), beyond which a track is "
+             "false and a target missed; presets may set their own (williams15: 10, vo12: "
+             "100).")
     tracker: TrackerSettings = field(default_factory=TrackerSettings)
 
     def __post_init__(self) -> None:

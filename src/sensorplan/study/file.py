@@ -29,7 +29,11 @@ list of methods; ``sensorplan study`` runs every method on every run (docs/studi
 
 The method settings are :mod:`sensorplan.simulation.settings`' ``planning`` and ``tracker``
 sections;
-each key is the method's value, else the one in ``[defaults]``, else the setting's default.
+each key is the method's value, else the one in ``[defaults]``, else the preset's
+(:data:`sensorplan.simulation.scenario.PRESET_SETTINGS`: ``search`` and the scan presets
+run the ``pmb`` tracker, the scan presets set ``gospa_c``), else the setting's default.
+A scan preset (``williams15``, ``vo12``) plans nothing: its methods name no planner and no
+other planning key (each refused, naming it).
 ``planner_params`` merge key by key: a method's own keys must be settings of its planner; a
 key of ``[defaults.planner_params]`` applies to the methods whose planner takes it, and must
 be taken by at least one.
@@ -53,7 +57,7 @@ from ..config.validation import (PositiveInt, Seed, Strict, given, section_model
 from ..errors import ConfigError
 from ..limits import check_run, check_study_size
 from ..planners.registry import check_settings, instantiate, planner_class, planner_settings_of
-from ..simulation.scenario import Scenario
+from ..simulation.scenario import PRESET_SETTINGS, Scenario
 from ..simulation.settings import (RunSettings, Setting, declared, field_type, is_group,
                                    limit_fields)
 from .model import STUDY_KEYS, Method, Study
@@ -146,13 +150,29 @@ def _study_scenario(model: StudyScenarioModel, base_dir: Path | None) -> tuple[S
         raise ConfigError("scenario.file", f"{where}: {exc.message}") from None
 
 
+def _no_planning(i: int, m: Any, defaults: dict[str, Any], scan: str) -> None:
+    """Refuse method ``i``'s planning keys (its own or from ``[defaults]``) for a scan
+    scenario: its sensor sees the whole map every step, nothing is planned."""
+    own = given(m)
+    for f, _ in declared(RunSettings, "planning"):
+        at = (f"methods[{i}].{f.name}" if f.name in own else
+              f"defaults.{f.name}" if f.name in defaults else None)
+        if at is not None:
+            raise ConfigError(at, f"planning does not apply to the {scan} scan (its linear "
+                              "sensor sees the whole map every step): leave it out")
+
+
 def _method(i: int, m: Any, defaults: dict[str, Any], study_wide: dict[str, Any],
-            used: set[str]) -> Method:
-    """Method ``i``; adds to ``used`` the ``[defaults.planner_params]`` keys it takes."""
+            used: set[str], scan: bool = False) -> Method:
+    """Method ``i``; adds to ``used`` the ``[defaults.planner_params]`` keys it takes
+    (``scan``: the scenario plans nothing, so no planner is required)."""
     own = given(m)
     own.pop("name")
     origin: dict[str, str] = {}
     kwargs = _inherit(RunSettings, own, defaults, f"methods[{i}]", "defaults", origin)
+    if "planner" not in kwargs and scan:
+        kwargs["planner"] = RunSettings.__dataclass_fields__["planner"].default
+        origin["planner"] = "scenario.preset"
     if "planner" not in kwargs:
         raise ConfigError(f"methods[{i}].planner", "is required (in the method or in "
                           "[defaults])")
@@ -229,6 +249,15 @@ def study_from_dict(data: Any, base_dir: str | Path | None = None) -> Study:
                                        else Path(base_dir))
     defaults = given(model.defaults)
     study_wide = {k: getattr(model, k) for k in STUDY_KEYS if getattr(model, k) is not None}
+    if model.scenario.file is None:
+        # The preset's own settings, under the file's: its tracker under [defaults.tracker],
+        # its study-wide keys (gospa_c; a study always gives its steps) under the file's.
+        preset = PRESET_SETTINGS.get(model.scenario.preset or "paper", {})
+        if preset.get("tracker"):
+            defaults["tracker"] = {**preset["tracker"], **defaults.get("tracker", {})}
+        for key, value in preset.get("run", {}).items():
+            if key in STUDY_KEYS and key != "steps":
+                study_wide.setdefault(key, value)
     seen: dict[str, int] = {}
     methods: list[Method] = []
     used: set[str] = set()
@@ -237,7 +266,9 @@ def study_from_dict(data: Any, base_dir: str | Path | None = None) -> Study:
             raise ConfigError(f"methods[{i}].name", f"duplicate method name {m.name!r} "
                               f"(also methods[{seen[m.name]}])")
         seen[m.name] = i
-        methods.append(_method(i, m, defaults, study_wide, used))
+        if scenario.scan is not None:
+            _no_planning(i, m, defaults, scenario.scan)
+        methods.append(_method(i, m, defaults, study_wide, used, scenario.scan is not None))
     _unused_defaults(defaults, used, methods)
     for i, m in enumerate(methods):
         # A planning key comes from the method or [defaults]; a run key is study-wide.

@@ -104,7 +104,8 @@ class Study:
     @classmethod
     def from_resolved(cls, data: Mapping[str, Any]) -> Study:
         """Inverse of :meth:`resolved` (the report rebuilds the study from its directory)."""
-        shared = {k: data[k] for k in STUDY_KEYS}
+        # A key missing from a directory written before it existed takes its default.
+        shared = {k: data[k] for k in STUDY_KEYS if k in data}
         methods = []
         for m in data["methods"]:
             m = dict(m)

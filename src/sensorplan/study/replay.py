@@ -192,7 +192,12 @@ def _stored_tables(out: Path, study: Study, run: int, m: int
 
 def _compare(episode: Episode, steps: Any, sensors: Any) -> dict[str, float]:
     """Largest absolute difference of each stored column against the episode (inf when
-    the shapes differ)."""
+    the shapes differ). The steps table holds, as :func:`~.tables.episode_tables` writes
+    it, the live targets' rows with the errors of the tracks GOSPA assigns to them."""
+    from .set_metrics import with_assigned_tracks
+
+    episode = with_assigned_tracks(episode)
+    live = np.asarray(episode.alive).reshape(-1)
     ep = {"error": episode.error, "nees": episode.nees,
           "truth_x": episode.truth[..., 0], "truth_y": episode.truth[..., 1],
           "est_x": episode.estimate[..., 0], "est_y": episode.estimate[..., 1],
@@ -205,6 +210,8 @@ def _compare(episode: Episode, steps: Any, sensors: Any) -> dict[str, float]:
         frame = frame.sort_values(["step", key])
         for column, name in columns.items():
             mine = np.asarray(ep[name], dtype=float)
+            if table == "steps" and not live.all():
+                mine = mine.reshape(-1)[live]
             theirs = frame[column].to_numpy(dtype=float)
             if theirs.size != mine.size:
                 out[f"{table}.{column}"] = math.inf

@@ -29,6 +29,7 @@ import numpy.typing as npt
 from scipy.optimize import linear_sum_assignment
 
 from .._types import BoolArray, FloatArray, IntArray
+from ..simulation.settings import RunSettings, default_of
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..simulation.episode import Episode
@@ -571,19 +572,21 @@ def _int_column(x: npt.ArrayLike, name: str, rows: int | None = None) -> IntArra
     return a.astype(np.int64, copy=False)
 
 
-#: GOSPA's cut-off distance (m) unless a study or command sets it.
-GOSPA_CUTOFF = 50.0
+#: GOSPA's default cut-off distance (m): the run setting ``gospa_c``'s default.
+GOSPA_CUTOFF: float = default_of(RunSettings.__dataclass_fields__["gospa_c"])
 
 
-def episode_set_metrics(episode: Episode, c: float = GOSPA_CUTOFF) -> SetMetrics:
+def episode_set_metrics(episode: Episode, c: float | None = None) -> SetMetrics:
     """GOSPA (its localisation, missed and false parts) and the per-target set metrics of a
     run: the live targets' true positions against the tracker's reported tracks at every
-    step (:func:`set_metrics`), steps 1..S.
+    step (:func:`set_metrics`), steps 1..S, with the cut-off ``c`` (m; None: the run's
+    ``gospa_c`` setting).
 
     Returns
     -------
     SetMetrics
     """
+    c = episode.settings.gospa_c if c is None else c
     S1, M = episode.alive.shape
     steps, ids = np.nonzero(episode.alive)
     keep = (steps > 0)
@@ -593,9 +596,10 @@ def episode_set_metrics(episode: Episode, c: float = GOSPA_CUTOFF) -> SetMetrics
                        episode.track_mean[rows, :2], c, n_steps=S1 - 1)
 
 
-def with_assigned_tracks(episode: Episode, c: float = GOSPA_CUTOFF) -> Episode:
+def with_assigned_tracks(episode: Episode, c: float | None = None) -> Episode:
     """The run with each live target's estimate, covariance, error and NEES those of the
-    track GOSPA assigns to it at each step (NaN where none is within ``c``, and where the
+    track GOSPA assigns to it at each step (NaN where none is within ``c``, m, None: the
+    run's ``gospa_c`` setting; and where the
     target is not alive), for a tracker whose tracks are not its targets (a multi-target
     tracker). A run of the tracker of known targets is returned as it is: track j is
     target j.

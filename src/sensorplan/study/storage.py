@@ -23,10 +23,13 @@ from typing import Any
 
 from ..errors import ConfigError
 from .model import FORMAT, Study
+from .set_metrics import GOSPA_CUTOFF
 from .tables import TABLES, TaskResult, arrow_table
 
 #: Keys of config.resolved.json that decide the results (a resumed study must match them).
-RESULT_KEYS = ("format", "runs", "steps", "seed", "scenario", "methods")
+RESULT_KEYS = ("format", "runs", "steps", "gospa_c", "seed", "scenario", "methods")
+#: Their values in a study directory written before the key existed.
+RESULT_DEFAULTS = {"gospa_c": GOSPA_CUTOFF}
 
 
 def differences(old: Any, new: Any, path: str = "") -> list[str]:
@@ -264,7 +267,7 @@ def prepare(out: Path, study: Study) -> int | None:
     config = out / "config.resolved.json"
     if config.exists():
         old = _read_resolved(config, "--out", "use another --out or delete it")
-        before = {k: old.get(k) for k in RESULT_KEYS}
+        before = {k: old.get(k, RESULT_DEFAULTS.get(k)) for k in RESULT_KEYS}
         after: dict[str, Any] = {k: resolved.get(k) for k in RESULT_KEYS}
         grown = (isinstance(before["runs"], int) and not isinstance(before["runs"], bool)
                  and after["runs"] > before["runs"])
@@ -456,7 +459,10 @@ def load_study_dir(out: str | Path) -> StudyTables:
     order = pd.CategoricalDtype(study.method_names, ordered=True)
     for df in frames.values():
         df["method"] = df["method"].astype(order)
+    # The kinds of the scenario's targets and of those a run recorded (a scripted truth has
+    # no templates; its targets' kinds are the run's).
+    kinds = set(study.scenario.target_kinds) | set(frames["steps"]["kind"].dropna().unique())
     frames["steps"]["kind"] = frames["steps"]["kind"].astype(
-        pd.CategoricalDtype(sorted(set(study.scenario.target_kinds)), ordered=True))
+        pd.CategoricalDtype(sorted(kinds), ordered=True))
     return StudyTables(study, meta, frames["steps"], frames["decisions"], frames["sensors"],
                        frames["tracks"], frames["gospa"], complete, runs_done)

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..simulation.run import Episode
-from .set_metrics import GOSPA_CUTOFF, episode_set_metrics, with_assigned_tracks
+from .set_metrics import episode_set_metrics, with_assigned_tracks
 
 #: Tidy tables, in the order a part's files are written (the last one marks it done).
 TABLES = ("decisions", "sensors", "tracks", "gospa", "steps")
@@ -83,8 +83,8 @@ def episode_tables(episode: Episode, run: int, method: str) -> dict[str, dict[st
         "gospa": {...}}``; row order is step-major (then target, sensor or track) and
         decision order.
     """
-    sm = episode_set_metrics(episode, GOSPA_CUTOFF)
-    episode = with_assigned_tracks(episode, GOSPA_CUTOFF)
+    sm = episode_set_metrics(episode)               # with the run's GOSPA cut-off
+    episode = with_assigned_tracks(episode)
     S1, M = episode.error.shape
     N = episode.looked.shape[1]
     D = episode.decision_steps.shape[0]
