@@ -125,21 +125,42 @@ FREE_TEXT = {"description", "label", "file", "key", "method", "reference"}
 
 @dataclass
 class Expect:
-    """What a case must give: ``refuse`` (exit 2), and if ``fields`` is not None, an error
-    line naming one of them (or a field inside or around one of them)."""
+    """What a case must give. Each change that must be refused by itself is a reason, with
+    the fields that may name it; a case with a reason must end in exit 2, and unless some
+    other change's effect is unknown (``open``), its error line must name one of the
+    reasons' fields (or a field inside or around one of them)."""
 
-    refuse: bool = False
-    fields: set[str] | None = field(default_factory=set)
-    why: list[str] = field(default_factory=list)
+    reasons: list[tuple[set[str], str]] = field(default_factory=list)
+    open: bool = False
+
+    @property
+    def refuse(self) -> bool:
+        return bool(self.reasons)
+
+    @property
+    def fields(self) -> set[str] | None:
+        return None if self.open else set().union(*(f for f, _ in self.reasons))
+
+    @property
+    def why(self) -> list[str]:
+        return [w for _, w in self.reasons]
 
     def unknown(self) -> None:
-        self.fields = None
+        self.open = True
 
     def bad(self, fields: set[str], why: str) -> None:
-        self.refuse = True
-        self.why.append(why)
-        if self.fields is not None:
-            self.fields |= fields
+        self.reasons.append((set(fields), why))
+
+    def drop(self, prefixes: set[str]) -> None:
+        """Forget the reasons in file values that an option replaces (never read)."""
+        def masked(f: str) -> bool:
+            return any(f == p or f.startswith(p + ".") or f.startswith(p + "[")
+                       for p in prefixes)
+        kept = [(f, w) for f, w in self.reasons
+                if not all(masked(x) or x.startswith("FILE") for x in f)]
+        if len(kept) < len(self.reasons):
+            self.open = True            # what the masked change did is not known
+        self.reasons = kept
 
 
 def dotted(path: tuple[Any, ...], prefix: str = "") -> str:
@@ -192,8 +213,17 @@ def text_level(v: Any, json_doc: bool) -> bool:
 def judge_mutation(m: dict[str, Any], expect: Expect, prefix: str, json_doc: bool,
                    known_keys: set[str]) -> None:
     """Fold one mutation record of ``fuzz_docs.mutate`` into ``expect``."""
-    if expect.fields is not None and text_level(m.get("new"), json_doc):
-        expect.fields.add("FILE")       # the file is refused before its fields are read
+    if text_level(m.get("new"), json_doc):
+        before = len(expect.reasons)
+        _judge(m, expect, prefix, json_doc, known_keys)
+        for fields, _ in expect.reasons[before:]:
+            fields.add("FILE")          # the file is refused before its fields are read
+        return
+    _judge(m, expect, prefix, json_doc, known_keys)
+
+
+def _judge(m: dict[str, Any], expect: Expect, prefix: str, json_doc: bool,
+           known_keys: set[str]) -> None:
     kind, path = m["kind"], tuple(m["path"])
     here = dotted(path, prefix)
     key, _ = _key_of(path)
@@ -469,8 +499,10 @@ def mutated(draw: Draw, base: dict[str, Any], json_doc: bool, focus: tuple[str, 
         kept.append(m)
     for m in kept:
         judge_mutation(m, expect, prefix, json_doc, keys)
-    if expect.fields is not None and "FILE" in expect.fields:
-        expect.fields = (expect.fields - {"FILE"}) | {f"FILE:{name}"}
+    for fields, _ in expect.reasons:
+        if "FILE" in fields:
+            fields.discard("FILE")
+            fields.add(f"FILE:{name}")
     text = fz.to_json(doc) if json_doc else fz.to_toml(doc)
     data = text.encode("utf-8", "surrogatepass")
     if draw.chance(damage):
@@ -533,6 +565,8 @@ def run_options(draw: Draw, case: Case, overridden: set[tuple[str, str]],
             case.args.append(flag)
             case.done.append(flag)
             overridden.add(OPTION_KEYS[flag])
+            if flag == "--no-gate":
+                case.expect.unknown()     # refused unless re-acquisition is off too
             if draw.chance(0.2):                    # "--gate false": a flag given a value
                 case.args.append("false")
                 case.done.append("(a value after the flag)")
@@ -553,13 +587,9 @@ def run_options(draw: Draw, case: Case, overridden: set[tuple[str, str]],
             case.expect.bad({opt, name}, f"{name} {_text(value)!r}")
 
 
-def unmask(case: Case, overridden: set[tuple[str, str]], log_prefix: str = "") -> None:
+def unmask(case: Case, overridden: set[tuple[str, str]]) -> None:
     """A file value an option overrides is never read: its mutation proves nothing."""
-    if case.expect.fields is None:
-        return
-    masked = {f"{log_prefix}{s}.{k}" for s, k in overridden}
-    if any(f.startswith(m) for f in case.expect.fields for m in masked):
-        case.expect.unknown()
+    case.expect.drop({f"{sec}.{key}" for sec, key in overridden})
 
 
 def scenario_case(draw: Draw, case: Case, keys: set[str], agents: bool) -> None:
@@ -694,9 +724,7 @@ def plan_case(draw: Draw, case: Case, keys: set[str]) -> None:
         case.done.append(f"--planner {name!r}")
         # The file's settings the new planner does not take are dropped: their mutations
         # prove nothing.
-        if case.expect.fields is None or any(f.startswith("planner") for f in
-                                             case.expect.fields):
-            case.expect.unknown()
+        case.expect.drop({"planner"})
         if name not in BUILTIN_PLANNERS:
             case.expect.bad({"--planner"}, f"--planner {name!r}")
     if draw.chance(0.03):
