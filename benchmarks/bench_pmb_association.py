@@ -1,4 +1,5 @@
-"""Benchmark: one PMB data association by loopy belief propagation (docs/pmb_association_bench.md).
+"""Benchmark: one PMB data association by loopy belief propagation (docs/benchmarks.md,
+"PMB association by loopy belief propagation").
 
 n Bernoulli tracks and m = n measurements, each track gating ``--per-track`` (3) random
 measurements with PMB-like weights (existence, P_d, a whitened Gaussian likelihood, new

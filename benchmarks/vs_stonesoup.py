@@ -4,10 +4,16 @@ Both parts run in one process on the same scenario: the paper's world (600 m map
 20/40 m, radars at 490/500/510 m, M = 5 targets), Stone Soup's own tracking types, our radar
 as a Stone Soup sensor (``sensorplan.integrations.stonesoup``).
 
+Stone Soup's managers run with two rewards:
+:class:`~sensorplan.integrations.stonesoup.MutualInformationReward` (the bridge's; Stone
+Soup's predictor and updater on our measurement model; the same objective as ours) and
+Stone Soup's own ``ExpectedKLDivergence`` (methods marked EKL; another objective: it counts
+every track in a radar's field of view and scores KL(prediction || update), see
+docs/stonesoup.md).
+
 **One decision** (K = 1, e = 1, ``visibility = "mean"``), N = 1, 2, 3 platforms, several
 random instances: Stone Soup's ``BruteForceSensorManager`` and ``GreedySensorManager`` with
-:class:`~sensorplan.integrations.stonesoup.MutualInformationReward` (Stone Soup's predictor and
-updater on our measurement model; the same objective as ours) against our ``brute-force`` and
+either reward against our ``brute-force`` and
 ``pg`` behind :class:`~sensorplan.integrations.stonesoup.SensorplanManager`. Measured: wall
 and CPU time of ``choose_actions`` and the chosen joint action's information, evaluated by one
 evaluator, :func:`sensorplan.planners.information.potential`, on the equivalent plan (the mapping
@@ -22,7 +28,7 @@ N = 3 runs check it). Instances are the first seeds (from 1000) where a look can
 **Closed loop**, ``--seeds`` runs of ``--steps`` steps (paper scenario, common random numbers
 per seed: the same truth, initial estimates and measurement noise for every method; Stone
 Soup EKF tracks; a missed look changes nothing, as in Stone Soup): Stone Soup greedy and MCTS
-(``MonteCarloTreeSearchSensorManager``, its defaults: 100 iterations) with the MI reward,
+(``MonteCarloTreeSearchSensorManager``, its defaults: 100 iterations) with either reward,
 against ``pg`` with K = 1 and K = 3 (OLF, decide every step; our default probabilistic
 visibility) and ``pg`` K = 1 with ``visibility = "mean"`` (the objective Stone Soup's reward
 computes). Reported: position RMSE (mean over runs with a 95 % t-interval, median, share of
@@ -33,7 +39,7 @@ Run::
 
     .venv/bin/python benchmarks/vs_stonesoup.py [--part all|decision|closed] [--instances 3]
         [--seeds 10] [--steps 50] [--sample 1000] [--out out/vs_stonesoup]
-        [--figures docs/figures]
+        [--figures docs/figures] [--closed-methods NAME,NAME,...]
 
 Other processes share the machine's 2 cores: CPU time (``time.process_time``) is reported
 next to wall time.
@@ -60,6 +66,7 @@ from stonesoup.models.transition.linear import (CombinedLinearGaussianTransition
 from stonesoup.platform import FixedPlatform
 from stonesoup.predictor.kalman import ExtendedKalmanPredictor
 from stonesoup.sensormanager import BruteForceSensorManager, GreedySensorManager
+from stonesoup.sensormanager.reward import ExpectedKLDivergence
 from stonesoup.sensormanager.tree_search import MonteCarloTreeSearchSensorManager
 from stonesoup.types.hypothesis import SingleHypothesis
 from stonesoup.types.state import State
@@ -117,6 +124,19 @@ def mi_reward(return_tracks: bool = False) -> MutualInformationReward:
     predictor, updater = stonesoup_filter()
     return MutualInformationReward(predictor=predictor, updater=updater,
                                    return_tracks=return_tracks)
+
+
+def ekl_reward(return_tracks: bool = False) -> ExpectedKLDivergence:
+    """Stone Soup's own information reward, as a Stone Soup user sets it up: with Gaussian
+    tracks, KL(prediction || update) of every track whose predicted mean is in a radar's
+    field of view, at a noise-free measurement there (docs/stonesoup.md)."""
+    predictor, updater = stonesoup_filter()
+    return ExpectedKLDivergence(predictor=predictor, updater=updater,
+                                return_tracks=return_tracks)
+
+
+#: The Stone Soup rewards by the name used in method names.
+REWARDS: dict[str, Callable[..., Any]] = {"MI": mi_reward, "EKL": ekl_reward}
 
 
 def config_plan(config: dict, platforms: list, tracks: list) -> Plan:
@@ -186,9 +206,11 @@ def informative_seeds(count: int) -> list[int]:
 
 def stonesoup_brute_force(platforms: list, tracks: list, t1: datetime.datetime,
                           sample: int, max_seconds: float, seed: int,
-                          allow_full: bool) -> dict[str, Any]:
-    """Time Stone Soup's brute force: in full if affordable, else extrapolated."""
-    reward = mi_reward()
+                          allow_full: bool, make_reward: Callable[[], Any] = mi_reward
+                          ) -> dict[str, Any]:
+    """Time Stone Soup's brute force with the reward ``make_reward()``: in full if
+    affordable, else extrapolated."""
+    reward = make_reward()
     actionables = platforms + [p.sensors[0] for p in platforms]
     choices = [list(next(iter(a.actions(t1)))) for a in actionables]
     n_joint = math.prod(len(c) for c in choices)
@@ -263,13 +285,19 @@ def one_decision(args: argparse.Namespace) -> list[dict[str, Any]]:
                 (cfg,), _, _ = runs[0]
                 record(f"sensorplan {planner}", cfg, float(np.median([r[1] for r in runs])),
                        float(np.median([r[2] for r in runs])))
-            greedy = GreedySensorManager(platforms=set(platforms), reward_function=reward)
-            (cfg,), wall, cpu = timed(lambda: greedy.choose_actions(tracks, t1))
-            record("stonesoup greedy", cfg, wall, cpu)
-            bf = stonesoup_brute_force(platforms, tracks, t1, args.sample, args.max_ss_seconds,
-                                       seed=inst, allow_full=N < 3 or inst < args.full_n3)
-            cfg = bf.pop("config")
-            record("stonesoup brute force", cfg, bf.pop("wall"), bf.pop("cpu"), **bf)
+            for tag, make_reward in REWARDS.items():
+                suffix = "" if tag == "MI" else f" ({tag})"
+                greedy = GreedySensorManager(platforms=set(platforms),
+                                             reward_function=make_reward())
+                (cfg,), wall, cpu = timed(lambda: greedy.choose_actions(tracks, t1))
+                record("stonesoup greedy" + suffix, cfg, wall, cpu)
+                bf = stonesoup_brute_force(platforms, tracks, t1, args.sample,
+                                           args.max_ss_seconds, seed=inst,
+                                           allow_full=N < 3 or inst < args.full_n3,
+                                           make_reward=make_reward)
+                cfg = bf.pop("config")
+                record("stonesoup brute force" + suffix, cfg, bf.pop("wall"), bf.pop("cpu"),
+                       **bf)
     return rows
 
 
@@ -282,10 +310,13 @@ class Method:
     kind: str                 # "pg", "ss-greedy", "ss-mcts"
     horizon: int = 1
     visibility: str = "probabilistic"
+    reward: str = "MI"        # Stone Soup's managers: a key of REWARDS
 
 
 CLOSED_METHODS = (Method("stonesoup greedy", "ss-greedy"),
                   Method("stonesoup MCTS", "ss-mcts"),
+                  Method("stonesoup greedy (EKL)", "ss-greedy", reward="EKL"),
+                  Method("stonesoup MCTS (EKL)", "ss-mcts", reward="EKL"),
                   Method("sensorplan pg K=1", "pg", 1),
                   Method("sensorplan pg K=3", "pg", 3),
                   Method("sensorplan pg K=1 (mean)", "pg", 1, "mean"))
@@ -310,11 +341,12 @@ def closed_loop_run(method: Method, seed: int, steps: int) -> dict[str, Any]:
                                          horizon=method.horizon, visibility=method.visibility,
                                          rng=np.random.default_rng(streams["planner"]))
     elif method.kind == "ss-greedy":
-        manager = GreedySensorManager(platforms=set(platforms), reward_function=mi_reward())
+        manager = GreedySensorManager(platforms=set(platforms),
+                                      reward_function=REWARDS[method.reward]())
     else:
         np.random.seed(seed)          # Stone Soup's MCTS draws from NumPy's global generator
-        manager = MonteCarloTreeSearchSensorManager(platforms=set(platforms),
-                                                    reward_function=mi_reward(True))
+        manager = MonteCarloTreeSearchSensorManager(
+            platforms=set(platforms), reward_function=REWARDS[method.reward](True))
     errors = np.empty((steps, len(tracks)))
     walls, cpus = [], []
     for t in range(1, steps + 1):
@@ -346,7 +378,14 @@ def closed_loop_run(method: Method, seed: int, steps: int) -> dict[str, Any]:
 def closed_loop(args: argparse.Namespace) -> dict[str, Any]:
     kinds = np.array(paper_scenario().target_kinds)
     out: dict[str, Any] = {"target_kinds": kinds.tolist(), "methods": {}}
+    chosen = args.closed_methods.split(",") if args.closed_methods else None
+    unknown = sorted(set(chosen or ()) - {m.name for m in CLOSED_METHODS})
+    if unknown:
+        raise SystemExit(f"--closed-methods: unknown {unknown}; choose from "
+                         f"{[m.name for m in CLOSED_METHODS]}")
     for method in CLOSED_METHODS:
+        if chosen is not None and method.name not in chosen:
+            continue
         runs = []
         for seed in range(args.seeds):
             run, wall, _ = timed(lambda: closed_loop_run(method, seed, args.steps))
@@ -382,8 +421,10 @@ def report(decision: list[dict[str, Any]] | None, closed: dict[str, Any] | None,
 
     figures.mkdir(parents=True, exist_ok=True)
     if decision:
-        methods = ["stonesoup brute force", "stonesoup greedy", "sensorplan brute-force",
-                   "sensorplan pg"]
+        methods = [m for m in ("stonesoup brute force", "stonesoup greedy",
+                               "stonesoup brute force (EKL)", "stonesoup greedy (EKL)",
+                               "sensorplan brute-force", "sensorplan pg")
+                   if any(r["method"] == m for r in decision)]
         print("\nOne decision (median over instances; information relative to the optimum):")
         fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
         for m in methods:
@@ -457,7 +498,8 @@ def report(decision: list[dict[str, Any]] | None, closed: dict[str, Any] | None,
             ax2.plot(r["rmse_per_step"], label=name)
         runs = {n: np.array(closed["methods"][n]["rmse_runs"]) for n in names}
         for ours in ("sensorplan pg K=1", "sensorplan pg K=3"):
-            for theirs in ("stonesoup greedy", "stonesoup MCTS"):
+            for theirs in ("stonesoup greedy", "stonesoup MCTS", "stonesoup greedy (EKL)",
+                           "stonesoup MCTS (EKL)"):
                 if ours in runs and theirs in runs:
                     d, lo, hi = ci95(runs[ours] - runs[theirs])
                     wins = int(np.sum(runs[ours] < runs[theirs]))
@@ -484,6 +526,9 @@ def main(argv: list[str] | None = None) -> None:
                         help="instances whose N = 3 Stone Soup brute force may run in full")
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--steps", type=int, default=50)
+    parser.add_argument("--closed-methods", default="",
+                        help="comma-separated names of the closed-loop methods to run "
+                             "(default: all)")
     parser.add_argument("--out", default="out/vs_stonesoup")
     parser.add_argument("--figures", default="docs/figures")
     parser.add_argument("--report-only", action="store_true",

@@ -500,6 +500,9 @@ def check_run(scenario: Any, settings: Any, fields: dict[str, str]) -> None:
                           "a tracker of known targets needs every target known from the "
                           "start (births = 'none', survival_probability = 1, no scripted "
                           "truth); choose a multi-target tracker")
+    if settings.tracker.kind != "known" and scenario.look_detects != "all":
+        raise ConfigError("look_detects", "a multi-target tracker needs looks that detect "
+                          "every live target in view: look_detects = 'all'")
     M, N = len(scenario.targets), len(scenario.sensors)
     check_decision_size(settings.horizon, settings.steps_per_epoch, M,
                         [s.params.moves for s in scenario.sensors], scenario.world.width,

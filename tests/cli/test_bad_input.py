@@ -1104,6 +1104,27 @@ def test_an_integer_no_float_can_hold_in_planner_settings_is_one_line(capsys, tm
     assert plan(capsys, tmp_path, doc)[0] == 0
 
 
+def test_a_ctrl_c_before_the_commands_own_handling_is_one_line(monkeypatch, capsys) -> None:
+    # The window between the launcher's imports and the command's try block: a Ctrl-C
+    # there once printed a traceback (seen under load on a fresh clone).
+    from sensorplan.cli import app, launch
+
+    def interrupted(argv=None):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(app, "main", interrupted)
+    monkeypatch.setattr(sys, "argv", ["sensorplan", "--version"])
+    old_int, old_term = signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)
+    try:
+        with pytest.raises(SystemExit) as info:
+            launch.main()
+    finally:
+        signal.signal(signal.SIGINT, old_int)
+        signal.signal(signal.SIGTERM, old_term)
+    assert info.value.code == 130
+    assert capsys.readouterr().err == "error: interrupted\n"
+
+
 @pytest.mark.parametrize("command", ["simulate", "agents"])
 def test_a_flag_given_a_value_after_the_scenario_file_names_the_value(capsys, tmp_path,
                                                                        command) -> None:

@@ -472,6 +472,64 @@ def test_mi_reward_equals_the_potential_of_the_equivalent_plan(rng):
     assert checked == 100 and nonzero >= 10
 
 
+def test_stonesoups_expected_kl_divergence_with_our_radar_is_kl_of_prior_to_posterior(rng):
+    """What docs/stonesoup.md says Stone Soup's own information reward computes with our
+    radar and Gaussian tracks: for every track whose predicted mean is in a radar's field of
+    view (all of them, not only the aimed one), KL(prediction || update) at a noise-free
+    measurement at that mean, 0.5 (log det P+ - log det P- - n + tr(P+^-1 P-)), which is not
+    the mutual information 0.5 log det P- / det P+ of our potential. One platform, so the
+    order of Stone Soup's set of sensors cannot matter."""
+    import copy
+
+    from stonesoup.sensormanager.reward import ExpectedKLDivergence
+
+    from radar_reference import visible as ref_visible
+
+    q = 0.05
+    F, Q = cv_matrices(1.0, q)
+    predictor, updater = ExtendedKalmanPredictor(_transition(q)), ExtendedKalmanUpdater(None)
+    reward = ExpectedKLDivergence(predictor=predictor, updater=updater)
+    t1 = T0 + datetime.timedelta(seconds=1)
+    checked = several = 0
+    for _ in range(30):
+        means, covs, positions, headings = _decision(rng, n_sensors=1, n_targets=4)
+        covs = np.stack([_covariance(rng) for _ in range(4)])
+        (platform,) = _platforms(positions, headings)
+        radar = platform.sensors[0]
+        tracks = ss.to_tracks(means, covs, T0)
+        ss.set_aim_candidates([radar], tracks, 1.0)
+        (mg,), (ag,) = platform.actions(t1), radar.actions(t1)
+        move = list(mg)[rng.integers(len(list(mg)))]
+        aim = list(ag)[rng.integers(4)]
+        config = {platform: (move,), radar: (aim,)}
+        value = reward(config, set(tracks), t1)
+        # Independently: act a copy, predict with the core's filter, test the field of view
+        # with the reference model, update with the core's EKF at z = h(predicted mean).
+        acted = copy.deepcopy(platform)
+        acted.add_actions([move])
+        acted.act(t1)
+        seen = acted.sensors[0]
+        seen.add_actions([aim])
+        seen.act(t1)
+        xy, heading = seen.ground_position, seen.heading
+        xp, Pp = ekf.predict(means, covs, F, Q)
+        expected, in_view = 0.0, 0
+        for j in range(4):
+            if not ref_visible(xp[j], xy, heading, radar.params):
+                continue
+            z = measure(xp[j], xy, radar.params.altitude)
+            _, P1 = ekf.update(xp[j:j + 1], Pp[j:j + 1], z[None], xy[None],
+                               np.array([heading]), radar_table(radar.params))
+            a, b = Pp[j], P1[0]
+            expected += 0.5 * (np.linalg.slogdet(b)[1] - np.linalg.slogdet(a)[1] - 4
+                               + np.trace(np.linalg.solve(b, a)))
+            in_view += 1
+        assert value == pytest.approx(expected, rel=1e-7, abs=1e-9)
+        checked += 1
+        several += in_view >= 2
+    assert checked == 30 and several >= 3
+
+
 def test_stonesoup_brute_force_with_the_mi_reward_finds_our_optimum(rng):
     from stonesoup.sensormanager import BruteForceSensorManager, GreedySensorManager
 
@@ -990,6 +1048,69 @@ def test_a_radar_offset_from_its_platform_is_refused(rng):
     with pytest.raises(ValueError, match="mounting_offset"):
         ss.SensorplanManager(platforms=[platform]).choose_actions(
             ss.to_tracks(means, covs, T0), T0)
+
+
+def test_a_radar_at_another_height_than_its_altitude_is_refused(rng):
+    means, covs, positions, headings = _decision(rng, n_sensors=1)
+    tracks = ss.to_tracks(means, covs, T0)
+    (platform,) = _platforms(positions, headings, altitudes=(100.0,))
+    radar = platform.sensors[0]
+    radar.params = SensorParams(altitude=500.0)              # the platform flies at z = 100
+    truth = ss.to_ground_truth_state(means[0], T0)
+    message = ("params.altitude: is 500 m, but the radar is at z = 100 m (its platform's z "
+               "plus the mounting offset); the radar measures from params.altitude, so make "
+               "them equal: SensorParams(altitude=100), or the platform at z = 500")
+    for use in (lambda: radar.measure([truth]), lambda: radar.measurement_model,
+                lambda: radar.is_detectable(truth), lambda: radar.detection_probability(truth),
+                lambda: radar.clutter_spatial_density()):
+        with pytest.raises(ConfigError) as err:
+            use()
+        assert str(err.value) == message
+    with pytest.raises(ConfigError) as err:
+        ss.SensorplanManager(platforms=[platform]).choose_actions(
+            tracks, T0 + datetime.timedelta(seconds=1))
+    assert err.value.field == "sensors[0].params.altitude"
+    # The radar's height is the platform's z plus the mounting offset's: a platform on the
+    # ground carrying the radar 500 m up is the radar at 500 m, and plans as one at z = 500.
+    radar.mounting_offset = np.array([[0.0], [0.0], [400.0]])
+    (level,) = _platforms(positions, headings, altitudes=(500.0,))
+    for p in (platform, level):
+        p.sensors[0].params = SensorParams(altitude=500.0)
+    plans = [ss.SensorplanManager(platforms=[p], horizon=2).choose_actions(
+        tracks, T0 + datetime.timedelta(seconds=1)) for p in (platform, level)]
+    assert [np.ravel(a.target_value).tolist() for a in plans[0][0][platform]] == \
+        [np.ravel(a.target_value)[:2].tolist() + [100.0] for a in plans[1][0][level]]
+    # A 2-D platform has no height: params.altitude alone counts.
+    flat = FixedPlatform(movement_controller=ss.LatticeMovable(
+        states=[State([[positions[0, 0]], [positions[0, 1]]], timestamp=T0)],
+        position_mapping=(0, 1)), sensors=[ss.SensorplanRadar(params=SensorParams(
+            altitude=500.0), heading=float(headings[0]))])
+    assert flat.sensors[0].measurement_model.params.altitude == 500.0
+
+
+@pytest.mark.parametrize("e", [1, 2])
+def test_choose_actions_refuses_a_timestamp_other_than_the_first_epochs_end(rng, e):
+    means, covs, positions, headings = _decision(rng, n_sensors=2)
+    tracks = ss.to_tracks(means, covs, T0)
+    manager = ss.SensorplanManager(platforms=_platforms(positions, headings), horizon=2,
+                                   steps_per_epoch=e, dt=1.0, rng=0)
+    steps = "" if e == 1 else "2 x 1 s = "
+    for gap, fix in ((10.0, f" (or set dt={10 / e:g} for epochs of 10 s)"), (0.0, ""),
+                     (e + 0.5, f" (or set dt={(e + 0.5) / e:g} for epochs of {e + 0.5:g} s)")):
+        with pytest.raises(ConfigError) as err:
+            manager.choose_actions(tracks, T0 + datetime.timedelta(seconds=gap))
+        assert str(err.value) == (
+            f"timestamp: is {gap:g} s after the tracks' time, but this manager plans epochs "
+            f"of steps_per_epoch x dt = {steps}{e} s: give the end of the first epoch, the "
+            f"tracks' time + {e} s{fix}")
+        assert manager.last_result is None                  # nothing was planned
+    (config,) = manager.choose_actions(tracks, T0 + datetime.timedelta(seconds=e))
+    assert len(config) == 4 and manager.last_result is not None
+    # With dt = 10 s the 10 s gap is one epoch (e = 1): the manager plans 10 s steps.
+    slow = ss.SensorplanManager(platforms=_platforms(positions, headings), dt=10.0 / e,
+                                steps_per_epoch=e, rng=0)
+    slow.choose_actions(tracks, T0 + datetime.timedelta(seconds=10))
+    assert slow.last_problem is not None and slow.last_problem.dt == 10.0 / e
 
 
 # ------------------------------------------------------------------- Stone Soup YAML

@@ -28,7 +28,9 @@ def test_a_look_detects_every_live_target_in_its_region_with_ideal_sensors() -> 
     s = Sensing(table, np.zeros((0, 5)), run_streams(3), STEPS, look_detects="all")
     aimed = np.array([0, -1, 5])
     looks, sensed = s.look(1, truth, pos, head, aimed)
-    np.testing.assert_array_equal(looks.sensors, [0, 2])
+    # every sensor looks along its heading, aimed at a track or not
+    np.testing.assert_array_equal(looks.sensors, [0, 1, 2])
+    np.testing.assert_array_equal(looks.aims, [0, -1, 5])
     for n, i in enumerate(looks.sensors):
         h, _, var, seen = radar.measure_looks(table, np.full(len(truth), i), truth[:, :2],
                                               np.repeat(pos[i:i + 1], len(truth), 0),
@@ -39,7 +41,7 @@ def test_a_look_detects_every_live_target_in_its_region_with_ideal_sensors() -> 
         dz = looks.detections[n] - h[seen]
         dz[:, 1] = np.angle(np.exp(1j * dz[:, 1]))
         assert np.all(np.abs(dz) < 6 * np.sqrt(var[seen]))
-    assert not sensed.measured[:, 1].any()                  # sensor 1 did not look
+    assert not sensed.missed[1]                             # no target to miss
 
 
 def test_a_targets_detections_do_not_depend_on_the_others() -> None:

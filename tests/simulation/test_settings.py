@@ -35,7 +35,10 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
                      "tracker.process_noise",
                      "tracker.mode_process_noise", "tracker.switching", "tracker.gate",
                      "tracker.gate_probability", "tracker.reacquire", "tracker.association",
-                     "tracker.known_map"]
+                     "tracker.known_map", "tracker.known_buildings",
+                     "tracker.reflect_walls", "tracker.births", "tracker.birth_rate",
+                     "tracker.survival_probability", "tracker.report_threshold",
+                     "tracker.prune_threshold", "tracker.grid_resolution"]
 
 
 @pytest.mark.parametrize("cls,path,f,s", DECLARED, ids=[d[1] for d in DECLARED])
@@ -235,7 +238,11 @@ def test_the_size_limits_name_each_setting_as_its_input_spells_it() -> None:
 
 
 def test_unused_names_what_the_tracker_ignores() -> None:
-    assert TrackerSettings().unused() == ("process_noise",)
-    assert TrackerSettings(model="cv").unused() == ("mode_process_noise", "switching")
+    from sensorplan.simulation.settings import MULTI_TARGET_SETTINGS as MT
+
+    assert TrackerSettings().unused() == ("process_noise", *MT)
+    assert TrackerSettings(model="cv").unused() == ("mode_process_noise", "switching", *MT)
     assert TrackerSettings(gate=False, reacquire=False).unused() == ("process_noise",
-                                                                      "gate_probability")
+                                                                      "gate_probability", *MT)
+    assert "births" not in TrackerSettings(kind="pmb").unused()
+    assert "model" in TrackerSettings(kind="pmb").unused()

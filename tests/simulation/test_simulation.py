@@ -428,3 +428,47 @@ def test_a_run_records_its_reported_tracks_as_a_set(tmp_path) -> None:
     for name in ("alive", "track_step", "track_label", "track_mean", "track_cov",
                  "track_existence"):
         np.testing.assert_array_equal(getattr(back, name), getattr(ep, name))
+
+
+def test_a_multi_target_tracker_finds_targets_nobody_named() -> None:
+    import dataclasses
+
+    from sensorplan.simulation.scenario import radar_scenario
+    from sensorplan.study.set_metrics import episode_set_metrics
+
+    # Targets born at the edges, none known to the tracker: every track is a found one.
+    sc = dataclasses.replace(radar_scenario(), births="edges", birth_rate=0.05,
+                             initial_targets=2, look_detects="all")
+    s = RunSettings(planner="pg", steps=60, tracker=TrackerSettings(kind="pmb"))
+    ep = run_episode(sc, s, 7)
+    assert ep.alive[0].sum() == 2 and ep.alive.shape[1] >= 2
+    sm = episode_set_metrics(ep, c=50.0)
+    assert np.all(np.isfinite(sm.gospa.distance))
+    # Tracks are reported once found; a reported track's label is kept for its life.
+    assert len(np.unique(ep.track_label[ep.track_step > 30])) > 0
+    assert ((ep.track_existence >= 0.5) & (ep.track_existence <= 1.0)).all()
+    # half the run's steps end with every live target within c of a reported track
+    found = sm.gospa.missed == 0
+    assert found.mean() > 0.5, found.mean()
+    # each live target's error is that of the track GOSPA assigns to it (NaN without one)
+    from sensorplan.study.set_metrics import with_assigned_tracks
+
+    a = with_assigned_tracks(ep)
+    steps, ids = np.nonzero(ep.alive[1:])
+    for k in np.flatnonzero(sm.assigned)[::7]:
+        t, j = steps[k] + 1, ids[k]
+        row = np.flatnonzero((ep.track_step == t) & (ep.track_label == sm.label[k]))
+        np.testing.assert_array_equal(a.estimate[t, j], ep.track_mean[row[0]])
+        assert a.error[t, j] == np.hypot(*(ep.truth[t, j, :2] - ep.track_mean[row[0], :2]))
+    assert np.isnan(a.error[steps[~sm.assigned] + 1, ids[~sm.assigned]]).all()
+
+
+def test_a_multi_target_tracker_needs_looks_that_detect_every_target(tmp_path, capsys) -> None:
+    from cli_helpers import run
+
+    f = tmp_path / "s.toml"
+    f.write_text('[tracker]\nkind = "pmb"\n[[targets]]\nkind = "cv"\n[[sensors]]\n')
+    code, out, err = run(capsys, "simulate", f, "--steps", "3", "--out", tmp_path / "o")
+    assert (code, out) == (2, "")
+    assert err.splitlines() == ["error: look_detects: a multi-target tracker needs looks that "
+                                "detect every live target in view: look_detects = 'all'"]

@@ -403,7 +403,7 @@ def _settings(study: studies.Study) -> dict[str, tuple[Any, ...]]:
 def test_paper_study_lists_the_paper_methods() -> None:
     study = load_study(STUDIES / "paper.toml")
     assert (study.runs, study.steps) == (100, 100)
-    assert study.scenario == load_study(STUDIES / "demo.toml").scenario
+    assert study.scenario == load_study(STUDIES / "demo_paper.toml").scenario
     t = "terminal"
     assert _settings(study) == {
         "paper/myopic": ("pg", 1, 2, "olf", "mean", "none", t),
@@ -431,12 +431,31 @@ def test_horizon_study_runs_k_1_to_6_on_the_paper_runs() -> None:
         [[1, 2, 3, 4, 5, 6]]
 
 
-def test_demo_file_is_the_built_in_demo() -> None:
-    assert (STUDIES / "demo.toml").read_text() == studies.DEMO_STUDY
-    demo = studies.demo_study()
-    assert demo.resolved() == load_study(STUDIES / "demo.toml").resolved()
+@pytest.mark.parametrize("scenario,file", [("slow", "demo.toml"), ("paper", "demo_paper.toml")])
+def test_demo_files_are_the_built_in_demos(scenario: str, file: str) -> None:
+    assert (STUDIES / file).read_text() == studies.DEMO_STUDIES[scenario]
+    demo = studies.demo_study(scenario)
+    assert demo.resolved() == load_study(STUDIES / file).resolved()
     assert {m.settings.tracker.miss_update for m in demo.methods} == {"negative"}
     assert {m.settings.visibility for m in demo.methods} == {"probabilistic"}
+    assert studies.demo_study() == studies.demo_study("slow")
+
+
+def test_the_default_demo_runs_the_lookahead_maps_slow_platform_cell() -> None:
+    # docs/results.md, "Where looking ahead pays": the speed x0.25 cell, OLF K = 3 against
+    # myopic with the cumulative objective and a decision every step (and random).
+    from sensorplan.simulation.scenario import PRESETS, paper_scenario
+    from sensorplan.study.features import sensor_speed
+
+    demo = studies.demo_study()
+    assert demo.scenario == PRESETS["slow"]() == sensor_speed(paper_scenario(), 0.25)
+    assert demo.steps == 100
+    got = {m.name: (m.settings.planner, m.settings.horizon, m.settings.steps_per_epoch,
+                    m.settings.execution, m.settings.objective) for m in demo.methods}
+    assert got == {"random": ("random", 1, 1, "olf", "cumulative"),
+                   "myopic": ("pg", 1, 1, "olf", "cumulative"),
+                   "OLF pg K=3": ("pg", 3, 1, "olf", "cumulative")}
+    assert studies.references(demo)["OLF pg K=3"]["myopic"] == "myopic"
 
 
 def test_resolved_config_round_trips(tmp_path: Path) -> None:

@@ -328,3 +328,24 @@ def test_nees_band_covers_a_consistent_filter_in_95_percent_of_seeds():
     # The same errors judged by a filter that is twice too confident fall outside.
     over = nees(x, m, P / 2.0).reshape(seeds, runs).mean(axis=1)
     assert np.count_nonzero((over >= lo) & (over <= hi)) <= 10
+
+
+def test_a_look_that_detects_every_target_never_restarts_a_track_from_another_targets_detection():
+    from sensorplan.models.radar import measure_looks
+    from sensorplan.tracking.base import Looks
+
+    means = np.array([[300.0, 300.0, 0.0, 0.0], [300.0, 420.0, 0.0, 0.0]])
+    sxy, hd = np.array([[50.0, 300.0]]), np.array([0.2])
+    # the look aims at target 0 and returns only target 1's detection (far outside 0's gate)
+    h, _, _, seen = measure_looks(TABLE, np.zeros(1, dtype=np.int64), means[1:2, :2], sxy, hd)
+    assert seen.all()
+    looks = Looks(sensors=np.zeros(1, dtype=np.int64), aims=np.zeros(1, dtype=np.int64),
+                  positions=sxy, headings=hd, detections=(h,))
+    opts = dict(process_noise=0.05, gate_probability=0.999, reacquire=True)
+    one_target = KnownTargetTracker(means, P0, 1.0, TABLE, **opts)
+    rec = one_target.update(looks)             # a look at 0 returns 0's: the track restarts
+    assert rec.restarted[0]
+    every = KnownTargetTracker(means, P0, 1.0, TABLE, detects_all=True, **opts)
+    rec = every.update(looks)                  # it is another target's: discarded
+    assert not rec.restarted.any() and rec.used[0] == 0 and rec.discarded[0] == 1
+    np.testing.assert_array_equal(every.means, means)

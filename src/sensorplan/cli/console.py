@@ -209,6 +209,15 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
                   f"{100 * c['high_share']:.1f} % of target-steps (1 % when honest), "
                   f"{c['restarts']} restarts, {c['map_corrections']} map corrections",
                   highlight=False)
+    from ..study.set_metrics import GOSPA_CUTOFF, episode_set_metrics
+
+    sm = episode_set_metrics(episode, GOSPA_CUTOFF)
+    g = sm.gospa
+    console.print(f"GOSPA (c = {GOSPA_CUTOFF:g} m): mean {g.distance.mean():.1f} m over steps "
+                  f"1..S; its parts, mean m^2: localisation {g.localisation.mean():.1f}, "
+                  f"missed {g.missed.mean():.1f}, false {g.false.mean():.1f}; false tracks "
+                  f"per step {sm.false_tracks.mean():.2f}; targets lost "
+                  f"{sm.targets.targets_lost}", highlight=False)
 
     looked = np.asarray(episode.looked)[1:]                    # (S, N)
     missed = np.asarray(episode.missed)[1:]                    # (S, N)

@@ -38,6 +38,11 @@ def main() -> None:
         sys.exit(130)
     try:
         cli_main()
+    except KeyboardInterrupt:
+        # A Ctrl-C in the instants before the command's own handling starts (it catches
+        # every later one): the same line, never a traceback.
+        sys.stderr.write("error: interrupted\n")
+        sys.exit(130)
     finally:
         # The command is over: its results are written and its status set. A Ctrl-C or a
         # SIGTERM now could only cut the interpreter's tear-down short (a second or so with

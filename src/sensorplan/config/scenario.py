@@ -17,6 +17,8 @@ spells out every key)::
                                   # templates of born ones, cycled (default: all start)
     # scripted = "williams15"     # a published benchmark's scripted truth ("vo12"): its
                                   # own births, deaths and trajectories, map and dt
+    look_detects = "target"       # a look detects only its target (the paper's), or "all":
+                                  # every live target in its sensing region
 
     [map]
     width = 600.0                 # m
@@ -67,7 +69,7 @@ from ..limits import RANGES, check_sensor_precision
 from ..models.sensors import SensorParams
 from ..planners.problem import MapRect
 from ..models.population import BIRTHS
-from ..simulation.scenario import TARGET_KINDS, Scenario, SensorSpec, TargetSpec
+from ..simulation.scenario import LOOK_DETECTS, TARGET_KINDS, Scenario, SensorSpec, TargetSpec
 from ..simulation.settings import RunSettings, TrackerSettings
 from .validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict,
                          Vec2, choice, in_range, one_spelling, radians_of, section_model,
@@ -139,6 +141,7 @@ class ScenarioFile(Strict):
     survival_probability: float = _SC.survival_probability
     initial_targets: int | None = None
     scripted: str | None = None
+    look_detects: Annotated[str, choice(LOOK_DETECTS, "look_detects")] = _SC.look_detects
     map: MapModel = MapModel()
     initial: InitialModel = InitialModel()
     tracker: TrackerTable = TrackerTable()  # type: ignore[valid-type]
@@ -176,7 +179,8 @@ class ScenarioFile(Strict):
             initial_cov=tuple(tuple(row) for row in ini.cov),
             buildings=tuple(b.row() for b in self.buildings), births=self.births,
             birth_rate=self.birth_rate, survival_probability=self.survival_probability,
-            initial_targets=self.initial_targets, scripted=self.scripted)
+            initial_targets=self.initial_targets, scripted=self.scripted,
+            look_detects=self.look_detects)
         for i, spec in enumerate(scenario.sensors):
             check_sensor_precision(spec.params, f"sensors[{i}]")
         return scenario
@@ -242,6 +246,8 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
         population["initial_targets"] = int(scenario.initial_targets)
     if scenario.scripted is not None:
         population["scripted"] = scenario.scripted
+    if scenario.look_detects != _SC.look_detects:
+        population["look_detects"] = scenario.look_detects
     return {
         "dt": float(scenario.dt), "process_noise": float(scenario.process_noise),
         **population,

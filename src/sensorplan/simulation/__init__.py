@@ -9,6 +9,7 @@
 The names below are imported on first use.
 """
 
+import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -18,13 +19,14 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["EXECUTIONS", "STREAMS", "Episode", "RunSettings", "run_episode", "run_streams"]
 
 
+#: Each public name -> the module that defines it.
+_HOME = {"EXECUTIONS": "run", "STREAMS": "run", "Episode": "run", "run_episode": "run",
+         "run_streams": "run", "RunSettings": "settings"}
+
+
 def __getattr__(name: str) -> Any:
-    if name in ("EXECUTIONS", "STREAMS", "Episode", "run_episode", "run_streams"):
-        from . import run as module
-    elif name == "RunSettings":
-        from . import settings as module  # type: ignore[no-redef]
-    else:
+    if name not in _HOME:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(module, name)
+    value = getattr(importlib.import_module(f"{__name__}.{_HOME[name]}"), name)
     globals()[name] = value
     return value

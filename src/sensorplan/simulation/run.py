@@ -114,7 +114,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     truth_model = make_population(scenario, init.truth, truth_rng,
                                   np.random.default_rng(streams["births"]))
     tracker = make_tracker(scenario, settings, init.estimate, table)
-    sensing = Sensing(table, scenario.building_array, streams, S)
+    sensing = Sensing(table, scenario.building_array, streams, S, scenario.look_detects)
     record = Recorder(S, len(init.truth), N)
     record.start(init.truth, tracker.tracks(), init.positions, init.headings)
     schedule = _Schedule(scenario, settings, planner, planner_rng, table, init)
@@ -153,6 +153,16 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
     ``(M, 4)`` with the scenario's initial covariance."""
     P0 = np.array(scenario.initial_cov)
     cls = tracker_class(settings.tracker.kind)
+    tr = settings.tracker
+    if tr.kind != "known":
+        return cls(
+            table, scenario.dt, (scenario.world.width, scenario.world.height),
+            means=estimate, covs=P0, process_noise=tr.process_noise,
+            survival_probability=tr.survival_probability, births=tr.births,
+            birth_rate=tr.birth_rate if tr.births != "none" else 0.0,
+            resolution=tr.grid_resolution, gate_probability=tr.gate_probability,
+            prune_threshold=tr.prune_threshold, report_threshold=tr.report_threshold,
+            die_outside_map=tr.births == "edges", buildings=scenario.building_array)
     return cls(
         estimate, P0, scenario.dt, table,
         world=(scenario.world.width, scenario.world.height)
@@ -160,6 +170,7 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
         restart_velocity_var=(P0[2, 2], P0[3, 3]), buildings=scenario.building_array,
         miss_update=_miss_update_kernel() if settings.tracker.miss_update == "negative"
         else None,
+        detects_all=scenario.look_detects == "all",
         **settings.tracker.tracker_options())
 
 
@@ -197,6 +208,9 @@ class _Schedule:
         label = self.plan_labels[:, k]
         self.aimed = tracks_index(tracks, label)
         assigned = self.aimed >= 0
+        if not len(tracks):                   # nothing to look at: the sensors hold still
+            self.epoch_index += 1
+            return
         self.positions = np.where(assigned[:, None], self.plan_positions[:, k], self.positions)
         F = cv_matrices(self.scenario.dt, 0.0)[0]
         aim = tracks.means[np.maximum(self.aimed, 0)] @ F[:2].T                    # (N, 2)
@@ -208,6 +222,14 @@ class _Schedule:
     def _decide(self, t: int, tracks: TrackSet, q: float | FloatArray, record: Recorder
                 ) -> None:
         s = self.settings
+        if not len(tracks):
+            # No track to plan on (a multi-target tracker that holds none): no decision;
+            # every sensor keeps its pose for the plan's epochs.
+            N = len(self.sensors)
+            self.plan_labels = np.full((N, self.per_plan), -1, dtype=np.int64)
+            self.plan_positions = np.repeat(self.positions[:, None], self.per_plan, axis=1)
+            self.epoch_index = 0
+            return
         problem = PlanningProblem(
             means=tracks.means, covs=tracks.covs, positions=self.positions,
             headings=self.headings, sensors=self.sensors, horizon=s.horizon,

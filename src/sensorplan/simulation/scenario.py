@@ -26,6 +26,9 @@ from ..planners.problem import MapRect, check_buildings, check_covariance
 
 TargetKind = Literal["cv", "dubins"]
 TARGET_KINDS = ("cv", "dubins")
+#: What a look can detect: only the target it points at (the paper's), or every live
+#: target in its sensing region (what a multi-target tracker needs).
+LOOK_DETECTS = ("target", "all")
 #: Default start regions as fractions ``(a / n, b / n)`` of each map side: targets in the
 #: middle two thirds, sensors all but the outer twelfths ([100, 500] and [50, 550] m on the
 #: paper's 600 m map).
@@ -101,6 +104,9 @@ class Scenario:
     initial_targets : int or None    targets alive at the start: the first
                                      ``initial_targets`` of ``targets`` (0 allowed with
                                      births); None: all of them
+    look_detects : {"target", "all"}  what a look detects: only the target it points at (the
+                                     paper's; every known-target preset) or every live target
+                                     in its sensing region (what a multi-target tracker needs)
     scripted : str or None           a published benchmark's scripted truth
                                      (:data:`sensorplan.models.scripted.BENCHMARKS`) instead
                                      of drawn targets; its map and step are the benchmark's
@@ -122,6 +128,7 @@ class Scenario:
     survival_probability: float = 1.0
     initial_targets: int | None = None
     scripted: str | None = None
+    look_detects: str = "target"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "targets", tuple(self.targets))
@@ -255,6 +262,9 @@ class Scenario:
         """The births, deaths and scripted-truth keys (:mod:`sensorplan.models.population`)."""
         from ..limits import RANGES
 
+        if self.look_detects not in LOOK_DETECTS:
+            raise ConfigError("look_detects", f"unknown look_detects {self.look_detects!r}; "
+                              f"choose from {', '.join(LOOK_DETECTS)}")
         if self.births not in BIRTHS:
             raise ConfigError("births", f"unknown births {self.births!r}; choose from "
                               f"{', '.join(BIRTHS)}")
@@ -356,6 +366,21 @@ def urban_scenario() -> Scenario:
     return dataclasses.replace(paper_scenario(), buildings=town_buildings())
 
 
+#: The ``slow`` preset's move distances (m per step): a quarter of the paper's 20 and 40 m.
+SLOW_MOVES = (5.0, 10.0)
+
+
+def slow_scenario() -> Scenario:
+    """The paper's scenario with slow platforms: every sensor moves 5 or 10 m per step (a
+    quarter of the paper's 20 and 40 m), so it must reposition for several steps before it
+    can see a target it is not placed for. The "speed x0.25" condition of docs/results.md,
+    "Where looking ahead pays", where planning three epochs ahead beats myopic planning."""
+    scenario = paper_scenario()
+    sensors = tuple(dataclasses.replace(s, params=dataclasses.replace(s.params, moves=SLOW_MOVES))
+                    for s in scenario.sensors)
+    return dataclasses.replace(scenario, sensors=sensors)
+
+
 def swarm_scenario() -> Scenario:
     """A swarm: N = 100 sensors and M = 200 targets on a 3,000 x 3,000 m map.
 
@@ -404,7 +429,8 @@ def benchmark_scenario(name: str, sensors: tuple[SensorSpec, ...]) -> Scenario:
 
 #: Built-in scenarios by name (``--preset``, a study's ``scenario.preset``).
 PRESETS: dict[str, Callable[[], Scenario]] = {"paper": paper_scenario, "radar": radar_scenario,
-                                              "urban": urban_scenario, "swarm": swarm_scenario}
+                                              "urban": urban_scenario, "swarm": swarm_scenario,
+                                              "slow": slow_scenario}
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ from ..models.angles import wrap_angle
 from ..models.sensors import ALTITUDE, CLUTTER_RATE, SWERLING
 from ..tracking.base import Looks
 from .episode import Sensed
+from .scenario import LOOK_DETECTS
 
 
 def _imperfect(table: FloatArray) -> bool:
@@ -152,7 +153,9 @@ class Sensing:
         """
         table, N, M = self.table, len(self.table), len(truth)
         live = np.ones(M, dtype=bool) if alive is None else np.asarray(alive, dtype=bool)
-        assigned = aimed >= 0
+        # Every sensor looks along its heading, at a track or not: what it sees is what a
+        # multi-target tracker learns from.
+        assigned = np.ones(N, dtype=bool)
         i = self._index[assigned]
         j = np.flatnonzero(live)
         ii, jj = np.repeat(i, len(j)), np.tile(j, len(i))                   # (L K,)
@@ -178,16 +181,13 @@ class Sensing:
                 false[n] = clutter[1][n]
             detections.append(np.concatenate([own, extra]))
         aimed_seen = np.zeros(N, dtype=bool)
-        aimed_seen[i] = measured[aimed[i], i]
+        on = i[aimed[i] >= 0]
+        aimed_seen[on] = measured[aimed[on], on]
         looks = Looks(sensors=i, aims=aimed[i], positions=positions[i], headings=headings[i],
                       detections=tuple(detections))
-        return looks, Sensed(seen=aimed_seen, missed=assigned & ~aimed_seen,
+        return looks, Sensed(seen=aimed_seen, missed=(aimed >= 0) & ~aimed_seen,
                              false_alarms=false, measured=measured)
 
-
-#: What a look can detect: only the target it points at (the paper's), or every live
-#: target in its sensing region (what a multi-target tracker needs).
-LOOK_DETECTS = ("target", "all")
 
 
 class TargetDraws:

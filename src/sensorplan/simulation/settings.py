@@ -105,6 +105,17 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
     return field(default=default, default_factory=default_factory, metadata=meta)
 
 
+#: The settings only a multi-target tracker reads.
+MULTI_TARGET_SETTINGS = ("births", "birth_rate", "survival_probability", "report_threshold",
+                         "prune_threshold", "grid_resolution")
+
+
+def _births() -> tuple[str, ...]:
+    from ..models.population import BIRTHS
+
+    return BIRTHS
+
+
 def builtin_planners() -> tuple[str, ...]:
     """The built-in planner names, sorted (for help texts: no plugin is looked up)."""
     from ..planners.registry import BUILTIN
@@ -295,7 +306,9 @@ class TrackerSettings(_Settings):
     kind: str = setting(
         "known", section="tracker", cli=("--tracker",), metavar="KIND", label="tracker",
         choices=tracker_kinds, noun="tracker kind", brief="The tracker (kind)",
-        help="The tracker: known (one track per target known from the start, the paper's).")
+        help="The tracker: known (one track per target known from the start, the paper's) "
+             "or pmb (a Poisson multi-Bernoulli tracker that finds, confirms and deletes "
+             "targets).")
     miss_update: str = setting(
         "negative", section="tracker", cli=("--miss-update",), metavar="MODE",
         brief="A look that misses: negative (update with it) or none (the paper's)",
@@ -348,6 +361,40 @@ class TrackerSettings(_Settings):
         True, section="tracker", cli=("--known-map/--no-known-map",), label="known map",
         brief="Keep tracks inside the map",
         help="Truncate a track that leaves the map to the map (targets never leave it).")
+    known_buildings: bool = setting(
+        False, section="tracker", label="known buildings",
+        help="Keep tracks out of the buildings (targets never enter one) and predict them "
+             "turning at the walls, as targets do.")
+    reflect_walls: bool = setting(
+        False, section="tracker", label="reflect walls",
+        help="Predict the part of a track that leaves the map reflected off its walls, as "
+             "targets are (needs known_map).")
+    births: str = setting(
+        "edges", section="tracker", label="tracker births", choices=lambda: _births(),
+        noun="births",
+        help="A multi-target tracker's model of where targets are born: edges (on the map's "
+             "boundary; a track that leaves the map dies), uniform (anywhere) or none.")
+    birth_rate: float = setting(
+        0.02, section="tracker", label="tracker birth rate", bounds=Range(0.0, 100.0),
+        help="A multi-target tracker's expected number of births per step over the map.")
+    survival_probability: float = setting(
+        0.99, section="tracker", label="tracker survival",
+        bounds=Range(0.0, 1.0, lo_open=True),
+        help="A multi-target tracker's probability that a target survives a step.")
+    report_threshold: float = setting(
+        0.5, section="tracker", label="report threshold",
+        bounds=Range(0.0, 1.0, lo_open=True, hi_open=True),
+        help="A multi-target tracker reports (and plans on) the tracks whose probability of "
+             "existence is at least this.")
+    prune_threshold: float = setting(
+        1e-3, section="tracker", label="prune threshold",
+        bounds=Range(0.0, 1.0, hi_open=True),
+        help="A multi-target tracker forgets the tracks whose probability of existence falls "
+             "below this.")
+    grid_resolution: float = setting(
+        25.0, section="tracker", label="grid resolution", bounds=Range(1.0, 1e5),
+        help="Side (m) of the map cells on which a multi-target tracker keeps the expected "
+             "number of targets not yet detected.")
 
     def __post_init__(self) -> None:
         check_fields(self)
@@ -361,10 +408,16 @@ class TrackerSettings(_Settings):
     def unused(self) -> tuple[str, ...]:
         """The settings that change nothing with the others as they are: the cv filter's q
         (``process_noise``) with the IMM, the IMM's q's and switching with cv, the gate
-        probability without the gate. (A run's header leaves them out.)"""
+        probability without the gate, a multi-target tracker's settings with the tracker of
+        known targets and that tracker's with a multi-target one. (A run's header leaves
+        them out.)"""
+        if self.kind != "known":               # a multi-target tracker: cv, its own births
+            return ("miss_update", "model", "mode_process_noise", "switching", "gate",
+                    "reacquire", "association", "known_map", "known_buildings",
+                    "reflect_walls")
         out = ("process_noise",) if self.model == "imm" else ("mode_process_noise",
                                                               "switching")
-        return out + (() if self.gate else ("gate_probability",))
+        return out + (() if self.gate else ("gate_probability",)) + MULTI_TARGET_SETTINGS
 
     def tracker_options(self) -> dict[str, Any]:
         """Keyword arguments of :class:`sensorplan.tracking.tracker.KnownTargetTracker` for
@@ -376,7 +429,8 @@ class TrackerSettings(_Settings):
                     mode_process_noise=self.mode_process_noise if imm else None,
                     switching=np.array(self.switching) if imm else None,
                     gate_probability=self.gate_probability if self.gate else None,
-                    reacquire=self.reacquire, association=self.association)
+                    reacquire=self.reacquire, association=self.association,
+                    known_buildings=self.known_buildings, reflect_walls=self.reflect_walls)
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ directory that :func:`load_study_dir` reads back. The package's modules:
 - :mod:`.demo`: the built-in demo study.
 """
 
-from .demo import DEMO_STUDY, demo_study
+from .demo import DEMO_STUDIES, DEMO_STUDY, PAPER_DEMO_STUDY, demo_study
 from .execution import StudyInterrupted, StudyRun, TaskResult, default_workers, run_study, \
     run_task
 from .file import load_study, parse_study, study_from_dict
@@ -28,7 +28,8 @@ from .model import FORMAT, Method, Study
 from .storage import StudyTables, consolidate, done_tasks, load_study_dir, part_path
 from .tables import TABLE_DOC, TABLES, episode_tables
 
-__all__ = ["DEMO_STUDY", "DIVERGED_THRESHOLD", "FORMAT", "LEVEL", "LOST_THRESHOLD",
+__all__ = ["DEMO_STUDIES", "DEMO_STUDY", "PAPER_DEMO_STUDY", "DIVERGED_THRESHOLD", "FORMAT",
+           "LEVEL", "LOST_THRESHOLD",
            "METRIC_RANGES", "SMALL_SAMPLE",
            "NEES_HIGH", "Method", "Study", "consistency", "episode_consistency", "nees_band",
            "nees_over_time",

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -80,7 +81,15 @@ class ErrorRow:
 
 
 def episode_errors(episode: Episode) -> list[ErrorRow]:
-    """Per target, then per target kind (and all targets when there are several kinds)."""
+    """Per target, then per target kind (and all targets when there are several kinds).
+
+    For a multi-target tracker the errors are those of the track assigned to each live
+    target (:func:`~sensorplan.study.set_metrics.with_assigned_tracks`), over the steps it
+    had one.
+    """
+    from .set_metrics import with_assigned_tracks
+
+    episode = with_assigned_tracks(episode)
     err = np.asarray(episode.error)[1:]                                # (S, M)
     measured = np.any(np.asarray(episode.measured)[1:], axis=2)       # (S, M)
     nees = np.asarray(episode.nees)[1:]
@@ -89,10 +98,12 @@ def episode_errors(episode: Episode) -> list[ErrorRow]:
 
     def row(target: str, kind: str, idx: list[int]) -> ErrorRow:
         e = err[:, idx]
-        return ErrorRow(target, kind, float(np.sqrt(np.mean(e ** 2))), float(e.mean()),
-                        float(e[-1].mean()), float(lost(e).mean()),
-                        int(measured[:, idx].sum()), float(nees[:, idx].mean()),
-                        int(restarted[:, idx].sum()))
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)        # a target never assigned
+            return ErrorRow(target, kind, float(np.sqrt(np.nanmean(e ** 2))),
+                            float(np.nanmean(e)), float(np.nanmean(e[-1])),
+                            float(np.nanmean(lost(e))), int(measured[:, idx].sum()),
+                            float(np.nanmean(nees[:, idx])), int(restarted[:, idx].sum()))
 
     rows = [row(str(j), kind, [j]) for j, kind in enumerate(kinds)]
     for kind in _with_all(kinds):
@@ -102,8 +113,12 @@ def episode_errors(episode: Episode) -> list[ErrorRow]:
 
 def episode_consistency(episode: Episode) -> dict[str, float]:
     """ANEES over steps 1..S and targets, its band, the share above :data:`NEES_HIGH`, and
-    the track restarts and map corrections of one episode."""
-    nees = np.asarray(episode.nees)[1:]
+    the track restarts and map corrections of one episode (for a multi-target tracker, of
+    the tracks assigned to live targets)."""
+    from .set_metrics import with_assigned_tracks
+
+    nees = np.asarray(with_assigned_tracks(episode).nees)[1:]
+    nees = nees[np.isfinite(nees)]
     lo, hi = nees_band(nees.size)
     return dict(anees=float(nees.mean()), band_lo=float(lo), band_hi=float(hi),
                 high_share=float((nees > NEES_HIGH).mean()),

@@ -592,3 +592,40 @@ def episode_set_metrics(episode: Episode, c: float = GOSPA_CUTOFF) -> SetMetrics
     return set_metrics(steps[keep] - 1, ids[keep], episode.truth[steps[keep], ids[keep], :2],
                        episode.track_step[rows] - 1, episode.track_label[rows],
                        episode.track_mean[rows, :2], c, n_steps=S1 - 1)
+
+
+def with_assigned_tracks(episode: Episode, c: float = GOSPA_CUTOFF) -> Episode:
+    """The run with each live target's estimate, covariance, error and NEES those of the
+    track GOSPA assigns to it at each step (NaN where none is within ``c``, and where the
+    target is not alive), for a tracker whose tracks are not its targets (a multi-target
+    tracker). A run of the tracker of known targets is returned as it is: track j is
+    target j.
+    """
+    import dataclasses
+
+    from ..tracking.ekf import nees
+
+    if episode.settings.tracker.kind == "known":
+        return episode
+    S1, M = episode.alive.shape
+    steps, ids = np.nonzero(episode.alive[1:])
+    sm = episode_set_metrics(episode, c)
+    estimate = np.full((S1, M, 4), np.nan)
+    cov = np.full((S1, M, 4, 4), np.nan)
+    rows = episode.track_step > 0
+    t_step, t_label = episode.track_step[rows], episode.track_label[rows]
+    # the track row of each assigned (step, label): both tables are step-major
+    key = t_step * (int(t_label.max(initial=0)) + 1) + t_label
+    order = np.argsort(key, kind="stable")
+    ok = sm.assigned
+    want = (steps[ok] + 1) * (int(t_label.max(initial=0)) + 1) + sm.label[ok]
+    at = order[np.searchsorted(key[order], want)]
+    estimate[steps[ok] + 1, ids[ok]] = episode.track_mean[rows][at]
+    cov[steps[ok] + 1, ids[ok]] = episode.track_cov[rows][at]
+    truth = episode.truth
+    error = np.hypot(truth[..., 0] - estimate[..., 0], truth[..., 1] - estimate[..., 1])
+    with np.errstate(invalid="ignore"):
+        n = np.full((S1, M), np.nan)
+        fin = np.isfinite(estimate[..., 0])
+        n[fin] = nees(truth[fin], estimate[fin], cov[fin])
+    return dataclasses.replace(episode, estimate=estimate, cov=cov, error=error, nees=n)

@@ -11,15 +11,17 @@ from typing import Any
 import numpy as np
 
 from ..simulation.run import Episode
-from .set_metrics import GOSPA_CUTOFF, episode_set_metrics
+from .set_metrics import GOSPA_CUTOFF, episode_set_metrics, with_assigned_tracks
 
 #: Tidy tables, in the order a part's files are written (the last one marks it done).
 TABLES = ("decisions", "sensors", "tracks", "gospa", "steps")
 
 #: What each table holds, column by column.
 TABLE_DOC = {
-    "steps": "one row per (run, method, step, target): run, method, step (0 = initial state, "
-             "1..S), target, kind, error (m, |p_true - p_est|), nees (4-D NEES), measured "
+    "steps": "one row per (run, method, step, live target): run, method, step (0 = initial "
+             "state, 1..S), target, kind, error (m, |p_true - p_est|; for a multi-target "
+             "tracker of the track GOSPA assigns to it, empty when none), nees (4-D NEES), "
+             "measured "
              "(any sensor measured it at that step), measurements (how many did), "
              "negative_update, inflated (missed-look update / inflation), gated_out "
              "(detections of it that fell outside its validation gate), restarted (the track "
@@ -81,6 +83,8 @@ def episode_tables(episode: Episode, run: int, method: str) -> dict[str, dict[st
         "gospa": {...}}``; row order is step-major (then target, sensor or track) and
         decision order.
     """
+    sm = episode_set_metrics(episode, GOSPA_CUTOFF)
+    episode = with_assigned_tracks(episode, GOSPA_CUTOFF)
     S1, M = episode.error.shape
     N = episode.looked.shape[1]
     D = episode.decision_steps.shape[0]
@@ -106,6 +110,9 @@ def episode_tables(episode: Episode, run: int, method: str) -> dict[str, dict[st
         "x_est": episode.estimate[..., 0].reshape(-1),
         "y_est": episode.estimate[..., 1].reshape(-1),
     }
+    live = np.asarray(episode.alive).reshape(-1)          # live targets only (births, deaths)
+    if not live.all():
+        steps = {k: v[live] for k, v in steps.items()}
     converged = np.asarray(episode.converged, dtype=float)
     sweeps = np.asarray(episode.sweeps, dtype=float)
     decisions = {
@@ -131,7 +138,6 @@ def episode_tables(episode: Episode, run: int, method: str) -> dict[str, dict[st
         "missed": np.asarray(episode.missed).reshape(-1),
         "measured": measured.any(axis=1).reshape(-1),
     }
-    sm = episode_set_metrics(episode, GOSPA_CUTOFF)
     R, G = len(episode.track_step), S1 - 1
     tracks = {
         "run": np.full(R, run, dtype=np.int32),

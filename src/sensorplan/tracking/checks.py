@@ -89,15 +89,51 @@ def check_no_look_changes_only_the_prediction(tracker: Tracker, scene: Scene) ->
     tracker.predict()
     before = tracker.tracks()
     means, covs = np.array(before.means), np.array(before.covs)
-    empty = Looks(sensors=np.zeros(0, dtype=np.int64), aims=np.zeros(0, dtype=np.int64),
-                  positions=np.zeros((0, 2)), headings=np.zeros(0), detections=())
-    tracker.update(empty)
+    existence = np.array(before.existence)
+    tracker.update(_no_looks())
     after = tracker.tracks()
     if not np.array_equal(after.labels, before.labels) or not (
             np.allclose(after.means, means, rtol=0, atol=1e-9)
-            and np.allclose(after.covs, covs, rtol=0, atol=1e-9)):
+            and np.allclose(after.covs, covs, rtol=0, atol=1e-9)
+            and np.allclose(after.existence, existence, rtol=0, atol=1e-12)):
         _fail("no_look_changes_only_the_prediction",
               "an update with no look changed the tracks")
+
+
+def _no_looks() -> Looks:
+    return Looks(sensors=np.zeros(0, dtype=np.int64), aims=np.zeros(0, dtype=np.int64),
+                 positions=np.zeros((0, 2)), headings=np.zeros(0), detections=())
+
+
+def check_labels_come_only_from_detections(tracker: Tracker, scene: Scene) -> None:
+    """Steps without looks start no track: every label reported after them was reported
+    before, in the same order (a label is never given to another track)."""
+    name = "labels_come_only_from_detections"
+    before = np.asarray(tracker.tracks().labels)
+    for _ in range(3):
+        tracker.predict()
+        tracker.update(_no_looks())
+        now = np.asarray(tracker.tracks().labels)
+        if not np.all(np.isin(now, before)):
+            _fail(name, f"steps without looks reported new labels {sorted(set(now) - set(before))}")
+        where = {int(label): k for k, label in enumerate(before)}
+        if np.any(np.diff([where[int(label)] for label in now]) < 0):
+            _fail(name, "steps without looks reordered the labels")
+        before = now
+
+
+def check_planning_process_noise_is_valid(tracker: Tracker, scene: Scene) -> None:
+    """The planner's process noise: a finite q >= 0, or one per reported track."""
+    name = "planning_process_noise_is_valid"
+    for _ in range(2):
+        q = np.asarray(tracker.planning_process_noise(), dtype=float)
+        T = len(tracker.tracks())
+        if q.shape not in ((), (T,)):
+            _fail(name, f"got shape {q.shape}; a float or one per track ({T},)")
+        if not (np.all(np.isfinite(q)) and np.all(q >= 0.0)):
+            _fail(name, "must be finite and >= 0")
+        tracker.predict()
+        tracker.update(scene.looks)
 
 
 @dataclass(frozen=True)
@@ -113,6 +149,8 @@ CHECKS: dict[str, Callable[[Tracker, Scene], None]] = {
     "predict_keeps_tracks_valid": check_predict_keeps_tracks_valid,
     "update_accounts_for_every_look": check_update_accounts_for_every_look,
     "no_look_changes_only_the_prediction": check_no_look_changes_only_the_prediction,
+    "labels_come_only_from_detections": check_labels_come_only_from_detections,
+    "planning_process_noise_is_valid": check_planning_process_noise_is_valid,
 }
 
 

@@ -56,6 +56,7 @@ class ModeMixture:
                  switching: FloatArray | None = None) -> None:
         means = np.array(means, dtype=float)
         covs = np.array(np.broadcast_to(covs, means.shape + (4,)), dtype=float)
+        self.dt = float(dt)
         self.F, self.Q = cv_matrices(dt, process_noise)
         if mode_process_noise is None:
             self.q_modes = np.array([float(process_noise)])

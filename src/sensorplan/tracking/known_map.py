@@ -1,4 +1,5 @@
-r"""The map is known: a track is truncated to the map it cannot leave.
+r"""The map is known: a track is truncated to the map it cannot leave, and moved out of the
+buildings it cannot enter.
 
 Targets never leave the map ``[0, W] x [0, H]``, so a filter whose position estimate (or its
 3-sigma extent) lies outside it is knowably wrong. The map is applied as negative
@@ -24,6 +25,11 @@ little outside in x, in which case the mean (only) is projected onto the map. Th
 is applied only when the mean or its 3-sigma box leaves the map, so tracks well inside are
 never touched.
 
+Buildings (:func:`building_constraint`) are the same knowledge: no target is ever inside a
+footprint. Their complement is not a box, so the restriction is computed with the
+missed-look update's quadrature (:mod:`sensorplan.tracking.missed`): the 512 whitened
+points mapped through the track, those inside a footprint dropped, the rest moment matched.
+
 The elementwise arithmetic runs in small compiled kernels; the transcendental functions
 (``log_ndtr``, ``exp``, ``log1p``) stay numpy's and scipy's, so the results are the ones
 the plain numpy formulas give, bit for bit (numba's ``exp`` would round differently from
@@ -39,7 +45,7 @@ import numpy as np
 from scipy.special import log_ndtr
 
 from .._compiled.jit import njit
-from .._types import BoolArray, FloatArray
+from .._types import BoolArray, FloatArray, IntArray
 
 #: Extent (in standard deviations per axis) that must stay inside the map for a track to be
 #: left untouched.
@@ -322,3 +328,201 @@ def map_constraint(means: FloatArray, covs: FloatArray, width: float, height: fl
         m, P, log_mass = m.copy(), P.copy(), np.zeros(len(m))
     return m.reshape(shape + (4,)), P.reshape(shape + (4, 4)), hit.reshape(shape), \
         log_mass.reshape(shape)
+
+
+# ------------------------------------------------------------------ buildings
+
+#: Share of a track's quadrature points inside buildings at or above which the track is
+#: inconsistent (it was almost sure the target was where no target can be): its position
+#: variances first grow by the square of half the largest side of the buildings it is in.
+BUILDING_INFLATE_FRACTION = 0.95
+
+
+def near_buildings(means: FloatArray, covs: FloatArray, buildings: FloatArray,
+                   n_sigma: float = N_SIGMA) -> BoolArray:
+    """Tracks ``(..., 4)``, ``(..., 4, 4)`` whose ``n_sigma`` position box (per axis)
+    overlaps a building footprint of ``buildings`` ``(K, 5)``: the only ones
+    :func:`building_constraint` can change."""
+    means = np.asarray(means, dtype=float)
+    covs = np.asarray(covs, dtype=float)
+    b = np.asarray(buildings, dtype=float).reshape(-1, 5)
+    if len(b) == 0:
+        return np.zeros(means.shape[:-1], dtype=bool)
+    x, y = means[..., 0, None], means[..., 1, None]
+    sx = n_sigma * np.sqrt(covs[..., 0, 0])[..., None]
+    sy = n_sigma * np.sqrt(covs[..., 1, 1])[..., None]
+    return np.any((x - sx < b[:, 2]) & (x + sx > b[:, 0]) & (y - sy < b[:, 3])
+                  & (y + sy > b[:, 1]), axis=-1)
+
+
+def building_constraint(means: FloatArray, covs: FloatArray, buildings: FloatArray, *,
+                        reflect_dt: float | None = None, points: FloatArray | None = None,
+                        n_sigma: float = N_SIGMA
+                        ) -> tuple[FloatArray, FloatArray, BoolArray, FloatArray]:
+    r"""Move tracks out of the buildings: no target is ever inside a footprint.
+
+    Each track near a building (:func:`near_buildings`) is replaced by the moments of its
+    restriction to the outside of every footprint,
+
+    .. math::
+        m' = E[x \mid x \notin B],\qquad P' = \mathrm{Cov}[x \mid x \notin B],
+
+    by the missed-look quadrature: the whitened points :math:`\xi_s` mapped to
+    :math:`m + L \xi_s`, the points whose ground position is inside a footprint dropped,
+    the ``n`` others moment matched with weights ``1/n``. When at least
+    :data:`BUILDING_INFLATE_FRACTION` of the points (or all but fewer than 5) are inside, the
+    track was confidently wrong: both position variances first grow by
+    :math:`(s/2)^2`, ``s`` the largest side of the footprints holding its points, and the
+    restriction is taken of the grown track (if it still leaves fewer than 5 points outside,
+    the grown track is kept).
+
+    With ``reflect_dt`` (after a predict over ``dt`` s) the walls also act as they act on
+    the targets: a point that entered a footprint during the step (its position
+    ``dt`` s earlier along its velocity, ``p - v dt``, is outside every footprint) is
+    mirrored across the wall it came through and that velocity component changes sign
+    (:func:`sensorplan.models.truth.reflect_off_buildings`, the targets' own rule); only the
+    points still inside are dropped, and the moments are those of the reflected points. A
+    track that turns at a wall then predicts the turn instead of a target inside the wall.
+
+    Parameters
+    ----------
+    means : (..., 4) float64;  covs : (..., 4, 4) float64
+    buildings : (K, 5) float64      ``x0, y0, x1, y1, height`` (m)
+    reflect_dt : float, optional    the step just predicted (s): reflect at the walls
+    points : (S, 4) float64, optional
+        Whitened standard-normal points (default the missed-look update's 512).
+    n_sigma : float
+        Tracks whose ``n_sigma`` box clears every footprint are returned unchanged.
+
+    Returns
+    -------
+    means : (..., 4);  covs : (..., 4, 4)  symmetric positive definite
+    applied : (...) bool   tracks the buildings changed
+    log_mass : (...)       log of the share of the (input) track's points outside every
+                           footprint, floored at ``log(1/S)``: 0 where not applied
+    """
+    from .missed import MIN_OUTSIDE, _point_set, in_footprints
+
+    x, xx = _point_set(points)
+    S = x.shape[0]
+    means = np.asarray(means, dtype=float)
+    shape = means.shape[:-1]
+    m = np.array(means, dtype=float).reshape(-1, 4)
+    P = np.array(np.broadcast_to(covs, shape + (4, 4)), dtype=float).reshape(-1, 4, 4)
+    b = np.asarray(buildings, dtype=float).reshape(-1, 5)
+    applied = np.zeros(len(m), dtype=bool)
+    log_mass = np.zeros(len(m))
+    rows = np.flatnonzero(near_buildings(m, P, b, n_sigma))
+    if rows.size:
+        L = np.linalg.cholesky(P[rows])
+        inside: BoolArray = in_footprints(m[rows], L, x, b)                 # (B, S, K)
+        hit: BoolArray = np.any(inside, axis=2)                             # (B, S)
+        some = np.any(hit, axis=1)
+        rows, L, inside, hit = rows[some], L[some], inside[some], hit[some]
+        applied[rows] = True
+        few = max(MIN_OUTSIDE, (1.0 - BUILDING_INFLATE_FRACTION) * S)
+        if reflect_dt is not None and rows.size:
+            # The walls as the targets meet them; a track with too few points left after
+            # the reflection falls through to the plain restriction (and its growth).
+            mean, cov, n = _reflected_moments(m[rows], L, hit, x, b, float(reflect_dt))
+            ok = n > few
+            m[rows[ok]], P[rows[ok]] = mean[ok], cov[ok]
+            log_mass[rows[ok]] = np.log(n[ok] / S)
+            rows, L, inside, hit = rows[~ok], L[~ok], inside[~ok], hit[~ok]
+        mr, Pr = m[rows], P[rows]
+        n_out = S - hit.sum(axis=1)
+        log_mass[rows] = np.log(np.maximum(n_out, 1) / S)
+        grow = n_out <= few
+        if grow.any():
+            g = np.flatnonzero(grow)
+            side = np.maximum(b[:, 2] - b[:, 0], b[:, 3] - b[:, 1])         # (K,)
+            half = 0.5 * np.max(np.where(inside[g].any(axis=1), side, 0.0), axis=1)
+            Pr[g, 0, 0] += half ** 2
+            Pr[g, 1, 1] += half ** 2
+            L[g] = np.linalg.cholesky(Pr[g])
+            hit[g] = in_footprints(mr[g], L[g], x, b).any(axis=2)
+            n_out[g] = S - hit[g].sum(axis=1)
+        cut = (n_out < S) & (n_out >= MIN_OUTSIDE)
+        w = (~hit[cut]).astype(float)                                       # (C, S)
+        n = n_out[cut].astype(float)[:, None]
+        mu = (w @ x) / n                                                    # (C, 4)
+        C = ((w @ xx) / n).reshape(-1, 4, 4) - mu[:, :, None] * mu[:, None, :]
+        Lc = L[cut]
+        newP = Lc @ C @ np.swapaxes(Lc, -1, -2)
+        mr[cut] = mr[cut] + (Lc @ mu[:, :, None])[..., 0]
+        Pr[cut] = 0.5 * (newP + np.swapaxes(newP, -1, -2))
+        m[rows], P[rows] = mr, Pr
+    return (m.reshape(shape + (4,)), P.reshape(shape + (4, 4)), applied.reshape(shape),
+            log_mass.reshape(shape))
+
+
+def _reflected_moments(means: FloatArray, chol: FloatArray, inside: BoolArray, x: FloatArray,
+                       buildings: FloatArray, dt: float
+                       ) -> tuple[FloatArray, FloatArray, IntArray]:
+    """Moments of B tracks' points ``m + L x_s`` after the walls: points inside a footprint
+    (``inside`` ``(B, S)``) that were outside ``dt`` s earlier are reflected (the targets'
+    rule), the others still inside are dropped. Returns the means ``(B, 4)``, covariances
+    ``(B, 4, 4)`` and the number of points kept ``(B,)``."""
+    from ..models.truth import inside_buildings, reflect_off_buildings
+
+    pts = means[:, None, :] + np.einsum("bij,sj->bsi", chol, x)               # (B, S, 4)
+    bi, si = np.nonzero(inside)
+    new = pts[bi, si]
+    old = new[:, :2] - dt * new[:, 2:]
+    came_in = ~inside_buildings(old, buildings)
+    xy, flipped = reflect_off_buildings(old[came_in], new[came_in, :2], buildings)
+    moved = new[came_in]
+    moved[:, :2] = xy
+    moved[:, 2:] = np.where(flipped, -moved[:, 2:], moved[:, 2:])
+    pts[bi[came_in], si[came_in]] = moved
+    dropped = np.zeros(inside.shape, dtype=bool)
+    dropped[bi, si] = inside_buildings(pts[bi, si, :2], buildings)
+    keep = (~dropped).astype(float)                                          # (B, S)
+    n = keep.sum(axis=1)
+    safe = np.maximum(n, 1.0)
+    mean = np.einsum("bs,bsi->bi", keep, pts) / safe[:, None]
+    d = pts - mean[:, None, :]
+    cov = np.einsum("bs,bsi,bsj->bij", keep, d, d) / safe[:, None, None]
+    return mean, 0.5 * (cov + np.swapaxes(cov, -1, -2)), n.astype(np.int64)
+
+
+def map_reflection(means: FloatArray, covs: FloatArray, width: float, height: float, *,
+                   points: FloatArray | None = None, n_sigma: float = N_SIGMA
+                   ) -> tuple[FloatArray, FloatArray, BoolArray]:
+    r"""Predicted tracks after the map's walls, as the targets meet them.
+
+    Targets reflect off the walls of ``[0, W] x [0, H]``: a position that left the map is
+    mirrored back in and that velocity component reverses
+    (:func:`sensorplan.models.truth.mirror`, the targets' own rule). Each track whose mean
+    or ``n_sigma`` box leaves the map is replaced by the moments of its quadrature points
+    (the missed-look update's 512) after that rule; the mass is kept, so the result is on
+    the map with the reflected part's velocities reversed. Tracks inside are untouched.
+
+    Returns
+    -------
+    means : (..., 4);  covs : (..., 4, 4);  applied : (...) bool
+    """
+    from ..models.truth import mirror
+    from .missed import _point_set
+
+    x, _ = _point_set(points)
+    means = np.asarray(means, dtype=float)
+    shape = means.shape[:-1]
+    m = np.array(means, dtype=float).reshape(-1, 4)
+    P = np.array(np.broadcast_to(covs, shape + (4, 4)), dtype=float).reshape(-1, 4, 4)
+    applied = outside(m, P, width, height, n_sigma)
+    rows = np.flatnonzero(applied)
+    if rows.size:
+        L = np.linalg.cholesky(P[rows])
+        pts = m[rows, None, :] + np.einsum("bij,sj->bsi", L, x)                # (B, S, 4)
+        folded, flipped = mirror(pts[..., :2], np.array([width, height]))
+        moved = (folded != pts[..., :2]).any(axis=(1, 2))
+        pts[..., :2] = folded
+        pts[..., 2:] = np.where(flipped, -pts[..., 2:], pts[..., 2:])
+        mean = pts.mean(axis=1)
+        d = pts - mean[:, None, :]
+        cov = np.einsum("bsi,bsj->bij", d, d) / pts.shape[1]
+        r = rows[moved]
+        m[r], P[r] = mean[moved], 0.5 * (cov[moved] + np.swapaxes(cov[moved], -1, -2))
+        applied[rows[~moved]] = False
+    return m.reshape(shape + (4,)), P.reshape(shape + (4, 4)), applied.reshape(shape)

@@ -28,6 +28,13 @@ weight :math:`1 - P_d P_G` (the probability that a target there gave no gated de
 instead of being dropped, a point outside keeps weight 1, and the moments are the weighted
 ones. With :math:`P_d = P_G = 1` the weights are exactly 0 and 1: the rule above. The
 maths, the choices and the accuracy are documented in docs/model.md.
+
+Buildings enter twice. A building hides what is behind it, so a point it hides from the
+sensor keeps its weight (a look cannot learn that a target is absent from a place it cannot
+see). And no target is ever inside a building: with ``footprints`` the points inside one get
+weight 0, so the update conditions on both facts at once, the miss and the known map (a
+building hides its own footprint from every sensor, so without this a run of misses would
+pile the track's mass onto the one place no target can be).
 """
 
 from __future__ import annotations
@@ -40,7 +47,7 @@ from scipy.special import ndtri
 from scipy.stats import qmc
 
 from .._compiled.jit import njit
-from .._types import FloatArray, IntArray
+from .._types import BoolArray, FloatArray, IntArray
 from ..models import radar
 from ..models.sensors import G_MAX, G_MIN, SensorParams, radar_table
 
@@ -150,6 +157,26 @@ def _inside(means: FloatArray, chol: FloatArray, x: FloatArray, sensor_xy: Float
     return inside.reshape(batch + (S,))
 
 
+def in_footprints(means: FloatArray, chol: FloatArray, x: FloatArray,
+                  buildings: FloatArray) -> BoolArray:
+    """Whether the ground position of each point ``m + L x_s`` is strictly inside a
+    building's footprint (a point on a wall is outside, as for the targets).
+
+    Parameters
+    ----------
+    means : (B, 4);  chol : (B, 4, 4) lower Cholesky factors;  x : (S, 4) whitened points
+    buildings : (K, 5)   ``x0, y0, x1, y1, height``
+
+    Returns
+    -------
+    (B, S, K) bool
+    """
+    pts = means[:, None, :2] + np.einsum("bij,sj->bsi", chol[:, :2, :2], x[:, :2])
+    px, py = pts[..., 0, None], pts[..., 1, None]
+    b = np.asarray(buildings, dtype=float).reshape(-1, 5)
+    return (px > b[:, 0]) & (px < b[:, 2]) & (py > b[:, 1]) & (py < b[:, 3])
+
+
 def _flat_batch(a: np.ndarray, batch: tuple[int, ...]) -> np.ndarray:
     """``a`` broadcast to ``batch`` and flattened (no broadcast_to call when it has the
     shape already: its overhead dominates these tiny batches)."""
@@ -193,6 +220,7 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
                 sensor: IntArray | int | None = None, *,
                 points: FloatArray | None = None, gate_probability: float = 1.0,
                 buildings: FloatArray | None = None,
+                footprints: FloatArray | None = None,
                 return_fraction: bool = False) -> tuple[FloatArray, ...]:
     r"""Update tracks with a missed look (``negative``), batched over tracks.
 
@@ -227,6 +255,9 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
     buildings : (K, 5) float64, optional
         Buildings ``x0, y0, x1, y1, height``: a point they hide from the sensor counts as
         outside the sensing region (the look could not have seen a target there).
+    footprints : (K, 5) float64, optional
+        Buildings no target is ever inside: points in their footprints get weight 0 (the
+        update conditions on the miss and on the target being outside every building).
     return_fraction : bool
         Also return the probability mass the look removes (the probability, under the
         track, that the look should have detected the target in its gate).
@@ -268,6 +299,11 @@ def miss_update(means: FloatArray, covs: FloatArray, sensor_xy: FloatArray,
     # ideal detection and no gate the weights are exactly 0 and 1: the points inside are
     # dropped.
     w = 1.0 - gate_probability * inside
+    if footprints is not None and len(footprints):
+        flat = _flat_rows(means, w.shape[:-1], (4,))
+        solid = in_footprints(flat, _flat_rows(chol, w.shape[:-1], (4, 4)), x,
+                              footprints).any(axis=-1)
+        w = np.where(solid.reshape(w.shape), 0.0, w)
     n_out = w.sum(axis=-1)
     batch = n_out.shape
     # The elementwise steps run compiled, in numpy's order; the matrix products stay numpy's.

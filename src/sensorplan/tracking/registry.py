@@ -12,6 +12,7 @@ from typing import Any
 #: Tracker kind -> ``module:Class``.
 TRACKERS: dict[str, str] = {
     "known": "sensorplan.tracking.tracker:KnownTargetTracker",
+    "pmb": "sensorplan.tracking.pmb.tracker:PMBTracker",
 }
 
 

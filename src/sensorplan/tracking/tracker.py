@@ -28,7 +28,10 @@ Bar-Shalom 1988). The options, each switchable:
   :math:`J R J^T` (:func:`sensorplan.models.radar.inverse`), velocity mean zero with the initial
   velocity variances, no cross-covariance, IMM mode probabilities at their initial values.
 - **The known map** (:mod:`sensorplan.tracking.known_map`): after the predict and after the updates,
-  every mode whose mean or 3-sigma box leaves the map is truncated to the map.
+  every mode whose mean or 3-sigma box leaves the map is truncated to the map, and (known
+  buildings) every mode whose 3-sigma box reaches into a building is restricted to the
+  outside of the footprints: no target is ever inside one, and a look can never show that
+  it is not there (a building hides its own footprint from every sensor).
 - **Missed looks** (:mod:`sensorplan.tracking.missed`): a look that missed applies its negative
   information to every mode; an IMM mode's likelihood of the miss is the probability mass it
   puts outside the sensing region.
@@ -52,7 +55,7 @@ from .association import ASSOCIATIONS, GATE_DOF, gate_threshold, pda_update
 from .base import Looks, TrackSet, UpdateRecord
 from .ekf import innovations, mahalanobis2, position_update, update, update_rounds
 from .imm import ModeMixture, stationary
-from .known_map import map_constraint
+from .known_map import building_constraint, map_constraint, map_reflection
 
 __all__ = ["ASSOCIATIONS", "KnownTargetTracker", "LookResults", "SetResults", "gate_threshold",
            "stationary"]
@@ -123,11 +126,21 @@ class KnownTargetTracker(ModeMixture):
     buildings : (K, 5), optional
         Buildings ``x0, y0, x1, y1, height`` that can hide targets: a missed look learns
         nothing about the places they hide.
+    known_buildings : bool
+        Restrict the tracks to the outside of the buildings' footprints after every
+        predict and update (targets never enter a building); needs ``buildings``.
+    reflect_walls : bool
+        After every predict, reflect the part of each track that left the map off its walls
+        (as the targets are) before the map's truncation; needs ``world``.
     restart_velocity_var : (2,)
         Velocity variances (m^2/s^2) of a restarted track.
     miss_update : callable, optional
         The missed-look update :meth:`update` applies to a look that returned no detection
         (:func:`sensorplan.tracking.missed.miss_update`); None: a miss changes nothing.
+    detects_all : bool
+        A look returns every target in view, not only the one it points at: a look's
+        detections are then associated with its target's track (the nearest gated one
+        without false alarms, PDA with them).
     """
 
     def __init__(self, means: FloatArray, covs: FloatArray, dt: float, table: FloatArray, *,
@@ -135,9 +148,11 @@ class KnownTargetTracker(ModeMixture):
                  switching: FloatArray | None = None, gate_probability: float | None = None,
                  reacquire: bool = False, association: str = "pda",
                  world: tuple[float, float] | None = None,
-                 buildings: FloatArray | None = None,
+                 buildings: FloatArray | None = None, known_buildings: bool = False,
+                 reflect_walls: bool = False,
                  restart_velocity_var: tuple[float, float] = (4.0, 4.0),
-                 miss_update: Callable[..., Any] | None = None) -> None:
+                 miss_update: Callable[..., Any] | None = None,
+                 detects_all: bool = False) -> None:
         super().__init__(means, covs, dt, process_noise=process_noise,
                          mode_process_noise=mode_process_noise, switching=switching)
         self.table = np.ascontiguousarray(table, dtype=float)
@@ -152,11 +167,16 @@ class KnownTargetTracker(ModeMixture):
         self.world = world
         self.buildings = None if buildings is None or len(buildings) == 0 else np.asarray(
             buildings, dtype=float).reshape(-1, 5)
+        self.known_buildings = bool(known_buildings) and self.buildings is not None
+        self.reflect_walls = bool(reflect_walls) and world is not None
         self.restart_velocity_var = np.asarray(restart_velocity_var, dtype=float)
         self.miss_update = miss_update
         # A look at target j returns j's detection only, when no sensor misses a target in
-        # view or reports false alarms: detections then update as one batch.
-        self.imperfect = bool(self.table[:, SWERLING].any() or self.table[:, CLUTTER_RATE].any())
+        # view or reports false alarms and a look detects only its target: detections then
+        # update as one batch.
+        self.detects_all = detects_all
+        self.imperfect = bool(self.table[:, SWERLING].any() or self.table[:, CLUTTER_RATE].any()
+                              or detects_all)
 
     # ---------------------------------------------------------------- the tracker protocol
     def tracks(self) -> TrackSet:
@@ -176,7 +196,9 @@ class KnownTargetTracker(ModeMixture):
         M, L = len(self.means), len(looks.sensors)
         sensors, aims = np.asarray(looks.sensors), np.asarray(looks.aims)
         pos, head = np.asarray(looks.positions), np.asarray(looks.headings)
-        counts = looks.counts
+        # a look aimed at no target (its detections are no target's in particular) is not
+        # this tracker's to use
+        counts = np.where(aims >= 0, looks.counts, -1)
         negative, inflated = np.zeros(M, dtype=bool), np.zeros(M, dtype=bool)
         restarted, corrected = np.zeros(M, dtype=bool), np.zeros(M, dtype=bool)
         used, discarded = np.zeros(L, dtype=np.int64), np.zeros(L, dtype=np.int64)
@@ -200,6 +222,10 @@ class KnownTargetTracker(ModeMixture):
             restarted[aims[i][one.restarted]] = True
             corrected |= one.map_corrected
             used[i], discarded[i] = one.used, one.gated_out
+        # A missed look has conditioned on the footprints already (jointly with the miss);
+        # a detection can move a track into a building.
+        if i.size:
+            corrected |= self.apply_buildings(targets=np.unique(aims[i]))
         return UpdateRecord(negative, inflated, restarted, corrected, used, discarded,
                             gated_out)
 
@@ -215,7 +241,23 @@ class KnownTargetTracker(ModeMixture):
         (M,) bool: tracks the map constraint corrected.
         """
         self.predict_modes()
-        return self.apply_map()
+        hit = self.reflect_off_map()
+        hit |= self.apply_map()
+        return hit | self.apply_buildings(reflect_dt=self.dt)
+
+    def reflect_off_map(self) -> BoolArray:
+        """Reflect the modes that left the map off its walls (no-op unless
+        ``reflect_walls``)."""
+        M = len(self.means)
+        if not self.reflect_walls:
+            return np.zeros(M, dtype=bool)
+        assert self.world is not None
+        m, P, applied = map_reflection(self.mode_means, self.mode_covs, *self.world)
+        hit = np.asarray(applied.any(axis=1))
+        if hit.any():
+            self.mode_means, self.mode_covs = m, P
+            self.combine(np.flatnonzero(hit))
+        return hit
 
     def apply_map(self) -> BoolArray:
         """Truncate the modes that leave the map to it (no-op without a map)."""
@@ -229,6 +271,30 @@ class KnownTargetTracker(ModeMixture):
             idx = np.flatnonzero(hit)
             self.reweight(idx, log_mass[idx])
             self.combine(idx)
+        return hit
+
+    def apply_buildings(self, reflect_dt: float | None = None,
+                        targets: IntArray | None = None) -> BoolArray:
+        """Restrict the modes of ``targets`` (default all) that reach into a building to
+        the outside of the footprints (no-op without known buildings); with ``reflect_dt``
+        (after a predict) the points that entered a building during the step are reflected
+        at its walls first, as the targets are. Returns the tracks it changed ``(M,)``."""
+        M = len(self.means)
+        hit = np.zeros(M, dtype=bool)
+        if not self.known_buildings:
+            return hit
+        assert self.buildings is not None
+        rows = np.arange(M) if targets is None else np.asarray(targets, dtype=np.int64)
+        m, P, applied, log_mass = building_constraint(self.mode_means[rows],
+                                                      self.mode_covs[rows], self.buildings,
+                                                      reflect_dt=reflect_dt)
+        changed = np.asarray(applied.any(axis=1))
+        if changed.any():
+            idx = rows[changed]
+            self.mode_means[idx], self.mode_covs[idx] = m[changed], P[changed]
+            self.reweight(idx, log_mass[changed])
+            self.combine(idx)
+            hit[idx] = True
         return hit
 
     # ---------------------------------------------------------------- missed looks
@@ -263,6 +329,8 @@ class KnownTargetTracker(ModeMixture):
                 "gate_probability": self.gate_probability}
             if self.buildings is not None:
                 gate_kw["buildings"] = self.buildings
+                if self.known_buildings:
+                    gate_kw["footprints"] = self.buildings
             if self.n_modes == 1:
                 m, P, infl = kernel(self.mode_means[j, 0], self.mode_covs[j, 0], sensor_xy[rnd],
                                     heading[rnd], self.table, i, **gate_kw)
@@ -360,7 +428,7 @@ class KnownTargetTracker(ModeMixture):
             if Z.shape[0] == 0:
                 continue
             clutter = self.table[i, CLUTTER_RATE] > 0.0
-            if not clutter:
+            if not clutter and not self.detects_all:
                 if Z.shape[0] != 1:
                     raise ValueError(f"look {n}: {Z.shape[0]} detections from a sensor "
                                      "without false alarms")
@@ -384,6 +452,15 @@ class KnownTargetTracker(ModeMixture):
                 if kernel is not None:
                     neg, _ = self._miss_one(i, j, sensor_xy[n], heading[n], kernel)
                     negative |= neg
+                continue
+            if not clutter:
+                # Every detection is some target's: the gated one nearest the track is its
+                # target's (a detection outside the gate is another target's, never a
+                # reason to restart).
+                k = int(np.argmin(mahalanobis2(nu[ok], S[ok]))) if self.gate is not None else 0
+                self._update_modes(np.zeros(1, dtype=np.int64), np.array([i]), np.array([j]),
+                                   gated[k:k + 1], sensor_xy[n:n + 1], heading[n:n + 1])
+                used[n] = 1
                 continue
             if self.association == "nearest":
                 gated = gated[[int(np.argmin(mahalanobis2(nu[ok], S[ok])))]] \

@@ -19,6 +19,7 @@ from stonesoup.types.state import State
 from stonesoup.types.track import Track
 
 from ..._types import FloatArray
+from ...errors import ConfigError
 from ...models import radar
 from ...models.angles import heading_rule
 from ...models.motion import cv_matrices
@@ -29,6 +30,9 @@ from ._convert import _ground_xy, from_tracks, ordered_tracks
 from ._detection import clutter_density, detection_probability, draw_clutter, is_swerling
 from ._measurement import RadarMeasurementModel, noise_source
 from ._world import DEFAULT_WORLD, MapRect, as_world
+
+#: Largest difference (m) between a radar's height on its platform and ``params.altitude``.
+ALTITUDE_TOL = 1e-6
 
 # --------------------------------------------------------------------------------------------
 # Platform movement: the lattice moves
@@ -221,7 +225,12 @@ class SensorplanRadar(Sensor):
 
     Mount it on a Stone Soup platform (a ``FixedPlatform`` with a :class:`LatticeMovable` to
     let :class:`SensorplanManager` move it); its ground position is the platform's x, y and
-    its altitude is ``params.altitude``.
+    its altitude is ``params.altitude``. A platform with a height (a 3-D position, as
+    ``position_mapping=(0, 1, 2)`` gives) must carry the radar at that altitude: the
+    platform's z plus the mounting offset's must equal ``params.altitude`` (to 1e-6 m), or
+    every use of the radar (:meth:`measure`, its measurement model, field of view, detection
+    and clutter) raises a :class:`~sensorplan.errors.ConfigError` naming
+    ``params.altitude``. A 2-D platform has no height: ``params.altitude`` alone counts.
 
     Pointing. The actionable property is :attr:`aim`, a ground point. When the radar acts on
     a new :class:`AimAction` it turns toward that point by at most ``params.max_turn``
@@ -307,6 +316,26 @@ class SensorplanRadar(Sensor):
         """Ground position ``(2,)`` of the radar (its platform's x, y plus mounting offset)."""
         return np.asarray(self.position, dtype=float).ravel()[:2]
 
+    def check_altitude(self, field: str = "params.altitude") -> None:
+        """Raise a :class:`~sensorplan.errors.ConfigError` naming ``field`` when the radar
+        sits at a height (its platform's z plus the mounting offset's) other than
+        ``params.altitude``: the radar model measures from ``params.altitude``, so a
+        platform flying elsewhere would be measured from the wrong height, silently.
+        Nothing to check on a 2-D platform or without one."""
+        position = self.position
+        if position is None:
+            return
+        p = np.asarray(position, dtype=float).ravel()
+        if p.size < 3:
+            return
+        z, altitude = float(p[2]), float(self.params.altitude)
+        if not abs(z - altitude) <= ALTITUDE_TOL:
+            raise ConfigError(field, f"is {altitude:g} m, but the radar is at z = {z:g} m "
+                                     f"(its platform's z plus the mounting offset); the radar "
+                                     f"measures from params.altitude, so make them equal: "
+                                     f"SensorParams(altitude={z:g}), or the platform at "
+                                     f"z = {altitude:g}")
+
     def act(self, timestamp: datetime.datetime, **kwargs: Any) -> None:
         if not self.validate_timestamp():
             self.timestamp = timestamp
@@ -329,6 +358,7 @@ class SensorplanRadar(Sensor):
     def measurement_model_for(self, ndim_state: int) -> RadarMeasurementModel:
         """The measurement model at the radar's current pose for states of ``ndim_state``
         entries (the ground position at ``position_mapping``)."""
+        self.check_altitude()
         return RadarMeasurementModel(ndim_state=int(ndim_state),
                                      mapping=tuple(self.position_mapping),
                                      sensor_xy=tuple(self.ground_position),
@@ -336,6 +366,7 @@ class SensorplanRadar(Sensor):
 
     def is_detectable(self, state: Any, measurement_model: Any = None) -> bool:
         """Whether the state's ground position is in the field of view."""
+        self.check_altitude()
         xy = _ground_xy(state, self.position_mapping)
         seen = radar.measure_looks(radar_table(self.params), 0, xy, self.ground_position,
                                    self.heading)[3]
@@ -349,6 +380,7 @@ class SensorplanRadar(Sensor):
         ``prob_detect`` of Stone Soup's ``PDAHypothesiser``. The field of view is not part of
         it (see :meth:`is_detectable`).
         """
+        self.check_altitude()
         xy = _ground_xy(state, self.position_mapping)
         if xy.shape[0] != 1:
             raise ValueError("detection_probability takes one state")
@@ -365,6 +397,7 @@ class SensorplanRadar(Sensor):
         ``(r_min + r_max) / 2``, which is the region's average ``clutter_rate /
         (2 fov_half_angle (r_max - r_min))`` (a constant approximation). 0 without clutter.
         """
+        self.check_altitude()
         r = None
         if state is not None:
             xy = _ground_xy(state, self.position_mapping)
@@ -399,6 +432,7 @@ class SensorplanRadar(Sensor):
         draws are the truths' noise. For reproducible draws pass a list (or a single truth,
         a dwell on one target) rather than a set.
         """
+        self.check_altitude()
         truths = list(ground_truths)
         table = radar_table(self.params)
         swerling = is_swerling(table)

@@ -37,6 +37,10 @@ from ._world import MapRect, check_inside
 # The sensor manager
 # --------------------------------------------------------------------------------------------
 
+#: Largest difference (s) between ``choose_actions``' timestamp and the end of the first epoch.
+TIME_TOL = 1e-6
+
+
 
 class SensorplanManager(SensorManager):
     """A Stone Soup sensor manager that plans with any registered sensorplan planner.
@@ -150,7 +154,7 @@ class SensorplanManager(SensorManager):
         else:
             ordered = sorted(platforms, key=lambda p: tuple(
                 np.asarray(p.position, dtype=float).ravel().tolist()))
-        pairs = []
+        pairs: list[tuple[Platform, SensorplanRadar]] = []
         for platform in ordered:
             movable = platform.movement_controller
             if not isinstance(movable, LatticeMovable):
@@ -166,6 +170,7 @@ class SensorplanManager(SensorManager):
             if np.abs(radars[0].ground_position - movable.ground_position).max() > POSITION_TOL:
                 raise ValueError("a managed SensorplanRadar must sit at its platform's ground "
                                  "position (mounting_offset zero in x and y)")
+            radars[0].check_altitude(f"sensors[{len(pairs)}].params.altitude")
             pairs.append((platform, radars[0]))
         mounted = {id(r) for _, r in pairs}
         loose = [s for s in self._property_sensors if id(s) not in mounted]
@@ -229,7 +234,10 @@ class SensorplanManager(SensorManager):
             Every target's track, all at the same time ``t0``. None at all gives the
             stay-and-hold configuration (every platform stays, every radar keeps its aim).
         timestamp : datetime
-            End time of the actions (the next measurement time).
+            End time of the actions: the end of the first epoch, the tracks' time plus
+            ``steps_per_epoch * dt`` (the next measurement time when ``steps_per_epoch`` is
+            1). Another time is a :class:`~sensorplan.errors.ConfigError` naming
+            ``timestamp`` (:meth:`check_timestamp`).
         """
         if nchoose != 1:
             raise ValueError("SensorplanManager returns one configuration (nchoose=1)")
@@ -247,6 +255,7 @@ class SensorplanManager(SensorManager):
             self._last_start = None
             return [config]
         problem, ordered = self.build_problem(ordered)
+        self.check_timestamp(ordered[0].state.timestamp, timestamp)
         start = np.stack([r.ground_position for _, r in pairs])     # world, as planned from
         result = checked_plan(self._planner, problem, self._rng)
         # Aim points from the world-frame means, as the planner aims in its frame.
@@ -266,6 +275,26 @@ class SensorplanManager(SensorManager):
         self.last_problem, self.last_result, self.last_tracks = problem, result, ordered
         self._last_start = start
         return [config]
+
+    def check_timestamp(self, t0: Any, timestamp: Any) -> None:
+        """Raise a :class:`~sensorplan.errors.ConfigError` naming ``timestamp`` unless it is
+        the end of the first epoch, ``t0 + steps_per_epoch * dt`` (to 1e-6 s), where ``t0``
+        is the tracks' time: the plan's epochs last ``steps_per_epoch * dt``, so any other
+        gap would be planned as if it were that long. Tracks without a time are not
+        checked."""
+        if t0 is None or timestamp is None:
+            return
+        gap = (timestamp - t0).total_seconds()
+        e, dt = int(self.steps_per_epoch), float(self.dt)
+        epoch = e * dt
+        if abs(gap - epoch) <= TIME_TOL + 1e-9 * abs(epoch):
+            return
+        steps = f"{e} x {dt:g} s = " if e != 1 else ""
+        fix = f" (or set dt={gap / e:g} for epochs of {gap:g} s)" if gap > 0 else ""
+        raise ConfigError("timestamp", f"is {gap:g} s after the tracks' time, but this "
+                                       f"manager plans epochs of steps_per_epoch x dt = "
+                                       f"{steps}{epoch:g} s: give the end of the first epoch, "
+                                       f"the tracks' time + {epoch:g} s{fix}")
 
     def planned_positions(self) -> FloatArray:
         """World ground positions ``(N, K, 2)`` (m) of the last plan, epoch by epoch.

@@ -1,0 +1,373 @@
+r"""The track-oriented Poisson multi-Bernoulli (PMB) tracker.
+
+Williams (2015, "Marginal multi-Bernoulli filters: RFS derivation of MHT, JIPDA and
+association-based MeMBer") and García-Fernández, Williams, Granström and Svensson (2018,
+"Poisson multi-Bernoulli mixture filter: direct derivation and implementation"): the
+targets are the union of a Poisson process of targets never detected (intensity
+:math:`D_u`, :mod:`sensorplan.tracking.pmb.undetected`) and independent Bernoullis, each a
+target that exists with probability :math:`r_i` with a Gaussian density
+(:mod:`sensorplan.tracking.pmb.bernoulli`). It meets the tracker protocol of
+:mod:`sensorplan.tracking.base` for the radar and for the linear position sensor
+(:mod:`sensorplan.tracking.pmb.sensing`).
+
+**Predict** (every step). Each Bernoulli: the motion model's Kalman prediction (CWNA with
+the tracker's ``process_noise``, or a given ``(F, Q)``) and :math:`r \leftarrow p_S r`.
+With ``die_outside_map`` (edge births: a target that leaves the map dies) the survival
+also requires the target to stay on the map: a density whose mean or 3-sigma box leaves it
+is truncated to the map (:func:`sensorplan.tracking.known_map.map_constraint`) and
+:math:`r` is multiplied by its mass on the map. :math:`D_u`: survival and births.
+
+**Update** (each look, in sensor order, with its detections :math:`z_1..z_m`):
+
+1. Every Bernoulli's missed-look hypothesis: :math:`\bar P_i`, its detection probability
+   integrated over its density by the missed-look quadrature (occlusion included), and its
+   density given no detection, the quadrature's weighted moments
+   (:func:`~sensorplan.tracking.pmb.bernoulli.missed_look`: the known-target tracker's
+   rule for imperfect detection, without its inflation).
+2. Gating: detection :math:`j` is a candidate for Bernoulli :math:`i` when its innovation's
+   squared Mahalanobis distance is below the chi-square(2) quantile of
+   ``gate_probability``; likewise for the cells of :math:`D_u`.
+3. Weights: miss :math:`1 - r_i + r_i (1 - \bar P_i) = 1 - r_i \bar P_i`; detection
+   :math:`r_i P_d\, l_{ij}` (``l`` the Gaussian likelihood, 0 outside the gate, ``P_d`` at
+   the Bernoulli's predicted position); new :math:`\lambda_u(z_j) + \kappa(z_j)`
+   (undetected intensity's detection weight plus the clutter intensity). Marginal
+   association probabilities by loopy belief propagation
+   (:func:`~sensorplan.tracking.pmb.association.association_lbp`).
+4. Track-oriented merge. Bernoulli :math:`i` becomes the mixture of its hypotheses: missed
+   (weight :math:`p^{miss}_i`, existence :math:`r_i (1 - \bar P_i) / (1 - r_i \bar P_i)`,
+   the missed-look density) and detected by :math:`z_j` (weight :math:`p^{det}_{ij}`,
+   existence 1, the EKF update), so
+   :math:`r'_i = p^{miss}_i r^{miss}_i + \sum_j p^{det}_{ij}`, and its density the
+   moment-matched mixture with weights :math:`p^{miss}_i r^{miss}_i / r'_i` and
+   :math:`p^{det}_{ij} / r'_i`. A Bernoulli that the look could not have detected
+   (:math:`\bar P_i = 0`) and that gates no detection is left exactly as it was.
+5. Each detection :math:`z_j` starts a Bernoulli with existence
+   :math:`p^{new}_j\, \lambda_u(z_j) / (\lambda_u(z_j) + \kappa(z_j))` and the density of
+   the gated cells' components updated by :math:`z_j`, weighted by their shares of
+   :math:`\lambda_u(z_j)` and moment matched; it gets the next unused label. One below
+   the pruning threshold is not created (its label is not used).
+6. :math:`D_u` is thinned by the look; Bernoullis with :math:`r` below
+   ``prune_threshold`` are dropped.
+
+Missed looks are the same update with no detection: step 4 leaves :math:`r'_i` and the
+missed-look density. The missed-look probability :math:`\bar P` ignores the gate (a
+target detected outside its gate would start a new Bernoulli; at the default gate
+probability 0.999 the difference is 1e-3 of :math:`\bar P`).
+
+**Reporting**. :meth:`tracks` reports the Bernoullis with :math:`r \ge`
+``report_threshold``, with their existence and labels. Each Bernoulli holds a single
+constant-velocity EKF; the known-target tracker's IMM modes are not offered here.
+
+**Arrays**. A look's work is batched: the quadrature of every Bernoulli at once, one
+compiled pass over every (Bernoulli or cell, detection) pair for the innovations and
+likelihoods (:func:`~sensorplan.tracking.pmb.bernoulli.pair_terms`), one for the weights
+and one for the hypotheses the marginals leave (:mod:`sensorplan.tracking.pmb.hypotheses`),
+one batch of EKF updates and one of mixtures. docs/tracking_pmb.md has the model, the
+parameters and their sources, and what is approximated.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..._types import BoolArray, FloatArray
+from ...models.linear import LinearSensor
+from ...models.motion import cv_matrices
+from ..base import Looks, TrackSet, UpdateRecord
+from ..ekf import predict as kalman_predict
+from ..known_map import map_constraint
+from ..tracker import gate_threshold
+from . import undetected
+from . import hypotheses as hyp
+from .association import AssociationMarginals, association_lbp
+from .bernoulli import (Bernoullis, missed_existence, missed_look, mixture_moments, pair_terms,
+                        updates)
+from .sensing import Look, make_sensing
+
+#: Smallest association weight of a miss or a new detection: the ratio form of belief
+#: propagation needs both positive (a Bernoulli surely there and surely detectable, or a
+#: detection that neither clutter nor an undetected target can explain, gets this).
+MIN_WEIGHT = 1e-300
+
+
+@dataclass(frozen=True)
+class LookOutcome:
+    """What one look's update did.
+
+    Attributes
+    ----------
+    used : int          detections gated with at least one Bernoulli
+    discarded : int     detections gated with none that started no Bernoulli (clutter)
+    touched : (n,) bool the Bernoullis (present before the look) the look updated
+    negative : (n,) bool  those the look could have detected (``Pbar > 0``)
+    weights : (w_miss (n,), w_det (n, m), w_new (m,)) or None
+        the association weights (None for a look without detections)
+    marginals : AssociationMarginals or None
+        their marginal association probabilities
+    """
+
+    used: int
+    discarded: int
+    touched: BoolArray
+    negative: BoolArray
+    weights: tuple[FloatArray, FloatArray, FloatArray] | None = None
+    marginals: AssociationMarginals | None = None
+
+
+class PMBTracker:
+    """Track-oriented Poisson multi-Bernoulli tracker (see the module docstring).
+
+    Parameters
+    ----------
+    measurement : (N, C) radar table, or LinearSensor
+        The sensors: the radar table of :func:`sensorplan.models.sensors.radar_table`
+        (``Looks.sensors`` index its rows), or the linear position sensor that scans its
+        whole area (:mod:`sensorplan.models.linear`; one scan per look).
+    dt : float > 0
+        Step (s).
+    world : (W, H)
+        The map ``[0, W] x [0, H]`` (m) the undetected intensity's grid covers.
+    means : (M, 4), optional
+        Targets known at the start, each a Bernoulli (labels ``0..M-1``).
+    covs : (M, 4, 4) or (4, 4), optional
+        Their covariances (needed with ``means``).
+    existence : float or (M,)
+        Their existence probabilities (default 1: known to exist).
+    process_noise : float
+        q of the CWNA motion model (m^2/s^3); default 0.05, the paper's filter.
+    motion : (F, Q), optional
+        Another linear-Gaussian motion model ``(4, 4)`` each (e.g. a benchmark's discrete
+        white-noise acceleration); replaces the CWNA one.
+    survival_probability : float in (0, 1]
+        :math:`p_S` per step, of Bernoullis and undetected targets; default 0.99.
+    births : {"none", "edges", "uniform"} or (C,) array
+        The birth intensity: expected births per step spread over the boundary cells, over
+        every cell, or given per cell (row-major, :class:`~.undetected.Grid`).
+    birth_rate : float >= 0
+        Expected births per step over the map (with a named ``births``).
+    initial_undetected : float >= 0
+        Expected number of targets present but not known at the start, spread evenly over
+        the cells (default 0).
+    resolution : float > 0
+        Largest side of a grid cell (m); default 25 (a 24 x 24 grid on the 600 m map).
+    velocity_var : float > 0
+        Prior variance of each velocity component of an undetected target (m^2/s^2);
+        default 10.5, the paper's targets' (speeds uniform in [3, 6] m/s in a uniform
+        direction: E[s^2] / 2 = 10.5).
+    gate_probability : float in (0, 1)
+        Chi-square gate of every innovation; default 0.999 (the known-target tracker's).
+    prune_threshold : float in [0, 1)
+        Bernoullis below this existence are dropped; default 1e-3.
+    report_threshold : float in (0, 1)
+        :meth:`tracks` reports Bernoullis with at least this existence; default 0.5.
+    die_outside_map : bool
+        Targets that leave the map die (edge births): survival requires staying on the map.
+    buildings : (K, 5), optional
+        Buildings ``x0, y0, x1, y1, height`` that hide targets from the radar.
+    """
+
+    def __init__(self, measurement: FloatArray | LinearSensor, dt: float,
+                 world: tuple[float, float], *, means: FloatArray | None = None,
+                 covs: FloatArray | None = None, existence: float | FloatArray = 1.0,
+                 process_noise: float = 0.05,
+                 motion: tuple[FloatArray, FloatArray] | None = None,
+                 survival_probability: float = 0.99, births: str | FloatArray = "none",
+                 birth_rate: float = 0.0, initial_undetected: float = 0.0,
+                 resolution: float = 25.0, velocity_var: float = 10.5,
+                 gate_probability: float = 0.999, prune_threshold: float = 1e-3,
+                 report_threshold: float = 0.5, die_outside_map: bool = False,
+                 buildings: FloatArray | None = None) -> None:
+        if not 0.0 < survival_probability <= 1.0:
+            raise ValueError(f"survival_probability must be in (0, 1], got "
+                             f"{survival_probability!r}")
+        if not 0.0 <= prune_threshold < 1.0:
+            raise ValueError(f"prune_threshold must be in [0, 1), got {prune_threshold!r}")
+        if not 0.0 < report_threshold < 1.0:
+            raise ValueError(f"report_threshold must be in (0, 1), got {report_threshold!r}")
+        if not (math.isfinite(initial_undetected) and initial_undetected >= 0.0):
+            raise ValueError(f"initial_undetected must be >= 0, got {initial_undetected!r}")
+        if not (math.isfinite(process_noise) and process_noise >= 0.0):
+            raise ValueError(f"process_noise must be >= 0, got {process_noise!r}")
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"dt must be > 0, got {dt!r}")
+        self.sensing = make_sensing(measurement, buildings)
+        self.dt = float(dt)
+        self.process_noise = float(process_noise)
+        if motion is None:
+            self.F, self.Q = cv_matrices(self.dt, self.process_noise)
+        else:
+            self.F, self.Q = (np.array(a, dtype=float).reshape(4, 4) for a in motion)
+        self.survival_probability = float(survival_probability)
+        self.gate = gate_threshold(gate_probability)
+        self.gate_probability = float(gate_probability)
+        self.prune_threshold = float(prune_threshold)
+        self.report_threshold = float(report_threshold)
+        self.die_outside_map = bool(die_outside_map)
+        self.world = (float(world[0]), float(world[1]))
+        self.grid = undetected.make_grid(*self.world, resolution, velocity_var)
+        if isinstance(births, str):
+            self.births = undetected.birth_intensity(self.grid, births, birth_rate)
+        else:
+            self.births = np.array(births, dtype=float).reshape(-1)
+            if self.births.shape != (self.grid.size,) or not (
+                    np.all(np.isfinite(self.births)) and np.all(self.births >= 0.0)):
+                raise ValueError(f"births must be {self.grid.size} expected births >= 0, "
+                                 "one per cell")
+        self.undetected = np.full(self.grid.size, float(initial_undetected) / self.grid.size)
+        self._cell_means = np.zeros((self.grid.size, 4))
+        self._cell_means[:, :2] = self.grid.centres
+        self._cell_covs = np.broadcast_to(self.grid.cov, (self.grid.size, 4, 4))
+        if means is None:
+            m0, P0 = np.zeros((0, 4)), np.zeros((0, 4, 4))
+        else:
+            if covs is None:
+                raise ValueError("covs are needed with means")
+            m0 = np.array(means, dtype=float).reshape(-1, 4)
+            P0 = np.array(np.broadcast_to(covs, m0.shape + (4,)), dtype=float)
+        r0 = np.array(np.broadcast_to(np.asarray(existence, dtype=float), (len(m0),)))
+        if np.any((r0 < 0.0) | (r0 > 1.0)):
+            raise ValueError("existence must be in [0, 1]")
+        self.bern = Bernoullis(r0, m0, P0, np.arange(len(m0), dtype=np.int64))
+        self.next_label = len(m0)
+
+    # ---------------------------------------------------------------- the tracker protocol
+    def _reported(self) -> BoolArray:
+        return self.bern.r >= self.report_threshold
+
+    def tracks(self) -> TrackSet:
+        """The Bernoullis with existence at least ``report_threshold`` (copies)."""
+        k = self._reported()
+        b = self.bern
+        return TrackSet(b.means[k], b.covs[k], b.r[k], b.labels[k])
+
+    def planning_process_noise(self) -> float | FloatArray:
+        """q of the CWNA motion model the planner predicts every track with."""
+        return self.process_noise
+
+    def predict(self) -> BoolArray:
+        """Predict the Bernoullis and the undetected intensity one step.
+
+        Returns
+        -------
+        (T,) bool: of the tracks reported before the predict, those the map truncated
+        (only with ``die_outside_map``).
+        """
+        b = self.bern
+        reported = self._reported()
+        corrected = np.zeros(len(b), dtype=bool)
+        if len(b):
+            b.means, b.covs = kalman_predict(b.means, b.covs, self.F, self.Q)
+            b.r = self.survival_probability * b.r
+            if self.die_outside_map:
+                m, P, applied, log_mass = map_constraint(b.means, b.covs, *self.world)
+                b.means, b.covs = m, P
+                b.r = b.r * np.exp(log_mass)
+                corrected = applied
+        self.undetected = undetected.predict(self.undetected, self.survival_probability,
+                                             self.births)
+        out = corrected[reported]
+        self._prune()
+        return out
+
+    def update(self, looks: Looks) -> UpdateRecord:
+        """Update with one step's looks, in the given (sensor) order (see the module
+        docstring); the looks' aims are not used."""
+        L = len(looks.sensors)
+        labels_before = self.bern.labels[self._reported()]
+        T = len(labels_before)
+        negative = np.zeros(T, dtype=bool)
+        inflated = np.zeros(T, dtype=bool)
+        used = np.zeros(L, dtype=np.int64)
+        discarded = np.zeros(L, dtype=np.int64)
+        for n in range(L):
+            look = Look(int(looks.sensors[n]), np.asarray(looks.positions[n], dtype=float),
+                        float(looks.headings[n]))
+            Z = np.asarray(looks.detections[n], dtype=float).reshape(-1, 2)
+            present = self.bern.labels
+            out = self.update_look(look, Z)
+            used[n], discarded[n] = out.used, out.discarded
+            if T and out.negative.any():
+                # Labels ascend in both arrays: the present Bernoulli of each reported one.
+                at = np.minimum(np.searchsorted(present, labels_before), len(present) - 1)
+                negative |= (present[at] == labels_before) & out.negative[at]
+        return UpdateRecord(negative, inflated, np.zeros(T, dtype=bool),
+                            np.zeros(T, dtype=bool), used, discarded)
+
+    # ---------------------------------------------------------------- one look
+    def update_look(self, look: Look, Z: FloatArray) -> LookOutcome:
+        """Update the Bernoullis and the undetected intensity with one look's detections
+        ``Z (m, 2)`` (steps 1-6 of the module docstring)."""
+        b, s = self.bern, self.sensing
+        n, m = len(b), len(Z)
+        # 1. Missed-look hypotheses.
+        pbar, mm, mP = np.zeros(n), b.means, b.covs
+        if n:
+            seen, p, chol = s.quadrature(b.means, b.covs, look)
+            if seen.size:
+                m_, P_, pbar[seen] = missed_look(b.means[seen], b.covs[seen], chol, p)
+                mm, mP = b.means.copy(), b.covs.copy()
+                mm[seen], mP[seen] = m_, P_
+        detect = s.detectable(self.grid.centres, look)                       # (C,)
+        if m == 0:
+            # A missed look: r' and the missed-look density.
+            rows = np.flatnonzero(pbar > 0.0)
+            if rows.size:
+                b.r = b.r.copy()
+                b.r[rows] = missed_existence(b.r[rows], pbar[rows])
+                b.means, b.covs = mm, mP
+            self.undetected = undetected.thin(self.undetected, detect)
+            self._prune()
+            return LookOutcome(0, 0, pbar > 0.0, pbar > 0.0)
+        # 2. Gating: the Bernoullis and the cells the look could detect, in one batch.
+        cells = np.flatnonzero((detect > 0.0) & (self.undetected > 0.0))
+        means = np.concatenate([b.means, self._cell_means[cells]])
+        covs = np.concatenate([b.covs, self._cell_covs[:cells.size]])
+        terms = pair_terms(s, look, means, covs, Z, self.gate)
+        # 3. Association weights and their marginals.
+        w = hyp.weights(terms.lik, b.r, s.detection_probability(b.means[:, :2], look), pbar,
+                        self.undetected[cells] * detect[cells], s.clutter(Z, look),
+                        MIN_WEIGHT)
+        marg = association_lbp(w.w_miss, w.w_det, w.w_new)
+        # 4-5. Every hypothesis: missed (the rows the look updates), detected (gated
+        # Bernoulli pairs), new (gated cells of the detections that start a Bernoulli);
+        # the detected and new ones are EKF updates of one batch; each Bernoulli's mixture
+        # is moment matched.
+        h = hyp.hypotheses(marg.p_det, marg.p_new, w, pbar, self.prune_threshold)
+        rows, started = h.rows, h.started
+        xu, Pu = updates(means, covs, terms, h.unique, h.which, h.det)
+        w_miss = marg.p_miss[rows] * missed_existence(b.r[rows], pbar[rows])
+        total, gm, gP = mixture_moments(rows.size + started.size,
+                                        (w_miss, np.arange(rows.size), mm[rows], mP[rows]),
+                                        (h.weight, h.group, xu, Pu))
+        # r' of the Bernoulli rows: their missed and detected hypotheses' weights. One
+        # with none of positive weight has r' = 0 (pruned below) and keeps its moments.
+        r_post = total[:rows.size]
+        live = np.flatnonzero(r_post > 0.0)
+        b.r = b.r.copy()
+        b.r[rows] = np.minimum(r_post, 1.0)
+        b.means, b.covs = b.means.copy(), b.covs.copy()
+        b.means[rows[live]], b.covs[rows[live]] = gm[live], gP[live]
+        if started.size:
+            labels = np.arange(self.next_label, self.next_label + started.size, dtype=np.int64)
+            self.next_label += started.size
+            b.append(np.minimum(h.r_new, 1.0), gm[rows.size:], gP[rows.size:], labels)
+        # 6. Thin the undetected intensity; prune.
+        self.undetected = undetected.thin(self.undetected, detect)
+        in_gate = int(np.count_nonzero(terms.gated[:n].any(axis=0)))
+        touched = np.zeros(n, dtype=bool)
+        touched[rows] = True
+        outcome = LookOutcome(in_gate, m - in_gate - h.started_alone, touched, pbar > 0.0,
+                              (w.w_miss, w.w_det, w.w_new), marg)
+        self._prune()
+        return outcome
+
+    def _prune(self) -> None:
+        keep = self.bern.r >= self.prune_threshold
+        if not keep.all():
+            self.bern.keep(keep)
+
+
+__all__ = ["MIN_WEIGHT", "LookOutcome", "PMBTracker"]

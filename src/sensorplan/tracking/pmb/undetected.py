@@ -1,0 +1,157 @@
+r"""The Poisson intensity of targets that exist but have never been detected, on a grid.
+
+The map :math:`[0, W] \times [0, H]` is cut into ``nx = ceil(W / d)`` columns and
+``ny = ceil(H / d)`` rows of equal cells (``d`` the resolution, so a cell is at most
+``d`` wide). The undetected intensity is a Gaussian mixture with one component per cell
+``c``,
+
+.. math::
+    D_u(x) = \sum_c w_c\, N(x;\ [p_c, 0],\ P_u),\qquad
+    P_u = \mathrm{diag}(a^2/12,\ b^2/12,\ \sigma_v^2,\ \sigma_v^2),
+
+with :math:`p_c` the cell's centre, :math:`a \times b` its size (a position variance equal
+to a uniform distribution's over the cell) and a velocity prior of mean zero and variance
+:math:`\sigma_v^2` per axis. :math:`w_c` is the expected number of undetected targets in
+the cell.
+
+- **Predict**: :math:`w_c \leftarrow p_S\, w_c + b_c` with :math:`b_c` the expected number
+  of births in the cell per step (:func:`birth_intensity`). The components keep their
+  means and covariance: the intensity does not drift or spread with the motion model (an
+  approximation; the exact prediction would widen each component by the motion model's
+  step and correlate position with velocity).
+- **Thinning by a look**: a look that covers the cell and could have detected a target
+  there makes it less likely that one is hiding there,
+  :math:`w_c \leftarrow w_c\, (1 - P_d(p_c)\, v(p_c))`, with :math:`v = 1` when the
+  cell's centre lies in the look's sensing region and in sight, else 0 (both evaluated at
+  the centre only).
+- **Detection weight**: a detection :math:`z` of the look has the undetected intensity's
+  weight :math:`\lambda_u(z) = \sum_c w_c P_d(p_c) v(p_c)\, N(z;\ h(p_c),\ S_c)`, with
+  :math:`S_c = H_c P_u H_c^T + R_c` linearised at the centre, summed over the cells whose
+  innovation passes the tracker's gate.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..._types import FloatArray
+
+#: Kinds of birth intensity :func:`birth_intensity` spreads a birth rate over.
+BIRTHS = ("none", "edges", "uniform")
+
+
+@dataclass(frozen=True)
+class Grid:
+    """The cells of the undetected intensity (see the module docstring).
+
+    Attributes
+    ----------
+    width, height : float         the map ``[0, W] x [0, H]`` (m)
+    nx, ny : int                  columns and rows of cells
+    centres : (C,) x 2 -> (C, 2)  cell centres, row-major (``c = row * nx + column``), m
+    cov : (4, 4)                  :math:`P_u`, every component's covariance
+    """
+
+    width: float
+    height: float
+    nx: int
+    ny: int
+    centres: FloatArray
+    cov: FloatArray
+
+    @property
+    def size(self) -> int:
+        """Number of cells C."""
+        return self.nx * self.ny
+
+    @property
+    def cell_area(self) -> float:
+        """Area of one cell (m^2)."""
+        return self.width * self.height / self.size
+
+
+def make_grid(width: float, height: float, resolution: float, velocity_var: float) -> Grid:
+    """The grid of cells at most ``resolution`` m wide over ``[0, W] x [0, H]``.
+
+    Parameters
+    ----------
+    width, height : float > 0     map size (m)
+    resolution : float > 0        largest cell side (m)
+    velocity_var : float > 0      :math:`\\sigma_v^2`, each velocity component's prior
+                                  variance (m^2/s^2)
+
+    Examples
+    --------
+    >>> g = make_grid(600.0, 600.0, 25.0, 10.5)
+    >>> g.nx, g.ny, g.centres[0].tolist(), float(g.cov[0, 0])
+    (24, 24, [12.5, 12.5], 52.083333333333336)
+    """
+    for name, v in (("width", width), ("height", height), ("resolution", resolution),
+                    ("velocity_var", velocity_var)):
+        if not (math.isfinite(v) and v > 0.0):
+            raise ValueError(f"{name} must be > 0, got {v!r}")
+    nx = max(1, math.ceil(width / resolution - 1e-9))
+    ny = max(1, math.ceil(height / resolution - 1e-9))
+    a, b = width / nx, height / ny
+    cx = (np.arange(nx) + 0.5) * a
+    cy = (np.arange(ny) + 0.5) * b
+    centres = np.column_stack([np.tile(cx, ny), np.repeat(cy, nx)])
+    cov = np.diag([a * a / 12.0, b * b / 12.0, float(velocity_var), float(velocity_var)])
+    centres.flags.writeable = False
+    cov.flags.writeable = False
+    return Grid(float(width), float(height), nx, ny, centres, cov)
+
+
+def birth_intensity(grid: Grid, kind: str, rate: float) -> FloatArray:
+    """Expected births per step in each cell, ``(C,)``, summing to ``rate``.
+
+    Parameters
+    ----------
+    grid : Grid
+    kind : {"none", "edges", "uniform"}
+        ``none``: no births; ``edges``: spread evenly over the cells on the map's boundary
+        (the targets of edge births enter there); ``uniform``: spread in proportion to area
+        over every cell (all cells are equal, so evenly).
+    rate : float >= 0
+        Expected births per step over the whole map.
+
+    Examples
+    --------
+    >>> g = make_grid(100.0, 100.0, 25.0, 1.0)
+    >>> b = birth_intensity(g, "edges", 1.2)
+    >>> int((b > 0).sum()), float(b.sum())
+    (12, 1.2)
+    """
+    if kind not in BIRTHS:
+        raise ValueError(f"births must be one of {BIRTHS}, got {kind!r}")
+    if not (math.isfinite(rate) and rate >= 0.0):
+        raise ValueError(f"birth rate must be >= 0, got {rate!r}")
+    out = np.zeros(grid.size)
+    if kind == "none" or rate == 0.0:
+        return out
+    if kind == "uniform":
+        out[:] = rate / grid.size
+        return out
+    col = np.tile(np.arange(grid.nx), grid.ny)
+    row = np.repeat(np.arange(grid.ny), grid.nx)
+    edge = (col == 0) | (col == grid.nx - 1) | (row == 0) | (row == grid.ny - 1)
+    out[edge] = rate / int(edge.sum())
+    return out
+
+
+def predict(weights: FloatArray, survival_probability: float, births: FloatArray
+            ) -> FloatArray:
+    """:math:`p_S w + b`, ``(C,)``: survival, then the step's births."""
+    return survival_probability * weights + births
+
+
+def thin(weights: FloatArray, detect: FloatArray) -> FloatArray:
+    """:math:`w_c (1 - P_d(p_c) v(p_c))`, ``(C,)``: what a look that detected nothing of a
+    cell's targets leaves of its intensity (``detect`` is :math:`P_d v` at each centre)."""
+    return weights * (1.0 - detect)
+
+
+__all__ = ["BIRTHS", "Grid", "birth_intensity", "make_grid", "predict", "thin"]
