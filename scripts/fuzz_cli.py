@@ -904,6 +904,12 @@ def valid_study_case(draw: Draw, case: Case, grid: bool) -> None:
                     m.pop("planner_params", None)
         doc["axes"] = axes
         doc["design"] = draw.pick(["star", "full"])
+        # A grid compares methods: with no myopic or random reference to fall back on,
+        # it needs [[comparisons]] (and a second method to compare with).
+        if len(doc["methods"]) == 1:
+            doc["methods"].append({"name": "reference", "planner": "random"})
+        doc["comparisons"] = [{"method": doc["methods"][0]["name"],
+                               "reference": doc["methods"][1]["name"]}]
     case.files[name] = fz.to_toml(doc).encode()
     case.args += [name, "--out", "out", "--workers", draw.pick(["1", "1", "2"])]
     case.done.append(f"valid {'grid' if grid else 'study'}: " + ", ".join(
