@@ -1,8 +1,8 @@
 """Planning speed and quality (docs/benchmarks.md). Run on purpose, not in CI:
 
     .venv/bin/python benchmarks/bench_planning.py [--decisions 20] [--kmax 8] [--quick]
-    .venv/bin/python benchmarks/bench_planning.py --detection [--occlusion] [--decisions 20]
-        [--repeats 3]
+    .venv/bin/python benchmarks/bench_planning.py --detection [--occlusion] [--existence]
+        [--decisions 20] [--repeats 3]
 
 1. ``pg``, ``pg-refine`` and ``sequential-greedy`` per decision at N = 3, M = 5, e = 2 on
    paper-scenario states (tracker states of closed-loop runs with the ``random`` planner),
@@ -18,7 +18,8 @@
 planner, e = 2; the ``radar`` preset for detection, ``urban`` for occlusion), each planned
 by ``pg`` (K = 1 and 3) under ``aware`` and under ``ignore`` in alternation on the same
 problem, so that the machine's load hits both alike; medians per decision, the ratio of
-the medians and the median of the per-problem ratios.
+the medians and the median of the per-problem ratios. ``--existence`` does the same for
+targets weighted by probabilities of existence against no weights (the paper preset).
 
 The scale cases (N = 20, M = 50, K = 10 and the swarm) are in ``bench_scale.py``, quality
 against a time budget in ``bench_anytime.py``.
@@ -108,33 +109,35 @@ def _plan_times(problem: PlanningProblem) -> tuple[float, float, int]:
 
 def mode_cost(label: str, preset: str,
               variants: Callable[[PlanningProblem], dict[str, PlanningProblem]],
-              args: argparse.Namespace) -> None:
-    """Time ``pg`` under the ``aware`` and ``ignore`` variants of the same problems.
+              args: argparse.Namespace, modes: tuple[str, str] = ("aware", "ignore")) -> None:
+    """Time ``pg`` under two variants of the same problems (``aware`` and ``ignore`` unless
+    ``modes`` names others; the ratios are the first over the second).
 
     ``variants(problem)`` returns ``{"aware": problem, "ignore": problem}``. Each problem is
     planned ``args.repeats`` times in each mode, alternating and swapping the order every
     time (aware, ignore, ignore, aware, ...); a problem's time in a mode is the median of
     its repeats.
     """
+    m1, m2 = modes
     base = preset_problems(preset, args.decisions)
     print(f"\n## {label}: pg, {preset} preset, N = {base[0].n_sensors}, "
           f"M = {base[0].n_targets}, e = 2, {len(base)} decisions x {args.repeats} "
           f"repeats per mode, interleaved (load {os.getloadavg()[0]:.1f})")
-    print("| K | aware wall ms | ignore wall ms | aware CPU ms | ignore CPU ms "
+    print(f"| K | {m1} wall ms | {m2} wall ms | {m1} CPU ms | {m2} CPU ms "
           "| ratio of medians (CPU) | ratio of medians (wall) | median per-problem ratio "
-          "(CPU) [min, max] | sweeps aware / ignore | per sweep: ratio of medians (CPU) "
+          f"(CPU) [min, max] | sweeps {m1} / {m2} | per sweep: ratio of medians (CPU) "
           "| same plan |")
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for K in (1, 3):
         pairs = [variants(dataclasses.replace(p, horizon=K)) for p in base]
-        for mode in ("aware", "ignore"):
+        for mode in modes:
             _plan_times(pairs[0][mode])              # warm-up: caches, this mode's kernels
-        med = {m: {"wall": [], "cpu": [], "sweeps": []} for m in ("aware", "ignore")}
+        med = {m: {"wall": [], "cpu": [], "sweeps": []} for m in modes}
         same = 0
         for i, pair in enumerate(pairs):
             got = {m: {"wall": [], "cpu": [], "sweeps": []} for m in pair}
             for r in range(args.repeats):
-                order = ("aware", "ignore") if (i + r) % 2 == 0 else ("ignore", "aware")
+                order = modes if (i + r) % 2 == 0 else modes[::-1]
                 for m in order:
                     w, c, sw = _plan_times(pair[m])
                     got[m]["wall"].append(w)
@@ -143,10 +146,10 @@ def mode_cost(label: str, preset: str,
             for m, times in got.items():
                 for key, values in times.items():
                     med[m][key].append(float(np.median(values)))
-            plans = [make_planner("pg").plan(pair[m], rng=0).plan for m in ("aware", "ignore")]
+            plans = [make_planner("pg").plan(pair[m], rng=0).plan for m in modes]
             same += all(np.array_equal(getattr(plans[0], f), getattr(plans[1], f))
                         for f in ("positions", "targets"))
-        a, g = med["aware"], med["ignore"]
+        a, g = med[m1], med[m2]
         per = np.array(a["cpu"]) / np.array(g["cpu"])
         # The modes can converge in different numbers of sweeps: the cost of one sweep
         # separates the price of the looks from the game's path.
@@ -175,6 +178,19 @@ def occlusion_cost(args: argparse.Namespace) -> None:
         assert len(p.buildings) > 0, "the urban preset's problems carry its buildings"
         return {"aware": p, "ignore": dataclasses.replace(p, buildings=np.zeros((0, 5)))}
     mode_cost("Occlusion in planning", "urban", variants, args)
+
+
+def existence_cost(args: argparse.Namespace) -> None:
+    """Targets weighted by probabilities of existence against the same problems without
+    weights, on the paper preset's decisions. The weights are drawn uniform in [0.05, 1]
+    once per problem (seeded), what a multi-target tracker's tracks might report."""
+    gen = np.random.default_rng(0)
+
+    def variants(p: PlanningProblem) -> dict[str, PlanningProblem]:
+        r = gen.uniform(0.05, 1.0, p.n_targets)
+        return {"weighted": dataclasses.replace(p, existence=r), "plain": p}
+    mode_cost("Targets weighted by existence", "paper", variants, args,
+              modes=("weighted", "plain"))
 
 
 def time_planner(name: str, problems: list[PlanningProblem]) -> tuple[float, float, float]:
@@ -305,14 +321,19 @@ def main() -> None:
                     help="only: planning_detection aware vs ignore (radar preset)")
     ap.add_argument("--occlusion", action="store_true",
                     help="only: planning_occlusion aware vs ignore (urban preset)")
+    ap.add_argument("--existence", action="store_true",
+                    help="only: targets weighted by existence vs no weights (paper preset)")
     ap.add_argument("--repeats", type=int, default=3,
-                    help="plans per problem and mode for --detection / --occlusion")
+                    help="plans per problem and mode for --detection / --occlusion / "
+                         "--existence")
     args = ap.parse_args()
-    if args.detection or args.occlusion:
+    if args.detection or args.occlusion or args.existence:
         if args.detection:
             detection_cost(args)
         if args.occlusion:
             occlusion_cost(args)
+        if args.existence:
+            existence_cost(args)
         return
     if args.quick:
         args.kmax, args.quality = 4, 50

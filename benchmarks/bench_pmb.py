@@ -1,5 +1,5 @@
-"""Benchmark: one PMB update with 10 Bernoullis and 10 detections per look, 3 radar looks
-(docs/benchmarks.md, "One PMB update").
+"""Benchmark: one PMB update with 10 Bernoullis and 10 detections per look, 3 radar looks,
+beside one GNN update of the same step (docs/benchmarks.md, "One PMB update").
 
 The paper's map (600 x 600 m, the default 25 m grid: 576 cells of undetected intensity with
 ``--undetected`` (2) expected undetected targets), three Swerling 1 radars at the paper's
@@ -12,6 +12,11 @@ call is :meth:`PMBTracker.update` on a fresh copy of the same tracker (the copie
 before the clock starts). Prints the median and quartiles of the wall time per problem and
 overall, the median CPU time (``time.thread_time``: other jobs share the machine), and with
 ``--profile`` ``cProfile``'s table over the same calls.
+
+The GNN tracker (:class:`GNNTracker`, defaults) gets the same step: the 10 Bernoullis'
+densities as 10 confirmed tracks and the same three looks; its unassigned detections start
+tentative tracks. Its updates are timed the same way, interleaved problem by problem with
+the PMB's, and the summary gives both medians and their ratio.
 
 Target: the median update <= 2 ms.
 
@@ -35,6 +40,7 @@ import numpy as np
 from sensorplan.models import radar
 from sensorplan.models.sensors import SensorParams, radar_table
 from sensorplan.tracking.base import Looks
+from sensorplan.tracking.gnn import GNNTracker
 from sensorplan.tracking.pmb.tracker import PMBTracker
 
 TARGET = 2e-3
@@ -78,6 +84,25 @@ def problem(rng: np.random.Generator, undetected: float = 2.0) -> tuple[PMBTrack
     return tracker, looks
 
 
+def gnn_of(tracker: PMBTracker) -> GNNTracker:
+    """The GNN tracker of the same sensors, map and motion holding the PMB's Bernoullis as
+    confirmed tracks."""
+    return GNNTracker(tracker.sensing.table, tracker.dt, tracker.world,  # type: ignore[union-attr]
+                      means=tracker.bern.means, covs=tracker.bern.covs,
+                      process_noise=tracker.process_noise)
+
+
+def timed(trackers: list, looks: Looks) -> tuple[list[float], list[float]]:
+    """Wall and CPU seconds of ``update(looks)`` on each of ``trackers`` (fresh copies)."""
+    times, cpu = [], []
+    for t in trackers:
+        t0, c0 = time.perf_counter(), time.thread_time()
+        t.update(looks)
+        cpu.append(time.thread_time() - c0)
+        times.append(time.perf_counter() - t0)
+    return times, cpu
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--problems", type=int, default=10)
@@ -90,30 +115,40 @@ def main(argv: list[str] | None = None) -> int:
     rng = np.random.default_rng(args.seed)
     problems = [problem(rng, args.undetected) for _ in range(args.problems)]
     copy.deepcopy(problems[0][0]).update(problems[0][1])          # compile / load kernels
+    gnns = [gnn_of(tracker) for tracker, _ in problems]
+    copy.deepcopy(gnns[0]).update(problems[0][1])
     all_times: list[float] = []
     all_cpu: list[float] = []
+    gnn_times: list[float] = []
+    gnn_cpu: list[float] = []
     print("| problem | Bernoullis after | median | lower quartile | upper quartile | "
-          "median CPU |")
-    print("|---|---|---|---|---|---|")
+          "median CPU | GNN tracks after | GNN median | GNN median CPU |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for k, (tracker, looks) in enumerate(problems):
         fresh = [copy.deepcopy(tracker) for _ in range(args.repeats + 1)]
         fresh[0].update(looks)
-        times, cpu = [], []
-        for t in fresh[1:]:
-            t0, c0 = time.perf_counter(), time.thread_time()
-            t.update(looks)
-            cpu.append(time.thread_time() - c0)
-            times.append(time.perf_counter() - t0)
+        times, cpu = timed(fresh[1:], looks)
         all_times += times
         all_cpu += cpu
+        g_fresh = [copy.deepcopy(gnns[k]) for _ in range(args.repeats + 1)]
+        g_fresh[0].update(looks)
+        g_times, g_cpu = timed(g_fresh[1:], looks)
+        gnn_times += g_times
+        gnn_cpu += g_cpu
         q = statistics.quantiles(times, n=4)
         print(f"| {k} | {len(fresh[0].bern)} | {1e3 * statistics.median(times):.3f} ms | "
               f"{1e3 * q[0]:.3f} ms | {1e3 * q[2]:.3f} ms | "
-              f"{1e3 * statistics.median(cpu):.3f} ms |")
+              f"{1e3 * statistics.median(cpu):.3f} ms | {len(g_fresh[0].labels)} | "
+              f"{1e3 * statistics.median(g_times):.3f} ms | "
+              f"{1e3 * statistics.median(g_cpu):.3f} ms |")
     med = statistics.median(all_times)
     print(f"\nall: median {1e3 * med:.3f} ms wall, {1e3 * statistics.median(all_cpu):.3f} ms "
           f"CPU over {len(all_times)} updates (target {1e3 * TARGET:.1f} ms: "
           f"{'met' if med <= TARGET else 'NOT met'})")
+    g_med, g_med_cpu = statistics.median(gnn_times), statistics.median(gnn_cpu)
+    print(f"GNN: median {1e3 * g_med:.3f} ms wall, {1e3 * g_med_cpu:.3f} ms CPU over "
+          f"{len(gnn_times)} updates; PMB / GNN: {med / g_med:.2f} wall, "
+          f"{statistics.median(all_cpu) / g_med_cpu:.2f} CPU")
     if args.profile:
         fresh = [(copy.deepcopy(t), lk) for t, lk in problems for _ in range(args.repeats)]
         prof = cProfile.Profile()

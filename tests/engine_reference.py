@@ -61,8 +61,10 @@ def dense_gains(state: GameState, i: int, k0: int, cand_pos: np.ndarray,
             W_pair = W_fixed[j, s0:] + W_add
             _, ld_end, ld_sum = covariance_recursion(P_pre[j:j + 1], W_pair[None], ctx.F,
                                                      ctx.Q_rows(j), cum)
+            # The target's weight, its probability of existence (1: no bit changes).
+            r = ctx.problem.existence[j]
             if cum:
-                gains[c] += 0.5 * (ld_sum_b[j] - ld_sum[0])
+                gains[c] += r * (0.5 * (ld_sum_b[j] - ld_sum[0]))
             else:
-                gains[c] += 0.5 * (ld_end_b[j] - ld_end[0])
+                gains[c] += r * (0.5 * (ld_end_b[j] - ld_end[0]))
     return gains

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
 import pytest
 
 from sensorplan.errors import ConfigError
-from sensorplan.limits import Range, coerce, type_error
+from sensorplan.limits import (Param, Range, check_params, coerce, declared_params, param,
+                               type_error)
 
 #: (type, value, the value it becomes)
 GOOD: list[tuple[Any, Any, Any]] = [
@@ -83,8 +85,81 @@ def test_one_type_error_reads_the_same_in_settings_planners_and_files() -> None:
     (Range(0.0, 1.0), math.nan, "must be in [0, 1], got nan"),
     (Range(0, None), 10**400, ""),                                   # a seed of any size
     (Range(0, None), -(10**30), "must be >= 0, got " + str(-(10**30))[:21] + "..."),
+    (Range(0.0, None, "m", lo_open=True, inf=True), math.inf, ""),      # unlimited
+    (Range(0.0, None, "m", lo_open=True, inf=True), math.nan, "must be > 0 m or inf, got nan"),
+    (Range(0.0, None, "m", lo_open=True, inf=True), -math.inf, "must be > 0 m or inf, got -inf"),
+    (Range(0.0, None, "s", lo_open=True), math.inf, "must be > 0 s, got inf"),
 ])
 def test_a_range_says_what_it_allows_and_what_it_got(rng: Range, value: float,
                                                      message: str) -> None:
     assert rng.violation(value) == message
     assert rng.contains(value) == (message == "")
+
+
+# ------------------------------------------------------------------ declarations
+
+
+@dataclass(frozen=True)
+class _Declared:
+    """A planner-like dataclass declared as the planners are."""
+
+    count: int = param(3, bounds=Range(1, None), help="How many.")
+    share: float = param(0.5, bounds=Range(0.0, 1.0), help="What part.")
+    mode: str = param("a", choices=("a", "b"), noun="mode", help="Which.")
+    seed: int | None = param(0, bounds=Range(0, None), help="Seed.")
+    plain: int = 7                                                 # not declared: not checked
+
+    def __post_init__(self) -> None:
+        check_params(self, "planner")
+
+
+@pytest.mark.parametrize("kwargs,field,message", [
+    ({"count": 0}, "planner.count", "must be >= 1, got 0"),
+    ({"count": 2.5}, "planner.count", "must be an integer, got 2.5"),
+    ({"share": 1.5}, "planner.share", "must be in [0, 1], got 1.5"),
+    ({"share": math.inf}, "planner.share", "must be in [0, 1], got inf"),
+    ({"mode": "c"}, "planner.mode", "unknown mode 'c'; choose from a, b"),
+    ({"seed": -1}, "planner.seed", "must be >= 0, got -1"),
+    # the first declared field that breaks its rule, in field order
+    ({"mode": "c", "count": 0}, "planner.count", "must be >= 1, got 0"),
+])
+def test_a_declared_parameter_is_refused_in_the_shared_words(kwargs: dict[str, Any], field: str,
+                                                              message: str) -> None:
+    with pytest.raises(ConfigError) as info:
+        _Declared(**kwargs)
+    assert (info.value.field, info.value.message) == (field, message)
+
+
+def test_declared_parameters_are_normalised_and_none_passes_where_the_type_allows_it() -> None:
+    d = _Declared(count=np.int64(4), share=np.float32(0.25), seed=None, plain=-5)
+    assert (d.count, d.share, d.seed, d.plain) == (4, 0.25, None, -5)
+    assert type(d.count) is int and type(d.share) is float
+    assert [f.name for f, _ in declared_params(_Declared)] == ["count", "share", "mode", "seed"]
+
+
+def test_a_declaration_states_its_rule_in_the_ranges_words() -> None:
+    rules = {f.name: p.rule() for f, p in declared_params(_Declared)}
+    assert rules == {"count": ">= 1", "share": "in [0, 1]", "mode": "one of a, b",
+                     "seed": ">= 0"}
+    assert Param().rule() == ""
+
+
+def test_every_builtin_planner_declares_every_setting_once() -> None:
+    """Each built-in planner's settings are fields declared with param(): its default,
+    help and rule in one place (a setting without a declaration would go unchecked)."""
+    import dataclasses
+
+    from sensorplan.planners import PLANNERS
+    from sensorplan.planners.registry import BUILTIN, planner_settings_of
+
+    for name in BUILTIN:
+        cls = PLANNERS[name]
+        declared = {f.name: p for f, p in declared_params(cls)}
+        assert set(declared) == set(planner_settings_of(cls)), name
+        for key, p in declared.items():
+            assert p.help and (p.bounds is not None or p.allowed()), (name, key)
+        # the defaults obey their own rules
+        defaults = cls()
+        for f in dataclasses.fields(cls):
+            if f.name in declared:
+                assert getattr(defaults, f.name) == f.default

@@ -15,17 +15,23 @@ Two kinds of limit:
   study's tables (:func:`check_study_size`).
 
 It also holds the one vocabulary of input errors that every layer uses: a value of the
-wrong type (:func:`coerce`, :func:`type_error`: "must be an integer, got 2.5") and a value
-out of its :class:`Range` ("must be in (0, 1), got 1.0").
+wrong type (:func:`coerce`, :func:`type_error`: "must be an integer, got 2.5"), a value
+out of its :class:`Range` ("must be in (0, 1), got 1.0") or not one of its choices
+("unknown mode 'x'; choose from jsfp, best-response"), and the one way to declare such a
+rule with a value's default and help: a dataclass field made by :func:`param` (a planner's
+settings, checked by :func:`check_params`) or by the run settings' ``setting`` (a
+:class:`Param` with a section; :mod:`sensorplan.simulation.settings`).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 import numbers
 import types
 import typing
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal, Union
 
@@ -75,7 +81,8 @@ BUILDINGS_PER_LOOK = 100
 class Range:
     """An allowed interval of one input value, with its unit.
 
-    ``lo_open`` / ``hi_open`` exclude the bound; ``None`` is unbounded on that side.
+    ``lo_open`` / ``hi_open`` exclude the bound; ``None`` is unbounded on that side, and
+    with ``inf`` (no upper bound) the value may also be infinite ("unlimited").
     """
 
     lo: float | None
@@ -84,12 +91,14 @@ class Range:
     lo_open: bool = False
     hi_open: bool = False
     magnitude: bool = False          # the bounds apply to the absolute value
+    inf: bool = False                # +inf is in the range (hi must be None)
 
     def contains(self, value: float) -> bool:
-        """Whether ``value`` (a finite number; an integer of any size) is in the range."""
+        """Whether ``value`` (a finite number; an integer of any size; +inf with ``inf``)
+        is in the range."""
         v = abs(value) if self.magnitude else value
         if not isinstance(v, numbers.Integral) and not math.isfinite(v):
-            return False
+            return self.inf and v == math.inf
         if self.lo is not None and (v < self.lo or (self.lo_open and v == self.lo)):
             return False
         if self.hi is not None and (v > self.hi or (self.hi_open and v == self.hi)):
@@ -104,7 +113,8 @@ class Range:
         if self.lo is None:
             return f"{'<' if self.hi_open else '<='} {_num(self.hi)}{unit}"
         if self.hi is None:
-            return f"{'>' if self.lo_open else '>='} {_num(self.lo)}{unit}"
+            return (f"{'>' if self.lo_open else '>='} {_num(self.lo)}{unit}"
+                    f"{' or inf' if self.inf else ''}")
         return (f"in {'(' if self.lo_open else '['}{_num(self.lo)}, {_num(self.hi)}"
                 f"{')' if self.hi_open else ']'}{unit}")
 
@@ -136,6 +146,101 @@ def _num(x: float | None) -> str:
 def _shown(value: float) -> str:
     text = repr(float(value)) if not isinstance(value, int) else str(value)
     return text if len(text) <= 24 else text[:21] + "..."
+
+
+# ------------------------------------------------------------------ declarations
+
+
+@dataclass(frozen=True, kw_only=True)
+class Param:
+    """How one input value is documented and checked beyond its type: the metadata of a
+    dataclass field made by :func:`param` (a planner's setting) or, with a section, by the
+    run settings' ``setting`` (:class:`~sensorplan.simulation.settings.Setting`).
+
+    Attributes
+    ----------
+    help : str            one sentence for the docs
+    brief : str           a few words for ``--help`` ('' : ``help``)
+    cli : tuple of str    the command-line option names that set it, if any
+    metavar : str         the option's value placeholder
+    choices : tuple or callable
+                          allowed values (strings), or a function returning them when they
+                          are only known at run time
+    noun : str            what a value is called in errors: "unknown <noun> 'x'; choose from"
+    bounds : Range        the allowed interval of a number ("must be in [1, 1000], got 0")
+    check : callable      extra rule: raises ValueError with the message
+    """
+
+    help: str = ""
+    brief: str = ""
+    cli: tuple[str, ...] = ()
+    metavar: str = "VALUE"
+    choices: tuple[str, ...] | Callable[[], tuple[str, ...]] = ()
+    noun: str = "value"
+    bounds: Range | None = None
+    check: Callable[[Any], None] | None = None
+
+    def allowed(self) -> tuple[str, ...]:
+        """The allowed values (empty: no list)."""
+        return self.choices() if callable(self.choices) else self.choices
+
+    def validate(self, value: Any) -> None:
+        """Raise ``ValueError(message)`` if a value of the right type breaks the rule
+        (``None``, where the type allows it, breaks none)."""
+        if value is None:
+            return
+        choices = self.allowed()
+        if choices and value not in choices:
+            raise ValueError(f"unknown {self.noun} {value!r}; choose from {', '.join(choices)}")
+        message = self.bounds.violation(value) if self.bounds is not None else ""
+        if message:
+            raise ValueError(message)
+        if self.check is not None:
+            self.check(value)
+
+    def rule(self) -> str:
+        """The rule in words, for help texts: "in [0, 1]", "one of jsfp, best-response"."""
+        if self.allowed():
+            return f"one of {', '.join(self.allowed())}"
+        return self.bounds.text() if self.bounds is not None else ""
+
+
+def param(default: Any = dataclasses.MISSING, *, default_factory: Any = dataclasses.MISSING,
+          **declaration: Any) -> Any:
+    """A dataclass field carrying its :class:`Param` (keyword arguments as there)."""
+    return dataclasses.field(default=default, default_factory=default_factory,
+                             metadata={"param": Param(**declaration)})
+
+
+def declared_params(cls: Any) -> list[tuple[dataclasses.Field[Any], Param]]:
+    """The fields of dataclass ``cls`` declared with :func:`param`, in field order."""
+    return [(f, f.metadata["param"]) for f in dataclasses.fields(cls) if "param" in f.metadata]
+
+
+@functools.cache
+def _hints(cls: type) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
+
+
+def check_params(obj: Any, prefix: str) -> None:
+    """Check and normalise every field of dataclass ``obj`` declared with :func:`param`, in
+    field order: its type (:func:`coerce` of its annotation; an infinite number is left to
+    the range), then its :class:`Param` rule.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``<prefix>.<key>`` of the first field that breaks its type or rule.
+    """
+    cls: type = type(obj)
+    hints = _hints(cls)
+    for f, p in declared_params(obj):
+        try:
+            value = coerce(hints[f.name], getattr(obj, f.name), finite=False)
+            p.validate(value)
+        except ValueError as exc:
+            raise ConfigError(f"{prefix}.{f.name}", str(exc)) from None
+        object.__setattr__(obj, f.name, value)
 
 
 # ------------------------------------------------------------------------ types

@@ -318,10 +318,10 @@ def test_runtime_warnings_never_reach_stderr(capsys, tmp_path, monkeypatch) -> N
 
     original = sio.dumps_result
 
-    def noisy(result: Any) -> str:
+    def noisy(result: Any, *args: Any) -> str:
         np.float64(1e308) * 10                        # RuntimeWarning: overflow
         warnings.warn("invalid value encountered", RuntimeWarning, stacklevel=1)
-        return original(result)
+        return original(result, *args)
 
     monkeypatch.setattr(sio, "dumps_result", noisy)
     with warnings.catch_warnings():
@@ -1165,3 +1165,33 @@ def test_a_key_no_planner_of_the_file_takes_is_refused_even_with_another_planner
     code, out, err = plan(capsys, tmp_path, doc)
     assert code == 0, err
     assert run(capsys, "plan", f, "--planner", "random")[0] == 0
+
+
+#: A search scenario small enough to run: births at the edges, looks that detect all.
+GNN_TOML = ('look_detects = "all"\nbirths = "edges"\nbirth_rate = 0.05\n[run]\nsteps = 4\n'
+            '[[targets]]\n[[sensors]]\n[tracker]\nkind = "gnn"\n')
+
+
+@pytest.mark.parametrize("extra,field,message", [
+    ("confirm_hits = 4\n", "tracker.confirm_hits", "must be at most confirm_looks (3), got 4"),
+    ("confirm_hits = 2\nconfirm_looks = 1\n", "tracker.confirm_hits",
+     "must be at most confirm_looks (1), got 2"),
+    ("confirm_looks = 0\n", "tracker.confirm_looks", "must be in [1, 100], got 0"),
+    ("delete_misses = 0\n", "tracker.delete_misses", "must be in [1, 1000], got 0"),
+    ("delete_misses = 1.5\n", "tracker.delete_misses", "must be an integer, got 1.5"),
+    ('delete_misses = "five"\n', "tracker.delete_misses", ""),
+])
+def test_bad_gnn_logic_settings_are_one_line_naming_the_key(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, extra: str, field: str,
+        message: str) -> None:
+    line = assert_bad_input(simulate(capsys, tmp_path, GNN_TOML + extra), field)
+    assert line.endswith(message)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_gnn_run_reports_gospa(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    code, out, err = simulate(capsys, tmp_path, GNN_TOML + "delete_misses = 3\n")
+    assert code == 0, err
+    text = " ".join(out.split())                       # the console wraps long lines
+    assert "tracker gnn" in text and "delete misses 3" in text and "GOSPA (c = 50 m)" in text
+    assert "report threshold" not in text              # the PMB's own settings are not shown

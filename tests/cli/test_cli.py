@@ -176,10 +176,6 @@ BAD_JSON = [
     ("slope", _set("sensors.0.monopulse_slope", 0), "sensors[0].monopulse_slope"),
     ("fov", _set("sensors.0.fov_half_angle", 0), "sensors[0].fov_half_angle"),
     ("min > max range", _set("sensors.0.min_ground_range", 460), "sensors[0].min_ground_range"),
-    ("alpha zero", _set("planner.alpha", 0), "planner.alpha"),
-    ("alpha one", _set("planner.alpha", 1.0), "planner.alpha"),
-    ("beta above", _set("planner.beta", 1.5), "planner.beta"),
-    ("beta negative", _set("planner.beta", -0.1), "planner.beta"),
     ("unknown planner", _set("planner.name", "simulated-annealing"), "planner.name"),
     ("unknown visibility", _set("visibility", "optimistic"), "visibility"),
     ("unknown objective", _set("objective", "average"), "objective"),
@@ -198,6 +194,45 @@ def test_plan_bad_input(mutate: Callable[[dict[str, Any]], None], field: str, tm
         data["planner"] = {"name": "random", "seed": 0}      # fast: only the input is wrong
     mutate(data)
     assert_bad_input(run(capsys, "plan", write_json(tmp_path, data)), field)
+
+
+#: An out-of-range value of every setting of every built-in planner: (planner, key, value).
+BAD_PLANNER_SETTINGS = [
+    ("pg", "alpha", 0), ("pg", "alpha", 1.0), ("pg", "beta", 1.5), ("pg", "beta", -0.1),
+    ("pg", "max_inner", 0), ("pg", "max_outer", -3), ("pg", "seed", -1),
+    ("pg", "time_budget", 0.0), ("pg-refine", "alpha", 1.2), ("pg-refine", "time_budget", -2),
+    ("sequential-greedy", "time_budget", -1e-3), ("sequential-greedy", "seed", -5),
+    ("brute-force", "max_plans", 0), ("brute-force", "chunk", -1), ("brute-force", "seed", -1),
+    ("random", "seed", -7),
+    ("dec-jsfp", "rounds", 0), ("dec-jsfp", "p_loss", 1.5), ("dec-jsfp", "delay", -1),
+    ("dec-jsfp", "comm_range", 0.0), ("dec-jsfp", "mode", "gossip"),
+    ("dec-jsfp", "transport", "pigeon"), ("dec-jsfp", "timeout", -1.0),
+    ("dec-jsfp", "max_inner", 0), ("dec-jsfp", "seed", -1),
+    ("dec-independent", "rounds", -2), ("dec-independent", "beta", 1.0),
+    ("dec-sequential", "p_loss", -0.5), ("dec-sequential", "comm_range", -10.0),
+    ("dec-sequential", "timeout", 0),
+]
+
+
+@pytest.mark.parametrize("name,key,value", BAD_PLANNER_SETTINGS,
+                         ids=[f"{n} {k}={v}" for n, k, v in BAD_PLANNER_SETTINGS])
+def test_plan_refuses_an_out_of_range_planner_setting(name: str, key: str, value: Any,
+                                                      tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]
+                                                      ) -> None:
+    data = {**SPEC7, "planner": {"name": name, key: value}}
+    line = assert_bad_input(run(capsys, "plan", write_json(tmp_path, data)), f"planner.{key}")
+    assert "must be" in line or "unknown" in line
+
+
+def test_every_planner_setting_has_an_out_of_range_case() -> None:
+    """Each setting any built-in planner declares (sensorplan.limits.param) is refused
+    through the command line by a case above."""
+    from sensorplan.limits import declared_params
+    from sensorplan.planners.registry import BUILTIN
+
+    declared = {f.name for name in BUILTIN for f, _ in declared_params(PLANNERS[name])}
+    assert declared == {key for _, key, _ in BAD_PLANNER_SETTINGS}
 
 
 def test_plan_brute_force_above_max_plans(tmp_path: Path,

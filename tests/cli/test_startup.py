@@ -41,7 +41,8 @@ def _loaded(code: str) -> list[str]:
 
 
 def test_import_sensorplan_loads_nothing_heavy() -> None:
-    assert _loaded("import sensorplan, sensorplan.planners, sensorplan.simulation.settings") == []
+    assert _loaded("import sensorplan, sensorplan.planners, sensorplan.simulation.settings, "
+                   "sensorplan.decentral.params") == []
     # ... and the lazy names still work.
     assert _loaded("from sensorplan.planners import PLANNERS; list(PLANNERS)") == []
     # The kernels load numba at their first call that needs it, not at import.
@@ -50,7 +51,8 @@ def test_import_sensorplan_loads_nothing_heavy() -> None:
 
 def test_help_loads_nothing_heavy() -> None:
     code = ("from sensorplan.cli.app import main\n"
-            "for args in (['--help'], ['simulate', '--help'], ['plan', '--help']):\n"
+            "for args in (['--help'], ['simulate', '--help'], ['plan', '--help'],\n"
+            "             ['agents', '--help']):\n"
             "    try:\n        main(args)\n    except SystemExit:\n        pass")
     assert _loaded(code) == []
 

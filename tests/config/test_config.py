@@ -180,9 +180,8 @@ planner = "dec-jsfp"
      "delay, comm_range, mode, transport, timeout"),
     ("rounds = 1.5", "planning.planner_params.rounds", "must be an integer, got 1.5"),
     ("p_loss = 'high'", "planning.planner_params.p_loss", "must be a number, got 'high'"),
-    ("p_loss = 2", "planning.planner_params.p_loss", "must be a number in [0, 1], got 2.0"),
-    ("comm_range = nan", "planning.planner_params.comm_range",
-     "must be a ground distance > 0 in m (inf: unlimited), got nan"),
+    ("p_loss = 2", "planning.planner_params.p_loss", "must be in [0, 1], got 2.0"),
+    ("comm_range = nan", "planning.planner_params.comm_range", "must be > 0 m or inf, got nan"),
     ("seed = 4", "planning.planner_params.seed", "is not a setting here: the run's seed "
      "drives the planner ([run] seed of a scenario, seed of a study)"),
 ])

@@ -63,6 +63,9 @@ BAD = [
     (["--agent-mode", "gossip"], "--agent-mode"),
     (["--rounds", "0"], "--rounds"),
     (["--comm-range", "-1"], "--comm-range"),
+    (["--comm-range", "0"], "--comm-range"),
+    (["--delay", "-1"], "--delay"),
+    (["--p-loss", "-0.1"], "--p-loss"),
     (["--horizon", "0"], "--horizon"),
 ]
 
@@ -73,6 +76,49 @@ def test_bad_agent_options_name_the_option(args: list[str], field: str, tmp_path
     out = tmp_path / "out"
     assert_bad_input(run(capsys, "agents", "--preset", "paper", *args, "--out", out), field)
     assert not out.exists()
+
+
+def test_every_agent_option_has_a_bad_value_case() -> None:
+    """Every option generated from a planner setting's declaration is refused, naming the
+    option, by a case of BAD."""
+    from sensorplan.decentral.params import agent_params
+
+    options = {p.cli[0] for _, p in agent_params().values()}
+    assert options <= {field for _, field in BAD}
+
+
+def test_agent_options_help_comes_from_the_declarations(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """``agents --help`` shows each link and agent option's range and default as its
+    planner setting declares them (sensorplan.decentral.params)."""
+    from sensorplan.decentral.params import agent_params
+
+    code, out, _ = run(capsys, "agents", "--help")
+    assert code == 0
+    text = " ".join(re.sub(r"[│╭╮╰╯─]", " ", out).split())
+    for f, p in agent_params().values():
+        default = f"{f.default:g}" if isinstance(f.default, float) else str(f.default)
+        assert f"{p.cli[0]} {p.metavar} " in text
+        rule = f", {p.bounds.text()}" if p.bounds is not None else ""
+        assert f"{p.brief}{rule}. [default: {default}]" in text, p.cli[0]
+    assert "in [0, 1]. [default: 0]" in text                      # --p-loss, by hand
+    assert "> 0 m or inf. [default: inf]" in text                 # --comm-range
+
+
+def test_the_docs_state_each_declared_range_and_default() -> None:
+    """docs/decentral.md lists every decentralized planner's own setting with the rule and
+    default its declaration has (a changed declaration fails here until the docs follow)."""
+    from sensorplan.decentral.params import GROUPS
+    from sensorplan.limits import declared_params
+
+    doc = (SRC.parent / "docs" / "decentral.md").read_text()
+    for group in GROUPS:
+        for f, p in declared_params(group):
+            bullet = re.search(rf"^- `{f.name}` \(([^)]*)\)", doc, re.M)
+            assert bullet is not None, f.name
+            default = f"{f.default:g}" if isinstance(f.default, float) else str(f.default)
+            assert p.rule() in bullet.group(1), (f.name, p.rule(), bullet.group(1))
+            assert re.search(rf"default `?{re.escape(default)}`?", bullet.group(1)), f.name
 
 
 def test_the_file_decides_the_planner_unless_it_is_centralized(tmp_path: Path) -> None:

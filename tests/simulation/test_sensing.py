@@ -75,3 +75,21 @@ def test_an_unknown_look_detects_is_refused() -> None:
     with pytest.raises(ValueError, match="look_detects"):
         Sensing(radar_table((SensorParams(),)), np.zeros((0, 5)), run_streams(1), 2,
                 look_detects="some")
+
+
+def test_a_multi_target_trackers_aims_are_tracks_not_targets() -> None:
+    # A multi-target tracker can report more tracks than there are targets (a track started
+    # from a false alarm): an aim at track 12 of 12 targets must not be read as a target.
+    table = radar_table((SensorParams(clutter_rate=2.0),) * 3)
+    truth, pos, head = scene(np.random.default_rng(4))
+    tracks = Sensing(table, np.zeros((0, 5)), run_streams(6), STEPS, look_detects="all",
+                     aims_at_targets=False)
+    targets = Sensing(table, np.zeros((0, 5)), run_streams(6), STEPS, look_detects="all")
+    looks, sensed = tracks.look(2, truth, pos, head, np.array([12, 0, -1]))
+    ref_looks, ref = targets.look(2, truth, pos, head, np.array([-1, -1, -1]))
+    np.testing.assert_array_equal(looks.aims, [12, 0, -1])     # the tracker gets its aims
+    assert not sensed.missed.any() and not sensed.seen.any()   # no look has a target to miss
+    np.testing.assert_array_equal(sensed.measured, ref.measured)
+    np.testing.assert_array_equal(sensed.false_alarms, ref.false_alarms)
+    for a, b in zip(looks.detections, ref_looks.detections, strict=True):
+        np.testing.assert_array_equal(a, b)

@@ -38,7 +38,8 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
                      "tracker.known_map", "tracker.known_buildings",
                      "tracker.reflect_walls", "tracker.births", "tracker.birth_rate",
                      "tracker.survival_probability", "tracker.report_threshold",
-                     "tracker.prune_threshold", "tracker.grid_resolution"]
+                     "tracker.prune_threshold", "tracker.grid_resolution",
+                     "tracker.confirm_hits", "tracker.confirm_looks", "tracker.delete_misses"]
 
 
 @pytest.mark.parametrize("cls,path,f,s", DECLARED, ids=[d[1] for d in DECLARED])
@@ -246,3 +247,27 @@ def test_unused_names_what_the_tracker_ignores() -> None:
                                                                       "gate_probability", *MT)
     assert "births" not in TrackerSettings(kind="pmb").unused()
     assert "model" in TrackerSettings(kind="pmb").unused()
+    # the PMB and the GNN each ignore the other's own settings
+    from sensorplan.simulation.settings import GNN_SETTINGS, PMB_SETTINGS
+
+    pmb, gnn = TrackerSettings(kind="pmb").unused(), TrackerSettings(kind="gnn").unused()
+    assert set(GNN_SETTINGS) <= set(pmb) and not set(PMB_SETTINGS) & set(pmb)
+    assert set(PMB_SETTINGS) <= set(gnn) and not set(GNN_SETTINGS) & set(gnn)
+    assert {"births", "grid_resolution", "process_noise", "gate_probability"}.isdisjoint(gnn)
+    assert set(GNN_SETTINGS) | set(PMB_SETTINGS) <= set(MT)
+
+
+@pytest.mark.parametrize("kw,path,message", [
+    ({"confirm_hits": 4}, "tracker.confirm_hits", "must be at most confirm_looks (3), got 4"),
+    ({"confirm_hits": 0}, "tracker.confirm_hits", "must be in [1, 100], got 0"),
+    ({"confirm_looks": 1}, "tracker.confirm_hits", "must be at most confirm_looks (1), got 2"),
+    ({"delete_misses": 0}, "tracker.delete_misses", "must be in [1, 1000], got 0"),
+    ({"delete_misses": 2.5}, "tracker.delete_misses", "must be an integer, got 2.5"),
+])
+def test_the_gnn_logic_settings_are_checked(kw: dict[str, Any], path: str,
+                                            message: str) -> None:
+    with pytest.raises(ConfigError) as api:
+        RunSettings(tracker={"kind": "gnn", **kw})
+    assert (api.value.field, api.value.message) == (path, message)
+    ok = TrackerSettings(kind="gnn", confirm_hits=3, confirm_looks=3, delete_misses=1)
+    assert (ok.confirm_hits, ok.confirm_looks, ok.delete_misses) == (3, 3, 1)

@@ -472,3 +472,38 @@ def test_a_multi_target_tracker_needs_looks_that_detect_every_target(tmp_path, c
     assert (code, out) == (2, "")
     assert err.splitlines() == ["error: look_detects: a multi-target tracker needs looks that "
                                 "detect every live target in view: look_detects = 'all'"]
+
+
+def test_a_multi_target_trackers_flags_are_per_track_not_per_target() -> None:
+    # 5 targets; a multi-target tracker reported 6 tracks before its predict and 5 after
+    # (one fell below the report threshold): its flags, one per reported track, are not
+    # the targets' even when there are as many, and must not be recorded as theirs.
+    from sensorplan.simulation.episode import Recorder, Sensed
+    from sensorplan.tracking.base import Looks, TrackSet, UpdateRecord
+
+    M, N = 5, 3
+    rng = np.random.default_rng(0)
+    truth = rng.uniform(0.0, 600.0, (M, 4))
+    tracks = TrackSet(means=truth.copy(), covs=np.repeat(np.eye(4)[None], M, 0),
+                      existence=np.ones(M), labels=np.arange(M))
+    looks = Looks(sensors=np.arange(N), aims=np.array([5, 0, -1]),
+                  positions=np.zeros((N, 2)), headings=np.zeros(N),
+                  detections=tuple(np.zeros((0, 2)) for _ in range(N)))
+    sensed = Sensed(seen=np.zeros(N, dtype=bool), missed=np.zeros(N, dtype=bool),
+                    false_alarms=np.zeros(N, dtype=np.int16),
+                    measured=np.zeros((M, N), dtype=bool))
+    flags = np.ones(M, dtype=bool)
+    update = UpdateRecord(flags, flags, flags, flags, np.zeros(N, dtype=np.int64),
+                          np.zeros(N, dtype=np.int64))
+    predicted = np.ones(M + 1, dtype=bool)
+    for known in (False, True):
+        rec = Recorder(2, M, N, known_targets=known)
+        rec.start(truth, tracks, np.zeros((N, 2)), np.zeros(N))
+        if known:                                     # a known tracker's are per target
+            rec.step(1, truth, np.ones(M, dtype=bool), tracks, np.array([0, 1, -1]), looks,
+                     sensed, np.zeros(M, dtype=bool), update)
+        else:
+            rec.step(1, truth, np.ones(M, dtype=bool), tracks, np.array([5, 0, -1]), looks,
+                     sensed, predicted, update)
+        for name in ("negative_update", "inflated", "restarted", "map_corrected"):
+            assert rec.arrays[name][1].all() == known, name

@@ -24,8 +24,8 @@ from .guards import (Sigterm, Signals, Stopped, animate_drawable, check_environm
                      check_finite, plot_drawable, quiet_numerics, usage_error_class,
                      usage_line, writing, guard_paths)
 from .guards import Terminated as _Terminated
-from .options import (AGENTS_PANEL, OUTPUT_PANEL, PANELS, no_flag_placeholders,
-                      with_setting_options)
+from .options import (AGENTS_PANEL, OUTPUT_PANEL, PANELS, agent_option, agent_option_names,
+                      no_flag_placeholders, with_setting_options)
 
 #: For help texts: the built-in names (no installed plugin is looked up for --help);
 #: validation always asks the registry.
@@ -113,8 +113,9 @@ def plan(
 
     The output has the keys planner, plan (plan[i][k-1] is sensor i's action in epoch k:
     epoch, position, heading, target, measurements), potential (Phi, nats), information
-    (Phi's term per target), converged and sweeps (pg and pg-refine only) and seconds (the
-    planner's own time). Bad input exits with status 2 and one line on stderr.
+    (Phi's term per target), existence (when the file gives a target's probability of
+    existence, which weights its term), converged and sweeps (pg and pg-refine only) and
+    seconds (the planner's own time). Bad input exits with status 2 and one line on stderr.
 
     Example: sensorplan plan --example > problem.json; sensorplan plan problem.json
     """
@@ -138,7 +139,8 @@ def plan(
         ensure_built()          # a first plan compiles the planning kernels ahead of time
         result = checked_plan(decision.make_planner(), decision.problem)
         check_finite(result)
-        text = dumps_result(result)
+        text = dumps_result(result, decision.problem.existence
+                            if decision.existence_given else None)
     sys.stdout.write(text + "\n")
 
 
@@ -238,28 +240,12 @@ def agents(
     out: Annotated[Path, typer.Option(
         "--out", "-o", metavar="DIR", rich_help_panel=OUTPUT_PANEL,
         help="Directory for episode.npz, episode.png and agents.json.")] = Path("out/agents"),
-    transport: Annotated[str | None, typer.Option(
-        "--transport", metavar="inproc|bus", show_default=False, rich_help_panel=AGENTS_PANEL,
-        help="Agents in this process, or one process each on ZeroMQ. [default: inproc]")
-    ] = None,
-    rounds: Annotated[int | None, typer.Option(
-        "--rounds", metavar="R", show_default=False, rich_help_panel=AGENTS_PANEL,
-        help="Round budget of a decision (dec-jsfp, dec-independent). [default: 1000]")
-    ] = None,
-    p_loss: Annotated[float | None, typer.Option(
-        "--p-loss", metavar="P", show_default=False, rich_help_panel=AGENTS_PANEL,
-        help="Probability that a message is lost, in [0, 1]. [default: 0]")] = None,
-    delay: Annotated[int | None, typer.Option(
-        "--delay", metavar="D", show_default=False, rich_help_panel=AGENTS_PANEL,
-        help="Rounds a message takes. [default: 0]")] = None,
-    comm_range: Annotated[float | None, typer.Option(
-        "--comm-range", metavar="M", show_default=False, rich_help_panel=AGENTS_PANEL,
-        help="Longest working link (ground distance, m); inf: unlimited. [default: inf]")
-    ] = None,
-    agent_mode: Annotated[str | None, typer.Option(
-        "--agent-mode", metavar="MODE", show_default=False, rich_help_panel=AGENTS_PANEL,
-        help="What the agents play: jsfp (the paper's, with inertia) or best-response. "
-             "[default: jsfp]")] = None,
+    transport: Annotated[str | None, agent_option("transport")] = None,
+    rounds: Annotated[int | None, agent_option("rounds")] = None,
+    p_loss: Annotated[float | None, agent_option("p_loss")] = None,
+    delay: Annotated[int | None, agent_option("delay")] = None,
+    comm_range: Annotated[float | None, agent_option("comm_range")] = None,
+    agent_mode: Annotated[str | None, agent_option("mode")] = None,
     **settings: Any,
 ) -> None:
     """Run one closed-loop episode with one planning agent per platform.
@@ -279,7 +265,7 @@ def agents(
              "comm_range": comm_range, "mode": agent_mode}
     with _bad_input():
         cfg = load_agents(config, preset, {**settings, "planner": planner, "seed": seed},
-                          links)
+                          links, agent_option_names())
         ensure_out_dir(out)
 
     from ..decentral import run_agents

@@ -1,6 +1,7 @@
-"""The run-setting options of ``sensorplan simulate`` and ``agents``, generated from the
-settings' declarations (:mod:`sensorplan.simulation.settings`), and how every command's
-``--help`` is laid out.
+"""The run-setting options of ``sensorplan simulate`` and ``agents`` and the link and agent
+options of ``agents``, generated from the declarations of the settings
+(:mod:`sensorplan.simulation.settings`) and of the decentralized planners' own
+(:mod:`sensorplan.decentral.params`), and how every command's ``--help`` is laid out.
 
 ``--help`` is meant to be read at 80 columns: options are grouped in panels (one per
 settings section, plus the commands' own), each says in a few words what it sets, and
@@ -15,6 +16,7 @@ from typing import Annotated, Any
 
 import typer
 
+from ..decentral.params import agent_params
 from ..simulation.settings import all_settings, default_of, field_type
 
 #: The ``--help`` panel of each settings section, and of the commands' own options.
@@ -49,6 +51,24 @@ def setting_options(skip: tuple[str, ...] = ()) -> list[inspect.Parameter]:
                                         annotation=Annotated[field_type(cls, f.name) | None,
                                                              option]))
     return params
+
+
+def agent_option(key: str) -> Any:
+    """The ``sensorplan agents`` option of the decentralized planners' setting ``key``: its
+    names, placeholder, brief help with its range, and default, from the setting's
+    declaration (sensorplan.decentral.params)."""
+    f, p = agent_params()[key]
+    rule = p.bounds.text() if p.bounds is not None else ""   # choices: in the brief
+    default = f.default
+    shown = f"{default:g}" if isinstance(default, float) else str(default)
+    text = (p.brief or p.help).removesuffix(".") + (f", {rule}" if rule else "")
+    return typer.Option(*p.cli, metavar=p.metavar, show_default=False,
+                        rich_help_panel=AGENTS_PANEL, help=f"{text}. [default: {shown}]")
+
+
+def agent_option_names() -> dict[str, str]:
+    """Setting -> the ``sensorplan agents`` option that sets it (errors name the option)."""
+    return {key: p.cli[0] for key, (_, p) in agent_params().items()}
 
 
 def with_setting_options(command: Any, skip: tuple[str, ...] = ()) -> Any:

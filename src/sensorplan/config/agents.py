@@ -5,7 +5,8 @@ The scenario file or preset and the ``simulate`` options are read as for ``simul
 :data:`DECENTRAL`), else the file's when it is decentralized, else ``dec-jsfp``; a file's
 planner settings that the chosen planner does not take are dropped, as with ``--planner``.
 The link and agent options then set the planner's settings; the planner checks them, and an
-error names the option (``--p-loss``).
+error names the option (``--p-loss``; the command line passes each setting's option, from
+its declaration in :mod:`sensorplan.decentral.params`).
 """
 
 from __future__ import annotations
@@ -22,14 +23,12 @@ from .simulate import SimulationConfig, load_simulation
 
 #: The decentralized planners, one agent per platform (docs/decentral.md).
 DECENTRAL = ("dec-jsfp", "dec-independent", "dec-sequential")
-#: Planner setting -> the ``sensorplan agents`` option that sets it.
-AGENT_OPTIONS = {"transport": "--transport", "rounds": "--rounds", "p_loss": "--p-loss",
-                 "delay": "--delay", "comm_range": "--comm-range", "mode": "--agent-mode"}
 
 
 def load_agents(path: str | Path | None = None, preset: str | None = None,
                 overrides: Mapping[str, Any] | None = None,
-                agent: Mapping[str, Any] | None = None) -> SimulationConfig:
+                agent: Mapping[str, Any] | None = None,
+                options: Mapping[str, str] | None = None) -> SimulationConfig:
     """Scenario, run settings and seed of an episode with one agent per platform.
 
     Parameters
@@ -38,8 +37,11 @@ def load_agents(path: str | Path | None = None, preset: str | None = None,
         As for :func:`~sensorplan.config.simulate.load_simulation`; ``overrides["planner"]``
         must be one of :data:`DECENTRAL`.
     agent : mapping, optional
-        Planner settings from the agent options, keyed as :data:`AGENT_OPTIONS`
-        (``None`` values are ignored).
+        Planner settings from the agent options, by setting (``None`` values are ignored).
+    options : mapping, optional
+        The option that sets each setting (``p_loss`` -> ``--p-loss``), as errors name it;
+        when given, a key of ``agent`` without one is an error. Without it errors name
+        ``planning.planner_params.<key>``.
 
     Raises
     ------
@@ -56,7 +58,13 @@ def load_agents(path: str | Path | None = None, preset: str | None = None,
     if cfg.settings.planner not in DECENTRAL:
         cfg = load_simulation(path, preset, {**overrides, "planner": DECENTRAL[0]})
     given = {k: v for k, v in (agent or {}).items() if v is not None}
-    unknown = sorted(set(given) - set(AGENT_OPTIONS))
+    named = dict(options or {})
+
+    def field_of(key: str) -> str:
+        """How errors name setting ``key``: the option that set it, else the file's key."""
+        return named[key] if key in given and key in named else f"planning.planner_params.{key}"
+
+    unknown = sorted(set(given) - set(named)) if options is not None else []
     if unknown:
         raise ConfigError(unknown[0], "is not an agent option")
     settings = cfg.settings
@@ -65,10 +73,8 @@ def load_agents(path: str | Path | None = None, preset: str | None = None,
         params = check_settings(settings.planner, params, "planner")
     except ConfigError as exc:
         key = exc.field.removeprefix("planner.")
-        field = AGENT_OPTIONS[key] if key in given else f"planning.planner_params.{key}"
-        raise ConfigError(field, exc.message) from None
+        raise ConfigError(field_of(key), exc.message) from None
     if params.get("transport") == "bus":                    # checked before anything runs
-        check_bus_agents(len(cfg.scenario.sensors), "--transport" if "transport" in given
-                         else "planning.planner_params.transport")
+        check_bus_agents(len(cfg.scenario.sensors), field_of("transport"))
     return dataclasses.replace(cfg, settings=dataclasses.replace(settings,
                                                                  planner_params=params))

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from pydantic import ConfigDict, ValidationInfo, field_validator
+from pydantic import ConfigDict
 
 from ..errors import ConfigError
 from ..limits import (MAX_SENSORS, MAX_TARGETS, RANGES, check_count, check_covariance_scale,
@@ -19,7 +19,7 @@ from ..simulation.settings import RunSettings, limit_fields
 from . import files as io
 from .planners import build_planner, planner_settings, replaced_planner_settings
 from .validation import (BuildingModel, MapModel, Matrix4, Seed, SensorParamsModel, Strict,
-                         Vec2, Vec4, one_spelling, radians_of, setting_type, validate)
+                         Vec2, Vec4, radians_of, setting_type, validate)
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..planners import Planner
@@ -52,17 +52,15 @@ def _problem_default(name: str) -> Any:
 class DecisionTarget(Strict):
     mean: Vec4
     cov: Matrix4
+    #: Probability that the target exists, r in [0, 1]: its information counts r times in
+    #: Phi (checked by the problem, which names ``targets[j].existence``).
+    existence: float = 1.0
 
 
 class DecisionSensor(SensorParamsModel):
     position: Vec2
     heading: float | None = None            # one of the two is required (checked after)
     heading_deg: float | None = None
-
-    @field_validator("heading_deg")
-    @classmethod
-    def _heading_once(cls, value: float | None, info: ValidationInfo) -> float | None:
-        return one_spelling("heading", value, info.data.get("heading"))
 
 
 class DecisionPlanner(Strict):
@@ -104,11 +102,14 @@ class Decision:
     problem : PlanningProblem
     planner : str                  a planner name or ``package.module:Class``
     settings : dict                the settings passed to the planner's constructor
+    existence_given : bool         whether the file gave any target's ``existence`` (the
+                                   output then reports every target's)
     """
 
     problem: PlanningProblem
     planner: str
     settings: Mapping[str, Any]
+    existence_given: bool = False
 
     def make_planner(self) -> Planner:
         return build_planner(self.planner, self.settings)
@@ -180,7 +181,8 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
         process_noise=model.process_noise, world=MapRect(model.map.width, model.map.height),
         visibility=model.visibility, objective=model.objective,
         planning_detection=model.planning_detection,
-        buildings=np.array([b.row() for b in model.buildings], dtype=float))
+        buildings=np.array([b.row() for b in model.buildings], dtype=float),
+        existence=np.array([t.existence for t in model.targets], dtype=float))
     for i, s in enumerate(problem.sensors):
         check_sensor_precision(s, f"sensors[{i}]")
     check_decision_size(problem.horizon, problem.steps_per_epoch, problem.n_targets,
@@ -197,7 +199,8 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
         name = planner
         settings = replaced_planner_settings(model.planner.name, name, params,
                                              name_field="--planner", params_field="planner")
-    return Decision(problem, name, settings)
+    given = any("existence" in t.model_fields_set for t in model.targets)
+    return Decision(problem, name, settings, given)
 
 
 def load_decision(path: str | Path, planner: str | None = None) -> Decision:

@@ -20,8 +20,10 @@ if TYPE_CHECKING:  # pragma: no cover
 #: Planners whose result carries ``converged`` and ``sweeps``.
 GAME_PLANNERS = ("pg", "pg-refine")
 
-#: Output keys in their documented order (docs/cli.md).
-OUTPUT_KEYS = ("planner", "plan", "potential", "information", "converged", "sweeps", "seconds")
+#: Output keys in their documented order (docs/cli.md); ``existence`` only when the decision
+#: file gives a target's.
+OUTPUT_KEYS = ("planner", "plan", "potential", "information", "existence", "converged",
+               "sweeps", "seconds")
 
 
 #: Deepest nesting of lists and tables an input file may have. The file formats need
@@ -248,7 +250,7 @@ def read_input(path: str | Path, kind: str) -> Any:
     return data
 
 
-def result_to_dict(result: PlanResult) -> dict[str, Any]:
+def result_to_dict(result: PlanResult, existence: Any = None) -> dict[str, Any]:
     """A planner's result as the output object of ``sensorplan plan``.
 
     Parameters
@@ -256,13 +258,16 @@ def result_to_dict(result: PlanResult) -> dict[str, Any]:
     result : PlanResult
         ``plan.positions (N, K, 2)``, ``plan.targets (N, K)``, ``headings (N, K)`` and
         ``measurements (N, K)`` give ``plan[i][k-1]``; ``seconds`` is the planner's own time.
+    existence : (M,) array, optional
+        The targets' probabilities of existence, reported when given (the decision file
+        gave one).
 
     Returns
     -------
     dict
-        Keys ``planner, plan, potential, information, [converged, sweeps,] seconds``;
-        ``converged`` and ``sweeps`` only for ``pg`` and ``pg-refine``. An unassigned player
-        (never in a finished plan) is ``null``.
+        Keys ``planner, plan, potential, information, [existence,] [converged, sweeps,]
+        seconds``; ``converged`` and ``sweeps`` only for ``pg`` and ``pg-refine``. An
+        unassigned player (never in a finished plan) is ``null``.
     """
     plan = result.plan
     N, K = plan.targets.shape
@@ -288,6 +293,8 @@ def result_to_dict(result: PlanResult) -> dict[str, Any]:
         "potential": float(result.potential),
         "information": [float(v) for v in result.information],
     }
+    if existence is not None:
+        out["existence"] = [float(v) for v in existence]
     if result.planner in GAME_PLANNERS:
         out["converged"] = None if result.converged is None else bool(result.converged)
         out["sweeps"] = None if result.sweeps is None else int(result.sweeps)
@@ -295,12 +302,12 @@ def result_to_dict(result: PlanResult) -> dict[str, Any]:
     return out
 
 
-def dumps_result(result: PlanResult) -> str:
+def dumps_result(result: PlanResult, existence: Any = None) -> str:
     """:func:`result_to_dict` as JSON text, one plan entry per line (no trailing newline).
 
     Non-finite numbers raise ``ValueError``: they are not JSON.
     """
-    out = result_to_dict(result)
+    out = result_to_dict(result, existence)
     items = []
     for key, value in out.items():
         if key == "plan" and value:

@@ -119,11 +119,6 @@ class ScenarioSensor(SensorParamsModel):
     heading: float | None = None
     heading_deg: float | None = None
 
-    @field_validator("heading_deg")
-    @classmethod
-    def _heading_once(cls, value: float | None, info: ValidationInfo) -> float | None:
-        return one_spelling("heading", value, info.data.get("heading"))
-
 
 class SettingsTables(Strict):
     """The run-settings part of a scenario file (all a preset can be given)."""

@@ -142,9 +142,11 @@ def _file_list(hint: Any) -> Any:
 
 class _SensorParamsBase(Strict):
     """What the file model of :class:`~sensorplan.models.sensors.SensorParams` adds to its
-    fields: one spelling per angle, and the dataclass it gives."""
+    fields: one spelling per angle (and of ``heading``, for the file sensors that declare
+    ``heading`` and ``heading_deg``), and the dataclass it gives."""
 
-    @field_validator(*(f"{name}_deg" for name in ANGLE_FIELDS), check_fields=False)
+    @field_validator(*(f"{name}_deg" for name in (*ANGLE_FIELDS, "heading")),
+                     check_fields=False)
     @classmethod
     def _one_spelling(cls, value: float | None, info: ValidationInfo) -> float | None:
         name = str(info.field_name).removesuffix("_deg")

@@ -20,19 +20,17 @@ from typing import TYPE_CHECKING, Any, ClassVar, Self
 
 import numpy as np
 
-from ..errors import ConfigError
 from ..planners.base import PlanResult, RngLike, finish, make_rng, register, start_clock
 from ..planners.information import prepare
 from ..planners.potential_game import LearningSettings
 from ..planners.problem import PlanningProblem
+from ..planners.registry import seed_param
 from .agent import AgentSpec
 from .decision import assemble, run_inproc, to_plan
 from .episode import record
 from .links import LinkModel, decision_key
 from .messages import DecisionLog
-
-TRANSPORTS = ("inproc", "bus")
-GAME_MODES = ("jsfp", "best-response")
+from .params import GameMode, Links, Rounds, Transport
 
 
 @dataclass(frozen=True)
@@ -50,98 +48,13 @@ class DecentralResult(PlanResult):
     timing: dict[str, Any] | None = field(default=None, compare=False, repr=False)
 
 
-def _is_int(v: Any) -> bool:
-    return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
-
-
-def _is_real(v: Any) -> bool:
-    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(
-        v, (bool, np.bool_))
-
-
-def check_links(p_loss: Any, delay: Any, comm_range: Any) -> None:
-    """Raise ConfigError naming the link setting that is out of range."""
-    if not _is_real(p_loss) or not 0.0 <= float(p_loss) <= 1.0:
-        raise ConfigError("planner.p_loss", f"must be a number in [0, 1], got {p_loss!r}")
-    if not _is_int(delay) or delay < 0:
-        raise ConfigError("planner.delay", f"must be an integer >= 0 (rounds), got {delay!r}")
-    if not _is_real(comm_range) or math.isnan(comm_range) or comm_range <= 0:
-        raise ConfigError("planner.comm_range",
-                          f"must be a ground distance > 0 in m (inf: unlimited), "
-                          f"got {comm_range!r}")
-
-
-def check_rounds(rounds: Any) -> None:
-    if not _is_int(rounds) or rounds < 1:
-        raise ConfigError("planner.rounds", f"must be an integer >= 1, got {rounds!r}")
-
-
-def check_transport(transport: Any, timeout: Any) -> None:
-    if transport not in TRANSPORTS:
-        raise ConfigError("planner.transport", f"must be one of {TRANSPORTS}, got "
-                          f"{transport!r}")
-    if not _is_real(timeout) or not math.isfinite(timeout) or timeout <= 0:
-        raise ConfigError("planner.timeout", f"must be a finite number of seconds > 0, got "
-                          f"{timeout!r}")
-
-
-def _checks_before(obj: Any, cls: type) -> None:
-    """Run the setting checks of the classes after ``cls`` in ``obj``'s MRO (the settings
-    declared before ``cls``'s), so that the first setting in field order that breaks its
-    rule is the one reported."""
-    after = getattr(super(cls, obj), "__post_init__", None)
-    if after is not None:
-        after()
-
-
-# Each group of settings is declared once, with its check, in a frozen dataclass mixin; a
-# planner lists the groups it takes. Its fields come in the reverse order of its bases.
+# Each group of settings is declared once, with its rule, in a frozen dataclass mixin
+# (:mod:`.params`); a planner lists the groups it takes. Its fields come in the reverse
+# order of its bases, and are checked in that order.
 
 
 @dataclass(frozen=True)
-class _Rounds:
-    """The round budget R per decision (>= 1); the decision ends earlier when every agent
-    has settled."""
-
-    rounds: int = 1000
-
-    def __post_init__(self) -> None:
-        _checks_before(self, _Rounds)
-        check_rounds(self.rounds)
-
-
-@dataclass(frozen=True)
-class _Links:
-    """The links: ``p_loss`` (probability that a message is lost, in [0, 1]), ``delay``
-    (rounds a message takes, >= 0) and ``comm_range`` (largest ground distance of a working
-    link, m, > 0; inf unlimited)."""
-
-    p_loss: float = 0.0
-    delay: int = 0
-    comm_range: float = math.inf
-
-    def __post_init__(self) -> None:
-        _checks_before(self, _Links)
-        check_links(self.p_loss, self.delay, self.comm_range)
-
-    def _links(self) -> tuple[float, int, float]:
-        return float(self.p_loss), int(self.delay), float(self.comm_range)
-
-
-@dataclass(frozen=True)
-class _GameMode:
-    """How the agents play the game: ``jsfp`` or ``best-response``."""
-
-    mode: str = "jsfp"
-
-    def __post_init__(self) -> None:
-        _checks_before(self, _GameMode)
-        if self.mode not in GAME_MODES:
-            raise ConfigError("planner.mode", f"must be one of {GAME_MODES}, got {self.mode!r}")
-
-
-@dataclass(frozen=True)
-class _Agents:
+class _Agents(Transport):
     """Shared machinery: one decision over the chosen transport (``inproc`` or ``bus``; on
     the bus an agent waits ``timeout`` seconds for a peer before declaring it lost), the
     bus's lifetime."""
@@ -149,13 +62,7 @@ class _Agents:
     name: ClassVar[str]
     if TYPE_CHECKING:              # each planner declares its seed (none here at run time)
         seed: int | None = 0
-    transport: str = "inproc"
-    timeout: float = 10.0
     _runtime: dict = field(default_factory=dict, init=False, repr=False, compare=False)
-
-    def __post_init__(self) -> None:
-        _checks_before(self, _Agents)
-        check_transport(self.transport, self.timeout)
 
     def _spec(self) -> AgentSpec:
         raise NotImplementedError
@@ -170,7 +77,7 @@ class _Agents:
         gen = make_rng(rng, self.seed)
         ctx = prepare(problem)
         # Planners without link settings have perfect links.
-        p_loss, delay, comm_range = (self._links() if isinstance(self, _Links)
+        p_loss, delay, comm_range = (self._links() if isinstance(self, Links)
                                      else (0.0, 0, math.inf))
         link = LinkModel(decision_key(gen), np.array(problem.positions, dtype=float), p_loss,
                          delay, comm_range)
@@ -222,7 +129,7 @@ class _Agents:
 
 @register
 @dataclass(frozen=True)
-class DecentralJSFPPlanner(_Agents, _GameMode, _Links, _Rounds, LearningSettings):
+class DecentralJSFPPlanner(_Agents, GameMode, Links, Rounds, LearningSettings):
     """``dec-jsfp``: one agent per platform playing the game over imperfect links.
 
     Attributes
@@ -246,7 +153,7 @@ class DecentralJSFPPlanner(_Agents, _GameMode, _Links, _Rounds, LearningSettings
 
 @register
 @dataclass(frozen=True)
-class DecentralIndependentPlanner(_Agents, _GameMode, _Rounds, LearningSettings):
+class DecentralIndependentPlanner(_Agents, GameMode, Rounds, LearningSettings):
     """``dec-independent``: every agent plans alone and sends nothing.
 
     Each agent plays the same schedule as ``dec-jsfp`` (same ``rounds``, ``mode`` and
@@ -261,7 +168,7 @@ class DecentralIndependentPlanner(_Agents, _GameMode, _Rounds, LearningSettings)
 
 @register
 @dataclass(frozen=True)
-class DecentralSequentialPlanner(_Agents, _Links):
+class DecentralSequentialPlanner(_Agents, Links):
     """``dec-sequential``: agent 1 decides its K epochs, tells the others, then agent 2, ...
 
     N rounds; in its turn an agent takes, epoch by epoch, the action maximising Phi given
@@ -269,7 +176,7 @@ class DecentralSequentialPlanner(_Agents, _Links):
     """
 
     name: ClassVar[str] = "dec-sequential"
-    seed: int | None = 0
+    seed: int | None = seed_param()
 
     def _spec(self) -> AgentSpec:
         return AgentSpec("sequential", 1)

@@ -56,7 +56,25 @@ from .motion import cv_matrices
 
 
 @dataclass(frozen=True)
-class Williams15:
+class _Benchmark:
+    """What both benchmarks share, with the values both sources use.
+
+    Attributes
+    ----------
+    dt : float          s, the source's ``T``
+    redraw : bool       False: the same truth in every run
+    truth_seed : int    numpy seed of a truth that is random but not redrawn
+    p_survive : float   the source filter's probability that a target survives a step
+    """
+
+    dt: float = 1.0
+    redraw: bool = False
+    truth_seed: int = 0
+    p_survive: float = 0.99
+
+
+@dataclass(frozen=True)
+class Williams15(_Benchmark):
     """The ``williams15`` benchmark (see the module docstring for the source).
 
     Attributes
@@ -83,17 +101,13 @@ class Williams15:
 
     world_size: tuple[float, float] = (300.0, 300.0)
     steps: int = 81
-    dt: float = 1.0
     n_targets: int = 4
     mid_mean: tuple[float, float, float, float] = (150.0, 150.0, 0.0, 0.0)
     mid_cov: float = 0.1
     q: float = 0.01
     birth_step: tuple[int, ...] = (1, 1, 1, 1)
     death_step: tuple[int, ...] = (41, -1, -1, -1)
-    redraw: bool = False
-    truth_seed: int = 0
     p_detect: float = 0.9
-    p_survive: float = 0.99
     clutter: float = 10.0
     measurement_var: float = 1.0
     gospa_c: float = 10.0
@@ -109,7 +123,7 @@ class Williams15:
 
 
 @dataclass(frozen=True)
-class Vo12:
+class Vo12(_Benchmark):
     """The ``vo12`` benchmark (see the module docstring for the source).
 
     The ``source_*`` fields are the toolbox's values as written there (its coordinates and
@@ -142,7 +156,6 @@ class Vo12:
     world_size: tuple[float, float] = (2000.0, 2000.0)
     offset: tuple[float, float] = (1000.0, 1000.0)
     steps: int = 100
-    dt: float = 1.0
     source_xstart: tuple[tuple[float, float, float, float], ...] = (
         (0.0, 0.0, 0.0, -10.0),
         (400.0, -10.0, -600.0, 5.0),
@@ -161,10 +174,7 @@ class Vo12:
     source_tdeath: tuple[int, ...] = (70, 101, 70, 101, 101, 101, 101, 101, 101, 101, 101,
                                       101)
     truth_sigma_v: float = 0.0
-    redraw: bool = False
-    truth_seed: int = 0
     sigma_v: float = 5.0
-    p_survive: float = 0.99
     p_detect: float = 0.98
     measurement_var: float = 100.0
     birth_weight: float = 0.03

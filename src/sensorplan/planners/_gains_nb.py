@@ -45,7 +45,8 @@ def add_looks(Wp: np.ndarray, tgt: np.ndarray, out: np.ndarray, only: int, skip:
 
 @njit(cache=True, fastmath=False)
 def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q: np.ndarray,
-             cv: bool, dt: float, cum: bool, s0: int, sensor: np.ndarray, lo: np.ndarray,
+             cv: bool, dt: float, cum: bool, existence: np.ndarray, s0: int,
+             sensor: np.ndarray, lo: np.ndarray,
              hi: np.ndarray, pair_off: np.ndarray, c_loc: np.ndarray, j_pair: np.ndarray,
              first: np.ndarray, count: np.ndarray, offset: np.ndarray, data: np.ndarray,
              delta: np.ndarray, rows: np.ndarray, cand_off: np.ndarray,
@@ -57,7 +58,8 @@ def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q
     ``c_loc`` among its ``cand_off[p + 1] - cand_off[p]`` candidates). ``rows[p]`` holds, per
     target and step, the other players' summed information (w00, w01, w11) the cached
     ``delta`` were computed with (NaN: never); a pair is recomputed only if its target's row
-    changed. ``delta`` of a pair is ``term_j(no chain + pair) - term_j(no chain)``.
+    changed. ``delta`` of a pair is ``term_j(no chain + pair) - term_j(no chain)``, the
+    term weighted by the target's probability of existence ``existence[j]``.
 
     Returns
     -------
@@ -148,7 +150,7 @@ def gains_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndarray, Q
             if t_off[j + 1] > t_off[j]:
                 _deltas(by_t, t_off[j], t_off[j + 1], P_pred, part, ld_end[j], ld_sum[j], Wf,
                         j, s0, first, count, offset, data, delta, F, Q,
-                        0 if shared_q else j, cv, dt, cum, P, FP)
+                        0 if shared_q else j, cv, dt, cum, existence[j], P, FP)
         for q in range(a, b):
             gains[cand_off[p] + c_loc[q]] += delta[q]
         for j in range(M):
@@ -165,13 +167,18 @@ def _deltas(idx: np.ndarray, a: int, b: int, P_pred: np.ndarray, part: np.ndarra
             ld_end_b: float, ld_sum_b: float, Wf: np.ndarray, j: int, s0: int,
             first: np.ndarray, count: np.ndarray, offset: np.ndarray, data: np.ndarray,
             delta: np.ndarray, F: np.ndarray, Q: np.ndarray, qb: int, cv: bool, dt: float,
-            cum: bool, P: np.ndarray, FP: np.ndarray) -> None:
-    """``delta[q] = term(no chain + pair q) - term(no chain)`` for pairs ``idx[a:b]``, all
-    of target j (one call per target: the per-pair work is a tight loop).
+            cum: bool, r: float, P: np.ndarray, FP: np.ndarray) -> None:
+    """``delta[q] = r (term(no chain + pair q) - term(no chain))`` for pairs ``idx[a:b]``,
+    all of target j (one call per target: the per-pair work is a tight loop), ``r`` its
+    probability of existence.
 
     Up to its first non-zero step ``f`` a pair adds nothing (exact zeros), so its recursion
     equals the baseline's: it starts from the baseline's predicted covariance at ``f`` and
     running log-det sum.
+
+    The weighting by ``r`` is the compiled engine's only one (the numpy evaluation's is
+    :func:`sensorplan.planners.information.phi_terms`): every utility is a sum of these
+    deltas. With ``r = 1`` the product changes no bit.
     """
     S = part.shape[1]
     q10 = load_sym10(Q[qb])
@@ -179,7 +186,8 @@ def _deltas(idx: np.ndarray, a: int, b: int, P_pred: np.ndarray, part: np.ndarra
         q = idx[x]
         f = first[q]
         if f >= S:
-            delta[q] = 0.5 * (ld_sum_b - ld_sum_b) if cum else 0.5 * (ld_end_b - ld_end_b)
+            d = 0.5 * (ld_sum_b - ld_sum_b) if cum else 0.5 * (ld_end_b - ld_end_b)
+            delta[q] = r * d
             continue
         cnt = count[q]
         off = offset[q]
@@ -206,10 +214,8 @@ def _deltas(idx: np.ndarray, a: int, b: int, P_pred: np.ndarray, part: np.ndarra
             s = update_sym(s, w00, w01, w11)
             if cum:
                 acc += logdet10(s)
-        if cum:
-            delta[q] = 0.5 * (ld_sum_b - acc)
-        else:
-            delta[q] = 0.5 * (ld_end_b - logdet10(s))
+        d = 0.5 * (ld_sum_b - acc) if cum else 0.5 * (ld_end_b - logdet10(s))
+        delta[q] = r * d
 
 
 
@@ -348,7 +354,8 @@ def game_totals_nb(Wp: np.ndarray, tgt: np.ndarray, covs: np.ndarray, F: np.ndar
 
 @njit(cache=True, fastmath=False, nogil=True)
 def game_players_nb(p_lo: int, p_hi: int, Wp: np.ndarray, tgt: np.ndarray, F: np.ndarray,
-                    Q: np.ndarray, cv: bool, dt: float, cum: bool, k: int, hi: np.ndarray,
+                    Q: np.ndarray, cv: bool, dt: float, cum: bool, existence: np.ndarray,
+                    k: int, hi: np.ndarray,
                     c_loc: np.ndarray, j_pair: np.ndarray, first: np.ndarray,
                     count: np.ndarray, offset: np.ndarray, data: np.ndarray,
                     delta: np.ndarray, rows: np.ndarray, by_t: np.ndarray, t_off: np.ndarray,
@@ -431,7 +438,7 @@ def game_players_nb(p_lo: int, p_hi: int, Wp: np.ndarray, tgt: np.ndarray, F: np
                 ld_end_b, ld_sum_b = tot_ld[j, 0], tot_ld[j, 1]
             _deltas(by_t, t_off[p, j], t_off[p, j + 1], base_pred, base_part, ld_end_b,
                     ld_sum_b, Wf, j, s0, first, count, offset, data, delta, F, Q, qb, cv, dt,
-                    cum, P, FP)
+                    cum, existence[j], P, FP)
             for x in range(t_off[p, j], t_off[p, j + 1]):
                 c = cand_off[p] + c_loc[by_t[x]]
                 if not dirty[c]:
@@ -460,7 +467,8 @@ def _same_row(A: np.ndarray, a: int, B: np.ndarray, b: int, T: int) -> bool:
 
 @njit(cache=True, fastmath=False, nogil=True)
 def game_block_nb(p_lo: int, p_hi: int, Wp: np.ndarray, tgt: np.ndarray, F: np.ndarray,
-                  Q: np.ndarray, cv: bool, dt: float, cum: bool, k: int, hi: np.ndarray,
+                  Q: np.ndarray, cv: bool, dt: float, cum: bool, existence: np.ndarray,
+                  k: int, hi: np.ndarray,
                   c_loc: np.ndarray, j_pair: np.ndarray, first: np.ndarray,
                   count: np.ndarray, offset: np.ndarray, data: np.ndarray,
                   delta: np.ndarray, rows: np.ndarray, by_t: np.ndarray, t_off: np.ndarray,
@@ -489,10 +497,10 @@ def game_block_nb(p_lo: int, p_hi: int, Wp: np.ndarray, tgt: np.ndarray, F: np.n
     -------
     True if every player of the block is at a best response.
     """
-    n_dirty = game_players_nb(p_lo, p_hi, Wp, tgt, F, Q, cv, dt, cum, k, hi, c_loc, j_pair,
-                              first, count, offset, data, delta, rows, by_t, t_off,
-                              cand_off, dirty, dlist, seen, Wtot, pre, tot_ver, tot_pred,
-                              tot_part, tot_ld)
+    n_dirty = game_players_nb(p_lo, p_hi, Wp, tgt, F, Q, cv, dt, cum, existence, k, hi,
+                              c_loc, j_pair, first, count, offset, data, delta, rows, by_t,
+                              t_off, cand_off, dirty, dlist, seen, Wtot, pre, tot_ver,
+                              tot_pred, tot_part, tot_ld)
     a0, b0 = cand_off[p_lo], cand_off[p_hi]
     if first_call:
         for c in range(a0, b0):

@@ -25,13 +25,13 @@ one that is stopped depends on how fast the machine is.
 from __future__ import annotations
 
 import math
-import numbers
 import time
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
-from ..errors import ConfigError
+from ..limits import Range, param
 from .engine import GameState, choose
 from .problem import Plan
 
@@ -46,16 +46,11 @@ class BudgetExhausted(Exception):
     """Raised at a check when the time budget is spent (caught by the planner)."""
 
 
-def check_budget(time_budget: float | None) -> None:
-    """Raise ConfigError unless ``time_budget`` is None or a finite number > 0 (seconds)."""
-    if time_budget is None:
-        return
-    if isinstance(time_budget, bool) or not isinstance(time_budget, numbers.Real):
-        raise ConfigError("planner.time_budget",
-                          f"must be a number of seconds or null, got {time_budget!r}")
-    if not (math.isfinite(time_budget) and time_budget > 0):
-        raise ConfigError("planner.time_budget",
-                          f"must be a finite number of seconds > 0, got {time_budget}")
+def budget_param() -> Any:
+    """The declaration of a planner's ``time_budget`` (a new field for each planner class)."""
+    return param(None, bounds=Range(0.0, None, "s", lo_open=True),
+                 help="Seconds the planner may use (None: no limit); when they run out it "
+                      "returns the best complete plan found so far.")
 
 
 class Anytime:

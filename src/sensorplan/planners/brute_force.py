@@ -13,7 +13,8 @@ once per such prefix. Phi then separates over targets,
 
 where ``W_ij(a_i)`` is ``(T, 2, 2)``: sensor ``i``'s information about target ``j`` at every
 step under option ``a_i`` (zero where it looks elsewhere or does not see ``j``), and ``f_j``
-is the target's term of Phi (:func:`~sensorplan.planners.information.phi_terms` of
+is the target's term of Phi, weighted by its probability of existence
+(:func:`~sensorplan.planners.information.phi_terms` of
 :func:`~sensorplan.planners.information.covariance_recursion`, exactly as
 :func:`~sensorplan.planners.information.target_information` computes it). For each target the
 options of a sensor collapse into a few *contribution classes* (all options that never see
@@ -41,10 +42,12 @@ import numpy as np
 
 from .._types import FloatArray, IntArray
 from ..errors import ConfigError
+from ..limits import Range, param
 from .base import PlanResult, RngLike, finish, register, start_clock
 from .information import (Context, chain_headings, covariance_recursion, epoch_information,
                           measured, phi_terms, prepare)
 from .problem import TIE_TOL, Lattice, Plan, PlanningProblem
+from .registry import PlannerSettings, seed_param
 
 #: Class combinations per batch of the covariance recursion (bounds its temporaries).
 _F_BATCH = 1 << 15
@@ -285,13 +288,14 @@ class _TargetTerm:
             _, ld_end, ld_sum = covariance_recursion(P, W, self.ctx.F, self.Q,
                                                      need_sum=self.cumulative)
             out[s:s + _F_BATCH] = phi_terms(self.ctx.ld_bar[self.j], ld_end, ld_sum,
-                                            self.cumulative, measured(W))
+                                            self.cumulative, measured(W),
+                                            self.ctx.existence[self.j])
         return out
 
 
 @register
 @dataclass(frozen=True)
-class BruteForcePlanner:
+class BruteForcePlanner(PlannerSettings):
     """Exact maximiser of Phi by enumerating every feasible joint plan.
 
     Parameters
@@ -319,19 +323,11 @@ class BruteForcePlanner:
     """
 
     name: ClassVar[str] = "brute-force"
-    max_plans: int = 2_000_000
-    seed: int | None = 0
-    chunk: int = 1 << 20
-
-    def __post_init__(self) -> None:
-        for name in ("max_plans", "chunk"):
-            value = getattr(self, name)
-            try:
-                ok = not isinstance(value, bool) and int(value) == value and value >= 1
-            except (TypeError, ValueError, OverflowError):
-                ok = False
-            if not ok:
-                raise ConfigError(f"planner.{name}", f"must be an integer >= 1, got {value!r}")
+    max_plans: int = param(2_000_000, bounds=Range(1, None),
+                           help="Most joint plans the planner enumerates.")
+    seed: int | None = seed_param()
+    chunk: int = param(1 << 20, bounds=Range(1, None),
+                       help="Joint plans evaluated per vectorised chunk.")
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
         start = start_clock()

@@ -3,11 +3,13 @@
 - :func:`tiny_problem`: random tiny problems, small enough for exhaustive search;
 - :func:`paper_problem`: a decision of the paper scenario (3 sensors, 5 targets);
 - :func:`joint_plan_count`: the exact number of feasible joint plans of a problem;
+- :func:`weighted`: a problem with random probabilities of existence (some 0, some 1);
 - :func:`contract_problems`: the fixed set :func:`~sensorplan.planners.check_planner` uses.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from dataclasses import dataclass
@@ -86,6 +88,17 @@ def paper_problem(rng: np.random.Generator, horizon: int = 3, steps_per_epoch: i
                            objective=objective)
 
 
+def weighted(problem: PlanningProblem, rng: np.random.Generator) -> PlanningProblem:
+    """``problem`` with random probabilities of existence: uniform in [0, 1], then the
+    smallest set to exactly 0 and, with two targets or more, the largest to exactly 1 (the
+    ends, where a weight changes the most)."""
+    r = rng.uniform(0.0, 1.0, problem.n_targets)
+    lo, hi = int(np.argmin(r)), int(np.argmax(r))
+    r[hi] = 1.0
+    r[lo] = 0.0
+    return dataclasses.replace(problem, existence=r)
+
+
 @dataclass(frozen=True)
 class ContractProblem:
     """One problem of the contract set.
@@ -109,7 +122,9 @@ TINY_PLANS = 20_000
 @functools.cache
 def contract_problems() -> tuple[ContractProblem, ...]:
     """The fixed problems of the planner contract: for each visibility mode and objective,
-    four tiny problems and one paper-size decision (K = 2). Built once per process."""
+    four tiny problems and one paper-size decision (K = 2); then, with the targets weighted
+    by random probabilities of existence (:func:`weighted`), two tiny problems and one
+    paper-size decision. Built once per process."""
     out = []
     for visibility in VISIBILITY_MODES:
         for objective in OBJECTIVES:
@@ -120,8 +135,20 @@ def contract_problems() -> tuple[ContractProblem, ...]:
                     for j in range(4)]
             out.append(ContractProblem(f"paper {mode}", paper_problem(
                 rng, horizon=2, visibility=visibility, objective=objective), False))
+    rng = np.random.default_rng(11)
+    for j, (visibility, objective) in enumerate((("probabilistic", "cumulative"),
+                                                 ("mean", "terminal"))):
+        problem = tiny_problem(rng, TINY_PLANS, visibility, objective)
+        # Weights 0, 1 and one in between, among players that interact.
+        while problem.n_targets < 3 or problem.n_sensors < 2:
+            problem = tiny_problem(rng, TINY_PLANS, visibility, objective)
+        out.append(ContractProblem(f"tiny[{j}] ({visibility}, {objective}, weighted)",
+                                   weighted(problem, rng), True))
+    problem = paper_problem(rng, horizon=2, visibility="probabilistic", objective="cumulative")
+    out.append(ContractProblem("paper (probabilistic, cumulative, weighted)",
+                               weighted(problem, rng), False))
     return tuple(out)
 
 
 __all__ = ["TINY_PLANS", "ContractProblem", "contract_problems", "joint_plan_count",
-           "paper_problem", "tiny_problem"]
+           "paper_problem", "tiny_problem", "weighted"]

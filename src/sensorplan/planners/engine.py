@@ -15,8 +15,9 @@ game at once. Both reuse everything a change cannot touch:
   shared between candidates and players wherever they are the same numbers.
 
 Phi(c) = Phi_base + sum over affected targets j of (term_j(c) - term_j(base)), where "base"
-is the plan with sensor i's changed chain removed. This is the definition of Phi regrouped;
-the compiled kernels (:mod:`~sensorplan.planners._pairs_nb`,
+is the plan with sensor i's changed chain removed; a target's term carries its weight, the
+probability of existence ``r_j`` (applied once, to each pair's term change). This is the
+definition of Phi regrouped; the compiled kernels (:mod:`~sensorplan.planners._pairs_nb`,
 :mod:`~sensorplan.planners._gains_nb`) compute every term with the same operations in the
 same order as the plain dense computation, so utilities are bit for bit its values
 (``tests/engine_reference.py``), and equal :func:`sensorplan.planners.information.potential`'s
@@ -235,7 +236,8 @@ class GameState:
         W_t = sum_by_target(ctx, self.W, self.tgt)
         _, ld_end, ld_sum = covariance_recursion(np.asarray(ctx.problem.covs), W_t, ctx.F, ctx.Q,
                                                  self.cumulative)
-        phi = float(phi_terms(ctx.ld_bar, ld_end, ld_sum, self.cumulative, measured(W_t)).sum())
+        phi = float(phi_terms(ctx.ld_bar, ld_end, ld_sum, self.cumulative, measured(W_t),
+                              ctx.existence).sum())
         self._phi = (self.version, phi)
         return phi
 
@@ -295,7 +297,8 @@ class GameState:
         base = np.nan
         if with_base:
             base = float(phi_terms(self.ctx.ld_bar, ld_end, ld_pre + ld_sum, self.cumulative,
-                                   self._measured_without(i, entry.lo, entry.hi)).sum())
+                                   self._measured_without(i, entry.lo, entry.hi),
+                                   self.ctx.existence).sum())
         if entry.dups.size:
             gains[entry.dups] = gains[entry.dup_of]     # identical pairs, identical sums
         return gains, base
@@ -308,8 +311,8 @@ class GameState:
         ctx = self.ctx
         cv, dt = cv_form(ctx.F)
         return gains_nb(self.W, self.tgt, self._covs, ctx.F, self._Q, cv, dt,
-                        self.cumulative, s0, sensor, lo, hi, pair_off, c_loc, j_pair, first,
-                        count, offset, data, delta, rows, cand_off, all_targets)
+                        self.cumulative, ctx.existence, s0, sensor, lo, hi, pair_off, c_loc,
+                        j_pair, first, count, offset, data, delta, rows, cand_off, all_targets)
 
     def _pairs(self, i: int, k0: int, cand_pos: IntArray, cand_tgt: IntArray,
                token: tuple | None) -> Pairs:

@@ -210,12 +210,12 @@ class EpochGame:
         u = np.empty(n)
         new = np.empty(n) if t > 0 else u
         best = self.cur.copy()
-        common = (st.W, st.tgt, ctx.F, st._Q, cv, dt, st.cumulative, self.k, self._hi,
-                  self._c_loc, self._j, self._first, self._count, self._offset, self._data,
-                  self._delta, self._rows, self._by_t, self._t_off, self.cand_off, self._dirty,
-                  self._dlist, self._seen, Wtot, self._pre, self._tot_ver, self._tot_pred,
-                  self._tot_part, self._tot_ld, first_call, self._cp_off, self._gcache,
-                  self._alias_dst, self._alias_src, u, ubar, t, tol, new, best)
+        common = (st.W, st.tgt, ctx.F, st._Q, cv, dt, st.cumulative, ctx.existence, self.k,
+                  self._hi, self._c_loc, self._j, self._first, self._count, self._offset,
+                  self._data, self._delta, self._rows, self._by_t, self._t_off, self.cand_off,
+                  self._dirty, self._dlist, self._seen, Wtot, self._pre, self._tot_ver,
+                  self._tot_pred, self._tot_part, self._tot_ld, first_call, self._cp_off,
+                  self._gcache, self._alias_dst, self._alias_src, u, ubar, t, tol, new, best)
         # Pair terms this iteration recomputes, roughly: all at first, then those of the
         # targets whose total changed; every candidate's running average.
         redo = self._total if first_call else changed * self._total / ctx.M

@@ -5,11 +5,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import ClassVar
 
-from .anytime import Anytime, BudgetExhausted, check_budget, complete
+from .anytime import Anytime, BudgetExhausted, budget_param, complete
 from .base import PlanResult, RngLike, finish, register, start_clock
 from .engine import GameState, choose
 from .information import Context, prepare
 from .problem import PlanningProblem
+from .registry import PlannerSettings, seed_param
 
 
 def sequential_greedy(ctx: Context, anytime: Anytime | None = None) -> GameState:
@@ -35,7 +36,7 @@ def sequential_greedy(ctx: Context, anytime: Anytime | None = None) -> GameState
 
 @register
 @dataclass(frozen=True)
-class SequentialGreedyPlanner:
+class SequentialGreedyPlanner(PlannerSettings):
     """Sensor by sensor, epoch by epoch, the best action given the earlier ones.
 
     Deterministic; ``seed`` is accepted for a uniform interface and unused. ``time_budget``
@@ -45,11 +46,8 @@ class SequentialGreedyPlanner:
     """
 
     name: ClassVar[str] = "sequential-greedy"
-    seed: int | None = 0
-    time_budget: float | None = None
-
-    def __post_init__(self) -> None:
-        check_budget(self.time_budget)
+    seed: int | None = seed_param()
+    time_budget: float | None = budget_param()
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
         start = start_clock(engine=True)

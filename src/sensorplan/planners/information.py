@@ -64,6 +64,8 @@ class Context:
     lattices : list of Lattice one per sensor
     xbar_xy : (M, T + 1, 2)    predicted ground positions (contiguous, for the kernels)
     buildings : (B, 5)         boxes that can hide targets (a writeable copy, for the kernels)
+    existence : (M,)           each target's weight in Phi, its probability of existence r
+                               (a writeable copy, for the kernels)
     """
 
     problem: PlanningProblem
@@ -79,6 +81,7 @@ class Context:
     lattices: list[Lattice]
     xbar_xy: FloatArray
     buildings: FloatArray
+    existence: FloatArray
 
     @property
     def K(self) -> int:
@@ -138,8 +141,9 @@ def prepare(problem: PlanningProblem) -> Context:
     table = radar_table(problem.sensors, aware=problem.planning_detection == "aware")
     # A writeable copy: the problem's read-only array would be another kernel signature.
     buildings = np.array(problem.buildings, dtype=float, order="C").reshape(-1, 5)
+    existence = np.array(problem.existence, dtype=float, order="C")
     return Context(problem, F, Q, xbar, Pbar, ld_bar, Cbar, aim, table, max_turn, lattices,
-                   xbar_xy, buildings)
+                   xbar_xy, buildings, existence)
 
 
 def chain_headings(ctx: Context, i: int, k_first: int, positions: FloatArray,
@@ -433,20 +437,24 @@ def assigned_runs(assigned: np.ndarray) -> list[tuple[int, int]]:
 
 
 def phi_terms(ld_bar: FloatArray, ld_end: FloatArray, ld_sum: FloatArray, cumulative: bool,
-              measured: BoolArray) -> FloatArray:
+              measured: BoolArray, existence: FloatArray | float = 1.0) -> FloatArray:
     r"""Per-target terms of Phi from the log-dets of the measured covariance recursion.
 
     .. math::
-        \tfrac12 \log\det \bar P_j(T) - \tfrac12 \log\det P_j(T \mid Z_j)
+        r_j \big(\tfrac12 \log\det \bar P_j(T) - \tfrac12 \log\det P_j(T \mid Z_j)\big)
         \quad\text{or}\quad
-        \sum_{t=1}^{T} \tfrac12 \log\det \bar P_j(t) - \tfrac12 \log\det P_j(t \mid Z_j)
+        r_j \sum_{t=1}^{T} \big(\tfrac12 \log\det \bar P_j(t)
+                                - \tfrac12 \log\det P_j(t \mid Z_j)\big)
 
-    (``terminal`` or ``cumulative``). The rule for round-off: an unmeasured target's term is
-    exactly 0 (its two log-dets differ by round-off only), and a measured target's term is
-    at least 0 (a measurement never increases the log-det; a term below 0 is round-off, about
-    eps times the covariance's condition number, up to 1e12 in inputs). Every numpy
-    evaluation of Phi goes through here; the compiled engine's utilities are differences of
-    the same terms before this rule (it moves them by round-off only).
+    (``terminal`` or ``cumulative``), ``r_j`` the target's probability of existence. The rule
+    for round-off: an unmeasured target's term is exactly 0 (its two log-dets differ by
+    round-off only), and a measured target's term is at least 0 (a measurement never
+    increases the log-det; a term below 0 is round-off, about eps times the covariance's
+    condition number, up to 1e12 in inputs). Every numpy evaluation of Phi goes through here,
+    and this is its one weighting by ``r`` (the compiled engine's is in
+    :func:`~sensorplan.planners._gains_nb._deltas`); the compiled engine's utilities are
+    differences of the same terms before the round-off rule (it moves them by round-off
+    only). With ``r = 1`` the product changes no bit.
 
     Parameters
     ----------
@@ -455,6 +463,8 @@ def phi_terms(ld_bar: FloatArray, ld_end: FloatArray, ld_sum: FloatArray, cumula
     ld_sum : (...,)         sum over t = 1..T of log det ``P_j(t | Z_j)`` (``cumulative``)
     cumulative : bool       the objective
     measured : (...,) bool  whether any of the target's looks counts (:func:`measured`)
+    existence : (...,) or float, default 1
+        the targets' probabilities of existence r, in [0, 1] (``Context.existence``)
 
     Returns
     -------
@@ -464,7 +474,7 @@ def phi_terms(ld_bar: FloatArray, ld_end: FloatArray, ld_sum: FloatArray, cumula
         info = 0.5 * (ld_bar[..., 1:].sum(axis=-1) - ld_sum)
     else:
         info = 0.5 * (ld_bar[..., -1] - ld_end)
-    return np.where(measured, np.maximum(info, 0.0), 0.0)
+    return existence * np.where(measured, np.maximum(info, 0.0), 0.0)
 
 
 def measured(W_target: FloatArray) -> BoolArray:
@@ -477,7 +487,7 @@ def target_information(ctx: Context, W_target: FloatArray) -> FloatArray:
     P0 = np.asarray(ctx.problem.covs)
     cumulative = ctx.problem.objective == "cumulative"
     _, ld_end, ld_sum = covariance_recursion(P0, W_target, ctx.F, ctx.Q, cumulative)
-    return phi_terms(ctx.ld_bar, ld_end, ld_sum, cumulative, measured(W_target))
+    return phi_terms(ctx.ld_bar, ld_end, ld_sum, cumulative, measured(W_target), ctx.existence)
 
 
 def sum_by_target(ctx: Context, W: FloatArray, targets: IntArray) -> FloatArray:
@@ -502,10 +512,12 @@ def potential(problem: PlanningProblem, plan: Plan) -> tuple[float, FloatArray]:
     r"""The potential Phi of a plan, in nats: the definition planners are held to.
 
     .. math::
-        \Phi(a) = \sum_j \tfrac12 \log\det \bar P_j(T) - \tfrac12 \log\det P_j(T \mid Z_j(a))
+        \Phi(a) = \sum_j r_j \big(\tfrac12 \log\det \bar P_j(T)
+                   - \tfrac12 \log\det P_j(T \mid Z_j(a))\big)
 
-    (``terminal``), or the same summed over t = 1..T (``cumulative``). Unassigned players
-    make no measurement.
+    (``terminal``), or the same summed over t = 1..T (``cumulative``); ``r_j`` is the
+    target's probability of existence (``problem.existence``, 1 by default). Unassigned
+    players make no measurement.
 
     Returns
     -------

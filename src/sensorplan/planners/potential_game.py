@@ -15,13 +15,14 @@ from typing import ClassVar
 import numpy as np
 
 from .._types import FloatArray, IntArray
-from ..errors import ConfigError
-from .anytime import Anytime, BudgetExhausted, check_budget, complete
+from ..limits import Range, param
+from .anytime import Anytime, BudgetExhausted, budget_param, complete
 from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
 from .engine import GameState
 from .epoch_game import EpochGame
 from .information import prepare
 from .problem import PlanningProblem
+from .registry import PlannerSettings, seed_param
 
 
 @dataclass
@@ -149,39 +150,31 @@ def run_sweeps(state: GameState, rng: np.random.Generator, alpha: float, beta: f
     return False, max_outer, trace
 
 
-def check_learning_params(alpha: float, beta: float, max_inner: int, max_outer: int) -> None:
-    """Raise ConfigError naming the planner setting that is out of range."""
-    if not 0.0 < alpha < 1.0:
-        raise ConfigError("planner.alpha", f"must be in (0, 1), got {alpha}")
-    if not 0.0 < beta < 1.0:
-        raise ConfigError("planner.beta", f"must be in (0, 1), got {beta}")
-    if int(max_inner) != max_inner or max_inner < 1:
-        raise ConfigError("planner.max_inner", f"must be an integer >= 1, got {max_inner}")
-    if int(max_outer) != max_outer or max_outer < 1:
-        raise ConfigError("planner.max_outer", f"must be an integer >= 1, got {max_outer}")
+#: Probabilities of the learning that must leave both outcomes possible.
+_OPEN_PROBABILITY = Range(0.0, 1.0, lo_open=True, hi_open=True)
 
 
 @dataclass(frozen=True)
-class LearningSettings:
+class LearningSettings(PlannerSettings):
     """Settings of the paper's learning algorithm, shared by ``pg``, ``pg-refine`` and the
-    decentralized game.
+    decentralized game (each declared once, with its rule).
 
     Attributes
     ----------
-    alpha : float      inertia: probability of keeping the current action
-    beta : float       probability that an inner loop continues after an iteration
-    max_inner, max_outer : int
+    alpha : float      inertia: probability of keeping the current action, in (0, 1)
+    beta : float       probability that an inner loop continues after an iteration, in (0, 1)
+    max_inner, max_outer : int   iterations of an epoch game, sweeps (>= 1)
     seed : int or None used when ``plan`` gets no ``rng``
     """
 
-    alpha: float = 0.3
-    beta: float = 0.95
-    max_inner: int = 50
-    max_outer: int = 10
-    seed: int | None = 0
-
-    def __post_init__(self) -> None:
-        check_learning_params(self.alpha, self.beta, self.max_inner, self.max_outer)
+    alpha: float = param(0.3, bounds=_OPEN_PROBABILITY,
+                         help="Inertia: the probability that a player keeps its action.")
+    beta: float = param(0.95, bounds=_OPEN_PROBABILITY,
+                        help="The probability that an epoch game goes on after an iteration.")
+    max_inner: int = param(50, bounds=Range(1, None),
+                           help="Most iterations of an epoch game.")
+    max_outer: int = param(10, bounds=Range(1, None), help="Most sweeps over the epochs.")
+    seed: int | None = seed_param()
 
     @property
     def learning(self) -> tuple[float, float, int, int]:
@@ -202,11 +195,7 @@ class BudgetedLearningSettings(LearningSettings):
         same as without a budget.
     """
 
-    time_budget: float | None = None
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        check_budget(self.time_budget)
+    time_budget: float | None = budget_param()
 
 
 @register

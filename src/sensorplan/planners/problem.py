@@ -238,6 +238,11 @@ class PlanningProblem:
     buildings : (B, 5)
         Boxes ``x0, y0, x1, y1, height`` (m) that can hide targets; a planned look counts
         with the probability that none does (empty: open ground).
+    existence : (M,), optional
+        Each target's probability of existence r in [0, 1] (default: all 1). Target j's
+        information enters Phi, and so every player's utility, multiplied by r_j: a track
+        that is probably not a real target is worth that much less to look at. Always an
+        ``(M,)`` array once the problem is built.
     """
 
     means: FloatArray
@@ -254,11 +259,14 @@ class PlanningProblem:
     objective: str = "cumulative"
     planning_detection: str = "aware"
     buildings: FloatArray = field(default_factory=lambda: np.zeros((0, 5)))
+    existence: FloatArray | None = None
 
     def __post_init__(self) -> None:
         # Read-only copies: planners cannot mutate the caller's arrays (or each other's).
         for name in ("means", "covs", "positions", "headings"):
             object.__setattr__(self, name, _readonly(getattr(self, name)))
+        existence = np.ones(len(self.means)) if self.existence is None else self.existence
+        object.__setattr__(self, "existence", _readonly(existence))
         object.__setattr__(self, "buildings", _readonly(check_buildings(
             self.buildings, self.world, [float(s.altitude) for s in self.sensors])))
         object.__setattr__(self, "sensors", tuple(self.sensors))
@@ -328,6 +336,7 @@ class PlanningProblem:
         if not np.all(np.isfinite(self.means)):
             j = int(np.flatnonzero(~np.all(np.isfinite(self.means), axis=1))[0])
             raise ConfigError(f"targets[{j}].mean", "must be finite")
+        check_existence(self.existence, M)
         if not _covariances_ok(self.covs):           # one batched check; locate on failure
             for j in range(M):
                 check_covariance(self.covs[j], f"targets[{j}].cov")
@@ -339,6 +348,22 @@ class PlanningProblem:
                 raise ConfigError(f"sensors[{i}].heading", "must be finite")
             if not self.world.contains(self.positions[i]):
                 raise ConfigError(f"sensors[{i}].position", self.world.outside(self.positions[i]))
+
+
+def check_existence(existence: Any, M: int) -> None:
+    """Raise :class:`ConfigError` unless ``existence`` is ``(M,)`` finite numbers in [0, 1]
+    (the field is ``targets.existence``, or ``targets[j].existence`` for one bad value)."""
+    r = np.asarray(existence)
+    if r.shape != (M,):
+        raise ConfigError("targets.existence", f"expected shape ({M},), got {r.shape}")
+    bad = ~np.isfinite(r)
+    if bad.any():
+        raise ConfigError(f"targets[{int(np.flatnonzero(bad)[0])}].existence",
+                          "must be a finite number")
+    bad = (r < 0.0) | (r > 1.0)
+    if bad.any():
+        j = int(np.flatnonzero(bad)[0])
+        raise ConfigError(f"targets[{j}].existence", f"must be in [0, 1], got {r[j]:g}")
 
 
 def check_buildings(buildings: Any, world: MapRect, altitudes: object) -> FloatArray:

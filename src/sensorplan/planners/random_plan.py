@@ -10,15 +10,16 @@ import numpy as np
 from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
 from .information import prepare
 from .problem import Plan, PlanningProblem
+from .registry import PlannerSettings, seed_param
 
 
 @register
 @dataclass(frozen=True)
-class RandomPlanner:
+class RandomPlanner(PlannerSettings):
     """Uniform random feasible plan (a baseline), seeded."""
 
     name: ClassVar[str] = "random"
-    seed: int | None = 0
+    seed: int | None = seed_param()
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
         start = start_clock()

@@ -19,7 +19,10 @@ imported by this one.
 A planner's settings are its dataclass fields (or, for a class that is not a dataclass, its
 constructor's keyword arguments): :func:`check_settings` accepts a key if and only if the
 chosen planner has that setting, checks each value's type against the field's annotation and
-leaves the rules on values to the planner's own constructor.
+leaves the rules on values to the planner's own constructor. The built-in planners declare
+each setting once, as the run settings are declared: a field made by
+:func:`~sensorplan.limits.param` gives its default, help and rule, and
+:class:`PlannerSettings` checks them all when the planner is made.
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ from collections.abc import Iterator, Mapping, MutableMapping
 from typing import Any
 
 from ..errors import ConfigError
-from ..limits import coerce
+from ..limits import Range, check_params, coerce, param
 
 #: Entry-point group through which installed distributions add planners.
 ENTRY_POINT_GROUP = "sensorplan.planners"
@@ -252,6 +255,23 @@ PLANNERS: Mapping[str, type] = Registry()
 # ------------------------------------------------------------------------- settings
 
 
+class PlannerSettings:
+    """Base of a planner dataclass whose settings are declared with
+    :func:`~sensorplan.limits.param`: when it is made, each is checked (type, then rule) in
+    field order, and the first that breaks its rule is a :class:`ConfigError` naming
+    ``planner.<key>`` (:func:`~sensorplan.limits.check_params`)."""
+
+    def __post_init__(self) -> None:
+        check_params(self, "planner")
+
+
+def seed_param() -> Any:
+    """The declaration of a planner's ``seed`` (a new field for each planner class)."""
+    return param(0, bounds=Range(0, None),
+                 help="Seed of the planner's own generator when plan gets no rng (None: "
+                      "fresh entropy).")
+
+
 def planner_settings_of(cls: Any) -> dict[str, Any]:
     """A planner's settings: name -> type annotation (``Any`` when unknown).
 
@@ -374,6 +394,6 @@ def make_planner(name: str, **params: Any) -> Any:
     return instantiate(cls, check_settings(cls, params, construct=False, keep_none=True))
 
 
-__all__ = ["BUILTIN", "ENTRY_POINT_GROUP", "PLANNERS", "Registry", "check_settings",
-           "instantiate", "make_planner", "planner_class", "planner_label", "planner_names",
-           "planner_settings_of", "register", "unknown_planner"]
+__all__ = ["BUILTIN", "ENTRY_POINT_GROUP", "PLANNERS", "PlannerSettings", "Registry",
+           "check_settings", "instantiate", "make_planner", "planner_class", "planner_label",
+           "planner_names", "planner_settings_of", "register", "seed_param", "unknown_planner"]

@@ -240,8 +240,13 @@ class Recorder:
     """Fills a run's arrays step by step and makes the :class:`Episode` (see
     :data:`STEP_ARRAYS`)."""
 
-    def __init__(self, steps: int, n_targets: int, n_sensors: int) -> None:
+    def __init__(self, steps: int, n_targets: int, n_sensors: int,
+                 known_targets: bool = True) -> None:
         self.steps, self.n_sensors = steps, n_sensors
+        # Whether the tracker's update flags are per target (a tracker of known targets)
+        # or per reported track (a multi-target tracker: their count may equal the
+        # targets' by chance).
+        self.known_targets = known_targets
         self.arrays: dict[str, np.ndarray] = {}
         for name in STEP_ARRAYS:
             self.arrays[name] = self._new(name, n_targets)
@@ -278,9 +283,7 @@ class Recorder:
         self._tracks(0, tracks)
 
     def _tracks(self, t: int, tracks: TrackSet) -> None:
-        # copies: a tracker's arrays change with its next step
-        self.tracks.append((t, TrackSet(np.array(tracks.means), np.array(tracks.covs),
-                                        np.array(tracks.existence), np.array(tracks.labels))))
+        self.tracks.append((t, tracks.copy()))
 
     def pose(self, t: int, positions: FloatArray, headings: FloatArray) -> None:
         self.arrays["sensor_positions"][t] = positions
@@ -321,7 +324,7 @@ class Recorder:
         a["used"][t, i], a["discarded"][t, i] = update.used, update.discarded
         g = i[update.gated_out] if len(update.gated_out) else i[:0]
         a["gated_out"][t, aimed[g], g] = True
-        if len(update.negative) == M:            # flags of a tracker of known targets
+        if self.known_targets and len(update.negative) == M:
             a["negative_update"][t, :M], a["inflated"][t, :M] = update.negative, update.inflated
             a["restarted"][t, :M] = update.restarted
             a["map_corrected"][t, :M] = predicted | update.map_corrected

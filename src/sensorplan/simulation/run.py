@@ -114,8 +114,10 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     truth_model = make_population(scenario, init.truth, truth_rng,
                                   np.random.default_rng(streams["births"]))
     tracker = make_tracker(scenario, settings, init.estimate, table)
-    sensing = Sensing(table, scenario.building_array, streams, S, scenario.look_detects)
-    record = Recorder(S, len(init.truth), N)
+    known = settings.tracker.kind == "known"
+    sensing = Sensing(table, scenario.building_array, streams, S, scenario.look_detects,
+                      aims_at_targets=known)
+    record = Recorder(S, len(init.truth), N, known_targets=known)
     record.start(init.truth, tracker.tracks(), init.positions, init.headings)
     schedule = _Schedule(scenario, settings, planner, planner_rng, table, init)
     # Load the compiled kernels now, so that no decision's time includes it (the planners
@@ -154,6 +156,14 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
     P0 = np.array(scenario.initial_cov)
     cls = tracker_class(settings.tracker.kind)
     tr = settings.tracker
+    if tr.kind == "gnn":
+        return cls(
+            table, scenario.dt, (scenario.world.width, scenario.world.height),
+            means=estimate, covs=P0, process_noise=tr.process_noise,
+            resolution=tr.grid_resolution, gate_probability=tr.gate_probability,
+            confirm_hits=tr.confirm_hits, confirm_looks=tr.confirm_looks,
+            delete_misses=tr.delete_misses, die_outside_map=tr.births == "edges",
+            buildings=scenario.building_array)
     if tr.kind != "known":
         return cls(
             table, scenario.dt, (scenario.world.width, scenario.world.height),
@@ -235,7 +245,8 @@ class _Schedule:
             headings=self.headings, sensors=self.sensors, horizon=s.horizon,
             steps_per_epoch=s.steps_per_epoch, dt=self.scenario.dt, process_noise=q,
             world=self.scenario.world, visibility=s.visibility, objective=s.objective,
-            planning_detection=s.planning_detection, buildings=self.buildings)
+            planning_detection=s.planning_detection, buildings=self.buildings,
+            existence=tracks.existence)
         start = time.perf_counter()
         result = checked_plan(self.planner, problem, self.rng, len(record.decisions))
         seconds = _own_seconds(result, time.perf_counter() - start)

@@ -86,6 +86,9 @@ class Sensing:
     buildings : (K, 5)   buildings that can hide a target (none: ``(0, 5)``)
     streams : the run's seed sequences (:func:`~sensorplan.simulation.run.run_streams`)
     steps : S, the run's number of steps
+    look_detects : "target" or "all"   what a look detects (:meth:`look`)
+    aims_at_targets : whether an aim is a target slot (a tracker of known targets) or a
+        track of a multi-target tracker, which has no target to miss
 
     Every sensor draws its two standard normals of measurement noise at every step, whether
     it looks or not, so the noise of one sensor does not depend on the others' plans.
@@ -93,13 +96,14 @@ class Sensing:
 
     def __init__(self, table: FloatArray, buildings: FloatArray,
                  streams: dict[str, np.random.SeedSequence], steps: int,
-                 look_detects: str = "target") -> None:
+                 look_detects: str = "target", aims_at_targets: bool = True) -> None:
         if look_detects not in LOOK_DETECTS:
             raise ValueError(f"look_detects must be one of {LOOK_DETECTS}, got {look_detects!r}")
         N = len(table)
         self.table = table
         self.buildings = buildings
         self.look_detects = look_detects
+        self.aims_at_targets = aims_at_targets
         self.targets = TargetDraws(streams["target_detection"], steps, N)
         self.noise = np.stack([np.random.default_rng(c).standard_normal((steps, 2))
                                for c in streams["noise"].spawn(N)], axis=1)     # (S, N, 2)
@@ -180,12 +184,15 @@ class Sensing:
             if clutter is not None:
                 false[n] = clutter[1][n]
             detections.append(np.concatenate([own, extra]))
+        # A multi-target tracker aims at its own tracks, which are no target slots (it may
+        # report more tracks than there are targets): no look then has a target to miss.
+        at_target = aimed >= 0 if self.aims_at_targets else np.zeros(N, dtype=bool)
         aimed_seen = np.zeros(N, dtype=bool)
-        on = i[aimed[i] >= 0]
+        on = i[at_target[i]]
         aimed_seen[on] = measured[aimed[on], on]
         looks = Looks(sensors=i, aims=aimed[i], positions=positions[i], headings=headings[i],
                       detections=tuple(detections))
-        return looks, Sensed(seen=aimed_seen, missed=(aimed >= 0) & ~aimed_seen,
+        return looks, Sensed(seen=aimed_seen, missed=at_target & ~aimed_seen,
                              false_alarms=false, measured=measured)
 
 

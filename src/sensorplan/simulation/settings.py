@@ -34,7 +34,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import ConfigError
-from ..limits import MAX_PLAN_STEPS, MAX_STEPS, RANGES, SIZE_SETTINGS, Range, coerce
+from ..limits import (MAX_PLAN_STEPS, MAX_STEPS, RANGES, SIZE_SETTINGS, Param, Range,
+                      coerce)
 from ..planners.objective import (OBJECTIVES, PLANNING_DETECTIONS, PLANNING_OCCLUSIONS,
                                   VISIBILITY_MODES)
 from ..tracking.registry import tracker_kinds
@@ -47,9 +48,11 @@ ASSOCIATIONS = ("pda", "nearest")
 SECTIONS = ("planning", "tracker", "run")
 
 
-@dataclass(frozen=True)
-class Setting:
-    """How one run setting is written, checked and documented (a field's metadata).
+@dataclass(frozen=True, kw_only=True)
+class Setting(Param):
+    """How one run setting is written, checked and documented (a field's metadata): a
+    :class:`~sensorplan.limits.Param` (its help, brief, option names, placeholder and rule)
+    with the table that holds it.
 
     Attributes
     ----------
@@ -58,44 +61,15 @@ class Setting:
                           settings without options
     section : str         ``planning``, ``tracker`` or ``run`` (see the module docstring)
     cli : tuple of str    option names of ``sensorplan simulate`` (none: file-only setting)
-    metavar : str         the option's value placeholder
     label : str           short column heading in reports (default: the key)
-    choices : tuple or callable
-                          allowed values (strings), or a function returning them when they
-                          are only known at run time
     names : callable      known values listed in the help when the list is open (other
                           values may pass ``check``: a planner given as module:Class)
-    noun : str            what a value is called in errors: "unknown <noun> 'x'; choose from"
-    bounds : Range        the allowed interval of a number ("must be in [1, 1000], got 0")
-    check : callable      extra rule: raises ValueError with the message
     """
 
     help: str
     section: str
-    brief: str = ""
-    cli: tuple[str, ...] = ()
-    metavar: str = "VALUE"
     label: str = ""
-    choices: tuple[str, ...] | Callable[[], tuple[str, ...]] = ()
     names: Callable[[], tuple[str, ...]] | None = None
-    noun: str = "value"
-    bounds: Range | None = None
-    check: Callable[[Any], None] | None = None
-
-    def allowed(self) -> tuple[str, ...]:
-        """The allowed values (empty: no list)."""
-        return self.choices() if callable(self.choices) else self.choices
-
-    def validate(self, value: Any) -> None:
-        """Raise ``ValueError(message)`` if a value of the right type breaks the rule."""
-        choices = self.allowed()
-        if choices and value not in choices:
-            raise ValueError(f"unknown {self.noun} {value!r}; choose from {', '.join(choices)}")
-        message = self.bounds.violation(value) if self.bounds is not None else ""
-        if message:
-            raise ValueError(message)
-        if self.check is not None:
-            self.check(value)
 
 
 def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
@@ -105,9 +79,11 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
     return field(default=default, default_factory=default_factory, metadata=meta)
 
 
+#: The settings only the PMB tracker reads, and only the GNN tracker.
+PMB_SETTINGS = ("birth_rate", "survival_probability", "report_threshold", "prune_threshold")
+GNN_SETTINGS = ("confirm_hits", "confirm_looks", "delete_misses")
 #: The settings only a multi-target tracker reads.
-MULTI_TARGET_SETTINGS = ("births", "birth_rate", "survival_probability", "report_threshold",
-                         "prune_threshold", "grid_resolution")
+MULTI_TARGET_SETTINGS = ("births", *PMB_SETTINGS, "grid_resolution", *GNN_SETTINGS)
 
 
 def _births() -> tuple[str, ...]:
@@ -306,9 +282,10 @@ class TrackerSettings(_Settings):
     kind: str = setting(
         "known", section="tracker", cli=("--tracker",), metavar="KIND", label="tracker",
         choices=tracker_kinds, noun="tracker kind", brief="The tracker (kind)",
-        help="The tracker: known (one track per target known from the start, the paper's) "
-             "or pmb (a Poisson multi-Bernoulli tracker that finds, confirms and deletes "
-             "targets).")
+        help="The tracker: known (one track per target known from the start, the paper's), "
+             "pmb (a Poisson multi-Bernoulli tracker that finds, confirms and deletes "
+             "targets) or gnn (global nearest neighbour association with M-of-N track "
+             "logic, the engineer's baseline).")
     miss_update: str = setting(
         "negative", section="tracker", cli=("--miss-update",), metavar="MODE",
         brief="A look that misses: negative (update with it) or none (the paper's)",
@@ -394,13 +371,29 @@ class TrackerSettings(_Settings):
     grid_resolution: float = setting(
         25.0, section="tracker", label="grid resolution", bounds=Range(1.0, 1e5),
         help="Side (m) of the map cells on which a multi-target tracker keeps the expected "
-             "number of targets not yet detected.")
+             "number of targets not yet detected (the GNN tracker: from which it starts a "
+             "track).")
+    confirm_hits: int = setting(
+        2, section="tracker", label="confirm hits", bounds=Range(1, 100),
+        help="The GNN tracker confirms a tentative track at this many hits within its first "
+             "confirm_looks looks at it (at most confirm_looks).")
+    confirm_looks: int = setting(
+        3, section="tracker", label="confirm looks", bounds=Range(1, 100),
+        help="The looks at a tentative track within which the GNN tracker needs confirm_hits "
+             "hits, or deletes it.")
+    delete_misses: int = setting(
+        5, section="tracker", label="delete misses", bounds=Range(1, 1000),
+        help="The GNN tracker deletes a track after this many consecutive missed looks at it "
+             "(a look whose sensing region holds its predicted position, in sight).")
 
     def __post_init__(self) -> None:
         check_fields(self)
         if len(self.switching) != len(self.mode_process_noise):
             raise ConfigError("switching", f"must have one row per mode "
                               f"({len(self.mode_process_noise)}), got {len(self.switching)}")
+        if self.confirm_hits > self.confirm_looks:
+            raise ConfigError("confirm_hits", f"must be at most confirm_looks "
+                              f"({self.confirm_looks}), got {self.confirm_hits}")
         if self.reacquire and not self.gate:
             raise ConfigError("reacquire", "needs gate = true (a detection outside the gate "
                               "triggers it)")
@@ -409,12 +402,13 @@ class TrackerSettings(_Settings):
         """The settings that change nothing with the others as they are: the cv filter's q
         (``process_noise``) with the IMM, the IMM's q's and switching with cv, the gate
         probability without the gate, a multi-target tracker's settings with the tracker of
-        known targets and that tracker's with a multi-target one. (A run's header leaves
+        known targets, that tracker's with a multi-target one, and the PMB's and the GNN's
+        own settings with the other. (A run's header leaves
         them out.)"""
         if self.kind != "known":               # a multi-target tracker: cv, its own births
             return ("miss_update", "model", "mode_process_noise", "switching", "gate",
                     "reacquire", "association", "known_map", "known_buildings",
-                    "reflect_walls")
+                    "reflect_walls") + (PMB_SETTINGS if self.kind == "gnn" else GNN_SETTINGS)
         out = ("process_noise",) if self.model == "imm" else ("mode_process_noise",
                                                               "switching")
         return out + (() if self.gate else ("gate_probability",)) + MULTI_TARGET_SETTINGS

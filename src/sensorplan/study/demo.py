@@ -6,6 +6,18 @@ from ..errors import ConfigError
 from .file import parse_study
 from .model import Study
 
+#: The references every demo compares planning ahead with: random and myopic planning.
+_REFERENCES = '''\
+[[methods]]
+name = "random"
+planner = "random"
+
+[[methods]]
+name = "myopic"
+planner = "pg"
+horizon = 1
+'''
+
 #: The study ``sensorplan demo`` runs by default; ``studies/demo.toml`` holds the same text
 #: (tested).
 DEMO_STUDY = '''\
@@ -31,15 +43,7 @@ preset = "slow"
 steps_per_epoch = 1        # a decision every step
 objective = "cumulative"
 
-[[methods]]
-name = "random"
-planner = "random"
-
-[[methods]]
-name = "myopic"
-planner = "pg"
-horizon = 1
-
+''' + _REFERENCES + '''
 [[methods]]
 name = "OLF pg K=3"
 planner = "pg"
@@ -68,15 +72,7 @@ preset = "paper"
 [defaults]
 steps_per_epoch = 2        # a decision every 2 steps, as in the paper's study
 
-[[methods]]
-name = "random"
-planner = "random"
-
-[[methods]]
-name = "myopic"
-planner = "pg"
-horizon = 1
-
+''' + _REFERENCES + '''
 [[methods]]
 name = "OL pg K=3"
 planner = "pg"

@@ -214,7 +214,8 @@ def run_metrics(tables: StudyTables) -> Any:
 
 
 def consistency(tables: StudyTables) -> Any:
-    """Per (method, kind): how honest the tracks are, over steps 1..S of every run.
+    """Per (method, kind): how honest the tracks are, over steps 1..S of every run (for a
+    multi-target tracker, over the target-steps with an assigned track).
 
     Columns: method, kind, n (target-steps), anees (average NEES), band_lo, band_hi (its
     95 % chi-square band for n samples of a consistent filter), high_share (share of
@@ -230,16 +231,19 @@ def consistency(tables: StudyTables) -> Any:
         dk = d if kind == "all" else d[d["kind"] == kind]
         for method, g in dk.groupby("method", observed=True, sort=True):
             nees = g["nees"].to_numpy(float)
+            # A multi-target tracker's target-steps without an assigned track have no NEES.
+            nees = nees[~np.isnan(nees)]
             lo, hi = nees_band(nees.size)
             per_run = g.groupby("run")
             runs = per_run.ngroups
             restarts = g["restarted"].to_numpy() if "restarted" in g else np.zeros(len(g))
             mapc = g["map_corrected"].to_numpy() if "map_corrected" in g else np.zeros(len(g))
             rows.append(dict(
-                method=method, kind=kind, n=nees.size, anees=float(nees.mean()),
+                method=method, kind=kind, n=nees.size,
+                anees=float(nees.mean()) if nees.size else math.nan,
                 band_lo=float(lo), band_hi=float(hi),
-                high_share=float((nees > NEES_HIGH).mean()),
-                median_nees=float(np.median(nees)),
+                high_share=float((nees > NEES_HIGH).mean()) if nees.size else math.nan,
+                median_nees=float(np.median(nees)) if nees.size else math.nan,
                 restarts=float(restarts.sum() / runs), map_corrections=float(mapc.sum() / runs),
                 runs=runs, diverged=int((per_run["error"].max() > DIVERGED_THRESHOLD).sum())))
     return pd.DataFrame(rows)

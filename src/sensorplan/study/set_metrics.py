@@ -65,20 +65,20 @@ class Gospa:
 
 @dataclass(frozen=True)
 class GospaSeries:
-    """GOSPA (alpha = 2) of each of S steps and its parts, as in :class:`Gospa`.
-
-    Attributes
-    ----------
-    distance, localisation, missed, false : (S,) float64
-    assignment : (S, n_max) int64    track slot of each target slot, -1 if the target is
-        missed or the slot holds no live target
-    """
+    """:class:`Gospa` of each of S steps: its fields with a leading step axis, ``(S,)``
+    float64 and ``assignment (S, n_max)`` int64 (track slot of each target slot, -1 also
+    where the slot holds no live target); step ``t`` is :meth:`step`."""
 
     distance: FloatArray
     localisation: FloatArray
     missed: FloatArray
     false: FloatArray
     assignment: IntArray
+
+    def step(self, t: int) -> Gospa:
+        """The :class:`Gospa` of step ``t`` (its target slots as its ``assignment``)."""
+        return Gospa(float(self.distance[t]), float(self.localisation[t]),
+                     float(self.missed[t]), float(self.false[t]), self.assignment[t])
 
 
 def gospa(truth_xy: npt.ArrayLike, track_xy: npt.ArrayLike, c: float, p: float = 2.0,
@@ -144,8 +144,7 @@ def gospa(truth_xy: npt.ArrayLike, track_xy: npt.ArrayLike, c: float, p: float =
     truth, track = truth.reshape(len(truth), d), track.reshape(len(track), d)
     series = gospa_over_time(truth[None], np.ones((1, len(truth)), bool), track[None],
                              np.ones((1, len(track)), bool), c, p)
-    return Gospa(float(series.distance[0]), float(series.localisation[0]),
-                 float(series.missed[0]), float(series.false[0]), series.assignment[0])
+    return series.step(0)
 
 
 def gospa_over_time(truth_xy: npt.ArrayLike, truth_alive: npt.ArrayLike,

@@ -54,8 +54,18 @@ class Looks:
         return np.array([len(d) for d in self.detections], dtype=np.int64)
 
 
+class Rows:
+    """Arrays with one row per track (or Bernoulli), each with its ``labels`` entry: the
+    length is the number of rows."""
+
+    labels: IntArray
+
+    def __len__(self) -> int:
+        return len(self.labels)
+
+
 @dataclass(frozen=True)
-class TrackSet:
+class TrackSet(Rows):
     """The tracks a tracker reports at one time.
 
     Attributes
@@ -72,8 +82,10 @@ class TrackSet:
     existence: FloatArray
     labels: IntArray
 
-    def __len__(self) -> int:
-        return len(self.labels)
+    def copy(self) -> TrackSet:
+        """A copy of the arrays (a tracker's own change with its next step)."""
+        return TrackSet(np.array(self.means), np.array(self.covs), np.array(self.existence),
+                        np.array(self.labels))
 
 
 @dataclass(frozen=True)

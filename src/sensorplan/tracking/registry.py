@@ -13,6 +13,7 @@ from typing import Any
 TRACKERS: dict[str, str] = {
     "known": "sensorplan.tracking.tracker:KnownTargetTracker",
     "pmb": "sensorplan.tracking.pmb.tracker:PMBTracker",
+    "gnn": "sensorplan.tracking.gnn:GNNTracker",
 }
 
 

@@ -19,7 +19,10 @@ ascend). The steps, batched over Bernoullis and detections:
 - :func:`missed_look`: the density and :math:`\bar P` a missed look leaves, by the
   missed-look quadrature;
 - :func:`missed_existence`: the existence a missed look leaves,
-  :math:`r' = r (1 - \bar P) / (1 - r \bar P)`.
+  :math:`r' = r (1 - \bar P) / (1 - r \bar P)`;
+- :func:`first_detection`: the density of a target first seen in one detection, from the
+  undetected intensity's cell components (the tracker's step 5, for a tracker without the
+  intensity: the GNN's initiator).
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ import numpy as np
 from ..._compiled.jit import njit
 from ..._types import BoolArray, FloatArray, IntArray
 from ...models.radar import wrap
+from ..base import Rows
 from ..ekf import position_update
 from ..missed import MIN_OUTSIDE, standard_points
 from .sensing import Look, Sensing
@@ -42,25 +46,17 @@ _TINY = float(np.finfo(float).tiny)
 
 
 @dataclass
-class Bernoullis:
+class Bernoullis(Rows):
     """Every Bernoulli's existence, density and label (arrays replaced, never resized in
-    place).
-
-    Attributes
-    ----------
-    r : (n,)            existence probabilities in [0, 1]
-    means : (n, 4)      ``[x, y, vx, vy]`` (m, m/s)
-    covs : (n, 4, 4)
-    labels : (n,) int   ascending, never reused
+    place): ``r (n,)``, the existence probabilities in [0, 1], and one row per Bernoulli of
+    the arrays a :class:`~sensorplan.tracking.base.TrackSet` reports (``means``, ``covs``,
+    ``labels``; labels ascending, never reused).
     """
 
     r: FloatArray
     means: FloatArray
     covs: FloatArray
     labels: IntArray
-
-    def __len__(self) -> int:
-        return len(self.r)
 
     def keep(self, rows: BoolArray | IntArray) -> None:
         """Keep only ``rows`` (a mask or ascending indices)."""
@@ -429,5 +425,49 @@ def missed_existence(r: FloatArray, pbar: FloatArray) -> FloatArray:
     # r = 1 and Pbar = 1 give 0 / 0: the numerator is 0 whenever the denominator is.
     return r * (1.0 - pbar) / np.maximum(1.0 - r * pbar, _TINY)
 
-__all__ = ["Bernoullis", "PairTerms", "missed_existence", "missed_look", "mixture_moments",
-           "pair_terms", "updates"]
+def first_detection(sensing: Sensing, look: Look, cell_means: FloatArray,
+                    cell_covs: FloatArray, cell_weight: FloatArray, Z: FloatArray,
+                    gate: float) -> tuple[BoolArray, FloatArray, FloatArray]:
+    r"""The density of a target first seen in each detection, as the PMB starts a Bernoulli.
+
+    Each cell component :math:`N([p_c, 0], P_u)` (the velocity prior of
+    :mod:`~sensorplan.tracking.pmb.undetected`) whose innovation gates :math:`z_j` is
+    EKF-updated by it (:func:`updates`); the updates are moment matched
+    (:func:`mixture_moments`) with weights ``cell_weight[c]`` :math:`N(z_j; h(p_c), S_c)`,
+    the cells' parts of :math:`\lambda_u(z_j)` when ``cell_weight`` is
+    :math:`w_c P_d(p_c) v(p_c)`.
+
+    Parameters
+    ----------
+    sensing : Sensing;  look : Look
+    cell_means : (k, 4), cell_covs : (k, 4, 4)   the cells' components
+    cell_weight : (k,) >= 0                       each cell's weight (0: not a candidate)
+    Z : (m, 2)                                    the look's detections
+    gate : float                                  the gate threshold on ``d2``
+
+    Returns
+    -------
+    found : (m,) bool    detections some cell of positive weight gates
+    means : (f, 4), covs : (f, 4, 4)   the densities of the found detections, in order
+    """
+    m = len(Z)
+    if m == 0 or len(cell_means) == 0:
+        return np.zeros(m, dtype=bool), np.zeros((0, 4)), np.zeros((0, 4, 4))
+    terms = pair_terms(sensing, look, cell_means, cell_covs, Z, gate)
+    w = terms.lik * np.asarray(cell_weight, dtype=float)[:, None]          # (k, m)
+    found = (w > 0.0).any(axis=0)
+    # (cell, detection) pairs cell-major, as the PMB's hypotheses list them.
+    cell, det = np.nonzero(w * found[None])
+    if cell.size == 0:
+        return found, np.zeros((0, 4)), np.zeros((0, 4, 4))
+    # cell ascends (np.nonzero is row-major): its distinct values and each pair's index.
+    first = np.concatenate([[True], cell[1:] != cell[:-1]])
+    unique, which = cell[first], np.cumsum(first) - 1
+    xu, Pu = updates(cell_means, cell_covs, terms, unique, which, det)
+    group = np.cumsum(found) - 1
+    _, means, covs = mixture_moments(int(found.sum()), (w[cell, det], group[det], xu, Pu))
+    return found, means, covs
+
+
+__all__ = ["Bernoullis", "PairTerms", "first_detection", "missed_existence", "missed_look",
+           "mixture_moments", "pair_terms", "updates"]
