@@ -125,21 +125,42 @@ FREE_TEXT = {"description", "label", "file", "key", "method", "reference"}
 
 @dataclass
 class Expect:
-    """What a case must give: ``refuse`` (exit 2), and if ``fields`` is not None, an error
-    line naming one of them (or a field inside or around one of them)."""
+    """What a case must give. Each change that must be refused by itself is a reason, with
+    the fields that may name it; a case with a reason must end in exit 2, and unless some
+    other change's effect is unknown (``open``), its error line must name one of the
+    reasons' fields (or a field inside or around one of them)."""
 
-    refuse: bool = False
-    fields: set[str] | None = field(default_factory=set)
-    why: list[str] = field(default_factory=list)
+    reasons: list[tuple[set[str], str]] = field(default_factory=list)
+    open: bool = False
+
+    @property
+    def refuse(self) -> bool:
+        return bool(self.reasons)
+
+    @property
+    def fields(self) -> set[str] | None:
+        return None if self.open else set().union(*(f for f, _ in self.reasons))
+
+    @property
+    def why(self) -> list[str]:
+        return [w for _, w in self.reasons]
 
     def unknown(self) -> None:
-        self.fields = None
+        self.open = True
 
     def bad(self, fields: set[str], why: str) -> None:
-        self.refuse = True
-        self.why.append(why)
-        if self.fields is not None:
-            self.fields |= fields
+        self.reasons.append((set(fields), why))
+
+    def drop(self, prefixes: set[str]) -> None:
+        """Forget the reasons in file values that an option replaces (never read)."""
+        def masked(f: str) -> bool:
+            return any(f == p or f.startswith(p + ".") or f.startswith(p + "[")
+                       for p in prefixes)
+        kept = [(f, w) for f, w in self.reasons
+                if not all(masked(x) or x.startswith("FILE") for x in f)]
+        if len(kept) < len(self.reasons):
+            self.open = True            # what the masked change did is not known
+        self.reasons = kept
 
 
 def dotted(path: tuple[Any, ...], prefix: str = "") -> str:
@@ -192,8 +213,18 @@ def text_level(v: Any, json_doc: bool) -> bool:
 def judge_mutation(m: dict[str, Any], expect: Expect, prefix: str, json_doc: bool,
                    known_keys: set[str]) -> None:
     """Fold one mutation record of ``fuzz_docs.mutate`` into ``expect``."""
-    if expect.fields is not None and text_level(m.get("new"), json_doc):
-        expect.fields.add("FILE")       # the file is refused before its fields are read
+    if text_level(m.get("new"), json_doc) or (m["kind"] == "shape"
+                                              and text_level(m["old"], json_doc)):
+        before = len(expect.reasons)
+        _judge(m, expect, prefix, json_doc, known_keys)
+        for fields, _ in expect.reasons[before:]:
+            fields.add("FILE")          # the file is refused before its fields are read
+        return
+    _judge(m, expect, prefix, json_doc, known_keys)
+
+
+def _judge(m: dict[str, Any], expect: Expect, prefix: str, json_doc: bool,
+           known_keys: set[str]) -> None:
     kind, path = m["kind"], tuple(m["path"])
     here = dotted(path, prefix)
     key, _ = _key_of(path)
@@ -469,8 +500,10 @@ def mutated(draw: Draw, base: dict[str, Any], json_doc: bool, focus: tuple[str, 
         kept.append(m)
     for m in kept:
         judge_mutation(m, expect, prefix, json_doc, keys)
-    if expect.fields is not None and "FILE" in expect.fields:
-        expect.fields = (expect.fields - {"FILE"}) | {f"FILE:{name}"}
+    for fields, _ in expect.reasons:
+        if "FILE" in fields:
+            fields.discard("FILE")
+            fields.add(f"FILE:{name}")
     text = fz.to_json(doc) if json_doc else fz.to_toml(doc)
     data = text.encode("utf-8", "surrogatepass")
     if draw.chance(damage):
@@ -533,6 +566,8 @@ def run_options(draw: Draw, case: Case, overridden: set[tuple[str, str]],
             case.args.append(flag)
             case.done.append(flag)
             overridden.add(OPTION_KEYS[flag])
+            if flag == "--no-gate":
+                case.expect.unknown()     # refused unless re-acquisition is off too
             if draw.chance(0.2):                    # "--gate false": a flag given a value
                 case.args.append("false")
                 case.done.append("(a value after the flag)")
@@ -553,13 +588,9 @@ def run_options(draw: Draw, case: Case, overridden: set[tuple[str, str]],
             case.expect.bad({opt, name}, f"{name} {_text(value)!r}")
 
 
-def unmask(case: Case, overridden: set[tuple[str, str]], log_prefix: str = "") -> None:
+def unmask(case: Case, overridden: set[tuple[str, str]]) -> None:
     """A file value an option overrides is never read: its mutation proves nothing."""
-    if case.expect.fields is None:
-        return
-    masked = {f"{log_prefix}{s}.{k}" for s, k in overridden}
-    if any(f.startswith(m) for f in case.expect.fields for m in masked):
-        case.expect.unknown()
+    case.expect.drop({f"{sec}.{key}" for sec, key in overridden})
 
 
 def scenario_case(draw: Draw, case: Case, keys: set[str], agents: bool) -> None:
@@ -694,9 +725,7 @@ def plan_case(draw: Draw, case: Case, keys: set[str]) -> None:
         case.done.append(f"--planner {name!r}")
         # The file's settings the new planner does not take are dropped: their mutations
         # prove nothing.
-        if case.expect.fields is None or any(f.startswith("planner") for f in
-                                             case.expect.fields):
-            case.expect.unknown()
+        case.expect.drop({"planner"})
         if name not in BUILTIN_PLANNERS:
             case.expect.bad({"--planner"}, f"--planner {name!r}")
     if draw.chance(0.03):
@@ -767,9 +796,133 @@ def study_case(draw: Draw, case: Case, keys: set[str], grid: bool) -> None:
     signals(draw, case)
 
 
-def build(kind: str, seed: int, index: int, keys: set[str]) -> Case:
+def valid_scenario_case(draw: Draw, case: Case, agents: bool) -> None:
+    """A run that must succeed (or be refused by a documented joint rule): a valid file or
+    a preset, valid options only, a fresh output place; Ctrl-C and a closed stdout as in
+    the other cases."""
+    case.expect.unknown()
+    which = draw.pick(["new", "old", "agents", "extreme", "preset"])
+    if which == "preset":
+        case.args += ["--preset", draw.pick(["paper", "radar", "urban"])]
+    else:
+        doc = draw(fz.extreme_scenario()) if which == "extreme" else {
+            "new": fz.SCENARIO_DOC_NEW, "old": fz.SCENARIO_DOC, "agents": fz.AGENTS_DOC}[which]
+        case.files["scenario.toml"] = fz.to_toml(doc).encode()
+        case.args.append("scenario.toml")
+    case.done.append(f"valid run: {which}")
+    if agents:
+        if draw.chance(0.7):
+            case.args += ["--planner", draw.pick(DEC_PLANNERS)]
+        if draw.chance(0.1):
+            case.args += ["--transport", "bus"]
+    elif draw.chance(0.6):
+        case.args += ["--planner", draw.pick([p for p in BUILTIN_PLANNERS
+                                              if p != "brute-force"])]
+    table = dict(RUN_OPTIONS)
+    if agents:
+        planner = next((case.args[i + 1] for i, a in enumerate(case.args)
+                        if a == "--planner"), "dec-jsfp")
+        table.update({o: v for o, v in AGENT_OPTIONS.items()
+                      if o != "--transport" and AGENT_SETTING[o] in DEC_SETTINGS[planner]})
+    for _ in range(draw.int(0, 5)):
+        opt = draw.pick(sorted(table))
+        case.args += [opt, _text(draw.pick(table[opt][0]))]
+    if draw.chance(0.3):
+        case.args.append(draw.pick(["--no-known-map", "--gate", "--no-reacquire"]))
+    case.args += ["--steps", str(draw.int(1, 6)), "--out", "out"]
+    case.done.append(" ".join(case.args[1:]))
+    case.success_files = ["out/episode.npz", "out/episode.png"] + (
+        ["out/agents.json"] if agents else [])
+    if not agents and draw.chance(0.05):
+        case.args.append("--animate")
+    signals(draw, case)
+
+
+def valid_method(draw: Draw, i: int) -> dict[str, Any]:
+    """A study method with a valid planner, horizon and tracker settings."""
+    planner = draw.pick(BUILTIN_PLANNERS)
+    m: dict[str, Any] = {"name": f"m{i} {planner}", "planner": planner}
+    params: dict[str, Any] = {}
+    if planner in ("pg", "pg-refine"):
+        params = {"max_inner": draw.int(1, 10), "max_outer": draw.int(1, 3)}
+    elif planner == "brute-force":
+        params = {"max_plans": 2_000_000}
+    elif planner in DEC_PLANNERS:
+        settings = DEC_SETTINGS[planner]
+        if "rounds" in settings:
+            params["rounds"] = draw.int(1, 30)
+        if "p_loss" in settings:
+            params["p_loss"] = draw.pick([0.0, 0.3, 1.0])
+            params["delay"] = draw.int(0, 2)
+            params["comm_range"] = draw.pick([50.0, 400.0, float("inf")])
+        if "mode" in settings:
+            params["mode"] = draw.pick(["jsfp", "best-response"])
+    if params:
+        m["planner_params"] = params
+    if planner != "brute-force":
+        m["horizon"] = draw.int(1, 2)
+    m["steps_per_epoch"] = draw.int(1, 2)
+    m["execution"] = draw.pick(["ol", "olf"])
+    m["visibility"] = draw.pick(["probabilistic", "mean"])
+    m["objective"] = draw.pick(["cumulative", "terminal"])
+    tracker: dict[str, Any] = {"kind": "known",
+                               "miss_update": draw.pick(["negative", "none"]),
+                               "model": draw.pick(["cv", "imm"]),
+                               "association": draw.pick(["pda", "nearest"])}
+    if draw.chance(0.3):
+        tracker.update(gate=False, reacquire=False)
+    m["tracker"] = tracker
+    return m
+
+
+def valid_study_case(draw: Draw, case: Case, grid: bool) -> None:
+    """A small study or grid that must succeed: valid methods over a preset or the newer
+    scenario file, with 1 or 2 workers."""
+    case.expect.unknown()
+    doc: dict[str, Any] = {"description": "valid", "runs": draw.int(1, 2),
+                           "steps": draw.int(2, 4), "seed": draw.int(0, 99)}
+    if draw.chance(0.3):
+        doc["scenario"] = {"file": "scenario.toml"}
+        case.files["scenario.toml"] = fz.to_toml(fz.SCENARIO_DOC_NEW).encode()
+    else:
+        doc["scenario"] = {"preset": draw.pick(["paper", "radar", "urban"])}
+    doc["methods"] = [valid_method(draw, i) for i in range(draw.int(1, 3))]
+    name = "study.toml"
+    if grid:
+        name = "grid.toml"
+        axes = [dict(draw.pick(fz.GRID_AXES)) for _ in range(draw.int(1, 2))]
+        if len({(a["feature"], a.get("key")) for a in axes}) < len(axes):
+            axes = axes[:1]
+        if any(a.get("key") == "planner_params.rounds" for a in axes) and not any(
+                "rounds" in m.get("planner_params", {}) for m in doc["methods"]):
+            axes = [a for a in axes if a.get("key") != "planner_params.rounds"] or [
+                dict(fz.GRID_AXES[0])]
+        if any(a.get("key") == "horizon" for a in axes):
+            for m in doc["methods"]:
+                if m["planner"] == "brute-force":
+                    m["planner"] = "random"
+                    m.pop("planner_params", None)
+        doc["axes"] = axes
+        doc["design"] = draw.pick(["star", "full"])
+        # A grid compares methods: with no myopic or random reference to fall back on,
+        # it needs [[comparisons]] (and a second method to compare with).
+        if len(doc["methods"]) == 1:
+            doc["methods"].append({"name": "reference", "planner": "random"})
+        doc["comparisons"] = [{"method": doc["methods"][0]["name"],
+                               "reference": doc["methods"][1]["name"]}]
+    case.files[name] = fz.to_toml(doc).encode()
+    case.args += [name, "--out", "out", "--workers", draw.pick(["1", "1", "2"])]
+    case.done.append(f"valid {'grid' if grid else 'study'}: " + ", ".join(
+        m["name"] for m in doc["methods"]))
+    case.success_files = ["out/grid.json"] if grid else ["out/steps.parquet"]
+    signals(draw, case)
+
+
+def build(kind: str, seed: int, index: int, keys: set[str], valid_share: float = 0.0
+          ) -> Case:
     """Case ``index`` of ``kind`` under ``seed``; a draw that runs out of room is drawn
-    again under a derived seed."""
+    again under a derived seed. ``valid_share``: the share of cases that are valid runs
+    (no mutation, valid options: what must work is tried too)."""
     for attempt in range(20):
         tag = f"{seed}:{kind}:{index}" + (f":{attempt}" if attempt else "")
         draw = Draw(tag)
@@ -778,7 +931,12 @@ def build(kind: str, seed: int, index: int, keys: set[str]) -> Case:
         try:
             # Hypothesis' internal draws outside a test (its strategies need a context).
             with BuildContext(draw.data, wrapped_test=lambda: None):
-                if kind == "plan":
+                if valid_share and kind != "plan" and draw.chance(valid_share):
+                    if kind in ("simulate", "agents"):
+                        valid_scenario_case(draw, case, agents=kind == "agents")
+                    else:
+                        valid_study_case(draw, case, grid=kind == "grid")
+                elif kind == "plan":
                     plan_case(draw, case, keys)
                 elif kind in ("simulate", "agents"):
                     scenario_case(draw, case, keys, agents=kind == "agents")
@@ -973,6 +1131,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--timeout", type=float, default=120.0, help="seconds per case")
     parser.add_argument("--python", default=sys.executable)
     parser.add_argument("--only", type=int, nargs="*", help="run these case indices only")
+    parser.add_argument("--valid-share", type=float, default=0.0,
+                        help="share of simulate, agents, study and grid cases that are valid "
+                             "runs (default 0: every case mutated)")
     args = parser.parse_args(argv)
 
     out = args.out / f"{args.kind}-{args.seed}"
@@ -983,7 +1144,7 @@ def main(argv: list[str] | None = None) -> int:
     log = gzip.open(out / "cases.jsonl.gz", "at")
     try:
         for i in indices:
-            case = build(args.kind, args.seed, i, keys)
+            case = build(args.kind, args.seed, i, keys, args.valid_share)
             workdir = Path(tempfile.mkdtemp(prefix="sensorplan-fuzz-"))
             r = run_case(case, args.python, args.timeout, workdir)
             v, why = verdict(case, r, workdir)
