@@ -1211,3 +1211,20 @@ def test_a_signal_inside_the_process_pools_code_waits_for_it() -> None:
     done.add_done_callback(lambda f: seen.append(lands_unraisable(sys._getframe())))
     assert seen == [True]
     assert not lands_unraisable(sys._getframe())
+
+
+@pytest.mark.parametrize(("args", "field", "message"), [
+    (["simulate", "--preset", "paper", "--steps", "x"], "--steps",
+     "must be an integer, got 'x'"),
+    (["simulate", "--preset", "paper", "--steps", "1.5"], "--steps",
+     "must be an integer, got '1.5'"),
+    (["simulate", "--preset", "paper", "--gospa-c", "far"], "--gospa-c",
+     "must be a number, got 'far'"),
+])
+def test_an_option_value_that_is_no_number_is_told_as_a_files_value_is(
+        args: list[str], field: str, message: str, tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    # typer converts option values with pydantic and passed on its words ("Input should be
+    # a valid integer, unable to parse string as an integer").
+    line = assert_bad_input(run(capsys, *args, "--out", tmp_path / "o"), field)
+    assert line == f"error: {field}: {message}"

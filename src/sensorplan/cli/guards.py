@@ -349,7 +349,7 @@ def usage_line(exc: Any, argv: Sequence[str] = ()) -> tuple[str, str]:
         name = getattr(param, "metavar", None) or (param.name or "argument").upper()
         field = opts[0] if opts else name
         # A missing argument or option carries no message of its own.
-        return field, getattr(exc, "message", "") or "is required"
+        return field, _conversion_message(exc) or getattr(exc, "message", "") or "is required"
     option = getattr(exc, "option_name", None)
     if option:
         message = exc.format_message()
@@ -361,6 +361,26 @@ def usage_line(exc: Any, argv: Sequence[str] = ()) -> tuple[str, str]:
     if extra is not None:
         return extra
     return "usage", exc.format_message()
+
+
+def _conversion_message(exc: Any) -> str | None:
+    """The package's words for an option value typer could not convert (typer converts with
+    pydantic and passes its message on: "Input should be a valid integer, ..."): "must be
+    an integer, got 'x'", as a file's value is told; None when it is no such error."""
+    from ..limits import type_error
+
+    errors = getattr(exc.__context__, "errors", None)
+    if not callable(errors):
+        return None
+    try:
+        err = errors()[0]
+    except Exception:  # noqa: BLE001 - not pydantic's error: keep typer's own message
+        return None
+    kind = str(err.get("type", "")).split("_")[0]
+    tp = {"int": int, "float": float, "bool": bool}.get(kind)
+    if tp is not None and "input" in err:
+        return type_error(tp, err["input"])
+    return str(err.get("msg", "")).replace("Input should be", "must be") or None
 
 
 def _extra_argument(exc: Any, argv: Sequence[str]) -> tuple[str, str] | None:
