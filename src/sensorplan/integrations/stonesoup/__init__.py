@@ -32,6 +32,11 @@ What is here (``docs/stonesoup.md`` has the full mapping and its limits):
   the sum over tracks of ``0.5 log det P_prior / det P_post`` after Stone Soup's predictor
   and updater apply every look whose target's predicted mean is in the field of view.
 
+- :class:`PMBStoneSoupTracker`: sensorplan's Poisson multi-Bernoulli tracker as a Stone Soup
+  tracker (iterates ``(time, tracks)`` over a detector, or takes one scan at a time) for
+  Stone Soup's ``LinearGaussian`` position model; its tracks' states are
+  :class:`BernoulliGaussianState`\ s with the existence probability, their ids the labels.
+
 - :class:`MapRect` ``(x0, y0, width, height)``: the map in world coordinates with any origin;
   the manager plans in the core's frame (world minus the origin) and acts in world
   coordinates.
@@ -57,10 +62,12 @@ from ._convert import (STONESOUP_ORDER, from_gaussian_state, from_stonesoup_cov,
 from ._detection import ordered_detections
 from ._manager import MutualInformationReward, SensorplanManager, execute
 from ._measurement import RadarMeasurementModel
+from ._pmb import BernoulliGaussianState, PMBStoneSoupTracker, gaussian_cell_masses
 from ._serialise import yaml_init
 from ._world import DEFAULT_WORLD, MapRect
 
 __all__ = ["DEFAULT_WORLD", "STONESOUP_ORDER", "AimAction", "AimActionGenerator",
+           "BernoulliGaussianState", "PMBStoneSoupTracker", "gaussian_cell_masses",
            "LatticeMovable", "LatticeMoveAction", "LatticeMoveActionGenerator", "MapRect",
            "MutualInformationReward", "RadarMeasurementModel", "SensorplanManager",
            "SensorplanRadar", "execute", "from_gaussian_state", "from_stonesoup_cov",

@@ -1,0 +1,328 @@
+"""Peer comparison: sensorplan's trackers against Stone Soup's on the same detections.
+
+For each run of a filter benchmark (``williams15`` or ``vo12``: scripted truth,
+:mod:`sensorplan.models.scripted`; linear position sensor, :mod:`sensorplan.models.linear`)
+the detections are drawn once, from the run's generator (``SeedSequence(seed).spawn(runs)``),
+and every configuration of the study file tracks the same detections: sensorplan's ``pmb``
+(and ``gnn`` when that tracker kind is registered), Stone Soup's GM-PHD filter and Stone
+Soup's JPDA tracker (``sensorplan.integrations.stonesoup._peers``). The study file
+(``studies/trackers/peers.toml``) fixes the configurations, run count, seeds and the
+decision rule before any run.
+
+Per run and configuration the CSV gets the mean over steps of GOSPA (p = 2, alpha = 2, the
+benchmark's cut-off) and of its localisation, missed and false parts (m^2), and the median
+and mean seconds per step (predict and update; the same process runs every configuration,
+one after another). The CSV is resumable: runs already written are skipped. The summary
+prints, per configuration: mean GOSPA with a 95 % t-interval, median, the paired
+difference to ``pmb`` with its 95 % t-interval, median seconds per step and the ratio to
+``pmb``'s, and the decision rule's verdicts.
+
+Run::
+
+    nice .venv/bin/python benchmarks/compare_trackers.py --benchmark williams15 \\
+        --study studies/trackers/peers.toml --out out/peers/williams15.csv [--runs N]
+        [--summary-only]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import datetime
+import math
+import sys
+import time
+import tomllib
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy import stats
+
+from sensorplan.integrations.stonesoup._peers import (BenchmarkModel, benchmark_model,
+                                                       gmphd_tracker, jpda_deleter,
+                                                       jpda_tracker, positions, to_detections)
+from sensorplan.integrations.stonesoup._pmb import gaussian_cell_masses
+from sensorplan.models import linear
+from sensorplan.models.scripted import scripted_truth
+from sensorplan.study.set_metrics import gospa_over_time
+from sensorplan.tracking.base import Looks
+from sensorplan.tracking.pmb.tracker import PMBTracker
+from sensorplan.tracking.registry import TRACKERS, tracker_class
+
+FIELDS = ["benchmark", "run", "config", "mean_gospa", "localisation", "missed", "false",
+          "step_seconds_median", "step_seconds_mean", "steps"]
+T0 = datetime.datetime(2026, 1, 1)
+
+
+def fail(field: str, message: str) -> None:
+    print(f"error: {field}: {message}", file=sys.stderr)
+    raise SystemExit(2)
+
+
+# ------------------------------------------------------------------------------ one run's data
+def draw_run(name: str, rng: np.random.Generator) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The truth's live positions and one scan's detections at each step ``1..S``."""
+    truth = scripted_truth(name)
+    sensor = benchmark_model(name).sensor
+    xs, zs = [], []
+    for _ in range(truth.steps):
+        states, alive = truth.step()
+        xy = states[alive, :2]
+        z, _ = linear.scan(sensor, xy, rng)
+        xs.append(xy)
+        zs.append(z)
+    return xs, zs
+
+
+def gospa_parts(truth: list[np.ndarray], tracks: list[np.ndarray], c: float) -> np.ndarray:
+    """Mean over steps of GOSPA and its localisation, missed and false parts, ``(4,)``."""
+    S = len(truth)
+    n = max(1, max(len(x) for x in truth))
+    m = max(1, max(len(y) for y in tracks))
+    T = np.zeros((S, n, 2))
+    A = np.zeros((S, n), bool)
+    Y = np.zeros((S, m, 2))
+    P = np.zeros((S, m), bool)
+    for s in range(S):
+        T[s, :len(truth[s])], A[s, :len(truth[s])] = truth[s], True
+        Y[s, :len(tracks[s])], P[s, :len(tracks[s])] = tracks[s], True
+    g = gospa_over_time(T, A, Y, P, c)
+    return np.array([g.distance.mean(), g.localisation.mean(), g.missed.mean(),
+                     g.false.mean()])
+
+
+# ------------------------------------------------------------------------------ the trackers
+StepFn = Callable[[int, np.ndarray], dict[str, np.ndarray]]
+
+
+def pmb_runner(model: BenchmarkModel, cfg: dict[str, Any]) -> StepFn:
+    """One step of sensorplan's PMB tracker: predict, update with the scan, report."""
+    res = float(cfg.get("resolution", 25.0))
+    birth = gaussian_cell_masses(model.world, res, model.birth_means[:, :2],
+                                 np.sqrt(model.birth_covs[:, [0, 1], [0, 1]]),
+                                 model.birth_weights)
+    tr = PMBTracker(model.sensor, model.dt, (model.world.width, model.world.height),
+                    motion=(model.F, model.Q), survival_probability=model.survival,
+                    births=birth, resolution=res, velocity_var=model.velocity_var)
+    tr.undetected = gaussian_cell_masses(model.world, res, model.birth_means[:, :2],
+                                         np.sqrt(model.birth_covs[:, [0, 1], [0, 1]]),
+                                         model.initial_weights)
+    return sensorplan_steps(tr, cfg["name"])
+
+
+def gnn_runner(model: BenchmarkModel, cfg: dict[str, Any]) -> StepFn:
+    """sensorplan's GNN tracker with its defaults and the benchmark's sensor and motion."""
+    cls = tracker_class("gnn")
+    tr = cls(model.sensor, model.dt, (model.world.width, model.world.height),
+             motion=(model.F, model.Q))
+    return sensorplan_steps(tr, cfg["name"])
+
+
+def sensorplan_steps(tr: Any, name: str) -> StepFn:
+    one = (np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64), np.zeros((1, 2)),
+           np.zeros(1))
+
+    def step(k: int, z: np.ndarray) -> dict[str, np.ndarray]:
+        tr.predict()
+        tr.update(Looks(*one, (z,)))
+        return {name: np.array(tr.tracks().means[:, :2])}
+    return step
+
+
+def gmphd_runner(model: BenchmarkModel, cfgs: list[dict[str, Any]]) -> StepFn:
+    """Stone Soup's GM-PHD filter; every state threshold of ``cfgs`` reads the same run."""
+    tr = gmphd_tracker(model, T0)
+    mm = model.measurement_model
+
+    def step(k: int, z: np.ndarray) -> dict[str, np.ndarray]:
+        now = T0 + datetime.timedelta(seconds=k * model.dt)
+        tr.update_tracker(now, to_detections(z, now, mm))
+        return {c["name"]: positions(tr.reported(float(c["state_threshold"]))) for c in cfgs}
+    return step
+
+
+def jpda_runner(model: BenchmarkModel, cfg: dict[str, Any]) -> StepFn:
+    """Stone Soup's JPDA tracker with the configuration's confirmation and deleter."""
+    tr = jpda_tracker(model, int(cfg["min_points"]), jpda_deleter(cfg["deleter"], model), T0)
+    mm = model.measurement_model
+
+    def step(k: int, z: np.ndarray) -> dict[str, np.ndarray]:
+        now = T0 + datetime.timedelta(seconds=k * model.dt)
+        _, tracks = tr.update_tracker(now, to_detections(z, now, mm))
+        return {cfg["name"]: positions(t.state for t in tracks)}
+    return step
+
+
+def groups(configs: list[dict[str, Any]]) -> list[tuple[str, list[dict[str, Any]]]]:
+    """The tracker runs of a run: one per configuration, except that GM-PHD configurations
+    (which differ only in the state threshold) share one filter run."""
+    out: list[tuple[str, list[dict[str, Any]]]] = []
+    phd = [c for c in configs if c["kind"] == "gmphd"]
+    for c in configs:
+        if c["kind"] == "gmphd":
+            if c is phd[0]:
+                out.append(("gmphd", phd))
+        else:
+            out.append((c["kind"], [c]))
+    return out
+
+
+def run_group(kind: str, cfgs: list[dict[str, Any]], model: BenchmarkModel,
+              zs: list[np.ndarray]) -> tuple[dict[str, list[np.ndarray]], np.ndarray]:
+    if kind == "pmb":
+        step = pmb_runner(model, cfgs[0])
+    elif kind == "gnn":
+        step = gnn_runner(model, cfgs[0])
+    elif kind == "gmphd":
+        step = gmphd_runner(model, cfgs)
+    else:
+        step = jpda_runner(model, cfgs[0])
+    out: dict[str, list[np.ndarray]] = {c["name"]: [] for c in cfgs}
+    seconds = np.empty(len(zs))
+    for k, z in enumerate(zs):
+        t = time.perf_counter()
+        reported = step(k + 1, z)
+        seconds[k] = time.perf_counter() - t
+        for name, xy in reported.items():
+            out[name].append(xy)
+    return out, seconds
+
+
+# ------------------------------------------------------------------------------ the study
+def load(study: Path, benchmark: str) -> dict[str, Any]:
+    try:
+        spec = tomllib.loads(study.read_text())
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        fail("--study", str(exc))
+    spec["configs"] = [c for c in spec["configs"]
+                       if c["kind"] != "gnn" or "gnn" in TRACKERS]
+    spec["seed"] = int(spec["seeds"][benchmark])
+    return spec
+
+
+def done_runs(path: Path, benchmark: str) -> dict[int, set[str]]:
+    """The configurations already written for each run of ``benchmark``."""
+    have: dict[int, set[str]] = {}
+    if path.exists():
+        with path.open() as f:
+            for row in csv.DictReader(f):
+                if row["benchmark"] == benchmark:
+                    have.setdefault(int(row["run"]), set()).add(row["config"])
+    return have
+
+
+def run_study(spec: dict[str, Any], benchmark: str, runs: int, out: Path) -> None:
+    model = benchmark_model(benchmark)
+    c = float(spec["gospa"][benchmark])
+    configs = spec["configs"]
+    seeds = np.random.SeedSequence(spec["seed"]).spawn(int(spec["runs"]))
+    if runs > len(seeds):
+        fail("--runs", f"at most the study's {len(seeds)} runs")
+    have = done_runs(out, benchmark)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    new = not out.exists()
+    with out.open("a", newline="") as f:
+        writer = csv.DictWriter(f, FIELDS)
+        if new:
+            writer.writeheader()
+        for r in range(runs):
+            missing = [cf for cf in configs if cf["name"] not in have.get(r, set())]
+            if not missing:
+                continue
+            t_run = time.perf_counter()
+            truth, zs = draw_run(benchmark, np.random.default_rng(seeds[r]))
+            for kind, cfgs in groups(missing):
+                tracks, seconds = run_group(kind, cfgs, model, zs)
+                for cf in cfgs:
+                    g = gospa_parts(truth, tracks[cf["name"]], c)
+                    writer.writerow({"benchmark": benchmark, "run": r, "config": cf["name"],
+                                     "mean_gospa": repr(float(g[0])),
+                                     "localisation": repr(float(g[1])),
+                                     "missed": repr(float(g[2])),
+                                     "false": repr(float(g[3])),
+                                     "step_seconds_median": repr(float(np.median(seconds))),
+                                     "step_seconds_mean": repr(float(seconds.mean())),
+                                     "steps": len(zs)})
+            f.flush()
+            print(f"{benchmark} run {r}: {time.perf_counter() - t_run:.1f} s", flush=True)
+
+
+def t_interval(x: np.ndarray) -> tuple[float, float, float]:
+    m = float(np.mean(x))
+    if len(x) < 2:
+        return m, math.nan, math.nan
+    h = float(stats.t.ppf(0.975, len(x) - 1) * np.std(x, ddof=1) / math.sqrt(len(x)))
+    return m, m - h, m + h
+
+
+def summary(out: Path, benchmark: str, runs: int, configs: list[dict[str, Any]]) -> None:
+    rows: dict[str, dict[int, dict[str, float]]] = {}
+    with out.open() as f:
+        for row in csv.DictReader(f):
+            if row["benchmark"] == benchmark and int(row["run"]) < runs:
+                rows.setdefault(row["config"], {})[int(row["run"])] = {
+                    k: float(row[k]) for k in FIELDS[3:]}
+    names = [c["name"] for c in configs if c["name"] in rows]
+    common = sorted(set.intersection(*(set(rows[n]) for n in names)))
+    if not common:
+        print("no complete runs yet")
+        return
+
+    def col(name: str, key: str) -> np.ndarray:
+        return np.array([rows[name][r][key] for r in common])
+
+    base_g = col("pmb", "mean_gospa")
+    base_t = float(np.median(col("pmb", "step_seconds_median")))
+    print(f"\n{benchmark}: {len(common)} paired runs, GOSPA p = 2, alpha = 2 (m)")
+    head = (f"{'config':<18} {'mean GOSPA [95% CI]':>24} {'median':>7} "
+            f"{'loc':>7} {'missed':>7} {'false':>7} {'diff vs pmb [95% CI]':>26} "
+            f"{'s/step':>8} {'x pmb':>6}")
+    print(head)
+    for n in names:
+        g = col(n, "mean_gospa")
+        m, lo, hi = t_interval(g)
+        d, dlo, dhi = t_interval(base_g - g)
+        t = float(np.median(col(n, "step_seconds_median")))
+        parts = [float(np.mean(col(n, k))) for k in ("localisation", "missed", "false")]
+        diff = "" if n == "pmb" else f"{d:+8.3f} [{dlo:+.3f}, {dhi:+.3f}]"
+        print(f"{n:<18} {m:8.3f} [{lo:7.3f}, {hi:7.3f}] {float(np.median(g)):7.3f} "
+              f"{parts[0]:7.2f} {parts[1]:7.2f} {parts[2]:7.2f} {diff:>26} "
+              f"{t:8.4f} {t / base_t:6.1f}")
+    print("diff = pmb - config (negative: pmb lower); loc/missed/false: mean parts (m^2); "
+          "s/step: median over runs of each run's median seconds per step")
+    for family in ("gmphd", "jpda"):
+        fam = [c["name"] for c in configs if c["kind"] == family and c["name"] in names]
+        if not fam:
+            continue
+        best = min(fam, key=lambda n: float(np.mean(col(n, "mean_gospa"))))
+        d, dlo, dhi = t_interval(base_g - col(best, "mean_gospa"))
+        verdict = ("pmb better" if dhi < 0 else "pmb worse" if dlo > 0
+                   else "not distinguished")
+        print(f"decision vs {family} (best: {best}): pmb - best = {d:+.3f} "
+              f"[{dlo:+.3f}, {dhi:+.3f}] -> {verdict}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--benchmark", choices=("williams15", "vo12"), required=True)
+    ap.add_argument("--study", type=Path, default=Path("studies/trackers/peers.toml"))
+    ap.add_argument("--out", type=Path, required=True, help="the CSV (appended, resumable)")
+    ap.add_argument("--runs", type=int, default=None,
+                    help="runs to do (the first ones of the study's; default all)")
+    ap.add_argument("--summary-only", action="store_true", help="print the summary only")
+    args = ap.parse_args(argv)
+    spec = load(args.study, args.benchmark)
+    runs = int(spec["runs"]) if args.runs is None else args.runs
+    if runs < 1:
+        fail("--runs", f"must be >= 1, got {runs}")
+    if not args.summary_only:
+        run_study(spec, args.benchmark, runs, args.out)
+    summary(args.out, args.benchmark, runs, spec["configs"])
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
