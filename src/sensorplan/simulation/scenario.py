@@ -504,7 +504,10 @@ PRESETS: dict[str, Callable[[], Scenario]] = {"paper": paper_scenario, "radar": 
 #: file's tables would: a given option, file key or study key replaces them. The scan
 #: presets set their length and GOSPA cut-off from their sources.
 PRESET_SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
-    "search": {"tracker": {"kind": "pmb"}, "run": {"steps": 200}},
+    # The tracker's birth model is the scenario's own: its targets are born at the edges at
+    # the preset's rate (the filter benchmarks' trackers, too, have their sources' births).
+    "search": {"tracker": {"kind": "pmb", "births": "edges", "birth_rate": SEARCH_BIRTH_RATE},
+               "run": {"steps": 200}},
     "williams15": {"tracker": {"kind": "pmb"},
                    "run": {"steps": BENCHMARKS["williams15"].steps,
                            "gospa_c": BENCHMARKS["williams15"].gospa_c}},
