@@ -456,7 +456,8 @@ def load_study_dir(out: str | Path) -> StudyTables:
     order = pd.CategoricalDtype(study.method_names, ordered=True)
     for df in frames.values():
         df["method"] = df["method"].astype(order)
+    kinds = set(study.scenario.target_kinds) | set(frames["steps"]["kind"].unique())
     frames["steps"]["kind"] = frames["steps"]["kind"].astype(
-        pd.CategoricalDtype(sorted(set(study.scenario.target_kinds)), ordered=True))
+        pd.CategoricalDtype(sorted(kinds), ordered=True))
     return StudyTables(study, meta, frames["steps"], frames["decisions"], frames["sensors"],
                        frames["tracks"], frames["gospa"], complete, runs_done)

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..simulation.run import Episode
+from .lifespan import slot_kinds
 from .set_metrics import GOSPA_CUTOFF, episode_set_metrics, with_assigned_tracks
 
 #: Tidy tables, in the order a part's files are written (the last one marks it done).
@@ -88,7 +89,8 @@ def episode_tables(episode: Episode, run: int, method: str) -> dict[str, dict[st
     S1, M = episode.error.shape
     N = episode.looked.shape[1]
     D = episode.decision_steps.shape[0]
-    kinds = np.asarray(episode.target_kinds, dtype=object)
+    # Slot s moves as template s mod T: with births there are more slots than templates.
+    kinds = np.asarray(slot_kinds(tuple(episode.target_kinds), M), dtype=object)
     measured = np.asarray(episode.measured)                            # (S+1, M, N)
     steps = {
         "run": np.full(S1 * M, run, dtype=np.int32),
