@@ -473,8 +473,13 @@ def episode_figure(episode: Episode, scenario: Scenario) -> Figure:
     """The static figure of a run (see :func:`plot_episode`), not yet saved."""
     from matplotlib.patches import Rectangle
 
+    from ..study.lifespan import is_set_run
     from . import swarm as dense
 
+    if is_set_run(episode):
+        from .sets import set_episode_figure
+
+        return set_episode_figure(episode, scenario)
     run = run_view(episode, scenario)
     W, H = scenario.world.width, scenario.world.height
     fig, ax, ax_time, ax_err = episode_layout(episode, scenario)
@@ -512,6 +517,12 @@ def plot_episode(episode: Episode, scenario: Scenario, path: str | Path) -> Path
     - Timeline: one row per sensor, one cell per step in the colour of the target it looked
       at, hatched when the look missed; decisions as thin lines; false alarms as dots.
     - Errors: each target's position error over time and the filter's own RMS error.
+
+    A run of changing sets (a multi-target tracker, or targets born or dying) is drawn from
+    its set records instead (:mod:`sensorplan.figures.sets`): each target over its life span
+    with birth and death markers, the reported tracks by label with their line width growing
+    with their existence r, false tracks dashed, confirmations and deletions marked, and
+    GOSPA's parts in place of the per-target errors.
 
     Runs with more than :data:`DENSE_SENSORS` sensors or :data:`DENSE_TARGETS` targets are
     drawn condensed (:mod:`sensorplan.figures.swarm`), and the legend and title summarise
