@@ -28,6 +28,7 @@ from .set_metrics import GOSPA_CUTOFF, set_metrics
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..simulation.episode import Episode
+    from .model import Study
 
 
 @dataclass(frozen=True)
@@ -205,3 +206,12 @@ def looked_labels(episode: Episode) -> IntArray:
     row = np.where(ok, start[:, None] + np.maximum(looked, 0), 0)
     labels = np.asarray(episode.track_label, dtype=np.int64)
     return np.where(ok, labels[row] if len(labels) else -1, -1)
+
+
+def study_has_sets(study: Study) -> bool:
+    """Whether a study is one of changing sets: a method with a multi-target tracker, or a
+    truth whose targets are born, die or are scripted."""
+    sc = study.scenario
+    return (any(m.settings.tracker.kind != "known" for m in study.methods)
+            or sc.births != "none" or sc.survival_probability < 1.0
+            or sc.scripted is not None)
