@@ -318,7 +318,8 @@ class _Frames:
                        markeredgecolor="k", label="the look returned no detection"),
                 extra[-1]]
             set_legend(ax, episode, scenario,
-                       set_handles(self.sets, np.array([], int), self.dt)[1:-3] + tail_entries)
+                       set_handles(self.sets, np.array([], int), self.dt)[1:-3] + tail_entries,
+                       summary=True)
         else:
             map_legend(ax, episode, scenario, extra)
         # The legend lives in the right-hand column (frames have a fixed size: no "tight").

@@ -279,9 +279,12 @@ def set_handles(view: SetView, times: np.ndarray, dt: float) -> list[Any]:
     ]
 
 
-def set_legend(ax: Axes, episode: Episode, scenario: Scenario, extra: list[Any]) -> None:
-    """Legend right of the map: the target slots (colour, kind; a summary above
-    :data:`~sensorplan.figures.view.LEGEND_ITEMS`), the sensors, then ``extra``."""
+def set_legend(ax: Axes, episode: Episode, scenario: Scenario, extra: list[Any],
+               summary: bool = False) -> None:
+    """Legend right of the map: the target slots (colour, kind; one summary entry above
+    :data:`~sensorplan.figures.view.LEGEND_ITEMS` or with ``summary``: the animation names
+    its targets on the map and needs the room for its event log), the sensors, then
+    ``extra``."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
@@ -291,7 +294,7 @@ def set_legend(ax: Axes, episode: Episode, scenario: Scenario, extra: list[Any])
 
     M = np.asarray(episode.alive).shape[1]
     kinds = slot_kinds(tuple(episode.target_kinds), M)
-    if M > LEGEND_ITEMS:
+    if M > LEGEND_ITEMS or summary:
         handles: list[Any] = [Patch(facecolor="0.6", label=f"{M} targets, one colour each")]
     else:
         handles = [Patch(facecolor=target_color(j), label=f"T{j} ({kinds[j]})")
@@ -440,7 +443,7 @@ def set_episode_figure(episode: Episode, scenario: Scenario) -> Figure:
 #: Steps an event's marker stays on the animation's map after the event.
 EVENT_STEPS = 3
 #: Lines of the animation's event log (the latest events).
-LOG_LINES = 8
+LOG_LINES = 8      # at most; fewer when the legend leaves less room
 
 
 class SetLayer:
@@ -485,6 +488,7 @@ class SetLayer:
                              for k in range(view.alive.shape[1])]
         self.log = log_ax.text(0.0, 0.0, "", transform=log_ax.transAxes, fontsize=7.5,
                                va="top", ha="left", family="monospace")
+        self.log_room = LOG_LINES
         self.log_lines = [f"{t:>4d}  {view.events.text(t)}" for t in range(1, view.S + 1)
                           if view.events.text(t)]
         self.log_steps = [t for t in range(1, view.S + 1) if view.events.text(t)]
@@ -498,6 +502,10 @@ class SetLayer:
         box = legend.get_window_extent(self.log_ax.figure.canvas.get_renderer())  # type: ignore[attr-defined]
         y = self.log_ax.transAxes.inverted().transform((0.0, box.y0))[1]
         self.log.set_position((0.0, y - 0.03))
+        # Lines that fit between the legend and the bottom of the column (the heading too).
+        bottom = self.log_ax.get_window_extent().y0
+        line = 1.25 * self.log.get_fontsize() * float(self.log_ax.figure.dpi) / 72.0
+        self.log_room = int(max(0, min(LOG_LINES, (box.y0 - bottom) / line - 2)))
 
     def update(self, t: int) -> None:
         """Move every artist to step ``t``."""
@@ -557,8 +565,9 @@ class SetLayer:
         empty = on[v.empty_look[t, on]]
         self.cross.set_offsets(look[empty].reshape(-1, 2))
         shown = int(np.searchsorted(self.log_steps, t, side="right"))
-        self.log.set_text("step  events (latest last)\n"
-                          + "\n".join(self.log_lines[max(shown - LOG_LINES, 0):shown]))
+        latest = self.log_lines[max(shown - self.log_room, 0):shown][::-1]
+        self.log.set_text("step  events (latest first)\n" + "\n".join(latest)
+                          if self.log_room else "")
 
 
 def _faded(rgb: np.ndarray, age: np.ndarray, tau: float) -> np.ndarray:
