@@ -504,7 +504,7 @@ class SetLayer:
         self.log.set_position((0.0, y - 0.03))
         # Lines that fit between the legend and the bottom of the column (the heading too).
         bottom = self.log_ax.get_window_extent().y0
-        line = 1.25 * self.log.get_fontsize() * float(self.log_ax.figure.dpi) / 72.0
+        line = 1.25 * float(self.log.get_fontsize()) * float(self.log_ax.figure.dpi) / 72.0
         self.log_room = int(max(0, min(LOG_LINES, (box.y0 - bottom) / line - 2)))
 
     def update(self, t: int) -> None:
