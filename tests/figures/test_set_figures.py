@@ -182,3 +182,22 @@ def test_animation_shows_the_events(search_run, tmp_path: Path) -> None:
 
     with Image.open(path) as im:
         assert im.n_frames == len(range(0, STEPS + 1, 5))
+
+
+def test_a_run_with_no_target_and_no_track_draws(tmp_path: Path) -> None:
+    from sensorplan.figures.animation import animate_episode
+    from sensorplan.figures.run import episode_figure
+    from sensorplan.simulation import run_episode
+    from sensorplan.simulation.scenario import search_scenario
+    from sensorplan.simulation.settings import RunSettings, TrackerSettings
+
+    scenario = dataclasses.replace(search_scenario(), look_detects="all", initial_targets=0,
+                                   birth_rate=1e-9)
+    ep = run_episode(scenario, RunSettings(planner="pg", steps=3,
+                                           tracker=TrackerSettings(kind="pmb")), 1)
+    assert not ep.alive.any() and len(ep.track_step) == 0
+    ax = episode_figure(ep, scenario).axes[0]
+    for name in ("births", "deaths", "confirmations", "deletions"):
+        (markers,) = _gid(ax, name)
+        assert len(markers.get_offsets()) == 0
+    assert animate_episode(ep, scenario, tmp_path / "empty.gif", dpi=30).exists()

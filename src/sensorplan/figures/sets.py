@@ -96,13 +96,14 @@ class SetView:
         rows = self.rows_at(t)
         labels = self.label[rows]
         want = self.looked[t]
+        N = len(want)
+        if not len(labels):
+            return np.full((N, 2), np.nan), np.full((N, 3), 0.5)
         hit = want[:, None] == labels[None, :]
         k = np.where(hit.any(axis=1), hit.argmax(axis=1), -1)
         ok = (want >= 0) & (k >= 0)
-        xy = np.where(ok[:, None], self.xy[rows][np.maximum(k, 0)] if len(labels)
-                      else np.nan, np.nan)
-        rgb = np.where(ok[:, None], self.rgb[rows][np.maximum(k, 0)] if len(labels)
-                       else 0.5, 0.5)
+        xy = np.where(ok[:, None], self.xy[rows][np.maximum(k, 0)], np.nan)
+        rgb = np.where(ok[:, None], self.rgb[rows][np.maximum(k, 0)], 0.5)
         return xy, rgb
 
 
