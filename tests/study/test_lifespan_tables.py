@@ -104,3 +104,56 @@ def test_the_live_targets_are_those_of_the_run(search_dir: Path) -> None:
     kinds = ep.target_kinds
     assert list(mine["kind"]) == [kinds[k % len(kinds)] for k in j]
     assert ep.alive.shape[1] > len(kinds)           # more slots than templates
+
+
+def test_the_sensors_table_names_the_looked_at_track(search_dir: Path) -> None:
+    """``label`` is the label of the track at the looked index of the set each epoch started
+    from (steps_per_epoch 1: the set of the step before)."""
+    sensors = pd.read_parquet(search_dir / "sensors.parquet")
+    tracks = pd.read_parquet(search_dir / "tracks.parquet")
+    from sensorplan.study.replay import replay_run
+
+    ep = replay_run(search_dir, 0, "pmb").episode
+    mine = sensors[sensors["run"] == 0].sort_values(["step", "sensor"])
+    looked = mine.pivot(index="step", columns="sensor", values="target").to_numpy()
+    label = mine.pivot(index="step", columns="sensor", values="label").to_numpy()
+    mine_tracks = tracks[tracks["run"] == 0]
+    assert (label[1:] >= 0).any()
+    for t in range(1, looked.shape[0]):
+        before = ep.track_label[ep.track_step == t - 1]      # the tracker's order
+        for i in range(looked.shape[1]):
+            want = before[looked[t, i]] if 0 <= looked[t, i] < len(before) else -1
+            assert label[t, i] == want
+            if want >= 0:
+                assert want in set(mine_tracks.loc[mine_tracks["step"] == t - 1, "label"])
+
+
+def test_a_study_of_the_previous_layout_is_read(search_dir: Path, tmp_path: Path) -> None:
+    """A sensorplan-study/3 directory (no sensors.label) is read by report and replay, and
+    refused for resuming."""
+    import hashlib
+    import json
+    import shutil
+
+    import pyarrow.parquet as pq
+
+    from sensorplan import study as studies
+    from sensorplan.errors import ConfigError
+    from sensorplan.study.replay import replay_run
+
+    old = tmp_path / "old"
+    shutil.copytree(search_dir, old)
+    config = json.loads((old / "config.resolved.json").read_text())
+    config["format"] = "sensorplan-study/3"
+    (old / "config.resolved.json").write_text(json.dumps(config))
+    table = pq.read_table(old / "sensors.parquet").drop(["label"])
+    pq.write_table(table, old / "sensors.parquet")
+    sums = json.loads((old / "tables.sha256").read_text())
+    sums["sensors"] = hashlib.sha256((old / "sensors.parquet").read_bytes()).hexdigest()
+    (old / "tables.sha256").write_text(json.dumps(sums))
+    t = studies.load_study_dir(old)
+    assert t.complete and (t.sensors["label"] == -1).all()          # pmb: no label known
+    assert replay_run(old, 0, "pmb").reproduced
+    with pytest.raises(ConfigError) as info:
+        studies.run_study(_search_study(), old, workers=1)
+    assert info.value.field == "--out" and "sensorplan-study/3" in info.value.message

@@ -20,14 +20,14 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from .model import FORMAT, Method, Study
+from .model import READABLE_FORMATS, Method, Study
 from ..simulation.run import Episode, run_episode
 
 #: Stored columns compared with the replay: table -> {column: Episode array (S+1, K)}.
 _STEPS = {"error": "error", "nees": "nees", "x": "truth_x", "y": "truth_y",
           "x_est": "est_x", "y_est": "est_y"}
 _SENSORS = {"x": "pos_x", "y": "pos_y", "heading": "sensor_headings", "target": "looked",
-            "missed": "missed"}
+            "label": "looked_label", "missed": "missed"}
 _TRACKS = {"x": "track_x", "y": "track_y", "existence": "track_r"}
 
 
@@ -82,10 +82,11 @@ def load_study_config(study_dir: str | Path) -> Study:
         data = json.loads(config.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise ConfigError("DIR", f"{config} cannot be read ({exc})") from None
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
+    if not isinstance(data, dict) or data.get("format") not in READABLE_FORMATS:
         got = data.get("format") if isinstance(data, dict) else None
         raise ConfigError("DIR", f"{study_dir} was written by another sensorplan version "
-                          f"(format {got!r}, this one reads {FORMAT!r})")
+                          f"(format {got!r}, this one reads "
+                          f"{' and '.join(repr(f) for f in READABLE_FORMATS)})")
     try:
         return Study.from_resolved(data)
     except (ValueError, KeyError, TypeError) as exc:
@@ -199,6 +200,7 @@ def _compare(episode: Episode, steps: Any, sensors: Any, tracks: Any) -> dict[st
     assigns to them (:func:`~sensorplan.study.set_metrics.with_assigned_tracks`); the
     ``tracks`` table every reported track, compared in (step, label) order.
     """
+    from .lifespan import looked_labels
     from .set_metrics import GOSPA_CUTOFF, with_assigned_tracks
 
     live = np.asarray(episode.alive).reshape(-1)
@@ -210,7 +212,7 @@ def _compare(episode: Episode, steps: Any, sensors: Any, tracks: Any) -> dict[st
     ep.update({"pos_x": episode.sensor_positions[..., 0],
                "pos_y": episode.sensor_positions[..., 1],
                "sensor_headings": episode.sensor_headings, "looked": episode.looked,
-               "missed": episode.missed})
+               "looked_label": looked_labels(episode), "missed": episode.missed})
     order = np.lexsort((episode.track_label, episode.track_step))
     ep.update({"track_x": episode.track_mean[order, 0], "track_y": episode.track_mean[order, 1],
                "track_r": episode.track_existence[order]})
@@ -220,6 +222,8 @@ def _compare(episode: Episode, steps: Any, sensors: Any, tracks: Any) -> dict[st
                                        ("tracks", tracks, _TRACKS, "label")):
         frame = frame.sort_values(["step", key])
         for column, name in columns.items():
+            if column not in frame:             # a study of an older layout
+                continue
             mine = np.asarray(ep[name], dtype=float)
             theirs = frame[column].to_numpy(dtype=float)
             if theirs.size != mine.size:
