@@ -13,8 +13,9 @@ A run with a multi-target tracker, or with targets that are born or die
 - the timeline coloured by the looked-at track's target (light with a dot: the look returned
   no detection), and GOSPA's three parts per step instead of the per-target errors.
 
-:mod:`sensorplan.figures.run` draws a run of known targets exactly as before; both figures and
-the animation draw from :class:`SetView`.
+:func:`sensorplan.figures.run.episode_figure` draws a run of known targets exactly as before
+and a run of sets from the pieces here (:func:`~sensorplan.figures.run.set_episode_figure`);
+the animation draws from :class:`SetView` too (:class:`SetLayer`).
 """
 
 from __future__ import annotations
@@ -30,7 +31,6 @@ from .view import N_SIGMA
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
-    from matplotlib.figure import Figure
 
     from ..simulation.run import Episode
     from ..simulation.scenario import Scenario
@@ -110,7 +110,7 @@ class SetView:
 def set_view(episode: Episode, scenario: Scenario) -> SetView:
     """The :class:`SetView` of a run on its scenario."""
     from ..study.lifespan import episode_events, looked_labels, track_targets
-    from .run import clip_xy
+    from .view import clip_xy
 
     target = track_targets(episode)
     rgb = np.where((target >= 0)[:, None], target_rgb(np.maximum(target, 0)),
@@ -400,43 +400,6 @@ def draw_gospa_parts(ax: Axes, gospa: Any, n_targets: Any, n_tracks: Any, dt: fl
     ax.legend(h1 + h2, l1 + l2, fontsize=7.5, loc="upper left", ncol=5, frameon=False)
     ax.set_title(f"GOSPA\u00b2 per step and its parts (c = {GOSPA_CUTOFF:g} m), live targets "
                  "and reported tracks", fontsize=9, loc="left")
-
-
-def set_episode_figure(episode: Episode, scenario: Scenario) -> Figure:
-    """The static figure of a run of sets (see the module docstring), not yet saved."""
-    import dataclasses
-
-    from matplotlib.patches import Rectangle
-
-    from ..study.set_metrics import episode_set_metrics
-    from . import swarm as dense
-    from .run import (draw_buildings, draw_sensors, episode_layout, frame_map, map_limit,
-                      run_view)
-    from .view import DENSE_SENSORS
-
-    run = run_view(episode, scenario)
-    view = set_view(episode, scenario)
-    sm = episode_set_metrics(episode)
-    W, H = scenario.world.width, scenario.world.height
-    fig, ax, ax_time, ax_err = episode_layout(episode, scenario)
-    border = Rectangle((0, 0), W, H, fill=False, edgecolor="0.3", linewidth=1.2)
-    ax.add_patch(border)
-    draw_buildings(ax, scenario.buildings)
-    # The sensors as for known targets, without their look lines (drawn to tracks below).
-    quiet = dataclasses.replace(run, looked=np.full_like(run.looked, -1))
-    if run.N > DENSE_SENSORS:
-        dense.draw_sensors(ax, quiet, scenario, border)
-    else:
-        draw_sensors(ax, quiet, scenario, border)
-        draw_set_looks(ax, run.spos, view, run.times)
-    draw_set_targets(ax, view)
-    draw_set_tracks(ax, view, run.times, map_limit(scenario))
-    set_legend(ax, episode, scenario, set_handles(view, run.times, scenario.dt))
-    frame_map(ax, W, H, 0.03)
-    ax.set_title(set_title(episode, sm.gospa), fontsize=10)
-    draw_set_timeline(ax_time, view, scenario.dt, episode.decision_steps)
-    draw_gospa_parts(ax_err, sm.gospa, sm.n_targets, sm.n_tracks, scenario.dt)
-    return fig
 
 
 # ------------------------------------------------------------------------------ animation
