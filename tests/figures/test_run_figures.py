@@ -346,9 +346,11 @@ def test_replay_notices_a_difference(study_dir: Path) -> None:
     sensors = pd.read_parquet(study_dir / "sensors.parquet")
     steps = steps[(steps["run"] == 0) & (steps["method"] == "myopic")].copy()
     sensors = sensors[(sensors["run"] == 0) & (sensors["method"] == "myopic")]
-    assert set(_compare(rep.episode, steps, sensors).values()) == {0.0}
+    tracks = pd.read_parquet(study_dir / "tracks.parquet")
+    tracks = tracks[(tracks["run"] == 0) & (tracks["method"] == "myopic")]
+    assert set(_compare(rep.episode, steps, sensors, tracks).values()) == {0.0}
     steps.loc[steps.index[7], "error"] += 0.25
-    diffs = _compare(rep.episode, steps, sensors)
+    diffs = _compare(rep.episode, steps, sensors, tracks)
     assert diffs["steps.error"] == pytest.approx(0.25)
     assert sum(v > 0 for v in diffs.values()) == 1
 

@@ -6,7 +6,12 @@ recent path and a line to the target it looks at (dashed, with a cross at the ta
 the look missed); false alarms as a count beside the sensor; buildings. Below, the run's
 assignment timeline and errors (as in :func:`sensorplan.figures.run.plot_episode`) with the
 future greyed out. Colours are those of :mod:`sensorplan.figures.colors`. Many sensors or targets
-move as a few collections (:mod:`sensorplan.figures.animation_swarm`).
+move as a few collections (:mod:`sensorplan.figures.animation_swarm`). A run of changing sets
+(a multi-target tracker, targets born or dying) shows each target over its life span, the
+reported tracks (line width from their existence r, false tracks dashed, label and r beside
+each), births, deaths, confirmations and deletions as markers for a few steps, a line of
+the step's events under the title and the latest events in a log beside the map
+(:class:`sensorplan.figures.sets.SetLayer`).
 """
 
 from __future__ import annotations
@@ -180,6 +185,16 @@ class _Frames:
         self.looked = np.asarray(episode.looked)
         self.missed = np.asarray(episode.missed)
         self.false = np.asarray(episode.false_alarms)
+        from ..study.lifespan import is_set_run
+
+        # A run of sets draws its targets, tracks and looks from its set records
+        # (:class:`~sensorplan.figures.sets.SetLayer`), not per target.
+        self.sets = None
+        if is_set_run(episode):
+            from .sets import set_view
+
+            self.sets = set_view(episode, scenario)
+            self.looked = np.full_like(self.looked, -1)
         self.S, self.M = self.truth.shape[0] - 1, self.truth.shape[1]
         self.N = self.spos.shape[1]
         self.dt = scenario.dt
@@ -248,7 +263,13 @@ class _Frames:
         self.now_est: list[Any] = []
         self.ell: list[Any] = []
         many = self.M > DENSE_TARGETS
-        if many:
+        if self.sets is not None:
+            from .sets import SetLayer
+
+            self.dense.append(SetLayer(ax, legend_ax, self.sets, self.spos, self.limit,
+                                       tail))
+            many = True                         # no per-target artists
+        elif many:
             from .animation_swarm import DenseTargets
 
             self.dense.append(DenseTargets(ax, self.truth, self.est, self.cov, self.limit,
@@ -284,13 +305,41 @@ class _Frames:
             Patch(facecolor="0.5", alpha=0.2, edgecolor="0.3", linestyle="--",
                   label="field of view"),
         ]
-        map_legend(ax, episode, scenario, extra)
+        if self.sets is not None:
+            from .sets import set_handles, set_legend
+
+            tail_entries = [
+                Line2D([], [], color="0.25", marker="o", markerfacecolor="none",
+                       linestyle="none", markersize=10,
+                       label=f"{N_SIGMA:g}\u03c3 ellipse of a reported track"),
+                Line2D([], [], color="0.25", linewidth=1.3,
+                       label="sensor \u2192 track it looks at"),
+                Line2D([], [], color="0.25", linewidth=1.3, linestyle="--", marker="x",
+                       markeredgecolor="k", label="the look returned no detection"),
+                extra[-1]]
+            set_legend(ax, episode, scenario,
+                       set_handles(self.sets, np.array([], int), self.dt)[1:-3] + tail_entries,
+                       summary=True)
+        else:
+            map_legend(ax, episode, scenario, extra)
         # The legend lives in the right-hand column (frames have a fixed size: no "tight").
         leg: Any = ax.get_legend()
         leg.set_bbox_to_anchor((0.0, 1.0), transform=legend_ax.transAxes)
+        for group in self.dense:
+            if hasattr(group, "place_log"):
+                group.place_log(leg)
 
-        draw_timeline(ax_time, episode, self.dt)
-        draw_errors(ax_err, episode, self.dt)
+        if self.sets is not None:
+            from ..study.set_metrics import episode_set_metrics
+            from .sets import draw_gospa_parts, draw_set_timeline, set_title
+
+            sm = episode_set_metrics(episode)
+            draw_set_timeline(ax_time, self.sets, self.dt, episode.decision_steps)
+            draw_gospa_parts(ax_err, sm.gospa, sm.n_targets, sm.n_tracks, self.dt,
+                             episode.settings.gospa_c)
+        else:
+            draw_timeline(ax_time, episode, self.dt)
+            draw_errors(ax_err, episode, self.dt)
         self.future = []
         for a in (ax_time, ax_err):
             veil = Rectangle((0, 0), 0, 1, transform=a.get_xaxis_transform(),
@@ -299,7 +348,8 @@ class _Frames:
             cursor = a.axvline(0, color="k", linewidth=1.0, zorder=11)
             self.future.append((veil, cursor))
         self.title = fig.suptitle("", fontsize=11)
-        self.run_title = episode_title(episode)
+        self.run_title = (set_title(episode, sm.gospa) if self.sets is not None
+                          else episode_title(episode))
 
         # Blitting: everything that does not move is drawn once into a background; a frame
         # restores it and draws only the moving artists (ten times faster than a full draw).
@@ -380,9 +430,11 @@ class _Frames:
             veil.set_width(max(self.S - t, 0) * self.dt + 1e-9)
             cursor.set_xdata([t * self.dt, t * self.dt])
         n_false = int(self.false[t].sum())
+        events = self.sets.events.text(t) if self.sets is not None else ""
         self.title.set_text(f"t = {t * self.dt:g} s (step {t} of {self.S})   "
                             f"{self.run_title}" + (f"\n{n_false} false alarms in this step"
-                                                   if n_false and not self.fov else ""))
+                                                   if n_false and not self.fov else "")
+                            + (f"\nthis step: {events}" if self.sets is not None else ""))
 
 
 __all__ = ["FORMATS", "animate_episode", "check_format", "ffmpeg_available", "frame_steps"]

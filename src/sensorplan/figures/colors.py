@@ -8,6 +8,7 @@ Each palette has one meaning, and no two meanings share a colour:
   mistaken for a target;
 - **methods** (study report): Dark2 without its grey, then darker shades of its hues;
 - **target kinds** (study report): slate, crimson and charcoal, used nowhere else;
+- **false tracks** (a multi-target tracker's tracks assigned to no target): black, dashed;
 - **mean / median** markers (study report): black filled circle and grey open diamond.
 
 Plain hex strings: this module imports no plotting library.
@@ -35,6 +36,9 @@ OTHER_KIND = "#6b4f2a"
 #: Summary statistics (mean: filled, median: open).
 MEAN_COLOR = "#111111"
 MEDIAN_COLOR = "#7a7a7a"
+#: A reported track that GOSPA assigns to no target (drawn dashed, so that it is not taken
+#: for a sensor's grey).
+FALSE_TRACK = "#000000"
 #: Buildings: light fill, darker outline.
 BUILDING_FACE = "#d9d9d9"
 BUILDING_EDGE = "#6e6e6e"

@@ -18,9 +18,10 @@ import numpy as np
 
 from .colors import (BUILDING_EDGE, BUILDING_FACE, mix, mix_hex, sensor_style, target_color,
                      target_colors)
+from .view import CLIP_MAPS as CLIP_MAPS  # the clipping bound lives beside the geometry
 from .view import (DENSE_SENSORS, DENSE_TARGETS, LEGEND_ITEMS, N_SIGMA,
-                   TIMELINE_IMAGE_HEIGHT, RunView, fade_colors, fov_geometry,
-                   segments)
+                   TIMELINE_IMAGE_HEIGHT, RunView, clip_xy, fade_colors, fov_geometry,
+                   map_limit, segments)
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -32,9 +33,6 @@ if TYPE_CHECKING:  # pragma: no cover
 
 #: Number of times at which the static figure draws ellipses, fields of view and looks.
 N_ELLIPSES = 5
-#: Drawn ellipse semi-axes and off-map coordinates are clipped to this many map sizes, so a
-#: diverged track (covariance 1e40) draws as fast as any other.
-CLIP_MAPS = 3.0
 #: Hatch of a missed look in the assignment timeline.
 MISS_HATCH = "////"
 #: How a missed look shows in the timeline image.
@@ -71,22 +69,6 @@ def ellipse_geometry(C: Any, limit: float) -> tuple[float, float, float] | None:
     semi = np.minimum(N_SIGMA * np.sqrt(np.clip(vals, 0.0, None)), limit)
     angle = math.degrees(math.atan2(vecs[1, 1], vecs[0, 1]))
     return 2.0 * float(semi[1]), 2.0 * float(semi[0]), angle
-
-
-def map_limit(scenario: Scenario) -> float:
-    """:data:`CLIP_MAPS` map sizes (m): the clipping bound of drawn geometry."""
-    return CLIP_MAPS * max(scenario.world.width, scenario.world.height)
-
-
-def clip_xy(xy: Any, scenario: Scenario) -> np.ndarray:
-    """Positions ``(..., 2)`` clipped to the map grown by :func:`map_limit` on every side
-    (only far off-map points move; non-finite ones become NaN, which draws as a gap)."""
-    xy = np.array(xy, dtype=float)
-    lim = map_limit(scenario)
-    xy[~np.isfinite(xy)] = np.nan
-    xy[..., 0] = np.clip(xy[..., 0], -lim, scenario.world.width + lim)
-    xy[..., 1] = np.clip(xy[..., 1], -lim, scenario.world.height + lim)
-    return xy
 
 
 def field_of_view(ax: Axes, xy: np.ndarray, heading: float, params: object,
@@ -473,8 +455,11 @@ def episode_figure(episode: Episode, scenario: Scenario) -> Figure:
     """The static figure of a run (see :func:`plot_episode`), not yet saved."""
     from matplotlib.patches import Rectangle
 
+    from ..study.lifespan import is_set_run
     from . import swarm as dense
 
+    if is_set_run(episode):
+        return set_episode_figure(episode, scenario)
     run = run_view(episode, scenario)
     W, H = scenario.world.width, scenario.world.height
     fig, ax, ax_time, ax_err = episode_layout(episode, scenario)
@@ -497,6 +482,44 @@ def episode_figure(episode: Episode, scenario: Scenario) -> Figure:
     return fig
 
 
+def set_episode_figure(episode: Episode, scenario: Scenario) -> Figure:
+    """The static figure of a run of changing sets (:mod:`sensorplan.figures.sets`), not yet
+    saved."""
+    import dataclasses
+
+    from matplotlib.patches import Rectangle
+
+    from ..study.set_metrics import episode_set_metrics
+    from . import swarm as dense
+    from .sets import (draw_gospa_parts, draw_set_looks, draw_set_targets, draw_set_timeline,
+                       draw_set_tracks, set_handles, set_legend, set_title, set_view)
+
+    run = run_view(episode, scenario)
+    view = set_view(episode, scenario)
+    sm = episode_set_metrics(episode)
+    W, H = scenario.world.width, scenario.world.height
+    fig, ax, ax_time, ax_err = episode_layout(episode, scenario)
+    border = Rectangle((0, 0), W, H, fill=False, edgecolor="0.3", linewidth=1.2)
+    ax.add_patch(border)
+    draw_buildings(ax, scenario.buildings)
+    # The sensors as for known targets, without their look lines (drawn to tracks below).
+    quiet = dataclasses.replace(run, looked=np.full_like(run.looked, -1))
+    if run.N > DENSE_SENSORS:
+        dense.draw_sensors(ax, quiet, scenario, border)
+    else:
+        draw_sensors(ax, quiet, scenario, border)
+        draw_set_looks(ax, run.spos, view, run.times)
+    draw_set_targets(ax, view)
+    draw_set_tracks(ax, view, run.times, map_limit(scenario))
+    set_legend(ax, episode, scenario, set_handles(view, run.times, scenario.dt))
+    frame_map(ax, W, H, 0.03)
+    ax.set_title(set_title(episode, sm.gospa), fontsize=10)
+    draw_set_timeline(ax_time, view, scenario.dt, episode.decision_steps)
+    draw_gospa_parts(ax_err, sm.gospa, sm.n_targets, sm.n_tracks, scenario.dt,
+                     episode.settings.gospa_c)
+    return fig
+
+
 def plot_episode(episode: Episode, scenario: Scenario, path: str | Path) -> Path:
     """The figure of one run: map, assignment timeline and errors over time.
 
@@ -512,6 +535,12 @@ def plot_episode(episode: Episode, scenario: Scenario, path: str | Path) -> Path
     - Timeline: one row per sensor, one cell per step in the colour of the target it looked
       at, hatched when the look missed; decisions as thin lines; false alarms as dots.
     - Errors: each target's position error over time and the filter's own RMS error.
+
+    A run of changing sets (a multi-target tracker, or targets born or dying) is drawn from
+    its set records instead (:mod:`sensorplan.figures.sets`): each target over its life span
+    with birth and death markers, the reported tracks by label with their line width growing
+    with their existence r, false tracks dashed, confirmations and deletions marked, and
+    GOSPA's parts in place of the per-target errors.
 
     Runs with more than :data:`DENSE_SENSORS` sensors or :data:`DENSE_TARGETS` targets are
     drawn condensed (:mod:`sensorplan.figures.swarm`), and the legend and title summarise

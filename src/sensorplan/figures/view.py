@@ -9,11 +9,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .colors import mix
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..simulation.scenario import Scenario
 
 #: Chi-square(2) 95 % quantile would be 2.45 sigma; the figures show the usual 2 sigma.
 N_SIGMA = 2.0
@@ -32,6 +35,27 @@ LEGEND_ITEMS = 12
 #: Height (inches) of the rows of the timeline drawn as an image (more than
 #: :data:`DENSE_SENSORS` sensors); one row per sensor otherwise takes 0.32 inch.
 TIMELINE_IMAGE_HEIGHT = 4.0
+
+
+#: Drawn ellipse semi-axes and off-map coordinates are clipped to this many map sizes, so a
+#: diverged track (covariance 1e40) draws as fast as any other.
+CLIP_MAPS = 3.0
+
+
+def map_limit(scenario: Scenario) -> float:
+    """:data:`CLIP_MAPS` map sizes (m): the clipping bound of drawn geometry."""
+    return CLIP_MAPS * max(scenario.world.width, scenario.world.height)
+
+
+def clip_xy(xy: Any, scenario: Scenario) -> np.ndarray:
+    """Positions ``(..., 2)`` clipped to the map grown by :func:`map_limit` on every side
+    (only far off-map points move; non-finite ones become NaN, which draws as a gap)."""
+    xy = np.array(xy, dtype=float)
+    lim = map_limit(scenario)
+    xy[~np.isfinite(xy)] = np.nan
+    xy[..., 0] = np.clip(xy[..., 0], -lim, scenario.world.width + lim)
+    xy[..., 1] = np.clip(xy[..., 1], -lim, scenario.world.height + lim)
+    return xy
 
 
 def fov_geometry(xy: Any, heading: float, params: Any) -> dict[str, Any]:

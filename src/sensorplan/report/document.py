@@ -283,6 +283,8 @@ def _gospa_section(doc: _Doc, gospa: Any, figs: dict[str, Path], c: float) -> No
     doc.table(["method", "GOSPA mean (m)", "median", "localisation", "missed", "false",
                "false tracks"], rows, caption=_caption("per run", gospa))
     doc.figure("gospa_time", figs["gospa_time"])
+    if "gospa_runs" in figs:
+        doc.figure("gospa_runs", figs["gospa_runs"])
 
 
 def _small(rows: Any) -> bool:

@@ -15,6 +15,7 @@ import numpy as np
 from ..figures.colors import (MEAN_COLOR, MEDIAN_COLOR, kind_color, kind_marker, method_colors,
                               mix_hex, sensor_style, target_color)
 from ..figures.run import draw_buildings, draw_ellipse, field_of_view, frame_map
+from ..study.lifespan import study_has_sets
 from ..study.metrics import LOST_THRESHOLD, horizon_groups, kinds_with_all
 from ..study.model import Method
 from ..study.storage import StudyTables
@@ -49,11 +50,15 @@ FIGURES = {
                    "pure Nash equilibrium, and sweeps per decision.",
     "gospa_time": "Mean GOSPA over time (the reported tracks against the live targets, "
                   "c = 50 m), one line per method; the band is the 95 % interval across runs.",
+    "gospa_runs": "GOSPA per run (each run's mean over its steps), one box per method (line: "
+                  "median, box: quartiles, whiskers: 1.5 interquartile ranges, dots: the "
+                  "runs), and the three parts of GOSPA^2 per run (localisation of the "
+                  "assigned tracks, missed targets, false tracks; m^2).",
     "horizon": "Methods that differ only in the horizon K: overall RMSE (mean with its 95 % "
                "t-interval) and planning time per decision against K.",
 }
 #: Figures drawn only when the study has what they show.
-OPTIONAL_FIGURES = ("horizon",)
+OPTIONAL_FIGURES = ("gospa_runs", "horizon")
 
 
 
@@ -76,6 +81,10 @@ def draw_figures(t: StudyTables, out: Path, stats: dict[str, Any]) -> dict[str, 
     if len(t.decisions):             # a scan study plans nothing
         figs["planning_time"] = _fig_planning(t, colors, out / "planning_time.png")
         figs["convergence"] = _fig_convergence(stats["plan"], t, out / "convergence.png")
+    if study_has_sets(t.study):
+        figs["gospa_runs"] = _fig_gospa_runs(t, colors, out / "gospa_runs.png")
+    else:
+        (out / "gospa_runs.png").unlink(missing_ok=True)  # stale from an earlier report
     groups = horizon_groups(t.study)
     if groups:
         figs["horizon"] = _fig_horizon(groups, stats["rmse"], t, out / "horizon.png")
@@ -126,21 +135,37 @@ def _fig_scenario(t: StudyTables, path: Path) -> Path:
     handles: list[Any] = []
     # Targets in their own colours (the same as in a run's figures); the kind is the
     # line style.
-    for j, kind in enumerate(study.scenario.target_kinds):
+    # Every target of the run (with births, more than the scenario's templates), over the
+    # steps it is alive; one born during the run starts with a star and has no initial
+    # estimate.
+    targets = sorted(int(j) for j in steps["target"].unique())
+    born = False
+    for j in targets:
         g = steps[steps["target"] == j].sort_values("step")
-        if g.empty:                  # a template no target of this run was born from yet
-            continue
+        kind = str(g["kind"].iloc[0])
         color = target_color(j)
         style: Any = "-" if kind == "cv" else "--"
         ax.plot(g["x"], g["y"], style, color=color, linewidth=1.6)
-        ax.plot(g["x"].iloc[0], g["y"].iloc[0], "o", color=color, markersize=6)
+        start = "o" if g["step"].iloc[0] == 0 else "*"
+        born |= start == "*"
+        ax.plot(g["x"].iloc[0], g["y"].iloc[0], start, color=color,
+                markersize=6 if start == "o" else 10)
         ax.plot(g["x"].iloc[-1], g["y"].iloc[-1], "s", color=color, markersize=6)
         x0 = np.array([g["x_est"].iloc[0], g["y_est"].iloc[0]])
-        ax.plot(*x0, "x", color=color, markersize=7)
-        draw_ellipse(ax, x0, P0, mix_hex(color, 0.7), limit, linewidth=0.9)
+        if start == "o" and np.all(np.isfinite(x0)):
+            ax.plot(*x0, "x", color=color, markersize=7)
+            draw_ellipse(ax, x0, P0, mix_hex(color, 0.7), limit, linewidth=0.9)
         ax.annotate(f"T{j}", (g["x"].iloc[0], g["y"].iloc[0]), textcoords="offset points",
                     xytext=(5, 5), fontsize=9, color=color, fontweight="bold")
-        handles.append(Line2D([], [], color=color, linestyle=style, label=f"T{j} ({kind})"))
+        if len(targets) <= 12:
+            handles.append(Line2D([], [], color=color, linestyle=style,
+                                  label=f"T{j} ({kind})"))
+    if len(targets) > 12:
+        handles.append(Line2D([], [], color="0.5", label=f"{len(targets)} targets, one "
+                                                         "colour each"))
+    if born:
+        handles.append(Line2D([], [], color="0.3", marker="*", linestyle="none",
+                              markersize=9, label="target born during the run"))
     handles.append(Line2D([], [], color="0.3", marker="o", markersize=5, linewidth=1.2,
                           label="true track (\u25cf start, \u25a0 end; dashed: dubins)"))
     handles.append(Line2D([], [], color="0.3", marker="x", linestyle="none",
@@ -230,6 +255,44 @@ def _fig_gospa_time(curves: Any, t: StudyTables, colors: dict[str, Any], path: P
     fig.legend(handles, labels, loc="outside lower center", ncol=min(4, len(labels)),
                fontsize=9, frameon=False)
     fig.suptitle(f"GOSPA over time ({len(t.runs_done)} runs; band: 95 % interval)")
+    return _save(fig, path)
+
+
+def gospa_per_run(t: StudyTables) -> Any:
+    """Each (method, run)'s mean over its steps of GOSPA (m) and of its three parts (m^2).
+
+    Columns: method, run, gospa, localisation, missed, false.
+    """
+    return t.gospa.groupby(["method", "run"], observed=True).agg(
+        gospa=("gospa", "mean"), localisation=("localisation", "mean"),
+        missed=("missed", "mean"), false=("false", "mean")).reset_index()
+
+
+def _fig_gospa_runs(t: StudyTables, colors: dict[str, Any], path: Path) -> Path:
+    per_run = gospa_per_run(t)
+    names = t.study.method_names
+    fig = _new_figure(max(9.0, 1.1 * len(names) + 6.0), 4.8)
+    axes = fig.subplots(1, 4, gridspec_kw={"width_ratios": [1.4, 1, 1, 1]})
+    rng = np.random.default_rng(0)          # jitter of the dots only (drawing, not results)
+    for ax, column, unit in zip(axes, ("gospa", "localisation", "missed", "false"),
+                                ("m", "m\u00b2", "m\u00b2", "m\u00b2")):
+        data = [per_run.loc[per_run["method"] == n, column].to_numpy(float) for n in names]
+        box = ax.boxplot(data, orientation="horizontal", widths=0.55, patch_artist=True,
+                         showfliers=False, medianprops=dict(color="k", linewidth=1.4))
+        for patch, name in zip(box["boxes"], names):
+            patch.set_facecolor(mix_hex(colors[name], 0.35))
+            patch.set_edgecolor(colors[name])
+        for k, (values, name) in enumerate(zip(data, names)):
+            ax.scatter(values, k + 1 + rng.uniform(-0.18, 0.18, len(values)), s=9,
+                       color=colors[name], linewidths=0, zorder=3)
+        ax.set_yticks(range(1, len(names) + 1),
+                      names if column == "gospa" else [""] * len(names))
+        ax.invert_yaxis()
+        ax.set_xlabel(f"{'GOSPA' if column == 'gospa' else column} ({unit})")
+        ax.set_xlim(left=0)
+        ax.grid(True, axis="x", linewidth=0.4, alpha=0.5)
+        ax.set_title("GOSPA per run" if column == "gospa" else f"{column} part", fontsize=10)
+    fig.suptitle(f"GOSPA per run and its parts ({len(t.runs_done)} runs)")
     return _save(fig, path)
 
 

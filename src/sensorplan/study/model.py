@@ -13,8 +13,12 @@ from ..errors import ConfigError
 from ..simulation.scenario import Scenario
 from ..simulation.settings import RunSettings, declared
 
-#: Layout version of a study directory (2: tracker settings in a ``tracker`` sub-table).
-FORMAT = "sensorplan-study/3"
+#: Layout version of a study directory (2: tracker settings in a ``tracker`` sub-table;
+#: 4: the ``sensors`` table's ``label``, the looked-at track's).
+FORMAT = "sensorplan-study/4"
+#: Layouts this version reads (a study of an older one is read, not resumed: its ``sensors``
+#: table gets ``label`` from ``target`` for methods that track known targets, -1 otherwise).
+READABLE_FORMATS = ("sensorplan-study/3", FORMAT)
 #: Run settings that are study-wide (top-level keys of a study file), not per method.
 STUDY_KEYS = tuple(f.name for f, _ in declared(RunSettings, "run"))
 

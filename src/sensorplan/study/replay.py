@@ -4,8 +4,8 @@ A study stores tables, not episodes. Every run is a pure function of the study's
 configuration and the run's seed, so :func:`replay_run` rebuilds the study from
 ``config.resolved.json``, simulates run ``r`` of the method with seed
 :meth:`Study.run_seed(r) <sensorplan.study.Study.run_seed>` and compares the result with what
-the study stored for that run (errors, estimates, NEES, sensor poses and looks): with the
-same code they agree to the last bit.
+the study stored for that run (errors, estimates, NEES, sensor poses and looks, reported
+tracks): with the same code they agree to the last bit.
 """
 
 from __future__ import annotations
@@ -20,14 +20,15 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from .model import FORMAT, Method, Study
+from .model import READABLE_FORMATS, Method, Study
 from ..simulation.run import Episode, run_episode
 
 #: Stored columns compared with the replay: table -> {column: Episode array (S+1, K)}.
 _STEPS = {"error": "error", "nees": "nees", "x": "truth_x", "y": "truth_y",
           "x_est": "est_x", "y_est": "est_y"}
 _SENSORS = {"x": "pos_x", "y": "pos_y", "heading": "sensor_headings", "target": "looked",
-            "missed": "missed"}
+            "label": "looked_label", "missed": "missed"}
+_TRACKS = {"x": "track_x", "y": "track_y", "existence": "track_r"}
 
 
 @dataclass(frozen=True)
@@ -81,10 +82,11 @@ def load_study_config(study_dir: str | Path) -> Study:
         data = json.loads(config.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise ConfigError("DIR", f"{config} cannot be read ({exc})") from None
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
+    if not isinstance(data, dict) or data.get("format") not in READABLE_FORMATS:
         got = data.get("format") if isinstance(data, dict) else None
         raise ConfigError("DIR", f"{study_dir} was written by another sensorplan version "
-                          f"(format {got!r}, this one reads {FORMAT!r})")
+                          f"(format {got!r}, this one reads "
+                          f"{' and '.join(repr(f) for f in READABLE_FORMATS)})")
     try:
         return Study.from_resolved(data)
     except (ValueError, KeyError, TypeError) as exc:
@@ -149,10 +151,10 @@ def replay_run(study_dir: str | Path, run: int, method: str) -> Replay:
 
 
 def _stored_tables(out: Path, study: Study, run: int, m: int
-                   ) -> tuple[Any, Any] | str | None:
-    """The stored ``steps`` and ``sensors`` rows of (run, method m); None if that pair has
-    not finished; what is wrong with it if it is damaged (a warning on stderr says so too:
-    the replay is still drawn, without the comparison)."""
+                   ) -> tuple[Any, Any, Any] | str | None:
+    """The stored ``steps``, ``sensors`` and ``tracks`` rows of (run, method m); None if
+    that pair has not finished; what is wrong with it if it is damaged (a warning on stderr
+    says so too: the replay is still drawn, without the comparison)."""
     import sys
 
     import pyarrow.parquet as pq
@@ -162,7 +164,7 @@ def _stored_tables(out: Path, study: Study, run: int, m: int
     name = study.methods[m].name
     problem = part_problem(out, run, m) if part_path(out, run, m, "steps").exists() else None
     frames = []
-    for table in ("steps", "sensors"):
+    for table in ("steps", "sensors", "tracks"):
         part = part_path(out, run, m, table)
         whole = out / f"{table}.parquet"
         try:
@@ -187,31 +189,42 @@ def _stored_tables(out: Path, study: Study, run: int, m: int
                          f"({problem}); nothing to compare the replay with (run the study "
                          "command again to recompute it)\n")
         return problem
-    return frames[0], frames[1]
+    return frames[0], frames[1], frames[2]
 
 
-def _compare(episode: Episode, steps: Any, sensors: Any) -> dict[str, float]:
+def _compare(episode: Episode, steps: Any, sensors: Any, tracks: Any) -> dict[str, float]:
     """Largest absolute difference of each stored column against the episode (inf when
-    the shapes differ). The steps table holds, as :func:`~.tables.episode_tables` writes
-    it, the live targets' rows with the errors of the tracks GOSPA assigns to them."""
+    the shapes differ).
+
+    The ``steps`` table holds the live targets only, with the errors of the tracks GOSPA
+    assigns to them (:func:`~sensorplan.study.set_metrics.with_assigned_tracks`); the
+    ``tracks`` table every reported track, compared in (step, label) order.
+    """
+    from .lifespan import looked_labels
     from .set_metrics import with_assigned_tracks
 
-    episode = with_assigned_tracks(episode)
     live = np.asarray(episode.alive).reshape(-1)
-    ep = {"error": episode.error, "nees": episode.nees,
-          "truth_x": episode.truth[..., 0], "truth_y": episode.truth[..., 1],
-          "est_x": episode.estimate[..., 0], "est_y": episode.estimate[..., 1],
-          "pos_x": episode.sensor_positions[..., 0], "pos_y": episode.sensor_positions[..., 1],
-          "sensor_headings": episode.sensor_headings, "looked": episode.looked,
-          "missed": episode.missed}
+    scored = with_assigned_tracks(episode)          # with the run's GOSPA cut-off
+    per_target = {"error": scored.error, "nees": scored.nees,
+                  "truth_x": episode.truth[..., 0], "truth_y": episode.truth[..., 1],
+                  "est_x": scored.estimate[..., 0], "est_y": scored.estimate[..., 1]}
+    ep = {k: np.asarray(v, dtype=float).reshape(-1)[live] for k, v in per_target.items()}
+    ep.update({"pos_x": episode.sensor_positions[..., 0],
+               "pos_y": episode.sensor_positions[..., 1],
+               "sensor_headings": episode.sensor_headings, "looked": episode.looked,
+               "looked_label": looked_labels(episode), "missed": episode.missed})
+    order = np.lexsort((episode.track_label, episode.track_step))
+    ep.update({"track_x": episode.track_mean[order, 0], "track_y": episode.track_mean[order, 1],
+               "track_r": episode.track_existence[order]})
     out: dict[str, float] = {}
     for table, frame, columns, key in (("steps", steps, _STEPS, "target"),
-                                       ("sensors", sensors, _SENSORS, "sensor")):
+                                       ("sensors", sensors, _SENSORS, "sensor"),
+                                       ("tracks", tracks, _TRACKS, "label")):
         frame = frame.sort_values(["step", key])
         for column, name in columns.items():
+            if column not in frame:             # a study of an older layout
+                continue
             mine = np.asarray(ep[name], dtype=float)
-            if table == "steps" and not live.all():
-                mine = mine.reshape(-1)[live]
             theirs = frame[column].to_numpy(dtype=float)
             if theirs.size != mine.size:
                 out[f"{table}.{column}"] = math.inf

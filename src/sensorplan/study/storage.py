@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError
-from .model import FORMAT, Study
+from .model import FORMAT, READABLE_FORMATS, Study
 from .set_metrics import GOSPA_CUTOFF
 from .tables import TABLES, TaskResult, arrow_table
 
@@ -243,14 +243,15 @@ def locked(out: Path) -> Iterator[None]:
         os.close(fd)
 
 
-def _read_resolved(config: Path, field: str, fix: str) -> Any:
+def _read_resolved(config: Path, field: str, fix: str,
+                   formats: tuple[str, ...] = (FORMAT,)) -> Any:
     """The content of a ``config.resolved.json``; a ConfigError naming ``field`` if it cannot
-    be read or has another layout version (``fix``: what to do about that)."""
+    be read or has a layout version not in ``formats`` (``fix``: what to do about that)."""
     try:
         data = json.loads(config.read_text(encoding="utf-8"))
     except (OSError, ValueError) as exc:
         raise ConfigError(field, f"{config} cannot be read ({exc})") from None
-    if isinstance(data, dict) and data.get("format") != FORMAT:
+    if isinstance(data, dict) and data.get("format") not in formats:
         raise ConfigError(field, f"{config.parent} was written by another sensorplan version "
                           f"(format {data.get('format')!r}, this one uses {FORMAT!r}); {fix}")
     return data
@@ -429,7 +430,8 @@ def load_study_dir(out: str | Path) -> StudyTables:
     config = out / "config.resolved.json"
     if not config.exists():
         raise ConfigError("DIR", f"{out} is not a study directory (no config.resolved.json)")
-    data = _read_resolved(config, "DIR", "run the study again into a new directory")
+    data = _read_resolved(config, "DIR", "run the study again into a new directory",
+                          READABLE_FORMATS)
     try:
         study = Study.from_resolved(data)
     except (ValueError, KeyError, TypeError) as exc:
@@ -456,6 +458,12 @@ def load_study_dir(out: str | Path) -> StudyTables:
             frames = {t: tab.to_pandas() for t, tab in read_parts(out, tasks).items()}
         except DamagedPart as exc:
             raise ConfigError("DIR", exc.message) from None
+    if "label" not in frames["sensors"]:
+        # An older layout: the look's index is the target's for a tracker of known targets
+        # and not a label otherwise.
+        known = [m.name for m in study.methods if m.settings.tracker.kind == "known"]
+        sensors = frames["sensors"]
+        sensors["label"] = sensors["target"].where(sensors["method"].isin(known), -1)
     order = pd.CategoricalDtype(study.method_names, ordered=True)
     for df in frames.values():
         df["method"] = df["method"].astype(order)

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from ..simulation.run import Episode
+from .lifespan import looked_labels, slot_kinds
 from .set_metrics import episode_set_metrics, with_assigned_tracks
 
 #: Tidy tables, in the order a part's files are written (the last one marks it done).
@@ -32,8 +33,11 @@ TABLE_DOC = {
                  "call), phi (potential of the chosen plan, nats), converged (null for "
                  "planners without the notion), sweeps (null likewise)",
     "sensors": "one row per (run, method, step, sensor): run, method, step, sensor, x, y "
-               "(ground position, m), heading (rad), target (looked-at target, -1 none), "
-               "missed (the look missed: target truly outside the field of view), measured",
+               "(ground position, m), heading (rad), target (looked-at target, -1 none; for "
+               "a multi-target tracker the looked-at track's index in the set the epoch "
+               "started from), label (the looked-at track's label, -1 none; the target for "
+               "a tracker of known targets), missed (the look missed: target truly outside "
+               "the field of view), measured",
     "tracks": "one row per (run, method, step, reported track): run, method, step, label "
               "(the track's label, kept for its life), x, y (its position estimate, m), "
               "existence (its probability of being a real target)",
@@ -88,7 +92,8 @@ def episode_tables(episode: Episode, run: int, method: str) -> dict[str, dict[st
     S1, M = episode.error.shape
     N = episode.looked.shape[1]
     D = episode.decision_steps.shape[0]
-    kinds = np.asarray(episode.target_kinds, dtype=object)
+    # Slot s moves as template s mod T: with births there are more slots than templates.
+    kinds = np.asarray(slot_kinds(tuple(episode.target_kinds), M), dtype=object)
     measured = np.asarray(episode.measured)                            # (S+1, M, N)
     steps = {
         "run": np.full(S1 * M, run, dtype=np.int32),
@@ -135,6 +140,7 @@ def episode_tables(episode: Episode, run: int, method: str) -> dict[str, dict[st
         "y": episode.sensor_positions[..., 1].reshape(-1),
         "heading": episode.sensor_headings.reshape(-1),
         "target": np.asarray(episode.looked, dtype=np.int16).reshape(-1),
+        "label": looked_labels(episode).reshape(-1),
         "missed": np.asarray(episode.missed).reshape(-1),
         "measured": measured.any(axis=1).reshape(-1),
     }
