@@ -13,8 +13,9 @@ planners are by name.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -131,3 +132,43 @@ class Tracker(Protocol):
     def planning_process_noise(self) -> float | FloatArray:
         """The process noise the planner should predict each reported track with."""
         ...
+
+
+def given_tracks(means: Any, covs: Any) -> tuple[FloatArray, FloatArray]:
+    """The tracks a multi-target tracker starts with: ``means`` ``(M, 4)`` and ``covs``
+    (``(M, 4, 4)`` or one ``(4, 4)`` for all) as new arrays; none for ``means`` None.
+
+    Raises
+    ------
+    ValueError
+        ``means`` without ``covs``.
+    """
+    if means is None:
+        return np.zeros((0, 4)), np.zeros((0, 4, 4))
+    if covs is None:
+        raise ValueError("covs are needed with means")
+    m0 = np.array(means, dtype=float).reshape(-1, 4)
+    return m0, np.array(np.broadcast_to(covs, m0.shape + (4,)), dtype=float)
+
+
+def motion_matrices(dt: float, process_noise: float, motion: Any = None
+                    ) -> tuple[FloatArray, FloatArray]:
+    """A multi-target tracker's motion model: ``motion`` ``(F, Q)`` as given (a benchmark's
+    own), else the constant-velocity model of step ``dt`` (s, > 0) with white-noise
+    acceleration ``process_noise`` (q, m^2/s^3, >= 0).
+
+    Raises
+    ------
+    ValueError
+        ``dt`` or ``process_noise`` out of range.
+    """
+    from ..models.motion import cv_matrices
+
+    if not (math.isfinite(dt) and dt > 0.0):
+        raise ValueError(f"dt must be > 0, got {dt!r}")
+    if not (math.isfinite(process_noise) and process_noise >= 0.0):
+        raise ValueError(f"process_noise must be >= 0, got {process_noise!r}")
+    if motion is None:
+        return cv_matrices(float(dt), float(process_noise))
+    F, Q = (np.array(a, dtype=float).reshape(4, 4) for a in motion)
+    return F, Q

@@ -51,21 +51,18 @@ Tracking Systems"), with the defaults of MATLAB's ``radarTracker`` and ``tracker
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from .._types import BoolArray, FloatArray, IntArray
 from ..models.linear import LinearSensor
-from ..models.motion import cv_matrices
-from .base import Looks, TrackSet, UpdateRecord
+from .base import Looks, TrackSet, UpdateRecord, given_tracks
 from .ekf import predict as kalman_predict
-from .pmb import undetected
 from .pmb.bernoulli import PairTerms, first_detection, pair_terms, updates
-from .pmb.sensing import Look, make_sensing
+from .pmb.sensing import Look
+from .pmb.map_tracker import MapTracker
 from .pmb.tracker import MIN_WEIGHT
-from .tracker import gate_threshold
 
 #: The M-of-N defaults: (confirm_hits, confirm_looks, delete_misses).
 DEFAULT_LOGIC = (2, 3, 5)
@@ -100,7 +97,7 @@ def gnn_assignment(cost: FloatArray) -> IntArray:
     return out
 
 
-class GNNTracker:
+class GNNTracker(MapTracker):
     """Global nearest neighbour tracker with M-of-N confirmation and deletion (see the
     module docstring).
 
@@ -146,38 +143,19 @@ class GNNTracker:
                  gate_probability: float = 0.999, confirm_hits: int = DEFAULT_LOGIC[0],
                  confirm_looks: int = DEFAULT_LOGIC[1], delete_misses: int = DEFAULT_LOGIC[2],
                  die_outside_map: bool = False, buildings: FloatArray | None = None) -> None:
-        if not (math.isfinite(dt) and dt > 0.0):
-            raise ValueError(f"dt must be > 0, got {dt!r}")
-        if not (math.isfinite(process_noise) and process_noise >= 0.0):
-            raise ValueError(f"process_noise must be >= 0, got {process_noise!r}")
         if not 1 <= int(confirm_hits) <= int(confirm_looks):
             raise ValueError(f"need 1 <= confirm_hits <= confirm_looks, got {confirm_hits!r} "
                              f"and {confirm_looks!r}")
         if int(delete_misses) < 1:
             raise ValueError(f"delete_misses must be >= 1, got {delete_misses!r}")
-        self.sensing = make_sensing(measurement, buildings)
-        self.dt = float(dt)
-        self.process_noise = float(process_noise)
-        if motion is None:
-            self.F, self.Q = cv_matrices(self.dt, self.process_noise)
-        else:
-            self.F, self.Q = (np.array(a, dtype=float).reshape(4, 4) for a in motion)
-        self.gate = gate_threshold(gate_probability)
+        super().__init__(
+            measurement, dt, world, process_noise=process_noise, motion=motion,
+            resolution=resolution, velocity_var=velocity_var,
+            gate_probability=gate_probability, die_outside_map=die_outside_map,
+            buildings=buildings)
         self.confirm_hits, self.confirm_looks = int(confirm_hits), int(confirm_looks)
         self.delete_misses = int(delete_misses)
-        self.die_outside_map = bool(die_outside_map)
-        self.world = (float(world[0]), float(world[1]))
-        self.grid = undetected.make_grid(*self.world, resolution, velocity_var)
-        self._cell_means = np.zeros((self.grid.size, 4))
-        self._cell_means[:, :2] = self.grid.centres
-        self._cell_covs = np.broadcast_to(self.grid.cov, (self.grid.size, 4, 4))
-        if means is None:
-            m0, P0 = np.zeros((0, 4)), np.zeros((0, 4, 4))
-        else:
-            if covs is None:
-                raise ValueError("covs are needed with means")
-            m0 = np.array(means, dtype=float).reshape(-1, 4)
-            P0 = np.array(np.broadcast_to(covs, m0.shape + (4,)), dtype=float)
+        m0, P0 = given_tracks(means, covs)
         M = len(m0)
         self.means, self.covs = m0, P0
         self.labels = np.arange(M, dtype=np.int64)

@@ -75,17 +75,16 @@ import numpy as np
 
 from ..._types import BoolArray, FloatArray
 from ...models.linear import LinearSensor
-from ...models.motion import cv_matrices
-from ..base import Looks, TrackSet, UpdateRecord
+from ..base import Looks, TrackSet, UpdateRecord, given_tracks
 from ..ekf import predict as kalman_predict
 from ..known_map import map_constraint
-from ..tracker import gate_threshold
 from . import undetected
 from . import hypotheses as hyp
 from .association import AssociationMarginals, association_lbp
 from .bernoulli import (Bernoullis, missed_existence, missed_look, mixture_moments, pair_terms,
                         updates)
-from .sensing import Look, make_sensing
+from .map_tracker import MapTracker
+from .sensing import Look
 
 #: Smallest association weight of a miss or a new detection: the ratio form of belief
 #: propagation needs both positive (a Bernoulli surely there and surely detectable, or a
@@ -117,7 +116,7 @@ class LookOutcome:
     marginals: AssociationMarginals | None = None
 
 
-class PMBTracker:
+class PMBTracker(MapTracker):
     """Track-oriented Poisson multi-Bernoulli tracker (see the module docstring).
 
     Parameters
@@ -189,25 +188,14 @@ class PMBTracker:
             raise ValueError(f"report_threshold must be in (0, 1), got {report_threshold!r}")
         if not (math.isfinite(initial_undetected) and initial_undetected >= 0.0):
             raise ValueError(f"initial_undetected must be >= 0, got {initial_undetected!r}")
-        if not (math.isfinite(process_noise) and process_noise >= 0.0):
-            raise ValueError(f"process_noise must be >= 0, got {process_noise!r}")
-        if not (math.isfinite(dt) and dt > 0.0):
-            raise ValueError(f"dt must be > 0, got {dt!r}")
-        self.sensing = make_sensing(measurement, buildings)
-        self.dt = float(dt)
-        self.process_noise = float(process_noise)
-        if motion is None:
-            self.F, self.Q = cv_matrices(self.dt, self.process_noise)
-        else:
-            self.F, self.Q = (np.array(a, dtype=float).reshape(4, 4) for a in motion)
+        super().__init__(
+            measurement, dt, world, process_noise=process_noise, motion=motion,
+            resolution=resolution, velocity_var=velocity_var,
+            gate_probability=gate_probability, die_outside_map=die_outside_map,
+            buildings=buildings)
         self.survival_probability = float(survival_probability)
-        self.gate = gate_threshold(gate_probability)
-        self.gate_probability = float(gate_probability)
         self.prune_threshold = float(prune_threshold)
         self.report_threshold = float(report_threshold)
-        self.die_outside_map = bool(die_outside_map)
-        self.world = (float(world[0]), float(world[1]))
-        self.grid = undetected.make_grid(*self.world, resolution, velocity_var)
         if isinstance(births, str):
             self.births = undetected.birth_intensity(self.grid, births, birth_rate)
         else:
@@ -217,16 +205,7 @@ class PMBTracker:
                 raise ValueError(f"births must be {self.grid.size} expected births >= 0, "
                                  "one per cell")
         self.undetected = np.full(self.grid.size, float(initial_undetected) / self.grid.size)
-        self._cell_means = np.zeros((self.grid.size, 4))
-        self._cell_means[:, :2] = self.grid.centres
-        self._cell_covs = np.broadcast_to(self.grid.cov, (self.grid.size, 4, 4))
-        if means is None:
-            m0, P0 = np.zeros((0, 4)), np.zeros((0, 4, 4))
-        else:
-            if covs is None:
-                raise ValueError("covs are needed with means")
-            m0 = np.array(means, dtype=float).reshape(-1, 4)
-            P0 = np.array(np.broadcast_to(covs, m0.shape + (4,)), dtype=float)
+        m0, P0 = given_tracks(means, covs)
         r0 = np.array(np.broadcast_to(np.asarray(existence, dtype=float), (len(m0),)))
         if np.any((r0 < 0.0) | (r0 > 1.0)):
             raise ValueError("existence must be in [0, 1]")

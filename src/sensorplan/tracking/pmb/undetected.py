@@ -67,6 +67,13 @@ class Grid:
         """Number of cells C."""
         return self.nx * self.ny
 
+    def cell_states(self) -> tuple[FloatArray, FloatArray]:
+        """Each cell's component as a state density: means ``(C, 4)`` (the centre, at rest)
+        and covariances ``(C, 4, 4)`` (:attr:`cov`, a read-only broadcast view)."""
+        means = np.zeros((self.size, 4))
+        means[:, :2] = self.centres
+        return means, np.broadcast_to(self.cov, (self.size, 4, 4))
+
     @property
     def cell_area(self) -> float:
         """Area of one cell (m^2)."""
