@@ -21,7 +21,7 @@ from .colors import (BUILDING_EDGE, BUILDING_FACE, mix, mix_hex, sensor_style, t
 from .view import CLIP_MAPS as CLIP_MAPS  # the clipping bound lives beside the geometry
 from .view import (DENSE_SENSORS, DENSE_TARGETS, LEGEND_ITEMS, N_SIGMA,
                    TIMELINE_IMAGE_HEIGHT, RunView, clip_xy, fade_colors, fov_geometry,
-                   map_limit, segments)
+                   map_legend_beside, map_limit, segments)
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -291,7 +291,6 @@ def map_legend(ax: Axes, episode: Episode, scenario: Scenario,
     """Legend right of the map: the targets (colour, kind), the sensors (grey, marker,
     altitude), buildings, then ``extra`` handles; more than :data:`LEGEND_ITEMS` targets
     (sensors) are one summary entry."""
-    from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
     kinds = tuple(episode.target_kinds)
@@ -302,15 +301,7 @@ def map_legend(ax: Axes, episode: Episode, scenario: Scenario,
         return
     handles: list[Any] = [Patch(facecolor=c, label=f"T{j} ({kind})")
                           for j, (c, kind) in enumerate(zip(target_colors(len(kinds)), kinds))]
-    for i, spec in enumerate(scenario.sensors):
-        color, marker = sensor_style(i)
-        handles.append(Line2D([], [], color=color, marker=marker, linewidth=1.0,
-                              label=f"S{i}, z = {float(spec.params.altitude):g} m"))
-    if scenario.buildings:
-        handles.append(Patch(facecolor=BUILDING_FACE, edgecolor=BUILDING_EDGE,
-                             label="building (height)"))
-    ax.legend(handles=handles + extra, loc="upper left", bbox_to_anchor=(1.01, 1.0),
-              fontsize=8.5, frameon=False)
+    map_legend_beside(ax, handles, scenario, extra, fontsize=8.5)
 
 
 def episode_title(episode: Episode) -> str:

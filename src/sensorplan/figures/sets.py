@@ -286,12 +286,10 @@ def set_legend(ax: Axes, episode: Episode, scenario: Scenario, extra: list[Any],
     :data:`~sensorplan.figures.view.LEGEND_ITEMS` or with ``summary``: the animation names
     its targets on the map and needs the room for its event log), the sensors, then
     ``extra``."""
-    from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
     from ..study.lifespan import slot_kinds
-    from .colors import BUILDING_EDGE, BUILDING_FACE, sensor_style
-    from .view import LEGEND_ITEMS
+    from .view import LEGEND_ITEMS, map_legend_beside
 
     M = np.asarray(episode.alive).shape[1]
     kinds = slot_kinds(tuple(episode.target_kinds), M)
@@ -300,15 +298,7 @@ def set_legend(ax: Axes, episode: Episode, scenario: Scenario, extra: list[Any],
     else:
         handles = [Patch(facecolor=target_color(j), label=f"T{j} ({kinds[j]})")
                    for j in range(M)]
-    for i, spec in enumerate(scenario.sensors[:LEGEND_ITEMS]):
-        color, marker = sensor_style(i)
-        handles.append(Line2D([], [], color=color, marker=marker, linewidth=1.0,
-                              label=f"S{i}, z = {float(spec.params.altitude):g} m"))
-    if scenario.buildings:
-        handles.append(Patch(facecolor=BUILDING_FACE, edgecolor=BUILDING_EDGE,
-                             label="building (height)"))
-    ax.legend(handles=handles + extra, loc="upper left", bbox_to_anchor=(1.01, 1.0),
-              fontsize=8, frameon=False)
+    map_legend_beside(ax, handles, scenario, extra, fontsize=8, sensors=LEGEND_ITEMS)
 
 
 def set_title(episode: Episode, gospa: Any) -> str:

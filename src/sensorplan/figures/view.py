@@ -113,3 +113,24 @@ class RunView:
     @property
     def N(self) -> int:
         return self.spos.shape[1]
+
+
+def map_legend_beside(ax: Any, targets: list[Any], scenario: Any, extra: list[Any],
+                      fontsize: float, sensors: int | None = None) -> None:
+    """The legend right of a run's map: ``targets`` (handles), the first ``sensors`` (all
+    for None) sensors (grey, marker, altitude), the buildings, then ``extra``."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    from .colors import BUILDING_EDGE, BUILDING_FACE, sensor_style
+
+    handles = list(targets)
+    for i, spec in enumerate(scenario.sensors[:sensors]):
+        color, marker = sensor_style(i)
+        handles.append(Line2D([], [], color=color, marker=marker, linewidth=1.0,
+                              label=f"S{i}, z = {float(spec.params.altitude):g} m"))
+    if scenario.buildings:
+        handles.append(Patch(facecolor=BUILDING_FACE, edgecolor=BUILDING_EDGE,
+                             label="building (height)"))
+    ax.legend(handles=handles + extra, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+              fontsize=fontsize, frameon=False)
