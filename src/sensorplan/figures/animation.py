@@ -295,13 +295,8 @@ class _Frames:
                    label="true track (older: lighter)"),
             Line2D([], [], color="0.25", linestyle=":", marker="+", markersize=9,
                    label="estimate"),
-            Line2D([], [], color="0.25", marker="o", markerfacecolor="none",
-                   linestyle="none", markersize=10,
-                   label=f"{N_SIGMA:g}\u03c3 position ellipse"),
-            Line2D([], [], color="0.25", linewidth=1.3,
-                   label="sensor \u2192 target it looks at"),
-            Line2D([], [], color="0.25", linewidth=1.3, linestyle="--", marker="x",
-                   markeredgecolor="k", label="look missed (no detection)"),
+            *_look_entries(f"{N_SIGMA:g}\u03c3 position ellipse",
+                           "sensor \u2192 target it looks at", "look missed (no detection)"),
             Patch(facecolor="0.5", alpha=0.2, edgecolor="0.3", linestyle="--",
                   label="field of view"),
         ]
@@ -309,13 +304,9 @@ class _Frames:
             from .sets import set_handles, set_legend
 
             tail_entries = [
-                Line2D([], [], color="0.25", marker="o", markerfacecolor="none",
-                       linestyle="none", markersize=10,
-                       label=f"{N_SIGMA:g}\u03c3 ellipse of a reported track"),
-                Line2D([], [], color="0.25", linewidth=1.3,
-                       label="sensor \u2192 track it looks at"),
-                Line2D([], [], color="0.25", linewidth=1.3, linestyle="--", marker="x",
-                       markeredgecolor="k", label="the look returned no detection"),
+                *_look_entries(f"{N_SIGMA:g}\u03c3 ellipse of a reported track",
+                               "sensor \u2192 track it looks at",
+                               "the look returned no detection"),
                 extra[-1]]
             set_legend(ax, episode, scenario,
                        set_handles(self.sets, np.array([], int), self.dt)[1:-3] + tail_entries,
@@ -438,3 +429,15 @@ class _Frames:
 
 
 __all__ = ["FORMATS", "animate_episode", "check_format", "ffmpeg_available", "frame_steps"]
+
+
+def _look_entries(ellipse: str, look: str, missed: str) -> list[Any]:
+    """Legend entries of an estimate's ellipse, a look's line and a look without a
+    detection, with these labels."""
+    from matplotlib.lines import Line2D
+
+    return [Line2D([], [], color="0.25", marker="o", markerfacecolor="none",
+                   linestyle="none", markersize=10, label=ellipse),
+            Line2D([], [], color="0.25", linewidth=1.3, label=look),
+            Line2D([], [], color="0.25", linewidth=1.3, linestyle="--", marker="x",
+                   markeredgecolor="k", label=missed)]
