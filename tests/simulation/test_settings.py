@@ -36,7 +36,8 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
                      "tracker.mode_process_noise", "tracker.switching", "tracker.gate",
                      "tracker.gate_probability", "tracker.reacquire", "tracker.association",
                      "tracker.known_map", "tracker.known_buildings",
-                     "tracker.reflect_walls", "tracker.births", "tracker.birth_rate",
+                     "tracker.reflect_walls", "tracker.births", "tracker.map_edge",
+                     "tracker.birth_rate",
                      "tracker.survival_probability", "tracker.report_threshold",
                      "tracker.prune_threshold", "tracker.grid_resolution",
                      "tracker.confirm_hits", "tracker.confirm_looks", "tracker.delete_misses"]

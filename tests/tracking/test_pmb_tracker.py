@@ -233,14 +233,14 @@ def test_predict_applies_survival_and_the_motion_model() -> None:
     assert tr.planning_process_noise() == 0.3
 
 
-def test_a_bernoulli_leaving_the_map_loses_existence_with_edge_births() -> None:
+def test_a_bernoulli_leaving_the_map_loses_existence_with_an_exit_edge() -> None:
     # Position variances with no x-y correlation: the mass on the map is a product of two
     # normal intervals after the predict.
     sensor = linear.williams15()
     m = np.array([[295.0, 150.0, 4.0, 0.0]])
     P = np.diag([9.0, 16.0, 1.0, 1.0])[None]
     tr = PMBTracker(sensor, 1.0, (300.0, 300.0), means=m, covs=P, existence=0.9,
-                    process_noise=0.1, survival_probability=0.99, die_outside_map=True,
+                    process_noise=0.1, survival_probability=0.99, map_edge="exit",
                     report_threshold=0.3)
     corrected = tr.predict()
     mk, Pk = predicted(m[0], P[0], 1.0, 0.1)

@@ -12,10 +12,12 @@ target that exists with probability :math:`r_i` with a Gaussian density
 
 **Predict** (every step). Each Bernoulli: the motion model's Kalman prediction (CWNA with
 the tracker's ``process_noise``, or a given ``(F, Q)``) and :math:`r \leftarrow p_S r`.
-With ``die_outside_map`` (edge births: a target that leaves the map dies) the survival
-also requires the target to stay on the map: a density whose mean or 3-sigma box leaves it
-is truncated to the map (:func:`sensorplan.tracking.known_map.map_constraint`) and
-:math:`r` is multiplied by its mass on the map. :math:`D_u`: survival and births.
+The map's edge (``map_edge``, :func:`sensorplan.tracking.known_map.map_edge_predict`):
+with ``exit`` (a target that reaches the edge leaves and is gone) the survival also
+requires the target to stay on the map: a density whose mean or 3-sigma box leaves it is
+truncated to the map and :math:`r` is multiplied by its mass on the map; with ``closed``
+(targets turn back at the walls) the part beyond a wall is reflected back in and
+:math:`r` loses nothing at the edge. :math:`D_u`: survival and births.
 
 **Update** (each look, in sensor order, with its detections :math:`z_1..z_m`):
 
@@ -78,7 +80,7 @@ from ...models.linear import LinearSensor
 from ...models.motion import cv_matrices
 from ..base import Looks, TrackSet, UpdateRecord
 from ..ekf import predict as kalman_predict
-from ..known_map import map_constraint
+from ..known_map import MAP_EDGES, map_edge_predict
 from ..tracker import gate_threshold
 from . import undetected
 from . import hypotheses as hyp
@@ -163,8 +165,11 @@ class PMBTracker:
         Bernoullis below this existence are dropped; default 1e-3.
     report_threshold : float in (0, 1)
         :meth:`tracks` reports Bernoullis with at least this existence; default 0.5.
-    die_outside_map : bool
-        Targets that leave the map die (edge births): survival requires staying on the map.
+    map_edge : {"exit", "closed"} or None
+        What a target that reaches the map's edge does: leaves and is gone (``exit``:
+        survival requires staying on the map), or turns back (``closed``: a density
+        predicted across a wall is reflected back in, its existence kept); None (default):
+        the edge is not modelled.
     buildings : (K, 5), optional
         Buildings ``x0, y0, x1, y1, height`` that hide targets from the radar.
     """
@@ -178,7 +183,7 @@ class PMBTracker:
                  birth_rate: float = 0.0, initial_undetected: float = 0.0,
                  resolution: float = 25.0, velocity_var: float = 10.5,
                  gate_probability: float = 0.999, prune_threshold: float = 1e-3,
-                 report_threshold: float = 0.5, die_outside_map: bool = False,
+                 report_threshold: float = 0.5, map_edge: str | None = None,
                  buildings: FloatArray | None = None) -> None:
         if not 0.0 < survival_probability <= 1.0:
             raise ValueError(f"survival_probability must be in (0, 1], got "
@@ -205,7 +210,9 @@ class PMBTracker:
         self.gate_probability = float(gate_probability)
         self.prune_threshold = float(prune_threshold)
         self.report_threshold = float(report_threshold)
-        self.die_outside_map = bool(die_outside_map)
+        if map_edge is not None and map_edge not in MAP_EDGES:
+            raise ValueError(f"map_edge must be one of {MAP_EDGES} or None, got {map_edge!r}")
+        self.map_edge = map_edge
         self.world = (float(world[0]), float(world[1]))
         self.grid = undetected.make_grid(*self.world, resolution, velocity_var)
         if isinstance(births, str):
@@ -253,7 +260,7 @@ class PMBTracker:
         Returns
         -------
         (T,) bool: of the tracks reported before the predict, those the map truncated
-        (only with ``die_outside_map``).
+        (only with a ``map_edge``).
         """
         b = self.bern
         reported = self._reported()
@@ -261,8 +268,9 @@ class PMBTracker:
         if len(b):
             b.means, b.covs = kalman_predict(b.means, b.covs, self.F, self.Q)
             b.r = self.survival_probability * b.r
-            if self.die_outside_map:
-                m, P, applied, log_mass = map_constraint(b.means, b.covs, *self.world)
+            if self.map_edge is not None:
+                m, P, applied, log_mass = map_edge_predict(b.means, b.covs, *self.world,
+                                                           self.map_edge)
                 b.means, b.covs = m, P
                 b.r = b.r * np.exp(log_mass)
                 corrected = applied
