@@ -254,7 +254,8 @@ def test_unused_names_what_the_tracker_ignores() -> None:
     pmb, gnn = TrackerSettings(kind="pmb").unused(), TrackerSettings(kind="gnn").unused()
     assert set(GNN_SETTINGS) <= set(pmb) and not set(PMB_SETTINGS) & set(pmb)
     assert set(PMB_SETTINGS) <= set(gnn) and not set(GNN_SETTINGS) & set(gnn)
-    assert {"births", "grid_resolution", "process_noise", "gate_probability"}.isdisjoint(gnn)
+    assert {"map_edge", "grid_resolution", "process_noise", "gate_probability"}.isdisjoint(gnn)
+    assert "births" in gnn and "map_edge" not in pmb       # the map's edge is its own model
     assert set(GNN_SETTINGS) | set(PMB_SETTINGS) <= set(MT)
 
 

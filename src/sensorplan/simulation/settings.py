@@ -80,11 +80,11 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
 
 
 #: The settings only the PMB tracker reads, and only the GNN tracker.
-PMB_SETTINGS = ("birth_rate", "survival_probability", "report_threshold", "prune_threshold")
+PMB_SETTINGS = ("births", "birth_rate", "survival_probability", "report_threshold",
+                "prune_threshold")
 GNN_SETTINGS = ("confirm_hits", "confirm_looks", "delete_misses")
 #: The settings only a multi-target tracker reads.
-MULTI_TARGET_SETTINGS = ("births", "map_edge", *PMB_SETTINGS, "grid_resolution",
-                         *GNN_SETTINGS)
+MULTI_TARGET_SETTINGS = ("map_edge", *PMB_SETTINGS, "grid_resolution", *GNN_SETTINGS)
 #: A multi-target tracker's model of the map's edge: as the scenario's truth, or one of
 #: :data:`sensorplan.tracking.known_map.MAP_EDGES` (exit, closed).
 MAP_EDGE_CHOICES = ("scenario", "exit", "closed")
