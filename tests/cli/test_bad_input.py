@@ -1180,6 +1180,9 @@ GNN_TOML = ('look_detects = "all"\nbirths = "edges"\nbirth_rate = 0.05\n[run]\ns
     ("delete_misses = 0\n", "tracker.delete_misses", "must be in [1, 1000], got 0"),
     ("delete_misses = 1.5\n", "tracker.delete_misses", "must be an integer, got 1.5"),
     ('delete_misses = "five"\n', "tracker.delete_misses", ""),
+    ('map_edge = "wall"\n', "tracker.map_edge",
+     "unknown map edge 'wall'; choose from scenario, exit, closed"),
+    ("map_edge = 1\n", "tracker.map_edge", ""),
 ])
 def test_bad_gnn_logic_settings_are_one_line_naming_the_key(
         capsys: pytest.CaptureFixture[str], tmp_path: Path, extra: str, field: str,

@@ -36,7 +36,8 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
                      "tracker.mode_process_noise", "tracker.switching", "tracker.gate",
                      "tracker.gate_probability", "tracker.reacquire", "tracker.association",
                      "tracker.known_map", "tracker.known_buildings",
-                     "tracker.reflect_walls", "tracker.births", "tracker.birth_rate",
+                     "tracker.reflect_walls", "tracker.births", "tracker.map_edge",
+                     "tracker.birth_rate",
                      "tracker.survival_probability", "tracker.report_threshold",
                      "tracker.prune_threshold", "tracker.grid_resolution",
                      "tracker.confirm_hits", "tracker.confirm_looks", "tracker.delete_misses"]
@@ -253,7 +254,8 @@ def test_unused_names_what_the_tracker_ignores() -> None:
     pmb, gnn = TrackerSettings(kind="pmb").unused(), TrackerSettings(kind="gnn").unused()
     assert set(GNN_SETTINGS) <= set(pmb) and not set(PMB_SETTINGS) & set(pmb)
     assert set(PMB_SETTINGS) <= set(gnn) and not set(GNN_SETTINGS) & set(gnn)
-    assert {"births", "grid_resolution", "process_noise", "gate_probability"}.isdisjoint(gnn)
+    assert {"map_edge", "grid_resolution", "process_noise", "gate_probability"}.isdisjoint(gnn)
+    assert "births" in gnn and "map_edge" not in pmb       # the map's edge is its own model
     assert set(GNN_SETTINGS) | set(PMB_SETTINGS) <= set(MT)
 
 

@@ -463,6 +463,52 @@ def test_a_multi_target_tracker_finds_targets_nobody_named() -> None:
     assert np.isnan(a.error[steps[~sm.assigned] + 1, ids[~sm.assigned]]).all()
 
 
+def test_a_multi_target_trackers_map_edge_follows_the_scenarios_truth_by_default() -> None:
+    import dataclasses
+
+    from sensorplan.simulation.run import map_edge
+    from sensorplan.simulation.scenario import (SensorSpec, benchmark_scenario,
+                                                radar_scenario, search_scenario)
+
+    auto = TrackerSettings(kind="pmb")
+    assert auto.map_edge == "scenario"
+    # The walls turn the radar preset's targets back (and targets born anywhere); the
+    # search preset's are born at the edges and die when they leave; a scripted truth's
+    # cross the walls.
+    assert map_edge(radar_scenario(), auto) == "closed"
+    assert map_edge(dataclasses.replace(radar_scenario(), births="uniform", birth_rate=0.1,
+                                        survival_probability=0.99), auto) == "closed"
+    assert search_scenario().births == "edges"
+    assert map_edge(search_scenario(), auto) == "exit"
+    assert map_edge(benchmark_scenario("vo12", (SensorSpec(),)), auto) == "exit"
+    for edge in ("exit", "closed"):                        # a written value wins
+        for sc in (radar_scenario(), search_scenario()):
+            assert map_edge(sc, TrackerSettings(kind="pmb", map_edge=edge)) == edge
+
+
+def test_a_closed_map_edge_run_repeats_and_differs_from_an_exit_one() -> None:
+    import dataclasses
+
+    from sensorplan.simulation.scenario import radar_scenario
+
+    sc = dataclasses.replace(radar_scenario(), look_detects="all")
+    eps = {}
+    for edge in ("closed", "closed", "exit"):
+        s = RunSettings(planner="pg", steps=30,
+                        tracker=TrackerSettings(kind="pmb", map_edge=edge))
+        eps.setdefault(edge, []).append(run_episode(sc, s, 5))
+    a, b = eps["closed"]
+    for name in ("truth", "track_step", "track_label", "track_mean", "track_cov",
+                 "track_existence"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    assert a.settings.tracker.map_edge == "closed"
+    # The truth is the same; the tracks are not (this run's tracks meet the walls).
+    c = eps["exit"][0]
+    np.testing.assert_array_equal(a.truth, c.truth)
+    assert not (a.track_mean.shape == c.track_mean.shape
+                and np.array_equal(a.track_mean, c.track_mean))
+
+
 def test_a_multi_target_tracker_needs_looks_that_detect_every_target(tmp_path, capsys) -> None:
     from cli_helpers import run
 

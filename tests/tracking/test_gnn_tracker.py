@@ -258,17 +258,21 @@ def test_a_detection_off_the_map_starts_no_track() -> None:
     assert len(tr.labels) == 1 and np.allclose(tr.means[0, :2], 150.0, atol=1.0)
 
 
-def test_a_track_that_leaves_the_map_dies_with_edge_births() -> None:
+def test_a_track_that_leaves_the_map_dies_with_an_exit_edge_and_turns_with_a_closed_one(
+        ) -> None:
     sensor = linear.LinearSensor((0.0, 0.0, 300.0, 300.0), 1.0, 0.9, 0.0)
     start = np.array([[295.0, 150.0, 3.0, 0.0]])
-    for die, alive in ((True, 1), (False, 3)):
-        tr = GNNTracker(sensor, 1.0, (300.0, 300.0), means=start, covs=P0, die_outside_map=die)
+    for edge, alive in (("exit", 1), (None, 3), ("closed", 3)):
+        tr = GNNTracker(sensor, 1.0, (300.0, 300.0), means=start, covs=P0, map_edge=edge)
         tr.predict()
         n = [len(tr.tracks())]
         for _ in range(2):
             tr.predict()
             n.append(len(tr.tracks()))
         assert sum(n) == alive
+        if edge == "closed":          # kept in the map, its mean turned back inward
+            x = tr.tracks().means[0]
+            assert 0.0 <= x[0] <= 300.0 and x[2] < 3.0
 
 
 # ----------------------------------------------------------------------------- closed loop

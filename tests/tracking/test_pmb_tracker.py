@@ -233,14 +233,14 @@ def test_predict_applies_survival_and_the_motion_model() -> None:
     assert tr.planning_process_noise() == 0.3
 
 
-def test_a_bernoulli_leaving_the_map_loses_existence_with_edge_births() -> None:
+def test_a_bernoulli_leaving_the_map_loses_existence_with_an_exit_edge() -> None:
     # Position variances with no x-y correlation: the mass on the map is a product of two
     # normal intervals after the predict.
     sensor = linear.williams15()
     m = np.array([[295.0, 150.0, 4.0, 0.0]])
     P = np.diag([9.0, 16.0, 1.0, 1.0])[None]
     tr = PMBTracker(sensor, 1.0, (300.0, 300.0), means=m, covs=P, existence=0.9,
-                    process_noise=0.1, survival_probability=0.99, die_outside_map=True,
+                    process_noise=0.1, survival_probability=0.99, map_edge="exit",
                     report_threshold=0.3)
     corrected = tr.predict()
     mk, Pk = predicted(m[0], P[0], 1.0, 0.1)
@@ -249,6 +249,78 @@ def test_a_bernoulli_leaving_the_map_loses_existence_with_edge_births() -> None:
             * (norm.cdf((300 - mk[1]) / sy) - norm.cdf(-mk[1] / sy)))
     np.testing.assert_allclose(tr.bern.r, [0.99 * 0.9 * mass], rtol=1e-12)
     assert corrected.tolist() == [True] and tr.bern.means[0, 0] < 300.0
+
+
+def folded_moments(mu: np.ndarray, P: np.ndarray, wall: float) -> tuple[float, float, float]:
+    """Mean x, mean vx and variance of x of a Gaussian state ``[x, y, vx, vy]`` whose part
+    beyond the wall ``x = wall`` is mirrored back (``x -> 2 wall - x``, ``vx -> -vx``): the
+    folded normal's closed form (the far wall's share is negligible here)."""
+    s = math.sqrt(P[0, 0])
+    a = (wall - mu[0]) / s
+    tail, dens = norm.sf(a), norm.pdf(a)
+    beyond = s * dens + (mu[0] - wall) * tail                     # E[(x - wall)+]
+    ex = mu[0] - 2.0 * beyond
+    ev = mu[2] - 2.0 * (mu[2] * tail + P[0, 2] / s * dens)        # E[vx 1{x > wall}]
+    # E[(x - wall)^2 1{x > wall}] is unchanged by the fold: E[x'^2] = E[x^2] - 4 wall beyond.
+    ex2 = P[0, 0] + mu[0] ** 2 - 4.0 * wall * beyond
+    return ex, ev, ex2 - ex ** 2
+
+
+@pytest.mark.parametrize("edge", ["exit", "closed"])
+def test_a_bernoulli_predicted_across_the_wall_keeps_its_existence_only_in_a_closed_map(
+        edge: str) -> None:
+    # Its mean is predicted 1 m inside the wall x = 300 with a third of its mass beyond.
+    sensor = linear.williams15()
+    m = np.array([[295.0, 150.0, 4.0, 0.0]])
+    P = np.diag([9.0, 16.0, 1.0, 1.0])[None]
+    tr = PMBTracker(sensor, 1.0, (300.0, 300.0), means=m, covs=P, existence=0.9,
+                    process_noise=0.1, survival_probability=0.99, map_edge=edge,
+                    report_threshold=0.3)
+    corrected = tr.predict()
+    mk, Pk = predicted(m[0], P[0], 1.0, 0.1)
+    sx = math.sqrt(Pk[0, 0])
+    on_map = norm.cdf((300 - mk[0]) / sx) - norm.cdf(-mk[0] / sx)   # y is far inside
+    assert on_map < 0.75
+    want = 0.99 * 0.9 * (on_map if edge == "exit" else 1.0)
+    np.testing.assert_allclose(tr.bern.r, [want], rtol=1e-9)
+    assert corrected.tolist() == [True]
+    x = tr.bern.means[0]
+    assert 0.0 <= x[0] < 300.0 and 0.0 <= x[1] <= 300.0
+    if edge == "closed":
+        # The reflected density's moments against the folded normal's closed form, to the
+        # 512-point quadrature's accuracy (a few mm and mm/s on a 2 m spread).
+        ex, ev, vx = folded_moments(mk, Pk, 300.0)
+        np.testing.assert_allclose([x[0], x[2]], [ex, ev], atol=0.01)
+        np.testing.assert_allclose(tr.bern.covs[0, 0, 0], vx, rtol=0.02)
+        # The rest of the state is the prediction's (no y, vy coupling to x here).
+        np.testing.assert_allclose(x[[1, 3]], mk[[1, 3]], atol=1e-9)
+
+
+def test_a_closed_map_keeps_a_bernoulli_inside_through_many_walls() -> None:
+    # A lost track (large covariance) drifting for 60 steps: with a closed map it neither
+    # loses existence at the walls nor leaves the map; with an exit edge it fades.
+    sensor = linear.williams15()
+    m = np.array([[280.0, 20.0, 5.0, -4.0]])
+    P = np.diag([400.0, 400.0, 4.0, 4.0])[None]
+    out = {}
+    for edge in ("exit", "closed"):
+        tr = PMBTracker(sensor, 1.0, (300.0, 300.0), means=m, covs=P, existence=1.0,
+                        process_noise=0.5, survival_probability=0.999, map_edge=edge,
+                        prune_threshold=0.0, report_threshold=0.3)
+        for _ in range(60):
+            tr.predict()
+            if edge == "closed":
+                x = tr.bern.means[0]
+                assert 0.0 <= x[0] <= 300.0 and 0.0 <= x[1] <= 300.0
+                assert np.all(np.linalg.eigvalsh(tr.bern.covs[0]) > 0.0)
+        out[edge] = tr.bern.r[0]
+    np.testing.assert_allclose(out["closed"], 0.999 ** 60, rtol=1e-12)
+    assert out["exit"] < 0.5 * out["closed"]
+
+
+def test_an_unknown_map_edge_is_refused() -> None:
+    with pytest.raises(ValueError, match="map_edge"):
+        PMBTracker(linear.williams15(), 1.0, (300.0, 300.0), map_edge="wall")
 
 
 # ----------------------------------------------------------------------------- the grid

@@ -49,7 +49,7 @@ from ..tracking.registry import tracker_class
 from .episode import Episode, Recorder, _is_int
 from .scenario import Scenario, draw_initial, make_population
 from .sensing import Sensing
-from .settings import EXECUTIONS, RunSettings
+from .settings import EXECUTIONS, RunSettings, TrackerSettings
 
 __all__ = ["EXECUTIONS", "STREAMS", "Episode", "RunSettings", "run_episode", "run_streams"]
 #: Names of the run's independent random streams, in spawn order (a new stream is only ever
@@ -159,6 +159,17 @@ def run_episode(scenario: Scenario, settings: RunSettings,
                           seed_ss)
 
 
+def map_edge(scenario: Scenario, tracker: TrackerSettings) -> str:
+    """A multi-target tracker's model of the map's edge: ``tracker.map_edge``, or with
+    ``"scenario"`` the scenario truth's: ``exit`` where targets leave the map (born at the
+    edges, dying when they leave; a scripted benchmark truth, whose targets the walls do not
+    turn back and the tracker no longer sees once they are off the map), ``closed`` where
+    the walls turn every target back (no births, or births anywhere)."""
+    if tracker.map_edge != "scenario":
+        return tracker.map_edge
+    return "exit" if scenario.births == "edges" or scenario.scripted is not None else "closed"
+
+
 def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray,
                  table: FloatArray) -> Tracker:
     """The run's tracker (``settings.tracker.kind``), started at the initial estimates
@@ -172,7 +183,7 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
             means=estimate, covs=P0, process_noise=tr.process_noise,
             resolution=tr.grid_resolution, gate_probability=tr.gate_probability,
             confirm_hits=tr.confirm_hits, confirm_looks=tr.confirm_looks,
-            delete_misses=tr.delete_misses, die_outside_map=tr.births == "edges",
+            delete_misses=tr.delete_misses, map_edge=map_edge(scenario, tr),
             buildings=scenario.building_array)
     if tr.kind != "known":
         return cls(
@@ -182,7 +193,7 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
             birth_rate=tr.birth_rate if tr.births != "none" else 0.0,
             resolution=tr.grid_resolution, gate_probability=tr.gate_probability,
             prune_threshold=tr.prune_threshold, report_threshold=tr.report_threshold,
-            die_outside_map=tr.births == "edges", buildings=scenario.building_array)
+            map_edge=map_edge(scenario, tr), buildings=scenario.building_array)
     return cls(
         estimate, P0, scenario.dt, table,
         world=(scenario.world.width, scenario.world.height)

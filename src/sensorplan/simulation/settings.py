@@ -80,10 +80,14 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
 
 
 #: The settings only the PMB tracker reads, and only the GNN tracker.
-PMB_SETTINGS = ("birth_rate", "survival_probability", "report_threshold", "prune_threshold")
+PMB_SETTINGS = ("births", "birth_rate", "survival_probability", "report_threshold",
+                "prune_threshold")
 GNN_SETTINGS = ("confirm_hits", "confirm_looks", "delete_misses")
 #: The settings only a multi-target tracker reads.
-MULTI_TARGET_SETTINGS = ("births", *PMB_SETTINGS, "grid_resolution", *GNN_SETTINGS)
+MULTI_TARGET_SETTINGS = ("map_edge", *PMB_SETTINGS, "grid_resolution", *GNN_SETTINGS)
+#: A multi-target tracker's model of the map's edge: as the scenario's truth, or one of
+#: :data:`sensorplan.tracking.known_map.MAP_EDGES` (exit, closed).
+MAP_EDGE_CHOICES = ("scenario", "exit", "closed")
 
 
 def _births() -> tuple[str, ...]:
@@ -350,7 +354,15 @@ class TrackerSettings(_Settings):
         "edges", section="tracker", label="tracker births", choices=lambda: _births(),
         noun="births",
         help="A multi-target tracker's model of where targets are born: edges (on the map's "
-             "boundary; a track that leaves the map dies), uniform (anywhere) or none.")
+             "boundary), uniform (anywhere) or none.")
+    map_edge: str = setting(
+        "scenario", section="tracker", label="map edge", choices=MAP_EDGE_CHOICES,
+        noun="map edge",
+        help="What a multi-target tracker assumes of a target that reaches the map's edge: "
+             "exit (it leaves and is gone, so a track predicted off the map loses "
+             "existence), closed (it turns back, so a track is reflected back in and keeps "
+             "its existence) or scenario (exit when the scenario's targets are born at the "
+             "edges or scripted, closed when its walls turn them back).")
     birth_rate: float = setting(
         0.02, section="tracker", label="tracker birth rate", bounds=Range(0.0, 100.0),
         help="A multi-target tracker's expected number of births per step over the map.")

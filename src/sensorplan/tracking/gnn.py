@@ -5,9 +5,11 @@ density without its existence) with a label for life and a status, tentative or 
 Its parts, in Stone Soup's words:
 
 - **Predictor**: the motion model's Kalman prediction (CWNA with ``process_noise``, or a
-  given ``(F, Q)``), as the PMB predicts a Bernoulli. With ``die_outside_map`` (edge
-  births: a target that leaves the map dies) a track whose predicted mean leaves the map
-  is deleted.
+  given ``(F, Q)``), as the PMB predicts a Bernoulli. The map's edge (``map_edge``):
+  with ``exit`` (a target that reaches the edge leaves and is gone) a track whose
+  predicted mean leaves the map is deleted; with ``closed`` (targets turn back at the
+  walls) its density is reflected back in as the PMB's
+  (:func:`sensorplan.tracking.known_map.map_edge_predict`).
 - **Data associator** (each look, in sensor order, with detections :math:`z_1..z_m`): one
   2-D assignment (:func:`gnn_assignment`, ``scipy.optimize.linear_sum_assignment``) over
   the gated (track, detection) pairs. Pair :math:`(i, j)` costs the negative log of its
@@ -59,6 +61,7 @@ from .._types import BoolArray, FloatArray, IntArray
 from ..models.linear import LinearSensor
 from .base import Looks, TrackSet, UpdateRecord, given_tracks
 from .ekf import predict as kalman_predict
+from .known_map import map_edge_predict
 from .pmb.bernoulli import PairTerms, first_detection, pair_terms, updates
 from .pmb.sensing import Look
 from .pmb.map_tracker import MapTracker
@@ -129,8 +132,10 @@ class GNNTracker(MapTracker):
         ``confirm_looks`` looks (1 <= hits <= looks); default 2 of 3.
     delete_misses : int >= 1
         A track is deleted after this many consecutive missed looks at it; default 5.
-    die_outside_map : bool
-        Delete a track whose predicted mean leaves the map (edge births).
+    map_edge : {"exit", "closed"} or None
+        What a target that reaches the map's edge does: leaves (``exit``: a track whose
+        predicted mean leaves the map is deleted) or turns back (``closed``: the density is
+        reflected back in); None (default): the edge is not modelled.
     buildings : (K, 5), optional
         Buildings ``x0, y0, x1, y1, height`` that hide targets from the radar.
     """
@@ -142,7 +147,7 @@ class GNNTracker(MapTracker):
                  resolution: float = 25.0, velocity_var: float = 10.5,
                  gate_probability: float = 0.999, confirm_hits: int = DEFAULT_LOGIC[0],
                  confirm_looks: int = DEFAULT_LOGIC[1], delete_misses: int = DEFAULT_LOGIC[2],
-                 die_outside_map: bool = False, buildings: FloatArray | None = None) -> None:
+                 map_edge: str | None = None, buildings: FloatArray | None = None) -> None:
         if not 1 <= int(confirm_hits) <= int(confirm_looks):
             raise ValueError(f"need 1 <= confirm_hits <= confirm_looks, got {confirm_hits!r} "
                              f"and {confirm_looks!r}")
@@ -151,7 +156,7 @@ class GNNTracker(MapTracker):
         super().__init__(
             measurement, dt, world, process_noise=process_noise, motion=motion,
             resolution=resolution, velocity_var=velocity_var,
-            gate_probability=gate_probability, die_outside_map=die_outside_map,
+            gate_probability=gate_probability, map_edge=map_edge,
             buildings=buildings)
         self.confirm_hits, self.confirm_looks = int(confirm_hits), int(confirm_looks)
         self.delete_misses = int(delete_misses)
@@ -177,12 +182,18 @@ class GNNTracker(MapTracker):
         return self.process_noise
 
     def predict(self) -> BoolArray:
-        """Predict every track one step (and delete those that left the map, with
-        ``die_outside_map``); returns ``(T,)`` False: no reported track is corrected."""
+        """Predict every track one step (and delete those that left the map with ``map_edge
+        = "exit"``, reflect them back in with ``"closed"``); returns ``(T,)``: the reported
+        tracks the map's edge changed (always False with ``exit``)."""
         T = int(self.confirmed.sum())
         if len(self.labels):
             self.means, self.covs = kalman_predict(self.means, self.covs, self.F, self.Q)
-            if self.die_outside_map:
+            if self.map_edge == "closed":
+                before = self.confirmed.copy()
+                self.means, self.covs, applied, _ = map_edge_predict(
+                    self.means, self.covs, *self.world, "closed")
+                return applied[before]
+            if self.map_edge == "exit":
                 x, y = self.means[:, 0], self.means[:, 1]
                 self._keep((x >= 0.0) & (x <= self.world[0]) & (y >= 0.0)
                            & (y <= self.world[1]))

@@ -12,10 +12,12 @@ target that exists with probability :math:`r_i` with a Gaussian density
 
 **Predict** (every step). Each Bernoulli: the motion model's Kalman prediction (CWNA with
 the tracker's ``process_noise``, or a given ``(F, Q)``) and :math:`r \leftarrow p_S r`.
-With ``die_outside_map`` (edge births: a target that leaves the map dies) the survival
-also requires the target to stay on the map: a density whose mean or 3-sigma box leaves it
-is truncated to the map (:func:`sensorplan.tracking.known_map.map_constraint`) and
-:math:`r` is multiplied by its mass on the map. :math:`D_u`: survival and births.
+The map's edge (``map_edge``, :func:`sensorplan.tracking.known_map.map_edge_predict`):
+with ``exit`` (a target that reaches the edge leaves and is gone) the survival also
+requires the target to stay on the map: a density whose mean or 3-sigma box leaves it is
+truncated to the map and :math:`r` is multiplied by its mass on the map; with ``closed``
+(targets turn back at the walls) the part beyond a wall is reflected back in and
+:math:`r` loses nothing at the edge. :math:`D_u`: survival and births.
 
 **Update** (each look, in sensor order, with its detections :math:`z_1..z_m`):
 
@@ -77,7 +79,7 @@ from ..._types import BoolArray, FloatArray
 from ...models.linear import LinearSensor
 from ..base import Looks, TrackSet, UpdateRecord, given_tracks
 from ..ekf import predict as kalman_predict
-from ..known_map import map_constraint
+from ..known_map import map_edge_predict
 from . import undetected
 from . import hypotheses as hyp
 from .association import AssociationMarginals, association_lbp
@@ -162,8 +164,11 @@ class PMBTracker(MapTracker):
         Bernoullis below this existence are dropped; default 1e-3.
     report_threshold : float in (0, 1)
         :meth:`tracks` reports Bernoullis with at least this existence; default 0.5.
-    die_outside_map : bool
-        Targets that leave the map die (edge births): survival requires staying on the map.
+    map_edge : {"exit", "closed"} or None
+        What a target that reaches the map's edge does: leaves and is gone (``exit``:
+        survival requires staying on the map), or turns back (``closed``: a density
+        predicted across a wall is reflected back in, its existence kept); None (default):
+        the edge is not modelled.
     buildings : (K, 5), optional
         Buildings ``x0, y0, x1, y1, height`` that hide targets from the radar.
     """
@@ -177,7 +182,7 @@ class PMBTracker(MapTracker):
                  birth_rate: float = 0.0, initial_undetected: float = 0.0,
                  resolution: float = 25.0, velocity_var: float = 10.5,
                  gate_probability: float = 0.999, prune_threshold: float = 1e-3,
-                 report_threshold: float = 0.5, die_outside_map: bool = False,
+                 report_threshold: float = 0.5, map_edge: str | None = None,
                  buildings: FloatArray | None = None) -> None:
         if not 0.0 < survival_probability <= 1.0:
             raise ValueError(f"survival_probability must be in (0, 1], got "
@@ -191,7 +196,7 @@ class PMBTracker(MapTracker):
         super().__init__(
             measurement, dt, world, process_noise=process_noise, motion=motion,
             resolution=resolution, velocity_var=velocity_var,
-            gate_probability=gate_probability, die_outside_map=die_outside_map,
+            gate_probability=gate_probability, map_edge=map_edge,
             buildings=buildings)
         self.survival_probability = float(survival_probability)
         self.prune_threshold = float(prune_threshold)
@@ -232,7 +237,7 @@ class PMBTracker(MapTracker):
         Returns
         -------
         (T,) bool: of the tracks reported before the predict, those the map truncated
-        (only with ``die_outside_map``).
+        (only with a ``map_edge``).
         """
         b = self.bern
         reported = self._reported()
@@ -240,8 +245,9 @@ class PMBTracker(MapTracker):
         if len(b):
             b.means, b.covs = kalman_predict(b.means, b.covs, self.F, self.Q)
             b.r = self.survival_probability * b.r
-            if self.die_outside_map:
-                m, P, applied, log_mass = map_constraint(b.means, b.covs, *self.world)
+            if self.map_edge is not None:
+                m, P, applied, log_mass = map_edge_predict(b.means, b.covs, *self.world,
+                                                           self.map_edge)
                 b.means, b.covs = m, P
                 b.r = b.r * np.exp(log_mass)
                 corrected = applied
