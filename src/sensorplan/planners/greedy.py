@@ -6,7 +6,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from .anytime import Anytime, BudgetExhausted, budget_param, complete
-from .base import PlanResult, RngLike, finish, register, start_clock
+from .base import PlanResult, RngLike, finish, refuse_search, register, start_clock
 from .engine import GameState, choose
 from .information import Context, prepare
 from .problem import PlanningProblem
@@ -50,6 +50,7 @@ class SequentialGreedyPlanner(PlannerSettings):
     time_budget: float | None = budget_param()
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
+        refuse_search(self.name, problem)
         start = start_clock(engine=True)
         ctx = prepare(problem)
         if self.time_budget is None:

@@ -7,7 +7,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
+from .base import (PlanResult, RngLike, finish, make_rng, refuse_search, register,
+                   start_clock)
 from .information import prepare
 from .problem import Plan, PlanningProblem
 from .registry import PlannerSettings, seed_param
@@ -22,6 +23,7 @@ class RandomPlanner(PlannerSettings):
     seed: int | None = seed_param()
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
+        refuse_search(self.name, problem)
         start = start_clock()
         gen = make_rng(rng, self.seed)
         ctx = prepare(problem)
