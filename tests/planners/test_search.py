@@ -222,10 +222,44 @@ def test_search_off_plans_exactly_as_before() -> None:
     assert not a.plan.searches
 
 
-@pytest.mark.parametrize("name", ["sequential-greedy", "random", "pg-refine"])
-def test_planners_without_search_refuse(name: str) -> None:
-    with pytest.raises(ConfigError, match=name):
-        make_planner(name).plan(mixed_problem(1))
+def test_planners_without_search_refuse() -> None:
+    with pytest.raises(ConfigError, match="pg-refine"):
+        make_planner("pg-refine").plan(mixed_problem(1))
+    with pytest.raises(ConfigError, match="^search: .*does not plan search looks"):
+        make_planner("dec-jsfp").plan(mixed_problem(1))
+    for name in ("pg", "sequential-greedy"):
+        with pytest.raises(ConfigError, match="planner.time_budget"):
+            make_planner(name, time_budget=1.0).plan(mixed_problem(1))
+
+
+def test_sequential_greedy_is_each_players_best_response_to_the_earlier_ones() -> None:
+    prob = mixed_problem()
+    sctx = search.prepare(prob)
+    res = make_planner("sequential-greedy").plan(prob)
+    check_plan(prob, res.plan)
+    plan = Plan.empty(prob.n_sensors, prob.horizon)
+    for k in range(1, prob.horizon + 1):
+        for i in range(prob.n_sensors):
+            pos, tgt, sec = search.player_actions(sctx, plan, i, k)
+            phi = [search.evaluate(sctx, search.with_action(plan, i, k, pos[a], int(tgt[a]),
+                                                            int(sec[a]))).potential
+                   for a in range(len(tgt))]
+            a = int(np.argmax(phi))
+            plan = search.with_action(plan, i, k, pos[a], int(tgt[a]), int(sec[a]))
+    assert np.array_equal(plan.targets, res.plan.targets)
+    assert np.array_equal(plan.sectors, res.plan.sectors)
+    np.testing.assert_allclose(plan.positions, res.plan.positions, rtol=0, atol=1e-9)
+    assert res.potential == search.evaluate(sctx, res.plan).potential
+
+
+def test_random_plans_are_feasible_and_use_sectors() -> None:
+    prob = mixed_problem()
+    plans = [make_planner("random").plan(prob, rng=s).plan for s in range(8)]
+    for p in plans:
+        check_plan(prob, p)
+    assert any(p.searches for p in plans) and any((p.targets >= 0).any() for p in plans)
+    again = make_planner("random").plan(prob, rng=3).plan
+    assert np.array_equal(again.sectors, plans[3].sectors)
 
 
 def test_bad_search_inputs() -> None:

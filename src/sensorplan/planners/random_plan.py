@@ -7,8 +7,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from .base import (PlanResult, RngLike, finish, make_rng, refuse_search, register,
-                   start_clock)
+from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
 from .information import prepare
 from .problem import Plan, PlanningProblem
 from .registry import PlannerSettings, seed_param
@@ -23,9 +22,13 @@ class RandomPlanner(PlannerSettings):
     seed: int | None = seed_param()
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
-        refuse_search(self.name, problem)
         start = start_clock()
         gen = make_rng(rng, self.seed)
+        if problem.searching:
+            from . import search
+
+            return finish(self.name, problem, search.random_plan(search.prepare(problem), gen),
+                          start)
         ctx = prepare(problem)
         N, K = problem.n_sensors, problem.horizon
         positions = np.empty((N, K, 2))

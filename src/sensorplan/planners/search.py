@@ -468,12 +468,48 @@ def _index_of(pos: FloatArray, tgt: IntArray, sec: IntArray, plan: Plan, i: int,
     return int(hit[0]) if hit.size else -1
 
 
+def sequential_greedy(sctx: SearchContext) -> Plan:
+    """For k = 1..K, for i = 0..N-1: the action (track or sector look) maximising Phi with
+    search given the earlier choices, the later players unassigned; ties to the first."""
+    plan = Plan.empty(sctx.ctx.N, sctx.ctx.K)
+    for k in range(1, sctx.ctx.K + 1):
+        for i in range(sctx.ctx.N):
+            pos, tgt, sec = player_actions(sctx, plan, i, k)
+            u = candidate_potentials(sctx, plan, i, k, pos, tgt, sec)
+            b = best_index(u, -1)
+            plan = with_action(plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
+    return plan
+
+
+def random_plan(sctx: SearchContext, rng: np.random.Generator) -> Plan:
+    """A uniform random feasible plan: each epoch a random move (among those that stay in
+    the map) and a random look among the targets and the sensor's sectors."""
+    ctx = sctx.ctx
+    N, K, M = ctx.N, ctx.K, ctx.M
+    positions = np.empty((N, K, 2))
+    targets = np.full((N, K), -1, dtype=np.int64)
+    sectors = np.full((N, K), -1, dtype=np.int64)
+    for i in range(N):
+        lat = ctx.lattices[i]
+        q = 0
+        for k in range(1, K + 1):
+            options = np.flatnonzero(lat.child[k][q] >= 0)
+            q = int(lat.child[k][q, options[rng.integers(len(options))]])
+            positions[i, k - 1] = lat.positions[k][q]
+            look = int(rng.integers(M + sctx.bearings[i].size))
+            if look < M:
+                targets[i, k - 1] = look
+            else:
+                sectors[i, k - 1] = look - M
+    return Plan(positions, targets, sectors)
+
+
 def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, beta: float,
                    max_inner: int, max_outer: int) -> tuple[Plan, bool, int, list[float]]:
     """JSFP with inertia over (sensor, epoch) players with track and sector looks.
 
-    Initialisation: epochs k = 1..K in turn, each player's best response to the earlier
-    epochs (the later ones unassigned). Then sweeps over k = K..1 of the epoch games as in
+    Initialisation: :func:`sequential_greedy` (each player's best response to the earlier
+    epochs, the later ones unassigned). Then sweeps over k = K..1 of the epoch games as in
     ``pg`` (running averages, switch with probability ``1 - alpha``, stop with probability
     ``1 - beta`` or after ``max_inner`` iterations) until a sweep changes nothing and every
     epoch game ends at an equilibrium.
@@ -484,13 +520,7 @@ def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, 
     """
     ctx = sctx.ctx
     N, K = ctx.N, ctx.K
-    plan = Plan.empty(N, K)
-    for k in range(1, K + 1):
-        for i in range(N):
-            pos, tgt, sec = player_actions(sctx, plan, i, k)
-            u = candidate_potentials(sctx, plan, i, k, pos, tgt, sec)
-            b = best_index(u, -1)
-            plan = with_action(plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
+    plan = sequential_greedy(sctx)
     trace: list[float] = []
     for sweep in range(1, max_outer + 1):
         changed, all_eq = False, True
@@ -528,4 +558,5 @@ def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, 
 __all__ = ["HEADING_TOL", "SearchContext", "SearchEvaluation",
            "brute_force", "candidate_potentials", "count_plans", "evaluate", "expected_found",
            "first_detection_weight", "plan_headings", "player_actions", "potential",
-           "potential_game", "prepare", "sector_actions", "sector_bearings"]
+           "potential_game", "prepare", "random_plan", "sector_actions", "sector_bearings",
+           "sequential_greedy"]
