@@ -280,3 +280,16 @@ def test_bad_search_inputs() -> None:
     with pytest.raises(PlanError, match="target and a sector"):
         check_plan(base, Plan(np.repeat(base.positions[:, None], 1, 1), np.zeros((2, 1)),
                               np.zeros((2, 1))))
+
+
+def test_the_track_term_is_todays_phi() -> None:
+    prob = mixed_problem()
+    off = PlanningProblem(means=prob.means, covs=prob.covs, positions=prob.positions,
+                          headings=prob.headings, sensors=prob.sensors, horizon=2,
+                          existence=prob.existence)
+    res = make_planner("pg").plan(off, rng=1)
+    ev = search.evaluate(search.prepare(prob), res.plan)
+    np.testing.assert_allclose(ev.information, res.information, rtol=1e-12, atol=0)
+    np.testing.assert_allclose(ev.headings, res.headings, rtol=0, atol=1e-12)
+    assert np.array_equal(ev.measurements, res.measurements)
+    assert ev.found > 0          # track looks thin the cells they cover too

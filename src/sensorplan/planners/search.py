@@ -183,24 +183,30 @@ def expected_found(sctx: SearchContext, miss: FloatArray) -> FloatArray:
     return mu
 
 
-def track_information(sctx: SearchContext, plan: Plan, headings: FloatArray) -> FloatArray:
-    """The tracks' terms of Phi ``(M,)`` for a plan whose headings are given."""
+def track_information(sctx: SearchContext, plan: Plan, headings: FloatArray
+                      ) -> tuple[FloatArray, IntArray]:
+    """The tracks' terms of Phi ``(M,)`` for a plan whose headings are given, and each
+    track look's number of looks that count ``(N, K)`` (0 elsewhere)."""
     ctx = sctx.ctx
     track = plan.targets >= 0
     W = np.zeros((ctx.N, ctx.K, ctx.e, 2, 2))
+    counts = np.zeros((ctx.N, ctx.K), dtype=np.int64)
     for i in range(ctx.N):
         if track[i].any():
             pos = np.where(track[i][:, None], plan.positions[i], 0.0)[None]
             th = np.where(track[i], headings[i], 0.0)[None]
             tgt = np.maximum(plan.targets[i], 0)[None]
-            w, _ = chain_information(ctx, i, 1, pos, th, tgt)
+            w, counted = chain_information(ctx, i, 1, pos, th, tgt)
             W[i] = np.where(track[i][:, None, None, None], w[0], 0.0)
-    return target_information(ctx, sum_by_target(ctx, W, plan.targets))
+            counts[i] = np.where(track[i], counted[0].sum(axis=-1), 0)
+    return target_information(ctx, sum_by_target(ctx, W, plan.targets)), counts
 
 
 @dataclass(frozen=True)
 class SearchEvaluation:
-    """Phi with search and its parts: ``potential = information.sum() + weight * found``."""
+    """Phi with search and its parts: ``potential = information.sum() + weight * found``;
+    ``measurements (N, K)``: a track look's looks that count (as without search), a search
+    look's steps when it covers a cell."""
 
     potential: float
     information: FloatArray
@@ -214,15 +220,17 @@ def evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
     """Phi of ``plan`` with search: the reference definition (plain numpy, one plan)."""
     ctx = sctx.ctx
     headings = plan_headings(sctx, plan)
-    info = track_information(sctx, plan, headings)
+    info, counts = track_information(sctx, plan, headings)
     miss = np.ones((ctx.K, len(sctx.centres)))
-    counts = np.zeros((ctx.N, ctx.K), dtype=np.int64)
+    assert plan.sectors is not None
     for i in range(ctx.N):
         ks = np.flatnonzero(plan.assigned[i])
         if ks.size:
             p = detection(sctx, i, plan.positions[i, ks], headings[i, ks])
             miss[ks] *= 1.0 - p
-            counts[i, ks] = (p > 0).any(axis=1) * ctx.e
+            # A search look counts at each step when it covers a cell.
+            sector = plan.sectors[i, ks] >= 0
+            counts[i, ks[sector]] = (p[sector] > 0).any(axis=1) * ctx.e
     mu = float(expected_found(sctx, miss))
     return SearchEvaluation(float(info.sum()) + sctx.weight * mu, info, mu, sctx.weight,
                             headings, counts)
