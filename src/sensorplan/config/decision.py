@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from pydantic import ConfigDict
@@ -13,7 +13,8 @@ from pydantic import ConfigDict
 from ..errors import ConfigError
 from ..limits import (MAX_SENSORS, MAX_TARGETS, RANGES, check_count, check_covariance_scale,
                       check_decision_size, check_sensor_precision)
-from ..planners.problem import MapRect, PlanningProblem, check_covariance
+from ..planners.problem import (SEARCH_MODES, MapRect, PlanningProblem, UndetectedIntensity,
+                                check_covariance)
 from ..simulation.scenario import HEADING_HINT
 from ..simulation.settings import RunSettings, limit_fields
 from . import files as io
@@ -61,6 +62,21 @@ class DecisionSensor(SensorParamsModel):
     position: Vec2
     heading: float | None = None            # one of the two is required (checked after)
     heading_deg: float | None = None
+    #: Search sectors of the sensor (with ``search`` on): that many absolute bearings
+    #: equally spaced around the platform; 0: none.
+    search_sectors: int = 0
+
+
+class DecisionUndetected(Strict):
+    """``undetected``: the undetected targets' intensity on a grid of cells (with
+    ``search`` on; see :class:`~sensorplan.planners.problem.UndetectedIntensity`)."""
+
+    centres: list[Vec2]
+    weights: list[float]                    # expected undetected targets per cell now
+    births: list[float] | None = None       # expected births per cell per step (0)
+    survival: float = 1.0                   # per step
+    cell_size: Vec2                         # a x b of a cell (m)
+    weight: float | None = None             # nats per found target (None: derived)
 
 
 class DecisionPlanner(Strict):
@@ -90,6 +106,8 @@ class DecisionFile(Strict):
     targets: list[DecisionTarget]
     sensors: list[DecisionSensor]
     buildings: list[BuildingModel] = []
+    search: Literal[SEARCH_MODES] = "off"  # type: ignore[valid-type]
+    undetected: DecisionUndetected | None = None
     planner: DecisionPlanner = DecisionPlanner()
 
 
@@ -152,6 +170,30 @@ def _pd_or_none(P: Any, field: str) -> Any:
     return P
 
 
+def _undetected(model: DecisionFile) -> UndetectedIntensity | None:
+    """The file's ``undetected`` as the problem takes it (the problem checks it further)."""
+    u = model.undetected
+    if u is None:
+        return None
+    C = len(u.centres)
+    for name in ("weights", "births"):
+        v = getattr(u, name)
+        if v is not None and len(v) != C:
+            raise ConfigError(f"undetected.{name}", f"must have one number per cell ({C}), "
+                              f"got {len(v)}")
+    a, b = u.cell_size
+    if not (a > 0 and b > 0):
+        raise ConfigError("undetected.cell_size", "must be 2 numbers > 0")
+    for c, xy in enumerate(u.centres):
+        if not model.map.width >= xy[0] >= 0 <= xy[1] <= model.map.height:
+            raise ConfigError(f"undetected.centres[{c}]", MapRect(
+                model.map.width, model.map.height).outside(xy))
+    births = np.zeros(C) if u.births is None else np.array(u.births, dtype=float)
+    return UndetectedIntensity(np.array(u.centres, dtype=float).reshape(-1, 2),
+                               np.array(u.weights, dtype=float), births, u.survival,
+                               np.diag([a * a / 12.0, b * b / 12.0]), u.weight)
+
+
 def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
     """Validate a single-decision object and build the problem and planner settings.
 
@@ -182,7 +224,9 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
         visibility=model.visibility, objective=model.objective,
         planning_detection=model.planning_detection,
         buildings=np.array([b.row() for b in model.buildings], dtype=float),
-        existence=np.array([t.existence for t in model.targets], dtype=float))
+        existence=np.array([t.existence for t in model.targets], dtype=float),
+        search=model.search, search_sectors=tuple(s.search_sectors for s in model.sensors),
+        undetected=_undetected(model))
     for i, s in enumerate(problem.sensors):
         check_sensor_precision(s, f"sensors[{i}]")
     check_decision_size(problem.horizon, problem.steps_per_epoch, problem.n_targets,

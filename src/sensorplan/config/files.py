@@ -267,7 +267,8 @@ def result_to_dict(result: PlanResult, existence: Any = None) -> dict[str, Any]:
     dict
         Keys ``planner, plan, potential, information, [existence,] [converged, sweeps,]
         seconds``; ``converged`` and ``sweeps`` only for ``pg`` and ``pg-refine``. An
-        unassigned player (never in a finished plan) is ``null``.
+        unassigned player (never in a finished plan) is ``null``. A look has ``target``,
+        or ``sector`` when it is a search look.
     """
     plan = result.plan
     N, K = plan.targets.shape
@@ -276,14 +277,17 @@ def result_to_dict(result: PlanResult, existence: Any = None) -> dict[str, Any]:
         row: list[dict[str, Any] | None] = []
         for k in range(K):
             target = int(plan.targets[i, k])
-            if target < 0:
+            sector = -1 if plan.sectors is None else int(plan.sectors[i, k])
+            if target < 0 and sector < 0:
                 row.append(None)
                 continue
+            # A look has a target or, when it searches, a sector.
+            look = {"target": target} if target >= 0 else {"sector": sector}
             row.append({
                 "epoch": k + 1,
                 "position": [float(plan.positions[i, k, 0]), float(plan.positions[i, k, 1])],
                 "heading": float(result.headings[i, k]),
-                "target": target,
+                **look,
                 "measurements": int(result.measurements[i, k]),
             })
         rows.append(row)

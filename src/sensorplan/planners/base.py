@@ -40,6 +40,8 @@ class PlanResult:
     potential : float              Phi(plan) in nats, by the one definition of Phi
                                    (:func:`finish` computes it)
     information : (M,)             per-target terms of Phi (nats); they sum to ``potential``
+                                   (with search on, ``potential`` adds the value of the
+                                   targets the plan is expected to find)
     headings : (N, K)              planned headings (rad)
     measurements : (N, K) int      looks that count in Phi
     converged : bool or None       None for planners without a notion of convergence
@@ -115,6 +117,20 @@ def prepare(problem: PlanningProblem) -> Context:
     return _prepare(problem)
 
 
+#: Planners that plan with search looks (the others refuse a problem whose search is on).
+SEARCH_PLANNERS = ("brute-force", "pg", "random", "sequential-greedy")
+
+
+def refuse_search(name: str, problem: PlanningProblem) -> None:
+    """Raise :class:`~sensorplan.errors.ConfigError` (field ``search``) when ``problem``'s
+    search is on: planner ``name`` plans on tracks only."""
+    if problem.searching:
+        from ..errors import ConfigError
+
+        raise ConfigError("search", f"planner {name!r} does not plan search looks yet; "
+                          f"set search to 'off' or use one of {', '.join(SEARCH_PLANNERS)}")
+
+
 def finish(name: str, ctx: Context | PlanningProblem, plan: Plan, start: float,
            converged: bool | None = None, sweeps: int | None = None,
            trace: tuple[float, ...] = (), budget_exhausted: bool = False) -> PlanResult:
@@ -133,6 +149,15 @@ def finish(name: str, ctx: Context | PlanningProblem, plan: Plan, start: float,
     from .information import evaluate
     from .information import prepare as _prepare
 
+    problem = ctx if isinstance(ctx, PlanningProblem) else ctx.problem
+    if problem.searching:
+        # Phi with search: the tracks' terms plus the value of the targets found.
+        from . import search
+
+        sev = search.evaluate(search.prepare(problem), plan)
+        return PlanResult(name, plan, sev.potential, sev.information, sev.headings,
+                          sev.measurements, converged, sweeps, anytime.clock() - start, trace,
+                          budget_exhausted)
     if isinstance(ctx, PlanningProblem):
         ctx = _prepare(ctx)
     ev = evaluate(ctx, plan)
@@ -140,5 +165,5 @@ def finish(name: str, ctx: Context | PlanningProblem, plan: Plan, start: float,
                       converged, sweeps, anytime.clock() - start, trace, budget_exhausted)
 
 
-__all__ = ["PLANNERS", "PlanResult", "Planner", "RngLike", "finish", "make_planner",
-           "make_rng", "prepare", "register", "start_clock"]
+__all__ = ["PLANNERS", "SEARCH_PLANNERS", "PlanResult", "Planner", "RngLike", "finish",
+           "make_planner", "make_rng", "prepare", "refuse_search", "register", "start_clock"]

@@ -331,6 +331,8 @@ class BruteForcePlanner(PlannerSettings):
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
         start = start_clock()
+        if problem.searching:
+            return self._plan_search(problem, start)
         ctx = prepare(problem)
         n_joint = count_joint_plans(problem, ctx)
         if n_joint > self.max_plans:
@@ -352,6 +354,20 @@ class BruteForcePlanner(PlannerSettings):
         for i, (opt, o) in enumerate(zip(options, best)):
             positions[i], targets[i] = opt.action(o)
         return finish(self.name, ctx, Plan(positions, targets), start, trace=(phi_max,))
+
+    def _plan_search(self, problem: PlanningProblem, start: float) -> PlanResult:
+        # Plain numpy over every joint plan with track and sector looks (small cases).
+        from . import search
+
+        sctx = search.prepare(problem)
+        lats = sctx.ctx.lattices
+        n_joint = search.count_plans(sctx, [count_chains(lat, sctx.ctx.K) for lat in lats])
+        if n_joint > self.max_plans:
+            raise ConfigError("planner.max_plans", f"brute force over {n_joint} joint plans "
+                              f"exceeds max_plans={self.max_plans}")
+        plan, phi_max = search.brute_force(
+            sctx, [enumerate_chains(lat, sctx.ctx.K) for lat in lats])
+        return finish(self.name, problem, plan, start, trace=(phi_max,))
 
 
 class _Chunks:

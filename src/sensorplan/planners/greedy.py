@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 from .anytime import Anytime, BudgetExhausted, budget_param, complete
+from ..errors import ConfigError
 from .base import PlanResult, RngLike, finish, register, start_clock
 from .engine import GameState, choose
 from .information import Context, prepare
@@ -51,6 +52,15 @@ class SequentialGreedyPlanner(PlannerSettings):
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
         start = start_clock(engine=True)
+        if problem.searching:
+            from . import search
+
+            if self.time_budget is not None:
+                raise ConfigError("planner.time_budget", "sequential-greedy with search has "
+                                  "no time budget yet; leave it unset")
+
+            return finish(self.name, problem, search.sequential_greedy(
+                search.prepare(problem)), start)
         ctx = prepare(problem)
         if self.time_budget is None:
             return finish(self.name, ctx, sequential_greedy(ctx).to_plan(), start)

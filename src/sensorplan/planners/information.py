@@ -119,8 +119,19 @@ class Context:
         return np.arange((k - 1) * self.e + 1, k * self.e + 1)
 
 
-def prepare(problem: PlanningProblem) -> Context:
-    """Precompute predictions, aim points and reachable sets for one decision."""
+def prepare(problem: PlanningProblem, search: bool = False) -> Context:
+    """Precompute predictions, aim points and reachable sets for one decision.
+
+    A problem whose search is on is refused (:class:`~sensorplan.errors.ConfigError` on
+    ``search``) unless ``search`` says the caller plans search looks
+    (:mod:`sensorplan.planners.search`): the track-only Phi would ignore them.
+    """
+    if problem.searching and not search:
+        from ..errors import ConfigError
+
+        raise ConfigError("search", "this planner does not plan search looks yet; set "
+                          "search to 'off' or use brute-force, pg, random or "
+                          "sequential-greedy")
     q = np.asarray(problem.process_noise, dtype=float)
     F, Q1 = cv_matrices(problem.dt, 1.0)
     if q.ndim == 0:

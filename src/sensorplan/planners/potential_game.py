@@ -15,6 +15,7 @@ from typing import ClassVar
 import numpy as np
 
 from .._types import FloatArray, IntArray
+from ..errors import ConfigError
 from ..limits import Range, param
 from .anytime import Anytime, BudgetExhausted, budget_param, complete
 from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
@@ -208,6 +209,16 @@ class PotentialGamePlanner(BudgetedLearningSettings):
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
         start = start_clock(engine=True)
         gen = make_rng(rng, self.seed)
+        if problem.searching:
+            # Track and sector looks: the plain-numpy game (no time budget yet).
+            from . import search
+
+            if self.time_budget is not None:
+                raise ConfigError("planner.time_budget", "pg with search has no time "
+                                  "budget yet; leave it unset")
+            sctx = search.prepare(problem)
+            plan, converged, sweeps, trace = search.potential_game(sctx, gen, *self.learning)
+            return finish(self.name, problem, plan, start, converged, sweeps, tuple(trace))
         ctx = prepare(problem)
         state = GameState(ctx)
         if self.time_budget is None:

@@ -1,8 +1,9 @@
 """One planning decision: the problem value, plans, moves and reachable sets.
 
 A :class:`PlanningProblem` holds everything a planner receives; a :class:`Plan` holds every
-player's action as arrays ``positions (N, K, 2)`` and ``targets (N, K)`` (``-1`` and NaN for
-an unassigned player).
+player's action as arrays ``positions (N, K, 2)``, ``targets (N, K)`` and ``sectors (N, K)``
+(a look has a target or a search sector, the other is -1; both -1 and NaN positions for an
+unassigned player).
 """
 
 from __future__ import annotations
@@ -196,6 +197,65 @@ def _build_lattice(p0: FloatArray, moves: FloatArray, K: int,
     return Lattice(positions, parent_move, child, moves)
 
 
+#: Values of :attr:`PlanningProblem.search`: ``off`` plans on tracks only, ``on`` adds search
+#: looks and the value of the targets they are expected to find.
+SEARCH_MODES = ("off", "on")
+
+
+@dataclass(frozen=True)
+class UndetectedIntensity:
+    """The undetected targets' Poisson intensity on a grid, as planning uses it.
+
+    Attributes
+    ----------
+    centres : (C, 2)      cell centres (m)
+    weights : (C,)        D_u: expected number of undetected targets in each cell now
+    births : (C,)         expected births in each cell per step
+    survival : float      probability that a target survives one step, in [0, 1]
+    cell_cov : (2, 2)     position covariance of a target known only to lie in a cell
+                          (``diag(a^2/12, b^2/12)`` for ``a x b`` cells); it fixes the
+                          default weight of a found target
+    weight : float or None
+        Nats a newly found target is worth (w of the search term); None: the information
+        of its first detection (:func:`sensorplan.planners.search.first_detection_weight`).
+    """
+
+    centres: FloatArray
+    weights: FloatArray
+    births: FloatArray
+    survival: float = 1.0
+    cell_cov: FloatArray = field(default_factory=lambda: np.diag([625.0 / 12, 625.0 / 12]))
+    weight: float | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("centres", "weights", "births", "cell_cov"):
+            object.__setattr__(self, name, _readonly(getattr(self, name)))
+        object.__setattr__(self, "survival", float(self.survival))
+
+    def validate(self) -> None:
+        """Raise :class:`ConfigError` naming the field (``undetected.*``) unless valid."""
+        C = len(self.centres)
+        if self.centres.shape != (C, 2) or C < 1:
+            raise ConfigError("undetected.centres", f"expected shape (C, 2) with C >= 1, got "
+                              f"{self.centres.shape}")
+        for name in ("centres", "weights", "births", "cell_cov"):
+            if not np.all(np.isfinite(getattr(self, name))):
+                raise ConfigError(f"undetected.{name}", "must be finite")
+        for name in ("weights", "births"):
+            v = getattr(self, name)
+            if v.shape != (C,):
+                raise ConfigError(f"undetected.{name}", f"expected shape ({C},), got {v.shape}")
+            if np.any(v < 0):
+                raise ConfigError(f"undetected.{name}", "must be >= 0")
+        if not 0.0 <= self.survival <= 1.0:
+            raise ConfigError("undetected.survival", f"must be in [0, 1], got {self.survival:g}")
+        if self.cell_cov.shape != (2, 2):
+            raise ConfigError("undetected.cell_cov", "expected shape (2, 2)")
+        check_covariance(self.cell_cov, "undetected.cell_cov")
+        if self.weight is not None and not (math.isfinite(self.weight) and self.weight >= 0):
+            raise ConfigError("undetected.weight", "must be a finite number >= 0")
+
+
 def _readonly(a: object, dtype: type = float) -> np.ndarray:
     arr: np.ndarray = np.array(a, dtype=dtype)
     arr.setflags(write=False)
@@ -243,6 +303,16 @@ class PlanningProblem:
         information enters Phi, and so every player's utility, multiplied by r_j: a track
         that is probably not a real target is worth that much less to look at. Always an
         ``(M,)`` array once the problem is built.
+    search : {"off", "on"}
+        ``off`` (default): looks point at tracks and Phi is their information. ``on``: a
+        look may also point at a search sector, and Phi adds ``w mu``, the value of the
+        undetected targets the plan is expected to find (:mod:`sensorplan.planners.search`).
+    search_sectors : int or tuple of int, one per sensor
+        Search sectors of each sensor (with ``search="on"``): ``S > 0`` absolute bearings
+        ``2 pi s / S``, s = 0..S-1, around the platform; 0 (default): none. One number
+        applies to every sensor; always a tuple once the problem is built.
+    undetected : UndetectedIntensity or None
+        The undetected intensity; required with ``search="on"``.
     """
 
     means: FloatArray
@@ -260,6 +330,9 @@ class PlanningProblem:
     planning_detection: str = "aware"
     buildings: FloatArray = field(default_factory=lambda: np.zeros((0, 5)))
     existence: FloatArray | None = None
+    search: str = "off"
+    search_sectors: int | tuple[int, ...] = 0
+    undetected: UndetectedIntensity | None = None
 
     def __post_init__(self) -> None:
         # Read-only copies: planners cannot mutate the caller's arrays (or each other's).
@@ -274,6 +347,8 @@ class PlanningProblem:
             object.__setattr__(self, "process_noise", _readonly(self.process_noise))
         else:
             object.__setattr__(self, "process_noise", float(self.process_noise))
+        if not isinstance(self.search_sectors, (int, np.integer)):
+            object.__setattr__(self, "search_sectors", tuple(self.search_sectors))
         self.validate()
 
     @property
@@ -337,6 +412,7 @@ class PlanningProblem:
             j = int(np.flatnonzero(~np.all(np.isfinite(self.means), axis=1))[0])
             raise ConfigError(f"targets[{j}].mean", "must be finite")
         check_existence(self.existence, M)
+        self._validate_search(N)
         if not _covariances_ok(self.covs):           # one batched check; locate on failure
             for j in range(M):
                 check_covariance(self.covs[j], f"targets[{j}].cov")
@@ -348,6 +424,39 @@ class PlanningProblem:
                 raise ConfigError(f"sensors[{i}].heading", "must be finite")
             if not self.world.contains(self.positions[i]):
                 raise ConfigError(f"sensors[{i}].position", self.world.outside(self.positions[i]))
+
+
+    def _validate_search(self, N: int) -> None:
+        if self.search not in SEARCH_MODES:
+            raise ConfigError("search", f"must be one of {SEARCH_MODES}, got {self.search!r}")
+        sectors = self.search_sectors
+        if isinstance(sectors, (int, np.integer)):
+            sectors = (sectors,) * N
+        elif len(sectors) != N:
+            raise ConfigError("search_sectors", f"must be one number or one per sensor ({N})")
+        for i, s in enumerate(sectors):
+            if isinstance(s, bool) or int(s) != s or s < 0:
+                raise ConfigError(f"sensors[{i}].search_sectors",
+                                  f"must be an integer >= 0, got {s!r}")
+        if self.search == "on":
+            if self.undetected is None:
+                raise ConfigError("undetected", "is required when search is on")
+            self.undetected.validate()
+
+    @property
+    def sector_counts(self) -> tuple[int, ...]:
+        """Each sensor's number of search sectors (0 with search off: no sector looks)."""
+        if not self.searching:
+            return (0,) * len(self.sensors)
+        s = self.search_sectors
+        if isinstance(s, (int, np.integer)):
+            return (int(s),) * len(self.sensors)
+        return tuple(int(v) for v in s)
+
+    @property
+    def searching(self) -> bool:
+        """Whether planning searches (``search == "on"``)."""
+        return self.search == "on"
 
 
 def check_existence(existence: Any, M: int) -> None:
@@ -447,19 +556,33 @@ class Plan:
     positions : (N, K, 2)
         Ground positions; NaN where the player is unassigned.
     targets : (N, K) int
-        Target looked at; -1 where unassigned.
+        Target looked at; -1 where unassigned or where the look is a search look.
+    sectors : (N, K) int
+        Search sector looked at (:attr:`PlanningProblem.search_sectors`); -1 where the look
+        points at a target or the player is unassigned (default: all -1). A look has a
+        target or a sector, never both.
     """
 
     positions: FloatArray
     targets: IntArray
+    sectors: IntArray | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "positions", _readonly(self.positions))
         object.__setattr__(self, "targets", _readonly(self.targets, np.int64))
+        sectors = np.full(self.targets.shape, -1) if self.sectors is None else self.sectors
+        object.__setattr__(self, "sectors", _readonly(sectors, np.int64))
 
     @property
     def assigned(self) -> np.ndarray:
-        return self.targets >= 0
+        assert self.sectors is not None
+        return (self.targets >= 0) | (self.sectors >= 0)
+
+    @property
+    def searches(self) -> bool:
+        """Whether any look is a search look."""
+        assert self.sectors is not None
+        return bool(np.any(self.sectors >= 0))
 
     @classmethod
     def empty(cls, n_sensors: int, horizon: int) -> Plan:
@@ -500,15 +623,44 @@ def check_plan(problem: PlanningProblem, plan: Plan, complete: bool = True) -> N
     if plan.positions.shape != (N, K, 2) or plan.targets.shape != (N, K):
         raise PlanError(f"plan has shapes {plan.positions.shape} and {plan.targets.shape}, "
                         f"expected ({N}, {K}, 2) and ({N}, {K})")
+    assert plan.sectors is not None
+    if plan.sectors.shape != (N, K):
+        raise PlanError(f"plan has sectors of shape {plan.sectors.shape}, expected ({N}, {K})")
+    if plan.searches:
+        _check_sectors(problem, plan)
     lowest = 0 if complete else -1
-    bad = (plan.targets >= M) | (plan.targets < lowest)
+    # A search look stands in for a target here (checked above).
+    targets = np.where(plan.sectors >= 0, 0, plan.targets)
+    bad = (targets >= M) | (targets < lowest)
     if bad.any():
         i, k = (int(v) for v in np.argwhere(bad)[0])
-        j = int(plan.targets[i, k])
+        j = int(targets[i, k])
         if j == -1:
             raise PlanError("no action (every sensor needs a move and a target in every "
                             "epoch)", i, k + 1)
         raise PlanError(f"target {j} does not exist (the targets are 0..{M - 1})", i, k + 1)
+    _check_moves(problem, plan)
+
+
+def _check_sectors(problem: PlanningProblem, plan: Plan) -> None:
+    assert plan.sectors is not None
+    if not problem.searching:
+        i, k = (int(v) for v in np.argwhere(plan.sectors >= 0)[0])
+        raise PlanError("a search look, but the problem's search is off", i, k + 1)
+    both = (plan.sectors >= 0) & (plan.targets >= 0)
+    if both.any():
+        i, k = (int(v) for v in np.argwhere(both)[0])
+        raise PlanError("a look has a target and a sector (it points at one)", i, k + 1)
+    S = np.asarray(problem.sector_counts, dtype=np.int64)[:, None]
+    bad = (plan.sectors >= S) | (plan.sectors < -1)
+    if bad.any():
+        i, k = (int(v) for v in np.argwhere(bad)[0])
+        raise PlanError(f"sector {int(plan.sectors[i, k])} does not exist (sensor {i} has "
+                        f"{int(S[i, 0])} search sectors)", i, k + 1)
+
+
+def _check_moves(problem: PlanningProblem, plan: Plan) -> None:
+    K = problem.horizon
     for i, s in enumerate(problem.sensors):
         moves = move_vectors(s.moves)
         lat: Lattice | None = None

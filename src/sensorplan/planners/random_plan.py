@@ -24,6 +24,11 @@ class RandomPlanner(PlannerSettings):
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
         start = start_clock()
         gen = make_rng(rng, self.seed)
+        if problem.searching:
+            from . import search
+
+            return finish(self.name, problem, search.random_plan(search.prepare(problem), gen),
+                          start)
         ctx = prepare(problem)
         N, K = problem.n_sensors, problem.horizon
         positions = np.empty((N, K, 2))

@@ -24,7 +24,8 @@ import numpy as np
 
 from .._types import IntArray
 from .anytime import Anytime, BudgetExhausted, complete
-from .base import PlanResult, RngLike, finish, make_rng, register, start_clock
+from .base import (PlanResult, RngLike, finish, make_rng, refuse_search, register,
+                   start_clock)
 from .engine import GameState, choose
 from .greedy import sequential_greedy
 from .information import prepare
@@ -118,6 +119,7 @@ class RefinedPlanner(BudgetedLearningSettings):
     name: ClassVar[str] = "pg-refine"
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
+        refuse_search(self.name, problem)
         start = start_clock(engine=True)
         gen = make_rng(rng, self.seed)
         gen_pg = copy.deepcopy(gen)       # pg's own stream: start 1 is exactly `pg`'s plan

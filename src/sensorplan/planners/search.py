@@ -1,0 +1,570 @@
+r"""Search looks and the value of search: Phi with ``search = "on"``.
+
+A look points the beam at a track or at a search sector: one of ``S_i`` absolute bearings
+``2 pi s / S_i`` around sensor i's platform. A sector look aims the heading rule at the
+sector's bearing, so the turn limit applies; sectors the rule maps to the same heading are
+one action (:func:`sector_actions`).
+
+With search on, Phi is
+
+.. math::
+    \Phi(a) = \sum_j r_j\, I_j(a) + w\, \mu(a),\qquad
+    \mu(a) = \sum_{t=1}^{T} \sum_c D_t(c)\, \Big(1 - \prod_{l \in L_t} (1 - P_{d,l}(c)\,
+             v_l(c))\Big),
+
+``I_j`` the track information of :mod:`~sensorplan.planners.information` (the same
+definition), ``L_t`` the looks of step t (every step of an epoch is a look of each of the
+epoch's assigned players, as for tracks: with one step per epoch the sum is over epochs),
+``P_d v`` the radar's probability of detecting a target at the cell's centre (0 outside
+the sensing region or out of sight; :func:`sensorplan.models.radar.detectable_points`, the
+call the multi-target tracker thins its undetected cells with) and ``D_t`` the undetected
+intensity predicted to step t, ``D_t = p_S D'_{t-1} + b``, from the intensity thinned by
+the plan's earlier looks, ``D'_t = D_t \prod_{l \in L_t} (1 - P_{d,l} v_l)``. A target found
+within the horizon is not tracked within it. mu is a closed form on the grid, so Phi stays
+an exact potential: a player's utility is its marginal contribution to both parts.
+
+``w`` (nats per newly found target) is :func:`first_detection_weight` unless the problem
+sets it: docs/planning.md gives the derivation.
+
+This module is plain numpy: :func:`potential` is the reference definition,
+:func:`candidate_potentials` the batched one the planners use (tested equal).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._types import FloatArray, IntArray
+from ..errors import ConfigError
+from ..models import radar
+from ..models.angles import heading_rule, wrap_angle
+from .information import (Context, chain_information, covariance_recursion, measured,
+                          phi_terms, sum_by_target, target_information)
+from .information import prepare as prepare_tracks
+from .problem import POSITION_TOL, Plan, PlanningProblem, move_vectors
+
+#: Headings closer than this (rad) are the same heading (sector deduplication).
+HEADING_TOL = 1e-12
+
+
+def sector_bearings(n_sectors: int) -> FloatArray:
+    """The ``(S,)`` absolute bearings ``wrap(2 pi s / S)`` of S search sectors (rad)."""
+    return wrap_angle(2.0 * np.pi * np.arange(n_sectors) / max(n_sectors, 1))
+
+
+@dataclass(frozen=True)
+class SearchContext:
+    """Per-decision precomputation of Phi with search.
+
+    Attributes
+    ----------
+    ctx : Context            the tracks' precomputation (:func:`information.prepare`)
+    bearings : list of (S_i,) arrays   each sensor's sector bearings
+    centres : (C, 2);  d0 : (C,);  births : (C,);  survival : float   the intensity
+    weight : float           w, nats per newly found target
+    """
+
+    ctx: Context
+    bearings: list[FloatArray]
+    centres: FloatArray
+    d0: FloatArray
+    births: FloatArray
+    survival: float
+    weight: float
+
+    @property
+    def problem(self) -> PlanningProblem:
+        return self.ctx.problem
+
+
+def first_detection_weight(ctx: Context, cell_cov: FloatArray) -> float:
+    r"""w: the information (nats) a newly found target's first detection gives about its
+    position, relative to knowing only its cell.
+
+    .. math:: w = \tfrac12 \log\det(I_2 + W C_u)
+
+    with ``C_u`` the cell's position covariance and ``W`` the position information of one
+    detection by sensor 0 on its boresight at the middle of its ground-range band (the
+    radar's noise model, without the detection probability: the detection happened).
+    """
+    row = ctx.radar[0]
+    s = ctx.problem.sensors[0]
+    mid = 0.5 * (float(s.min_ground_range) + float(s.max_ground_range))
+    C = np.array([cell_cov[0, 0], cell_cov[0, 1], cell_cov[1, 1]])
+    W, p = radar.look_information(row, np.array([mid]), np.array([0.0]), np.array([0.0]),
+                                  C[None], True, ctx.buildings, np.zeros((1, 2)))
+    if not p[0] > 0:
+        return 0.0
+    Wd = W[0] / p[0]
+    return float(0.5 * np.linalg.slogdet(np.eye(2) + Wd @ np.asarray(cell_cov))[1])
+
+
+def prepare(problem: PlanningProblem) -> SearchContext:
+    """Precompute Phi with search for one decision (the problem's search must be on)."""
+    if not problem.searching or problem.undetected is None:
+        raise ConfigError("search", "the problem's search is off")
+    ctx = prepare_tracks(problem, search=True)
+    u = problem.undetected
+    weight = first_detection_weight(ctx, u.cell_cov) if u.weight is None else float(u.weight)
+    return SearchContext(ctx, [sector_bearings(S) for S in problem.sector_counts],
+                         np.array(u.centres, dtype=float), np.array(u.weights, dtype=float),
+                         np.array(u.births, dtype=float), float(u.survival), weight)
+
+
+def look_bearing(sctx: SearchContext, i: int, k: int, position: FloatArray, target: int,
+                 sector: int) -> float:
+    """The bearing the heading rule aims at for sensor i's look in epoch k (1-based)."""
+    if sector >= 0:
+        return float(sctx.bearings[i][sector])
+    aim = sctx.ctx.aim[target, k - 1]
+    return math.atan2(aim[1] - position[1], aim[0] - position[0])
+
+
+def plan_headings(sctx: SearchContext, plan: Plan) -> FloatArray:
+    """Headings ``(N, K)`` of a plan's looks by the heading rule (NaN where unassigned).
+
+    Each look turns from the previous epoch's heading toward its bearing by at most the
+    turn limit; after an unassigned epoch, from the initial heading by at most ``k`` turn
+    limits (what is reachable in k epochs).
+    """
+    ctx = sctx.ctx
+    assert plan.sectors is not None
+    out = np.full((ctx.N, ctx.K), np.nan)
+    for i in range(ctx.N):
+        h, prev_ok = float(ctx.problem.headings[i]), True
+        theta0, turn = float(ctx.problem.headings[i]), float(ctx.max_turn[i])
+        for k in range(1, ctx.K + 1):
+            if not plan.assigned[i, k - 1]:
+                prev_ok = False
+                continue
+            b = look_bearing(sctx, i, k, plan.positions[i, k - 1], int(plan.targets[i, k - 1]),
+                             int(plan.sectors[i, k - 1]))
+            h = float(heading_rule(h, b, turn) if prev_ok else heading_rule(theta0, b, k * turn))
+            out[i, k - 1] = h
+            prev_ok = True
+    return out
+
+
+def detection(sctx: SearchContext, i: int, positions: FloatArray, headings: FloatArray
+              ) -> FloatArray:
+    """``P_d v`` at every cell centre for looks of sensor i: ``(B, C)`` from poses
+    ``positions (B, 2)``, ``headings (B,)`` (the radar's one implementation)."""
+    positions = np.asarray(positions, dtype=float).reshape(-1, 2)
+    d = sctx.centres[None, :, :] - positions[:, None, :]
+    B = len(positions)
+    return radar.detectable_points(sctx.ctx.radar, np.full(B, i, dtype=np.int64), d[..., 0],
+                                   d[..., 1], np.asarray(headings, dtype=float).reshape(B),
+                                   positions, sctx.ctx.buildings)
+
+
+def expected_found(sctx: SearchContext, miss: FloatArray) -> FloatArray:
+    """mu from the probability that each epoch's looks all miss a target in each cell.
+
+    Parameters
+    ----------
+    miss : (..., K, C)   ``prod over the epoch's looks of (1 - P_d v)``
+
+    Returns
+    -------
+    (...,) expected number of undetected targets the looks find
+    """
+    D = np.broadcast_to(sctx.d0, miss.shape[:-2] + sctx.d0.shape).copy()
+    mu = np.zeros(miss.shape[:-2])
+    for k in range(miss.shape[-2]):
+        m = miss[..., k, :]
+        for _ in range(sctx.ctx.e):
+            D = sctx.survival * D + sctx.births
+            mu += (D * (1.0 - m)).sum(axis=-1)
+            D = D * m
+    return mu
+
+
+def track_information(sctx: SearchContext, plan: Plan, headings: FloatArray
+                      ) -> tuple[FloatArray, IntArray]:
+    """The tracks' terms of Phi ``(M,)`` for a plan whose headings are given, and each
+    track look's number of looks that count ``(N, K)`` (0 elsewhere)."""
+    ctx = sctx.ctx
+    track = plan.targets >= 0
+    W = np.zeros((ctx.N, ctx.K, ctx.e, 2, 2))
+    counts = np.zeros((ctx.N, ctx.K), dtype=np.int64)
+    for i in range(ctx.N):
+        if track[i].any():
+            pos = np.where(track[i][:, None], plan.positions[i], 0.0)[None]
+            th = np.where(track[i], headings[i], 0.0)[None]
+            tgt = np.maximum(plan.targets[i], 0)[None]
+            w, counted = chain_information(ctx, i, 1, pos, th, tgt)
+            W[i] = np.where(track[i][:, None, None, None], w[0], 0.0)
+            counts[i] = np.where(track[i], counted[0].sum(axis=-1), 0)
+    return target_information(ctx, sum_by_target(ctx, W, plan.targets)), counts
+
+
+@dataclass(frozen=True)
+class SearchEvaluation:
+    """Phi with search and its parts: ``potential = information.sum() + weight * found``;
+    ``measurements (N, K)``: a track look's looks that count (as without search), a search
+    look's steps when it covers a cell."""
+
+    potential: float
+    information: FloatArray
+    found: float
+    weight: float
+    headings: FloatArray
+    measurements: IntArray
+
+
+def evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
+    """Phi of ``plan`` with search: the reference definition (plain numpy, one plan)."""
+    ctx = sctx.ctx
+    headings = plan_headings(sctx, plan)
+    info, counts = track_information(sctx, plan, headings)
+    miss = np.ones((ctx.K, len(sctx.centres)))
+    assert plan.sectors is not None
+    for i in range(ctx.N):
+        ks = np.flatnonzero(plan.assigned[i])
+        if ks.size:
+            p = detection(sctx, i, plan.positions[i, ks], headings[i, ks])
+            miss[ks] *= 1.0 - p
+            # A search look counts at each step when it covers a cell.
+            sector = plan.sectors[i, ks] >= 0
+            counts[i, ks[sector]] = (p[sector] > 0).any(axis=1) * ctx.e
+    mu = float(expected_found(sctx, miss))
+    return SearchEvaluation(float(info.sum()) + sctx.weight * mu, info, mu, sctx.weight,
+                            headings, counts)
+
+
+def potential(problem: PlanningProblem, plan: Plan) -> tuple[float, FloatArray, float]:
+    """Phi with search of ``plan``: ``(phi, information (M,), mu)``."""
+    ev = evaluate(prepare(problem), plan)
+    return ev.potential, ev.information, ev.found
+
+
+def sector_actions(sctx: SearchContext, i: int, k: int, prev_heading: float, prev_ok: bool
+                   ) -> IntArray:
+    """The sectors of player (i, k) that are distinct actions: the first sector of each
+    heading the heading rule maps the sectors to, from ``prev_heading`` (or, after an
+    unassigned epoch, ``prev_ok`` False, from the initial heading by ``k`` turn limits)."""
+    b = sctx.bearings[i]
+    if b.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    turn = float(sctx.ctx.max_turn[i])
+    h = (heading_rule(prev_heading, b, turn) if prev_ok
+         else heading_rule(float(sctx.problem.headings[i]), b, k * turn))
+    keep: list[int] = []
+    for s in range(b.size):
+        if not any(abs(float(wrap_angle(h[s] - h[t]))) <= HEADING_TOL for t in keep):
+            keep.append(s)
+    return np.array(keep, dtype=np.int64)
+
+
+def player_positions(sctx: SearchContext, plan: Plan, i: int, k: int) -> FloatArray:
+    """Positions ``(P, 2)`` player (i, k) may take: one move from its epoch k-1 position
+    (the start for k = 1), inside the map, and one move from its epoch k+1 position when
+    that epoch is assigned (the order of the moves)."""
+    problem = sctx.problem
+    moves = move_vectors(problem.sensors[i].moves)
+    prev = problem.positions[i] if k == 1 else plan.positions[i, k - 2]
+    cand = prev + moves
+    ok = problem.world.contains(cand)
+    if k < sctx.ctx.K and plan.assigned[i, k]:
+        nxt = plan.positions[i, k]
+        d = np.abs(nxt[None, None, :] - cand[:, None, :] - moves[None]).max(axis=-1)
+        ok &= d.min(axis=1) <= POSITION_TOL * 10
+    # Distinct positions only (a zero-length move may repeat the stay).
+    out: list[FloatArray] = []
+    for p in cand[ok]:
+        if not any(np.abs(p - q).max() <= POSITION_TOL * 10 for q in out):
+            out.append(p)
+    return np.array(out).reshape(-1, 2)
+
+
+def player_actions(sctx: SearchContext, plan: Plan, i: int, k: int
+                   ) -> tuple[FloatArray, IntArray, IntArray]:
+    """Every action of player (i, k): positions ``(A, 2)``, targets ``(A,)`` and sectors
+    ``(A,)`` (-1 where the other kind), position-major, tracks before sectors."""
+    assert plan.sectors is not None
+    if k == 1:
+        prev_h, prev_ok = float(sctx.problem.headings[i]), True
+    else:
+        prev_ok = bool(plan.assigned[i, k - 2])
+        prev_h = float(plan_headings(sctx, plan)[i, k - 2]) if prev_ok else 0.0
+    sectors = sector_actions(sctx, i, k, prev_h, prev_ok)
+    pos = player_positions(sctx, plan, i, k)
+    M = sctx.ctx.M
+    looks_t = np.concatenate([np.arange(M), np.full(sectors.size, -1)])
+    looks_s = np.concatenate([np.full(M, -1), sectors])
+    n = looks_t.size
+    return (np.repeat(pos, n, axis=0), np.tile(looks_t, len(pos)),
+            np.tile(looks_s, len(pos)))
+
+
+def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
+                         positions: FloatArray, targets: IntArray, sectors: IntArray
+                         ) -> FloatArray:
+    """Phi with search for each candidate action of player (i, k), the others fixed: one
+    batch over candidates (the track terms in one covariance recursion, mu vectorised over
+    cells and candidates). Player (i, k)'s action also moves the headings of sensor i's
+    later epochs (the heading rule chains them); those are recomputed per candidate.
+
+    Returns
+    -------
+    (A,) nats
+    """
+    ctx = sctx.ctx
+    A, K, L = len(targets), ctx.K, ctx.K - k + 1
+    assert plan.sectors is not None
+    headings = plan_headings(sctx, plan)
+    # Sensor i's epochs k..K per candidate.
+    pos = np.repeat(plan.positions[i, k - 1:][None], A, axis=0)
+    tgt = np.repeat(plan.targets[i, k - 1:][None], A, axis=0)
+    sec = np.repeat(plan.sectors[i, k - 1:][None], A, axis=0)
+    pos[:, 0], tgt[:, 0], sec[:, 0] = positions, targets, sectors
+    assigned = (tgt >= 0) | (sec >= 0)
+    th = np.full((A, L), np.nan)
+    theta0, turn = float(ctx.problem.headings[i]), float(ctx.max_turn[i])
+    prev_ok = k == 1 or bool(plan.assigned[i, k - 2])
+    h = np.full(A, theta0 if k == 1 or not prev_ok else float(headings[i, k - 2]))
+    for l in range(L):
+        kk = k + l
+        if not assigned[0, l] and l > 0:       # later epochs: the same for every candidate
+            prev_ok = False
+            continue
+        aim = ctx.aim[np.maximum(tgt[:, l], 0), kk - 1]
+        b = np.where(sec[:, l] >= 0, sctx.bearings[i][np.maximum(sec[:, l], 0)]
+                     if sctx.bearings[i].size else 0.0,
+                     np.arctan2(aim[:, 1] - pos[:, l, 1], aim[:, 0] - pos[:, l, 0]))
+        h = heading_rule(h, b, turn) if prev_ok else heading_rule(theta0, b, kk * turn)
+        th[:, l] = h
+        prev_ok = True
+    # Tracks: every other look's information, plus each candidate's chain.
+    track = tgt >= 0
+    others = plan.targets.copy()
+    others[i, k - 1:] = -1
+    W_all, _ = _plan_track_W(sctx, plan, headings)
+    base = sum_by_target(ctx, W_all, others)                        # (M, T, 2, 2)
+    w, _ = chain_information(ctx, i, k, np.where(track[..., None], pos, 0.0),
+                             np.where(track, th, 0.0), np.maximum(tgt, 0))
+    w = np.where(track[..., None, None, None], w, 0.0)               # (A, L, e, 2, 2)
+    Wt = np.broadcast_to(base, (A,) + base.shape).copy()
+    e = ctx.e
+    for l in range(L):
+        for s in range(e):
+            t = (k - 1 + l) * e + s
+            rows = np.flatnonzero(track[:, l])      # one row per candidate: no repeats
+            Wt[rows, tgt[rows, l], t] += w[rows, l, s]
+    M, T = ctx.M, ctx.T
+    P0 = np.broadcast_to(np.asarray(ctx.problem.covs), (A, M, 4, 4)).reshape(A * M, 4, 4)
+    Q = ctx.Q if ctx.Q.shape[0] == 1 else np.broadcast_to(ctx.Q, (A, M, 4, 4)).reshape(
+        A * M, 4, 4)
+    cumulative = ctx.problem.objective == "cumulative"
+    flat = Wt.reshape(A * M, T, 2, 2)
+    _, ld_end, ld_sum = covariance_recursion(np.ascontiguousarray(P0), flat, ctx.F,
+                                             np.ascontiguousarray(Q), cumulative)
+    ld_bar = np.broadcast_to(ctx.ld_bar, (A, M, T + 1)).reshape(A * M, T + 1)
+    info = phi_terms(ld_bar, ld_end, ld_sum, cumulative, measured(flat),
+                     np.tile(ctx.existence, A)).reshape(A, M).sum(axis=1)
+    # Search: every other look's miss probability, times each candidate's chain.
+    miss = np.ones((K, len(sctx.centres)))
+    for n in range(ctx.N):
+        ks = np.flatnonzero(plan.assigned[n])
+        if n == i:
+            ks = ks[ks < k - 1]
+        if ks.size:
+            miss[ks] *= 1.0 - detection(sctx, n, plan.positions[n, ks], headings[n, ks])
+    miss_c = np.broadcast_to(miss, (A,) + miss.shape).copy()
+    for l in range(L):
+        if assigned[0, l] or l == 0:
+            p = detection(sctx, i, pos[:, l], th[:, l])
+            miss_c[:, k - 1 + l] *= 1.0 - p
+    mu = expected_found(sctx, miss_c)
+    return info + sctx.weight * mu
+
+
+def _plan_track_W(sctx: SearchContext, plan: Plan, headings: FloatArray
+                  ) -> tuple[FloatArray, IntArray]:
+    ctx = sctx.ctx
+    track = plan.targets >= 0
+    W = np.zeros((ctx.N, ctx.K, ctx.e, 2, 2))
+    for n in range(ctx.N):
+        if track[n].any():
+            w, _ = chain_information(ctx, n, 1,
+                                     np.where(track[n][:, None], plan.positions[n], 0.0)[None],
+                                     np.where(track[n], headings[n], 0.0)[None],
+                                     np.maximum(plan.targets[n], 0)[None])
+            W[n] = np.where(track[n][:, None, None, None], w[0], 0.0)
+    return W, plan.targets
+
+
+def with_action(plan: Plan, i: int, k: int, position: FloatArray, target: int,
+                sector: int) -> Plan:
+    """``plan`` with player (i, k)'s action replaced."""
+    assert plan.sectors is not None
+    pos, tgt, sec = plan.positions.copy(), plan.targets.copy(), plan.sectors.copy()
+    pos[i, k - 1], tgt[i, k - 1], sec[i, k - 1] = position, target, sector
+    return Plan(pos, tgt, sec)
+
+
+def enumerate_plans(sctx: SearchContext, chains: list[IntArray]
+                    ) -> itertools.product:  # type: ignore[type-arg]
+    """Every feasible joint plan's per-sensor parts (brute force): for each sensor, its
+    chains of positions (``chains[i] (n_i, K)``, indices into ``R_k``, the brute-force
+    planner's enumeration) times its look sequences (every target and every sector)."""
+    ctx = sctx.ctx
+    per_sensor = []
+    for i in range(ctx.N):
+        lat = ctx.lattices[i]
+        looks = [(j, -1) for j in range(ctx.M)] + [(-1, s) for s in
+                                                   range(sctx.bearings[i].size)]
+        opts = []
+        for ch in chains[i]:
+            xy = np.stack([lat.positions[kk + 1][ch[kk]] for kk in range(ctx.K)])
+            for seq in itertools.product(looks, repeat=ctx.K):
+                opts.append((xy, np.array([a for a, _ in seq]), np.array([b for _, b in seq])))
+        per_sensor.append(opts)
+    return itertools.product(*per_sensor)
+
+
+def count_plans(sctx: SearchContext, n_chains: list[int]) -> int:
+    """The number of joint plans :func:`enumerate_plans` yields (``n_chains[i]``: sensor
+    i's number of chains)."""
+    n = 1
+    for i in range(sctx.ctx.N):
+        looks = sctx.ctx.M + sctx.bearings[i].size
+        n *= n_chains[i] * looks ** sctx.ctx.K
+    return n
+
+
+def brute_force(sctx: SearchContext, chains: list[IntArray]) -> tuple[Plan, float]:
+    """The first joint plan in enumeration order (:func:`enumerate_plans`) within the tie
+    tolerance of the best, and its Phi."""
+    from .problem import TIE_TOL
+
+    best: Plan | None = None
+    best_phi = -np.inf
+    for parts in enumerate_plans(sctx, chains):
+        plan = Plan(np.stack([p[0] for p in parts]), np.stack([p[1] for p in parts]),
+                    np.stack([p[2] for p in parts]))
+        phi = evaluate(sctx, plan).potential
+        if best is None or phi > best_phi + TIE_TOL * max(1.0, abs(best_phi)):
+            best, best_phi = plan, phi
+    assert best is not None
+    return best, best_phi
+
+
+def best_index(u: FloatArray, current: int) -> int:
+    """The best action: the current one if within the tie tolerance of the maximum, else
+    the first maximum."""
+    from .problem import TIE_TOL
+
+    top = float(u.max())
+    if current >= 0 and u[current] >= top - TIE_TOL * max(1.0, abs(top)):
+        return current
+    return int(np.flatnonzero(u >= top - TIE_TOL * max(1.0, abs(top)))[0])
+
+
+def _index_of(pos: FloatArray, tgt: IntArray, sec: IntArray, plan: Plan, i: int,
+              k: int) -> int:
+    assert plan.sectors is not None
+    if not plan.assigned[i, k - 1]:
+        return -1
+    hit = np.flatnonzero((np.abs(pos - plan.positions[i, k - 1]).max(axis=1)
+                          <= POSITION_TOL * 10) & (tgt == plan.targets[i, k - 1])
+                         & (sec == plan.sectors[i, k - 1]))
+    return int(hit[0]) if hit.size else -1
+
+
+def sequential_greedy(sctx: SearchContext) -> Plan:
+    """For k = 1..K, for i = 0..N-1: the action (track or sector look) maximising Phi with
+    search given the earlier choices, the later players unassigned; ties to the first."""
+    plan = Plan.empty(sctx.ctx.N, sctx.ctx.K)
+    for k in range(1, sctx.ctx.K + 1):
+        for i in range(sctx.ctx.N):
+            pos, tgt, sec = player_actions(sctx, plan, i, k)
+            u = candidate_potentials(sctx, plan, i, k, pos, tgt, sec)
+            b = best_index(u, -1)
+            plan = with_action(plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
+    return plan
+
+
+def random_plan(sctx: SearchContext, rng: np.random.Generator) -> Plan:
+    """A uniform random feasible plan: each epoch a random move (among those that stay in
+    the map) and a random look among the targets and the sensor's sectors."""
+    ctx = sctx.ctx
+    N, K, M = ctx.N, ctx.K, ctx.M
+    positions = np.empty((N, K, 2))
+    targets = np.full((N, K), -1, dtype=np.int64)
+    sectors = np.full((N, K), -1, dtype=np.int64)
+    for i in range(N):
+        lat = ctx.lattices[i]
+        q = 0
+        for k in range(1, K + 1):
+            options = np.flatnonzero(lat.child[k][q] >= 0)
+            q = int(lat.child[k][q, options[rng.integers(len(options))]])
+            positions[i, k - 1] = lat.positions[k][q]
+            look = int(rng.integers(M + sctx.bearings[i].size))
+            if look < M:
+                targets[i, k - 1] = look
+            else:
+                sectors[i, k - 1] = look - M
+    return Plan(positions, targets, sectors)
+
+
+def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, beta: float,
+                   max_inner: int, max_outer: int) -> tuple[Plan, bool, int, list[float]]:
+    """JSFP with inertia over (sensor, epoch) players with track and sector looks.
+
+    Initialisation: :func:`sequential_greedy` (each player's best response to the earlier
+    epochs, the later ones unassigned). Then sweeps over k = K..1 of the epoch games as in
+    ``pg`` (running averages, switch with probability ``1 - alpha``, stop with probability
+    ``1 - beta`` or after ``max_inner`` iterations) until a sweep changes nothing and every
+    epoch game ends at an equilibrium.
+
+    Returns
+    -------
+    plan, converged, sweeps, trace (Phi after each sweep)
+    """
+    ctx = sctx.ctx
+    N, K = ctx.N, ctx.K
+    plan = sequential_greedy(sctx)
+    trace: list[float] = []
+    for sweep in range(1, max_outer + 1):
+        changed, all_eq = False, True
+        for k in range(K, 0, -1):
+            actions = [player_actions(sctx, plan, i, k) for i in range(N)]
+            ubar = [np.zeros(len(a[1])) for a in actions]
+            eq = False
+            for t in range(1, max_inner + 1):
+                cur = [_index_of(*actions[i], plan, i, k) for i in range(N)]
+                best = []
+                eq = True
+                for i in range(N):
+                    u = candidate_potentials(sctx, plan, i, k, *actions[i])
+                    eq &= best_index(u, cur[i]) == cur[i]
+                    ubar[i] = (t - 1) / t * ubar[i] + u / t
+                    best.append(best_index(ubar[i], cur[i]))
+                if eq:
+                    break
+                switch = rng.random(N) >= alpha
+                for i in range(N):
+                    if best[i] != cur[i] and (cur[i] < 0 or switch[i]):
+                        pos, tgt, sec = actions[i]
+                        b = best[i]
+                        plan = with_action(plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
+                        changed = True
+                if rng.random() >= beta:
+                    break
+            all_eq &= eq
+        trace.append(evaluate(sctx, plan).potential)
+        if not changed and all_eq:
+            return plan, True, sweep, trace
+    return plan, False, max_outer, trace
+
+
+__all__ = ["HEADING_TOL", "SearchContext", "SearchEvaluation",
+           "brute_force", "candidate_potentials", "count_plans", "evaluate", "expected_found",
+           "first_detection_weight", "plan_headings", "player_actions", "potential",
+           "potential_game", "prepare", "random_plan", "sector_actions", "sector_bearings",
+           "sequential_greedy"]
