@@ -42,3 +42,28 @@ def test_a_study_of_sets_reports_gospa_per_run(tmp_path: Path) -> None:
         np.testing.assert_allclose(
             per_run.loc[per_run["method"] == name].sort_values("run")[
                 ["localisation", "missed", "false"]].to_numpy(), parts, rtol=1e-12)
+    # A study of sets is judged by GOSPA: headline and paired differences, from the table.
+    from scipy import stats
+
+    def per_run(name: str) -> np.ndarray:
+        mine = g[g["method"] == name]
+        return np.array([mine.loc[mine["run"] == r, "gospa"].mean() for r in range(3)])
+
+    d = per_run("pmb/pg") - per_run("pmb/random")
+    half = stats.t.ppf(0.975, 2) * d.std(ddof=1) / np.sqrt(3)
+    assert (f"| pmb/pg | pmb/random | all | {d.mean():.1f} [{d.mean() - half:.1f}, "
+            f"{d.mean() + half:.1f}] |") in md
+    assert "\u0394 GOSPA mean (m)" in md and "\u0394 RMSE mean (m)" not in md
+    assert "mean GOSPA (each run's mean over its steps)" in md
+    assert "| pmb/pg (assigned tracks) |" in md
+    # Lost share of a set tracker: its target-steps without an assigned track, i.e. GOSPA's
+    # missed part counted in targets (c^2/2 each), not the error rule.
+    from sensorplan.study.metrics import run_metrics
+
+    c = float(study.methods[0].settings.gospa_c)
+    rm = run_metrics(load_study_dir(out))
+    for name in study.method_names:
+        mine = g[g["method"] == name].groupby("run")[["missed", "targets"]].sum()
+        share = (mine["missed"] / (c ** 2 / 2) / mine["targets"]).to_numpy()
+        got = rm[(rm["method"] == name) & (rm["kind"] == "all")].sort_values("run")
+        np.testing.assert_allclose(got["lost_share"].to_numpy(), share, atol=1e-12)

@@ -18,10 +18,11 @@ from pathlib import Path
 from typing import Any
 
 from ..simulation.settings import all_settings
-from ..study.metrics import (DIVERGED_THRESHOLD, LOST_THRESHOLD, consistency, gospa_over_time,
-                             gospa_summary, kinds_with_all, nees_over_time, paired_differences,
-                             planning_summary, references, rmse_over_time, run_metrics,
-                             sensing_summary, summary)
+from ..study.lifespan import study_has_sets
+from ..study.metrics import (DIVERGED_THRESHOLD, LOST_THRESHOLD, consistency,
+                             gospa_over_time, gospa_run_metrics, gospa_summary, kinds_with_all,
+                             nees_over_time, paired_differences, planning_summary, references,
+                             rmse_over_time, run_metrics, sensing_summary, set_methods, summary)
 from ..study.model import Method
 from ..study.storage import StudyTables, load_study_dir
 from .figures import FIGURES, draw_figures
@@ -237,23 +238,28 @@ def write_report(study_dir: str | Path, out: str | Path | None = None) -> Report
     lost = summary(metrics, "lost_share")
     # A t-interval of a share can leave [0, 1]; show it clipped (the share cannot).
     lost[["mean_lo", "mean_hi"]] = lost[["mean_lo", "mean_hi"]].clip(0.0, 1.0)
-    diffs = paired_differences(metrics, t.study)
+    # A study of changing sets is judged by GOSPA: a multi-target tracker's RMSE covers only
+    # the target-steps with an assigned track, so it leaves out the targets it missed.
+    column = "gospa" if study_has_sets(t.study) else "rmse"
+    judged = gospa_run_metrics(t) if column == "gospa" else metrics
+    diffs = paired_differences(judged, t.study, column=column)
     plan = planning_summary(t)
     sensing = sensing_summary(t)
     honest = consistency(t)
     gospa = gospa_summary(t)
     figs = draw_figures(t, out, {"rmse": rmse, "lost": lost, "diffs": diffs, "plan": plan,
                                  "curves": rmse_over_time(t), "nees": nees_over_time(t),
-                                 "gospa": gospa_over_time(t)})
+                                 "gospa": gospa_over_time(t), "quantity": column.upper()})
 
-    top = headline(t.study, metrics, rmse, diffs)
+    top = headline(t.study, judged,
+                   summary(judged, "gospa") if column == "gospa" else rmse, diffs, column)
     lines = headline_paragraphs(top, results_link(out))
-    single = _single_runs(metrics, t, top)
+    single = _single_runs(judged, t, top)
     worst = next((row[3].split()[1] for row in single if row[0] == top.best), None)
     example = (f"sensorplan replay {shlex.quote(str(study_dir))} --run {worst} --method "
                f"{shlex.quote(top.best)}") if worst is not None else None
     doc = _document(t, rmse, lost, diffs, plan, sensing, figs, honest, lines, single,
-                    example)
+                    example, column)
     _gospa_section(doc, gospa, figs, _gospa_c(t.study))
     title = f"sensorplan study report: {study_dir.name}"
     md = out / "summary.md"
@@ -304,14 +310,16 @@ def _caption(label: str, rows: Any) -> str:
 
 
 def _single_runs(metrics: Any, t: StudyTables, top: Any) -> list[list[str]]:
-    """Per method: its best, median and worst run by RMSE over the headline's targets."""
+    """Per method: its best, median and worst run by RMSE over the headline's targets (by
+    mean GOSPA when the headline judges by it)."""
     m = metrics[metrics["kind"].astype(str) == top.kind]
+    column = top.metric
     rows = []
     for name in t.study.method_names:
-        g = m[m["method"] == name].sort_values(["rmse", "run"], kind="stable")
+        g = m[m["method"] == name].sort_values([column, "run"], kind="stable")
         if not len(g):
             continue
-        runs, values = g["run"].to_numpy(), g["rmse"].to_numpy(float)
+        runs, values = g["run"].to_numpy(), g[column].to_numpy(float)
         mid = (len(g) - 1) // 2
         rows.append([name] + [f"run {int(runs[k])} ({values[k]:.1f} m)"
                               for k in (0, mid, len(g) - 1)])
@@ -320,8 +328,13 @@ def _single_runs(metrics: Any, t: StudyTables, top: Any) -> list[list[str]]:
 
 def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensing: Any,
               figs: dict[str, Path], honest: Any, top: list[str],
-              single: list[list[str]], example: str | None) -> _Doc:
+              single: list[list[str]], example: str | None, column: str = "rmse") -> _Doc:
     study, meta = t.study, t.meta
+    sets = set(set_methods(study))
+
+    def name_of(method: str) -> str:
+        """A method's name, marked where its errors are those of assigned tracks."""
+        return f"{method} (assigned tracks)" if method in sets else method
     doc = _Doc()
     doc.h(1, "Study report" + (f": {study.description}" if study.description else ""))
     doc.headline(top)
@@ -372,6 +385,12 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
           "[95 % distribution-free order-statistic interval]. Lost: share of target-steps with "
           f"error > {LOST_THRESHOLD:g} m, mean across runs [95 % t-interval, clipped to "
           "[0, 100] %].")
+    if sets:
+        doc.p("A multi-target tracker (marked \"assigned tracks\") has no track per target: "
+              "its errors are those of the track GOSPA assigns to each live target, so its "
+              "RMSE is over the target-steps that have one, and a lost target-step is one "
+              "without one (GOSPA's missed part; an assigned track lies within the cut-off, "
+              "so the error rule would count none). GOSPA below judges it with the rest.")
     for kind in kinds_with_all(study):
         r = rmse[rmse["kind"] == kind].set_index("method")
         lo = lost[lost["kind"] == kind].set_index("method")
@@ -380,7 +399,7 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
             if name not in r.index:
                 continue
             a, b = r.loc[name], lo.loc[name]
-            rows.append([name, _ci(a["mean"], a["mean_lo"], a["mean_hi"]),
+            rows.append([name_of(name), _ci(a["mean"], a["mean_lo"], a["mean_hi"]),
                          _ci(a["median"], a["median_lo"], a["median_hi"]),
                          _ci(b["mean"], b["mean_lo"], b["mean_hi"], pct=True)])
         label = f"{kind} targets" if kind != "all" else "all targets"
@@ -391,22 +410,37 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
     doc.figure("lost_share", figs["lost_share"])
 
     doc.h(2, "Paired differences")
-    doc.p("Per run: RMSE of the method minus RMSE of the reference on the same run. Mean "
-          "[95 % paired t-interval], median [95 % order-statistic interval], and the share "
-          "of runs in which the method had the lower RMSE. An interval entirely below zero "
-          "means the method is better with 95 % confidence.")
+    quantity = "GOSPA" if column == "gospa" else "RMSE"
+    if column == "gospa":
+        doc.p("This study has changing sets (a multi-target tracker, or targets born and "
+              "dying), so methods are compared by GOSPA, which charges missed targets and "
+              "false tracks; RMSE would leave out what a multi-target tracker misses. Per "
+              "run: the mean GOSPA over steps 1..S of the method minus that of the reference "
+              "on the same run. Mean [95 % paired t-interval], median [95 % order-statistic "
+              "interval], and the share of runs in which the method had the lower GOSPA. An "
+              "interval entirely below zero means the method is better with 95 % "
+              "confidence.")
+    else:
+        doc.p("Per run: RMSE of the method minus RMSE of the reference on the same run. Mean "
+              "[95 % paired t-interval], median [95 % order-statistic interval], and the "
+              "share of runs in which the method had the lower RMSE. An interval entirely "
+              "below zero means the method is better with 95 % confidence.")
     for against in ("myopic", "random"):
         d = diffs[diffs["against"] == against] if len(diffs) else diffs
         rows = [[r.method, r.reference, str(r.kind), _ci(r.mean, r.mean_lo, r.mean_hi),
                  _ci(r.median, r.median_lo, r.median_hi), f"{100 * r.better_share:.0f} %"]
                 for r in d.itertuples()] if len(d) else []
         if rows:
-            doc.table(["method", "reference", "kind", "\u0394 RMSE mean (m)",
-                       "\u0394 RMSE median (m)", "runs better"], rows,
+            doc.table(["method", "reference", "kind", f"\u0394 {quantity} mean (m)",
+                       f"\u0394 {quantity} median (m)", "runs better"], rows,
                       caption=_caption(f"against {against}", d))
         else:
             doc.p(f"No method has a {against} reference in this study.")
-    doc.figure("paired_differences", figs["paired_differences"])
+    doc.figure("paired_differences", figs["paired_differences"],
+               None if column != "gospa" else
+               "Paired differences of the run's mean GOSPA (method minus reference, run by "
+               "run) against the myopic planner and against random with the same tracker; "
+               "mean with its 95 % paired t-interval. Left of zero: the method tracks better.")
 
     doc.h(2, "Track consistency")
     doc.p("Is each filter honest about its own error? NEES = e^T P^-1 e of the full state "
@@ -418,9 +452,10 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
           f"largest position error above {DIVERGED_THRESHOLD:g} m.")
     for kind in kinds_with_all(study):
         h = honest[honest["kind"] == kind]
-        rows = [[str(r.method), f"{r.anees:.2f} [{r.band_lo:.2f}, {r.band_hi:.2f}]",
+        rows = [[name_of(str(r.method)), f"{r.anees:.2f} [{r.band_lo:.2f}, {r.band_hi:.2f}]",
                  f"{r.median_nees:.2f}", f"{100 * r.high_share:.1f} %", f"{r.restarts:.2f}",
-                 f"{r.map_corrections:.1f}", f"{r.diverged} of {r.runs}"]
+                 f"{r.map_corrections:.1f}",
+                 "–" if str(r.method) in sets else f"{r.diverged} of {r.runs}"]
                 for r in h.itertuples()]
         label = f"{kind} targets" if kind != "all" else "all targets"
         doc.table(["method", "ANEES [95 % band]", "median NEES", "NEES > 13.28",
@@ -429,8 +464,9 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
     doc.figure("nees_time", figs["nees_time"])
 
     doc.h(2, "Single runs")
-    doc.p("Each method's best, median and worst run by position RMSE over "
-          + ("all targets" if len(kinds_with_all(study)) > 1 else "the targets")
+    doc.p("Each method's best, median and worst run by "
+          + ("mean GOSPA" if column == "gospa" else "position RMSE over "
+             + ("all targets" if len(kinds_with_all(study)) > 1 else "the targets"))
           + ". To see one (a map with the tracks, looks and misses, an assignment "
           "timeline, errors over time and an animation), re-simulate it exactly from this "
           "study: `sensorplan replay DIR --run R --method NAME`"

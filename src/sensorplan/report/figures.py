@@ -66,7 +66,8 @@ def draw_figures(t: StudyTables, out: Path, stats: dict[str, Any]) -> dict[str, 
     """Write every figure of :data:`FIGURES` that applies into ``out``; return their paths.
 
     ``stats`` holds the report's statistics: ``rmse`` and ``lost`` (summaries), ``diffs``
-    (paired differences), ``curves`` (RMSE over time) and ``plan`` (planning summary).
+    (paired differences), ``curves`` (RMSE over time) and ``plan`` (planning summary);
+    ``quantity`` (optional, default ``RMSE``) names what the paired differences are of.
     """
     colors = _method_colors(t.study.method_names)
     figs = {
@@ -75,7 +76,8 @@ def draw_figures(t: StudyTables, out: Path, stats: dict[str, Any]) -> dict[str, 
         "rmse_overall": _fig_rmse_overall(stats["rmse"], t, out / "rmse_overall.png"),
         "lost_share": _fig_lost(stats["lost"], t, out / "lost_share.png"),
         "nees_time": _fig_nees_time(stats["nees"], t, colors, out / "nees_time.png"),
-        "paired_differences": _fig_paired(stats["diffs"], t, out / "paired_differences.png"),
+        "paired_differences": _fig_paired(stats["diffs"], t, out / "paired_differences.png",
+                                          stats.get("quantity", "RMSE")),
         "gospa_time": _fig_gospa_time(stats["gospa"], t, colors, out / "gospa_time.png"),
     }
     if len(t.decisions):             # a scan study plans nothing
@@ -386,8 +388,11 @@ def _fig_lost(lost: Any, t: StudyTables, path: Path) -> Path:
     return _save(fig, path)
 
 
-def _fig_paired(diffs: Any, t: StudyTables, path: Path) -> Path:
+def _fig_paired(diffs: Any, t: StudyTables, path: Path, quantity: str = "RMSE") -> Path:
     kinds = kinds_with_all(t.study)
+    if quantity != "RMSE":
+        # GOSPA is of the whole set: one kind, the one that covers every target.
+        kinds = kinds[-1:]
     names = t.study.method_names
     fig = _new_figure(13.0, 0.5 * len(names) + 2.2)
     axes = fig.subplots(1, 2, squeeze=False)[0]
@@ -411,14 +416,14 @@ def _fig_paired(diffs: Any, t: StudyTables, path: Path) -> Path:
                         fmt=kind_marker(kind), color=kind_color(kind), capsize=3, markersize=5,
                         label=f"{kind} targets" if kind != "all" else "all targets")
         ax.axvline(0.0, color="k", linewidth=0.9)
-        ax.set_xlabel("\u0394 RMSE = method \u2212 reference (m)   \u2190 method better")
+        ax.set_xlabel(f"\u0394 {quantity} = method \u2212 reference (m)   \u2190 method better")
         ax.set_title(f"against {against}")
         ax.grid(True, axis="x", linewidth=0.4, alpha=0.5)
         handles, labels = ax.get_legend_handles_labels()
     if handles:
         fig.legend(handles, labels, loc="outside lower center", ncol=len(labels), fontsize=9,
                    frameon=False)
-    fig.suptitle("Paired RMSE differences per run: mean with 95 % paired t-interval")
+    fig.suptitle(f"Paired {quantity} differences per run: mean with 95 % paired t-interval")
     return _save(fig, path)
 
 

@@ -104,10 +104,11 @@ def _text(v: float, digits: int = 1) -> str:
 
 
 def draw_heatmap(panels: list[Panel], values: list[dict[str, np.ndarray]], title: str,
-                 runs: int, path: Path) -> Path:
+                 runs: int, path: Path, quantity: str = "RMSE") -> Path:
     """One comparison's heat map: a panel per :class:`Panel`, one colour scale centred on
     0 (symmetric), each cell annotated with the mean and its 95 % interval, a thick black
-    border where the interval excludes 0, grey "not run" cells, base values in bold."""
+    border where the interval excludes 0, grey "not run" cells, base values in bold;
+    ``quantity`` names the difference (``RMSE`` or ``GOSPA``, m) on the colour bar."""
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
     from matplotlib.figure import Figure
@@ -163,8 +164,9 @@ def draw_heatmap(panels: list[Panel], values: list[dict[str, np.ndarray]], title
             ax.set_ylabel(p.row_title)
         if len(panels) > 1 and p.row_title:
             ax.set_title(p.title, fontsize=10)
-    fig.colorbar(cmap, ax=axs[:, 0].tolist(), shrink=0.8, label="paired mean \u0394 RMSE (m), "
-                 "method \u2212 reference\n< 0: method better")
+    fig.colorbar(cmap, ax=axs[:, 0].tolist(), shrink=0.8,
+                 label=f"paired mean \u0394 {quantity} (m), method \u2212 reference\n"
+                       "< 0: method better")
     fig.suptitle(title)
     fig.savefig(path, format="png", metadata={"Software": None}, bbox_inches="tight",
                 pad_inches=0.15)
@@ -174,12 +176,21 @@ def draw_heatmap(panels: list[Panel], values: list[dict[str, np.ndarray]], title
 #: The per-method metrics drawn along each axis: column, label, scale.
 AXIS_METRICS = (("rmse", "mean RMSE (m)", 1.0), ("lost", "lost target-steps (%)", 100.0),
                 ("anees", "ANEES (4: honest)", 1.0))
+#: The same for a grid judged by GOSPA: mean GOSPA instead of RMSE; the lost share of a
+#: multi-target tracker is its target-steps without an assigned track, its ANEES that of
+#: the assigned tracks.
+SET_AXIS_METRICS = (("gospa", "mean GOSPA (m)", 1.0),
+                    ("lost", "lost target-steps (%)", 100.0),
+                    ("anees", "ANEES (4: honest)", 1.0))
 
 
-def draw_axis_lines(info: dict[str, Any], methods: Any, path: Path) -> Path | None:
-    """Each method's mean RMSE, lost share (both with 95 % t-intervals) and ANEES along
-    every axis of a star design (the other axes at base): one row per axis, one column per
-    metric, one line per method. None for a full design (its heat maps show the cells)."""
+def draw_axis_lines(info: dict[str, Any], methods: Any, path: Path,
+                    metrics: tuple[tuple[str, str, float], ...] = AXIS_METRICS
+                    ) -> Path | None:
+    """Each method's mean RMSE (or another of ``metrics``: column, label, scale), lost
+    share (both with 95 % t-intervals) and ANEES along every axis of a star design (the
+    other axes at base): one row per axis, one column per metric, one line per method.
+    None for a full design (its heat maps show the cells)."""
     from matplotlib.figure import Figure
 
     from ..figures.colors import method_colors
@@ -191,12 +202,12 @@ def draw_axis_lines(info: dict[str, Any], methods: Any, path: Path) -> Path | No
     names = list(dict.fromkeys(methods["method"]))
     colors = method_colors(names)
     axes = info["axes"]
-    fig = Figure(figsize=(4.2 * len(AXIS_METRICS), 2.9 * len(axes) + 0.6), dpi=110,
+    fig = Figure(figsize=(4.2 * len(metrics), 2.9 * len(axes) + 0.6), dpi=110,
                  layout="constrained")
-    grid = fig.subplots(len(axes), len(AXIS_METRICS), squeeze=False)
+    grid = fig.subplots(len(axes), len(metrics), squeeze=False)
     for i, a in enumerate(axes):
         slugs = [by_index.get(base[:i] + (k,) + base[i + 1:]) for k in range(len(a["labels"]))]
-        for c, (col, label, scale) in enumerate(AXIS_METRICS):
+        for c, (col, label, scale) in enumerate(metrics):
             ax = grid[i, c]
             for m in names:
                 rows = methods[methods["method"] == m].set_index("cell")

@@ -3,7 +3,8 @@
 Computed from the report's statistics (:mod:`sensorplan.study.metrics`) over all targets
 (the scenario's only kind when it has one):
 
-- the best method by mean RMSE, with its 95 % t-interval;
+- the best method by mean RMSE (by mean GOSPA in a study of changing sets), with its 95 %
+  t-interval;
 - its paired difference (run by run) against the runner-up and against its random
   reference, each with a 95 % paired t-interval;
 - the best method with horizon K > 1 that has a myopic reference, and its paired
@@ -72,6 +73,7 @@ class Headline:
     vs_myopic: Interval | None               # lookahead minus myopic
     better_share: float = math.nan           # runs in which lookahead beat myopic
     small_sample: bool = False
+    metric: str = "rmse"                     # what it judges by: rmse or gospa
 
     @property
     def verdict(self) -> str | None:
@@ -101,10 +103,13 @@ def _flag(summary_rows: Any) -> bool:
     return bool(np.any(summary_rows["n"].to_numpy() < SMALL_SAMPLE))
 
 
-def headline(study: Study, metrics: Any, rmse: Any, diffs: Any) -> Headline:
+def headline(study: Study, metrics: Any, rmse: Any, diffs: Any,
+             column: str = "rmse") -> Headline:
     """The headline of a study from :func:`~sensorplan.study.metrics.run_metrics`,
     its RMSE :func:`~sensorplan.study.metrics.summary` and
-    :func:`~sensorplan.study.metrics.paired_differences`."""
+    :func:`~sensorplan.study.metrics.paired_differences`; with ``column="gospa"``, from
+    :func:`~sensorplan.study.metrics.gospa_run_metrics` and its summary and differences
+    (a study of changing sets is judged by GOSPA)."""
     kind = kinds_with_all(study)[-1]            # "all", or the only kind
     r = rmse[rmse["kind"] == kind].set_index("method")
     r = r.loc[[n for n in study.method_names if n in r.index]]
@@ -112,7 +117,7 @@ def headline(study: Study, metrics: Any, rmse: Any, diffs: Any) -> Headline:
     best = str(order.index[0])
     runner = str(order.index[1]) if len(order) > 1 else None
     m = metrics[metrics["kind"] == kind]
-    wide = m.pivot_table(index="run", columns="method", values="rmse", observed=True)
+    wide = m.pivot_table(index="run", columns="method", values=column, observed=True)
     b = r.loc[best]
     refs = references(study)
     planners = {x.name: x.settings for x in study.methods}
@@ -140,7 +145,7 @@ def headline(study: Study, metrics: Any, rmse: Any, diffs: Any) -> Headline:
         runner_up=runner, vs_runner_up=_paired(wide, best, runner) if runner else None,
         random=rnd, vs_random=_paired(wide, best, rnd) if rnd else None,
         lookahead=look_name, myopic=myopic, vs_myopic=vs_myopic, better_share=share,
-        small_sample=_flag(r))
+        small_sample=_flag(r), metric=column)
 
 
 def results_link(report_dir: Path) -> str | None:
@@ -159,7 +164,9 @@ def headline_paragraphs(h: Headline, link: str | None) -> list[str]:
     """The headline as paragraphs of inline markdown (``**bold**``, ``[text](href)``)."""
     over = "all targets" if h.kind == "all" else f"{h.kind} targets"
     n = h.best_rmse.n
-    first = (f"**Best method: {h.best}**, mean position RMSE over {over} "
+    what = ("mean GOSPA (each run's mean over its steps)" if h.metric == "gospa"
+            else f"mean position RMSE over {over}")
+    first = (f"**Best method: {h.best}**, {what} "
              f"{h.best_rmse.text()} (95 % t-interval, {n} paired run{'' if n == 1 else 's'}).")
     parts = []
     if h.runner_up is not None and h.vs_runner_up is not None:

@@ -21,8 +21,9 @@ from ..config.files import ensure_out_dir
 from ..errors import ConfigError
 from .execution import StudyInterrupted, StudyRun, run_study
 from .grid import Grid
-from .metrics import (consistency, kinds_with_all, paired_differences, planning_summary,
-                      run_metrics, summary)
+from .lifespan import study_has_sets
+from .metrics import (consistency, gospa_run_metrics, kinds_with_all, paired_differences,
+                      planning_summary, run_metrics, set_methods, summary)
 from .storage import (RESULT_KEYS, differences, done_tasks, git_describe, load_study_dir,
                       locked, now, versions)
 
@@ -218,16 +219,32 @@ def _verdict(n: int, lo: float, hi: float) -> str:
     return "inconclusive"
 
 
-def cell_statistics(tables: Any, pairs: list[tuple[str, str]]) -> list[dict[str, Any]]:
-    """Per ``(method, reference)``, over every target: the paired RMSE difference
-    (:func:`~.metrics.paired_differences`), each side's ANEES and diverged runs
-    (:func:`~.metrics.consistency`) and mean planning time per decision (ms,
-    :func:`~.metrics.planning_summary`) in one study's tables."""
+def judged_by(studies: Any) -> str:
+    """What a grid's (or a study's) comparisons are judged by: ``gospa`` when any of the
+    studies has a method with a multi-target tracker or a truth whose targets are born,
+    die or are scripted (:func:`~.lifespan.study_has_sets`), else ``rmse``.
+
+    A multi-target tracker's errors exist only where a track is assigned to a target, so
+    its RMSE and ANEES leave out exactly the target-steps it missed; GOSPA charges them.
+    """
+    return "gospa" if any(study_has_sets(s) for s in studies) else "rmse"
+
+
+def cell_statistics(tables: Any, pairs: list[tuple[str, str]],
+                    metric: str = "rmse") -> list[dict[str, Any]]:
+    """Per ``(method, reference)``, over every target: the paired difference of ``metric``
+    (``rmse``, or ``gospa``: the run's mean GOSPA; :func:`~.metrics.paired_differences`),
+    each side's ANEES and diverged runs (:func:`~.metrics.consistency`) and mean planning
+    time per decision (ms, :func:`~.metrics.planning_summary`) in one study's tables. With
+    ``gospa``, also each side's mean GOSPA with its 95 % t-interval (``gospa_method``,
+    ``gospa_method_lo``, ... ``gospa_reference_hi``)."""
     kind = _kind(tables.study)
-    diffs = paired_differences(run_metrics(tables), tables.study, pairs=pairs)
+    per_run = gospa_run_metrics(tables) if metric == "gospa" else run_metrics(tables)
+    diffs = paired_differences(per_run, tables.study, column=metric, pairs=pairs)
     honest = consistency(tables)
     honest = honest[honest["kind"] == kind].set_index("method")
     plan = planning_summary(tables).set_index("method")
+    level = summary(per_run, "gospa").set_index("method") if metric == "gospa" else None
     rows = []
     for method, ref in pairs:
         d = diffs[(diffs["method"] == method) & (diffs["reference"] == ref)
@@ -239,9 +256,36 @@ def cell_statistics(tables: Any, pairs: list[tuple[str, str]]) -> list[dict[str,
             row[f"anees_{side}"] = float(honest.loc[name, "anees"])
             row[f"diverged_{side}"] = int(honest.loc[name, "diverged"])
             row[f"ms_{side}"] = float(plan.loc[name, "mean_ms"])
+            if level is not None:
+                g = level.loc[name]
+                row[f"gospa_{side}"] = float(g["mean"])
+                row[f"gospa_{side}_lo"] = float(g["mean_lo"])
+                row[f"gospa_{side}_hi"] = float(g["mean_hi"])
         row["verdict"] = _verdict(row["n"], row["mean_lo"], row["mean_hi"])
         rows.append(row)
     return rows
+
+
+def _cell_tables(out: Path, info: dict[str, Any]) -> dict[str, Any]:
+    """Each cell's tables (None where the cell has not run)."""
+    found: dict[str, Any] = {}
+    for cell in info["cells"]:
+        try:
+            found[cell["slug"]] = load_study_dir(out / cell["slug"])
+        except ConfigError:
+            found[cell["slug"]] = None
+    return found
+
+
+def _judge(info: dict[str, Any], tables: dict[str, Any]) -> str:
+    """:func:`judged_by` over the cells that have run, written into ``info`` with the
+    methods that have a multi-target tracker in any cell (``set_methods``)."""
+    studies = [t.study for t in tables.values() if t is not None]
+    info["judged_by"] = judged_by(studies)
+    info["set_methods"] = list(dict.fromkeys(n for s in studies for n in set_methods(s)))
+    # A study-wide setting: every method of a cell has the same cut-off.
+    info["gospa_c"] = float(studies[0].methods[0].settings.gospa_c) if studies else math.nan
+    return str(info["judged_by"])
 
 
 def grid_statistics(out: str | Path) -> tuple[dict[str, Any], Any]:
@@ -250,21 +294,24 @@ def grid_statistics(out: str | Path) -> tuple[dict[str, Any], Any]:
     Columns: comparison (index into ``grid.json``'s comparisons), cell (slug), status
     (``complete``, ``partial`` or ``not run``), runs_done, and for a cell that has run the
     columns of :func:`cell_statistics` (NaN otherwise; verdict ``not run``). The
-    difference is over every target (kind ``all``); ``diverged`` counts runs whose largest
-    position error exceeds ``metrics.DIVERGED_THRESHOLD`` (m).
+    difference is over every target (kind ``all``) of the metric :func:`judged_by` picks:
+    RMSE, or for a grid of changing sets the run's mean GOSPA (then with each side's mean
+    GOSPA too). ``diverged`` counts runs whose largest position error exceeds
+    ``metrics.DIVERGED_THRESHOLD`` (m). The returned ``grid.json`` content gains
+    ``judged_by`` (``rmse`` or ``gospa``), ``set_methods`` (the methods with a
+    multi-target tracker) and ``gospa_c`` (GOSPA's cut-off, m).
     """
     import pandas as pd
 
     out = Path(out)
     info = read_grid_json(out)
     pairs = [(c["method"], c["reference"]) for c in info["comparisons"]]
+    found = _cell_tables(out, info)
+    metric = _judge(info, found)
     rows = []
     for cell in info["cells"]:
-        try:
-            tables = load_study_dir(out / cell["slug"])
-        except ConfigError:
-            tables = None
-        stats = cell_statistics(tables, pairs) if tables is not None else \
+        tables = found[cell["slug"]]
+        stats = cell_statistics(tables, pairs, metric) if tables is not None else \
             [{"verdict": "not run", "n": 0} for _ in pairs]
         status = "not run" if tables is None else ("complete" if tables.complete
                                                    else "partial")
@@ -276,6 +323,9 @@ def grid_statistics(out: str | Path) -> tuple[dict[str, Any], Any]:
                "median", "median_lo", "median_hi", "better_share", "anees_method",
                "anees_reference", "diverged_method", "diverged_reference", "ms_method",
                "ms_reference", "verdict"]
+    if metric == "gospa":
+        columns[-1:-1] = [f"gospa_{side}{end}" for side in ("method", "reference")
+                          for end in ("", "_lo", "_hi")]
     return info, pd.DataFrame(rows).reindex(columns=columns)
 
 
@@ -286,30 +336,46 @@ def method_statistics(out: str | Path) -> Any:
     Columns: cell, method, n (runs), rmse, rmse_lo, rmse_hi (mean position RMSE, m, with
     its 95 % t-interval, :func:`~.metrics.summary`), lost, lost_lo, lost_hi (share of
     target-steps with error above 50 m, same statistics), anees, diverged
-    (:func:`~.metrics.consistency`).
+    (:func:`~.metrics.consistency`). For a multi-target tracker RMSE and ANEES are over the
+    target-steps with an assigned track and lost is the share without one
+    (:func:`~.metrics.run_metrics`). A grid judged by GOSPA (:func:`judged_by`) adds
+    gospa, gospa_lo, gospa_hi (the run's mean GOSPA, m, same statistics) and the mean
+    localisation, missed and false parts (m^2).
     """
     import pandas as pd
 
     out = Path(out)
     info = read_grid_json(out)
+    found = _cell_tables(out, info)
+    by_gospa = _judge(info, found) == "gospa"
     rows = []
     for cell in info["cells"]:
-        try:
-            tables = load_study_dir(out / cell["slug"])
-        except ConfigError:
+        tables = found[cell["slug"]]
+        if tables is None:
             continue
         kind = _kind(tables.study)
         metrics = run_metrics(tables)
         rmse = summary(metrics, "rmse")
         lost = summary(metrics, "lost_share")
         honest = consistency(tables)
+        sets = gospa_run_metrics(tables) if by_gospa else None
         for method in tables.study.method_names:
             def pick(df: Any, m: str = method, k: str = kind) -> Any:
                 return df[(df["method"] == m) & (df["kind"] == k)].iloc[0]
             r, lo, h = pick(rmse), pick(lost), pick(honest)
-            rows.append({"cell": cell["slug"], "method": method, "n": int(r["n"]),
-                         "rmse": r["mean"], "rmse_lo": r["mean_lo"], "rmse_hi": r["mean_hi"],
-                         "lost": lo["mean"], "lost_lo": lo["mean_lo"], "lost_hi": lo["mean_hi"],
-                         "anees": float(h["anees"]), "diverged": int(h["diverged"])})
-    return pd.DataFrame(rows, columns=["cell", "method", "n", "rmse", "rmse_lo", "rmse_hi",
-                                       "lost", "lost_lo", "lost_hi", "anees", "diverged"])
+            row = {"cell": cell["slug"], "method": method, "n": int(r["n"]),
+                   "rmse": r["mean"], "rmse_lo": r["mean_lo"], "rmse_hi": r["mean_hi"],
+                   "lost": lo["mean"], "lost_lo": lo["mean_lo"], "lost_hi": lo["mean_hi"],
+                   "anees": float(h["anees"]), "diverged": int(h["diverged"])}
+            if sets is not None:
+                mine = sets[sets["method"] == method]
+                g = pick(summary(mine, "gospa"))
+                row.update(gospa=g["mean"], gospa_lo=g["mean_lo"], gospa_hi=g["mean_hi"],
+                           **{part: float(mine[part].mean())
+                              for part in ("localisation", "missed", "false")})
+            rows.append(row)
+    columns = ["cell", "method", "n", "rmse", "rmse_lo", "rmse_hi", "lost", "lost_lo",
+               "lost_hi", "anees", "diverged"]
+    if by_gospa:
+        columns += ["gospa", "gospa_lo", "gospa_hi", "localisation", "missed", "false"]
+    return pd.DataFrame(rows, columns=columns)

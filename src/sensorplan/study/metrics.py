@@ -185,6 +185,11 @@ def _with_all(target_kinds: Any) -> list[str]:
     return kinds + ["all"] if len(kinds) > 1 else kinds
 
 
+def set_methods(study: Study) -> list[str]:
+    """The methods whose tracker is a multi-target one (its tracks are not the targets)."""
+    return [m.name for m in study.methods if m.settings.tracker.kind != "known"]
+
+
 def run_metrics(tables: StudyTables) -> Any:
     """Per (method, run, kind) metrics over steps 1..S.
 
@@ -192,11 +197,20 @@ def run_metrics(tables: StudyTables) -> Any:
     over steps 1..S and the kind's targets of error^2), mean_error (m), lost_share (share of
     those target-steps with error > :data:`LOST_THRESHOLD`), measured_share (share with at
     least one measurement), negative_share (share that got a missed-look update).
+
+    For a multi-target tracker (:func:`set_methods`) the errors are those of the assigned
+    tracks, so rmse and mean_error are over the target-steps that have one, and lost_share
+    is the share of target-steps without one (GOSPA's missed part): an assigned track is
+    within the cut-off, so the error rule would count none of them.
     """
     import pandas as pd
 
     d = tables.steps[tables.steps["step"] >= 1]
-    d = d.assign(se=d["error"] ** 2, lost=lost(d["error"]))
+    gone = lost(d["error"])
+    sets = d["method"].isin(set_methods(tables.study))
+    if sets.any():
+        gone = gone.where(~sets, d["error"].isna())
+    d = d.assign(se=d["error"] ** 2, lost=gone)
     agg = dict(mse=("se", "mean"), mean_error=("error", "mean"), lost_share=("lost", "mean"),
                measured_share=("measured", "mean"),
                negative_share=("negative_update", "mean"))
@@ -275,6 +289,8 @@ SMALL_SAMPLE = 10
 #: of a few runs can reach below zero, where no RMSE lies).
 METRIC_RANGES: dict[str, tuple[float | None, float | None]] = {
     "rmse": (0.0, None), "mean_error": (0.0, None), "lost_share": (0.0, 1.0),
+    "gospa": (0.0, None), "localisation": (0.0, None), "missed": (0.0, None),
+    "false": (0.0, None),
     "measured_share": (0.0, 1.0), "negative_share": (0.0, 1.0)}
 
 
@@ -555,3 +571,23 @@ def gospa_over_time(tables: StudyTables, level: float = LEVEL) -> Any:
     out = pd.concat(rows, ignore_index=True)
     out["method"] = out["method"].astype(tables.gospa["method"].dtype)
     return out.sort_values(["method", "step"]).reset_index(drop=True)
+
+
+def gospa_run_metrics(tables: StudyTables) -> Any:
+    """Per (method, run): the means over steps 1..S of GOSPA (m) and of its localisation,
+    missed and false parts (m^2), shaped like :func:`run_metrics` (kind: the one that
+    covers every target, ``all`` or the scenario's only kind) so that :func:`summary` and
+    :func:`paired_differences` take it.
+
+    Columns: method, run, kind, gospa, localisation, missed, false.
+    """
+    import pandas as pd
+
+    per_run = tables.gospa.groupby(["method", "run"], observed=True).agg(
+        gospa=("gospa", "mean"), localisation=("localisation", "mean"),
+        missed=("missed", "mean"), false=("false", "mean")).reset_index()
+    kinds = kinds_with_all(tables.study)
+    per_run["kind"] = pd.Categorical([kinds[-1]] * len(per_run), categories=kinds,
+                                     ordered=True)
+    cols = ["method", "run", "kind", "gospa", "localisation", "missed", "false"]
+    return per_run[cols].sort_values(["method", "run"]).reset_index(drop=True)
