@@ -392,3 +392,26 @@ def test_set_metrics_names_the_bad_argument() -> None:
         target_metrics(one, [1, 2], one, one)
     with pytest.raises(ValueError, match="^target_id: 1 appears twice at step 0"):
         target_metrics(one, [1, 1], one > 0, one)
+
+
+def test_a_set_trackers_lost_share_is_its_live_target_steps_without_a_track() -> None:
+    # Its errors are those of the assigned tracks, never above the cut-off: by the error
+    # rule alone it could never lose a target (the run summary once said 0 % lost).
+    import dataclasses
+
+    from sensorplan.simulation.run import run_episode
+    from sensorplan.simulation.scenario import search_scenario
+    from sensorplan.simulation.settings import RunSettings, TrackerSettings
+    from sensorplan.study.metrics import episode_errors
+
+    scenario = dataclasses.replace(search_scenario(), birth_rate=0.25)
+    settings = RunSettings(planner="random", steps=30, tracker=TrackerSettings(kind="pmb"))
+    ep = run_episode(scenario, settings, 20261203)
+    every = [r for r in episode_errors(ep) if r.target == "all" and r.kind == "all"][0]
+    # Independently: GOSPA's missed part counts c^2/2 for each live target left unassigned.
+    series = sm.episode_set_metrics(ep).gospa
+    c = ep.settings.gospa_c
+    unassigned = np.asarray(series.missed).sum() / (c * c / 2)
+    alive = np.asarray(ep.alive)[1:].sum()
+    assert unassigned > 0                                 # the premise: some were missed
+    assert every.lost_share == pytest.approx(unassigned / alive, rel=1e-12)

@@ -64,7 +64,8 @@ class ErrorRow:
     """Position errors over steps 1..S of one target or a group of targets (m).
 
     ``target`` is the index, or ``"all"`` for every target of ``kind`` (``"all"`` kinds:
-    every target); ``lost_share`` is the share of target-steps lost; ``measured`` counts
+    every target); ``lost_share`` is the share of target-steps lost (for a multi-target
+tracker, of live target-steps without an assigned track); ``measured`` counts
     the target-steps with at least one measurement; ``anees`` is the average NEES (4 for an
     honest filter) and ``restarts`` counts the track restarts.
     """
@@ -95,6 +96,13 @@ def episode_errors(episode: Episode) -> list[ErrorRow]:
     nees = np.asarray(episode.nees)[1:]
     restarted = np.asarray(episode.restarted)[1:]
     kinds = list(episode.target_kinds)
+    if episode.settings.tracker.kind == "known":
+        gone = lost(err).astype(float)
+    else:
+        # A live target without an assigned track is lost (its error is NaN, never above
+        # the threshold); a target not alive is no target-step at all.
+        alive = np.asarray(episode.alive, dtype=bool)[1:]
+        gone = np.where(alive, ~(err <= LOST_THRESHOLD), np.nan)
 
     def row(target: str, kind: str, idx: list[int]) -> ErrorRow:
         e = err[:, idx]
@@ -102,7 +110,7 @@ def episode_errors(episode: Episode) -> list[ErrorRow]:
             warnings.simplefilter("ignore", RuntimeWarning)        # a target never assigned
             return ErrorRow(target, kind, float(np.sqrt(np.nanmean(e ** 2))),
                             float(np.nanmean(e)), float(np.nanmean(e[-1])),
-                            float(np.nanmean(lost(e))), int(measured[:, idx].sum()),
+                            float(np.nanmean(gone[:, idx])), int(measured[:, idx].sum()),
                             float(np.nanmean(nees[:, idx])), int(restarted[:, idx].sum()))
 
     rows = [row(str(j), kind, [j]) for j, kind in enumerate(kinds)]
