@@ -1,0 +1,127 @@
+"""scripts/search_summary.py against a direct computation from a tiny search study's tables:
+the assigned track of a target-step read off the steps table's estimate (the recorder's
+assignment) and matched to the tracks table, then counted target by target in plain Python."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from sensorplan.study import load_study, run_study
+from sensorplan.study.storage import load_study_dir
+
+ROOT = Path(__file__).resolve().parents[2]
+STUDY = """
+runs = 3
+steps = 60
+seed = 17
+[scenario]
+preset = "search"
+[[methods]]
+name = "myopic"
+planner = "pg"
+[[methods]]
+name = "gnn"
+planner = "pg"
+[methods.tracker]
+kind = "gnn"
+"""
+
+
+def _script():
+    spec = importlib.util.spec_from_file_location(
+        "search_summary", ROOT / "scripts" / "search_summary.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["search_summary"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture(scope="module")
+def study_dir(tmp_path_factory) -> Path:
+    base = tmp_path_factory.mktemp("search_summary")
+    (base / "s.toml").write_text(STUDY)
+    run_study(load_study(base / "s.toml"), base / "out", workers=1)
+    return base / "out"
+
+
+def _direct(study_dir: Path) -> pd.DataFrame:
+    """Per (method, run, target): the metrics counted step by step."""
+    steps = pd.read_parquet(study_dir / "steps.parquet")
+    tracks = pd.read_parquet(study_dir / "tracks.parquet")
+    known = {(m, r, t) for m, r, t in steps.loc[steps["step"] == 0,
+                                                ["method", "run", "target"]].itertuples(
+                                                    index=False)}
+    s = steps[steps["step"] >= 1].merge(
+        tracks.rename(columns={"x": "x_est", "y": "y_est"}),
+        on=["run", "method", "step", "x_est", "y_est"], how="left")
+    assert (s["label"].notna() == s["x_est"].notna()).all()   # every estimate is a track
+    rows = []
+    for (m, r, t), g in s.groupby(["method", "run", "target"]):
+        g = g.sort_values("step")
+        st, lab = g["step"].to_list(), g["label"].to_list()
+        has = [not np.isnan(x) for x in lab]
+        first = next((k for k, h in enumerate(has) if h), None)
+        switches, prev = 0, None
+        longest = cur = 0
+        for k, h in enumerate(has):
+            if h:
+                switches += prev is not None and lab[k] != prev
+                prev = lab[k]
+            cur = 0 if h or (k and st[k] != st[k - 1] + 1) else cur
+            cur += not h
+            longest = max(longest, cur)
+        rows.append(dict(
+            method=m, run=r, target=t, known=(m, r, t) in known, live=len(st),
+            first=-1 if first is None else st[first],
+            delay=np.nan if first is None else st[first] - st[0], switches=switches,
+            lost=longest >= 20,
+            before=len(st) if first is None else first - sum(has[:first]),
+            after=0 if first is None else sum(not h for h in has[first:])))
+    return pd.DataFrame(rows)
+
+
+def test_per_target_and_per_run_match_a_direct_count(study_dir: Path) -> None:
+    script = _script()
+    tables = load_study_dir(study_dir)
+    got = script.per_target(tables).set_index(["method", "run", "target"]).sort_index()
+    want = _direct(study_dir).set_index(["method", "run", "target"]).sort_index()
+    assert got.index.equals(want.index)
+    assert (~want["known"]).any() and (want["first"] < 0).any() and (want["first"] > 0).any()
+    for col in ("known", "live", "first", "switches", "lost", "before", "after"):
+        np.testing.assert_array_equal(got[col].to_numpy(), want[col].to_numpy(), err_msg=col)
+    np.testing.assert_array_equal(got["delay"].to_numpy(), want["delay"].to_numpy())
+
+    runs = script.per_run(tables, script.per_target(tables)).set_index(["method", "run"])
+    g = pd.read_parquet(study_dir / "gospa.parquet")
+    for (m, r), x in g.groupby(["method", "run"]):
+        row, w = runs.loc[(m, r)], want.loc[(m, r)]
+        assert row["gospa"] == pytest.approx(x["gospa"].mean(), rel=1e-12)
+        # each missed target costs c^2/2 = 1250 m^2: the three parts add up to the gospa
+        # table's missed count
+        assert row["missed_share"] == pytest.approx(
+            100 * x["missed"].sum() / 1250 / x["targets"].sum(), rel=1e-9)
+        never = w["first"] < 0
+        assert row["missed_never"] == pytest.approx(100 * w.loc[never, "live"].sum()
+                                                    / w["live"].sum(), rel=1e-12)
+        assert row["switches"] == w["switches"].sum() and row["lost"] == w["lost"].sum()
+        born = ~w["known"]
+        assert row["born"] == born.sum()
+        if born.any():
+            assert row["found_born"] == pytest.approx(100 * (born & ~never).sum() / born.sum())
+
+
+def test_the_latency_line_is_the_pooled_distribution(study_dir: Path) -> None:
+    want = _direct(study_dir)
+    text = "\n".join(_script().summary_lines(load_study_dir(study_dir), "myopic"))
+    t = want[(want["method"] == "gnn") & ~want["known"]]
+    d = t["delay"].dropna().to_numpy(float)
+    never = int((t["first"] < 0).sum())
+    assert (f"| gnn | born: {len(t)} | {np.median(d):.0f}; {np.percentile(d, 90):.0f}; "
+            f"{d.max():.0f} | {never} ({100 * never / len(t):.1f} %) |") in text
+    assert "Paired differences against myopic" in text
