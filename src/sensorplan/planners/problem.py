@@ -11,6 +11,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -97,6 +98,16 @@ class Lattice:
     parent_move: list[IntArray]
     child: list[IntArray]
     moves: FloatArray
+
+    def random_walk(self, rng: np.random.Generator) -> Iterator[tuple[int, FloatArray]]:
+        """A path through ``R_1 .. R_K``, each step's move drawn uniformly among those that
+        stay in the map: yields ``(k, position)`` after each draw, so that a caller draws
+        its look of epoch k before the next move (the random planners' order of draws)."""
+        q = 0
+        for k in range(1, len(self.positions)):
+            options = np.flatnonzero(self.child[k][q] >= 0)
+            q = int(self.child[k][q, options[rng.integers(len(options))]])
+            yield k, self.positions[k][q]
 
     def index_of(self, k: int, xy: FloatArray) -> int:
         """Index of ground position ``xy`` in ``R_k`` (-1 if not reachable)."""

@@ -34,11 +34,7 @@ class RandomPlanner(PlannerSettings):
         positions = np.empty((N, K, 2))
         targets = np.empty((N, K), dtype=np.int64)
         for i in range(N):
-            lat = ctx.lattices[i]
-            q = 0
-            for k in range(1, K + 1):
-                options = np.flatnonzero(lat.child[k][q] >= 0)
-                q = int(lat.child[k][q, options[gen.integers(len(options))]])
-                positions[i, k - 1] = lat.positions[k][q]
+            for k, xy in ctx.lattices[i].random_walk(gen):
+                positions[i, k - 1] = xy
                 targets[i, k - 1] = gen.integers(problem.n_targets)
         return finish(self.name, ctx, Plan(positions, targets), start)

@@ -498,12 +498,8 @@ def random_plan(sctx: SearchContext, rng: np.random.Generator) -> Plan:
     targets = np.full((N, K), -1, dtype=np.int64)
     sectors = np.full((N, K), -1, dtype=np.int64)
     for i in range(N):
-        lat = ctx.lattices[i]
-        q = 0
-        for k in range(1, K + 1):
-            options = np.flatnonzero(lat.child[k][q] >= 0)
-            q = int(lat.child[k][q, options[rng.integers(len(options))]])
-            positions[i, k - 1] = lat.positions[k][q]
+        for k, xy in ctx.lattices[i].random_walk(rng):
+            positions[i, k - 1] = xy
             look = int(rng.integers(M + sctx.bearings[i].size))
             if look < M:
                 targets[i, k - 1] = look
