@@ -1233,3 +1233,33 @@ def test_an_option_value_that_is_no_number_is_told_as_a_files_value_is(
     # a valid integer, unable to parse string as an integer").
     line = assert_bad_input(run(capsys, *args, "--out", tmp_path / "o"), field)
     assert line == f"error: {field}: {message}"
+
+
+def test_a_ctrl_c_after_the_error_line_adds_nothing(tmp_path, monkeypatch, capsys) -> None:
+    # A fuzz case pressed Ctrl-C while a refused study was ending: "error: defaults: must
+    # be a table" and then "error: interrupted", exit 130. Once the outcome is said, the
+    # command line's process ignores the signals. The Ctrl-C arrives here just after the
+    # error line is written (the command line's own process: argv None).
+    from sensorplan.cli import app
+
+    bad = tmp_path / "s.toml"
+    bad.write_text('runs = 1\nsteps = 2\ndefaults = 3\n[scenario]\npreset = "paper"\n')
+    fail = app._fail
+
+    def fail_then_ctrl_c(*args: Any, **kwargs: Any) -> Any:
+        stop = fail(*args, **kwargs)
+        signal.raise_signal(signal.SIGINT)
+        return stop
+
+    monkeypatch.setattr(app, "_fail", fail_then_ctrl_c)
+    monkeypatch.setattr(sys, "argv", ["sensorplan", "study", str(bad), "--out",
+                                      str(tmp_path / "o")])
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with pytest.raises(SystemExit) as info:
+            app.main()
+    finally:
+        for s, handler in saved.items():
+            signal.signal(s, handler)
+    err = capsys.readouterr().err
+    assert (info.value.code, err.splitlines()) == (2, ["error: defaults: must be a table"]), err

@@ -8,6 +8,7 @@ commands that need them so that ``sensorplan plan`` starts fast.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import sys
 from collections.abc import Iterator, Sequence
@@ -69,7 +70,9 @@ DEBUG_ENV = "SENSORPLAN_DEBUG"
 
 
 def _fail(field: str, message: str, code: int = EXIT_BAD_INPUT) -> typer.Exit:
-    """Write the one-line error and return the exit to raise."""
+    """Write the one-line error and return the exit to raise (the outcome is decided:
+    :func:`_outcome_decided`)."""
+    _outcome_decided()
     line = error_line(field, message)
     sys.stdout.flush()
     sys.stderr.write(line + "\n")
@@ -583,6 +586,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     before the output was written (a pipe into ``head``), without a word.
     """
     args = list(sys.argv[1:] if argv is None else argv)
+    global _PROCESS
+    _PROCESS = argv is None                 # the command line's own process, not a caller
     if not args:
         args = ["--help"]
     signals = Signals()
@@ -594,6 +599,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             code = command.main(args=args, prog_name="sensorplan", standalone_mode=False)
             sys.stdout.flush()          # a closed pipe shows here, not at the interpreter's exit
         if code == 130 and signals.received is not None:
+            _outcome_decided()
             # typer turns a KeyboardInterrupt (and so a SIGTERM) into a bare status 130.
             term = signals.received == "TERM"
             sys.stdout.flush()
@@ -609,6 +615,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             raise
         code = _stdout_closed()
     except usage_error_class() as exc:
+        _outcome_decided()
         try:
             field, message = usage_line(exc, args)
         except Exception:  # noqa: BLE001 - never a traceback for a usage error
@@ -616,23 +623,45 @@ def main(argv: Sequence[str] | None = None) -> None:
         _fail(field, message)
         code = EXIT_BAD_INPUT
     except ConfigError as exc:
+        _outcome_decided()
         exc = _hinted(exc)
         _fail(exc.field, exc.message)
         code = EXIT_BAD_INPUT
     except KeyboardInterrupt as exc:
+        _outcome_decided()
         term = isinstance(exc, _Terminated)
         sys.stderr.write("error: terminated\n" if term else "error: interrupted\n")
         code = 143 if term else 130
     except typer.Abort:
+        _outcome_decided()
         sys.stderr.write("error: aborted\n")
         code = 1
     except Exception as exc:  # noqa: BLE001 - one line instead of a traceback
+        _outcome_decided()
         if os.environ.get(DEBUG_ENV):
             raise
         _fail("internal error", f"{type(exc).__name__}: {exc} (set {DEBUG_ENV}=1 for the "
               "traceback)", code=1)
         code = 1
     sys.exit(code if isinstance(code, int) else 0)
+
+
+#: Whether :func:`main` runs as the command line's own process (not called by a program).
+_PROCESS = False
+
+
+def _outcome_decided() -> None:
+    """The command's outcome is decided and about to be said in one line: a Ctrl-C or
+    SIGTERM from now on is ignored, so that it cannot add a second line ("error:
+    interrupted" after the error) or change the exit status. Only in the command line's
+    own process (which ends next): a program calling :func:`main` keeps its handlers."""
+    import signal
+
+    if not _PROCESS:
+        return
+    with contextlib.suppress(ValueError):          # not the main thread: not ours
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
 
 def _stdout_closed() -> int:
