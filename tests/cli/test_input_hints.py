@@ -122,3 +122,16 @@ def test_a_value_given_to_a_flag_is_named_as_such(tmp_path: Path,
                                 "--out", tmp_path / "o"), "false")
     assert line == ("error: false: no such file (a flag such as --gate takes no value: write "
                     "--gate or --no-gate, not --gate false)")
+
+
+@pytest.mark.parametrize("command", ["study", "grid"])
+@pytest.mark.parametrize("text", ["", "# a study, some day\n"])
+def test_an_empty_study_or_grid_file_is_named_as_empty(command: str, text: str,
+                                                      tmp_path: Path,
+                                                      capsys: pytest.CaptureFixture[str]
+                                                      ) -> None:
+    # It was told "runs: is required" (fuzz pass 4, its fifth run: three cases).
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    line = assert_bad_input(run(capsys, command, path, "--out", tmp_path / "o"), str(path))
+    assert line.startswith(f"error: {path}: is empty; {command} reads a {command} TOML file")

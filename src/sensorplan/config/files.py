@@ -242,6 +242,10 @@ def read_input(path: str | Path, kind: str) -> Any:
     # Within TOML the keys tell a scenario, a study and a grid apart; a JSON file is a
     # decision, whatever keys it lacks. A grid is a study with axes: one without them is
     # a grid that lacks its axes (the model says so).
+    if kind in ("study", "grid") and not data:
+        # Nothing a study could run (an empty or all-comment file): say so of the file, not
+        # of the first key it lacks.
+        raise ConfigError(source, f"is empty; {READS[kind]}")
     found = file_kind(data) if kind != "decision" else None
     if found == "study" and kind == "grid":
         found = None
