@@ -6,13 +6,24 @@ the detections are drawn once, from the run's generator (``SeedSequence(seed).sp
 and every configuration of the study file tracks the same detections: sensorplan's ``pmb``
 (and ``gnn`` when that tracker kind is registered), Stone Soup's GM-PHD filter and Stone
 Soup's JPDA tracker (``sensorplan.integrations.stonesoup._peers``). The study file
-(``studies/trackers/peers.toml``) fixes the configurations, run count, seeds and the
-decision rule before any run.
+(``studies/trackers/peers.toml``, ``studies/trackers/peers2.toml``) fixes the
+configurations, run count, seeds, the JPDA data associator of each benchmark (its
+``[jpda_associator]`` table: ``JPDA``, the default, or ``JPDAwithLBP``) and the decision
+rule before any run.
+
+Runs are done one run index at a time: run ``r`` of every configuration before run
+``r + 1`` of any, so the runs complete at any moment are a prefix ``0..n-1``, a paired
+sample. Until all of the study's runs are complete the summary is an interim look: it prints
+no verdict.
 
 Per run and configuration the CSV gets the mean over steps of GOSPA (p = 2, alpha = 2, the
 benchmark's cut-off) and of its localisation, missed and false parts (m^2), and the median
 and mean seconds per step (predict and update; the same process runs every configuration,
-one after another). The CSV is resumable: runs already written are skipped. The summary
+one after another). The CSV is resumable: configurations already written for a run are
+skipped, so a stopped study continues with the same command. ``--stop-at HH:MM`` (UTC)
+starts no run index at or after that time; SIGINT or SIGTERM stops at once, keeping every
+row already written (the interrupted tracker's row of that run is redone on resuming). The
+summary
 prints, per configuration: mean GOSPA with a 95 % t-interval, median, the paired
 difference to ``pmb`` with its 95 % t-interval, median seconds per step and the ratio to
 ``pmb``'s, and the decision rule's verdicts.
@@ -21,7 +32,7 @@ Run::
 
     nice .venv/bin/python benchmarks/compare_trackers.py --benchmark williams15 \\
         --study studies/trackers/peers.toml --out out/peers/williams15.csv [--runs N]
-        [--summary-only]
+        [--stop-at HH:MM] [--summary-only]
 """
 
 from __future__ import annotations
@@ -30,6 +41,7 @@ import argparse
 import csv
 import datetime
 import math
+import signal
 import sys
 import time
 import tomllib
@@ -40,9 +52,10 @@ from typing import Any
 import numpy as np
 from scipy import stats
 
-from sensorplan.integrations.stonesoup._peers import (BenchmarkModel, benchmark_model,
-                                                       gmphd_tracker, jpda_deleter,
-                                                       jpda_tracker, positions, to_detections)
+from sensorplan.integrations.stonesoup._peers import (JPDA_ASSOCIATORS, BenchmarkModel,
+                                                       benchmark_model, gmphd_tracker,
+                                                       jpda_deleter, jpda_tracker, positions,
+                                                       to_detections)
 from sensorplan.integrations.stonesoup._pmb import gaussian_cell_masses
 from sensorplan.models import linear
 from sensorplan.models.scripted import scripted_truth
@@ -144,8 +157,10 @@ def gmphd_runner(model: BenchmarkModel, cfgs: list[dict[str, Any]]) -> StepFn:
 
 
 def jpda_runner(model: BenchmarkModel, cfg: dict[str, Any]) -> StepFn:
-    """Stone Soup's JPDA tracker with the configuration's confirmation and deleter."""
-    tr = jpda_tracker(model, int(cfg["min_points"]), jpda_deleter(cfg["deleter"], model), T0)
+    """Stone Soup's JPDA tracker with the configuration's confirmation, deleter and data
+    associator."""
+    tr = jpda_tracker(model, int(cfg["min_points"]), jpda_deleter(cfg["deleter"], model), T0,
+                      associator=cfg.get("associator", "JPDA"))
     mm = model.measurement_model
 
     def step(k: int, z: np.ndarray) -> dict[str, np.ndarray]:
@@ -199,6 +214,13 @@ def load(study: Path, benchmark: str) -> dict[str, Any]:
     spec["configs"] = [c for c in spec["configs"]
                        if c["kind"] != "gnn" or "gnn" in TRACKERS]
     spec["seed"] = int(spec["seeds"][benchmark])
+    associator = spec.get("jpda_associator", {}).get(benchmark, "JPDA")
+    if associator not in JPDA_ASSOCIATORS:
+        fail(f"jpda_associator.{benchmark}",
+             f"must be one of {', '.join(sorted(JPDA_ASSOCIATORS))}, got {associator!r}")
+    for c in spec["configs"]:
+        if c["kind"] == "jpda":
+            c["associator"] = associator
     return spec
 
 
@@ -213,7 +235,8 @@ def done_runs(path: Path, benchmark: str) -> dict[int, set[str]]:
     return have
 
 
-def run_study(spec: dict[str, Any], benchmark: str, runs: int, out: Path) -> None:
+def run_study(spec: dict[str, Any], benchmark: str, runs: int, out: Path,
+              stop_at: datetime.datetime | None = None) -> None:
     model = benchmark_model(benchmark)
     c = float(spec["gospa"][benchmark])
     configs = spec["configs"]
@@ -231,9 +254,14 @@ def run_study(spec: dict[str, Any], benchmark: str, runs: int, out: Path) -> Non
             missing = [cf for cf in configs if cf["name"] not in have.get(r, set())]
             if not missing:
                 continue
+            if stop_at is not None and datetime.datetime.now(datetime.UTC) >= stop_at:
+                print(f"{benchmark}: stop time reached before run {r}; the same command "
+                      "resumes", flush=True)
+                return
             t_run = time.perf_counter()
             truth, zs = draw_run(benchmark, np.random.default_rng(seeds[r]))
             for kind, cfgs in groups(missing):
+                t_group = time.perf_counter()
                 tracks, seconds = run_group(kind, cfgs, model, zs)
                 for cf in cfgs:
                     g = gospa_parts(truth, tracks[cf["name"]], c)
@@ -245,7 +273,12 @@ def run_study(spec: dict[str, Any], benchmark: str, runs: int, out: Path) -> Non
                                      "step_seconds_median": repr(float(np.median(seconds))),
                                      "step_seconds_mean": repr(float(seconds.mean())),
                                      "steps": len(zs)})
-            f.flush()
+                # Each tracker's rows reach the file as soon as it finishes: a stop loses at
+                # most the tracker that was running.
+                f.flush()
+                print(f"  {'/'.join(cf['name'] for cf in cfgs)}: "
+                      f"{time.perf_counter() - t_group:.1f} s, "
+                      f"{float(np.mean(seconds)):.4f} s/step mean", flush=True)
             print(f"{benchmark} run {r}: {time.perf_counter() - t_run:.1f} s", flush=True)
 
 
@@ -257,7 +290,10 @@ def t_interval(x: np.ndarray) -> tuple[float, float, float]:
     return m, m - h, m + h
 
 
-def summary(out: Path, benchmark: str, runs: int, configs: list[dict[str, Any]]) -> None:
+def summary(out: Path, benchmark: str, runs: int, configs: list[dict[str, Any]],
+            declared: int | None = None) -> None:
+    """Print the table of the complete runs among the first ``runs``, and the decision
+    rule's verdicts only when all ``declared`` runs (default ``runs``) are complete."""
     rows: dict[str, dict[int, dict[str, float]]] = {}
     with out.open() as f:
         for row in csv.DictReader(f):
@@ -275,7 +311,11 @@ def summary(out: Path, benchmark: str, runs: int, configs: list[dict[str, Any]])
 
     base_g = col("pmb", "mean_gospa")
     base_t = float(np.median(col("pmb", "step_seconds_median")))
-    print(f"\n{benchmark}: {len(common)} paired runs, GOSPA p = 2, alpha = 2 (m)")
+    declared = runs if declared is None else declared
+    interim = len(common) < declared
+    print(f"\n{benchmark}: {len(common)} paired runs"
+          + (f" (interim look: runs 0..{len(common) - 1} of the declared {declared})"
+             if interim else "") + ", GOSPA p = 2, alpha = 2 (m)")
     head = (f"{'config':<18} {'mean GOSPA [95% CI]':>24} {'median':>7} "
             f"{'loc':>7} {'missed':>7} {'false':>7} {'diff vs pmb [95% CI]':>26} "
             f"{'s/step':>8} {'x pmb':>6}")
@@ -292,6 +332,9 @@ def summary(out: Path, benchmark: str, runs: int, configs: list[dict[str, Any]])
               f"{t:8.4f} {t / base_t:6.1f}")
     print("diff = pmb - config (negative: pmb lower); loc/missed/false: mean parts (m^2); "
           "s/step: median over runs of each run's median seconds per step")
+    if interim:
+        print(f"no verdict: the decision rule applies once all {declared} runs are complete")
+        return
     for family in ("gmphd", "jpda"):
         fam = [c["name"] for c in configs if c["kind"] == family and c["name"] in names]
         if not fam:
@@ -312,15 +355,31 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, required=True, help="the CSV (appended, resumable)")
     ap.add_argument("--runs", type=int, default=None,
                     help="runs to do (the first ones of the study's; default all)")
+    ap.add_argument("--stop-at", default=None, metavar="HH:MM",
+                    help="UTC time of day from which no new run index starts (today's)")
     ap.add_argument("--summary-only", action="store_true", help="print the summary only")
     args = ap.parse_args(argv)
     spec = load(args.study, args.benchmark)
     runs = int(spec["runs"]) if args.runs is None else args.runs
     if runs < 1:
         fail("--runs", f"must be >= 1, got {runs}")
+    stop_at = None
+    if args.stop_at is not None:
+        try:
+            hm = datetime.datetime.strptime(args.stop_at, "%H:%M")
+        except ValueError:
+            fail("--stop-at", f"must be HH:MM (UTC), got {args.stop_at!r}")
+        stop_at = datetime.datetime.now(datetime.UTC).replace(
+            hour=hm.hour, minute=hm.minute, second=0, microsecond=0)
     if not args.summary_only:
-        run_study(spec, args.benchmark, runs, args.out)
-    summary(args.out, args.benchmark, runs, spec["configs"])
+        # SIGTERM stops as Ctrl-C does: the CSV is closed with every finished row in it.
+        signal.signal(signal.SIGTERM, signal.default_int_handler)
+        try:
+            run_study(spec, args.benchmark, runs, args.out, stop_at)
+        except KeyboardInterrupt:
+            print(f"{args.benchmark}: stopped; the same command resumes", flush=True)
+    if args.out.exists():
+        summary(args.out, args.benchmark, runs, spec["configs"], int(spec["runs"]))
     return 0
 
 

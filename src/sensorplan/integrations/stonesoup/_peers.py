@@ -11,9 +11,10 @@ holds what the Stone Soup side needs:
   ``GaussianMixtureHypothesiser`` over a ``DistanceHypothesiser``, a ``PHDUpdater``, a
   ``GaussianMixtureReducer``, birth components added before each scan), reporting at each
   scan the components whose weight exceeds a state threshold;
-- :func:`jpda_tracker`: Stone Soup's JPDA (``JPDA`` data associator over a
-  ``PDAHypothesiser``, ``MultiTargetMixtureTracker``) with a ``MultiMeasurementInitiator``
-  (tentative tracks confirmed by ``min_points`` consecutive detections) and a deleter;
+- :func:`jpda_tracker`: Stone Soup's JPDA (the exhaustive ``JPDA`` data associator, or
+  ``JPDAwithLBP``, its loopy-belief-propagation approximation, over a ``PDAHypothesiser``;
+  ``MultiTargetMixtureTracker``) with a ``MultiMeasurementInitiator`` (tentative tracks
+  confirmed by ``min_points`` consecutive detections) and a deleter;
 - :func:`to_detections`: one scan's positions as Stone Soup ``Detection``\ s.
 """
 
@@ -27,7 +28,7 @@ from typing import Any
 import numpy as np
 from stonesoup.base import Property
 from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
-from stonesoup.dataassociator.probability import JPDA
+from stonesoup.dataassociator.probability import JPDA, JPDAwithLBP
 from stonesoup.deleter.base import Deleter
 from stonesoup.deleter.error import CovarianceBasedDeleter
 from stonesoup.deleter.time import UpdateTimeStepsDeleter
@@ -59,6 +60,12 @@ from ._world import MapRect
 #: GOSPA cut-off (m) of each benchmark: williams15's source's; vo12's is the toolbox's OSPA
 #: cut-off (its source states none for GOSPA).
 GOSPA_C = {"williams15": 10.0, "vo12": 100.0}
+
+#: Stone Soup's JPDA data associators by class name: ``JPDA`` enumerates every joint
+#: hypothesis of the tracks that share a gated detection (exact, exponential in their
+#: number); ``JPDAwithLBP`` approximates the same association probabilities by loopy belief
+#: propagation (Williams and Lau), at a cost linear in the gated pairs per iteration.
+JPDA_ASSOCIATORS = {"JPDA": JPDA, "JPDAwithLBP": JPDAwithLBP}
 
 
 @dataclass(frozen=True)
@@ -242,10 +249,12 @@ def gmphd_tracker(model: BenchmarkModel, start_time: datetime.datetime,
 
 
 def jpda_tracker(model: BenchmarkModel, min_points: int, deleter: Deleter,
-                 start_time: datetime.datetime) -> MultiTargetMixtureTracker:
+                 start_time: datetime.datetime,
+                 associator: str = "JPDA") -> MultiTargetMixtureTracker:
     """Stone Soup's JPDA tracker on a benchmark.
 
-    The ``JPDA`` data associator over a ``PDAHypothesiser`` (the sensor's ``P_d`` and
+    The data associator ``associator`` (``JPDA`` or ``JPDAwithLBP``,
+    :data:`JPDA_ASSOCIATORS`) over a ``PDAHypothesiser`` (the sensor's ``P_d`` and
     clutter density, Stone Soup's default gate probability 0.95); new tracks from a
     ``MultiMeasurementInitiator``: each unassociated detection starts a tentative track
     (position from the detection, velocity prior of the birth density), tentative tracks
@@ -253,6 +262,9 @@ def jpda_tracker(model: BenchmarkModel, min_points: int, deleter: Deleter,
     dropped at their first missed scan, and one with ``min_points`` detections is confirmed:
     ``min_points``-of-``min_points`` confirmation. ``deleter`` deletes confirmed tracks.
     """
+    if associator not in JPDA_ASSOCIATORS:
+        raise ValueError(f"associator must be one of {sorted(JPDA_ASSOCIATORS)}, "
+                         f"got {associator!r}")
     mm = model.measurement_model
     predictor = KalmanPredictor(model.transition_model)
     updater = KalmanUpdater(mm)
@@ -268,7 +280,8 @@ def jpda_tracker(model: BenchmarkModel, min_points: int, deleter: Deleter,
                                           data_associator=gnn, updater=updater,
                                           min_points=min_points)
     return MultiTargetMixtureTracker(initiator=initiator, deleter=deleter, detector=None,
-                                     data_associator=JPDA(pda), updater=updater)
+                                     data_associator=JPDA_ASSOCIATORS[associator](pda),
+                                     updater=updater)
 
 
 def jpda_deleter(kind: str, model: BenchmarkModel) -> Deleter:
@@ -289,5 +302,5 @@ def positions(states: Iterable[Any]) -> FloatArray:
     return np.array(rows).reshape(-1, 2)
 
 
-__all__ = ["GOSPA_C", "BenchmarkModel", "GMPHDTracker", "benchmark_model", "gmphd_tracker",
-           "jpda_deleter", "jpda_tracker", "positions", "to_detections"]
+__all__ = ["GOSPA_C", "JPDA_ASSOCIATORS", "BenchmarkModel", "GMPHDTracker", "benchmark_model",
+           "gmphd_tracker", "jpda_deleter", "jpda_tracker", "positions", "to_detections"]
