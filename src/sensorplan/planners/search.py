@@ -76,10 +76,6 @@ class SearchContext:
     survival: float
     weight: float
 
-    @property
-    def problem(self) -> PlanningProblem:
-        return self.ctx.problem
-
 
 def first_detection_weight(ctx: Context, cell_cov: FloatArray) -> float:
     r"""w: the information (nats) a newly found target's first detection gives about its
@@ -252,7 +248,7 @@ def sector_actions(sctx: SearchContext, i: int, k: int, prev_heading: float, pre
         return np.zeros(0, dtype=np.int64)
     turn = float(sctx.ctx.max_turn[i])
     h = (heading_rule(prev_heading, b, turn) if prev_ok
-         else heading_rule(float(sctx.problem.headings[i]), b, k * turn))
+         else heading_rule(float(sctx.ctx.problem.headings[i]), b, k * turn))
     keep: list[int] = []
     for s in range(b.size):
         if not any(abs(float(wrap_angle(h[s] - h[t]))) <= HEADING_TOL for t in keep):
@@ -264,7 +260,7 @@ def player_positions(sctx: SearchContext, plan: Plan, i: int, k: int) -> FloatAr
     """Positions ``(P, 2)`` player (i, k) may take: one move from its epoch k-1 position
     (the start for k = 1), inside the map, and one move from its epoch k+1 position when
     that epoch is assigned (the order of the moves)."""
-    problem = sctx.problem
+    problem = sctx.ctx.problem
     moves = move_vectors(problem.sensors[i].moves)
     prev = problem.positions[i] if k == 1 else plan.positions[i, k - 2]
     cand = prev + moves
@@ -287,7 +283,7 @@ def player_actions(sctx: SearchContext, plan: Plan, i: int, k: int
     ``(A,)`` (-1 where the other kind), position-major, tracks before sectors."""
     assert plan.sectors is not None
     if k == 1:
-        prev_h, prev_ok = float(sctx.problem.headings[i]), True
+        prev_h, prev_ok = float(sctx.ctx.problem.headings[i]), True
     else:
         prev_ok = bool(plan.assigned[i, k - 2])
         prev_h = float(plan_headings(sctx, plan)[i, k - 2]) if prev_ok else 0.0
