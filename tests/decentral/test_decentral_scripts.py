@@ -4,9 +4,7 @@ figure script (scripts/decentral_potential.py, scripts/decentral_figures.py)."""
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import math
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -17,6 +15,7 @@ from scipy import stats
 
 from sensorplan.decentral import DecentralJSFPPlanner
 from sensorplan.study import load_study, run_study, study_from_dict
+from script_helpers import script_module
 
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_ROUNDS = next(f.default for f in dataclasses.fields(DecentralJSFPPlanner)
@@ -25,13 +24,7 @@ DEFAULT_ROUNDS = next(f.default for f in dataclasses.fields(DecentralJSFPPlanner
 
 def _script(name: str) -> Any:
     """A module of scripts/, imported under its own name (once)."""
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, ROOT / "scripts" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module          # dataclasses look their module up while defining
-    spec.loader.exec_module(module)
-    return module
+    return script_module(name)
 
 
 # ------------------------------------------------------------------------ study files

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,16 +10,13 @@ import pytest
 from scipy import stats
 
 from sensorplan.study import run_study, study_from_dict
+from script_helpers import script_module
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def _paired_module():
-    spec = importlib.util.spec_from_file_location("paired", ROOT / "scripts" / "paired.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["paired"] = module
-    spec.loader.exec_module(module)
-    return module
+    return script_module("paired")
 
 
 def test_paired_rows_match_a_direct_computation(tmp_path: Path) -> None:

@@ -3,8 +3,6 @@ computations from a small grid's tables."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +14,7 @@ from sensorplan.study.grid import load_grid
 from sensorplan.study.grid_run import run_grid
 from sensorplan.study.metrics import consistency
 from sensorplan.study.storage import load_study_dir
+from script_helpers import script_module
 
 ROOT = Path(__file__).resolve().parents[2]
 GRID = f"""
@@ -44,12 +43,7 @@ reference = "known"
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location(
-        "search_conditions", ROOT / "scripts" / "search_conditions.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["search_conditions"] = module
-    spec.loader.exec_module(module)
-    return module
+    return script_module("search_conditions")
 
 
 @pytest.fixture(scope="module")

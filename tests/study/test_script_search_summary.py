@@ -4,8 +4,6 @@ assignment) and matched to the tracks table, then counted target by target in pl
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +12,7 @@ import pytest
 
 from sensorplan.study import load_study, run_study
 from sensorplan.study.storage import load_study_dir
+from script_helpers import script_module
 
 ROOT = Path(__file__).resolve().parents[2]
 STUDY = """
@@ -34,12 +33,7 @@ kind = "gnn"
 
 
 def _script():
-    spec = importlib.util.spec_from_file_location(
-        "search_summary", ROOT / "scripts" / "search_summary.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["search_summary"] = module
-    spec.loader.exec_module(module)
-    return module
+    return script_module("search_summary")
 
 
 @pytest.fixture(scope="module")
