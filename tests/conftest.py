@@ -9,6 +9,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import sys
 from pathlib import Path
 
@@ -16,6 +17,12 @@ from pathlib import Path
 # command but ``plan`` does; tests/_compiled/test_aot.py runs the ahead-of-time ones and checks that
 # they give the same plans. Without this the first ``plan`` a test starts would build them.
 os.environ.setdefault("SENSORPLAN_AOT", "0")
+
+# The commands the tests start see Ctrl-C as a terminal's foreground job does. A CI that runs
+# the suite as a background job of a shell script starts it with Ctrl-C ignored; every command
+# started from it would inherit that (and, as it should, keep ignoring Ctrl-C).
+if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402

@@ -105,6 +105,23 @@ def quiet_numerics(debug_env: str) -> Iterator[None]:
             os.environ["PYTHONWARNINGS"] = saved
 
 
+def handle(signum: int, handler: Any) -> Any:
+    """Install ``handler`` for ``signum`` unless the signal is ignored; return the previous
+    disposition (None where signals are not this thread's to set).
+
+    A signal this process was started with ignored stays ignored, as the Unix convention
+    (and Python's own Ctrl-C handling) has it: a shell script runs its background jobs with
+    Ctrl-C ignored, so that a Ctrl-C meant for the script does not stop them."""
+    import signal
+
+    try:
+        if signal.getsignal(signum) == signal.SIG_IGN:
+            return signal.SIG_IGN
+        return signal.signal(signum, handler)
+    except ValueError:                     # not the main thread: signals are not ours
+        return None
+
+
 class Terminated(KeyboardInterrupt):
     """SIGTERM, raised where the program is, like Ctrl-C's KeyboardInterrupt."""
 
@@ -125,16 +142,13 @@ class Sigterm:
             self.fired = True
             raise Terminated
 
-        try:
-            self._previous = signal.signal(signal.SIGTERM, stop)
-        except ValueError:                 # not the main thread
-            self._previous = None
+        self._previous = handle(signal.SIGTERM, stop)
         return self
 
     def __exit__(self, *exc: object) -> None:
         import signal
 
-        if self._previous is not None:
+        if self._previous not in (None, signal.SIG_IGN):
             signal.signal(signal.SIGTERM, self._previous)
 
 
@@ -283,7 +297,8 @@ class Signals:
     """While active (the whole of a command): Ctrl-C raises KeyboardInterrupt as usual and
     SIGTERM raises :class:`Terminated`; ``received`` is the last one (``"INT"``, ``"TERM"``
     or None), so that the entry point can report an interruption that typer turned into a
-    bare exit status 130."""
+    bare exit status 130. A signal the process was started with ignored stays ignored
+    (:func:`handle`)."""
 
     def __init__(self) -> None:
         self.received: str | None = None
@@ -306,11 +321,10 @@ class Signals:
             self.received = "TERM"
             raise Terminated
 
-        try:
-            for sig, handler in ((signal.SIGINT, interrupt), (signal.SIGTERM, terminate)):
-                self._previous[sig] = signal.signal(sig, handler)
-        except ValueError:                 # not the main thread: signals are not ours
-            pass
+        for sig, handler in ((signal.SIGINT, interrupt), (signal.SIGTERM, terminate)):
+            previous = handle(sig, handler)
+            if previous not in (None, signal.SIG_IGN):
+                self._previous[sig] = previous
         return self
 
     def __exit__(self, *exc: object) -> None:

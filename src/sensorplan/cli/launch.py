@@ -4,7 +4,8 @@ the process's memory settings (:mod:`sensorplan.memory`).
 ``sensorplan`` (and ``python -m sensorplan``) start here rather than in
 :mod:`sensorplan.cli.app`, so that a Ctrl-C pressed while the command line's modules are still
 being imported ends with the same one line and exit status as later (130), not with a
-traceback of the import; and so that numpy's and glibc's memory settings
+traceback of the import (a command started with Ctrl-C ignored, as a shell script starts its
+background jobs, keeps ignoring it); and so that numpy's and glibc's memory settings
 (:func:`numpy_defaults`, :func:`malloc_defaults`) are made before numpy loads.
 """
 
@@ -28,9 +29,9 @@ def main() -> None:
         import signal
         import threading  # noqa: F401 - loaded before a handler may need it (deliver_later)
 
-        from .guards import interrupt
+        from .guards import handle, interrupt
 
-        signal.signal(signal.SIGINT, interrupt)
+        handle(signal.SIGINT, interrupt)    # left ignored where started ignored (a background job)
         malloc_defaults(os.environ)              # before numpy allocates anything
         from .app import main as cli_main
     except KeyboardInterrupt:
