@@ -64,7 +64,7 @@ from .ekf import predict as kalman_predict
 from .known_map import map_edge_predict
 from .pmb.bernoulli import PairTerms, first_detection, pair_terms, updates
 from .pmb.sensing import Look
-from .pmb.map_tracker import MapModel, MapTracker
+from .pmb.map_tracker import MapModel, MapTracker, looks_in_order
 from .pmb.tracker import MIN_WEIGHT
 
 #: The M-of-N defaults: (confirm_hits, confirm_looks, delete_misses).
@@ -186,10 +186,7 @@ class GNNTracker(MapTracker):
         missed_labels: list[IntArray] = []
         used = np.zeros(L, dtype=np.int64)
         discarded = np.zeros(L, dtype=np.int64)
-        for n in range(L):
-            look = Look(int(looks.sensors[n]), np.asarray(looks.positions[n], dtype=float),
-                        float(looks.headings[n]))
-            Z = np.asarray(looks.detections[n], dtype=float).reshape(-1, 2)
+        for n, (look, Z) in enumerate(looks_in_order(looks)):
             used[n], discarded[n], missed = self.update_look(look, Z)
             missed_labels.append(missed)
         negative = np.isin(reported, np.concatenate(missed_labels)) if L else np.zeros(

@@ -5,17 +5,18 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Iterator
 from dataclasses import KW_ONLY, dataclass
 
 import numpy as np
 
 from ..._types import FloatArray
 from ...models.linear import LinearSensor
-from ..base import motion_matrices
+from ..base import Looks, motion_matrices
 from ..known_map import MAP_EDGES
 from ..tracker import gate_threshold
 from . import undetected
-from .sensing import make_sensing
+from .sensing import Look, make_sensing
 
 
 def _number(name: str, value: object, low: float, high: float = math.inf, *,
@@ -187,4 +188,13 @@ class MapTracker:
         self._cell_means, self._cell_covs = self.grid.cell_states()
 
 
-__all__ = ["MapModel", "MapTracker"]
+def looks_in_order(looks: Looks) -> Iterator[tuple[Look, FloatArray]]:
+    """Each look of one step's ``looks``, in the given (sensor) order, with its detections
+    ``(m, 2)``; the looks' aims are not used."""
+    for n in range(len(looks.sensors)):
+        look = Look(int(looks.sensors[n]), np.asarray(looks.positions[n], dtype=float),
+                    float(looks.headings[n]))
+        yield look, np.asarray(looks.detections[n], dtype=float).reshape(-1, 2)
+
+
+__all__ = ["MapModel", "MapTracker", "looks_in_order"]

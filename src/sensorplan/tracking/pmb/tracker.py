@@ -86,7 +86,7 @@ from . import hypotheses as hyp
 from .association import AssociationMarginals, association_lbp
 from .bernoulli import (Bernoullis, missed_existence, missed_look, mixture_moments, pair_terms,
                         updates)
-from .map_tracker import MapModel, MapTracker
+from .map_tracker import MapModel, MapTracker, looks_in_order
 from .sensing import Look
 
 #: Smallest association weight of a miss or a new detection: the ratio form of belief
@@ -235,10 +235,7 @@ class PMBTracker(MapTracker):
         inflated = np.zeros(T, dtype=bool)
         used = np.zeros(L, dtype=np.int64)
         discarded = np.zeros(L, dtype=np.int64)
-        for n in range(L):
-            look = Look(int(looks.sensors[n]), np.asarray(looks.positions[n], dtype=float),
-                        float(looks.headings[n]))
-            Z = np.asarray(looks.detections[n], dtype=float).reshape(-1, 2)
+        for n, (look, Z) in enumerate(looks_in_order(looks)):
             present = self.bern.labels
             out = self.update_look(look, Z)
             used[n], discarded[n] = out.used, out.discarded
