@@ -41,6 +41,7 @@ from sensorplan.models import radar
 from sensorplan.models.sensors import SensorParams, radar_table
 from sensorplan.tracking.base import Looks
 from sensorplan.tracking.gnn import GNNTracker
+from sensorplan.tracking.pmb.map_tracker import MapModel
 from sensorplan.tracking.pmb.tracker import PMBTracker
 
 TARGET = 2e-3
@@ -65,7 +66,7 @@ def problem(rng: np.random.Generator, undetected: float = 2.0) -> tuple[PMBTrack
     covs = np.zeros((N_BERNOULLI, 4, 4))
     covs[:, 0, 0], covs[:, 1, 1] = sd[:, 0] ** 2, sd[:, 1] ** 2
     covs[:, 2, 2] = covs[:, 3, 3] = 4.0
-    tracker = PMBTracker(table, 1.0, (600.0, 600.0), means=means, covs=covs,
+    tracker = PMBTracker(MapModel(table, 1.0, (600.0, 600.0)), means=means, covs=covs,
                          existence=rng.uniform(0.3, 1.0, N_BERNOULLI), births="edges",
                          birth_rate=0.05, initial_undetected=undetected)
     dets = []
@@ -87,9 +88,7 @@ def problem(rng: np.random.Generator, undetected: float = 2.0) -> tuple[PMBTrack
 def gnn_of(tracker: PMBTracker) -> GNNTracker:
     """The GNN tracker of the same sensors, map and motion holding the PMB's Bernoullis as
     confirmed tracks."""
-    return GNNTracker(tracker.sensing.table, tracker.dt, tracker.world,  # type: ignore[union-attr]
-                      means=tracker.bern.means, covs=tracker.bern.covs,
-                      process_noise=tracker.process_noise)
+    return GNNTracker(tracker.model, means=tracker.bern.means, covs=tracker.bern.covs)
 
 
 def timed(trackers: list, looks: Looks) -> tuple[list[float], list[float]]:

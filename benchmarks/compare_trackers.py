@@ -61,6 +61,7 @@ from sensorplan.models import linear
 from sensorplan.models.scripted import scripted_truth
 from sensorplan.study.set_metrics import gospa_over_time
 from sensorplan.tracking.base import Looks
+from sensorplan.tracking.pmb.map_tracker import MapModel
 from sensorplan.tracking.pmb.tracker import PMBTracker
 from sensorplan.tracking.registry import TRACKERS, tracker_class
 
@@ -116,9 +117,10 @@ def pmb_runner(model: BenchmarkModel, cfg: dict[str, Any]) -> StepFn:
     birth = gaussian_cell_masses(model.world, res, model.birth_means[:, :2],
                                  np.sqrt(model.birth_covs[:, [0, 1], [0, 1]]),
                                  model.birth_weights)
-    tr = PMBTracker(model.sensor, model.dt, (model.world.width, model.world.height),
-                    motion=(model.F, model.Q), survival_probability=model.survival,
-                    births=birth, resolution=res, velocity_var=model.velocity_var)
+    tr = PMBTracker(MapModel(model.sensor, model.dt, (model.world.width, model.world.height),
+                             motion=(model.F, model.Q), resolution=res,
+                             velocity_var=model.velocity_var),
+                    survival_probability=model.survival, births=birth)
     tr.undetected = gaussian_cell_masses(model.world, res, model.birth_means[:, :2],
                                          np.sqrt(model.birth_covs[:, [0, 1], [0, 1]]),
                                          model.initial_weights)
@@ -128,8 +130,8 @@ def pmb_runner(model: BenchmarkModel, cfg: dict[str, Any]) -> StepFn:
 def gnn_runner(model: BenchmarkModel, cfg: dict[str, Any]) -> StepFn:
     """sensorplan's GNN tracker with its defaults and the benchmark's sensor and motion."""
     cls = tracker_class("gnn")
-    tr = cls(model.sensor, model.dt, (model.world.width, model.world.height),
-             motion=(model.F, model.Q))
+    tr = cls(MapModel(model.sensor, model.dt, (model.world.width, model.world.height),
+                      motion=(model.F, model.Q)))
     return sensorplan_steps(tr, cfg["name"])
 
 

@@ -33,6 +33,7 @@ from sensorplan.models.motion import cv_matrices  # noqa: E402
 from sensorplan.models.scripted import dwna_matrices  # noqa: E402
 from sensorplan.study.set_metrics import gospa  # noqa: E402
 from sensorplan.tracking.base import Looks  # noqa: E402
+from sensorplan.tracking.pmb.map_tracker import MapModel  # noqa: E402
 from sensorplan.tracking.pmb.tracker import PMBTracker  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -62,8 +63,10 @@ def adapter(**kw) -> PMBStoneSoupTracker:
 
 
 def direct() -> PMBTracker:
-    return PMBTracker(linear.LinearSensor((0.0, 0.0, 300.0, 300.0), 1.0, 0.9, 10.0), 1.0,
-                      (300.0, 300.0), **SETTINGS)
+    tracker_settings = {k: v for k, v in SETTINGS.items() if k != "velocity_var"}
+    return PMBTracker(MapModel(linear.LinearSensor((0.0, 0.0, 300.0, 300.0), 1.0, 0.9, 10.0),
+                               1.0, (300.0, 300.0), velocity_var=SETTINGS["velocity_var"]),
+                      **tracker_settings)
 
 
 def as_detections(z: np.ndarray, time: datetime.datetime) -> set[Detection]:
@@ -154,6 +157,22 @@ def test_other_measurement_models_are_refused_with_a_clear_error():
                                                  noise_covar=np.diag([1.0, 2.0])))
     with pytest.raises(ValueError, match="transition_model"):
         adapter(settings={"motion": (np.eye(4), np.eye(4))})
+    with pytest.raises(ValueError, match="settings: dt"):
+        adapter(settings={"dt": 2.0})
+    with pytest.raises(ValueError, match="resolution"):
+        adapter(settings={"resolution": 0.0})
+
+
+def test_the_settings_are_split_between_the_map_model_and_the_tracker():
+    tracker = adapter(settings={"resolution": 30.0, "velocity_var": 2.0, "process_noise": 0.2,
+                                "gate_probability": 0.99, "map_edge": "closed",
+                                "report_threshold": 0.4, "survival_probability": 0.9})
+    model = tracker.pmb.model
+    assert (model.resolution, model.velocity_var, model.process_noise, model.gate_probability,
+            model.map_edge) == (30.0, 2.0, 0.2, 0.99, "closed")
+    assert (model.dt, model.world) == (1.0, (300.0, 300.0))
+    assert tracker.pmb.grid.nx == tracker.pmb.grid.ny == 10                # 300 m / 30 m
+    assert (tracker.pmb.report_threshold, tracker.pmb.survival_probability) == (0.4, 0.9)
 
 
 def test_a_stonesoup_cv_model_is_the_cwna_model():

@@ -22,6 +22,7 @@ from sensorplan.tracking.base import Looks, Tracker
 from sensorplan.tracking.checks import CHECKS, Scene, check_tracker
 from sensorplan.tracking.gnn import GNNTracker, gnn_assignment
 from sensorplan.tracking.pmb.sensing import Look
+from sensorplan.tracking.pmb.map_tracker import MapModel
 from sensorplan.tracking.pmb.tracker import PMBTracker
 from sensorplan.tracking.registry import TRACKERS, tracker_class
 
@@ -53,31 +54,30 @@ def test_the_gnn_meets_the_tracker_contract_with_the_radar(params: SensorParams)
                               SENSORS[:1], heads[:1])[0]
     dets = (np.concatenate([h[0:1] + [3.0, 0.001], far]), h[1:1])   # two detections; a miss
     scene = Scene(looks_of(np.arange(2), SENSORS, heads, dets))
-    report = check_tracker(lambda: GNNTracker(table, 1.0, WORLD, means=MEANS, covs=P0), scene)
+    model = MapModel(table, 1.0, WORLD)
+    report = check_tracker(lambda: GNNTracker(model, means=MEANS, covs=P0), scene)
     assert report.checks == tuple(CHECKS)
     assert tracker_class("gnn") is GNNTracker
     assert TRACKERS["gnn"] == "sensorplan.tracking.gnn:GNNTracker"
-    assert isinstance(GNNTracker(table, 1.0, WORLD), Tracker)
+    assert isinstance(GNNTracker(model), Tracker)
 
 
 def test_the_gnn_meets_the_tracker_contract_with_the_linear_sensor() -> None:
     sensor = linear.LinearSensor((0.0, 0.0, 300.0, 300.0), 1.0, 0.9, 2.0)
     z = np.array([[100.0, 101.0], [20.0, 250.0], [290.0, 10.0]])
     scene = Scene(looks_of([0], np.zeros((1, 2)), [0.0], (z,)))
-    report = check_tracker(lambda: GNNTracker(sensor, 1.0, (300.0, 300.0),
+    report = check_tracker(lambda: GNNTracker(MapModel(sensor, 1.0, (300.0, 300.0)),
                                               means=[[100.0, 100.0, 1.0, 0.0]], covs=P0 / 4),
                            scene)
     assert report.checks == tuple(CHECKS)
 
 
 @pytest.mark.parametrize(("key", "value"), [("confirm_hits", 0), ("confirm_hits", 4),
-                                            ("delete_misses", 0), ("dt", 0.0),
-                                            ("process_noise", -1.0)])
+                                            ("confirm_looks", 1), ("delete_misses", 0)])
 def test_bad_arguments_are_refused(key: str, value: float) -> None:
-    kw: dict[str, float] = {"dt": 1.0, key: value}
-    dt = kw.pop("dt")
+    # The map model's own fields are checked in test_map_model.py.
     with pytest.raises(ValueError, match=key):
-        GNNTracker(radar_table((SensorParams(),)), dt, WORLD, **kw)
+        GNNTracker(MapModel(radar_table((SensorParams(),)), 1.0, WORLD), **{key: value})
 
 
 # ----------------------------------------------------------------------------- M-of-N logic
@@ -94,7 +94,7 @@ def one_target() -> tuple[GNNTracker, np.ndarray]:
     table = radar_table((SensorParams(),))
     z = radar.measure_looks(table, np.zeros(1, dtype=np.int64), TARGET[None], SENSOR,
                             np.array([TOWARD]))[0]
-    return GNNTracker(table, 1.0, WORLD), z
+    return GNNTracker(MapModel(table, 1.0, WORLD)), z
 
 
 def step(tr: GNNTracker, heading: float, z: np.ndarray) -> np.ndarray:
@@ -147,7 +147,7 @@ def test_a_tentative_track_is_deleted_once_it_cannot_reach_its_hits() -> None:
     assert len(tr.labels) == 0 and tr.next_label == 1
     # 3 of 4 with a miss in between: confirmed at the 4th look.
     table = radar_table((SensorParams(),))
-    tr = GNNTracker(table, 1.0, WORLD, confirm_hits=3, confirm_looks=4)
+    tr = GNNTracker(MapModel(table, 1.0, WORLD), confirm_hits=3, confirm_looks=4)
     for k, d in enumerate((z, z, none, z)):
         assert len(step(tr, TOWARD, d)) == (1 if k == 3 else 0)
     assert list(tr.tracks().existence) == [1.0]
@@ -158,7 +158,7 @@ def test_two_looks_of_one_step_confirm_a_track_and_labels_persist() -> None:
     xy = np.array([[50.0, 50.0], [550.0, 50.0]])
     heads = np.arctan2(TARGET[1] - xy[:, 1], TARGET[0] - xy[:, 0])
     h = radar.measure_looks(table, np.arange(2), np.repeat(TARGET[None], 2, 0), xy, heads)[0]
-    tr = GNNTracker(table, 1.0, WORLD, means=MEANS[1:], covs=P0)
+    tr = GNNTracker(MapModel(table, 1.0, WORLD), means=MEANS[1:], covs=P0)
     tr.predict()
     tr.update(looks_of([0, 1], xy, heads, (h[:1], h[1:])))
     assert list(tr.tracks().labels) == [0, 1]     # the known target keeps label 0
@@ -203,7 +203,7 @@ def test_costs_are_the_negative_log_likelihood_ratio_against_clutter() -> None:
     means = np.array([[100.0, 100.0, 0.0, 0.0], [110.0, 104.0, 0.0, 0.0],
                       [250.0, 250.0, 0.0, 0.0]])
     covs = np.stack([P0 / 16, P0 / 9, P0 / 25])
-    tr = GNNTracker(sensor, 1.0, (300.0, 300.0), means=means, covs=covs)
+    tr = GNNTracker(MapModel(sensor, 1.0, (300.0, 300.0)), means=means, covs=covs)
     Z = np.array([[102.0, 99.0], [108.0, 106.0], [20.0, 280.0]])
     cost, looked, _ = tr.costs(Look(0, np.zeros(2), 0.0), Z)
     assert looked.all()
@@ -236,9 +236,10 @@ def test_a_new_track_has_the_density_the_pmb_gives_a_target_first_seen() -> None
     Z = radar.measure_looks(table, np.zeros(2, dtype=np.int64), pts, np.repeat(SENSOR, 2, 0),
                             np.full(2, hd))[0] + [[2.0, 0.003], [-4.0, -0.002]]
     looks = looks_of([0], SENSOR, [hd], (Z,))
-    pmb = PMBTracker(table, 1.0, WORLD, initial_undetected=3.0, prune_threshold=0.0)
+    model = MapModel(table, 1.0, WORLD)
+    pmb = PMBTracker(model, initial_undetected=3.0, prune_threshold=0.0)
     pmb.update(looks)
-    gnn = GNNTracker(table, 1.0, WORLD)
+    gnn = GNNTracker(model)
     gnn.update(looks)
     assert len(pmb.bern) == len(gnn.labels) == 2
     np.testing.assert_allclose(gnn.means, pmb.bern.means, rtol=1e-12, atol=1e-9)
@@ -251,7 +252,7 @@ def test_a_new_track_has_the_density_the_pmb_gives_a_target_first_seen() -> None
 
 def test_a_detection_off_the_map_starts_no_track() -> None:
     sensor = linear.LinearSensor((-200.0, -200.0, 500.0, 500.0), 1.0, 0.9, 1.0)
-    tr = GNNTracker(sensor, 1.0, (300.0, 300.0))
+    tr = GNNTracker(MapModel(sensor, 1.0, (300.0, 300.0)))
     out = tr.update(looks_of([0], np.zeros((1, 2)), [0.0],
                              (np.array([[-150.0, -150.0], [150.0, 150.0]]),)))
     assert (list(out.used), list(out.discarded)) == ([0], [1])
@@ -263,7 +264,8 @@ def test_a_track_that_leaves_the_map_dies_with_an_exit_edge_and_turns_with_a_clo
     sensor = linear.LinearSensor((0.0, 0.0, 300.0, 300.0), 1.0, 0.9, 0.0)
     start = np.array([[295.0, 150.0, 3.0, 0.0]])
     for edge, alive in (("exit", 1), (None, 3), ("closed", 3)):
-        tr = GNNTracker(sensor, 1.0, (300.0, 300.0), means=start, covs=P0, map_edge=edge)
+        tr = GNNTracker(MapModel(sensor, 1.0, (300.0, 300.0), map_edge=edge), means=start,
+                        covs=P0)
         tr.predict()
         n = [len(tr.tracks())]
         for _ in range(2):

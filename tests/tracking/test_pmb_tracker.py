@@ -26,6 +26,7 @@ from sensorplan.tracking.pmb import undetected
 from sensorplan.tracking.pmb.association import association_components, association_exact
 from sensorplan.tracking.pmb.bernoulli import missed_existence
 from sensorplan.tracking.pmb.sensing import Look
+from sensorplan.tracking.pmb.map_tracker import MapModel
 from sensorplan.tracking.pmb.tracker import PMBTracker
 
 P0 = np.diag([400.0, 400.0, 4.0, 4.0])
@@ -71,18 +72,18 @@ def radar_scene(params: SensorParams) -> tuple[np.ndarray, Scene]:
                                     SensorParams(detection="swerling1", clutter_rate=2.0)])
 def test_the_pmb_meets_the_tracker_contract_with_the_radar(params: SensorParams) -> None:
     table, sc = radar_scene(params)
-    report = check_tracker(lambda: PMBTracker(table, 1.0, (600.0, 600.0), means=MEANS, covs=P0,
-                                              births="edges", birth_rate=0.1,
-                                              initial_undetected=2.0), sc)
+    model = MapModel(table, 1.0, (600.0, 600.0))
+    report = check_tracker(lambda: PMBTracker(model, means=MEANS, covs=P0, births="edges",
+                                              birth_rate=0.1, initial_undetected=2.0), sc)
     assert report.checks == tuple(CHECKS)
     assert TRACKERS["pmb"] == "sensorplan.tracking.pmb.tracker:PMBTracker"
-    assert isinstance(PMBTracker(table, 1.0, (600.0, 600.0)), Tracker)
+    assert isinstance(PMBTracker(model), Tracker)
 
 
 def test_the_pmb_meets_the_tracker_contract_with_the_linear_sensor() -> None:
     sensor = linear.williams15()
     sc = Scene(one_scan([[100.0, 101.0], [20.0, 250.0], [290.0, 10.0]]))
-    report = check_tracker(lambda: PMBTracker(sensor, 1.0, (300.0, 300.0),
+    report = check_tracker(lambda: PMBTracker(MapModel(sensor, 1.0, (300.0, 300.0)),
                                               means=[[100.0, 100.0, 1.0, 0.0]], covs=P0 / 4,
                                               births="uniform", birth_rate=0.05,
                                               initial_undetected=1.0), sc)
@@ -99,8 +100,8 @@ def test_a_missed_look_gives_the_existence_formula_exactly() -> None:
     r = np.array([1.0, 0.95, 0.5, 0.2, 0.01])
     means = np.column_stack([np.linspace(100, 200, 5), np.full(5, 150.0), np.ones(5),
                              np.zeros(5)])
-    tr = PMBTracker(sensor, 1.0, (300.0, 300.0), means=means, covs=P0 / 16, existence=r,
-                    prune_threshold=0.0)
+    tr = PMBTracker(MapModel(sensor, 1.0, (300.0, 300.0)), means=means, covs=P0 / 16,
+                    existence=r, prune_threshold=0.0)
     tr.update(one_scan(np.zeros((0, 2))))
     pd = 0.9
     np.testing.assert_array_equal(tr.bern.r, r * (1.0 - pd) / (1.0 - r * pd))
@@ -121,7 +122,7 @@ def test_a_missed_radar_look_uses_the_missed_look_quadrature() -> None:
                       [-300.0, 0.0, 0.0, 0.0]])                  # the last one: behind it
     covs = np.stack([np.diag([900.0, 400.0, 4.0, 4.0])] * 3)
     r = np.array([0.9, 0.6, 0.7])
-    tr = PMBTracker(table, 1.0, (600.0, 600.0), means=means, covs=covs, existence=r)
+    tr = PMBTracker(MapModel(table, 1.0, (600.0, 600.0)), means=means, covs=covs, existence=r)
     tr.update(looks_of([0], sxy[None], [head], (np.zeros((0, 2)),)))
     m, P, _, f = miss_update(means, covs, sxy, np.full(3, head), table, 0,
                              gate_probability=1.0, return_fraction=True)
@@ -154,8 +155,8 @@ def test_one_bernoulli_one_detection_equals_the_exact_update() -> None:
     m = np.array([24.0, 26.0, 1.0, -1.0])
     P = spd(rng, np.array([1.5, 1.5, 0.8, 0.8]))
     z = np.array([25.0, 24.5])
-    tr = PMBTracker(sensor, 1.0, (side, side), means=m[None], covs=P[None], existence=r,
-                    resolution=side, velocity_var=vv, initial_undetected=w_u,
+    tr = PMBTracker(MapModel(sensor, 1.0, (side, side), resolution=side, velocity_var=vv),
+                    means=m[None], covs=P[None], existence=r, initial_undetected=w_u,
                     prune_threshold=0.0)
     out = tr.update_look(Look(0, np.zeros(2), 0.0), z[None])
 
@@ -195,7 +196,8 @@ def test_the_linear_missed_density_is_the_weighted_quadrature() -> None:
     m = np.array([5.0, 150.0, -1.0, 0.0])
     P = np.diag([100.0, 64.0, 4.0, 4.0])
     P[0, 2] = P[2, 0] = 10.0
-    tr = PMBTracker(sensor, 1.0, (300.0, 300.0), means=m[None], covs=P[None], existence=0.8)
+    tr = PMBTracker(MapModel(sensor, 1.0, (300.0, 300.0)), means=m[None], covs=P[None],
+                    existence=0.8)
     tr.update(one_scan(np.zeros((0, 2))))
     x = m + standard_points() @ np.linalg.cholesky(P).T
     inside = (x[:, 0] >= 0) & (x[:, 0] <= 300) & (x[:, 1] >= 0) & (x[:, 1] <= 300)
@@ -219,9 +221,9 @@ def test_predict_applies_survival_and_the_motion_model() -> None:
     sensor = linear.williams15()
     m = np.array([[100.0, 120.0, 2.0, -1.0], [150.0, 150.0, 0.0, 0.0]])
     P = np.stack([spd(np.random.default_rng(1), np.array([3.0, 3.0, 1.0, 1.0]))] * 2)
-    tr = PMBTracker(sensor, 2.0, (300.0, 300.0), means=m, covs=P, existence=[0.9, 0.4],
-                    process_noise=0.3, survival_probability=0.95, births="uniform",
-                    birth_rate=1.44, initial_undetected=2.88, resolution=25.0)
+    tr = PMBTracker(MapModel(sensor, 2.0, (300.0, 300.0), process_noise=0.3, resolution=25.0),
+                    means=m, covs=P, existence=[0.9, 0.4], survival_probability=0.95,
+                    births="uniform", birth_rate=1.44, initial_undetected=2.88)
     tr.predict()
     for k in range(2):
         mk, Pk = predicted(m[k], P[k], 2.0, 0.3)
@@ -239,8 +241,8 @@ def test_a_bernoulli_leaving_the_map_loses_existence_with_an_exit_edge() -> None
     sensor = linear.williams15()
     m = np.array([[295.0, 150.0, 4.0, 0.0]])
     P = np.diag([9.0, 16.0, 1.0, 1.0])[None]
-    tr = PMBTracker(sensor, 1.0, (300.0, 300.0), means=m, covs=P, existence=0.9,
-                    process_noise=0.1, survival_probability=0.99, map_edge="exit",
+    tr = PMBTracker(MapModel(sensor, 1.0, (300.0, 300.0), process_noise=0.1, map_edge="exit"),
+                    means=m, covs=P, existence=0.9, survival_probability=0.99,
                     report_threshold=0.3)
     corrected = tr.predict()
     mk, Pk = predicted(m[0], P[0], 1.0, 0.1)
@@ -273,8 +275,8 @@ def test_a_bernoulli_predicted_across_the_wall_keeps_its_existence_only_in_a_clo
     sensor = linear.williams15()
     m = np.array([[295.0, 150.0, 4.0, 0.0]])
     P = np.diag([9.0, 16.0, 1.0, 1.0])[None]
-    tr = PMBTracker(sensor, 1.0, (300.0, 300.0), means=m, covs=P, existence=0.9,
-                    process_noise=0.1, survival_probability=0.99, map_edge=edge,
+    tr = PMBTracker(MapModel(sensor, 1.0, (300.0, 300.0), process_noise=0.1, map_edge=edge),
+                    means=m, covs=P, existence=0.9, survival_probability=0.99,
                     report_threshold=0.3)
     corrected = tr.predict()
     mk, Pk = predicted(m[0], P[0], 1.0, 0.1)
@@ -304,8 +306,9 @@ def test_a_closed_map_keeps_a_bernoulli_inside_through_many_walls() -> None:
     P = np.diag([400.0, 400.0, 4.0, 4.0])[None]
     out = {}
     for edge in ("exit", "closed"):
-        tr = PMBTracker(sensor, 1.0, (300.0, 300.0), means=m, covs=P, existence=1.0,
-                        process_noise=0.5, survival_probability=0.999, map_edge=edge,
+        tr = PMBTracker(MapModel(sensor, 1.0, (300.0, 300.0), process_noise=0.5,
+                                 map_edge=edge),
+                        means=m, covs=P, existence=1.0, survival_probability=0.999,
                         prune_threshold=0.0, report_threshold=0.3)
         for _ in range(60):
             tr.predict()
@@ -316,11 +319,6 @@ def test_a_closed_map_keeps_a_bernoulli_inside_through_many_walls() -> None:
         out[edge] = tr.bern.r[0]
     np.testing.assert_allclose(out["closed"], 0.999 ** 60, rtol=1e-12)
     assert out["exit"] < 0.5 * out["closed"]
-
-
-def test_an_unknown_map_edge_is_refused() -> None:
-    with pytest.raises(ValueError, match="map_edge"):
-        PMBTracker(linear.williams15(), 1.0, (300.0, 300.0), map_edge="wall")
 
 
 # ----------------------------------------------------------------------------- the grid
@@ -349,7 +347,8 @@ def test_a_look_thins_the_grid_by_pd_in_the_sensing_region_and_in_sight() -> Non
     table = radar_table(params)
     box = np.array([[320.0, 230.0, 380.0, 300.0, 60.0]])
     sxy, head = np.array([300.0, 0.0]), math.pi / 2
-    tr = PMBTracker(table, 1.0, (600.0, 600.0), initial_undetected=36.0, buildings=box)
+    tr = PMBTracker(MapModel(table, 1.0, (600.0, 600.0), buildings=box),
+                    initial_undetected=36.0)
     before = tr.undetected.copy()
     tr.update(looks_of([0], sxy[None], [head], (np.zeros((0, 2)),)))
     c = tr.grid.centres
@@ -391,7 +390,7 @@ def test_pruning_and_reporting_thresholds() -> None:
     sensor = linear.williams15()
     r = np.array([0.0015, 0.3, 0.5, 0.49999, 0.9])
     means = np.column_stack([np.linspace(50, 250, 5), np.full(5, 150.0), np.zeros((5, 2))])
-    tr = PMBTracker(sensor, 1.0, (300.0, 300.0), means=means, covs=P0, existence=r,
+    tr = PMBTracker(MapModel(sensor, 1.0, (300.0, 300.0)), means=means, covs=P0, existence=r,
                     survival_probability=0.6)
     t = tr.tracks()
     assert t.labels.tolist() == [2, 4]                           # r >= 0.5 is reported
@@ -400,7 +399,7 @@ def test_pruning_and_reporting_thresholds() -> None:
     assert flags.tolist() == [False, False]
     assert tr.bern.labels.tolist() == [1, 2, 3, 4]
     assert tr.tracks().labels.tolist() == [4]
-    tr2 = PMBTracker(sensor, 1.0, (300.0, 300.0), means=means, covs=P0, existence=r,
+    tr2 = PMBTracker(MapModel(sensor, 1.0, (300.0, 300.0)), means=means, covs=P0, existence=r,
                      prune_threshold=0.2, report_threshold=0.25)
     tr2.update(looks_of([], np.zeros((0, 2)), np.zeros(0), ()))
     tr2.predict()
@@ -411,14 +410,13 @@ def test_pruning_and_reporting_thresholds() -> None:
 @pytest.mark.parametrize(("key", "value"), [("report_threshold", 1.0), ("report_threshold", 0.0),
                                             ("prune_threshold", 1.0),
                                             ("survival_probability", 0.0),
-                                            ("gate_probability", 1.0),
                                             ("initial_undetected", -1.0), ("births", "sides"),
-                                            ("resolution", 0.0), ("velocity_var", -1.0),
-                                            ("dt", 0.0)])
+                                            ("births", np.ones(3)), ("existence", 1.5)])
 def test_bad_settings_are_refused(key: str, value: object) -> None:
-    kwargs: dict = {"dt": 1.0, "world": (300.0, 300.0), key: value}
-    with pytest.raises(ValueError):
-        PMBTracker(linear.williams15(), **kwargs)
+    # The map model's own fields are checked in test_map_model.py.
+    with pytest.raises(ValueError, match=key):
+        PMBTracker(MapModel(linear.williams15(), 1.0, (300.0, 300.0)), means=MEANS[:1],
+                   covs=P0, **{key: value})
 
 
 def run_linear(tr: PMBTracker, truth: list[np.ndarray], sensor: linear.LinearSensor,
@@ -444,9 +442,9 @@ def test_labels_persist_and_are_never_reused() -> None:
     a = straight(np.array([60.0, 60.0]), np.array([1.0, 1.0]), 30)
     b = straight(np.array([220.0, 200.0]), np.array([-1.0, 0.0]), 30)
     truth = [np.stack([a[t], b[t]]) for t in range(30)]
-    tr = PMBTracker(sensor, 1.0, (300.0, 300.0), means=[[60.0, 60.0, 1.0, 1.0]], covs=P0 / 4,
-                    births="uniform", birth_rate=0.02, initial_undetected=1.0,
-                    velocity_var=2.0, process_noise=0.05)
+    tr = PMBTracker(MapModel(sensor, 1.0, (300.0, 300.0), velocity_var=2.0, process_noise=0.05),
+                    means=[[60.0, 60.0, 1.0, 1.0]], covs=P0 / 4, births="uniform",
+                    birth_rate=0.02, initial_undetected=1.0)
     seen: set[int] = set()
     gone: set[int] = set()
     present_before: set[int] = {0}
@@ -484,9 +482,9 @@ def test_the_pmb_finds_an_unnamed_target_and_deletes_one_that_vanished() -> None
     a = straight(np.array([60.0, 60.0]), np.array([1.0, 1.0]), 6)
     b = straight(np.array([220.0, 200.0]), np.array([-1.0, 0.5]), 20)
     truth = [np.stack([a[t], b[t]]) if t < 6 else b[t:t + 1] for t in range(20)]
-    tr = PMBTracker(sensor, 1.0, (300.0, 300.0), means=[[60.0, 60.0, 1.0, 1.0]], covs=P0 / 4,
-                    births="uniform", birth_rate=0.01, initial_undetected=1.0,
-                    velocity_var=2.0, process_noise=0.05)
+    tr = PMBTracker(MapModel(sensor, 1.0, (300.0, 300.0), velocity_var=2.0, process_noise=0.05),
+                    means=[[60.0, 60.0, 1.0, 1.0]], covs=P0 / 4, births="uniform",
+                    birth_rate=0.01, initial_undetected=1.0)
     reports = run_linear(tr, truth, sensor, rng)
 
     def held(tracks, xy, within=5.0) -> list[int]:
@@ -512,8 +510,8 @@ def test_the_pmb_finds_and_deletes_with_a_radar_in_clutter() -> None:
     rng = np.random.default_rng(5)
     sxy, head = np.array([300.0, 0.0]), math.pi / 2
     b = straight(np.array([330.0, 330.0]), np.array([-1.0, 1.0]), 15)
-    tr = PMBTracker(table, 1.0, (600.0, 600.0), means=[[250.0, 360.0, 0.0, 0.0]], covs=P0 / 4,
-                    births="uniform", birth_rate=0.05, initial_undetected=2.0)
+    tr = PMBTracker(MapModel(table, 1.0, (600.0, 600.0)), means=[[250.0, 360.0, 0.0, 0.0]],
+                    covs=P0 / 4, births="uniform", birth_rate=0.05, initial_undetected=2.0)
     confirmed, deleted = None, None
     for t in range(15):
         tr.predict()
@@ -553,7 +551,7 @@ def test_on_tree_shaped_graphs_the_marginals_equal_exact_enumeration() -> None:
         means = np.column_stack([rng.uniform(100, 140, n), rng.uniform(100, 110, n),
                                  np.zeros((n, 2))])
         r = rng.uniform(0.2, 1.0, n)
-        tr = PMBTracker(sensor, 1.0, (300.0, 300.0), means=means, covs=P0 / 100,
+        tr = PMBTracker(MapModel(sensor, 1.0, (300.0, 300.0)), means=means, covs=P0 / 100,
                         existence=r, initial_undetected=5.0, prune_threshold=0.0)
         Z = np.column_stack([rng.uniform(95, 145, m), rng.uniform(98, 112, m)])
         out = tr.update_look(Look(0, np.zeros(2), 0.0), Z)

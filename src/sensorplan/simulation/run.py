@@ -33,7 +33,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -50,6 +50,9 @@ from .episode import Episode, Recorder, _is_int
 from .scenario import Scenario, draw_initial, make_population
 from .sensing import Sensing
 from .settings import EXECUTIONS, RunSettings, TrackerSettings
+
+if TYPE_CHECKING:  # pragma: no cover
+    from ..tracking.pmb.map_tracker import MapModel
 
 __all__ = ["EXECUTIONS", "STREAMS", "Episode", "RunSettings", "run_episode", "run_streams"]
 #: Names of the run's independent random streams, in spawn order (a new stream is only ever
@@ -170,6 +173,19 @@ def map_edge(scenario: Scenario, tracker: TrackerSettings) -> str:
     return "exit" if scenario.births == "edges" or scenario.scripted is not None else "closed"
 
 
+def map_model(scenario: Scenario, tracker: TrackerSettings, table: FloatArray) -> MapModel:
+    """The map model of a multi-target tracker (``pmb``, ``gnn``) of the scenario: its
+    radars (``table``), step, map, buildings and edge rule with the tracker settings'
+    process noise, grid resolution and gate."""
+    # Imported here: the known-target tracker's runs do without the PMB modules (and scipy).
+    from ..tracking.pmb.map_tracker import MapModel
+
+    return MapModel(table, scenario.dt, (scenario.world.width, scenario.world.height),
+                    process_noise=tracker.process_noise, resolution=tracker.grid_resolution,
+                    gate_probability=tracker.gate_probability,
+                    map_edge=map_edge(scenario, tracker), buildings=scenario.building_array)
+
+
 def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray,
                  table: FloatArray) -> Tracker:
     """The run's tracker (``settings.tracker.kind``), started at the initial estimates
@@ -177,32 +193,20 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
     P0 = np.array(scenario.initial_cov)
     cls = tracker_class(settings.tracker.kind)
     tr = settings.tracker
+    if tr.kind == "known":
+        return cls(
+            estimate, P0, scenario.dt, table,
+            world=(scenario.world.width, scenario.world.height) if tr.known_map else None,
+            restart_velocity_var=(P0[2, 2], P0[3, 3]), buildings=scenario.building_array,
+            miss_update=_miss_update_kernel() if tr.miss_update == "negative" else None,
+            detects_all=scenario.look_detects == "all", **tr.tracker_options())
+    model = map_model(scenario, tr, table)
     if tr.kind == "gnn":
-        return cls(
-            table, scenario.dt, (scenario.world.width, scenario.world.height),
-            means=estimate, covs=P0, process_noise=tr.process_noise,
-            resolution=tr.grid_resolution, gate_probability=tr.gate_probability,
-            confirm_hits=tr.confirm_hits, confirm_looks=tr.confirm_looks,
-            delete_misses=tr.delete_misses, map_edge=map_edge(scenario, tr),
-            buildings=scenario.building_array)
-    if tr.kind != "known":
-        return cls(
-            table, scenario.dt, (scenario.world.width, scenario.world.height),
-            means=estimate, covs=P0, process_noise=tr.process_noise,
-            survival_probability=tr.survival_probability, births=tr.births,
-            birth_rate=tr.birth_rate if tr.births != "none" else 0.0,
-            resolution=tr.grid_resolution, gate_probability=tr.gate_probability,
-            prune_threshold=tr.prune_threshold, report_threshold=tr.report_threshold,
-            map_edge=map_edge(scenario, tr), buildings=scenario.building_array)
-    return cls(
-        estimate, P0, scenario.dt, table,
-        world=(scenario.world.width, scenario.world.height)
-        if settings.tracker.known_map else None,
-        restart_velocity_var=(P0[2, 2], P0[3, 3]), buildings=scenario.building_array,
-        miss_update=_miss_update_kernel() if settings.tracker.miss_update == "negative"
-        else None,
-        detects_all=scenario.look_detects == "all",
-        **settings.tracker.tracker_options())
+        return cls(model, means=estimate, covs=P0, confirm_hits=tr.confirm_hits,
+                   confirm_looks=tr.confirm_looks, delete_misses=tr.delete_misses)
+    return cls(model, means=estimate, covs=P0, survival_probability=tr.survival_probability,
+               births=tr.births, birth_rate=tr.birth_rate if tr.births != "none" else 0.0,
+               prune_threshold=tr.prune_threshold, report_threshold=tr.report_threshold)
 
 
 class _Schedule:

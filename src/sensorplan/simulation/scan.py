@@ -32,8 +32,8 @@ from ..models.motion import cv_matrices
 from ..models.scripted import (BENCHMARKS, TARGET_KIND, Vo12, Williams15, dwna_matrices,
                                scripted_truth)
 from ..tracking.base import Looks
+from ..tracking.pmb.map_tracker import MapModel
 from ..tracking.pmb.tracker import PMBTracker
-from ..tracking.pmb.undetected import make_grid
 from .episode import Episode, Recorder, Sensed
 from .scenario import Scenario
 from .settings import RunSettings
@@ -101,15 +101,16 @@ def make_scan_tracker(scenario: Scenario, settings: RunSettings) -> PMBTracker:
     model = filter_model(scenario.scan)
     tr = settings.tracker
     W, H = scenario.world.width, scenario.world.height
-    grid = make_grid(W, H, tr.grid_resolution, model.velocity_var)
+    map_model = MapModel(linear.benchmark_sensor(scenario.scan), scenario.dt, (W, H),
+                         motion=(model.F, model.Q), resolution=tr.grid_resolution,
+                         velocity_var=model.velocity_var,
+                         gate_probability=tr.gate_probability)
+    grid = map_model.grid()
     births = cell_masses(W, H, grid.nx, grid.ny, model.birth_means, model.birth_std,
                          model.birth_weights)
-    tracker = PMBTracker(
-        linear.benchmark_sensor(scenario.scan), scenario.dt, (W, H), motion=(model.F, model.Q),
-        survival_probability=model.survival_probability, births=births,
-        resolution=tr.grid_resolution, velocity_var=model.velocity_var,
-        gate_probability=tr.gate_probability, prune_threshold=tr.prune_threshold,
-        report_threshold=tr.report_threshold)
+    tracker = PMBTracker(map_model, survival_probability=model.survival_probability,
+                         births=births, prune_threshold=tr.prune_threshold,
+                         report_threshold=tr.report_threshold)
     # The source's initial intensity has the birth density, not the even spread the
     # tracker's ``initial_undetected`` gives.
     tracker.undetected = cell_masses(W, H, grid.nx, grid.ny, model.birth_means,

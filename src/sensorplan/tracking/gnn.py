@@ -4,11 +4,12 @@ r"""Global nearest neighbour (GNN) tracking with M-of-N track logic: the enginee
 density without its existence) with a label for life and a status, tentative or confirmed.
 Its parts, in Stone Soup's words:
 
-- **Predictor**: the motion model's Kalman prediction (CWNA with ``process_noise``, or a
-  given ``(F, Q)``), as the PMB predicts a Bernoulli. The map's edge (``map_edge``):
-  with ``exit`` (a target that reaches the edge leaves and is gone) a track whose
-  predicted mean leaves the map is deleted; with ``closed`` (targets turn back at the
-  walls) its density is reflected back in as the PMB's
+- **Predictor**: the Kalman prediction of the map model's motion
+  (:class:`~sensorplan.tracking.pmb.map_tracker.MapModel`, the PMB tracker's: CWNA with
+  ``process_noise``, or a given ``motion = (F, Q)``), as the PMB predicts a Bernoulli.
+  The map's edge (``map_edge``): with ``exit`` (a target that reaches the edge leaves and
+  is gone) a track whose predicted mean leaves the map is deleted; with ``closed`` (targets
+  turn back at the walls) its density is reflected back in as the PMB's
   (:func:`sensorplan.tracking.known_map.map_edge_predict`).
 - **Data associator** (each look, in sensor order, with detections :math:`z_1..z_m`): one
   2-D assignment (:func:`gnn_assignment`, ``scipy.optimize.linear_sum_assignment``) over
@@ -58,13 +59,12 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 from .._types import BoolArray, FloatArray, IntArray
-from ..models.linear import LinearSensor
 from .base import Looks, TrackSet, UpdateRecord, given_tracks
 from .ekf import predict as kalman_predict
 from .known_map import map_edge_predict
 from .pmb.bernoulli import PairTerms, first_detection, pair_terms, updates
 from .pmb.sensing import Look
-from .pmb.map_tracker import MapTracker
+from .pmb.map_tracker import MapModel, MapTracker, looks_in_order
 from .pmb.tracker import MIN_WEIGHT
 
 #: The M-of-N defaults: (confirm_hits, confirm_looks, delete_misses).
@@ -106,58 +106,32 @@ class GNNTracker(MapTracker):
 
     Parameters
     ----------
-    measurement : (N, C) radar table, or LinearSensor
-        The sensors, as the PMB tracker takes them.
-    dt : float > 0
-        Step (s).
-    world : (W, H)
-        The map ``[0, W] x [0, H]`` (m) the initiator's cells cover.
+    model : MapModel
+        The sensors, the motion model, the map and its grid of initiator cells, the gate,
+        the map's edge and the buildings (the PMB tracker's). With ``map_edge = "exit"`` a
+        track whose predicted mean leaves the map is deleted; with ``"closed"`` its density
+        is reflected back in.
     means : (M, 4), optional
         Targets known at the start: confirmed tracks labelled ``0..M-1``.
     covs : (M, 4, 4) or (4, 4), optional
         Their covariances (needed with ``means``).
-    process_noise : float
-        q of the CWNA motion model (m^2/s^3); default 0.05, the PMB's.
-    motion : (F, Q), optional
-        Another linear-Gaussian motion model ``(4, 4)`` each.
-    resolution : float > 0
-        Largest side of an initiator cell (m); default 25, the PMB's grid.
-    velocity_var : float > 0
-        Prior variance of each velocity component of a new track (m^2/s^2); default 10.5,
-        the PMB's.
-    gate_probability : float in (0, 1)
-        Chi-square gate of every innovation; default 0.999.
     confirm_hits, confirm_looks : int
         A tentative track is confirmed at ``confirm_hits`` hits within its first
         ``confirm_looks`` looks (1 <= hits <= looks); default 2 of 3.
     delete_misses : int >= 1
         A track is deleted after this many consecutive missed looks at it; default 5.
-    map_edge : {"exit", "closed"} or None
-        What a target that reaches the map's edge does: leaves (``exit``: a track whose
-        predicted mean leaves the map is deleted) or turns back (``closed``: the density is
-        reflected back in); None (default): the edge is not modelled.
-    buildings : (K, 5), optional
-        Buildings ``x0, y0, x1, y1, height`` that hide targets from the radar.
     """
 
-    def __init__(self, measurement: FloatArray | LinearSensor, dt: float,
-                 world: tuple[float, float], *, means: FloatArray | None = None,
-                 covs: FloatArray | None = None, process_noise: float = 0.05,
-                 motion: tuple[FloatArray, FloatArray] | None = None,
-                 resolution: float = 25.0, velocity_var: float = 10.5,
-                 gate_probability: float = 0.999, confirm_hits: int = DEFAULT_LOGIC[0],
-                 confirm_looks: int = DEFAULT_LOGIC[1], delete_misses: int = DEFAULT_LOGIC[2],
-                 map_edge: str | None = None, buildings: FloatArray | None = None) -> None:
+    def __init__(self, model: MapModel, *, means: FloatArray | None = None,
+                 covs: FloatArray | None = None, confirm_hits: int = DEFAULT_LOGIC[0],
+                 confirm_looks: int = DEFAULT_LOGIC[1],
+                 delete_misses: int = DEFAULT_LOGIC[2]) -> None:
         if not 1 <= int(confirm_hits) <= int(confirm_looks):
             raise ValueError(f"need 1 <= confirm_hits <= confirm_looks, got {confirm_hits!r} "
                              f"and {confirm_looks!r}")
         if int(delete_misses) < 1:
             raise ValueError(f"delete_misses must be >= 1, got {delete_misses!r}")
-        super().__init__(
-            measurement, dt, world, process_noise=process_noise, motion=motion,
-            resolution=resolution, velocity_var=velocity_var,
-            gate_probability=gate_probability, map_edge=map_edge,
-            buildings=buildings)
+        super().__init__(model)
         self.confirm_hits, self.confirm_looks = int(confirm_hits), int(confirm_looks)
         self.delete_misses = int(delete_misses)
         m0, P0 = given_tracks(means, covs)
@@ -212,10 +186,7 @@ class GNNTracker(MapTracker):
         missed_labels: list[IntArray] = []
         used = np.zeros(L, dtype=np.int64)
         discarded = np.zeros(L, dtype=np.int64)
-        for n in range(L):
-            look = Look(int(looks.sensors[n]), np.asarray(looks.positions[n], dtype=float),
-                        float(looks.headings[n]))
-            Z = np.asarray(looks.detections[n], dtype=float).reshape(-1, 2)
+        for n, (look, Z) in enumerate(looks_in_order(looks)):
             used[n], discarded[n], missed = self.update_look(look, Z)
             missed_labels.append(missed)
         negative = np.isin(reported, np.concatenate(missed_labels)) if L else np.zeros(

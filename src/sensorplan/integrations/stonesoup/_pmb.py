@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import datetime
 import math
+from dataclasses import fields
 from collections.abc import Iterable, Mapping
 from typing import Any
 
@@ -36,6 +37,7 @@ from stonesoup.types.track import Track
 from ..._types import FloatArray
 from ...models.linear import LinearSensor
 from ...tracking.base import Looks
+from ...tracking.pmb.map_tracker import MapModel
 from ...tracking.pmb.tracker import PMBTracker
 from ...tracking.pmb.undetected import make_grid
 from ._convert import from_stonesoup_cov, to_stonesoup_cov, to_stonesoup_mean
@@ -43,6 +45,10 @@ from ._world import MapRect
 
 #: Relative tolerance of a scan's time gap against a whole number of steps.
 _TIME_TOL = 1e-6
+#: The keys of ``settings`` that are fields of the map model (the adapter gives the sensor,
+#: the step, the map and the motion itself).
+_MODEL_SETTINGS = tuple(f.name for f in fields(MapModel)
+                        if f.name not in ("measurement", "dt", "world", "motion"))
 
 
 class BernoulliGaussianState(GaussianState):
@@ -146,8 +152,9 @@ class PMBStoneSoupTracker(_TrackerMixInNext, Tracker):
                           "process_noise.")
     settings: Mapping[str, Any] = Property(
         default=None, doc="Further keywords of PMBTracker (births, birth_rate, "
-                          "survival_probability, resolution, velocity_var, thresholds, "
-                          "initial_undetected ...).")
+                          "survival_probability, thresholds, initial_undetected ...) and "
+                          "of its MapModel (process_noise, resolution, velocity_var, "
+                          "gate_probability, map_edge).")
     initial_intensity: np.ndarray = Property(
         default=None, doc="(C,) expected undetected targets per grid cell at the start "
                           "(instead of the settings' initial_undetected spread evenly).")
@@ -164,10 +171,17 @@ class PMBStoneSoupTracker(_TrackerMixInNext, Tracker):
         kwargs_pmb = dict(self.settings or {})
         if "motion" in kwargs_pmb:
             raise ValueError("settings: give the motion as transition_model")
+        for given in ("measurement", "dt", "world"):
+            if given in kwargs_pmb:
+                raise ValueError(f"settings: {given} is not a setting (the adapter's "
+                                 "measurement_model, dt and world give it)")
+        # The settings that belong to the map model go there, the rest to the tracker.
+        kwargs_model = {k: kwargs_pmb.pop(k) for k in _MODEL_SETTINGS if k in kwargs_pmb}
         if self.transition_model is not None:
-            kwargs_pmb["motion"] = motion_matrices(self.transition_model, self.dt)
-        self.pmb = PMBTracker(self.sensor, self.dt, (self.world.width, self.world.height),
-                              **kwargs_pmb)
+            kwargs_model["motion"] = motion_matrices(self.transition_model, self.dt)
+        model = MapModel(self.sensor, self.dt, (self.world.width, self.world.height),
+                         **kwargs_model)
+        self.pmb = PMBTracker(model, **kwargs_pmb)
         if self.initial_intensity is not None:
             w = np.array(self.initial_intensity, dtype=float).reshape(-1)
             if w.shape != self.pmb.undetected.shape or not np.all(np.isfinite(w) & (w >= 0)):

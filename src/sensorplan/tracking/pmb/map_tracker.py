@@ -1,51 +1,200 @@
-"""What the multi-target trackers share: the models and the map of a tracker of an unknown
-number of targets (the PMB tracker and the GNN baseline)."""
+"""What the multi-target trackers share: the map model of a tracker of an unknown number of
+targets (the PMB tracker and the GNN baseline), and the base class that holds it."""
 
 from __future__ import annotations
 
-from typing import Any
+import math
+import numbers
+from collections.abc import Iterator
+from dataclasses import KW_ONLY, dataclass
+
+import numpy as np
 
 from ..._types import FloatArray
 from ...models.linear import LinearSensor
-from ..tracker import gate_threshold
-from ..base import motion_matrices
+from ..base import Looks, motion_matrices
 from ..known_map import MAP_EDGES
+from ..tracker import gate_threshold
 from . import undetected
-from .sensing import make_sensing
+from .sensing import Look, make_sensing
 
 
-class MapTracker:
-    """The motion model, the measurement model, the gate and the grid of map cells (where
-    a first detection may start a target) of a multi-target tracker.
+def _number(name: str, value: object, low: float, high: float = math.inf, *,
+            low_open: bool = True, high_open: bool = False) -> float:
+    """``value`` as a float in the interval, else a ValueError naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} must be a number, got {value!r}")
+    v = float(value)
+    above = v > low if low_open else v >= low
+    below = v < high if high_open else v <= high
+    if not (math.isfinite(v) and above and below):
+        interval = (f"{'(' if low_open else '['}{low:g}, "
+                    f"{high:g}{')' if high_open or high == math.inf else ']'}")
+        raise ValueError(f"{name} must be in {interval}, got {value!r}")
+    return v
+
+
+def _frozen(a: FloatArray) -> FloatArray:
+    a = np.array(a, dtype=float)
+    a.flags.writeable = False
+    return a
+
+
+# eq=False: the fields hold arrays, whose == is elementwise; a model equals only itself.
+@dataclass(frozen=True, eq=False)
+class MapModel:
+    """The model a multi-target tracker of the map holds: its sensors, its motion model,
+    the map and its grid of cells (where a first detection may start a target), and the
+    gate. Built once and given to either tracker (``PMBTracker(model, ...)``,
+    ``GNNTracker(model, ...)``); every field is checked here.
 
     Parameters
     ----------
-    measurement : radar table or LinearSensor   the sensors' measurement model
-    dt : float > 0                    step (s)
-    world : (W, H)                    the map ``[0, W] x [0, H]`` (m)
-    process_noise : float >= 0        q of the constant-velocity model (m^2/s^3)
-    motion : (F, Q) or None           a motion model of its own instead (a benchmark's)
-    resolution : float > 0            largest cell side (m)
-    velocity_var : float > 0          each velocity component's prior variance (m^2/s^2)
-    gate_probability : float          probability mass of a track's gate
-    map_edge : {"exit", "closed"} or None   what a target does at the map's edge: leaves
-                                      it, or turns back (None: the map is not modelled)
-    buildings : (B, 5) or None        footprints that hide targets (the radar)
+    measurement : (N, C) radar table, or LinearSensor
+        The sensors: the radar table of :func:`sensorplan.models.sensors.radar_table`
+        (``Looks.sensors`` index its rows), or the linear position sensor that scans its
+        whole area (:mod:`sensorplan.models.linear`; one scan per look).
+    dt : float > 0
+        Step (s).
+    world : (W, H), each > 0
+        The map ``[0, W] x [0, H]`` (m) the grid covers.
+    process_noise : float >= 0
+        q of the CWNA motion model (m^2/s^3); default 0.05, the paper's filter.
+    motion : (F, Q), optional
+        Another linear-Gaussian motion model, ``(4, 4)`` each (e.g. a benchmark's discrete
+        white-noise acceleration); replaces the CWNA one.
+    resolution : float > 0
+        Largest side of a grid cell (m); default 25 (a 24 x 24 grid on the 600 m map).
+    velocity_var : float > 0
+        Prior variance of each velocity component of a target not yet detected
+        (m^2/s^2); default 10.5, the paper's targets' (speeds uniform in [3, 6] m/s in a
+        uniform direction: E[s^2] / 2 = 10.5).
+    gate_probability : float in (0, 1)
+        Chi-square gate of every innovation; default 0.999 (the known-target tracker's).
+    map_edge : {"exit", "closed"} or None
+        What a target that reaches the map's edge does: leaves and is gone (``exit``) or
+        turns back (``closed``); None (default): the edge is not modelled. Each tracker's
+        docstring says what it does with it.
+    buildings : (K, 5), optional
+        Buildings ``x0, y0, x1, y1, height`` that hide targets from the radar (none with
+        the linear sensor, which sees through them).
+
+    Raises
+    ------
+    ValueError
+        A field out of range or of the wrong shape; the message names it.
+
+    Examples
+    --------
+    >>> from sensorplan.models.linear import williams15
+    >>> model = MapModel(williams15(), 1.0, (300, 300), resolution=30.0)
+    >>> model.world, model.grid().nx
+    ((300.0, 300.0), 10)
     """
 
-    def __init__(self, measurement: FloatArray | LinearSensor, dt: float,
-                 world: tuple[float, float], *, process_noise: float, motion: Any,
-                 resolution: float, velocity_var: float, gate_probability: float,
-                 map_edge: str | None, buildings: FloatArray | None) -> None:
-        if map_edge is not None and map_edge not in MAP_EDGES:
-            raise ValueError(f"map_edge must be one of {MAP_EDGES} or None, got {map_edge!r}")
-        self.F, self.Q = motion_matrices(dt, process_noise, motion)
-        self.sensing = make_sensing(measurement, buildings)
-        self.dt = float(dt)
-        self.process_noise = float(process_noise)
-        self.gate = gate_threshold(gate_probability)
-        self.gate_probability = float(gate_probability)
-        self.map_edge = map_edge
-        self.world = (float(world[0]), float(world[1]))
-        self.grid = undetected.make_grid(*self.world, resolution, velocity_var)
+    measurement: FloatArray | LinearSensor
+    dt: float
+    world: tuple[float, float]
+    _: KW_ONLY
+    process_noise: float = 0.05
+    motion: tuple[FloatArray, FloatArray] | None = None
+    resolution: float = 25.0
+    velocity_var: float = 10.5
+    gate_probability: float = 0.999
+    map_edge: str | None = None
+    buildings: FloatArray | None = None
+
+    def __post_init__(self) -> None:
+        def put(name: str, value: object) -> None:
+            object.__setattr__(self, name, value)     # the normalised value (frozen)
+
+        if not isinstance(self.measurement, LinearSensor):
+            table = np.asarray(self.measurement)
+            if table.ndim != 2 or len(table) == 0 or not np.issubdtype(table.dtype, np.number):
+                raise ValueError("measurement must be a radar table (N, C), N >= 1, or a "
+                                 f"LinearSensor, got {type(self.measurement).__name__} of "
+                                 f"shape {table.shape}")
+        put("dt", _number("dt", self.dt, 0.0))
+        world = np.asarray(self.world, dtype=object).reshape(-1)
+        if world.shape != (2,):
+            raise ValueError(f"world must be (W, H), got {self.world!r}")
+        put("world", (_number("world[0] (W)", world[0], 0.0),
+                      _number("world[1] (H)", world[1], 0.0)))
+        put("process_noise", _number("process_noise", self.process_noise, 0.0,
+                                     low_open=False))
+        if self.motion is not None:
+            try:
+                F, Q = (np.asarray(a, dtype=float) for a in self.motion)
+            except (TypeError, ValueError):
+                raise ValueError(f"motion must be (F, Q), two (4, 4) arrays, got "
+                                 f"{self.motion!r}") from None
+            if F.shape != (4, 4) or Q.shape != (4, 4) or not (
+                    np.all(np.isfinite(F)) and np.all(np.isfinite(Q))):
+                raise ValueError(f"motion must be (F, Q), two finite (4, 4) arrays, got shapes "
+                                 f"{F.shape} and {Q.shape}")
+            put("motion", (_frozen(F), _frozen(Q)))
+        put("resolution", _number("resolution", self.resolution, 0.0))
+        put("velocity_var", _number("velocity_var", self.velocity_var, 0.0))
+        put("gate_probability", _number("gate_probability", self.gate_probability, 0.0, 1.0,
+                                        high_open=True))
+        if self.map_edge is not None and self.map_edge not in MAP_EDGES:
+            raise ValueError(f"map_edge must be one of {MAP_EDGES} or None, "
+                             f"got {self.map_edge!r}")
+        if self.buildings is not None:
+            b = np.asarray(self.buildings, dtype=float)
+            if b.ndim != 2 or b.shape[1] != 5 or not np.all(np.isfinite(b)):
+                raise ValueError(f"buildings must be finite (K, 5) rows x0, y0, x1, y1, height, "
+                                 f"got shape {b.shape}")
+            if len(b) and isinstance(self.measurement, LinearSensor):
+                raise ValueError("buildings must be None with a linear sensor (it sees through "
+                                 f"buildings), got {len(b)}")
+            put("buildings", _frozen(b))
+
+    def grid(self) -> undetected.Grid:
+        """The grid of cells over the map (:func:`~.undetected.make_grid`)."""
+        return undetected.make_grid(*self.world, self.resolution, self.velocity_var)
+
+
+class MapTracker:
+    """The base of a multi-target tracker of the map: its :class:`MapModel` and what it
+    derives once from it.
+
+    Parameters
+    ----------
+    model : MapModel
+
+    Attributes
+    ----------
+    model : MapModel
+    F, Q : (4, 4)         the motion model's matrices over one step
+    sensing : Sensing     the sensors' detection and measurement model, with the buildings
+    gate : float          the chi-square(2) gate of ``model.gate_probability``
+    grid : Grid           the cells over the map (``model.grid()``)
+    dt, world, process_noise, gate_probability, map_edge
+        the model's fields
+    """
+
+    def __init__(self, model: MapModel) -> None:
+        if not isinstance(model, MapModel):
+            raise TypeError(f"model must be a MapModel, got {type(model).__name__}")
+        self.model = model
+        # The model's fields, where the trackers and their callers read them.
+        self.dt, self.world, self.process_noise = model.dt, model.world, model.process_noise
+        self.gate_probability, self.map_edge = model.gate_probability, model.map_edge
+        self.F, self.Q = motion_matrices(model.dt, model.process_noise, model.motion)
+        self.sensing = make_sensing(model.measurement, model.buildings)
+        self.gate = gate_threshold(model.gate_probability)
+        self.grid = model.grid()
         self._cell_means, self._cell_covs = self.grid.cell_states()
+
+
+def looks_in_order(looks: Looks) -> Iterator[tuple[Look, FloatArray]]:
+    """Each look of one step's ``looks``, in the given (sensor) order, with its detections
+    ``(m, 2)``; the looks' aims are not used."""
+    for n in range(len(looks.sensors)):
+        look = Look(int(looks.sensors[n]), np.asarray(looks.positions[n], dtype=float),
+                    float(looks.headings[n]))
+        yield look, np.asarray(looks.detections[n], dtype=float).reshape(-1, 2)
+
+
+__all__ = ["MapModel", "MapTracker", "looks_in_order"]

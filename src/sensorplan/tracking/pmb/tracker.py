@@ -8,10 +8,12 @@ targets are the union of a Poisson process of targets never detected (intensity
 target that exists with probability :math:`r_i` with a Gaussian density
 (:mod:`sensorplan.tracking.pmb.bernoulli`). It meets the tracker protocol of
 :mod:`sensorplan.tracking.base` for the radar and for the linear position sensor
-(:mod:`sensorplan.tracking.pmb.sensing`).
+(:mod:`sensorplan.tracking.pmb.sensing`). The sensors, the motion, the map and its grid,
+the gate and the map's edge are one :class:`~sensorplan.tracking.pmb.map_tracker.MapModel`,
+which the GNN tracker takes too.
 
 **Predict** (every step). Each Bernoulli: the motion model's Kalman prediction (CWNA with
-the tracker's ``process_noise``, or a given ``(F, Q)``) and :math:`r \leftarrow p_S r`.
+the model's ``process_noise``, or a given ``motion = (F, Q)``) and :math:`r \leftarrow p_S r`.
 The map's edge (``map_edge``, :func:`sensorplan.tracking.known_map.map_edge_predict`):
 with ``exit`` (a target that reaches the edge leaves and is gone) the survival also
 requires the target to stay on the map: a density whose mean or 3-sigma box leaves it is
@@ -76,7 +78,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._types import BoolArray, FloatArray
-from ...models.linear import LinearSensor
 from ..base import Looks, TrackSet, UpdateRecord, given_tracks
 from ..ekf import predict as kalman_predict
 from ..known_map import map_edge_predict
@@ -85,7 +86,7 @@ from . import hypotheses as hyp
 from .association import AssociationMarginals, association_lbp
 from .bernoulli import (Bernoullis, missed_existence, missed_look, mixture_moments, pair_terms,
                         updates)
-from .map_tracker import MapTracker
+from .map_tracker import MapModel, MapTracker, looks_in_order
 from .sensing import Look
 
 #: Smallest association weight of a miss or a new detection: the ratio form of belief
@@ -123,25 +124,17 @@ class PMBTracker(MapTracker):
 
     Parameters
     ----------
-    measurement : (N, C) radar table, or LinearSensor
-        The sensors: the radar table of :func:`sensorplan.models.sensors.radar_table`
-        (``Looks.sensors`` index its rows), or the linear position sensor that scans its
-        whole area (:mod:`sensorplan.models.linear`; one scan per look).
-    dt : float > 0
-        Step (s).
-    world : (W, H)
-        The map ``[0, W] x [0, H]`` (m) the undetected intensity's grid covers.
+    model : MapModel
+        The sensors, the motion model, the map and the undetected intensity's grid over it,
+        the gate, the map's edge and the buildings. With ``map_edge = "exit"`` survival
+        requires staying on the map; with ``"closed"`` a density predicted across a wall is
+        reflected back in, its existence kept.
     means : (M, 4), optional
         Targets known at the start, each a Bernoulli (labels ``0..M-1``).
     covs : (M, 4, 4) or (4, 4), optional
         Their covariances (needed with ``means``).
     existence : float or (M,)
         Their existence probabilities (default 1: known to exist).
-    process_noise : float
-        q of the CWNA motion model (m^2/s^3); default 0.05, the paper's filter.
-    motion : (F, Q), optional
-        Another linear-Gaussian motion model ``(4, 4)`` each (e.g. a benchmark's discrete
-        white-noise acceleration); replaces the CWNA one.
     survival_probability : float in (0, 1]
         :math:`p_S` per step, of Bernoullis and undetected targets; default 0.99.
     births : {"none", "edges", "uniform"} or (C,) array
@@ -152,38 +145,17 @@ class PMBTracker(MapTracker):
     initial_undetected : float >= 0
         Expected number of targets present but not known at the start, spread evenly over
         the cells (default 0).
-    resolution : float > 0
-        Largest side of a grid cell (m); default 25 (a 24 x 24 grid on the 600 m map).
-    velocity_var : float > 0
-        Prior variance of each velocity component of an undetected target (m^2/s^2);
-        default 10.5, the paper's targets' (speeds uniform in [3, 6] m/s in a uniform
-        direction: E[s^2] / 2 = 10.5).
-    gate_probability : float in (0, 1)
-        Chi-square gate of every innovation; default 0.999 (the known-target tracker's).
     prune_threshold : float in [0, 1)
         Bernoullis below this existence are dropped; default 1e-3.
     report_threshold : float in (0, 1)
         :meth:`tracks` reports Bernoullis with at least this existence; default 0.5.
-    map_edge : {"exit", "closed"} or None
-        What a target that reaches the map's edge does: leaves and is gone (``exit``:
-        survival requires staying on the map), or turns back (``closed``: a density
-        predicted across a wall is reflected back in, its existence kept); None (default):
-        the edge is not modelled.
-    buildings : (K, 5), optional
-        Buildings ``x0, y0, x1, y1, height`` that hide targets from the radar.
     """
 
-    def __init__(self, measurement: FloatArray | LinearSensor, dt: float,
-                 world: tuple[float, float], *, means: FloatArray | None = None,
+    def __init__(self, model: MapModel, *, means: FloatArray | None = None,
                  covs: FloatArray | None = None, existence: float | FloatArray = 1.0,
-                 process_noise: float = 0.05,
-                 motion: tuple[FloatArray, FloatArray] | None = None,
                  survival_probability: float = 0.99, births: str | FloatArray = "none",
                  birth_rate: float = 0.0, initial_undetected: float = 0.0,
-                 resolution: float = 25.0, velocity_var: float = 10.5,
-                 gate_probability: float = 0.999, prune_threshold: float = 1e-3,
-                 report_threshold: float = 0.5, map_edge: str | None = None,
-                 buildings: FloatArray | None = None) -> None:
+                 prune_threshold: float = 1e-3, report_threshold: float = 0.5) -> None:
         if not 0.0 < survival_probability <= 1.0:
             raise ValueError(f"survival_probability must be in (0, 1], got "
                              f"{survival_probability!r}")
@@ -193,11 +165,7 @@ class PMBTracker(MapTracker):
             raise ValueError(f"report_threshold must be in (0, 1), got {report_threshold!r}")
         if not (math.isfinite(initial_undetected) and initial_undetected >= 0.0):
             raise ValueError(f"initial_undetected must be >= 0, got {initial_undetected!r}")
-        super().__init__(
-            measurement, dt, world, process_noise=process_noise, motion=motion,
-            resolution=resolution, velocity_var=velocity_var,
-            gate_probability=gate_probability, map_edge=map_edge,
-            buildings=buildings)
+        super().__init__(model)
         self.survival_probability = float(survival_probability)
         self.prune_threshold = float(prune_threshold)
         self.report_threshold = float(report_threshold)
@@ -267,10 +235,7 @@ class PMBTracker(MapTracker):
         inflated = np.zeros(T, dtype=bool)
         used = np.zeros(L, dtype=np.int64)
         discarded = np.zeros(L, dtype=np.int64)
-        for n in range(L):
-            look = Look(int(looks.sensors[n]), np.asarray(looks.positions[n], dtype=float),
-                        float(looks.headings[n]))
-            Z = np.asarray(looks.detections[n], dtype=float).reshape(-1, 2)
+        for n, (look, Z) in enumerate(looks_in_order(looks)):
             present = self.bern.labels
             out = self.update_look(look, Z)
             used[n], discarded[n] = out.used, out.discarded
