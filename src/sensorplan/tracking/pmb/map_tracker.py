@@ -3,14 +3,13 @@ targets (the PMB tracker and the GNN baseline), and the base class that holds it
 
 from __future__ import annotations
 
-import math
-import numbers
 from collections.abc import Iterator
 from dataclasses import KW_ONLY, dataclass
 
 import numpy as np
 
 from ..._types import FloatArray
+from ...limits import Range, coerce
 from ...models.linear import LinearSensor
 from ..base import Looks, motion_matrices
 from ..known_map import MAP_EDGES
@@ -19,19 +18,21 @@ from . import undetected
 from .sensing import Look, make_sensing
 
 
-def _number(name: str, value: object, low: float, high: float = math.inf, *,
-            low_open: bool = True, high_open: bool = False) -> float:
-    """``value`` as a float in the interval, else a ValueError naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} must be a number, got {value!r}")
-    v = float(value)
-    above = v > low if low_open else v >= low
-    below = v < high if high_open else v <= high
-    if not (math.isfinite(v) and above and below):
-        interval = (f"{'(' if low_open else '['}{low:g}, "
-                    f"{high:g}{')' if high_open or high == math.inf else ']'}")
-        raise ValueError(f"{name} must be in {interval}, got {value!r}")
+def _number(name: str, value: object, allowed: Range) -> float:
+    """``value`` as a float in ``allowed`` (the settings' own rules), else a ValueError
+    naming ``name``."""
+    try:
+        v = float(coerce(float, value))
+    except ValueError as exc:
+        raise ValueError(f"{name} {exc}") from None
+    message = allowed.violation(v)
+    if message:
+        raise ValueError(f"{name} {message}")
     return v
+
+
+#: A length, a duration, a variance: above 0.
+POSITIVE = Range(0.0, None, lo_open=True)
 
 
 def _frozen(a: FloatArray) -> FloatArray:
@@ -114,14 +115,13 @@ class MapModel:
                 raise ValueError("measurement must be a radar table (N, C), N >= 1, or a "
                                  f"LinearSensor, got {type(self.measurement).__name__} of "
                                  f"shape {table.shape}")
-        put("dt", _number("dt", self.dt, 0.0))
+        put("dt", _number("dt", self.dt, POSITIVE))
         world = np.asarray(self.world, dtype=object).reshape(-1)
         if world.shape != (2,):
             raise ValueError(f"world must be (W, H), got {self.world!r}")
-        put("world", (_number("world[0] (W)", world[0], 0.0),
-                      _number("world[1] (H)", world[1], 0.0)))
-        put("process_noise", _number("process_noise", self.process_noise, 0.0,
-                                     low_open=False))
+        put("world", (_number("world[0] (W)", world[0], POSITIVE),
+                      _number("world[1] (H)", world[1], POSITIVE)))
+        put("process_noise", _number("process_noise", self.process_noise, Range(0.0, None)))
         if self.motion is not None:
             try:
                 F, Q = (np.asarray(a, dtype=float) for a in self.motion)
@@ -133,10 +133,10 @@ class MapModel:
                 raise ValueError(f"motion must be (F, Q), two finite (4, 4) arrays, got shapes "
                                  f"{F.shape} and {Q.shape}")
             put("motion", (_frozen(F), _frozen(Q)))
-        put("resolution", _number("resolution", self.resolution, 0.0))
-        put("velocity_var", _number("velocity_var", self.velocity_var, 0.0))
-        put("gate_probability", _number("gate_probability", self.gate_probability, 0.0, 1.0,
-                                        high_open=True))
+        put("resolution", _number("resolution", self.resolution, POSITIVE))
+        put("velocity_var", _number("velocity_var", self.velocity_var, POSITIVE))
+        put("gate_probability", _number("gate_probability", self.gate_probability,
+                                        Range(0.0, 1.0, lo_open=True, hi_open=True)))
         if self.map_edge is not None and self.map_edge not in MAP_EDGES:
             raise ValueError(f"map_edge must be one of {MAP_EDGES} or None, "
                              f"got {self.map_edge!r}")
