@@ -992,6 +992,9 @@ def run_case(case: Case, python: str, timeout: float, workdir: Path) -> Result:
 
     def limits() -> None:
         resource.setrlimit(resource.RLIMIT_AS, (8 << 30, 8 << 30))
+        # Ctrl-C as in a terminal, even where this driver runs as a script's background job
+        # (started with Ctrl-C ignored, which a command inherits and keeps).
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
 
     start = time.monotonic()
     stdout: Any = subprocess.PIPE
