@@ -354,3 +354,18 @@ def test_the_readme_commands_install_no_system_package() -> None:
     text = Path(__file__).read_text()
     fixture = text[text.index("def chromium()"):text.index("def browser_flags")]
     assert "subprocess" not in fixture               # it runs nothing, it only looks
+
+
+def test_the_header_counts_targets_only_where_they_are_known() -> None:
+    # With births the scenario's targets are the templates born targets take, not a count:
+    # the header said "5 targets" of the search preset, which starts with 3 and has more.
+    from sensorplan.report.document import population_text
+    from sensorplan.simulation.scenario import PRESETS
+
+    paper, search, vo12 = PRESETS["paper"](), PRESETS["search"](), PRESETS["vo12"]()
+    assert population_text(paper).startswith(f"{len(paper.targets)} targets (")
+    text = population_text(search)
+    assert text.startswith(f"{search.n_initial} targets at the start, ")
+    assert f"{search.birth_rate:g} births a step at the map's edges" in text
+    assert f"{len(search.targets)} templates" in text
+    assert population_text(vo12).startswith("the vo12 truth")

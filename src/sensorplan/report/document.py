@@ -326,6 +326,23 @@ def _single_runs(metrics: Any, t: StudyTables, top: Any) -> list[list[str]]:
     return rows
 
 
+def population_text(scenario: Any) -> str:
+    """The scenario's targets in words: how many, of which kinds, and how they come and go
+    (with births, ``targets`` are the templates born targets take, not a count)."""
+    kinds = scenario.target_kinds
+    counts = ", ".join(f"{kinds.count(k)} {k}" for k in dict.fromkeys(kinds))
+    if scenario.scripted is not None:
+        return f"the {scenario.scripted} truth (targets born and dying as its source scripts)"
+    if scenario.known_targets:
+        return f"{len(scenario.targets)} targets ({counts})"
+    where = {"edges": "at the map's edges", "uniform": "anywhere on the map"}
+    births = ("no births" if scenario.births == "none" else
+              f"{scenario.birth_rate:g} births a step {where.get(scenario.births, '')}")
+    return (f"{scenario.n_initial} targets at the start, {births}, survival probability "
+            f"{scenario.survival_probability:g} a step; targets take {len(kinds)} "
+            f"template{'s' if len(kinds) != 1 else ''} ({counts})")
+
+
 def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensing: Any,
               figs: dict[str, Path], honest: Any, top: list[str],
               single: list[list[str]], example: str | None, column: str = "rmse") -> _Doc:
@@ -341,14 +358,11 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
     sessions = meta.get("sessions", [])
     wall = meta.get("wall_seconds")
     versions = meta.get("versions", {})
-    kinds = study.scenario.target_kinds
-    counts = ", ".join(f"{kinds.count(k)} {k}" for k in dict.fromkeys(kinds))
     facts = [f"{len(t.runs_done)} paired runs" + ("" if t.complete else
                                                   f" of {study.runs} (**study unfinished**)"),
              f"{study.steps} steps of {study.scenario.dt:g} s", f"seed {study.seed}",
              f"scenario: {study.scenario_source}",
-             f"{len(study.scenario.targets)} targets ({counts}), "
-             f"{len(study.scenario.sensors)} sensors"]
+             f"{population_text(study.scenario)}, {len(study.scenario.sensors)} sensors"]
     doc.p("; ".join(facts) + ".")
     if wall is not None:
         ex_names = ", ".join(dict.fromkeys(s.get("executor", "?") for s in sessions))
