@@ -17,8 +17,8 @@ from sensorplan.planners import information, search
 from sensorplan.planners.contract_problems import paper_problem
 from sensorplan.planners.problem import (Plan, PlanningProblem, UndetectedIntensity,
                                          check_plan)
-from sensorplan.planners.raster import (SWEEPS, RasterPlanner, revisit_order, schedule,
-                                        sweep_order)
+from sensorplan.planners.raster import (SWEEPS, RasterPlanner, looks, revisit_order,
+                                        schedule, sweep_order)
 
 
 def search_problem(rng: np.random.Generator, sectors: tuple[int, ...] | None = None,
@@ -163,6 +163,19 @@ def test_revisits_take_confirmed_then_uncertain_tracks_first() -> None:
     plan = make_planner("raster").plan(p).plan
     assert plan.targets.T.ravel().tolist() == [3, 2, 0, 1, 3, 2, 0, 1, 3]
     assert not plan.searches
+
+
+def test_without_a_track_every_look_sweeps() -> None:
+    """A searching decision before the first track: nothing to revisit, so look n of the run
+    takes sweep position n - 1 whatever revisit_every; a sensor without sectors has no look."""
+    none = np.zeros(0, dtype=np.int64)
+    for r in (0, 2, 3):
+        targets, sectors = looks((5, 3), none, 7, 4, "counterclockwise", r)
+        assert (targets == -1).all()
+        assert sectors.tolist() == [[(7 + k - 1) % 5 for k in range(1, 5)],
+                                    [(7 + k - 1) % 3 for k in range(1, 5)]]
+    with pytest.raises(ConfigError, match=r"^sensors\[1\]\.search_sectors: raster has no look"):
+        looks((5, 0), none, 0, 2, "clockwise", 3)
 
 
 # ----------------------------------------------------------------- plan and Phi

@@ -12,6 +12,7 @@ schedule is a function of the problem alone:
   it, and always when the sensor has no search sector (search off, or 0 sectors). The
   decision's revisit looks, in epoch order and within an epoch in sensor order, take the
   tracks of :func:`revisit_order` in turn, starting again at the first after the last.
+  With no track at all there is nothing to revisit and every look sweeps.
 - **Sweep.** Any other look is the sensor's ``m``-th sweep look of the run, ``m = n - 1 -
   floor((n - 1) / revisit_every)`` (``n - 1`` without revisits), and points at sector
   ``order[m mod S]`` of :func:`sweep_order`: one cycle of ``S`` sweep looks visits every
@@ -34,6 +35,7 @@ from typing import ClassVar
 import numpy as np
 
 from .._types import IntArray
+from ..errors import ConfigError
 from ..limits import Range, param
 from ..models.angles import heading_rule, wrap_angle
 from .base import PlanResult, RngLike, finish, register, start_clock
@@ -103,15 +105,36 @@ def schedule(problem: PlanningProblem, sweep: str, revisit_every: int
              ) -> tuple[IntArray, IntArray]:
     """The looks the schedule asks for: ``targets (N, K)`` and ``sectors (N, K)`` (-1 where
     the look is of the other kind), before the turn limit is applied (see the module)."""
-    N, K = problem.n_sensors, problem.horizon
-    counts = problem.sector_counts
+    return looks(problem.sector_counts, revisit_order(problem), int(problem.elapsed_epochs),
+                 problem.horizon, sweep, revisit_every)
+
+
+def looks(counts: tuple[int, ...], queue: IntArray, elapsed: int, horizon: int, sweep: str,
+          revisit_every: int) -> tuple[IntArray, IntArray]:
+    """:func:`schedule` from each sensor's sector count, the revisit order ``queue``, the
+    epochs elapsed and the horizon.
+
+    Without any track (an empty ``queue``: a searching decision before the first track)
+    there is nothing to revisit, so every look sweeps, as with ``revisit_every = 0``.
+
+    Raises
+    ------
+    ConfigError
+        No track and a sensor without search sectors: it has no look to take.
+    """
+    N, K = len(counts), horizon
+    if len(queue) == 0:
+        revisit_every = 0
+        idle = [i for i, S in enumerate(counts) if S == 0]
+        if idle:
+            raise ConfigError(f"sensors[{idle[0]}].search_sectors", "raster has no look for a "
+                              "sensor without search sectors while there is no track")
     orders = [sweep_order(S, sweep) for S in counts]
-    queue = revisit_order(problem)
     targets = np.full((N, K), -1, dtype=np.int64)
     sectors = np.full((N, K), -1, dtype=np.int64)
     revisits = 0
     for k in range(1, K + 1):
-        look = int(problem.elapsed_epochs) + k
+        look = elapsed + k
         for i in range(N):
             if counts[i] == 0 or is_revisit(look, revisit_every):
                 targets[i, k - 1] = queue[revisits % len(queue)]
@@ -160,6 +183,8 @@ class RasterPlanner(PlannerSettings):
     """
 
     name: ClassVar[str] = "raster"
+    #: It plans search looks (when the problem's search is on).
+    plans_search: ClassVar[bool] = True
     sweep: str = param("clockwise", choices=SWEEPS, noun="sweep",
                        help="Order in which each sensor sweeps its search sectors: clockwise, "
                             "counterclockwise, or interleaved (every other sector, then the "
@@ -175,5 +200,5 @@ class RasterPlanner(PlannerSettings):
                       start)
 
 
-__all__ = ["CONFIRMED", "SWEEPS", "RasterPlanner", "is_revisit", "raster_plan",
+__all__ = ["CONFIRMED", "SWEEPS", "RasterPlanner", "is_revisit", "looks", "raster_plan",
            "revisit_order", "schedule", "sweep_index", "sweep_order"]
