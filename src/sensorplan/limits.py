@@ -64,6 +64,11 @@ MAX_TURNS_PER_STEP = 1_000
 MAX_RUNS = 100_000
 #: Most buildings of a decision or scenario.
 MAX_BUILDINGS = 10_000
+#: Most search sectors of one sensor (one a degree: narrower sectors than any beam).
+MAX_SEARCH_SECTORS = 360
+#: Most cells of a decision's undetected grid (planning holds a few candidates x epochs x
+#: cells arrays: 10,000 cells keep them to tens of MB).
+MAX_UNDETECTED_CELLS = 10_000
 #: Most cells of a grid study.
 MAX_GRID_CELLS = 1_000
 #: Longest name of a grid cell (bytes): its study directory's name.
@@ -367,6 +372,9 @@ RANGES: dict[str, Range] = {
     "velocity_variance": Range(0.0, 1e8, "m^2/s^2"),
     "building_height": Range(0.0, LENGTH, "m", lo_open=True),
     "birth_rate": Range(0.0, 100.0, "per step"),
+    "cell_size": Range(1e-3, LENGTH, "m"),
+    "cell_intensity": Range(0.0, 1e6, "targets"),
+    "found_weight": Range(0.0, 1e6, "nats"),
 }
 
 

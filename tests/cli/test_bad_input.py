@@ -207,7 +207,8 @@ def test_lattice_size_bound_holds(moves, K, size) -> None:
 def test_documented_limits_are_the_code() -> None:
     doc = (ROOT / "docs" / "cli.md").read_text()
     for value in (limits.MAX_PLAN_STEPS, limits.MAX_STEPS, limits.MAX_MOVE_DISTANCES,
-                  limits.MAX_TARGETS, limits.MAX_SENSORS, limits.MAX_RUNS):
+                  limits.MAX_TARGETS, limits.MAX_SENSORS, limits.MAX_RUNS,
+                  limits.MAX_UNDETECTED_CELLS):
         assert f"{value:,}" in doc, value
     for value in (limits.MAX_LATTICE_ENTRIES, limits.MAX_DECISION_WORK,
                   limits.MAX_STUDY_ROWS):

@@ -204,6 +204,7 @@ BAD_PLANNER_SETTINGS = [
     ("sequential-greedy", "time_budget", -1e-3), ("sequential-greedy", "seed", -5),
     ("brute-force", "max_plans", 0), ("brute-force", "chunk", -1), ("brute-force", "seed", -1),
     ("random", "seed", -7),
+    ("raster", "sweep", "spiral"), ("raster", "revisit_every", -1), ("raster", "seed", -2),
     ("dec-jsfp", "rounds", 0), ("dec-jsfp", "p_loss", 1.5), ("dec-jsfp", "delay", -1),
     ("dec-jsfp", "comm_range", 0.0), ("dec-jsfp", "mode", "gossip"),
     ("dec-jsfp", "transport", "pigeon"), ("dec-jsfp", "timeout", -1.0),

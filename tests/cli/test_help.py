@@ -7,7 +7,8 @@ The line budget at 80 columns, per command:
   24-line terminal shows them whole with the prompt;
 - an option (or argument) takes at most 4 lines, and 3 on average: its names, a sentence
   of a few words and its default fit in 2-3 lines of the help column (35-45 characters
-  wide); the fourth is for the lists of names (the planners);
+  wide); the fourth is for the lists of names, and an option that lists the nine built-in
+  planners may take a fifth;
 - no line is wider than 80 characters.
 
 Before the options were grouped and shortened, ``simulate --help`` took 176 lines (options
@@ -30,6 +31,8 @@ COMMANDS = ["", *COMMAND.commands]          # "" is sensorplan itself
 
 #: The budget (see the module docstring).
 HEAD_LINES, ENTRY_LINES, MEAN_ENTRY_LINES, WIDTH = 20, 4, 3.0, 80
+#: The budget of an option whose help lists the built-in planners.
+PLANNER_LIST_LINES = 5
 
 
 def help_at_80(capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch,
@@ -62,7 +65,10 @@ def test_help_fits_its_budget_at_80_columns(command: str, capsys, monkeypatch) -
     assert head <= HEAD_LINES, "\n".join(lines[:head])
     rows = entries(lines)
     sizes = [len(r) for r in rows]
-    assert max(sizes) <= ENTRY_LINES, "\n".join(rows[sizes.index(max(sizes))])
+    for row in rows:
+        lists_planners = "sequential-greedy" in " ".join(row)
+        assert len(row) <= (PLANNER_LIST_LINES if lists_planners else ENTRY_LINES), \
+            "\n".join(row)
     assert sum(sizes) / len(sizes) <= MEAN_ENTRY_LINES
 
 

@@ -293,3 +293,24 @@ def test_the_track_term_is_todays_phi() -> None:
     np.testing.assert_allclose(ev.headings, res.headings, rtol=0, atol=1e-12)
     assert np.array_equal(ev.measurements, res.measurements)
     assert ev.found > 0          # track looks thin the cells they cover too
+
+
+def test_search_counts_and_grids_that_cannot_be_are_refused() -> None:
+    base = mixed_problem(1)
+    kw = dict(means=base.means, covs=base.covs, positions=base.positions,
+              headings=base.headings, sensors=base.sensors, horizon=1, search="on",
+              undetected=base.undetected)
+    for bad, field in [(2.5, "search_sectors"), ("6", "search_sectors"),
+                       (float("nan"), "search_sectors"), ((6,), "search_sectors"),
+                       ((6, "a"), r"sensors\[1\].search_sectors"),
+                       ((6, math.inf), r"sensors\[1\].search_sectors"),
+                       (0, "search_sectors"), ((0, 0), r"sensors\[0\].search_sectors")]:
+        with pytest.raises(ConfigError, match=f"^{field}: "):
+            PlanningProblem(**kw, search_sectors=bad)                # type: ignore[arg-type]
+    assert PlanningProblem(**kw, search_sectors=(0, 3)).sector_counts == (0, 3)
+    assert PlanningProblem(**kw, search_sectors=4.0).sector_counts == (4, 4)  # type: ignore
+    u = base.undetected
+    assert u is not None
+    outside = UndetectedIntensity(np.array(u.centres) + [0.0, 400.0], u.weights, u.births)
+    with pytest.raises(ConfigError, match=r"^undetected.centres\[\d+\]: \[.*\] is outside "):
+        PlanningProblem(**{**kw, "undetected": outside}, search_sectors=6)  # type: ignore

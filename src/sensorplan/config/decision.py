@@ -11,8 +11,9 @@ import numpy as np
 from pydantic import ConfigDict
 
 from ..errors import ConfigError
-from ..limits import (MAX_SENSORS, MAX_TARGETS, RANGES, check_count, check_covariance_scale,
-                      check_decision_size, check_sensor_precision)
+from ..limits import (MAX_SEARCH_SECTORS, MAX_SENSORS, MAX_TARGETS, MAX_UNDETECTED_CELLS,
+                      RANGES, Range, check_count, check_covariance_scale, check_decision_size,
+                      check_sensor_precision)
 from ..planners.problem import (SEARCH_MODES, MapRect, PlanningProblem, UndetectedIntensity,
                                 check_covariance)
 from ..simulation.scenario import HEADING_HINT
@@ -108,6 +109,8 @@ class DecisionFile(Strict):
     buildings: list[BuildingModel] = []
     search: Literal[SEARCH_MODES] = "off"  # type: ignore[valid-type]
     undetected: DecisionUndetected | None = None
+    #: Epochs of the run before this decision: where a fixed schedule (raster) stands.
+    elapsed_epochs: int = _problem_default("elapsed_epochs")
     planner: DecisionPlanner = DecisionPlanner()
 
 
@@ -150,6 +153,7 @@ def _check_magnitudes(model: DecisionFile) -> None:
             RANGES["velocity"].check(v, f"targets[{j}].mean")
         check_covariance_scale(_pd_or_none(t.cov, f"targets[{j}].cov"), f"targets[{j}].cov")
     for i, s in enumerate(model.sensors):
+        Range(0, MAX_SEARCH_SECTORS).check(s.search_sectors, f"sensors[{i}].search_sectors")
         if s.heading is None and s.heading_deg is None:
             raise ConfigError(f"sensors[{i}].heading", "is required (in radians; or "
                               "heading_deg in degrees)")
@@ -176,14 +180,19 @@ def _undetected(model: DecisionFile) -> UndetectedIntensity | None:
     if u is None:
         return None
     C = len(u.centres)
-    for name in ("weights", "births"):
+    check_count(C, MAX_UNDETECTED_CELLS, "undetected.centres", "cells")
+    for name, rule in (("weights", "cell_intensity"), ("births", "birth_rate")):
         v = getattr(u, name)
         if v is not None and len(v) != C:
             raise ConfigError(f"undetected.{name}", f"must have one number per cell ({C}), "
                               f"got {len(v)}")
+        for c, x in enumerate(v or ()):
+            RANGES[rule].check(x, f"undetected.{name}[{c}]")
     a, b = u.cell_size
-    if not (a > 0 and b > 0):
-        raise ConfigError("undetected.cell_size", "must be 2 numbers > 0")
+    for x in (a, b):
+        RANGES["cell_size"].check(x, "undetected.cell_size")
+    if u.weight is not None:
+        RANGES["found_weight"].check(u.weight, "undetected.weight")
     for c, xy in enumerate(u.centres):
         if not model.map.width >= xy[0] >= 0 <= xy[1] <= model.map.height:
             raise ConfigError(f"undetected.centres[{c}]", MapRect(
@@ -226,7 +235,7 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
         buildings=np.array([b.row() for b in model.buildings], dtype=float),
         existence=np.array([t.existence for t in model.targets], dtype=float),
         search=model.search, search_sectors=tuple(s.search_sectors for s in model.sensors),
-        undetected=_undetected(model))
+        undetected=_undetected(model), elapsed_epochs=model.elapsed_epochs)
     for i, s in enumerate(problem.sensors):
         check_sensor_precision(s, f"sensors[{i}]")
     check_decision_size(problem.horizon, problem.steps_per_epoch, problem.n_targets,

@@ -118,7 +118,7 @@ def prepare(problem: PlanningProblem) -> Context:
 
 
 #: Planners that plan with search looks (the others refuse a problem whose search is on).
-SEARCH_PLANNERS = ("brute-force", "pg", "random", "sequential-greedy")
+SEARCH_PLANNERS = ("brute-force", "pg", "random", "raster", "sequential-greedy")
 
 
 def refuse_search(name: str, problem: PlanningProblem) -> None:

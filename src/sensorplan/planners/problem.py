@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import math
+import numbers
 from dataclasses import dataclass, field
 from collections.abc import Iterator
 from typing import Any
@@ -324,6 +325,11 @@ class PlanningProblem:
         applies to every sensor; always a tuple once the problem is built.
     undetected : UndetectedIntensity or None
         The undetected intensity; required with ``search="on"``.
+    elapsed_epochs : int
+        Epochs of the run before this decision (default 0: the first decision, or one on
+        its own). Phi does not depend on it; a planner that follows a fixed schedule
+        (``raster``) reads its phase from it, so that the schedule goes on from one
+        decision to the next instead of starting again.
     """
 
     means: FloatArray
@@ -344,6 +350,7 @@ class PlanningProblem:
     search: str = "off"
     search_sectors: int | tuple[int, ...] = 0
     undetected: UndetectedIntensity | None = None
+    elapsed_epochs: int = 0
 
     def __post_init__(self) -> None:
         # Read-only copies: planners cannot mutate the caller's arrays (or each other's).
@@ -358,7 +365,7 @@ class PlanningProblem:
             object.__setattr__(self, "process_noise", _readonly(self.process_noise))
         else:
             object.__setattr__(self, "process_noise", float(self.process_noise))
-        if not isinstance(self.search_sectors, (int, np.integer)):
+        if isinstance(self.search_sectors, (list, tuple, np.ndarray)):
             object.__setattr__(self, "search_sectors", tuple(self.search_sectors))
         self.validate()
 
@@ -423,6 +430,9 @@ class PlanningProblem:
             j = int(np.flatnonzero(~np.all(np.isfinite(self.means), axis=1))[0])
             raise ConfigError(f"targets[{j}].mean", "must be finite")
         check_existence(self.existence, M)
+        e = self.elapsed_epochs
+        if isinstance(e, bool) or not isinstance(e, (int, np.integer)) or e < 0:
+            raise ConfigError("elapsed_epochs", f"must be an integer >= 0, got {e!r}")
         self._validate_search(N)
         if not _covariances_ok(self.covs):           # one batched check; locate on failure
             for j in range(M):
@@ -441,18 +451,31 @@ class PlanningProblem:
         if self.search not in SEARCH_MODES:
             raise ConfigError("search", f"must be one of {SEARCH_MODES}, got {self.search!r}")
         sectors = self.search_sectors
-        if isinstance(sectors, (int, np.integer)):
-            sectors = (sectors,) * N
-        elif len(sectors) != N:
-            raise ConfigError("search_sectors", f"must be one number or one per sensor ({N})")
-        for i, s in enumerate(sectors):
-            if isinstance(s, bool) or int(s) != s or s < 0:
-                raise ConfigError(f"sensors[{i}].search_sectors",
-                                  f"must be an integer >= 0, got {s!r}")
+        if isinstance(sectors, tuple):
+            if len(sectors) != N:
+                raise ConfigError("search_sectors", f"must be one number or one per sensor "
+                                  f"({N}), got {len(sectors)}")
+            fields = [f"sensors[{i}].search_sectors" for i in range(N)]
+        else:
+            sectors, fields = (sectors,) * N, ["search_sectors"] * N
+        for s, name in zip(sectors, fields):
+            if (isinstance(s, bool) or not isinstance(s, numbers.Real) or not math.isfinite(s)
+                    or int(s) != s or s < 0):
+                raise ConfigError(name, f"must be an integer >= 0, got {s!r}")
         if self.search == "on":
             if self.undetected is None:
                 raise ConfigError("undetected", "is required when search is on")
             self.undetected.validate()
+            outside = ~self.world.contains(self.undetected.centres)
+            if outside.any():
+                c = int(np.flatnonzero(outside)[0])
+                raise ConfigError(f"undetected.centres[{c}]",
+                                  self.world.outside(self.undetected.centres[c]))
+            if not any(sectors):
+                # Search looks need bearings to point at; 0 is only right for some sensors.
+                raise ConfigError(fields[0], "search is on but no sensor has a search "
+                                  "sector; give at least one sensor search_sectors >= 1, or "
+                                  "set search to 'off'")
 
     @property
     def sector_counts(self) -> tuple[int, ...]:
@@ -460,7 +483,7 @@ class PlanningProblem:
         if not self.searching:
             return (0,) * len(self.sensors)
         s = self.search_sectors
-        if isinstance(s, (int, np.integer)):
+        if not isinstance(s, tuple):
             return (int(s),) * len(self.sensors)
         return tuple(int(v) for v in s)
 

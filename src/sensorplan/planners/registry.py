@@ -4,8 +4,8 @@ Wherever a planner is chosen by name (``planner.name`` of a plan file, ``planner
 scenario's ``[planning]`` table or of a study method, ``sensorplan simulate --planner``, the
 Stone Soup manager), the name is one of:
 
-- a built-in name: ``pg``, ``pg-refine``, ``sequential-greedy``, ``brute-force``, ``random``
-  and the decentralized ``dec-jsfp``, ``dec-independent``, ``dec-sequential``;
+- a built-in name: ``pg``, ``pg-refine``, ``sequential-greedy``, ``brute-force``, ``random``,
+  ``raster`` and the decentralized ``dec-jsfp``, ``dec-independent``, ``dec-sequential``;
 - a name registered in this process with :func:`register`;
 - the name of an entry point in the group ``sensorplan.planners`` of an installed
   distribution (its value is ``package.module:Class``);
@@ -49,6 +49,7 @@ BUILTIN: dict[str, str] = {
     "sequential-greedy": "sensorplan.planners.greedy:SequentialGreedyPlanner",
     "brute-force": "sensorplan.planners.brute_force:BruteForcePlanner",
     "random": "sensorplan.planners.random_plan:RandomPlanner",
+    "raster": "sensorplan.planners.raster:RasterPlanner",
     "dec-jsfp": "sensorplan.decentral.planners:DecentralJSFPPlanner",
     "dec-independent": "sensorplan.decentral.planners:DecentralIndependentPlanner",
     "dec-sequential": "sensorplan.decentral.planners:DecentralSequentialPlanner",
