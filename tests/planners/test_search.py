@@ -3,6 +3,7 @@ the potential property and the deduplication of sectors."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 
@@ -13,7 +14,7 @@ from sensorplan.errors import ConfigError
 from sensorplan.models.sensors import SensorParams
 from sensorplan.planners import search
 from sensorplan.planners.problem import (Plan, PlanError, PlanningProblem, UndetectedIntensity,
-                                         check_plan)
+                                         check_plan, move_vectors)
 from sensorplan.planners.registry import make_planner
 
 SWERLING = SensorParams(detection="swerling1", snr_ref_db=10.0, range_ref=700.0,
@@ -314,3 +315,30 @@ def test_search_counts_and_grids_that_cannot_be_are_refused() -> None:
     outside = UndetectedIntensity(np.array(u.centres) + [0.0, 400.0], u.weights, u.births)
     with pytest.raises(ConfigError, match=r"^undetected.centres\[\d+\]: \[.*\] is outside "):
         PlanningProblem(**{**kw, "undetected": outside}, search_sectors=6)  # type: ignore
+
+
+def test_no_tracks_is_a_search_decision() -> None:
+    # Without tracks Phi is w mu alone: the same as with one track of existence 0 (whose
+    # information counts nothing), for every planner with search.
+    u = grid([(450.0, 100.0), (100.0, 450.0), (347.0, 347.0)], [0.2, 0.3, 0.5])
+    with_phantom = problem([(100.0, 100.0)], [0.0], u, sectors=8)
+    empty = dataclasses.replace(with_phantom, means=np.zeros((0, 4)), covs=np.zeros((0, 4, 4)),
+                                existence=np.zeros(0))
+    moves = move_vectors(SWERLING.moves) + with_phantom.positions[0]
+    best = max(search.potential(with_phantom, Plan(m[None, None], np.full((1, 1), -1),
+                                                   np.full((1, 1), s)))[0]
+               for m in moves if with_phantom.world.contains(m) for s in range(8))
+    assert best > 0.0
+    for name in ("brute-force", "pg", "sequential-greedy"):
+        result = make_planner(name).plan(empty, np.random.default_rng(0))
+        assert (result.plan.targets == -1).all() and (result.plan.sectors >= 0).all()
+        phi = search.potential(empty, result.plan)[0]
+        assert phi == pytest.approx(search.potential(with_phantom, result.plan)[0], abs=1e-12)
+        assert phi == pytest.approx(best, abs=1e-12)
+
+
+def test_no_tracks_needs_search_on() -> None:
+    with pytest.raises(ConfigError, match="at least one target"):
+        PlanningProblem(means=np.zeros((0, 4)), covs=np.zeros((0, 4, 4)),
+                        positions=np.array([[300.0, 300.0]]), headings=np.zeros(1),
+                        sensors=(SWERLING,), horizon=1)

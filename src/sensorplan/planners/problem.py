@@ -385,8 +385,9 @@ class PlanningProblem:
     def validate(self) -> None:
         """Check the semantic rules of a decision; raise :class:`ConfigError` naming the field."""
         M = len(self.means)
-        if M < 1:
-            raise ConfigError("targets", "at least one target is required")
+        # With search on, no track at all is a decision: where to search.
+        if M < 1 and self.search != "on":
+            raise ConfigError("targets", "at least one target is required (or search on)")
         if self.means.shape != (M, 4):
             raise ConfigError("targets.mean", f"expected shape ({M}, 4), got {self.means.shape}")
         if self.covs.shape != (M, 4, 4):
