@@ -7,10 +7,14 @@ linear position sensor (:mod:`sensorplan.models.linear`); the Bernoullis it repo
 Stone Soup :class:`~stonesoup.types.track.Track`\ s whose id is the Bernoulli's label and
 whose states are :class:`BernoulliGaussianState`\ s carrying the existence probability.
 
-Only the linear position sensor is offered: a Stone Soup ``LinearGaussian`` measurement
-model with ``ndim_state = 4``, ``mapping = (0, 2)`` (the position of Stone Soup's
-``[x, vx, y, vy]``) and an isotropic ``noise_covar = sigma^2 I``. Any other measurement
-model is refused with a ``TypeError`` or ``ValueError`` naming what is wrong.
+Two sensors are offered. The linear position sensor that scans the whole map: a Stone
+Soup ``LinearGaussian`` measurement model with ``ndim_state = 4``, ``mapping = (0, 2)``
+(the position of Stone Soup's ``[x, vx, y, vy]``) and an isotropic ``noise_covar = sigma^2
+I``; any other measurement model is refused with a ``TypeError`` or ``ValueError`` naming
+what is wrong. Or sensorplan's aimed radars (:class:`SensorplanRadar`, ``radars``): each scan
+is one look of every radar from its pose at the scan, so a look sees only its sensing
+region, and the undetected intensity is thinned there only (what makes search worth
+planning, :meth:`PMBStoneSoupTracker.undetected_intensity`).
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ from __future__ import annotations
 import datetime
 import math
 from dataclasses import fields
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -36,15 +40,21 @@ from stonesoup.types.track import Track
 
 from ..._types import FloatArray
 from ...models.linear import LinearSensor
+from ...models.sensors import radar_table
+from ...planners.problem import UndetectedIntensity
 from ...tracking.base import Looks
 from ...tracking.pmb.map_tracker import MapModel
 from ...tracking.pmb.tracker import PMBTracker
 from ...tracking.pmb.undetected import make_grid
+from ._actionables import SensorplanRadar
 from ._convert import from_stonesoup_cov, to_stonesoup_cov, to_stonesoup_mean
+from ._measurement import RadarMeasurementModel
 from ._world import MapRect
 
 #: Relative tolerance of a scan's time gap against a whole number of steps.
 _TIME_TOL = 1e-6
+#: Largest difference (m, rad) between a detection's radar pose and a managed radar's.
+_POSE_TOL = 1e-9
 #: The keys of ``settings`` that are fields of the map model (the adapter gives the sensor,
 #: the step, the map and the motion itself).
 _MODEL_SETTINGS = tuple(f.name for f in fields(MapModel)
@@ -140,7 +150,8 @@ class PMBStoneSoupTracker(_TrackerMixInNext, Tracker):
     """
 
     measurement_model: LinearGaussian = Property(
-        doc="The linear position sensor: a LinearGaussian with mapping (0, 2), noise sigma^2 I.")
+        default=None, doc="The linear position sensor: a LinearGaussian with mapping (0, 2), "
+                          "noise sigma^2 I (or give ``radars``).")
     world: MapRect = Property(
         doc="The map: the area the sensor scans, false alarms fall in and the undetected "
             "intensity's grid covers (world coordinates).")
@@ -161,11 +172,25 @@ class PMBStoneSoupTracker(_TrackerMixInNext, Tracker):
     start_time: datetime.datetime = Property(
         default=None, doc="Time of the prior; default one dt before the first scan.")
     detector: DetectionReader = Property(default=None, doc="Detector of the scans.")
+    radars: Sequence[SensorplanRadar] = Property(
+        default=None, doc="Aimed radars instead of the linear sensor: each scan is one look "
+                          "of each, from its pose at the scan; their params give detection "
+                          "and clutter (not detection_probability and clutter_rate).")
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
-        self.sensor = linear_sensor(self.measurement_model, self.world,
-                                    self.detection_probability, self.clutter_rate)
+        if (self.measurement_model is None) == (self.radars is None):
+            raise ValueError("give either measurement_model (the linear sensor) or radars")
+        measurement: LinearSensor | FloatArray
+        if self.radars is not None:
+            self.radars = list(self.radars)
+            if not self.radars or not all(isinstance(r, SensorplanRadar) for r in self.radars):
+                raise TypeError("radars: must be one or more SensorplanRadars")
+            measurement = radar_table([r.params for r in self.radars])
+        else:
+            self.sensor = linear_sensor(self.measurement_model, self.world,
+                                        self.detection_probability, self.clutter_rate)
+            measurement = self.sensor
         if not (math.isfinite(self.dt) and self.dt > 0):
             raise ValueError(f"dt must be > 0, got {self.dt!r}")
         kwargs_pmb = dict(self.settings or {})
@@ -179,7 +204,7 @@ class PMBStoneSoupTracker(_TrackerMixInNext, Tracker):
         kwargs_model = {k: kwargs_pmb.pop(k) for k in _MODEL_SETTINGS if k in kwargs_pmb}
         if self.transition_model is not None:
             kwargs_model["motion"] = motion_matrices(self.transition_model, self.dt)
-        model = MapModel(self.sensor, self.dt, (self.world.width, self.world.height),
+        model = MapModel(measurement, self.dt, (self.world.width, self.world.height),
                          **kwargs_model)
         self.pmb = PMBTracker(model, **kwargs_pmb)
         if self.initial_intensity is not None:
@@ -211,6 +236,47 @@ class PMBStoneSoupTracker(_TrackerMixInNext, Tracker):
                              f"positive whole number of dt = {self.dt:g} s")
         return int(k)
 
+    def undetected_intensity(self, weight: float | None = None) -> UndetectedIntensity:
+        """The undetected targets' Poisson intensity now (after the last scan), as planning
+        takes it: cell centres in the core's frame (world minus the map's origin), expected
+        undetected targets per cell, births per step, survival per step and a cell's
+        position covariance; ``weight`` is the nats a newly found target is worth (None:
+        the information of its first detection)."""
+        grid = self.pmb.grid
+        return UndetectedIntensity(np.array(grid.centres), np.array(self.pmb.undetected),
+                                   np.array(self.pmb.births),
+                                   float(self.pmb.survival_probability),
+                                   np.array(grid.cov[:2, :2]), weight)
+
+    def looks(self, detections: Iterable[Detection]) -> Looks:
+        """One scan of the radars: a look of each radar from its pose now, with the
+        detections its measurement model names (the radar at the same position and
+        heading), each look's sorted by range then azimuth."""
+        assert self.radars is not None
+        poses = [(r.ground_position - self.world.origin, float(r.heading)) for r in self.radars]
+        rows: list[list[FloatArray]] = [[] for _ in self.radars]
+        for det in detections:
+            model = det.measurement_model
+            if not isinstance(model, RadarMeasurementModel):
+                raise TypeError("detections: with radars every detection must carry its "
+                                "radar's RadarMeasurementModel, got "
+                                f"{type(model).__name__}")
+            xy = np.asarray(model.sensor_xy, dtype=float) - self.world.origin
+            at = [i for i, (p, h) in enumerate(poses)
+                  if np.abs(p - xy).max() <= _POSE_TOL and abs(h - model.heading) <= _POSE_TOL]
+            if not at:
+                raise ValueError(f"detections: a detection from a radar at {tuple(xy)} heading "
+                                 f"{model.heading:g} rad, which is none of the tracker's radars")
+            rows[at[0]].append(np.asarray(det.state_vector, dtype=float).reshape(2))
+        Z = []
+        for r in rows:
+            z = np.array(r).reshape(-1, 2)
+            Z.append(z[np.lexsort((z[:, 1], z[:, 0]))])
+        L = len(self.radars)
+        return Looks(np.arange(L, dtype=np.int64), np.full(L, -1, dtype=np.int64),
+                     np.array([p for p, _ in poses]), np.array([h for _, h in poses]),
+                     tuple(Z))
+
     def measurements(self, detections: Iterable[Detection]) -> FloatArray:
         """Positions ``(n, 2)`` in the core's frame of a scan's detections, in a fixed order
         (sorted by x, then y: a set's order would vary between runs)."""
@@ -232,9 +298,12 @@ class PMBStoneSoupTracker(_TrackerMixInNext, Tracker):
               detections: Iterable[Detection]) -> tuple[datetime.datetime, set[Track]]:
         for _ in range(self._steps_to(time)):
             self.pmb.predict()
-        z = self.measurements(detections)
-        self.pmb.update(Looks(np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64),
-                              np.zeros((1, 2)), np.zeros(1), (z,)))
+        if self.radars is not None:
+            self.pmb.update(self.looks(detections))
+        else:
+            z = self.measurements(detections)
+            self.pmb.update(Looks(np.zeros(1, dtype=np.int64), np.zeros(1, dtype=np.int64),
+                                  np.zeros((1, 2)), np.zeros(1), (z,)))
         self._time = time
         reported = self.pmb.tracks()
         means = to_stonesoup_mean(reported.means)
