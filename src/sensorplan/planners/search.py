@@ -249,8 +249,15 @@ def sector_actions(sctx: SearchContext, i: int, k: int, prev_heading: float, pre
     turn = float(sctx.ctx.max_turn[i])
     h = (heading_rule(prev_heading, b, turn) if prev_ok
          else heading_rule(float(sctx.ctx.problem.headings[i]), b, k * turn))
+    return distinct_headings(h)
+
+
+def distinct_headings(headings: FloatArray) -> IntArray:
+    """Indices of the first of each distinct heading (to :data:`HEADING_TOL`), ascending:
+    the sectors that are distinct actions, given the headings the rule maps them to."""
+    h = np.asarray(headings, dtype=float).reshape(-1)
     keep: list[int] = []
-    for s in range(b.size):
+    for s in range(h.size):
         if not any(abs(float(wrap_angle(h[s] - h[t]))) <= HEADING_TOL for t in keep):
             keep.append(s)
     return np.array(keep, dtype=np.int64)
@@ -568,7 +575,7 @@ def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, 
 
 
 __all__ = ["HEADING_TOL", "SearchContext", "SearchEvaluation",
-           "brute_force", "candidate_potentials", "count_plans", "evaluate", "expected_found",
+           "brute_force", "candidate_potentials", "count_plans", "distinct_headings", "evaluate", "expected_found",
            "first_detection_weight", "plan_headings", "player_actions", "potential",
            "potential_game", "prepare", "random_plan", "sector_actions", "sector_bearings",
            "sequential_greedy"]

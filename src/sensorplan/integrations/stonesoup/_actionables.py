@@ -5,6 +5,7 @@ from __future__ import annotations
 import datetime
 import math
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -21,10 +22,11 @@ from stonesoup.types.track import Track
 from ..._types import FloatArray
 from ...errors import ConfigError
 from ...models import radar
-from ...models.angles import heading_rule
+from ...models.angles import heading_rule, wrap_angle
 from ...models.motion import cv_matrices
 from ...models.sensors import CLUTTER_RATE, SensorParams, radar_table
 from ...planners.problem import POSITION_TOL, move_vectors
+from ...planners.search import HEADING_TOL, distinct_headings, sector_bearings
 
 from ._convert import _ground_xy, from_tracks, ordered_tracks
 from ._detection import clutter_density, detection_probability, draw_clutter, is_swerling
@@ -172,26 +174,69 @@ class LatticeMovable(FixedMovable):
 # --------------------------------------------------------------------------------------------
 
 
+@dataclass(frozen=True)
+class SearchSector:
+    """Search sector ``index`` of ``count``: the absolute bearing ``wrap(2 pi index /
+    count)`` (rad) around the radar's platform; the ``target`` of a sector look."""
+
+    index: int
+    count: int
+
+    @property
+    def bearing(self) -> float:
+        """The sector's absolute bearing (rad)."""
+        return float(sector_bearings(self.count)[self.index])
+
+
 class AimAction(Action):
     """Look at ground point ``target_value`` ``(x, y)``; ``target`` names what is there
     (a track, or any key).
 
+    A search look (``target`` a :class:`SearchSector`) also sets ``bearing``: the radar
+    turns toward that absolute bearing, wherever its platform moves; ``target_value`` is then
+    a point on the sector's boresight, for display.
+
     With ``hold=True`` the radar keeps its aim, its aimed target and its heading (no turn):
     the generator's ``default_action``, and what :class:`SensorplanManager` returns when there
-    is no track.
+    is no track and search is off.
     """
 
-    target: Any = Property(default=None, doc="The target looked at (e.g. its Track).")
+    target: Any = Property(default=None, doc="The target looked at (e.g. its Track, or a "
+                                             "SearchSector).")
     hold: bool = Property(default=False, doc="Keep the current aim and heading.")
+    bearing: float | None = Property(default=None, doc="Absolute bearing (rad) to turn "
+                                                       "toward instead of the point's.")
 
     def act(self, current_time: Any, timestamp: Any, init_value: Any, **kwargs: Any) -> Any:
         return self.target_value
 
 
 class AimActionGenerator(ActionGenerator):
-    """One :class:`AimAction` per candidate ``(target, (x, y))`` of the radar."""
+    """One :class:`AimAction` per candidate ``(target, (x, y))`` of the radar, then one per
+    distinct search look: of the radar's ``sectors`` bearings, those the heading rule (from
+    the radar's heading now, at most ``max_turn``) maps to the same heading are one action,
+    the first sector of each."""
 
     candidates: Sequence[Any] = Property(default=(), doc="``(target, (x, y))`` pairs.")
+    sectors: int = Property(default=0, doc="Number of search sectors (0: no search looks).")
+
+    def sector_action(self, index: int) -> AimAction:
+        """The search look at sector ``index``: turn toward its bearing."""
+        sector = SearchSector(int(index), int(self.sectors))
+        b = sector.bearing
+        xy = self.owner.ground_position
+        reach = float(self.owner.params.max_ground_range)
+        point = (float(xy[0] + reach * math.cos(b)), float(xy[1] + reach * math.sin(b)))
+        return AimAction(generator=self, end_time=self.end_time, target_value=point,
+                         target=sector, bearing=b)
+
+    def distinct_sectors(self) -> list[int]:
+        """The sectors that are distinct actions, ascending."""
+        if int(self.sectors) <= 0:
+            return []
+        h = heading_rule(float(self.owner.heading), sector_bearings(int(self.sectors)),
+                         float(self.owner.params.max_turn))
+        return [int(s) for s in distinct_headings(h)]
 
     def action(self, point: Any, target: Any = None) -> AimAction:
         """An aim action at ``point`` ``(x, y)`` for ``target``."""
@@ -209,11 +254,16 @@ class AimActionGenerator(ActionGenerator):
     def __iter__(self) -> Any:
         for target, point in self.candidates:
             yield self.action(point, target)
+        for s in self.distinct_sectors():
+            yield self.sector_action(s)
 
     def __contains__(self, item: Any) -> bool:
         if isinstance(item, AimAction):
             if item.hold:
                 return True
+            if item.bearing is not None:
+                b = sector_bearings(int(self.sectors))
+                return bool(np.any(np.abs(wrap_angle(b - item.bearing)) <= HEADING_TOL))
             item = item.target_value
         p = np.asarray(item, dtype=float).ravel()
         return any(np.allclose(p, np.asarray(q, dtype=float), rtol=0, atol=10 * POSITION_TOL)
@@ -239,6 +289,9 @@ class SensorplanRadar(Sensor):
     is resolved lazily because Stone Soup acts platforms and sensors in no fixed order: in a
     loop that acts every actionable before measuring, the turn is seen from the new position,
     as sensorplan's closed loop executes it. The heading then stays fixed until the next aim action.
+    A search look (an aim whose ``bearing`` is set, at a :class:`SearchSector`) turns toward
+    that absolute bearing instead, from wherever the platform is; ``search_sectors`` offers
+    them to Stone Soup's sensor managers beside the track aims.
 
     Field of view: ground range in ``[min_ground_range, max_ground_range]``, azimuth within
     ``fov_half_angle`` of the heading, ``cos psi > 0``, from the one radar model
@@ -269,11 +322,14 @@ class SensorplanRadar(Sensor):
     heading: float = Property(default=0.0, doc="Heading theta (rad).")
     aim: Any = ActionableProperty(
         generator_cls=AimActionGenerator,
-        generator_kwargs_mapping={"candidates": "aim_candidates"},
+        generator_kwargs_mapping={"candidates": "aim_candidates", "sectors": "search_sectors"},
         default=None, doc="Ground point ``(x, y)`` the radar looks toward, or None.")
     aim_candidates: Sequence[Any] = Property(
         default=(), doc="``(target, (x, y))`` pairs offered to Stone Soup's sensor managers as "
                         "aim actions (see :func:`set_aim_candidates`).")
+    search_sectors: int = Property(
+        default=0, doc="Search sectors S: absolute bearings 2 pi s / S around the platform "
+                       "offered as search looks (0: none).")
     ndim_state: int = Property(default=4, doc="Target state dimension.")
     position_mapping: Sequence[int] = Property(
         default=(0, 2), doc="Indices of a target's ground x and y in its state vector.")
@@ -292,6 +348,7 @@ class SensorplanRadar(Sensor):
         super().__init__(*args, **kwargs)
         self._pending = False
         self.aim_target: Any = None
+        self.aim_bearing: float | None = None
 
     @heading.getter  # type: ignore[no-redef, attr-defined]  # Stone Soup's Property idiom
     def heading(self) -> float:
@@ -307,7 +364,8 @@ class SensorplanRadar(Sensor):
         if aim is None:
             return
         xy = self.ground_position
-        bearing = math.atan2(aim[1] - xy[1], aim[0] - xy[0])
+        bearing = (self.aim_bearing if self.aim_bearing is not None
+                   else math.atan2(aim[1] - xy[1], aim[0] - xy[0]))
         self._property_heading: float = float(heading_rule(self._property_heading, bearing,
                                                            self.params.max_turn))
 
@@ -347,6 +405,7 @@ class SensorplanRadar(Sensor):
             self._resolve()          # the previous aim's turn, if never used, happens first
             self._property_aim = tuple(float(v) for v in action.target_value)
             self.aim_target = action.target
+            self.aim_bearing = None if action.bearing is None else float(action.bearing)
             self._pending = True
         self.timestamp = timestamp
 
