@@ -664,9 +664,9 @@ def check_plan(problem: PlanningProblem, plan: Plan, complete: bool = True) -> N
     if plan.searches:
         _check_sectors(problem, plan)
     lowest = 0 if complete else -1
-    # A search look stands in for a target here (checked above).
-    targets = np.where(plan.sectors >= 0, 0, plan.targets)
-    bad = (targets >= M) | (targets < lowest)
+    # A search look stands in for a target here (checked above; there may be no targets).
+    targets = plan.targets
+    bad = ((targets >= M) | (targets < lowest)) & (plan.sectors < 0)
     if bad.any():
         i, k = (int(v) for v in np.argwhere(bad)[0])
         j = int(targets[i, k])

@@ -575,7 +575,8 @@ def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, 
 
 
 __all__ = ["HEADING_TOL", "SearchContext", "SearchEvaluation",
-           "brute_force", "candidate_potentials", "count_plans", "distinct_headings", "evaluate", "expected_found",
+           "brute_force", "candidate_potentials", "count_plans", "distinct_headings", "evaluate",
+           "expected_found",
            "first_detection_weight", "plan_headings", "player_actions", "potential",
            "potential_game", "prepare", "random_plan", "sector_actions", "sector_bearings",
            "sequential_greedy"]

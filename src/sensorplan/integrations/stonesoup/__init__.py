@@ -32,9 +32,16 @@ What is here (``docs/stonesoup.md`` has the full mapping and its limits):
   the sum over tracks of ``0.5 log det P_prior / det P_post`` after Stone Soup's predictor
   and updater apply every look whose target's predicted mean is in the field of view.
 
+- Search: a radar's ``search_sectors`` are offered as aims at :class:`SearchSector`\ s
+  beside the tracks; :class:`SearchAndTrackReward` (for Stone Soup's own managers) and
+  :class:`SensorplanManager` with ``search="on"`` value a look by the track information it
+  gives (weighted by existence) plus the undetected targets it is expected to find, from
+  :meth:`PMBStoneSoupTracker.undetected_intensity`.
+
 - :class:`PMBStoneSoupTracker`: sensorplan's Poisson multi-Bernoulli tracker as a Stone Soup
   tracker (iterates ``(time, tracks)`` over a detector, or takes one scan at a time) for
-  Stone Soup's ``LinearGaussian`` position model; its tracks' states are
+  Stone Soup's ``LinearGaussian`` position model or for aimed radars (``radars``); its
+  tracks' states are
   :class:`BernoulliGaussianState`\ s with the existence probability, their ids the labels.
 
 - :class:`MapRect` ``(x0, y0, width, height)``: the map in world coordinates with any origin;
@@ -54,13 +61,15 @@ the manager's ``dt``.
 """
 
 from ._actionables import (AimAction, AimActionGenerator, LatticeMovable, LatticeMoveAction,
-                           LatticeMoveActionGenerator, SensorplanRadar, set_aim_candidates)
+                           LatticeMoveActionGenerator, SearchSector, SensorplanRadar,
+                           set_aim_candidates)
 from ._convert import (STONESOUP_ORDER, from_gaussian_state, from_stonesoup_cov,
                        from_stonesoup_mean, from_tracks, ground_index, ordered_tracks,
                        to_gaussian_state, to_ground_truth_state, to_stonesoup_cov,
                        to_stonesoup_mean, to_tracks)
 from ._detection import ordered_detections
-from ._manager import MutualInformationReward, SensorplanManager, execute
+from ._manager import (MutualInformationReward, SearchAndTrackReward, SensorplanManager,
+                       execute)
 from ._measurement import RadarMeasurementModel
 from ._pmb import BernoulliGaussianState, PMBStoneSoupTracker, gaussian_cell_masses
 from ._serialise import yaml_init
@@ -69,7 +78,8 @@ from ._world import DEFAULT_WORLD, MapRect
 __all__ = ["DEFAULT_WORLD", "STONESOUP_ORDER", "AimAction", "AimActionGenerator",
            "BernoulliGaussianState", "PMBStoneSoupTracker", "gaussian_cell_masses",
            "LatticeMovable", "LatticeMoveAction", "LatticeMoveActionGenerator", "MapRect",
-           "MutualInformationReward", "RadarMeasurementModel", "SensorplanManager",
+           "MutualInformationReward", "RadarMeasurementModel", "SearchAndTrackReward",
+           "SearchSector", "SensorplanManager",
            "SensorplanRadar", "execute", "from_gaussian_state", "from_stonesoup_cov",
            "from_stonesoup_mean", "from_tracks", "ground_index", "ordered_detections",
            "ordered_tracks", "set_aim_candidates", "to_gaussian_state",

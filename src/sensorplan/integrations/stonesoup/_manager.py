@@ -27,9 +27,12 @@ from ...errors import ConfigError
 from ...models.motion import cv_matrices
 from ...planners import PlanResult, checked_plan, make_planner
 from ...planners.objective import PLANNING_DETECTIONS
-from ...planners.problem import POSITION_TOL, PlanningProblem, move_vectors
+from ...planners import search
+from ...planners.problem import (POSITION_TOL, SEARCH_MODES, Plan, PlanningProblem,
+                                 move_vectors)
 
-from ._actionables import LatticeMovable, SensorplanRadar
+from ._actionables import (AimAction, LatticeMoveAction, LatticeMovable, SearchSector,
+                           SensorplanRadar)
 from ._convert import from_tracks, ordered_tracks
 from ._world import MapRect, check_inside
 
@@ -39,6 +42,13 @@ from ._world import MapRect, check_inside
 
 #: Largest difference (s) between ``choose_actions``' timestamp and the end of the first epoch.
 TIME_TOL = 1e-6
+
+
+def existence_of(tracks: Sequence[Track]) -> FloatArray:
+    """``(M,)`` each track's existence probability: its state's ``existence_probability``
+    (a :class:`BernoulliGaussianState`'s), else 1."""
+    return np.array([float(getattr(t.state, "existence_probability", 1.0)) for t in tracks],
+                    dtype=float).reshape(-1)
 
 
 
@@ -58,7 +68,18 @@ class SensorplanManager(SensorManager):
       planner's heading.
 
     With no track at all (a tracker before its first initiation) it returns the
-    stay-and-hold configuration: every platform stays, every radar keeps its aim and heading.
+    stay-and-hold configuration: every platform stays, every radar keeps its aim and heading
+    (with search off; with search on it plans where to search).
+
+    Search (``search="on"``): a look may also point at one of each radar's
+    ``search_sectors``, and the planner maximises Phi with search: each track's information
+    weighted by its existence probability (a :class:`BernoulliGaussianState`'s, else 1) plus
+    ``w mu``, the expected number of undetected targets the looks find
+    (:mod:`sensorplan.planners.search`), from ``tracker``'s undetected intensity now
+    (:meth:`PMBStoneSoupTracker.undetected_intensity`; its map must be the platforms'). A
+    search look comes back as an :class:`AimAction` at a :class:`SearchSector` with its
+    ``bearing``. The planner must plan search looks (``brute-force``, ``pg``,
+    ``sequential-greedy``, ``random``).
 
     Tracks: Stone Soup's constant-velocity states ``[x, vx, y, vy]`` or
     ``[x, vx, y, vy, z, vz]`` as they are; any other layout names its ground position and
@@ -122,6 +143,13 @@ class SensorplanManager(SensorManager):
     velocity_mapping: Sequence[int] | None = Property(
         default=None, doc="Indices of ground vx and vy in the tracks' states; None: (1, 3) "
                           "for Stone Soup's 4-D and 6-D constant-velocity states.")
+    search: str = Property(default="off", doc="``on``: looks may also search the radars' "
+                                              "``search_sectors`` and Phi values search.")
+    tracker: Any = Property(default=None, doc="The PMBStoneSoupTracker whose undetected "
+                                              "intensity search plans from (search on).")
+    search_weight: float | None = Property(
+        default=None, doc="w, nats a newly found target is worth; None: the information of "
+                          "its first detection (first_detection_weight).")
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
@@ -131,6 +159,12 @@ class SensorplanManager(SensorManager):
         if self.planning_detection not in PLANNING_DETECTIONS:
             raise ConfigError("planning_detection", f"must be one of {PLANNING_DETECTIONS}, "
                                                     f"got {self.planning_detection!r}")
+        if self.search not in SEARCH_MODES:
+            raise ConfigError("search", f"must be one of {SEARCH_MODES}, got {self.search!r}")
+        if self.search == "on" and not callable(getattr(self.tracker, "undetected_intensity",
+                                                        None)):
+            raise ConfigError("tracker", "search on needs the tracker whose undetected "
+                                         "intensity it plans from (a PMBStoneSoupTracker)")
         self._planner = make_planner(self.planner, **dict(self.planner_params))
         self._rng = (self.rng if isinstance(self.rng, np.random.Generator)
                      else np.random.default_rng(self.rng))
@@ -199,15 +233,25 @@ class SensorplanManager(SensorManager):
         """The planning problem of the current tracks and platforms (in the planner's frame:
         world coordinates minus the map's origin), and the track order."""
         ordered = ordered_tracks(tracks)
-        if not ordered:
+        searching = self.search == "on"
+        if not ordered and not searching:
             raise ValueError("a planning problem needs at least one track (choose_actions "
                              "returns the stay-and-hold configuration instead)")
         times = {t.state.timestamp for t in ordered}
-        if len(times) != 1:
+        if len(times) > 1:
             raise ValueError("all tracks must be at the same time (predict them first)")
         means, covs = from_tracks(ordered, self.position_mapping, self.velocity_mapping)
         pairs = self.pairs()
         world = self.world_of(pairs)
+        search: dict[str, Any] = {}
+        if searching:
+            if self.tracker.world != world:
+                raise ValueError(f"the tracker's map {self.tracker.world} is not the "
+                                 f"platforms' {world}")
+            search = {"search": "on",
+                      "search_sectors": tuple(int(r.search_sectors) for _, r in pairs),
+                      "undetected": self.tracker.undetected_intensity(self.search_weight),
+                      "existence": existence_of(ordered)}
         start = np.stack([r.ground_position for _, r in pairs])
         means[:, :2] -= world.origin          # exact for the default origin (0, 0)
         sensors = tuple(dataclasses.replace(
@@ -220,7 +264,7 @@ class SensorplanManager(SensorManager):
             horizon=int(self.horizon), steps_per_epoch=int(self.steps_per_epoch),
             dt=float(self.dt), process_noise=float(self.process_noise), world=world.core,
             visibility=self.visibility, objective=self.objective,
-            planning_detection=self.planning_detection)
+            planning_detection=self.planning_detection, **search)
         return problem, ordered
 
     def choose_actions(self, tracks: Iterable[Track], timestamp: datetime.datetime,
@@ -244,7 +288,7 @@ class SensorplanManager(SensorManager):
         ordered = ordered_tracks(tracks)
         pairs = self.pairs()
         config: dict[Any, list[Action]] = {}
-        if not ordered:
+        if not ordered and self.search != "on":
             self.world_of(pairs)
             for platform, radar in pairs:
                 (move_gen,) = platform.actions(timestamp)
@@ -255,7 +299,8 @@ class SensorplanManager(SensorManager):
             self._last_start = None
             return [config]
         problem, ordered = self.build_problem(ordered)
-        self.check_timestamp(ordered[0].state.timestamp, timestamp)
+        if ordered:
+            self.check_timestamp(ordered[0].state.timestamp, timestamp)
         start = np.stack([r.ground_position for _, r in pairs])     # world, as planned from
         result = checked_plan(self._planner, problem, self._rng)
         # Aim points from the world-frame means, as the planner aims in its frame.
@@ -271,7 +316,11 @@ class SensorplanManager(SensorManager):
             aim_gen = next(g for g in radar.actions(timestamp) if g.attribute == "aim")
             j = int(result.plan.targets[i, 0])
             config[platform] = [move]
-            config[radar] = [aim_gen.action(aims[j], target=ordered[j])]
+            if j >= 0:
+                config[radar] = [aim_gen.action(aims[j], target=ordered[j])]
+            else:
+                assert result.plan.sectors is not None
+                config[radar] = [aim_gen.sector_action(int(result.plan.sectors[i, 0]))]
         self.last_problem, self.last_result, self.last_tracks = problem, result, ordered
         self._last_start = start
         return [config]
@@ -405,3 +454,107 @@ class MutualInformationReward(RewardFunction):
             u.append(s)
             updated.add(u)
         return reward, updated
+
+
+# --------------------------------------------------------------------------------------------
+# A reward that values search, for Stone Soup's sensor managers
+# --------------------------------------------------------------------------------------------
+
+
+class SearchAndTrackReward(RewardFunction):
+    r"""Phi with search of a configuration's looks, for Stone Soup's sensor managers.
+
+    .. math:: \sum_j r_j I_j + w \mu
+
+    Stone Soup's rewards see only the tracks; this one also sees ``tracker``'s undetected
+    intensity (:meth:`PMBStoneSoupTracker.undetected_intensity`), so a look at a search
+    sector is worth the undetected targets it is expected to find. It is sensorplan's
+    potential with search on (:func:`sensorplan.planners.search.potential`) over one step
+    of ``dt``: ``I_j`` the information of track j (existence ``r_j`` from a
+    :class:`BernoulliGaussianState`, else 1), ``mu`` the expected number of undetected
+    targets the looks find, ``w`` ``search_weight`` (None: the information of a first
+    detection).
+
+    The configuration's radars (:class:`SensorplanRadar`, given themselves or by their
+    platform) look as their :class:`AimAction` says: at a track (by its id), or at a
+    :class:`SearchSector`; a radar with a hold action, or aiming at nothing in ``tracks``,
+    does not look. Each radar looks from its platform's position after the configuration's
+    :class:`LatticeMoveAction` for that platform (else from where it is), with the heading
+    the rule gives from its heading now. Every radar's platform must be a
+    :class:`LatticeMovable` on the tracker's map.
+    """
+
+    tracker: Any = Property(doc="The PMBStoneSoupTracker whose undetected intensity counts.")
+    dt: float = Property(default=1.0, doc="Step (s) to the looks.")
+    process_noise: float = Property(default=0.05, doc="q (m^2/s^3) of the planning model.")
+    visibility: str = Property(default="probabilistic", doc="Visibility mode.")
+    planning_detection: str = Property(default="aware", doc="``aware`` or ``ignore``.")
+    search_weight: float | None = Property(default=None, doc="w (nats per found target).")
+    position_mapping: Sequence[int] | None = Property(default=None,
+                                                      doc="Ground x, y in the states.")
+    velocity_mapping: Sequence[int] | None = Property(default=None,
+                                                      doc="Ground vx, vy in the states.")
+
+    def problem_and_plan(self, config: Mapping[Any, Sequence[Action]], tracks: Iterable[Track]
+                         ) -> tuple[PlanningProblem, Plan]:
+        """The one-step planning problem and plan (core frame) a configuration means."""
+        ordered = ordered_tracks(tracks)
+        index = {str(t.id): j for j, t in enumerate(ordered)}
+        moves: dict[int, LatticeMoveAction] = {}
+        aims: dict[int, AimAction] = {}
+        radars: list[SensorplanRadar] = []
+        for actionable, actions in config.items():
+            for action in actions:
+                if isinstance(action, LatticeMoveAction):
+                    moves[id(getattr(actionable, "movement_controller", actionable))] = action
+                elif isinstance(action, AimAction):
+                    aims[id(actionable)] = action
+            for radar in _radars_of(actionable):
+                if all(radar is not r for r in radars):
+                    radars.append(radar)
+        if not radars:
+            raise ValueError("the configuration holds no SensorplanRadar")
+        world = self.tracker.world
+        N = len(radars)
+        start, moved = np.zeros((N, 2)), np.full((N, 1, 2), np.nan)
+        targets, sectors = np.full((N, 1), -1), np.full((N, 1), -1)
+        params = []
+        for i, radar in enumerate(radars):
+            movable = radar.movement_controller
+            if not isinstance(movable, LatticeMovable) or movable.world != world:
+                raise TypeError("every radar must sit on a platform with a LatticeMovable "
+                                "on the tracker's map")
+            start[i] = radar.ground_position
+            params.append(dataclasses.replace(radar.params, moves=tuple(
+                float(s) for s in movable.move_distances)))
+            aim = aims.get(id(radar))
+            if aim is None or aim.hold:
+                continue
+            if isinstance(aim.target, SearchSector):
+                sectors[i, 0] = aim.target.index
+            elif str(getattr(aim.target, "id", None)) in index:
+                targets[i, 0] = index[str(aim.target.id)]
+            else:
+                continue
+            move = moves.get(id(movable))
+            end = (movable.ground_position if move is None
+                   else np.asarray(move.target_value, dtype=float).ravel()[:2])
+            step = end - movable.ground_position
+            moved[i, 0] = start[i] + step - world.origin
+        means, covs = from_tracks(ordered, self.position_mapping, self.velocity_mapping)
+        means[:, :2] -= world.origin
+        problem = PlanningProblem(
+            means=means, covs=0.5 * (covs + np.swapaxes(covs, -1, -2)),
+            positions=start - world.origin, headings=np.array([r.heading for r in radars]),
+            sensors=tuple(params), horizon=1, dt=float(self.dt),
+            process_noise=float(self.process_noise), world=world.core,
+            visibility=self.visibility, planning_detection=self.planning_detection,
+            existence=existence_of(ordered), search="on",
+            search_sectors=tuple(int(r.search_sectors) for r in radars),
+            undetected=self.tracker.undetected_intensity(self.search_weight))
+        return problem, Plan(moved, targets, sectors)
+
+    def __call__(self, config: Mapping[Any, Sequence[Action]], tracks: Iterable[Track],
+                 metric_time: datetime.datetime, *args: Any, **kwargs: Any) -> float:
+        problem, plan = self.problem_and_plan(config, tracks)
+        return float(search.potential(problem, plan)[0])
