@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import datetime
 import math
+import runpy
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -32,6 +34,7 @@ from sensorplan.tracking.base import Looks  # noqa: E402
 from sensorplan.tracking.pmb.map_tracker import MapModel  # noqa: E402
 from sensorplan.tracking.pmb.tracker import PMBTracker  # noqa: E402
 
+ROOT = Path(__file__).resolve().parents[2]
 T0 = datetime.datetime(2026, 1, 1)
 T1 = T0 + datetime.timedelta(seconds=1)
 WORLD = ss.MapRect(-300.0, -300.0, 600.0, 600.0)     # an origin off 0: frames must agree
@@ -295,3 +298,11 @@ def test_search_needs_the_tracker_on_the_platforms_map(rng):
     with pytest.raises(ValueError, match="map"):
         mgr.choose_actions(set(), T1)
 
+
+def test_example_runs_reduced():
+    out = runpy.run_path(str(ROOT / "examples" / "stonesoup_search.py"), run_name="example")
+    table = out["compare"](seeds=(0,), steps=6)
+    assert set(table) == set(out["METHODS"])
+    for row in table.values():
+        assert np.isfinite(row["gospa"]).all() and (row["gospa"] >= 0).all()
+        assert ((row["found"] >= 0) & (row["found"] <= row["born"])).all()
