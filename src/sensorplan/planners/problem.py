@@ -378,8 +378,10 @@ class PlanningProblem:
     def validate(self) -> None:
         """Check the semantic rules of a decision; raise :class:`ConfigError` naming the field."""
         M = len(self.means)
-        if M < 1:
-            raise ConfigError("targets", "at least one target is required")
+        if M < 1 and self.search != "on":
+            # With search on, a decision may have no track yet: every look searches.
+            raise ConfigError("targets", "at least one target is required (with search "
+                              "off)")
         if self.means.shape != (M, 4):
             raise ConfigError("targets.mean", f"expected shape ({M}, 4), got {self.means.shape}")
         if self.covs.shape != (M, 4, 4):
@@ -640,9 +642,9 @@ def check_plan(problem: PlanningProblem, plan: Plan, complete: bool = True) -> N
     if plan.searches:
         _check_sectors(problem, plan)
     lowest = 0 if complete else -1
-    # A search look stands in for a target here (checked above).
-    targets = np.where(plan.sectors >= 0, 0, plan.targets)
-    bad = (targets >= M) | (targets < lowest)
+    # A search look has no target (its sector is checked above).
+    targets = plan.targets
+    bad = (plan.sectors < 0) & ((targets >= M) | (targets < lowest))
     if bad.any():
         i, k = (int(v) for v in np.argwhere(bad)[0])
         j = int(targets[i, k])
