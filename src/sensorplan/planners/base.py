@@ -50,6 +50,10 @@ class PlanResult:
     trace : tuple of float         Phi after each sweep (diagnostics)
     budget_exhausted : bool        the time budget stopped the planner before it finished
                                    (the plan is then the best complete one it had found)
+    found : float or None          with search on: mu, the expected number of undetected
+                                   targets the plan finds (None with search off)
+    search_weight : float or None  with search on: w, nats per target found; Phi's search
+                                   term is ``search_weight * found``
     """
 
     planner: str
@@ -63,6 +67,15 @@ class PlanResult:
     seconds: float = 0.0
     trace: tuple[float, ...] = field(default=())
     budget_exhausted: bool = False
+    found: float | None = None
+    search_weight: float | None = None
+
+    @property
+    def search_term(self) -> float | None:
+        """Phi's search term ``w mu`` (nats); None with search off."""
+        if self.found is None or self.search_weight is None:
+            return None
+        return self.search_weight * self.found
 
 
 class Planner(Protocol):
@@ -157,7 +170,7 @@ def finish(name: str, ctx: Context | PlanningProblem, plan: Plan, start: float,
         sev = search.evaluate(search.prepare(problem), plan)
         return PlanResult(name, plan, sev.potential, sev.information, sev.headings,
                           sev.measurements, converged, sweeps, anytime.clock() - start, trace,
-                          budget_exhausted)
+                          budget_exhausted, sev.found, sev.weight)
     if isinstance(ctx, PlanningProblem):
         ctx = _prepare(ctx)
     ev = evaluate(ctx, plan)

@@ -20,8 +20,8 @@ from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..limits import MAX_BUILDINGS, RANGES, check_count
 from ..models.sensors import SensorParams
-from .objective import (OBJECTIVES, PLANNING_DETECTIONS, VISIBILITY_MODES,  # noqa: F401
-                        Objective, Visibility)
+from .objective import (OBJECTIVES, PLANNING_DETECTIONS, SEARCH_MODES,  # noqa: F401
+                        VISIBILITY_MODES, Objective, Visibility)
 
 #: The 8 lattice directions in move order.
 DIRECTIONS = np.array([(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)],
@@ -206,11 +206,6 @@ def _build_lattice(p0: FloatArray, moves: FloatArray, K: int,
     child: list[IntArray] = [np.zeros((0, len(moves)), dtype=np.int64)]
     child += [child_flat[start[k - 1]:start[k]] for k in range(1, K + 1)]
     return Lattice(positions, parent_move, child, moves)
-
-
-#: Values of :attr:`PlanningProblem.search`: ``off`` plans on tracks only, ``on`` adds search
-#: looks and the value of the targets they are expected to find.
-SEARCH_MODES = ("off", "on")
 
 
 @dataclass(frozen=True)

@@ -36,8 +36,8 @@ from typing import Any
 from ..errors import ConfigError
 from ..limits import (MAX_PLAN_STEPS, MAX_STEPS, RANGES, SIZE_SETTINGS, Param, Range,
                       coerce)
-from ..planners.objective import (OBJECTIVES, PLANNING_DETECTIONS, PLANNING_OCCLUSIONS,
-                                  VISIBILITY_MODES)
+from ..planners.objective import (MAX_SECTORS, OBJECTIVES, PLANNING_DETECTIONS,
+                                  PLANNING_OCCLUSIONS, SEARCH_MODES, VISIBILITY_MODES)
 from ..tracking.registry import tracker_kinds
 
 EXECUTIONS = ("ol", "olf")
@@ -457,6 +457,8 @@ class RunSettings(_Settings):
     objective : {"cumulative", "terminal"}  summed over the horizon (default) or at its end
     planning_detection : {"aware", "ignore"}
     planning_occlusion : {"aware", "ignore"}
+    search : {"off", "on"}         plan search looks (needs ``tracker.kind = "pmb"``)
+    search_sectors : int           each sensor's search sectors (> 0 with search on)
     steps : int                    simulation steps S (>= 1)
     gospa_c : float                GOSPA cut-off c (m, > 0) of the run's set metrics
     tracker : TrackerSettings      (a mapping is accepted and converted)
@@ -524,6 +526,22 @@ class RunSettings(_Settings):
         help="aware: a planned look counts with the probability that no building hides the "
              "target (no change without buildings); ignore: the planner does not know the "
              "buildings.")
+    search: str = setting(
+        "off", section="planning", cli=("--search",), metavar="MODE",
+        brief="Plan search looks for targets not yet tracked: off or on (needs --tracker pmb "
+              "and --search-sectors)",
+        choices=SEARCH_MODES, noun="search mode",
+        help="off: looks point at tracks only; on: a look may also point at a search sector, "
+             "and the planning objective adds the expected number of undetected targets the "
+             "plan finds, each worth the information of its first detection (needs "
+             "tracker.kind = pmb, whose undetected intensity says where they may be).")
+    search_sectors: int = setting(
+        0, section="planning", cli=("--search-sectors",), metavar="S", label="search sectors",
+        brief="Search sectors of every sensor with --search on (> 0)",
+        bounds=Range(0, MAX_SECTORS),
+        help="Search sectors of every sensor with search on: that many absolute bearings "
+             "equally spaced around its platform (must be > 0 with search on; the search "
+             "preset sets 6, which its radar's 60-degree beam tiles the circle with).")
     steps: int = setting(
         100, section="run", cli=("--steps", "-n"), metavar="N", bounds=Range(1, MAX_STEPS),
         brief="Simulation steps of the run",
@@ -543,12 +561,25 @@ class RunSettings(_Settings):
             check_fields(self, unchecked=("planner",))
             return
         check_fields(self)
+        self._check_search()
         # Checking the settings instantiates the planner once: bad values show now, not
         # mid-study.
         from ..planners.registry import check_settings
 
         object.__setattr__(self, "planner_params", check_settings(
             self.planner, self.planner_params, "planner_params", keep_none=True))
+
+    def _check_search(self) -> None:
+        """Search on needs a tracker that keeps an undetected intensity, and sectors."""
+        if self.search != "on":
+            return
+        if self.tracker.kind != "pmb":
+            raise ConfigError("search", f"needs a tracker that keeps the intensity of "
+                              f"undetected targets (tracker.kind = 'pmb'), got "
+                              f"{self.tracker.kind!r}")
+        if self.search_sectors < 1:
+            raise ConfigError("search_sectors", "must be > 0 with search on (the number of "
+                              "bearings a search look may point at)")
 
 
 def all_settings(cls: type = RunSettings, prefix: str = ""
