@@ -15,7 +15,7 @@ that naming a planner (the registry, ``sensorplan --help``) does not load the ke
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, ClassVar, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
@@ -79,7 +79,13 @@ class PlanResult:
 
 
 class Planner(Protocol):
-    """``plan(problem, rng) -> PlanResult``; ``rng`` overrides the planner's own seed."""
+    """``plan(problem, rng) -> PlanResult``; ``rng`` overrides the planner's own seed.
+
+    A planner that plans search looks (a problem whose ``search`` is on) says so with the
+    class attribute ``plans_search = True`` (:func:`plans_search`); any other must refuse
+    such a problem with a :class:`~sensorplan.errors.ConfigError` on ``search``
+    (:func:`refuse_search`). ``check_planner`` holds both to it.
+    """
 
     name: ClassVar[str]
 
@@ -130,8 +136,15 @@ def prepare(problem: PlanningProblem) -> Context:
     return _prepare(problem)
 
 
-#: Planners that plan with search looks (the others refuse a problem whose search is on).
+#: The built-in planners that plan with search looks (``plans_search``; the others refuse a
+#: problem whose search is on).
 SEARCH_PLANNERS = ("brute-force", "pg", "random", "sequential-greedy")
+
+
+def plans_search(planner: Any) -> bool:
+    """Whether a planner (class or object) declares that it plans search looks: its class
+    attribute ``plans_search`` (False when it has none)."""
+    return getattr(planner, "plans_search", False) is True
 
 
 def refuse_search(name: str, problem: PlanningProblem) -> None:
@@ -179,4 +192,5 @@ def finish(name: str, ctx: Context | PlanningProblem, plan: Plan, start: float,
 
 
 __all__ = ["PLANNERS", "SEARCH_PLANNERS", "PlanResult", "Planner", "RngLike", "finish",
-           "make_planner", "make_rng", "prepare", "refuse_search", "register", "start_clock"]
+           "make_planner", "make_rng", "plans_search", "prepare", "refuse_search", "register",
+           "start_clock"]
