@@ -181,7 +181,9 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
     tracker = ", ".join(f"{meta.label or f.name} {getattr(s.tracker, f.name)}"
                         for _, path, f, meta in all_settings()
                         if path.startswith("tracker.") and f.name not in unused)
-    searching = f"search on ({s.search_sectors} sectors), " if s.search == "on" else ""
+    counts = s.search_sectors
+    sectors = str(counts) if isinstance(counts, int) else "/".join(str(c) for c in counts)
+    searching = f"search on ({sectors} sectors), " if s.search == "on" else ""
     console.print(tracker if scan is not None else
                   f"visibility {s.visibility}, objective {s.objective}, {searching}{tracker}",
                   highlight=False)
@@ -276,8 +278,8 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
                   stat(conv, ".0%"), stat(sweeps, ".1f"))
     console.print(plans)
     if episode.search_term is not None:
-        sectors = np.asarray(episode.searched)[1:]             # (S, N)
-        console.print(f"search: {int((sectors >= 0).sum())} of {sectors.size} sensor-steps "
+        searched = np.asarray(episode.searched)[1:]            # (S, N)
+        console.print(f"search: {int((searched >= 0).sum())} of {searched.size} sensor-steps "
                       f"looked at a search sector; Phi's search term w mu per decision: mean "
                       f"{stat(np.asarray(episode.search_term), '.3f')} nats (mu, the "
                       f"undetected targets a plan expects to find: mean "

@@ -49,7 +49,7 @@ from ..tracking.registry import tracker_class
 from .episode import Episode, Recorder, _is_int
 from .scenario import Scenario, draw_initial, make_population
 from .sensing import Sensing
-from .settings import EXECUTIONS, RunSettings, TrackerSettings
+from .settings import EXECUTIONS, RunSettings, TrackerSettings, sector_counts
 
 __all__ = ["EXECUTIONS", "STREAMS", "Episode", "RunSettings", "run_episode", "run_streams"]
 #: Names of the run's independent random streams, in spawn order (a new stream is only ever
@@ -239,7 +239,8 @@ class _Schedule:
         if self.searching:
             from ..planners.search import sector_bearings
 
-            self.sector_bearings = sector_bearings(settings.search_sectors)
+            self.sector_bearings = [sector_bearings(S) for S in
+                                    sector_counts(settings.search_sectors, N)]
 
     def epoch(self, t: int, tracker: Tracker, record: Recorder) -> None:
         """Start the epoch that begins with step ``t`` (deciding first if a plan is due)."""
@@ -267,8 +268,8 @@ class _Schedule:
         else:
             bearing = np.zeros(len(self.positions))
         if search.any():
-            bearing = np.where(search, self.sector_bearings[np.maximum(self.sectors, 0)],
-                               bearing)
+            bearing = np.where(search, [b[s] if s >= 0 else 0.0 for b, s in
+                                        zip(self.sector_bearings, self.sectors)], bearing)
         self.headings = np.where(assigned, heading_rule(self.headings, bearing, self.max_turn),
                                  self.headings)
         self.epoch_index += 1
