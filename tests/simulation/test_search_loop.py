@@ -215,3 +215,69 @@ planner = "pg"
     got = {m.name: (m.settings.search, m.settings.search_sectors) for m in study.methods}
     assert got == {"searching": ("on", SEARCH_SECTORS), "twelve": ("on", 12),
                    "tracks": ("off", SEARCH_SECTORS)}
+
+
+PER_SENSOR = """
+look_detects = "all"
+births = "edges"
+birth_rate = 0.05
+initial_targets = 1
+
+[planning]
+planner = "pg"
+search = "on"
+search_sectors = SECTORS
+
+[tracker]
+kind = "pmb"
+
+[run]
+steps = 4
+seed = 1
+
+[[targets]]
+kind = "cv"
+
+[[sensors]]
+altitude = 490.0
+position = [100.0, 100.0]
+heading = 0.78
+
+[[sensors]]
+altitude = 510.0
+position = [500.0, 500.0]
+heading = -2.35
+"""
+
+
+def test_each_sensor_searches_its_own_sectors(tmp_path: Path) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text(PER_SENSOR.replace("SECTORS", "[3, 8]"))
+    cfg = load_simulation(path)
+    assert cfg.settings.search_sectors == (3, 8)
+    problems: list[Any] = []
+    real = run_module.checked_plan
+
+    def spy(planner: Any, problem: Any, rng: Any = None, decision: Any = None) -> Any:
+        result = real(planner, problem, rng, decision)
+        problems.append((problem, result))
+        return result
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(run_module, "checked_plan", spy)
+        ep = run_episode(cfg.scenario, cfg.settings, cfg.seed)
+    assert all(p.sector_counts == (3, 8) for p, _ in problems)
+    assert (ep.searched[1:] < np.array([3, 8])).all()
+    for d, (problem, result) in enumerate(problems):
+        t = int(ep.decision_steps[d]) + 1
+        planned = search.plan_headings(search.prepare(problem), result.plan)[:, 0]
+        np.testing.assert_allclose(ep.sensor_headings[t], planned, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("sectors", ["[3]", "[3, 8, 2]"])
+def test_one_count_per_sensor_or_one_for_all(capsys, tmp_path: Path, sectors: str) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text(PER_SENSOR.replace("SECTORS", sectors))
+    line = assert_bad_input(run(capsys, "simulate", path, "--out", tmp_path),
+                            "planning.search_sectors")
+    assert "one per sensor (2)" in line
