@@ -10,6 +10,11 @@ One run (:func:`run_episode`) alternates decisions and execution:
 - At the start of an epoch each platform moves to its planned position and turns (heading
   rule, at most ``max_turn``) toward its planned target's current estimate predicted to the
   epoch's first step; it keeps position, heading and target for the epoch's ``e`` steps.
+- With ``search = "on"`` the problem also holds the tracker's undetected intensity (the
+  tracker seam's :func:`~sensorplan.tracking.base.undetected_report`) and each sensor's
+  search sectors, a decision is taken even without a track, and a planned sector look turns
+  toward its sector's bearing instead (the looks detect every target in the beam); the
+  episode records each step's sector looks and each decision's mu and ``w mu``.
 - Every step: the targets move; the filters predict; every sensor whose target is truly in
   its field of view measures it (the radar model of :mod:`sensorplan.models.radar` at the true
   position: its noise-free measurement plus noise with ``R`` at the true position);
