@@ -281,3 +281,22 @@ def test_one_count_per_sensor_or_one_for_all(capsys, tmp_path: Path, sectors: st
     line = assert_bad_input(run(capsys, "simulate", path, "--out", tmp_path),
                             "planning.search_sectors")
     assert "one per sensor (2)" in line
+
+
+def test_a_study_method_with_one_count_too_few_is_named() -> None:
+    from sensorplan.errors import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        parse_study("""
+runs = 1
+steps = 5
+[scenario]
+preset = "search"
+[[methods]]
+name = "two"
+planner = "pg"
+search = "on"
+search_sectors = [6, 6]
+""")
+    assert err.value.field == "methods[0].search_sectors"
+    assert "one per sensor (3)" in err.value.message
