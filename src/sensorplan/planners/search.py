@@ -328,14 +328,44 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
         if not assigned[0, l] and l > 0:       # later epochs: the same for every candidate
             prev_ok = False
             continue
-        aim = ctx.aim[np.maximum(tgt[:, l], 0), kk - 1]
+        if ctx.M:
+            aim = ctx.aim[np.maximum(tgt[:, l], 0), kk - 1]
+            toward = np.arctan2(aim[:, 1] - pos[:, l, 1], aim[:, 0] - pos[:, l, 0])
+        else:                                   # no track: every look is a sector look
+            toward = np.zeros(A)
         b = np.where(sec[:, l] >= 0, sctx.bearings[i][np.maximum(sec[:, l], 0)]
-                     if sctx.bearings[i].size else 0.0,
-                     np.arctan2(aim[:, 1] - pos[:, l, 1], aim[:, 0] - pos[:, l, 0]))
+                     if sctx.bearings[i].size else 0.0, toward)
         h = heading_rule(h, b, turn) if prev_ok else heading_rule(theta0, b, kk * turn)
         th[:, l] = h
         prev_ok = True
-    # Tracks: every other look's information, plus each candidate's chain.
+    info = _candidate_track_information(sctx, plan, i, k, headings, pos, tgt, th)
+    # Search: every other look's miss probability, times each candidate's chain.
+    miss = np.ones((K, len(sctx.centres)))
+    for n in range(ctx.N):
+        ks = np.flatnonzero(plan.assigned[n])
+        if n == i:
+            ks = ks[ks < k - 1]
+        if ks.size:
+            miss[ks] *= 1.0 - detection(sctx, n, plan.positions[n, ks], headings[n, ks])
+    miss_c = np.broadcast_to(miss, (A,) + miss.shape).copy()
+    for l in range(L):
+        if assigned[0, l] or l == 0:
+            p = detection(sctx, i, pos[:, l], th[:, l])
+            miss_c[:, k - 1 + l] *= 1.0 - p
+    mu = expected_found(sctx, miss_c)
+    return info + sctx.weight * mu
+
+
+def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int,
+                                 headings: FloatArray, pos: FloatArray, tgt: IntArray,
+                                 th: FloatArray) -> FloatArray:
+    """The tracks' part of Phi ``(A,)`` for each candidate of player (i, k): every other
+    look's information plus the candidate's chain ``pos (A, L, 2)``, ``tgt (A, L)``, ``th
+    (A, L)`` over epochs k..K (0 without tracks)."""
+    ctx = sctx.ctx
+    A, L = tgt.shape
+    if ctx.M == 0:
+        return np.zeros(A)
     track = tgt >= 0
     others = plan.targets.copy()
     others[i, k - 1:] = -1
@@ -362,21 +392,7 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
     ld_bar = np.broadcast_to(ctx.ld_bar, (A, M, T + 1)).reshape(A * M, T + 1)
     info = phi_terms(ld_bar, ld_end, ld_sum, cumulative, measured(flat),
                      np.tile(ctx.existence, A)).reshape(A, M).sum(axis=1)
-    # Search: every other look's miss probability, times each candidate's chain.
-    miss = np.ones((K, len(sctx.centres)))
-    for n in range(ctx.N):
-        ks = np.flatnonzero(plan.assigned[n])
-        if n == i:
-            ks = ks[ks < k - 1]
-        if ks.size:
-            miss[ks] *= 1.0 - detection(sctx, n, plan.positions[n, ks], headings[n, ks])
-    miss_c = np.broadcast_to(miss, (A,) + miss.shape).copy()
-    for l in range(L):
-        if assigned[0, l] or l == 0:
-            p = detection(sctx, i, pos[:, l], th[:, l])
-            miss_c[:, k - 1 + l] *= 1.0 - p
-    mu = expected_found(sctx, miss_c)
-    return info + sctx.weight * mu
+    return info
 
 
 def _plan_track_W(sctx: SearchContext, plan: Plan, headings: FloatArray

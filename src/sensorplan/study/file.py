@@ -31,7 +31,8 @@ The method settings are :mod:`sensorplan.simulation.settings`' ``planning`` and 
 sections;
 each key is the method's value, else the one in ``[defaults]``, else the preset's
 (:data:`sensorplan.simulation.scenario.PRESET_SETTINGS`: ``search`` and the scan presets
-run the ``pmb`` tracker, the scan presets set ``gospa_c``), else the setting's default.
+run the ``pmb`` tracker, ``search`` sets ``search_sectors``, the scan presets set
+``gospa_c``), else the setting's default.
 A scan preset (``williams15``, ``vo12``) plans nothing: its methods name no planner and no
 other planning key (each refused, naming it).
 ``planner_params`` merge key by key: a method's own keys must be settings of its planner; a
@@ -255,6 +256,8 @@ def study_from_dict(data: Any, base_dir: str | Path | None = None) -> Study:
         preset = PRESET_SETTINGS.get(model.scenario.preset or "paper", {})
         if preset.get("tracker"):
             defaults["tracker"] = {**preset["tracker"], **defaults.get("tracker", {})}
+        for key, value in preset.get("planning", {}).items():
+            defaults.setdefault(key, value)
         for key, value in preset.get("run", {}).items():
             if key in STUDY_KEYS and key != "steps":
                 study_wide.setdefault(key, value)
