@@ -52,7 +52,7 @@ from pydantic import AfterValidator, create_model
 from ..config import files as io
 from ..config.planners import RUN_SEED
 from ..config.scenario import scenario_from_dict
-from ..config.simulate import preset_scenario
+from ..config.simulate import load_simulation, preset_scenario
 from ..config.validation import (PositiveInt, Seed, Strict, given, section_model,
                                  setting_annotation, setting_type, validate)
 from ..errors import ConfigError
@@ -145,7 +145,12 @@ def _study_scenario(model: StudyScenarioModel, base_dir: Path | None) -> tuple[S
         path = base_dir / path
     try:
         data = io.read_input(path, "scenario")
-        return scenario_from_dict(data), f"file {path}"
+        scenario = scenario_from_dict(data)
+        # Its [planning], [tracker] and [run] tables are not used, but they are checked as a
+        # run of the file would check them (its planner's settings against its planner):
+        # a key that means nothing is an error here too, not silently dropped.
+        load_simulation(path)
+        return scenario, f"file {path}"
     except ConfigError as exc:
         where = exc.field if exc.field == str(path) else f"{path}: {exc.field}"
         raise ConfigError("scenario.file", f"{where}: {exc.message}") from None
