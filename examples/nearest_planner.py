@@ -13,7 +13,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from sensorplan.planners import Plan, finish, move_vectors, register, start_clock
+from sensorplan.planners import (Plan, finish, move_vectors, refuse_search, register,
+                                 start_clock)
 
 
 @register
@@ -30,6 +31,7 @@ class NearestTargetPlanner:
             raise ValueError(f"standoff must be >= 0 m, got {self.standoff}")
 
     def plan(self, problem, rng=None):
+        refuse_search(self.name, problem)           # it looks at tracks only
         start = start_clock()                       # the planner's own time starts here
         N, K = problem.n_sensors, problem.horizon
         positions, targets = np.empty((N, K, 2)), np.empty((N, K), dtype=np.int64)

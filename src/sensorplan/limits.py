@@ -505,7 +505,7 @@ def lattice_sizes(moves: Sequence[float], horizon: int, width: float,
 
 #: The run settings the size limits read (:func:`check_run`); their callers name them in
 #: errors through :func:`sensorplan.simulation.settings.limit_fields`.
-SIZE_SETTINGS = ("horizon", "steps_per_epoch", "steps")
+SIZE_SETTINGS = ("horizon", "steps_per_epoch", "steps", "search_sectors")
 
 
 def check_decision_size(horizon: int, steps_per_epoch: int, n_targets: int,
@@ -625,6 +625,11 @@ def check_run(scenario: Any, settings: Any, fields: dict[str, str]) -> None:
         raise ConfigError(fields["steps"], f"must be at most {most} (the scripted "
                           f"{scenario.scripted} truth's length), got {settings.steps}")
     M, N = len(scenario.targets), len(scenario.sensors)
+    sectors = getattr(settings, "search_sectors", 0)
+    if getattr(settings, "search", "off") == "on" and not isinstance(sectors, int) \
+            and len(sectors) != N:
+        raise ConfigError(fields.get("search_sectors", "search_sectors"),
+                          f"must be one number or one per sensor ({N}), got {len(sectors)}")
     check_decision_size(settings.horizon, settings.steps_per_epoch, M,
                         [s.params.moves for s in scenario.sensors], scenario.world.width,
                         scenario.world.height, fields, len(scenario.buildings))

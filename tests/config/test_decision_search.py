@@ -96,3 +96,20 @@ def test_a_look_in_the_output_has_a_target_or_a_sector() -> None:
             assert look.get("target", -1) == t and look.get("sector", -1) == s
             kinds |= set(look) & {"target", "sector"}
     assert kinds == {"target", "sector"}
+
+
+def test_the_output_reports_the_search_term() -> None:
+    dec = decision_from_dict(searching())
+    res = dec.make_planner().plan(dec.problem)
+    out = result_to_dict(res, dec.problem.existence)
+    phi, info, mu = search.potential(dec.problem, res.plan)
+    assert out["found"] == pytest.approx(mu, rel=1e-12) and mu > 0
+    assert out["search_term"] == pytest.approx(phi - info.sum(), rel=1e-9)
+    assert out["potential"] == pytest.approx(sum(out["information"]) + out["search_term"],
+                                             rel=1e-12)
+    keys = list(out)
+    assert keys.index("existence") < keys.index("found") < keys.index("search_term") \
+        < keys.index("seconds")
+    off = decision_from_dict(json.loads(EXAMPLE_PROBLEM))
+    plain = result_to_dict(off.make_planner().plan(off.problem))
+    assert "found" not in plain and "search_term" not in plain

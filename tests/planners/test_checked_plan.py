@@ -11,7 +11,8 @@ import pytest
 from broken_planners import Incomplete, TargetOutOfRange, Teleport
 from sensorplan.planners import (CHECKS, CheckReport, PlanRejected, check_planner, checked_plan,
                                  make_planner)
-from sensorplan.planners.contract_problems import contract_problems, paper_problem
+from sensorplan.planners.contract_problems import (contract_problems, paper_problem,
+                                                 search_contract_problems)
 from sensorplan.planners.problem import Plan, PlanError, check_plan
 
 
@@ -98,10 +99,13 @@ def test_check_planner_reports_what_it_ran() -> None:
     assert isinstance(report, CheckReport)
     assert report.planner == "sequential-greedy"
     assert report.checks == tuple(CHECKS)
-    assert report.problems == tuple(c.label for c in contract_problems())
+    # It plans search looks: the searching problems too.
+    assert report.problems == tuple(c.label for c in contract_problems()
+                                    + search_contract_problems())
     assert report.declined == ()
     assert str(report).startswith(f"planner 'sequential-greedy' passed {len(CHECKS)} check(s) "
-                                  f"({', '.join(CHECKS)}) on {len(contract_problems())} "
+                                  f"({', '.join(CHECKS)}) on "
+                                  f"{len(contract_problems() + search_contract_problems())} "
                                   "problem(s)")
 
 
@@ -109,7 +113,8 @@ def test_check_planner_reports_the_problems_it_declined() -> None:
     # brute force declines the paper-size problems above its max_plans (allowed: not tiny).
     report = check_planner(make_planner("brute-force", max_plans=20_000),
                            checks=["feasible_complete_plan"])
-    paper = tuple(c.label for c in contract_problems() if not c.tiny)
+    paper = tuple(c.label for c in contract_problems() + search_contract_problems()
+                  if not c.tiny)
     assert report.checks == ("feasible_complete_plan",)
     assert report.declined == paper
     assert f"declining {len(paper)} as too large" in str(report)

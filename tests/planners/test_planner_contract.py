@@ -62,6 +62,7 @@ class Greedy:
     """Sequential greedy, the base that each broken planner below spoils in one way."""
 
     name: ClassVar[str] = "greedy-base"
+    plans_search: ClassVar[bool] = True
     seed: int | None = 0
 
     def plan(self, problem, rng=None) -> PlanResult:
@@ -133,6 +134,27 @@ class Mutates(Greedy):
         return super().plan(problem, rng)
 
 
+@dataclass(frozen=True)
+class HidesSearch(Greedy):
+    """Plans searching problems (with sector looks) but does not declare it."""
+
+    name: ClassVar[str] = "broken-search"
+    plans_search: ClassVar[bool] = False
+
+
+@dataclass(frozen=True)
+class RefusesOtherwise(Greedy):
+    """Does not declare search and refuses a searching problem, but on another field."""
+
+    name: ClassVar[str] = "broken-refusal"
+    plans_search: ClassVar[bool] = False
+
+    def plan(self, problem, rng=None) -> PlanResult:
+        if problem.searching:
+            raise ConfigError("planner.sectors", "no sectors here")
+        return super().plan(problem, rng)
+
+
 #: broken planner -> (the check it breaks, other checks it fails by the same defect)
 BROKEN = {
     Anonymous: ("result_well_formed", set()),
@@ -140,6 +162,8 @@ BROKEN = {
     Boasts: ("never_above_brute_force", {"potential_matches_recomputation"}),
     IgnoresSeed: ("same_seed_same_plan", set()),
     Mutates: ("input_not_mutated", set()),
+    HidesSearch: ("search_declared", set()),
+    RefusesOtherwise: ("search_declared", set()),
 }
 
 

@@ -345,3 +345,39 @@ def test_no_tracks_needs_search_on() -> None:
         PlanningProblem(means=np.zeros((0, 4)), covs=np.zeros((0, 4, 4)),
                         positions=np.array([[300.0, 300.0]]), headings=np.zeros(1),
                         sensors=(SWERLING,), horizon=1)
+
+
+def test_a_closed_loop_problems_mu_is_the_formulas() -> None:
+    """The problem the closed loop builds from the PMB tracker (the search preset before any
+    track: every look searches), with one ideal sensor and K = 2: mu of sector plans equals
+    the formula computed from scratch (:func:`independent_mu`)."""
+    import dataclasses
+
+    from sensorplan.config import load_simulation
+    from sensorplan.simulation import run as run_module
+    from sensorplan.simulation.run import run_episode
+
+    cfg = load_simulation(preset="search", overrides={"search": "on", "steps": 4, "seed": 5})
+    problems: list[PlanningProblem] = []
+    real = run_module.checked_plan
+
+    def spy(planner, problem, rng=None, decision=None):  # type: ignore[no-untyped-def]
+        problems.append(problem)
+        return real(planner, problem, rng, decision)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(run_module, "checked_plan", spy)
+        run_episode(dataclasses.replace(cfg.scenario, initial_targets=0), cfg.settings, 5)
+    loop = problems[-1]
+    assert loop.n_targets == 0 and loop.undetected is not None
+    assert loop.undetected.weights.sum() > 0 and loop.undetected.births.sum() > 0
+    ideal = dataclasses.replace(loop.sensors[0], detection="ideal", clutter_rate=0.0)
+    prob = dataclasses.replace(loop, sensors=(ideal,), positions=loop.positions[:1],
+                               headings=loop.headings[:1], search_sectors=6, horizon=2)
+    xy = np.repeat(prob.positions, 2, axis=0)
+    checked = 0
+    for seq in itertools.product(range(6), repeat=2):
+        mu = search.potential(prob, sector_plan(prob, [list(seq)]))[2]
+        assert mu == pytest.approx(independent_mu(prob, xy, np.array(seq)), rel=1e-12)
+        checked += mu > 0
+    assert checked > 0

@@ -30,9 +30,9 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
             assert "setting" in f.metadata or issubclass(tp, _Settings), f.name
     paths = [path for _, path, _, _ in DECLARED]
     assert paths == ["planner", "planner_params", "horizon", "steps_per_epoch", "execution",
-                     "visibility", "objective", "planning_detection", "planning_occlusion", "steps",
-                     "gospa_c", "tracker.kind", "tracker.miss_update", "tracker.model",
-                     "tracker.process_noise",
+                     "visibility", "objective", "planning_detection", "planning_occlusion",
+                     "search", "search_sectors", "steps", "gospa_c", "tracker.kind",
+                     "tracker.miss_update", "tracker.model", "tracker.process_noise",
                      "tracker.mode_process_noise", "tracker.switching", "tracker.gate",
                      "tracker.gate_probability", "tracker.reacquire", "tracker.association",
                      "tracker.known_map", "tracker.known_buildings",
@@ -132,7 +132,8 @@ def test_values_are_normalised_and_round_trip_through_dicts() -> None:
     assert d == {"planner": "random", "planner_params": {"seed": 2}, "horizon": 3,
                  "steps_per_epoch": 1, "execution": "olf", "visibility": "probabilistic",
                  "objective": "cumulative", "planning_detection": "aware",
-                 "planning_occlusion": "aware", "steps": 100, "gospa_c": 50.0}
+                 "planning_occlusion": "aware", "search": "off", "search_sectors": 0,
+                 "steps": 100, "gospa_c": 50.0}
     assert tracker["miss_update"] == "none"
     assert tracker == json.loads(json.dumps(
         {f.name: getattr(TrackerSettings(), f.name)
@@ -154,7 +155,7 @@ def test_file_tables_are_strict() -> None:
              ({"horizn": 2}, "horizn", "unknown key (did you mean 'horizon'?); allowed: "
                                        "planner, planner_params, horizon, steps_per_epoch, "
                                        "execution, visibility, objective, planning_detection, "
-                                       "planning_occlusion"),
+                                       "planning_occlusion, search, search_sectors"),
              ({"planner_params": ["alpha"]}, "planner_params", "must be a table")]
     for data, field, message in cases:
         with pytest.raises(ConfigError) as info:
@@ -230,13 +231,14 @@ def test_the_size_limits_name_each_setting_as_its_input_spells_it() -> None:
     assert RUN_FIELDS == {"horizon": "planning.horizon",
                           "steps_per_epoch": "planning.steps_per_epoch", "targets": "targets",
                           "sensors": "sensors", "moves": "sensors[{i}].moves",
-                          "steps": "run.steps"}
+                          "steps": "run.steps", "search_sectors": "planning.search_sectors"}
     assert DECISION_FIELDS == {"horizon": "horizon", "steps_per_epoch": "steps_per_epoch",
                                "targets": "targets", "sensors": "sensors",
-                               "moves": "sensors[{i}].moves", "steps": "steps"}
+                               "moves": "sensors[{i}].moves", "steps": "steps",
+                               "search_sectors": "search_sectors"}
     assert limit_fields(lambda key, s: f"<{s.section}>{key}") == {
         "horizon": "<planning>horizon", "steps_per_epoch": "<planning>steps_per_epoch",
-        "steps": "<run>steps"}
+        "steps": "<run>steps", "search_sectors": "<planning>search_sectors"}
 
 
 def test_unused_names_what_the_tracker_ignores() -> None:

@@ -680,3 +680,23 @@ def test_a_study_directory_written_before_gospa_c_is_the_same_study(tmp_path: Pa
                         "planner = \"random\"\n")
     with pytest.raises(ConfigError, match=r"gospa_c \(50.0 -> 20.0\)"):
         studies.run_study(other, tmp_path, workers=1)
+
+
+def test_a_scenario_files_unused_planner_settings_are_still_checked(tmp_path) -> None:
+    # Its [planning] table is not used (the methods name their planners), but a key its own
+    # planner does not take was accepted without a word; a run of the file refuses it.
+    from sensorplan.errors import ConfigError
+    from sensorplan.study.file import parse_study
+
+    text = (ROOT / "configs" / "paper.toml").read_text()
+    good = text
+    text = text.replace("[planning.planner_params]", "[planning.planner_params]\nbogus = 3", 1)
+    (tmp_path / "scenario.toml").write_text(text)
+    study = 'runs = 1\nsteps = 2\n[scenario]\nfile = "scenario.toml"\n' \
+            '[[methods]]\nname = "rnd"\nplanner = "random"\n'
+    with pytest.raises(ConfigError) as exc:
+        parse_study(study, base_dir=tmp_path)
+    assert exc.value.field == "scenario.file"
+    assert "planning.planner_params.bogus" in exc.value.message
+    (tmp_path / "scenario.toml").write_text(good)
+    assert parse_study(study, base_dir=tmp_path).methods[0].name == "rnd"

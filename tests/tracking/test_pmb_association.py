@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 
 from pmb_reference import lbp_dense, lbp_generic
 from sensorplan.tracking.pmb import association
+from sensorplan.tracking.pmb.tracker import MIN_WEIGHT
 from sensorplan.tracking.pmb.association import (association_components, association_exact,
                                                  association_lbp)
 
@@ -392,3 +393,21 @@ def test_bad_weights_are_refused(solve, w_miss, w_det, w_new, match) -> None:
 def test_bad_iteration_settings_are_refused(kw, match) -> None:
     with pytest.raises(ValueError, match=match):
         association_lbp([0.5], [[1.0]], [1.0], **kw)
+
+
+@pytest.mark.parametrize("solve", [association_lbp, association_exact])
+def test_a_sure_track_and_a_sure_detection_stay_finite(solve) -> None:
+    # Ideal detection (P_d = 1) and no false alarms: a Bernoulli surely there and surely
+    # detectable (r = 1, Pbar = 1) and a detection that neither clutter nor the undetected
+    # intensity can explain both get the tracker's smallest weight, MIN_WEIGHT. The ratio
+    # form multiplies their inverses, which overflowed (1e300 * 1e300) and made every
+    # marginal NaN: the tracker then dropped a track of existence 1 whose target it had just
+    # detected. The detection is the track's.
+    r = solve([MIN_WEIGHT], [[1.0]], [MIN_WEIGHT])
+    np.testing.assert_allclose(r.p_det, [[1.0]], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(r.p_miss, [0.0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(r.p_new, [0.0], rtol=0, atol=1e-12)
+    # Beside a Bernoulli that the look could miss and that gates nothing.
+    r = solve([1.0, MIN_WEIGHT], [[0.0], [1.0]], [MIN_WEIGHT])
+    np.testing.assert_allclose(r.p_det, [[0.0], [1.0]], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(r.p_miss, [1.0, 0.0], rtol=0, atol=1e-12)

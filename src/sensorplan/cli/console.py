@@ -181,8 +181,11 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
     tracker = ", ".join(f"{meta.label or f.name} {getattr(s.tracker, f.name)}"
                         for _, path, f, meta in all_settings()
                         if path.startswith("tracker.") and f.name not in unused)
+    counts = s.search_sectors
+    sectors = str(counts) if isinstance(counts, int) else "/".join(str(c) for c in counts)
+    searching = f"search on ({sectors} sectors), " if s.search == "on" else ""
     console.print(tracker if scan is not None else
-                  f"visibility {s.visibility}, objective {s.objective}, {tracker}",
+                  f"visibility {s.visibility}, objective {s.objective}, {searching}{tracker}",
                   highlight=False)
 
     measured = np.asarray(episode.measured)[1:]                # (S, M, N)
@@ -274,6 +277,13 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
                   stat(secs, ".2f", np.max), stat(np.asarray(episode.potential), ".3f"),
                   stat(conv, ".0%"), stat(sweeps, ".1f"))
     console.print(plans)
+    if episode.search_term is not None:
+        searched = np.asarray(episode.searched)[1:]            # (S, N)
+        console.print(f"search: {int((searched >= 0).sum())} of {searched.size} sensor-steps "
+                      f"looked at a search sector; Phi's search term w mu per decision: mean "
+                      f"{stat(np.asarray(episode.search_term), '.3f')} nats (mu, the "
+                      f"undetected targets a plan expects to find: mean "
+                      f"{stat(np.asarray(episode.search_found), '.3f')})", highlight=False)
     for path in written:
         # One path a line, never broken: it is there to be copied.
         console.print(f"wrote {path}", soft_wrap=True, markup=False, highlight=False)

@@ -17,7 +17,7 @@ from typing import Annotated, Any
 import typer
 
 from ..decentral.params import agent_params
-from ..simulation.settings import all_settings, default_of, field_type
+from ..simulation.settings import all_settings, cli_type, default_of, field_type
 
 #: The ``--help`` panel of each settings section, and of the commands' own options.
 PANELS = {"planning": "Planning", "tracker": "Tracking", "run": "Run"}
@@ -48,7 +48,7 @@ def setting_options(skip: tuple[str, ...] = ()) -> list[inspect.Parameter]:
                               rich_help_panel=PANELS[s.section],
                               help=f"{text}. [default: {default}]")
         params.append(inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=None,
-                                        annotation=Annotated[field_type(cls, f.name) | None,
+                                        annotation=Annotated[cli_type(cls, f.name) | None,
                                                              option]))
     return params
 

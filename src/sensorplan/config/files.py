@@ -21,9 +21,9 @@ if TYPE_CHECKING:  # pragma: no cover
 GAME_PLANNERS = ("pg", "pg-refine")
 
 #: Output keys in their documented order (docs/cli.md); ``existence`` only when the decision
-#: file gives a target's.
-OUTPUT_KEYS = ("planner", "plan", "potential", "information", "existence", "converged",
-               "sweeps", "seconds")
+#: file gives a target's, ``found`` and ``search_term`` only when its search is on.
+OUTPUT_KEYS = ("planner", "plan", "potential", "information", "existence", "found",
+               "search_term", "converged", "sweeps", "seconds")
 
 
 #: Deepest nesting of lists and tables an input file may have. The file formats need
@@ -269,8 +269,10 @@ def result_to_dict(result: PlanResult, existence: Any = None) -> dict[str, Any]:
     Returns
     -------
     dict
-        Keys ``planner, plan, potential, information, [existence,] [converged, sweeps,]
-        seconds``; ``converged`` and ``sweeps`` only for ``pg`` and ``pg-refine``. An
+        Keys ``planner, plan, potential, information, [existence,] [found, search_term,]
+        [converged, sweeps,] seconds``; ``found`` (mu, the expected number of undetected
+        targets the plan finds) and ``search_term`` (``w mu``, nats) when the result reports
+        them (search on), ``converged`` and ``sweeps`` only for ``pg`` and ``pg-refine``. An
         unassigned player (never in a finished plan) is ``null``. A look has ``target``,
         or ``sector`` when it is a search look.
     """
@@ -303,6 +305,11 @@ def result_to_dict(result: PlanResult, existence: Any = None) -> dict[str, Any]:
     }
     if existence is not None:
         out["existence"] = [float(v) for v in existence]
+    term = getattr(result, "search_term", None)
+    if term is not None:
+        # Phi = sum(information) + search_term.
+        out["found"] = float(result.found)  # type: ignore[arg-type]
+        out["search_term"] = float(term)
     if result.planner in GAME_PLANNERS:
         out["converged"] = None if result.converged is None else bool(result.converged)
         out["sweeps"] = None if result.sweeps is None else int(result.sweeps)

@@ -26,6 +26,7 @@ from pydantic import (
                       AfterValidator,
                       BaseModel,
                       ConfigDict,
+                      PlainValidator,
                       ValidationError,
                       ValidationInfo,
                       create_model,
@@ -33,7 +34,7 @@ from pydantic import (
                       )
 
 from ..errors import ConfigError
-from ..limits import RANGES, Range, type_error
+from ..limits import RANGES, Range, coerce, shown, type_error
 from ..models.sensors import ANGLE_FIELDS, SensorParams
 from ..planners.problem import MapRect
 from ..simulation.settings import Setting, declared, field_hint, field_type, is_group
@@ -216,6 +217,20 @@ def setting_annotation(cls: type, f: dataclasses.Field[Any], s: Setting) -> Any:
         return PlannerParams
     if tp is tuple:
         return Annotated[_file_list(field_hint(cls, f.name)), _rule(s)]
+    if tp is typing.Union:
+        # A number or a list of them: the settings' own type check words the error (a
+        # union's error would name the alternative pydantic tried last).
+        hint = field_hint(cls, f.name)
+
+        def either(value: Any) -> Any:
+            try:
+                v = coerce(hint, value)
+            except ValueError:
+                raise ValueError(f"must be an integer or a list of integers, got "
+                                 f"{shown(value)}") from None
+            s.validate(v)
+            return v
+        return Annotated[Any, PlainValidator(either)]
     if tp not in (int, float, str, bool):  # pragma: no cover - caught by the settings tests
         raise TypeError(f"no file type for setting {f.name} of type {tp!r}")
     return Annotated[tp, _rule(s)]

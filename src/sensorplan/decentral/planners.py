@@ -60,6 +60,8 @@ class _Agents(Transport):
     bus's lifetime."""
 
     name: ClassVar[str]
+    #: The agents plan on tracks only: a searching problem is refused.
+    plans_search: ClassVar[bool] = False
     if TYPE_CHECKING:              # each planner declares its seed (none here at run time)
         seed: int | None = 0
     _runtime: dict = field(default_factory=dict, init=False, repr=False, compare=False)

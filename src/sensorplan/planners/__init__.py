@@ -9,7 +9,8 @@ Everything a planner needs, including one written outside this package (docs/pla
   the entry-point group ``sensorplan.planners`` (:data:`ENTRY_POINT_GROUP`), and
   ``"package.module:Class"`` is accepted wherever a name is;
 - the helpers of a ``plan`` method: :func:`start_clock`, :func:`make_rng`, :func:`prepare`,
-  :func:`finish`;
+  :func:`finish`; for search looks :func:`plans_search` (whether a planner declares it
+  plans them) and :func:`refuse_search` (the refusal of one that does not);
 - the problem and the plan: :class:`PlanningProblem`, :class:`Plan`, :func:`move_vectors`
   (a sensor's moves), :func:`check_plan` (feasibility), :func:`potential` (Phi),
   :data:`TIE_TOL`;
@@ -27,7 +28,8 @@ from .registry import (ENTRY_POINT_GROUP, PLANNERS, make_planner, planner_class,
                        register)
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .base import PlanResult, Planner, RngLike, finish, make_rng, prepare, start_clock
+    from .base import (PlanResult, Planner, RngLike, finish, make_rng, plans_search, prepare,
+                       refuse_search, start_clock)
     from .checks import (CHECKS, CheckReport, PlannerCheckError, PlanRejected, check_planner,
                          checked_plan)
     from .information import potential
@@ -39,8 +41,8 @@ def __getattr__(name: str) -> Any:
     # command line's help and the settings need, and it must not load numpy or the kernels.
     if name in ("TIE_TOL", "Plan", "PlanningProblem", "check_plan", "move_vectors"):
         from . import problem as module
-    elif name in ("PlanResult", "Planner", "RngLike", "finish", "make_rng", "prepare",
-                  "start_clock"):
+    elif name in ("PlanResult", "Planner", "RngLike", "finish", "make_rng", "plans_search",
+                  "prepare", "refuse_search", "start_clock"):
         from . import base as module  # type: ignore[no-redef]
     elif name in ("CHECKS", "CheckReport", "PlannerCheckError", "PlanRejected",
                   "check_planner", "checked_plan"):
@@ -57,5 +59,5 @@ def __getattr__(name: str) -> Any:
 __all__ = ["CHECKS", "ENTRY_POINT_GROUP", "PLANNERS", "TIE_TOL", "CheckReport", "Plan",
            "PlanRejected", "PlanResult", "Planner", "PlannerCheckError", "PlanningProblem",
            "RngLike", "check_plan", "check_planner", "checked_plan", "finish", "make_planner",
-           "make_rng", "move_vectors", "planner_class", "planner_names", "potential",
-           "prepare", "register", "start_clock"]
+           "make_rng", "move_vectors", "planner_class", "planner_names", "plans_search",
+           "potential", "prepare", "refuse_search", "register", "start_clock"]

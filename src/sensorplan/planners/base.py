@@ -15,7 +15,7 @@ that naming a planner (the registry, ``sensorplan --help``) does not load the ke
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, ClassVar, Protocol
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 
@@ -50,6 +50,10 @@ class PlanResult:
     trace : tuple of float         Phi after each sweep (diagnostics)
     budget_exhausted : bool        the time budget stopped the planner before it finished
                                    (the plan is then the best complete one it had found)
+    found : float or None          with search on: mu, the expected number of undetected
+                                   targets the plan finds (None with search off)
+    search_weight : float or None  with search on: w, nats per target found; Phi's search
+                                   term is ``search_weight * found``
     """
 
     planner: str
@@ -63,10 +67,25 @@ class PlanResult:
     seconds: float = 0.0
     trace: tuple[float, ...] = field(default=())
     budget_exhausted: bool = False
+    found: float | None = None
+    search_weight: float | None = None
+
+    @property
+    def search_term(self) -> float | None:
+        """Phi's search term ``w mu`` (nats); None with search off."""
+        if self.found is None or self.search_weight is None:
+            return None
+        return self.search_weight * self.found
 
 
 class Planner(Protocol):
-    """``plan(problem, rng) -> PlanResult``; ``rng`` overrides the planner's own seed."""
+    """``plan(problem, rng) -> PlanResult``; ``rng`` overrides the planner's own seed.
+
+    A planner that plans search looks (a problem whose ``search`` is on) says so with the
+    class attribute ``plans_search = True`` (:func:`plans_search`); any other must refuse
+    such a problem with a :class:`~sensorplan.errors.ConfigError` on ``search``
+    (:func:`refuse_search`). ``check_planner`` holds both to it.
+    """
 
     name: ClassVar[str]
 
@@ -117,8 +136,15 @@ def prepare(problem: PlanningProblem) -> Context:
     return _prepare(problem)
 
 
-#: Planners that plan with search looks (the others refuse a problem whose search is on).
+#: The built-in planners that plan with search looks (``plans_search``; the others refuse a
+#: problem whose search is on).
 SEARCH_PLANNERS = ("brute-force", "pg", "random", "raster", "sequential-greedy")
+
+
+def plans_search(planner: Any) -> bool:
+    """Whether a planner (class or object) declares that it plans search looks: its class
+    attribute ``plans_search`` (False when it has none)."""
+    return getattr(planner, "plans_search", False) is True
 
 
 def refuse_search(name: str, problem: PlanningProblem) -> None:
@@ -157,7 +183,7 @@ def finish(name: str, ctx: Context | PlanningProblem, plan: Plan, start: float,
         sev = search.evaluate(search.prepare(problem), plan)
         return PlanResult(name, plan, sev.potential, sev.information, sev.headings,
                           sev.measurements, converged, sweeps, anytime.clock() - start, trace,
-                          budget_exhausted)
+                          budget_exhausted, sev.found, sev.weight)
     if isinstance(ctx, PlanningProblem):
         ctx = _prepare(ctx)
     ev = evaluate(ctx, plan)
@@ -166,4 +192,5 @@ def finish(name: str, ctx: Context | PlanningProblem, plan: Plan, start: float,
 
 
 __all__ = ["PLANNERS", "SEARCH_PLANNERS", "PlanResult", "Planner", "RngLike", "finish",
-           "make_planner", "make_rng", "prepare", "refuse_search", "register", "start_clock"]
+           "make_planner", "make_rng", "plans_search", "prepare", "refuse_search", "register",
+           "start_clock"]

@@ -323,6 +323,7 @@ class BruteForcePlanner(PlannerSettings):
     """
 
     name: ClassVar[str] = "brute-force"
+    plans_search: ClassVar[bool] = True
     max_plans: int = param(2_000_000, bounds=Range(1, None),
                            help="Most joint plans the planner enumerates.")
     seed: int | None = seed_param()

@@ -4,8 +4,14 @@ In the style of scikit-learn's ``check_estimator``: each check runs the planner 
 set of problems (:func:`~sensorplan.planners.contract_problems.contract_problems`: both visibility
 modes and both objectives, tiny problems and paper-size ones) and raises
 :class:`PlannerCheckError` naming the check, the planner and the problem on the first
-failure. The project's own contract suite (``tests/planners/test_planner_contract.py``) runs exactly
-these checks for every registered planner.
+failure. A planner that declares it plans search looks (``plans_search``) is also run on
+the searching problems
+(:func:`~sensorplan.planners.contract_problems.search_contract_problems`), its Phi
+recomputed with search (:func:`sensorplan.planners.search.potential`); any other planner
+must refuse each of them with a :class:`~sensorplan.errors.ConfigError` on ``search``
+(check ``search_declared``). The project's own contract suite
+(``tests/planners/test_planner_contract.py``) runs exactly these checks for every registered
+planner.
 
 A planner may decline a problem that is too large for it by raising a
 :class:`~sensorplan.errors.ConfigError` on one of its settings (``planner.max_plans``, as
@@ -28,8 +34,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from .base import PlanResult
-from .contract_problems import ContractProblem, contract_problems
+from .base import PlanResult, plans_search
+from .contract_problems import ContractProblem, contract_problems, search_contract_problems
 from .information import potential
 from .problem import TIE_TOL, Plan, PlanError, PlanningProblem, check_plan
 from .registry import make_planner, planner_class, planner_label
@@ -86,9 +92,15 @@ def _plan(planner: Any, case: ContractProblem) -> PlanResult | None:
     return result
 
 
+def _cases(planner: Any) -> tuple[ContractProblem, ...]:
+    """The contract problems of ``planner``: the searching ones too when it plans search
+    looks."""
+    return contract_problems() + (search_contract_problems() if plans_search(planner) else ())
+
+
 def _results(planner: Any, tiny_only: bool = False
              ) -> Iterator[tuple[ContractProblem, PlanResult]]:
-    for case in contract_problems():
+    for case in _cases(planner):
         if tiny_only and not case.tiny:
             continue
         result = _plan(planner, case)
@@ -153,21 +165,37 @@ def check_feasible_complete_plan(planner: Any) -> None:
 
 def check_potential_matches_recomputation(planner: Any) -> None:
     """The reported Phi and its per-target terms equal an independent recomputation with
-    :func:`sensorplan.planners.information.potential` (rtol 1e-9), and the terms sum to Phi."""
+    :func:`sensorplan.planners.information.potential` (rtol 1e-9), and the terms sum to Phi.
+    With search on, the recomputation is :func:`sensorplan.planners.search.potential`: the
+    terms plus the search term ``w mu`` sum to Phi, and a reported ``found`` is mu."""
     for case, res in _results(planner):
-        phi, info = potential(case.problem, res.plan)
+        found: float | None = None
+        if case.problem.searching:
+            from .search import potential as search_potential
+
+            phi, info, found = search_potential(case.problem, res.plan)
+            term = phi - float(np.sum(info))               # w mu
+        else:
+            phi, info = potential(case.problem, res.plan)
+            term = 0.0
         if not _close(res.potential, phi):
             raise _Failure(case.label, f"reported potential {res.potential!r} but the plan's "
                            f"Phi is {phi!r}")
         if not _close(res.information, info):
             raise _Failure(case.label, f"reported information {np.asarray(res.information)} "
                            f"but the plan's per-target terms are {info}")
-        if not _close(np.sum(res.information), res.potential):
-            raise _Failure(case.label, "the information terms do not sum to the potential")
+        if not _close(np.sum(res.information) + term, res.potential):
+            raise _Failure(case.label, "the information terms do not sum to the potential"
+                           + (" with the search term" if found is not None else ""))
+        reported = getattr(res, "found", None)
+        if found is not None and reported is not None and not _close(reported, found):
+            raise _Failure(case.label, f"reported found {reported!r} but the plan's mu is "
+                           f"{found!r}")
 
 
 def _same_plan(a: Plan, b: Plan) -> bool:
     return (np.array_equal(a.targets, b.targets)
+            and np.array_equal(np.asarray(a.sectors), np.asarray(b.sectors))
             and np.array_equal(a.positions, b.positions, equal_nan=True))
 
 
@@ -181,14 +209,28 @@ def check_same_seed_same_plan(planner: Any) -> None:
 
 
 def _snapshot(problem: PlanningProblem) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for f in dataclasses.fields(problem):
+        v = getattr(problem, f.name)
+        if dataclasses.is_dataclass(v) and not isinstance(v, type):
+            # The undetected intensity: each of its fields.
+            out.update({f"{f.name}.{k}": x for k, x in _snapshot_of(v).items()})
+        else:
+            out[f.name] = np.array(v, copy=True) if isinstance(v, np.ndarray) else v
+    return out
+
+
+def _snapshot_of(value: Any) -> dict[str, Any]:
     return {f.name: (np.array(v, copy=True) if isinstance(v, np.ndarray) else v)
-            for f in dataclasses.fields(problem) for v in [getattr(problem, f.name)]}
+            for f in dataclasses.fields(value) for v in [getattr(value, f.name)]}
 
 
 def _changed(before: dict[str, Any], problem: PlanningProblem) -> list[str]:
     out = []
     for name, old in before.items():
-        new = getattr(problem, name)
+        new: Any = problem
+        for part in name.split("."):
+            new = getattr(new, part)
         same = (np.array_equal(old, new, equal_nan=True) if isinstance(old, np.ndarray)
                 else old == new)
         if not same:
@@ -198,12 +240,13 @@ def _changed(before: dict[str, Any], problem: PlanningProblem) -> list[str]:
 
 def check_input_not_mutated(planner: Any) -> None:
     """``plan`` leaves every field of the problem as it was."""
-    for case in contract_problems():
+    for case in _cases(planner):
         before = _snapshot(case.problem)
         _plan(planner, case)
         changed = _changed(before, case.problem)
         if changed:
             contract_problems.cache_clear()        # do not hand the damage to other checks
+            search_contract_problems.cache_clear()
             raise _Failure(case.label, f"plan changed problem.{', problem.'.join(changed)}")
 
 
@@ -229,6 +272,29 @@ def check_never_above_brute_force(planner: Any) -> None:
                            f"{best!r}")
 
 
+def check_search_declared(planner: Any) -> None:
+    """A planner that does not declare ``plans_search`` refuses every searching problem
+    with a :class:`~sensorplan.errors.ConfigError` on ``search`` (not a plan that ignores
+    the search looks, not another error); one that declares it plans them (the other
+    checks hold its plans to the contract)."""
+    if plans_search(planner):
+        return
+    for case in search_contract_problems():
+        try:
+            planner.plan(case.problem, rng=SEED)
+        except ConfigError as exc:
+            if exc.field != "search":
+                raise _Failure(case.label, f"refused a searching problem with ConfigError on "
+                               f"{exc.field!r}, not on 'search'") from exc
+            continue
+        except Exception as exc:  # noqa: BLE001 - any other error fails the check
+            raise _Failure(case.label, f"plan raised {type(exc).__name__}: {exc} instead of "
+                           "refusing the searching problem (ConfigError on 'search')") from exc
+        raise _Failure(case.label, "planned a problem whose search is on without declaring "
+                       "plans_search = True: declare it, or refuse such a problem "
+                       "(sensorplan.planners.refuse_search)")
+
+
 #: The checks, by name, in the order :func:`check_planner` runs them.
 CHECKS: dict[str, Callable[[Any], None]] = {
     "result_well_formed": check_result_well_formed,
@@ -237,6 +303,7 @@ CHECKS: dict[str, Callable[[Any], None]] = {
     "same_seed_same_plan": check_same_seed_same_plan,
     "input_not_mutated": check_input_not_mutated,
     "never_above_brute_force": check_never_above_brute_force,
+    "search_declared": check_search_declared,
 }
 
 
@@ -410,4 +477,4 @@ __all__ = ["CHECKS", "SEED", "CheckReport", "PlanRejected", "PlannerCheckError",
            "check_feasible_complete_plan", "check_result", "checked_plan",
            "check_input_not_mutated", "check_never_above_brute_force", "check_planner",
            "check_potential_matches_recomputation", "check_result_well_formed",
-           "check_same_seed_same_plan"]
+           "check_same_seed_same_plan", "check_search_declared"]

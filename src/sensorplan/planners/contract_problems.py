@@ -4,7 +4,10 @@
 - :func:`paper_problem`: a decision of the paper scenario (3 sensors, 5 targets);
 - :func:`joint_plan_count`: the exact number of feasible joint plans of a problem;
 - :func:`weighted`: a problem with random probabilities of existence (some 0, some 1);
-- :func:`contract_problems`: the fixed set :func:`~sensorplan.planners.check_planner` uses.
+- :func:`searching`: a problem with search on, over an undetected intensity on a grid;
+- :func:`contract_problems`: the fixed set :func:`~sensorplan.planners.check_planner` uses;
+  :func:`search_contract_problems` the searching ones it adds for planners that plan
+  search looks.
 """
 
 from __future__ import annotations
@@ -17,12 +20,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..models.sensors import SensorParams
-from .problem import (OBJECTIVES, VISIBILITY_MODES, MapRect, PlanningProblem, build_lattice,
-                      move_vectors)
+from .problem import (OBJECTIVES, VISIBILITY_MODES, MapRect, PlanningProblem,
+                      UndetectedIntensity, build_lattice, move_vectors)
 
 
 def joint_plan_count(problem: PlanningProblem) -> int:
-    """Exact number of feasible joint plans (product over sensors of chains x M^K)."""
+    """Exact number of feasible joint plans (product over sensors of chains x L_i^K, L_i the
+    looks of sensor i: the M targets, plus its search sectors when the problem searches)."""
     total = 1
     for i, s in enumerate(problem.sensors):
         lat = build_lattice(problem.positions[i], move_vectors(s.moves), problem.horizon,
@@ -33,7 +37,8 @@ def joint_plan_count(problem: PlanningProblem) -> int:
             q, m = np.nonzero(lat.child[k] >= 0)
             np.add.at(nxt, lat.child[k][q, m], ways[q])
             ways = nxt
-        total *= int(ways.sum()) * problem.n_targets ** problem.horizon
+        looks = problem.n_targets + problem.sector_counts[i]
+        total *= int(ways.sum()) * looks ** problem.horizon
     return total
 
 
@@ -99,6 +104,24 @@ def weighted(problem: PlanningProblem, rng: np.random.Generator) -> PlanningProb
     return dataclasses.replace(problem, existence=r)
 
 
+def searching(problem: PlanningProblem, rng: np.random.Generator, sectors: int | tuple[int, ...],
+              cells: int = 6) -> PlanningProblem:
+    """``problem`` with search on: ``sectors`` search sectors (one number, or one per
+    sensor) and an undetected intensity on a ``cells x cells`` grid over the map, with
+    random expected numbers of undetected targets (uniform in [0, 1] per cell), births
+    (uniform in [0, 0.01] per cell and step) and survival (uniform in [0.9, 1]); a found
+    target's weight is derived (None)."""
+    W, H = problem.world.width, problem.world.height
+    a, b = W / cells, H / cells
+    cx, cy = (np.arange(cells) + 0.5) * a, (np.arange(cells) + 0.5) * b
+    centres = np.column_stack([np.tile(cx, cells), np.repeat(cy, cells)])
+    C = len(centres)
+    u = UndetectedIntensity(centres, rng.uniform(0.0, 1.0, C), rng.uniform(0.0, 0.01, C),
+                            float(rng.uniform(0.9, 1.0)),
+                            np.diag([a * a / 12.0, b * b / 12.0]))
+    return dataclasses.replace(problem, search="on", search_sectors=sectors, undetected=u)
+
+
 @dataclass(frozen=True)
 class ContractProblem:
     """One problem of the contract set.
@@ -150,5 +173,41 @@ def contract_problems() -> tuple[ContractProblem, ...]:
     return tuple(out)
 
 
-__all__ = ["TINY_PLANS", "ContractProblem", "contract_problems", "joint_plan_count",
-           "paper_problem", "tiny_problem", "weighted"]
+#: Joint plans of the contract's tiny searching problems, at most (their brute force
+#: evaluates each plan with the plain reference definition of Phi with search).
+TINY_SEARCH_PLANS = 400
+
+
+@functools.cache
+def search_contract_problems() -> tuple[ContractProblem, ...]:
+    """The searching problems of the planner contract (for the planners that declare they
+    plan search looks; every other planner must refuse them): four tiny ones, with one to
+    four sectors per sensor, the third with no track worth looking at (every existence 0:
+    only search pays) and the fourth with its targets weighted by random probabilities of
+    existence, and one paper-size decision (K = 2, 6 sectors, a 12 x 12 grid). Built once
+    per process."""
+    out = []
+    rng = np.random.default_rng(13)
+    j = 0
+    while j < 4:
+        base = tiny_problem(rng, 200, objective=str(rng.choice(OBJECTIVES)))
+        if j == 2:
+            base = dataclasses.replace(base, existence=np.zeros(base.n_targets))
+        if j == 3:
+            base = weighted(base, rng)
+        sectors = tuple(int(s) for s in rng.integers(1, 5, base.n_sensors))
+        problem = searching(base, rng, sectors)
+        if joint_plan_count(problem) > TINY_SEARCH_PLANS:
+            continue
+        mode = f"{problem.visibility}, {problem.objective}, search"
+        extra = {2: ", no track", 3: ", weighted"}.get(j, "")
+        out.append(ContractProblem(f"tiny[{j}] ({mode}{extra})", problem, True))
+        j += 1
+    paper = searching(paper_problem(rng, horizon=2, objective="cumulative"), rng, 6, cells=12)
+    out.append(ContractProblem("paper (probabilistic, cumulative, search)", paper, False))
+    return tuple(out)
+
+
+__all__ = ["TINY_PLANS", "TINY_SEARCH_PLANS", "ContractProblem", "contract_problems",
+           "joint_plan_count", "paper_problem", "search_contract_problems", "searching",
+           "tiny_problem", "weighted"]

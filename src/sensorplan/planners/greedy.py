@@ -47,6 +47,7 @@ class SequentialGreedyPlanner(PlannerSettings):
     """
 
     name: ClassVar[str] = "sequential-greedy"
+    plans_search: ClassVar[bool] = True
     seed: int | None = seed_param()
     time_budget: float | None = budget_param()
 

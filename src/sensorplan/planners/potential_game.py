@@ -205,6 +205,7 @@ class PotentialGamePlanner(BudgetedLearningSettings):
     """``pg``: the paper's Algorithm 1. Myopic planning is ``pg`` with K = 1."""
 
     name: ClassVar[str] = "pg"
+    plans_search: ClassVar[bool] = True
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
         start = start_clock(engine=True)

@@ -21,8 +21,8 @@ from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..limits import MAX_BUILDINGS, RANGES, check_count
 from ..models.sensors import SensorParams
-from .objective import (OBJECTIVES, PLANNING_DETECTIONS, VISIBILITY_MODES,  # noqa: F401
-                        Objective, Visibility)
+from .objective import (OBJECTIVES, PLANNING_DETECTIONS, SEARCH_MODES,  # noqa: F401
+                        VISIBILITY_MODES, Objective, Visibility)
 
 #: The 8 lattice directions in move order.
 DIRECTIONS = np.array([(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)],
@@ -209,11 +209,6 @@ def _build_lattice(p0: FloatArray, moves: FloatArray, K: int,
     return Lattice(positions, parent_move, child, moves)
 
 
-#: Values of :attr:`PlanningProblem.search`: ``off`` plans on tracks only, ``on`` adds search
-#: looks and the value of the targets they are expected to find.
-SEARCH_MODES = ("off", "on")
-
-
 @dataclass(frozen=True)
 class UndetectedIntensity:
     """The undetected targets' Poisson intensity on a grid, as planning uses it.
@@ -385,9 +380,10 @@ class PlanningProblem:
     def validate(self) -> None:
         """Check the semantic rules of a decision; raise :class:`ConfigError` naming the field."""
         M = len(self.means)
-        # With search on, no track at all is a decision: where to search.
         if M < 1 and self.search != "on":
-            raise ConfigError("targets", "at least one target is required (or search on)")
+            # With search on, a decision may have no track yet: every look searches.
+            raise ConfigError("targets", "at least one target is required (with search "
+                              "off)")
         if self.means.shape != (M, 4):
             raise ConfigError("targets.mean", f"expected shape ({M}, 4), got {self.means.shape}")
         if self.covs.shape != (M, 4, 4):
@@ -664,9 +660,9 @@ def check_plan(problem: PlanningProblem, plan: Plan, complete: bool = True) -> N
     if plan.searches:
         _check_sectors(problem, plan)
     lowest = 0 if complete else -1
-    # A search look stands in for a target here (checked above; there may be no targets).
+    # A search look has no target (its sector is checked above).
     targets = plan.targets
-    bad = ((targets >= M) | (targets < lowest)) & (plan.sectors < 0)
+    bad = (plan.sectors < 0) & ((targets >= M) | (targets < lowest))
     if bad.any():
         i, k = (int(v) for v in np.argwhere(bad)[0])
         j = int(targets[i, k])

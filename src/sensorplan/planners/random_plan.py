@@ -19,6 +19,7 @@ class RandomPlanner(PlannerSettings):
     """Uniform random feasible plan (a baseline), seeded."""
 
     name: ClassVar[str] = "random"
+    plans_search: ClassVar[bool] = True
     seed: int | None = seed_param()
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:

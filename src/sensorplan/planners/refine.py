@@ -117,6 +117,7 @@ class RefinedPlanner(BudgetedLearningSettings):
     """``pg-refine`` (beyond the paper); same settings as ``pg``."""
 
     name: ClassVar[str] = "pg-refine"
+    plans_search: ClassVar[bool] = False          # refuses a searching problem
 
     def plan(self, problem: PlanningProblem, rng: RngLike = None) -> PlanResult:
         refuse_search(self.name, problem)

@@ -304,43 +304,6 @@ def player_actions(sctx: SearchContext, plan: Plan, i: int, k: int
             np.tile(looks_s, len(pos)))
 
 
-def _candidate_information(sctx: SearchContext, plan: Plan, i: int, k: int,
-                           headings: FloatArray, pos: FloatArray, tgt: IntArray,
-                           th: FloatArray) -> FloatArray:
-    """The tracks' terms of Phi ``(A,)`` per candidate of player (i, k): every other look's
-    information, plus each candidate's chain (``pos (A, L, 2)``, ``tgt (A, L)`` and ``th
-    (A, L)``: sensor i's epochs k..K per candidate)."""
-    ctx = sctx.ctx
-    A, L = tgt.shape
-    track = tgt >= 0
-    others = plan.targets.copy()
-    others[i, k - 1:] = -1
-    W_all, _ = _plan_track_W(sctx, plan, headings)
-    base = sum_by_target(ctx, W_all, others)                        # (M, T, 2, 2)
-    w, _ = chain_information(ctx, i, k, np.where(track[..., None], pos, 0.0),
-                             np.where(track, th, 0.0), np.maximum(tgt, 0))
-    w = np.where(track[..., None, None, None], w, 0.0)               # (A, L, e, 2, 2)
-    Wt = np.broadcast_to(base, (A,) + base.shape).copy()
-    e = ctx.e
-    for l in range(L):
-        for s in range(e):
-            t = (k - 1 + l) * e + s
-            rows = np.flatnonzero(track[:, l])      # one row per candidate: no repeats
-            Wt[rows, tgt[rows, l], t] += w[rows, l, s]
-    M, T = ctx.M, ctx.T
-    P0 = np.broadcast_to(np.asarray(ctx.problem.covs), (A, M, 4, 4)).reshape(A * M, 4, 4)
-    Q = ctx.Q if ctx.Q.shape[0] == 1 else np.broadcast_to(ctx.Q, (A, M, 4, 4)).reshape(
-        A * M, 4, 4)
-    cumulative = ctx.problem.objective == "cumulative"
-    flat = Wt.reshape(A * M, T, 2, 2)
-    _, ld_end, ld_sum = covariance_recursion(np.ascontiguousarray(P0), flat, ctx.F,
-                                             np.ascontiguousarray(Q), cumulative)
-    ld_bar = np.broadcast_to(ctx.ld_bar, (A, M, T + 1)).reshape(A * M, T + 1)
-    info = phi_terms(ld_bar, ld_end, ld_sum, cumulative, measured(flat),
-                     np.tile(ctx.existence, A)).reshape(A, M).sum(axis=1)
-    return info
-
-
 def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
                          positions: FloatArray, targets: IntArray, sectors: IntArray
                          ) -> FloatArray:
@@ -372,15 +335,17 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
         if not assigned[0, l] and l > 0:       # later epochs: the same for every candidate
             prev_ok = False
             continue
-        # Without tracks (search only) every look is a sector look.
-        aim = ctx.aim[np.maximum(tgt[:, l], 0), kk - 1] if ctx.M else pos[:, l]
+        if ctx.M:
+            aim = ctx.aim[np.maximum(tgt[:, l], 0), kk - 1]
+            toward = np.arctan2(aim[:, 1] - pos[:, l, 1], aim[:, 0] - pos[:, l, 0])
+        else:                                   # no track: every look is a sector look
+            toward = np.zeros(A)
         b = np.where(sec[:, l] >= 0, sctx.bearings[i][np.maximum(sec[:, l], 0)]
-                     if sctx.bearings[i].size else 0.0,
-                     np.arctan2(aim[:, 1] - pos[:, l, 1], aim[:, 0] - pos[:, l, 0]))
+                     if sctx.bearings[i].size else 0.0, toward)
         h = heading_rule(h, b, turn) if prev_ok else heading_rule(theta0, b, kk * turn)
         th[:, l] = h
         prev_ok = True
-    info = _candidate_information(sctx, plan, i, k, headings, pos, tgt, th) if ctx.M else 0.0
+    info = _candidate_track_information(sctx, plan, i, k, headings, pos, tgt, th)
     # Search: every other look's miss probability, times each candidate's chain.
     miss = np.ones((K, len(sctx.centres)))
     for n in range(ctx.N):
@@ -396,6 +361,45 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
             miss_c[:, k - 1 + l] *= 1.0 - p
     mu = expected_found(sctx, miss_c)
     return info + sctx.weight * mu
+
+
+def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int,
+                                 headings: FloatArray, pos: FloatArray, tgt: IntArray,
+                                 th: FloatArray) -> FloatArray:
+    """The tracks' part of Phi ``(A,)`` for each candidate of player (i, k): every other
+    look's information plus the candidate's chain ``pos (A, L, 2)``, ``tgt (A, L)``, ``th
+    (A, L)`` over epochs k..K (0 without tracks)."""
+    ctx = sctx.ctx
+    A, L = tgt.shape
+    if ctx.M == 0:
+        return np.zeros(A)
+    track = tgt >= 0
+    others = plan.targets.copy()
+    others[i, k - 1:] = -1
+    W_all, _ = _plan_track_W(sctx, plan, headings)
+    base = sum_by_target(ctx, W_all, others)                        # (M, T, 2, 2)
+    w, _ = chain_information(ctx, i, k, np.where(track[..., None], pos, 0.0),
+                             np.where(track, th, 0.0), np.maximum(tgt, 0))
+    w = np.where(track[..., None, None, None], w, 0.0)               # (A, L, e, 2, 2)
+    Wt = np.broadcast_to(base, (A,) + base.shape).copy()
+    e = ctx.e
+    for l in range(L):
+        for s in range(e):
+            t = (k - 1 + l) * e + s
+            rows = np.flatnonzero(track[:, l])      # one row per candidate: no repeats
+            Wt[rows, tgt[rows, l], t] += w[rows, l, s]
+    M, T = ctx.M, ctx.T
+    P0 = np.broadcast_to(np.asarray(ctx.problem.covs), (A, M, 4, 4)).reshape(A * M, 4, 4)
+    Q = ctx.Q if ctx.Q.shape[0] == 1 else np.broadcast_to(ctx.Q, (A, M, 4, 4)).reshape(
+        A * M, 4, 4)
+    cumulative = ctx.problem.objective == "cumulative"
+    flat = Wt.reshape(A * M, T, 2, 2)
+    _, ld_end, ld_sum = covariance_recursion(np.ascontiguousarray(P0), flat, ctx.F,
+                                             np.ascontiguousarray(Q), cumulative)
+    ld_bar = np.broadcast_to(ctx.ld_bar, (A, M, T + 1)).reshape(A * M, T + 1)
+    info = phi_terms(ld_bar, ld_end, ld_sum, cumulative, measured(flat),
+                     np.tile(ctx.existence, A)).reshape(A, M).sum(axis=1)
+    return info
 
 
 def _plan_track_W(sctx: SearchContext, plan: Plan, headings: FloatArray

@@ -75,6 +75,12 @@ class Episode:
     seed_entropy : int                entropy of the run's SeedSequence
     seed_spawn_key : tuple of int     its spawn key (the run's seed is
                                       ``SeedSequence(seed_entropy, spawn_key=seed_spawn_key)``)
+    searched : (S+1, N) int or None   with search on: the search sector sensor i's look
+                                      pointed at during step t (-1: a track or none); None
+                                      with search off (the file then has no such entry)
+    search_found : (D,) or None       with search on: mu of each decision's plan, the
+                                      expected number of undetected targets it finds
+    search_term : (D,) or None        with search on: w mu, the search term of its Phi (nats)
     """
 
     target_kinds: tuple[str, ...]
@@ -111,6 +117,9 @@ class Episode:
     settings: RunSettings
     seed_entropy: int
     seed_spawn_key: tuple[int, ...] = ()
+    searched: IntArray | None = None
+    search_found: FloatArray | None = None
+    search_term: FloatArray | None = None
 
     def rmse(self) -> FloatArray:
         """Position RMSE ``(M,)`` of each target over steps ``1..S`` (m)."""
@@ -129,7 +138,9 @@ class Episode:
         meta = {"target_kinds": list(self.target_kinds), "settings": self.settings.to_dict(),
                 "seed_entropy": self.seed_entropy,
                 "seed_spawn_key": [int(k) for k in self.seed_spawn_key]}
-        entries = [(name, np.ascontiguousarray(getattr(self, name))) for name in _ARRAYS]
+        # The search records exist only with search on: a run without keeps today's file.
+        entries = [(name, np.ascontiguousarray(getattr(self, name))) for name in _ARRAYS
+                   if getattr(self, name) is not None]
         entries.append(("meta", np.array(json.dumps(meta, sort_keys=True, default=_json))))
         with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as zf:
             for name, arr in entries:
@@ -252,6 +263,10 @@ class Recorder:
             self.arrays[name] = self._new(name, n_targets)
         self.decisions: list[tuple[int, float, float, float, float]] = []
         self.tracks: list[tuple[int, TrackSet]] = []
+        # With search on (:meth:`search`): each step's sector looks and each decision's mu
+        # and w mu.
+        self.searched: IntArray | None = None
+        self.search_terms: list[tuple[float, float]] = []
 
     def _new(self, name: str, n_targets: int) -> np.ndarray:
         shape, dtype, fill = STEP_ARRAYS[name]
@@ -293,6 +308,17 @@ class Recorder:
                  sweeps: float) -> None:
         """A decision taken at time index ``t``."""
         self.decisions.append((t, seconds, potential, converged, sweeps))
+
+    def search(self, t: int, sectors: IntArray) -> None:
+        """With search on: the sector each sensor's look points at during step ``t`` (-1:
+        none)."""
+        if self.searched is None:
+            self.searched = np.full((self.steps + 1, self.n_sensors), -1, dtype=np.int64)
+        self.searched[t] = sectors
+
+    def search_term(self, found: float, term: float) -> None:
+        """With search on: the last decision's mu and w mu (nats)."""
+        self.search_terms.append((found, term))
 
     def step(self, t: int, truth: FloatArray, alive: BoolArray, tracks: TrackSet,
              aimed: IntArray, looks: Looks, sensed: Sensed, predicted: BoolArray,
@@ -345,7 +371,14 @@ class Recorder:
             target_kinds=target_kinds, error=error, nees=nees(truth, estimate, cov),
             decision_steps=d[:, 0].astype(np.int64), planning_seconds=d[:, 1],
             potential=d[:, 2], converged=d[:, 3], sweeps=d[:, 4], settings=settings,
-            seed_entropy=_entropy(seed), seed_spawn_key=tuple(seed.spawn_key), **a)
+            seed_entropy=_entropy(seed), seed_spawn_key=tuple(seed.spawn_key),
+            **self._search_records(), **a)
+
+    def _search_records(self) -> dict[str, np.ndarray]:
+        if self.searched is None:
+            return {}
+        f = np.array(self.search_terms, dtype=float).reshape(-1, 2)
+        return {"searched": self.searched, "search_found": f[:, 0], "search_term": f[:, 1]}
 
 
 def _entropy(ss: np.random.SeedSequence) -> Any:

@@ -10,6 +10,11 @@ One run (:func:`run_episode`) alternates decisions and execution:
 - At the start of an epoch each platform moves to its planned position and turns (heading
   rule, at most ``max_turn``) toward its planned target's current estimate predicted to the
   epoch's first step; it keeps position, heading and target for the epoch's ``e`` steps.
+- With ``search = "on"`` the problem also holds the tracker's undetected intensity (the
+  tracker seam's :func:`~sensorplan.tracking.base.undetected_report`) and each sensor's
+  search sectors, a decision is taken even without a track, and a planned sector look turns
+  toward its sector's bearing instead (the looks detect every target in the beam); the
+  episode records each step's sector looks and each decision's mu and ``w mu``.
 - Every step: the targets move; the filters predict; every sensor whose target is truly in
   its field of view measures it (the radar model of :mod:`sensorplan.models.radar` at the true
   position: its noise-free measurement plus noise with ``R`` at the true position);
@@ -43,13 +48,13 @@ from ..models.angles import heading_rule
 from ..models.motion import cv_matrices
 from ..models.sensors import radar_table
 from ..planners import checked_plan, make_planner
-from ..planners.problem import PlanningProblem
-from ..tracking.base import Tracker, TrackSet
+from ..planners.problem import PlanningProblem, UndetectedIntensity
+from ..tracking.base import Tracker, TrackSet, undetected_report
 from ..tracking.registry import tracker_class
 from .episode import Episode, Recorder, _is_int
 from .scenario import Scenario, draw_initial, make_population
 from .sensing import Sensing
-from .settings import EXECUTIONS, RunSettings, TrackerSettings
+from .settings import EXECUTIONS, RunSettings, TrackerSettings, sector_counts
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..tracking.pmb.map_tracker import MapModel
@@ -139,6 +144,8 @@ def run_episode(scenario: Scenario, settings: RunSettings,
         for t in range(1, S + 1):
             if (t - 1) % e == 0:
                 schedule.epoch(t, tracker, record)
+            if schedule.searching:
+                record.search(t, schedule.sectors)
             x_true, alive = truth_model.step()
             predicted = tracker.predict()
             looks, sensed = sensing.look(t, x_true, schedule.positions, schedule.headings,
@@ -233,31 +240,53 @@ class _Schedule:
         self.plan_positions = np.zeros((N, 0, 2))
         self.buildings = (scenario.building_array if settings.planning_occlusion == "aware"
                           else np.zeros((0, 5)))
+        # Search looks: the sector each sensor's look of the current epoch points at (-1:
+        # a track or none), and each plan epoch's.
+        self.searching = settings.search == "on"
+        self.sectors = np.full(N, -1, dtype=np.int64)
+        self.plan_sectors = np.full((N, 0), -1, dtype=np.int64)
+        if self.searching:
+            from ..planners.search import sector_bearings
+
+            self.sector_bearings = [sector_bearings(S) for S in
+                                    sector_counts(settings.search_sectors, N)]
 
     def epoch(self, t: int, tracker: Tracker, record: Recorder) -> None:
         """Start the epoch that begins with step ``t`` (deciding first if a plan is due)."""
         tracks = tracker.tracks()
         if self.epoch_index == self.per_plan:
-            self._decide(t, tracks, tracker.planning_process_noise(), record)
+            self._decide(t, tracks, tracker.planning_process_noise(), record, tracker)
         k = self.epoch_index
         label = self.plan_labels[:, k]
         self.aimed = tracks_index(tracks, label)
         assigned = self.aimed >= 0
-        if not len(tracks):                   # nothing to look at: the sensors hold still
+        self.sectors = self.plan_sectors[:, k] if self.searching else self.sectors
+        search = self.sectors >= 0
+        if not len(tracks) and not search.any():  # nothing to look at: the sensors hold still
             self.epoch_index += 1
             return
+        if search.any():
+            # A search look moves as planned and aims the heading rule at its sector.
+            assigned = assigned | search
         self.positions = np.where(assigned[:, None], self.plan_positions[:, k], self.positions)
-        F = cv_matrices(self.scenario.dt, 0.0)[0]
-        aim = tracks.means[np.maximum(self.aimed, 0)] @ F[:2].T                    # (N, 2)
-        bearing = np.arctan2(aim[:, 1] - self.positions[:, 1], aim[:, 0] - self.positions[:, 0])
+        if len(tracks):
+            F = cv_matrices(self.scenario.dt, 0.0)[0]
+            aim = tracks.means[np.maximum(self.aimed, 0)] @ F[:2].T                # (N, 2)
+            bearing = np.arctan2(aim[:, 1] - self.positions[:, 1],
+                                 aim[:, 0] - self.positions[:, 0])
+        else:
+            bearing = np.zeros(len(self.positions))
+        if search.any():
+            bearing = np.where(search, [b[s] if s >= 0 else 0.0 for b, s in
+                                        zip(self.sector_bearings, self.sectors)], bearing)
         self.headings = np.where(assigned, heading_rule(self.headings, bearing, self.max_turn),
                                  self.headings)
         self.epoch_index += 1
 
-    def _decide(self, t: int, tracks: TrackSet, q: float | FloatArray, record: Recorder
-                ) -> None:
+    def _decide(self, t: int, tracks: TrackSet, q: float | FloatArray, record: Recorder,
+                tracker: Tracker) -> None:
         s = self.settings
-        if not len(tracks):
+        if not len(tracks) and not self.searching:
             # No track to plan on (a multi-target tracker that holds none): no decision;
             # every sensor keeps its pose for the plan's epochs.
             N = len(self.sensors)
@@ -265,22 +294,41 @@ class _Schedule:
             self.plan_positions = np.repeat(self.positions[:, None], self.per_plan, axis=1)
             self.epoch_index = 0
             return
+        search = self._search_problem(tracker) if self.searching else {}
         problem = PlanningProblem(
             means=tracks.means, covs=tracks.covs, positions=self.positions,
             headings=self.headings, sensors=self.sensors, horizon=s.horizon,
             steps_per_epoch=s.steps_per_epoch, dt=self.scenario.dt, process_noise=q,
             world=self.scenario.world, visibility=s.visibility, objective=s.objective,
             planning_detection=s.planning_detection, buildings=self.buildings,
-            existence=tracks.existence)
+            existence=tracks.existence,
+            elapsed_epochs=(t - 1) // s.steps_per_epoch,     # where a fixed schedule stands
+            **search)
         start = time.perf_counter()
         result = checked_plan(self.planner, problem, self.rng, len(record.decisions))
         seconds = _own_seconds(result, time.perf_counter() - start)
         record.decision(t - 1, seconds, float(result.potential),
                         _nan_if_none(result.converged), _nan_if_none(result.sweeps))
         targets = np.asarray(result.plan.targets)
-        self.plan_labels = np.where(targets >= 0, tracks.labels[np.maximum(targets, 0)], -1)
+        self.plan_labels = np.where(targets >= 0, tracks.labels[np.maximum(targets, 0)]
+                                    if len(tracks) else -1, -1)
         self.plan_positions = np.asarray(result.plan.positions)
+        if self.searching:
+            self.plan_sectors = np.asarray(result.plan.sectors)
+            record.search_term(*_search_term(problem, result))
         self.epoch_index = 0
+
+    def _search_problem(self, tracker: Tracker) -> dict[str, Any]:
+        """The search part of a decision's problem: the sectors and the tracker's
+        undetected intensity now (before the step's predict: the planner predicts it)."""
+        report = undetected_report(tracker)
+        if report is None:
+            raise ConfigError("search", "needs a tracker that keeps the intensity of "
+                              "undetected targets (tracker.kind = 'pmb')")
+        undetected = UndetectedIntensity(report.centres, report.weights, report.births,
+                                         report.survival, report.cell_cov)
+        return {"search": "on", "search_sectors": self.settings.search_sectors,
+                "undetected": undetected}
 
 
 def tracks_index(tracks: TrackSet, labels: IntArray) -> IntArray:
@@ -300,6 +348,18 @@ def _own_seconds(result: Any, outside: float) -> float:
     if isinstance(own, (int, float)) and math.isfinite(own) and 0.0 < own <= outside:
         return float(own)
     return outside
+
+
+def _search_term(problem: PlanningProblem, result: Any) -> tuple[float, float]:
+    """A searching decision's mu and w mu: the planner's own report (:class:`PlanResult`
+    ``found`` and ``search_weight``), else Phi with search of its plan."""
+    found, weight = getattr(result, "found", None), getattr(result, "search_weight", None)
+    if found is None or weight is None:
+        from ..planners import search
+
+        ev = search.evaluate(search.prepare(problem), result.plan)
+        found, weight = ev.found, ev.weight
+    return float(found), float(weight) * float(found)
 
 
 def _nan_if_none(v: Any) -> float:

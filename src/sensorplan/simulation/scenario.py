@@ -500,13 +500,19 @@ PRESETS: dict[str, Callable[[], Scenario]] = {"paper": paper_scenario, "radar": 
                                               "williams15": williams15_scenario,
                                               "vo12": vo12_scenario}
 
-#: The run settings a preset brings, by section (``tracker``, ``run``), as a scenario
-#: file's tables would: a given option, file key or study key replaces them. The scan
+#: Search sectors of the ``search`` preset (used with ``search = "on"``): its radar's beam
+#: is 2 x 30 degrees wide, so 6 sectors tile the circle without gaps or overlap.
+SEARCH_SECTORS = 6
+
+#: The run settings a preset brings, by section (``planning``, ``tracker``, ``run``), as a
+#: scenario file's tables would: a given option, file key or study key replaces them. The scan
 #: presets set their length and GOSPA cut-off from their sources.
 PRESET_SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
     # The tracker's birth model is the scenario's own: its targets are born at the edges at
     # the preset's rate (the filter benchmarks' trackers, too, have their sources' births).
+    # Search stays off; with it on, 6 sectors: the radar's 60-degree beam tiles the circle.
     "search": {"tracker": {"kind": "pmb", "births": "edges", "birth_rate": SEARCH_BIRTH_RATE},
+               "planning": {"search_sectors": SEARCH_SECTORS},
                "run": {"steps": 200}},
     "williams15": {"tracker": {"kind": "pmb"},
                    "run": {"steps": BENCHMARKS["williams15"].steps,

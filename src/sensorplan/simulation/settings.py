@@ -28,6 +28,7 @@ from __future__ import annotations
 import contextvars
 import dataclasses
 import functools
+import types
 import typing
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -36,8 +37,8 @@ from typing import Any
 from ..errors import ConfigError
 from ..limits import (MAX_PLAN_STEPS, MAX_STEPS, RANGES, SIZE_SETTINGS, Param, Range,
                       coerce)
-from ..planners.objective import (OBJECTIVES, PLANNING_DETECTIONS, PLANNING_OCCLUSIONS,
-                                  VISIBILITY_MODES)
+from ..planners.objective import (MAX_SECTORS, OBJECTIVES, PLANNING_DETECTIONS,
+                                  PLANNING_OCCLUSIONS, SEARCH_MODES, VISIBILITY_MODES)
 from ..tracking.registry import tracker_kinds
 
 EXECUTIONS = ("ol", "olf")
@@ -178,9 +179,21 @@ def _hints(cls: type) -> dict[str, Any]:
 
 def field_type(cls: type, name: str) -> Any:
     """The declared type of a settings field (``int``, ``float``, ``str``, ``bool``,
-    ``Mapping`` for tables, ``tuple`` for lists, or a nested settings class)."""
+    ``Mapping`` for tables, ``tuple`` for lists, ``typing.Union`` for a number or a list,
+    or a nested settings class)."""
     tp = _hints(cls)[name]
-    return typing.get_origin(tp) or tp
+    origin = typing.get_origin(tp)
+    return typing.Union if origin is types.UnionType else origin or tp
+
+
+def cli_type(cls: type, name: str) -> Any:
+    """The type of a setting's command-line option: the field's type, or for a number or
+    a list (``int | tuple[int, ...]``) the number (one value for every sensor)."""
+    tp = field_type(cls, name)
+    if tp is typing.Union:
+        return next(a for a in typing.get_args(_hints(cls)[name])
+                    if typing.get_origin(a) is not tuple)
+    return tp
 
 
 def field_hint(cls: type, name: str) -> Any:
@@ -234,7 +247,7 @@ def check_fields(obj: Any, unchecked: tuple[str, ...] = ()) -> None:
         if s is None:
             continue
         try:
-            v = coerce(field_hint(cls, f.name) if tp is tuple else tp, v)
+            v = coerce(field_hint(cls, f.name) if tp in (tuple, typing.Union) else tp, v)
             if f.name not in unchecked:
                 s.validate(v)
         except ValueError as exc:
@@ -256,6 +269,21 @@ def _switching_matrix(value: tuple[tuple[float, ...], ...]) -> None:
             raise ValueError(f"row {i}: probabilities must be in [0, 1], got {list(row)}")
         if abs(sum(row) - 1.0) > 1e-9:
             raise ValueError(f"row {i} must sum to 1, got {sum(row)!r}")
+
+
+def _sector_counts(value: int | tuple[int, ...]) -> None:
+    """One count, or one per sensor, each in [0, MAX_SECTORS]."""
+    counts = (value,) if isinstance(value, int) else value
+    if not counts:
+        raise ValueError("must be a number or a list of one number per sensor, got []")
+    for s in counts:
+        if not 0 <= s <= MAX_SECTORS:
+            raise ValueError(f"must be in [0, {MAX_SECTORS}], got {s}")
+
+
+def sector_counts(value: int | tuple[int, ...], n_sensors: int) -> tuple[int, ...]:
+    """Each sensor's search sectors from ``search_sectors`` (one number for all)."""
+    return (value,) * n_sensors if isinstance(value, int) else tuple(value)
 
 
 #: Most IMM modes.
@@ -457,6 +485,10 @@ class RunSettings(_Settings):
     objective : {"cumulative", "terminal"}  summed over the horizon (default) or at its end
     planning_detection : {"aware", "ignore"}
     planning_occlusion : {"aware", "ignore"}
+    search : {"off", "on"}         plan search looks (needs ``tracker.kind = "pmb"``)
+    search_sectors : int or tuple of int
+                                   search sectors of every sensor, or one per sensor (> 0
+                                   with search on)
     steps : int                    simulation steps S (>= 1)
     gospa_c : float                GOSPA cut-off c (m, > 0) of the run's set metrics
     tracker : TrackerSettings      (a mapping is accepted and converted)
@@ -524,6 +556,23 @@ class RunSettings(_Settings):
         help="aware: a planned look counts with the probability that no building hides the "
              "target (no change without buildings); ignore: the planner does not know the "
              "buildings.")
+    search: str = setting(
+        "off", section="planning", cli=("--search",), metavar="MODE",
+        brief="Plan search looks for targets not yet tracked: off or on (needs --tracker pmb "
+              "and --search-sectors)",
+        choices=SEARCH_MODES, noun="search mode",
+        help="off: looks point at tracks only; on: a look may also point at a search sector, "
+             "and the planning objective adds the expected number of undetected targets the "
+             "plan finds, each worth the information of its first detection (needs "
+             "tracker.kind = pmb, whose undetected intensity says where they may be).")
+    search_sectors: int | tuple[int, ...] = setting(
+        0, section="planning", cli=("--search-sectors",), metavar="S", label="search sectors",
+        brief="Search sectors of every sensor with --search on (> 0)",
+        check=_sector_counts,
+        help="Search sectors with search on: one number for every sensor, or (in files) a "
+             "list with one per sensor; S sectors are S absolute bearings equally spaced "
+             "around the platform (each > 0 with search on; the search preset sets 6, "
+             "which its radar's 60-degree beam tiles the circle with).")
     steps: int = setting(
         100, section="run", cli=("--steps", "-n"), metavar="N", bounds=Range(1, MAX_STEPS),
         brief="Simulation steps of the run",
@@ -543,12 +592,31 @@ class RunSettings(_Settings):
             check_fields(self, unchecked=("planner",))
             return
         check_fields(self)
+        self._check_search()
         # Checking the settings instantiates the planner once: bad values show now, not
         # mid-study.
         from ..planners.registry import check_settings
 
         object.__setattr__(self, "planner_params", check_settings(
             self.planner, self.planner_params, "planner_params", keep_none=True))
+
+    def _check_search(self) -> None:
+        """Search on needs a tracker that keeps an undetected intensity, and sectors."""
+        if self.search != "on":
+            return
+        if self.tracker.kind != "pmb":
+            raise ConfigError("search", f"needs a tracker that keeps the intensity of "
+                              f"undetected targets (tracker.kind = 'pmb'), got "
+                              f"{self.tracker.kind!r}")
+        if min(sector_counts(self.search_sectors, 1)) < 1:
+            raise ConfigError("search_sectors", "must be > 0 with search on (the number of "
+                              "bearings a search look may point at)")
+        from ..planners.registry import planner_class
+
+        if getattr(planner_class(self.planner), "plans_search", False) is not True:
+            raise ConfigError("search", f"planner {self.planner!r} does not plan search "
+                              "looks; choose one that does (brute-force, pg, random, "
+                              "sequential-greedy) or search = 'off'")
 
 
 def all_settings(cls: type = RunSettings, prefix: str = ""

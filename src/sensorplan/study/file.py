@@ -31,7 +31,8 @@ The method settings are :mod:`sensorplan.simulation.settings`' ``planning`` and 
 sections;
 each key is the method's value, else the one in ``[defaults]``, else the preset's
 (:data:`sensorplan.simulation.scenario.PRESET_SETTINGS`: ``search`` and the scan presets
-run the ``pmb`` tracker, the scan presets set ``gospa_c``), else the setting's default.
+run the ``pmb`` tracker, ``search`` sets ``search_sectors``, the scan presets set
+``gospa_c``), else the setting's default.
 A scan preset (``williams15``, ``vo12``) plans nothing: its methods name no planner and no
 other planning key (each refused, naming it).
 ``planner_params`` merge key by key: a method's own keys must be settings of its planner; a
@@ -51,7 +52,7 @@ from pydantic import AfterValidator, create_model
 from ..config import files as io
 from ..config.planners import RUN_SEED
 from ..config.scenario import scenario_from_dict
-from ..config.simulate import preset_scenario
+from ..config.simulate import load_simulation, preset_scenario
 from ..config.validation import (PositiveInt, Seed, Strict, given, section_model,
                                  setting_annotation, setting_type, validate)
 from ..errors import ConfigError
@@ -144,7 +145,12 @@ def _study_scenario(model: StudyScenarioModel, base_dir: Path | None) -> tuple[S
         path = base_dir / path
     try:
         data = io.read_input(path, "scenario")
-        return scenario_from_dict(data), f"file {path}"
+        scenario = scenario_from_dict(data)
+        # Its [planning], [tracker] and [run] tables are not used, but they are checked as a
+        # run of the file would check them (its planner's settings against its planner):
+        # a key that means nothing is an error here too, not silently dropped.
+        load_simulation(path)
+        return scenario, f"file {path}"
     except ConfigError as exc:
         where = exc.field if exc.field == str(path) else f"{path}: {exc.field}"
         raise ConfigError("scenario.file", f"{where}: {exc.message}") from None
@@ -255,6 +261,8 @@ def study_from_dict(data: Any, base_dir: str | Path | None = None) -> Study:
         preset = PRESET_SETTINGS.get(model.scenario.preset or "paper", {})
         if preset.get("tracker"):
             defaults["tracker"] = {**preset["tracker"], **defaults.get("tracker", {})}
+        for key, value in preset.get("planning", {}).items():
+            defaults.setdefault(key, value)
         for key, value in preset.get("run", {}).items():
             if key in STUDY_KEYS and key != "steps":
                 study_wide.setdefault(key, value)

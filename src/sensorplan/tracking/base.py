@@ -113,6 +113,35 @@ class UpdateRecord:
     gated_out: BoolArray = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
 
+@dataclass(frozen=True)
+class UndetectedReport:
+    """The intensity of targets that exist but were never detected, on a grid of cells, as
+    a tracker that keeps one reports it (planning's search looks aim where they may be).
+
+    Attributes
+    ----------
+    centres : (C, 2)       cell centres (m)
+    weights : (C,)         expected number of undetected targets in each cell now
+    births : (C,)          expected births in each cell per step
+    survival : float       probability that a target survives one step
+    cell_cov : (2, 2)      position covariance of a target known only to lie in a cell
+    """
+
+    centres: FloatArray
+    weights: FloatArray
+    births: FloatArray
+    survival: float
+    cell_cov: FloatArray
+
+
+def undetected_report(tracker: Any) -> UndetectedReport | None:
+    """The tracker's undetected intensity, from its optional method
+    ``undetected_intensity()``; None for a tracker that keeps none (it cannot plan search
+    looks)."""
+    report = getattr(tracker, "undetected_intensity", None)
+    return report() if callable(report) else None
+
+
 @runtime_checkable
 class Tracker(Protocol):
     """A tracker in the closed loop (see the module docstring)."""
@@ -132,6 +161,9 @@ class Tracker(Protocol):
     def planning_process_noise(self) -> float | FloatArray:
         """The process noise the planner should predict each reported track with."""
         ...
+
+    # A tracker that keeps the intensity of undetected targets also offers
+    # ``undetected_intensity() -> UndetectedReport`` (optional: :func:`undetected_report`).
 
 
 def given_tracks(means: Any, covs: Any) -> tuple[FloatArray, FloatArray]:

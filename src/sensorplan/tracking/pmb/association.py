@@ -73,6 +73,13 @@ TOL = 1e-10
 MAX_ITER = 1000
 #: Default most joint associations :func:`association_exact` enumerates.
 MAX_HYPOTHESES = 200_000
+#: Smallest miss and new weight belief propagation works with: the ratio form multiplies
+#: ``1 / w_miss`` by ``1 / w_new``, and two weights near the smallest normal float (a
+#: Bernoulli surely there and surely detectable meeting a detection that neither clutter
+#: nor the undetected intensity explains: ideal detection without false alarms) overflow
+#: to inf and make every marginal NaN. Raised to this, their products stay below 1e200
+#: times ``w_det``, and the marginals move by about this over ``w_det``.
+LBP_FLOOR = 1e-100
 
 
 @dataclass(frozen=True, slots=True)
@@ -235,6 +242,8 @@ def association_lbp(w_miss: FloatArray, w_det: FloatArray, w_new: FloatArray,
     w_det : (n, m) float64      weight of track i generating measurement j, >= 0 (0 where
                                 not gated)
     w_new : (m,) float64        weight of measurement j being a new target or clutter, > 0
+                                (``w_miss`` and ``w_new`` below :data:`LBP_FLOOR` count
+                                as it)
     tol : float                 stop when no message changes by more than this, relatively
     max_iter : int              most iterations (>= 1)
 
@@ -262,6 +271,7 @@ def association_lbp(w_miss: FloatArray, w_det: FloatArray, w_new: FloatArray,
         raise ValueError(f"tol must be >= 0, got {tol}")
     if max_iter < 1:
         raise ValueError(f"max_iter must be >= 1, got {max_iter}")
+    w_miss, w_new = np.maximum(w_miss, LBP_FLOOR), np.maximum(w_new, LBP_FLOOR)
     psi = w_det / w_miss[:, None]
     p_det, p_miss, p_new, iterations, converged = _lbp_nb(
         psi, np.ascontiguousarray(w_new), float(tol), int(max_iter))
@@ -381,5 +391,5 @@ def association_components(w_det: FloatArray) -> list[tuple[IntArray, IntArray]]
             for c in np.argsort(first, kind="stable")]
 
 
-__all__ = ["MAX_HYPOTHESES", "MAX_ITER", "TOL", "AssociationMarginals", "association_components",
-           "association_exact", "association_lbp"]
+__all__ = ["LBP_FLOOR", "MAX_HYPOTHESES", "MAX_ITER", "TOL", "AssociationMarginals",
+           "association_components", "association_exact", "association_lbp"]

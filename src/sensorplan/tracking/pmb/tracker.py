@@ -78,7 +78,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..._types import BoolArray, FloatArray
-from ..base import Looks, TrackSet, UpdateRecord, given_tracks
+from ..base import Looks, TrackSet, UndetectedReport, UpdateRecord, given_tracks
 from ..ekf import predict as kalman_predict
 from ..known_map import map_edge_predict
 from . import undetected
@@ -198,6 +198,15 @@ class PMBTracker(MapTracker):
     def planning_process_noise(self) -> float | FloatArray:
         """q of the CWNA motion model the planner predicts every track with."""
         return self.process_noise
+
+    def undetected_intensity(self) -> UndetectedReport:
+        """The undetected intensity as it stands (copies): the grid's centres, the expected
+        undetected targets per cell, the births per cell per step, the survival
+        probability and a cell's position covariance (the grid components' position
+        block)."""
+        return UndetectedReport(np.array(self.grid.centres), np.array(self.undetected),
+                                np.array(self.births), self.survival_probability,
+                                np.array(self.grid.cov[:2, :2]))
 
     def predict(self) -> BoolArray:
         """Predict the Bernoullis and the undetected intensity one step.

@@ -1,0 +1,302 @@
+"""The closed loop with search on: sector looks are planned and executed as planned, where no
+track exists every look searches, the recorded search term is Phi's, runs repeat, and search
+off leaves every run as it was."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from cli_helpers import assert_bad_input, run
+from sensorplan.config import load_simulation
+from sensorplan.planners import search
+from sensorplan.simulation import run as run_module
+from sensorplan.simulation.episode import Episode
+from sensorplan.simulation.run import make_tracker, run_episode
+from sensorplan.simulation.scenario import SEARCH_SECTORS
+from sensorplan.study.file import parse_study
+from sensorplan.tracking.base import undetected_report
+
+STEPS = 10
+
+
+def searching(**overrides: Any) -> Any:
+    """The search preset with search on (myopic pg, OLF: a decision every step)."""
+    return load_simulation(preset="search", overrides={"search": "on", "steps": STEPS,
+                                                       "seed": 3, **overrides})
+
+
+@pytest.fixture(scope="module")
+def loop() -> tuple[Episode, list[tuple[Any, Any]]]:
+    """A searching run of the search preset whose known targets are left out (no track at
+    the start), with every decision's problem and result recorded."""
+    cfg = searching()
+    scenario = dataclasses.replace(cfg.scenario, initial_targets=0)
+    decisions: list[tuple[Any, Any]] = []
+    real = run_module.checked_plan
+
+    def spy(planner: Any, problem: Any, rng: Any = None, decision: Any = None) -> Any:
+        result = real(planner, problem, rng, decision)
+        decisions.append((problem, result))
+        return result
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(run_module, "checked_plan", spy)
+        episode = run_episode(scenario, cfg.settings, cfg.seed)
+    return episode, decisions
+
+
+def test_sector_looks_happen_and_every_look_searches_where_no_track_exists(loop) -> None:
+    ep, decisions = loop
+    assert ep.searched is not None and ep.search_found is not None
+    assert len(decisions) == len(ep.decision_steps) == STEPS      # OLF, e = 1
+    assert (ep.searched[1:] >= 0).any()
+    untracked = [d for d, (problem, _) in enumerate(decisions) if problem.n_targets == 0]
+    assert untracked                              # the first decisions know no target
+    for d in untracked:
+        plan = decisions[d][1].plan
+        assert (plan.sectors >= 0).all() and (plan.targets < 0).all()
+        t = int(ep.decision_steps[d]) + 1         # the step the decision's epoch covers
+        assert (ep.searched[t] >= 0).all()
+        assert (ep.looked[t] == -1).all()
+
+
+def test_the_looks_are_executed_as_planned(loop) -> None:
+    ep, decisions = loop
+    for d, (problem, result) in enumerate(decisions):
+        t = int(ep.decision_steps[d]) + 1
+        plan = result.plan
+        # Every decision is searching; the step's sector looks are the plan's first epoch.
+        np.testing.assert_array_equal(ep.searched[t], plan.sectors[:, 0])
+        np.testing.assert_array_equal(ep.sensor_positions[t], plan.positions[:, 0])
+        # The heading rule toward the sector's bearing (or the track), as planned.
+        planned = search.plan_headings(search.prepare(problem), plan)[:, 0]
+        np.testing.assert_allclose(ep.sensor_headings[t], planned, rtol=0, atol=1e-9)
+
+
+def test_the_recorded_search_term_is_phis(loop) -> None:
+    ep, decisions = loop
+    for d, (problem, result) in enumerate(decisions):
+        assert problem.searching and problem.sector_counts == (SEARCH_SECTORS,) * 3
+        phi, info, mu = search.potential(problem, result.plan)
+        assert ep.potential[d] == pytest.approx(phi, rel=1e-12)
+        assert ep.search_found[d] == pytest.approx(mu, rel=1e-12)
+        assert ep.search_term[d] == pytest.approx(phi - info.sum(), rel=1e-9, abs=1e-12)
+    assert (ep.search_found > 0).all()
+    # Where there is no track, Phi is the search term alone.
+    for d, (problem, _) in enumerate(decisions):
+        if problem.n_targets == 0:
+            assert ep.search_term[d] == pytest.approx(ep.potential[d], rel=1e-12)
+
+
+def test_the_recorded_intensity_is_the_trackers() -> None:
+    cfg = searching()
+    tracker = make_tracker(cfg.scenario, cfg.settings, np.zeros((0, 4)), _table(cfg))
+    report = undetected_report(tracker)
+    assert report is not None
+    np.testing.assert_array_equal(report.weights, tracker.undetected)
+    np.testing.assert_array_equal(report.births, tracker.births)
+    assert report.births.sum() == pytest.approx(cfg.settings.tracker.birth_rate, rel=1e-12)
+    assert report.survival == cfg.settings.tracker.survival_probability
+    # A cell's position covariance: uniform over a 25 m square.
+    np.testing.assert_allclose(report.cell_cov, np.diag([625.0 / 12] * 2), rtol=1e-12)
+    report.weights[:] = 1.0                       # a copy: the tracker is untouched
+    assert not np.array_equal(tracker.undetected, report.weights)
+    known = load_simulation(preset="radar", overrides={"steps": 2})
+    assert undetected_report(make_tracker(known.scenario, known.settings,
+                                          np.zeros((5, 4)), _table(known))) is None
+
+
+def _table(cfg: Any) -> np.ndarray:
+    from sensorplan.models.sensors import radar_table
+
+    return radar_table(tuple(s.params for s in cfg.scenario.sensors))
+
+
+def _arrays(ep: Episode) -> dict[str, Any]:
+    return {f.name: getattr(ep, f.name) for f in dataclasses.fields(ep)
+            if f.name not in ("planning_seconds", "settings")}
+
+
+def _same(a: Episode, b: Episode) -> None:
+    for name, value in _arrays(a).items():
+        other = getattr(b, name)
+        if isinstance(value, np.ndarray):
+            np.testing.assert_array_equal(value, other, err_msg=name)
+        else:
+            assert value == other, name
+
+
+def test_the_same_seed_gives_the_same_run(loop) -> None:
+    ep, _ = loop
+    cfg = searching()
+    again = run_episode(dataclasses.replace(cfg.scenario, initial_targets=0), cfg.settings,
+                        cfg.seed)
+    _same(ep, again)
+
+
+def test_a_searching_episode_file_keeps_its_search_records(loop, tmp_path: Path) -> None:
+    ep, _ = loop
+    ep.save(tmp_path / "e.npz")
+    back = Episode.load(tmp_path / "e.npz")
+    for name in ("searched", "search_found", "search_term"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(ep, name))
+
+
+def test_search_off_leaves_the_run_as_it_was(tmp_path: Path) -> None:
+    base = load_simulation(preset="search", overrides={"steps": 6, "seed": 2})
+    assert base.settings.search == "off" and base.settings.search_sectors == SEARCH_SECTORS
+    off = run_episode(base.scenario, base.settings, base.seed)
+    other = dataclasses.replace(base.settings, search_sectors=11)
+    _same(off, run_episode(base.scenario, other, base.seed))
+    assert off.searched is None and off.search_found is None and off.search_term is None
+    off.save(tmp_path / "off.npz")
+    with np.load(tmp_path / "off.npz") as data:
+        assert not {"searched", "search_found", "search_term"} & set(data.files)
+
+
+def test_the_summary_reports_the_search(capsys, tmp_path: Path) -> None:
+    code, out, err = run(capsys, "simulate", "--preset", "search", "--search", "on",
+                         "--steps", "2", "--out", tmp_path)
+    assert code == 0, err
+    text = " ".join(out.split())                  # as printed, wrapped at any width
+    assert f"search on ({SEARCH_SECTORS} sectors)" in text
+    assert "looked at a search sector; Phi's search term w mu per decision" in text
+
+
+@pytest.mark.parametrize(("args", "field"), [
+    (("--preset", "radar", "--search", "on"), "--search"),
+    (("--preset", "search", "--search", "on", "--search-sectors", "0"), "--search-sectors"),
+    (("--preset", "search", "--search", "on", "--planner", "pg-refine"), "--search"),
+    (("--preset", "search", "--search", "sometimes"), "--search"),
+    (("--preset", "search", "--search-sectors", "-1"), "--search-sectors"),
+])
+def test_bad_search_settings_are_one_line(capsys, tmp_path: Path, args: tuple[str, ...],
+                                          field: str) -> None:
+    assert_bad_input(run(capsys, "simulate", *args, "--out", tmp_path), field)
+
+
+def test_bad_search_settings_in_files_name_the_key(capsys, tmp_path: Path) -> None:
+    quick = (Path(__file__).resolve().parents[2] / "configs" / "quick.toml").read_text()
+    path = tmp_path / "s.toml"
+    path.write_text(quick.replace("[planning]\n", '[planning]\nsearch = "on"\n'
+                                  'search_sectors = 6\n'))
+    line = assert_bad_input(run(capsys, "simulate", path, "--out", tmp_path),
+                            "planning.search")
+    assert "tracker.kind = 'pmb'" in line
+    assert_bad_input(run(capsys, "agents", "--preset", "search", "--search", "on",
+                         "--out", tmp_path), "--search")
+
+
+def test_a_study_of_the_search_preset_takes_its_sectors() -> None:
+    study = parse_study("""
+runs = 1
+steps = 5
+seed = 1
+[scenario]
+preset = "search"
+[[methods]]
+name = "searching"
+planner = "pg"
+search = "on"
+[[methods]]
+name = "twelve"
+planner = "random"
+search = "on"
+search_sectors = 12
+[[methods]]
+name = "tracks"
+planner = "pg"
+""")
+    got = {m.name: (m.settings.search, m.settings.search_sectors) for m in study.methods}
+    assert got == {"searching": ("on", SEARCH_SECTORS), "twelve": ("on", 12),
+                   "tracks": ("off", SEARCH_SECTORS)}
+
+
+PER_SENSOR = """
+look_detects = "all"
+births = "edges"
+birth_rate = 0.05
+initial_targets = 1
+
+[planning]
+planner = "pg"
+search = "on"
+search_sectors = SECTORS
+
+[tracker]
+kind = "pmb"
+
+[run]
+steps = 4
+seed = 1
+
+[[targets]]
+kind = "cv"
+
+[[sensors]]
+altitude = 490.0
+position = [100.0, 100.0]
+heading = 0.78
+
+[[sensors]]
+altitude = 510.0
+position = [500.0, 500.0]
+heading = -2.35
+"""
+
+
+def test_each_sensor_searches_its_own_sectors(tmp_path: Path) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text(PER_SENSOR.replace("SECTORS", "[3, 8]"))
+    cfg = load_simulation(path)
+    assert cfg.settings.search_sectors == (3, 8)
+    problems: list[Any] = []
+    real = run_module.checked_plan
+
+    def spy(planner: Any, problem: Any, rng: Any = None, decision: Any = None) -> Any:
+        result = real(planner, problem, rng, decision)
+        problems.append((problem, result))
+        return result
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(run_module, "checked_plan", spy)
+        ep = run_episode(cfg.scenario, cfg.settings, cfg.seed)
+    assert all(p.sector_counts == (3, 8) for p, _ in problems)
+    assert (ep.searched[1:] < np.array([3, 8])).all()
+    for d, (problem, result) in enumerate(problems):
+        t = int(ep.decision_steps[d]) + 1
+        planned = search.plan_headings(search.prepare(problem), result.plan)[:, 0]
+        np.testing.assert_allclose(ep.sensor_headings[t], planned, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize("sectors", ["[3]", "[3, 8, 2]"])
+def test_one_count_per_sensor_or_one_for_all(capsys, tmp_path: Path, sectors: str) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text(PER_SENSOR.replace("SECTORS", sectors))
+    line = assert_bad_input(run(capsys, "simulate", path, "--out", tmp_path),
+                            "planning.search_sectors")
+    assert "one per sensor (2)" in line
+
+
+def test_a_study_method_with_one_count_too_few_is_named() -> None:
+    from sensorplan.errors import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        parse_study("""
+runs = 1
+steps = 5
+[scenario]
+preset = "search"
+[[methods]]
+name = "two"
+planner = "pg"
+search = "on"
+search_sectors = [6, 6]
+""")
+    assert err.value.field == "methods[0].search_sectors"
+    assert "one per sensor (3)" in err.value.message
