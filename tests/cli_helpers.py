@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from typing import Any
 
 import pytest
@@ -46,3 +47,14 @@ def assert_bad_input(result: tuple[int, str, str], field: str) -> str:
     assert lines[0].startswith(f"error: {field}: "), lines[0]
     assert "Traceback" not in err
     return lines[0]
+
+
+def set_path(path: str, value: Any) -> Callable[[dict[str, Any]], None]:
+    """A mutation of a parsed input file setting a dotted path such as
+    ``sensors.0.altitude`` (digits index lists) to ``value``."""
+    def mutate(d: dict[str, Any]) -> None:
+        keys: list[Any] = [int(k) if k.isdigit() else k for k in path.split(".")]
+        for k in keys[:-1]:
+            d = d[k]
+        d[keys[-1]] = value
+    return mutate

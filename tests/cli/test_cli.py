@@ -20,6 +20,7 @@ from sensorplan.planners import PLANNERS, PlanResult
 from sensorplan.planners.problem import Plan, move_vectors
 
 from cli_helpers import SPEC7, SPEC7_TEXT, assert_bad_input, run
+from cli_helpers import set_path as _set
 
 ROOT = Path(__file__).resolve().parents[2]
 QUICK = ROOT / "configs" / "quick.toml"
@@ -117,14 +118,6 @@ def test_result_to_dict_layout() -> None:
     assert set(result_to_dict(random_result)) == BASE_KEYS
 
 
-def _set(path: str, value: Any) -> Callable[[dict[str, Any]], None]:
-    """A mutation setting a dotted/indexed path like ``sensors.0.altitude``."""
-    def mutate(d: dict[str, Any]) -> None:
-        keys = [int(k) if k.isdigit() else k for k in path.split(".")]
-        for k in keys[:-1]:
-            d = d[k]
-        d[keys[-1]] = value
-    return mutate
 
 
 def _delete(key: str) -> Callable[[dict[str, Any]], None]:

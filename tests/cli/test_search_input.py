@@ -16,6 +16,7 @@ from typing import Any
 import pytest
 
 from cli_helpers import SPEC7, assert_bad_input, run
+from cli_helpers import set_path as _set
 from sensorplan.config.decision import DecisionUndetected
 
 
@@ -31,14 +32,6 @@ def searching() -> dict[str, Any]:
     return d
 
 
-def _set(path: str, value: Any) -> Callable[[dict[str, Any]], None]:
-    """A mutation setting a dotted path like ``undetected.weights.1`` (digits index lists)."""
-    def mutate(d: dict[str, Any]) -> None:
-        keys = [int(k) if k.isdigit() else k for k in path.split(".")]
-        for k in keys[:-1]:
-            d = d[k]
-        d[keys[-1]] = value
-    return mutate
 
 
 def _drop(path: str) -> Callable[[dict[str, Any]], None]:
