@@ -36,6 +36,12 @@ def loop() -> tuple[Episode, list[tuple[Any, Any]]]:
     the start), with every decision's problem and result recorded."""
     cfg = searching()
     scenario = dataclasses.replace(cfg.scenario, initial_targets=0)
+    return recorded_run(scenario, cfg.settings, cfg.seed)
+
+
+def recorded_run(scenario: Any, settings: Any, seed: int
+                 ) -> tuple[Episode, list[tuple[Any, Any]]]:
+    """A run, and every decision's (problem, result) as the loop checked it."""
     decisions: list[tuple[Any, Any]] = []
     real = run_module.checked_plan
 
@@ -46,7 +52,7 @@ def loop() -> tuple[Episode, list[tuple[Any, Any]]]:
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(run_module, "checked_plan", spy)
-        episode = run_episode(scenario, cfg.settings, cfg.seed)
+        episode = run_episode(scenario, settings, seed)
     return episode, decisions
 
 
@@ -255,17 +261,7 @@ def test_each_sensor_searches_its_own_sectors(tmp_path: Path) -> None:
     path.write_text(PER_SENSOR.replace("SECTORS", "[3, 8]"))
     cfg = load_simulation(path)
     assert cfg.settings.search_sectors == (3, 8)
-    problems: list[Any] = []
-    real = run_module.checked_plan
-
-    def spy(planner: Any, problem: Any, rng: Any = None, decision: Any = None) -> Any:
-        result = real(planner, problem, rng, decision)
-        problems.append((problem, result))
-        return result
-
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(run_module, "checked_plan", spy)
-        ep = run_episode(cfg.scenario, cfg.settings, cfg.seed)
+    ep, problems = recorded_run(cfg.scenario, cfg.settings, cfg.seed)
     assert all(p.sector_counts == (3, 8) for p, _ in problems)
     assert (ep.searched[1:] < np.array([3, 8])).all()
     for d, (problem, result) in enumerate(problems):
