@@ -21,12 +21,11 @@ benchmark's cut-off) and of its localisation, missed and false parts (m^2), and 
 and mean seconds per step (predict and update; the same process runs every configuration,
 one after another). The CSV is resumable: configurations already written for a run are
 skipped, so a stopped study continues with the same command. ``--stop-at HH:MM`` (UTC)
-starts no run index at or after that time; SIGINT or SIGTERM stops at once, keeping every
-row already written (the interrupted tracker's row of that run is redone on resuming). The
-summary
-prints, per configuration: mean GOSPA with a 95 % t-interval, median, the paired
-difference to ``pmb`` with its 95 % t-interval, median seconds per step and the ratio to
-``pmb``'s, and the decision rule's verdicts.
+starts no run index at or after the next time the clock reads it; SIGINT or SIGTERM stops at
+once, keeping every row already written (the interrupted tracker's row of that run is redone
+on resuming). The summary prints, per configuration: mean GOSPA with a 95 % t-interval,
+median, the paired difference to ``pmb`` with its 95 % t-interval, median seconds per step
+and the ratio to ``pmb``'s, and the decision rule's verdicts.
 
 Run::
 
@@ -415,6 +414,13 @@ def summary(out: Path, benchmark: str, runs: int, configs: list[dict[str, Any]],
                       f"{d:+.3f} [{dlo:+.3f}, {dhi:+.3f}] over {len(pb)} runs")
 
 
+def next_time_of_day(hour: int, minute: int, now: datetime.datetime) -> datetime.datetime:
+    """The first moment after ``now`` at which the clock reads ``hour:minute``: a session
+    that runs past midnight gives tomorrow's."""
+    at = now.replace(hour=hour, minute=minute, second=0, microsecond=0)
+    return at if at > now else at + datetime.timedelta(days=1)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -424,7 +430,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--runs", type=int, default=None,
                     help="runs to do (the first ones of the study's; default all)")
     ap.add_argument("--stop-at", default=None, metavar="HH:MM",
-                    help="UTC time of day from which no new run index starts (today's)")
+                    help="UTC time of day from which no new run index starts (the next time "
+                         "the clock reads it)")
     ap.add_argument("--summary-only", action="store_true", help="print the summary only")
     args = ap.parse_args(argv)
     spec = load(args.study, args.benchmark)
@@ -437,8 +444,7 @@ def main(argv: list[str] | None = None) -> int:
             hm = datetime.datetime.strptime(args.stop_at, "%H:%M")
         except ValueError:
             fail("--stop-at", f"must be HH:MM (UTC), got {args.stop_at!r}")
-        stop_at = datetime.datetime.now(datetime.UTC).replace(
-            hour=hm.hour, minute=hm.minute, second=0, microsecond=0)
+        stop_at = next_time_of_day(hm.hour, hm.minute, datetime.datetime.now(datetime.UTC))
     if not args.summary_only:
         # SIGTERM stops as Ctrl-C does: the CSV is closed with every finished row in it.
         signal.signal(signal.SIGTERM, signal.default_int_handler)

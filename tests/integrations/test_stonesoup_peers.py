@@ -192,3 +192,14 @@ def test_a_configuration_with_timed_out_runs_is_not_eligible_as_its_trackers_bes
     assert "over 3 runs" in text
     stall = next(line for line in text.splitlines() if line.startswith("j-stall"))
     assert stall.split()[-1] == "1"
+
+
+def test_a_stop_time_of_day_already_past_today_means_tomorrow():
+    s = script()
+    now = datetime.datetime(2026, 12, 3, 22, 40, 5, tzinfo=datetime.UTC)
+    assert s["next_time_of_day"](0, 50, now) == datetime.datetime(2026, 12, 4, 0, 50,
+                                                                 tzinfo=datetime.UTC)
+    assert s["next_time_of_day"](23, 5, now) == datetime.datetime(2026, 12, 3, 23, 5,
+                                                                 tzinfo=datetime.UTC)
+    assert s["next_time_of_day"](22, 40, now) == datetime.datetime(2026, 12, 4, 22, 40,
+                                                                  tzinfo=datetime.UTC)
