@@ -25,5 +25,3 @@ PLANNING_OCCLUSIONS = ("ignore", "aware")
 #: ``off``: looks point at tracks only; ``on``: a look may also point at a search sector, and
 #: Phi adds the value of the undetected targets the plan is expected to find.
 SEARCH_MODES = ("off", "on")
-#: Most search sectors per sensor.
-MAX_SECTORS = 360
