@@ -216,8 +216,14 @@ def main(argv: list[str] | None = None) -> int:
         from ..planners._chains_nb import warm_up
         from ..planners.epoch_game import warm_engine
 
+        from .._compiled.jit import is_active
+
         warm_up()                # load the compiled kernels before saying ready: a first
         warm_engine()           # compile would otherwise look like a silent, lost agent
+        if is_active():
+            from .._compiled.prepare import warm_listed
+
+            warm_listed()        # the radar's kernels too, which a searching decision calls
         proc = AgentProcess(args.dir, args.index, args.agents, args.parent)
         proc.serve()
     except Orphaned:
