@@ -5,6 +5,10 @@
 ``dec-independent`` agents plan alone (no messages), each treating the others as unassigned;
 ``dec-sequential``  agents decide one after the other over the links (N rounds).
 
+Each plans search looks too: with a problem whose search is on, every agent plays the same
+schedule over track and sector looks against the same undetected intensity
+(:mod:`.search_agent`).
+
 Every planner returns a :class:`DecentralResult`: a :class:`PlanResult` whose plan is the
 union of the agents' own plans (Phi by the one definition, :func:`finish`) plus ``log``, a
 :class:`DecisionLog` of the decision. With ``transport="bus"`` the planner holds one
