@@ -99,6 +99,8 @@ class _Agents(Transport):
         res = finish(self.name, ctx, to_plan(ctx, got.pos, got.tgt, got.sec), start, None,
                      None, got.trace)
         base = {f.name: getattr(res, f.name) for f in fields(PlanResult)}
+        # Lost agents' platforms hold station: declared, so the plan check admits them.
+        base["holding"] = got.log.failed
         return DecentralResult(**base, log=got.log, timing=got.timing)
 
     def _bus(self, n_agents: int) -> Any:
