@@ -103,7 +103,7 @@ def test_a_study_without_search_gets_the_report_it_got_before(
     now = write_report(out, tmp_path / "now")
     # The report as it was before the search section existed.
     monkeypatch.setattr(document, "search_section", lambda *a: None)
-    monkeypatch.setattr("sensorplan.report.search.draw_search_figures", lambda *a: {})
+    monkeypatch.setattr(document, "draw_search_figures", lambda *a: {})
     before = write_report(out, tmp_path / "before")
     assert now.markdown.read_text() == before.markdown.read_text()
     assert set(now.figures) == set(before.figures)

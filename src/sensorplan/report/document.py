@@ -27,7 +27,7 @@ from ..study.model import Method
 from ..study.storage import StudyTables, load_study_dir
 from .figures import FIGURES, draw_figures
 from .headline import SMALL_SAMPLE, headline, headline_paragraphs, results_link
-from .search import SEARCH_FIGURES, search_section
+from .search import SEARCH_FIGURES, draw_search_figures, search_section
 
 
 @dataclass
@@ -251,6 +251,7 @@ def write_report(study_dir: str | Path, out: str | Path | None = None) -> Report
     figs = draw_figures(t, out, {"rmse": rmse, "lost": lost, "diffs": diffs, "plan": plan,
                                  "curves": rmse_over_time(t), "nees": nees_over_time(t),
                                  "gospa": gospa_over_time(t), "quantity": column.upper()})
+    figs.update(draw_search_figures(t, out))
 
     top = headline(t.study, judged,
                    summary(judged, "gospa") if column == "gospa" else rmse, diffs, column)

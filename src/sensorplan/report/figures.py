@@ -87,9 +87,6 @@ def draw_figures(t: StudyTables, out: Path, stats: dict[str, Any]) -> dict[str, 
         figs["gospa_runs"] = _fig_gospa_runs(t, colors, out / "gospa_runs.png")
     else:
         (out / "gospa_runs.png").unlink(missing_ok=True)  # stale from an earlier report
-    from .search import draw_search_figures
-
-    figs.update(draw_search_figures(t, out, colors))
     groups = horizon_groups(t.study)
     if groups:
         figs["horizon"] = _fig_horizon(groups, stats["rmse"], t, out / "horizon.png")

@@ -17,8 +17,9 @@ tracker keeps an undetected intensity, :data:`sensorplan.study.tables.TABLE_DOC`
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -26,9 +27,7 @@ from ..figures.colors import INTENSITY_CMAP
 from ..simulation.run import intensity_grid_shape
 from ..study.metrics import LEVEL, t_interval
 from ..study.storage import StudyTables
-
-if TYPE_CHECKING:  # pragma: no cover
-    from .document import _Doc
+from .figures import _method_colors, _method_styles, _new_figure, _save
 
 #: Captions of the search section's figures.
 SEARCH_FIGURES = {
@@ -113,10 +112,10 @@ def per_km2(study: Any, shape: tuple[int, ...]) -> float:
     return 1e6 / (w * h / (shape[-1] * shape[-2]))
 
 
-def draw_search_figures(t: StudyTables, out: Path, colors: dict[str, Any]
-                        ) -> dict[str, Path]:
+def draw_search_figures(t: StudyTables, out: Path) -> dict[str, Path]:
     """Write the search section's figures into ``out`` when the study searches (none
     otherwise; stale files of an earlier report are removed)."""
+    colors = _method_colors(t.study.method_names)
     names = intensity_methods(t) if searching(t.study) else []
     figs: dict[str, Path] = {}
     if searching(t.study):
@@ -141,8 +140,6 @@ def _band_plot(ax: Any, curves: Any, name: str, color: Any, dt: float, style: st
 
 def _fig_undetected_count(t: StudyTables, names: list[str], colors: dict[str, Any],
                           path: Path) -> Path:
-    from .figures import _method_styles, _new_figure, _save
-
     curves = over_time(t, "undetected", names)
     styles = _method_styles(t.study)
     dt = t.study.scenario.dt
@@ -164,8 +161,6 @@ def _fig_undetected_count(t: StudyTables, names: list[str], colors: dict[str, An
 
 def _fig_undetected_maps(t: StudyTables, names: list[str], path: Path) -> Path:
     from matplotlib.colors import Normalize
-
-    from .figures import _new_figure, _save
 
     run = representative_run(t, names)
     maps = {n: intensity_maps(t, run, n) for n in names}
@@ -204,8 +199,6 @@ _PARTS = {"localisation": "localisation of the assigned tracks",
 
 
 def _fig_gospa_parts_time(t: StudyTables, colors: dict[str, Any], path: Path) -> Path:
-    from .figures import _method_styles, _new_figure, _save
-
     styles = _method_styles(t.study)
     dt = t.study.scenario.dt
     fig = _new_figure(13.0, 4.4)
@@ -227,19 +220,23 @@ def _fig_gospa_parts_time(t: StudyTables, colors: dict[str, Any], path: Path) ->
     return _save(fig, path)
 
 
+def _number(v: float) -> str:
+    return f"{v:.2f}" if math.isfinite(v) else "\u2013"
+
+
 def _interval(values: np.ndarray) -> str:
-    """Mean [95 % t-interval] of per-run values, two decimals."""
-    from .document import _ci
-
+    """Mean [95 % t-interval, lower end clipped at 0] of per-run values, two decimals (the
+    mean alone when the interval is undefined)."""
     mean, lo, hi = (float(v) for v in t_interval(values))
-    return _ci(mean, max(lo, 0.0), hi, digits=2)
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return _number(mean)
+    return f"{_number(mean)} [{_number(max(lo, 0.0))}, {_number(hi)}]"
 
 
-def search_section(doc: _Doc, t: StudyTables, figs: dict[str, Path]) -> None:
-    """The search section (nothing when no method searches)."""
+def search_section(doc: Any, t: StudyTables, figs: dict[str, Path]) -> None:
+    """The search section of the report's document (nothing when no method searches)."""
     if not searching(t.study):
         return
-    from .document import _f
 
     names = intensity_methods(t)
     doc.h(2, "Search: targets not yet detected")
@@ -259,7 +256,7 @@ def search_section(doc: _Doc, t: StudyTables, figs: dict[str, Path]) -> None:
         per_run = mine.groupby("run", observed=True)["undetected"].mean().to_numpy(float)
         final = mine[mine["step"] == last]["undetected"].to_numpy(float)
         rows.append([name, _interval(per_run), _interval(final),
-                     _f(float(np.nanmax(mine["undetected"].to_numpy(float))), 2)])
+                     _number(float(np.nanmax(mine["undetected"].to_numpy(float))))])
     doc.table(["method", "expected undetected, mean over steps",
                f"at the last step ({last})", "largest (any run, step)"], rows,
               caption="expected number of undetected targets")
