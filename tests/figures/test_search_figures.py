@@ -89,6 +89,10 @@ def test_the_animation_draws_the_intensity_sectors_and_finds(search_run,
             assert math.isclose(math.cos(math.atan2(y1 - y0, x1 - x0) - bearing), 1.0,
                                 abs_tol=1e-9)
             assert f"{math.degrees(bearing) % 360:.0f}\u00b0" in layer.texts[i].get_text()
+        # The title's mu is the search_found of the decision whose plan the step executes.
+        k = list(ep.decision_steps).index(t - 1)       # a decision before every step here
+        assert layer.view.mu[t] == ep.search_found[k]
+        assert f"expects to find {ep.search_found[k]:.2f}" in layer.title(t)
         found = layer.view.finds.step == t
         np.testing.assert_array_equal(np.asarray(layer.found.get_offsets())[:found.sum()],
                                       layer.view.finds.xy[found])

@@ -72,6 +72,10 @@ class SearchView:
     sectors : (S+1, N) int            search sector of each sensor's look (-1: none)
     bearings : (S+1, N)               that sector's bearing (rad; NaN: none)
     finds : Finds
+    mu : (S+1,)                       mu of the plan being executed at each step: the
+                                      expected number of undetected targets it finds (the
+                                      episode's ``search_found`` of the latest decision
+                                      taken before the step; NaN: none, or search off)
     """
 
     density: np.ndarray | None
@@ -80,6 +84,7 @@ class SearchView:
     sectors: np.ndarray
     bearings: np.ndarray
     finds: Finds
+    mu: np.ndarray
 
 
 def has_search(episode: Episode) -> bool:
@@ -156,8 +161,13 @@ def search_view(episode: Episode, scenario: Scenario) -> SearchView:
     top = float(np.max(density, initial=0.0)) if density is not None else 0.0
     expected = (np.asarray(episode.undetected, dtype=float).sum(axis=(1, 2))
                 if episode.undetected is not None else None)
+    mu = np.full(S1, np.nan)
+    if episode.search_found is not None and len(episode.search_found):
+        # A decision at time index d plans the looks of steps d + 1, ...
+        k = np.searchsorted(np.asarray(episode.decision_steps), np.arange(S1), side="left") - 1
+        mu = np.where(k >= 0, np.asarray(episode.search_found)[np.maximum(k, 0)], np.nan)
     return SearchView(density, expected, top if top > 0 else 1.0, sectors, bearings,
-                      search_finds(episode, scenario))
+                      search_finds(episode, scenario), mu)
 
 
 def shown(density: np.ndarray, vmax: float) -> np.ndarray:
@@ -308,6 +318,8 @@ class SearchLayer:
             parts.append(f"expected undetected targets {v.expected[t]:.2f}")
         n = int((v.sectors[t] >= 0).sum()) if t >= 1 else 0
         parts.append(f"{n} search look{'s' if n != 1 else ''}")
+        if np.isfinite(v.mu[t]):
+            parts.append(f"the plan expects to find {v.mu[t]:.2f}")
         found = int(np.sum(v.finds.step == t))
         if found:
             parts.append(f"{found} found")
