@@ -150,6 +150,9 @@ def summary_lines(tables: Any, reference: str) -> list[str]:
         for m in methods:
             v = runs.loc[runs["method"] == m, key].to_numpy(float)
             v = v[np.isfinite(v)]
+            if v.size == 0:                 # e.g. born targets where none are born
+                cells.append("–")
+                continue
             mean, lo, hi = t_interval(v)
             cells.append(f"{_fmt(mean, dec)} [{_fmt(lo, dec)}, {_fmt(hi, dec)}]; "
                          f"{_fmt(np.median(v), dec)}; {_fmt(np.percentile(v, 90), dec)}; "
