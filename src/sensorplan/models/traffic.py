@@ -33,7 +33,9 @@ Conversion (:func:`trajectories`), every choice in :class:`TrafficArea`:
 
 from __future__ import annotations
 
+import gzip
 import hashlib
+import json
 import math
 import os
 import shutil
@@ -323,7 +325,9 @@ def read_records(path: Path) -> Any:
     0.3048). Records on the ground or without a position or altitude are left out."""
     import pandas as pd
 
-    df = pd.read_json(path, dtype={"icao24": str}, convert_dates=False)
+    opener = gzip.open if path.suffix == ".gz" else open
+    with opener(path, "rt", encoding="utf-8") as fh:
+        df = pd.DataFrame(json.load(fh))
     ok = (~df["onground"].astype(bool)) & df[["latitude", "longitude", "altitude"]].notna().all(
         axis=1)
     df = df[ok]
