@@ -509,8 +509,8 @@ TRAFFIC_SITES = ((46163.0, 55923.0), (33837.0, 24077.0), (20817.0, 29737.0))
 #: aircraft at its recorded altitude.
 TRAFFIC_RADAR: dict[str, Any] = {
     "altitude": 1500.0, "moves": (10.0,), "max_turn": math.pi,
-    "fov_half_angle": math.pi / 6, "min_ground_range": 2000.0, "max_ground_range": 60000.0,
-    "depression": math.radians(3.0), "snr_ref_db": 20.0, "range_ref": 60000.0,
+    "fov_half_angle": math.pi / 6, "min_ground_range": 10000.0, "max_ground_range": 60000.0,
+    "depression": math.radians(3.0), "snr_ref_db": 13.0, "range_ref": 60000.0,
     "beamwidth": math.radians(1.4), "monopulse_slope": 1.6, "range_resolution": 150.0,
     "detection": "swerling1", "false_alarm_probability": 1e-6, "clutter_rate": 1.0}
 #: q (m^2/s^3) of the ``traffic`` preset's motion model (filter and planner): the 90th

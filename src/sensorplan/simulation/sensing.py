@@ -140,9 +140,17 @@ class Sensing:
         Visibility and the sampled noise use the true position; a building in the line of
         sight hides the target (false alarms still occur). With ``look_detects = "all"`` a
         look detects every live target in its sensing region (:meth:`look_all`).
+
+        ``heights`` ``(M,)``: each target's own height above the radars (m), a recorded
+        truth's (:class:`~sensorplan.models.traffic.TrafficTruth`). Visibility, detection and
+        the noise are then those of the true slant range and elevation (:func:`at_heights`);
+        the measurement's mean stays the radar model's at the table's altitude, the
+        reference height that trackers and planners assume: the radar corrects its slant
+        range with the target's reported altitude, as an air traffic radar does with the
+        altitude its secondary radar or ADS-B reports.
         """
         if self.look_detects == "all":
-            return self.look_all(t, truth, positions, headings, aimed, alive)
+            return self.look_all(t, truth, positions, headings, aimed, alive, heights)
         table, idx = self.table, self._index
         assigned = aimed >= 0
         tj = np.maximum(aimed, 0)
