@@ -107,7 +107,8 @@ class Flights:
     Attributes
     ----------
     states : (S + 1, M, 4)    ``[x, y, vx, vy]`` on the map (m, m/s); NaN outside a life
-    heights : (S + 1, M)      m above mean sea level (the recorded barometric altitude)
+    heights : (S + 1, M)      m: the recorded barometric altitude (ft x 0.3048), taken as
+                              the height above the radar sites
     birth_step : (M,) int     first step alive, ascending
     death_step : (M,) int     first step absent, -1: alive to the end
     names : tuple of str      ``icao24`` of each target
@@ -123,9 +124,10 @@ class Flights:
 #: The preset's area and window: the 30 minutes from 2021-10-07 13:57:00 UTC, the busiest
 #: of the records on this map (the most target-steps of any 30-minute window starting on a
 #: whole minute): 67 targets, 11 to 18 alive at once (14.6 on average), 55 of them born
-#: after the first step (35 of those are take-offs from the two airports) and 53 gone
-#: before the end. Steps of 5 s: an air traffic surveillance radar's revisit (an
-#: approach radar turns in 4 to 5 s).
+#: after the first step (17 over the edge, 33 inside below 1000 m: take-offs, 5 inside
+#: higher up, where the receivers' coverage had a gap) and 53 gone before the end. Steps
+#: of 5 s: an air traffic surveillance radar's revisit (an approach radar turns in 4 to
+#: 5 s).
 TRAFFIC = TrafficArea(start=1633615020.0)
 
 
