@@ -93,3 +93,27 @@ def test_a_multi_target_trackers_aims_are_tracks_not_targets() -> None:
     np.testing.assert_array_equal(sensed.false_alarms, ref.false_alarms)
     for a, b in zip(looks.detections, ref_looks.detections, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("height", [300.0, 1500.0, 9000.0])
+def test_a_recorded_height_sets_the_noise_but_not_the_mean(height: float) -> None:
+    """With each target's height given, a look's noise is the radar model's at the true
+    slant range and elevation (sigma_r ~ r^2, sigma_phi ~ r^2 / cos psi), while the
+    measurement's mean stays the model's at the table's altitude: the same noise draw,
+    scaled by the closed-form ratio."""
+    z, dep = 1500.0, 0.3
+    table = radar_table((SensorParams(altitude=z, depression=dep, min_ground_range=100.0,
+                                      max_ground_range=30000.0),))
+    g, a = 12000.0, 0.2
+    truth = np.array([[g * np.cos(a), g * np.sin(a), 0.0, 0.0]])
+    pos, head, aimed = np.zeros((1, 2)), np.zeros(1), np.array([-1])
+    plain = Sensing(table, np.zeros((0, 5)), run_streams(4), STEPS, look_detects="all")
+    tall = Sensing(table, np.zeros((0, 5)), run_streams(4), STEPS, look_detects="all")
+    z_plain = plain.look(1, truth, pos, head, aimed)[0].detections[0]
+    z_tall = tall.look(1, truth, pos, head, aimed, heights=np.array([height]))[0].detections[0]
+    mean = np.array([np.hypot(g, z), a])
+    r_n, r_t = np.hypot(g, z), np.hypot(g, height)
+    cos_n = (np.cos(dep) * g * np.cos(a) + np.sin(dep) * z) / r_n
+    cos_t = (np.cos(dep) * g * np.cos(a) + np.sin(dep) * height) / r_t
+    ratio = np.array([(r_t / r_n) ** 2, (r_t**2 / cos_t) / (r_n**2 / cos_n)])
+    np.testing.assert_allclose((z_tall - mean)[0], ratio * (z_plain - mean)[0], rtol=1e-9)

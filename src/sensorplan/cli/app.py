@@ -158,7 +158,8 @@ def simulate(
     preset: Annotated[str | None, typer.Option(
         "--preset", metavar="NAME", show_default=False, rich_help_panel=PANELS["run"],
         help="Built-in scenario instead of a file: paper, radar, urban, slow, swarm "
-             "(docs/model.md), search, williams15 or vo12 (docs/tracking_pmb.md). "
+             "(docs/model.md), search, williams15, vo12 or traffic "
+             "(docs/tracking_pmb.md). "
              "[default: paper without a file]")] = None,
     seed: Annotated[int | None, typer.Option(
         "--seed", metavar="S", show_default=False, rich_help_panel=PANELS["run"],

@@ -70,7 +70,12 @@ def preset_scenario(name: str | None, field: str) -> Scenario:
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise ConfigError(field, f"unknown preset {name!r}{hint}; choose from "
                           f"{', '.join(PRESETS)}")
-    return SCENARIO_PRESETS[name]()
+    try:
+        return SCENARIO_PRESETS[name]()
+    except ConfigError as exc:
+        # A preset that cannot be built here (traffic's records not fetched): name the
+        # option or key that asked for it.
+        raise ConfigError(field, exc.message) from None
 
 
 def read_scenario_file(path: str | Path) -> dict[str, Any]:

@@ -150,7 +150,8 @@ def run_episode(scenario: Scenario, settings: RunSettings,
             x_true, alive = truth_model.step()
             predicted = tracker.predict()
             looks, sensed = sensing.look(t, x_true, schedule.positions, schedule.headings,
-                                         schedule.aimed, alive)
+                                         schedule.aimed, alive,
+                                         getattr(truth_model, "heights", None))
             update = tracker.update(looks)
             record.pose(t, schedule.positions, schedule.headings)
             record.step(t, x_true, alive, tracker.tracks(), schedule.aimed, looks, sensed,
@@ -208,8 +209,12 @@ def map_model(scenario: Scenario, tracker: TrackerSettings, table: FloatArray) -
     # Imported here: the known-target tracker's runs do without the PMB modules (and scipy).
     from ..tracking.pmb.map_tracker import MapModel
 
+    lo, hi = scenario.speed_range
+    # A target not yet detected moves at a speed uniform in speed_range, in a uniform
+    # direction: each velocity component has variance E[s^2] / 2.
     return MapModel(table, scenario.dt, (scenario.world.width, scenario.world.height),
                     process_noise=tracker.process_noise, resolution=tracker.grid_resolution,
+                    velocity_var=max((lo * lo + lo * hi + hi * hi) / 6.0, 1e-6),
                     gate_probability=tracker.gate_probability,
                     map_edge=map_edge(scenario, tracker), buildings=scenario.building_array)
 

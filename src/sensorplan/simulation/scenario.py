@@ -21,6 +21,7 @@ from ..errors import ConfigError
 from ..models.population import BIRTHS, Population, PopulationTruth
 from ..models.scripted import BENCHMARKS, TARGET_KIND, scripted_truth
 from ..models.sensors import SensorParams
+from ..models.traffic import TRAFFIC, TrafficTruth, load_flights
 from ..models.truth import TruthModel, inside_buildings
 from ..planners.problem import MapRect, check_buildings, check_covariance
 
@@ -29,6 +30,10 @@ TARGET_KINDS = ("cv", "dubins")
 #: What a look can detect: only the target it points at (the paper's), or every live
 #: target in its sensing region (what a multi-target tracker needs).
 LOOK_DETECTS = ("target", "all")
+#: Scripted truths by name (a scenario's ``scripted`` key): the published benchmarks and
+#: the recorded air traffic (:mod:`sensorplan.models.traffic`), each with its map
+#: (``world_size``), step (``dt``) and length (``steps``).
+SCRIPTED: dict[str, Any] = {**BENCHMARKS, "traffic": TRAFFIC}
 #: Default start regions as fractions ``(a / n, b / n)`` of each map side: targets in the
 #: middle two thirds, sensors all but the outer twelfths ([100, 500] and [50, 550] m on the
 #: paper's 600 m map).
@@ -184,7 +189,7 @@ class Scenario:
     @property
     def truth_steps(self) -> int | None:
         """The most steps a run can have: a scripted truth's length (None: no limit)."""
-        return None if self.scripted is None else BENCHMARKS[self.scripted].steps
+        return None if self.scripted is None else SCRIPTED[self.scripted].steps
 
     @property
     def known_targets(self) -> bool:
@@ -312,10 +317,10 @@ class Scenario:
                                   "be no targets")
         self._validate_scan()
         if self.scripted is not None:
-            bench = BENCHMARKS.get(self.scripted)
+            bench = SCRIPTED.get(self.scripted)
             if bench is None:
                 raise ConfigError("scripted", f"unknown scripted truth {self.scripted!r}; "
-                                  f"choose from {', '.join(BENCHMARKS)}")
+                                  f"choose from {', '.join(SCRIPTED)}")
             if self.births != "none" or n0 is not None or p != 1.0:
                 raise ConfigError("scripted", "a scripted truth has its own births and "
                                   "deaths: leave out births, birth_rate, "
@@ -493,12 +498,54 @@ def vo12_scenario() -> Scenario:
     return scan_scenario("vo12")
 
 
+#: The ``traffic`` preset's radar sites on its map (m): at Paris-Charles de Gaulle, at
+#: Paris-Orly and at Villacoublay (48.7742 N, 2.2014 E, west of Orly), projected as the
+#: records are (:func:`sensorplan.models.traffic.project`).
+TRAFFIC_SITES = ((46163.0, 55923.0), (33837.0, 24077.0), (20817.0, 29737.0))
+#: The ``traffic`` preset's radars (docs/traffic.md gives each value's reason): ground
+#: surveillance radars with electronically steered beams. ``altitude`` is the reference
+#: height of the aircraft above the site that trackers and planners assume (the median
+#: recorded altitude of the window, 1410 m, rounded); the simulated radar measures each
+#: aircraft at its recorded altitude.
+TRAFFIC_RADAR: dict[str, Any] = {
+    "altitude": 1500.0, "moves": (10.0,), "max_turn": math.pi,
+    "fov_half_angle": math.pi / 6, "min_ground_range": 10000.0, "max_ground_range": 60000.0,
+    "depression": math.radians(3.0), "snr_ref_db": 13.0, "range_ref": 60000.0,
+    "beamwidth": math.radians(1.4), "monopulse_slope": 1.6, "range_resolution": 150.0,
+    "detection": "swerling1", "false_alarm_probability": 1e-6, "clutter_rate": 1.0}
+#: q (m^2/s^3) of the ``traffic`` preset's motion model (filter and planner): the 90th
+#: percentile of the recorded aircraft's acceleration over a step is 4.3 m/s^2 (a rate-one
+#: turn at 115 m/s is 6 m/s^2), a velocity change of a T = 21 m/s per 5 s step; the CWNA
+#: model's is sqrt(q T), so q = a^2 T = 92, rounded up.
+TRAFFIC_Q = 100.0
+
+
+def traffic_scenario() -> Scenario:
+    """Recorded air traffic around the Paris airports (:mod:`sensorplan.models.traffic`)
+    seen by three ground surveillance radars (:data:`TRAFFIC_RADAR` at
+    :data:`TRAFFIC_SITES`); every look detects every aircraft in its beam. The truth is
+    the same in every run; noise, detections and false alarms are drawn per run.
+
+    Raises
+    ------
+    ConfigError
+        The records have not been fetched (the message says how).
+    """
+    load_flights()
+    sensors = tuple(SensorSpec(SensorParams(**TRAFFIC_RADAR), position=p, heading=0.0)
+                    for p in TRAFFIC_SITES)
+    return Scenario(world=MapRect(*TRAFFIC.world_size), dt=TRAFFIC.dt,
+                    process_noise=TRAFFIC_Q, sensors=sensors, speed_range=(70.0, 250.0),
+                    scripted="traffic", look_detects="all")
+
+
 #: Built-in scenarios by name (``--preset``, a study's ``scenario.preset``).
 PRESETS: dict[str, Callable[[], Scenario]] = {"paper": paper_scenario, "radar": radar_scenario,
                                               "urban": urban_scenario, "swarm": swarm_scenario,
                                               "slow": slow_scenario, "search": search_scenario,
                                               "williams15": williams15_scenario,
-                                              "vo12": vo12_scenario}
+                                              "vo12": vo12_scenario,
+                                              "traffic": traffic_scenario}
 
 #: Search sectors of the ``search`` preset (used with ``search = "on"``): its radar's beam
 #: is 2 x 30 degrees wide, so 6 sectors tile the circle without gaps or overlap.
@@ -519,6 +566,14 @@ PRESET_SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
                            "gospa_c": BENCHMARKS["williams15"].gospa_c}},
     "vo12": {"tracker": {"kind": "pmb"},
              "run": {"steps": BENCHMARKS["vo12"].steps, "gospa_c": BENCHMARKS["vo12"].gospa_c}},
+    # Take-offs are born at the airports, inside the map, and 12 aircraft are there at the
+    # start: births anywhere, at the recorded rate (55 births in 359 steps). Cells of 2 km
+    # (a 40 x 40 grid); a GOSPA cut-off of 500 m, above a track's error (tens of metres of
+    # noise, 75 m of a 6 m/s^2 turn over one 5 s step).
+    "traffic": {"tracker": {"kind": "pmb", "births": "uniform", "birth_rate": 0.15,
+                            "process_noise": TRAFFIC_Q, "grid_resolution": 2000.0},
+                "planning": {"search_sectors": SEARCH_SECTORS},
+                "run": {"steps": TRAFFIC.steps, "gospa_c": 500.0}},
 }
 
 
@@ -621,6 +676,8 @@ def make_population(scenario: Scenario, initial_states: FloatArray, rng: np.rand
     :class:`~sensorplan.models.population.PopulationTruth`, or the benchmark's
     :class:`~sensorplan.models.scripted.ScriptedTruth` when ``scenario.scripted`` is set.
     """
+    if scenario.scripted == "traffic":
+        return TrafficTruth(load_flights())
     if scenario.scripted is not None:
         return scripted_truth(scenario.scripted, rng)
     return PopulationTruth(

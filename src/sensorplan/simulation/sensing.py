@@ -14,10 +14,27 @@ import numpy as np
 from .._types import BoolArray, FloatArray, IntArray, IntegerArray
 from ..models import radar
 from ..models.angles import wrap_angle
-from ..models.sensors import ALTITUDE, CLUTTER_RATE, SWERLING
+from ..models.sensors import ALTITUDE, ALTITUDE2, CLUTTER_RATE, SWERLING
 from ..tracking.base import Looks
 from .episode import Sensed
 from .scenario import LOOK_DETECTS
+
+
+#: Lowest height (m) above a radar that a recorded altitude is taken as: the radar model
+#: needs the target below or above the antenna, never level with it.
+MIN_HEIGHT = 1.0
+
+
+def at_heights(table: FloatArray, rows: IntArray, heights: FloatArray) -> FloatArray:
+    """The radar rows ``table[rows]`` ``(P, C)`` with each pair's own height above the
+    radar, ``heights`` ``(P,)`` (m, at least :data:`MIN_HEIGHT`), in place of the table's
+    altitude: what a ground radar sees of an aircraft at that height (the model's geometry
+    mirrored, the beam's depression read as its elevation)."""
+    out = np.array(table[rows], dtype=float)
+    h = np.maximum(np.asarray(heights, dtype=float), MIN_HEIGHT)
+    out[:, ALTITUDE] = h
+    out[:, ALTITUDE2] = h * h
+    return out
 
 
 def _imperfect(table: FloatArray) -> bool:
@@ -54,10 +71,12 @@ class DetectionDraws:
             split = np.cumsum(counts)[:-1]
             self.points.append(list(zip(np.split(draws, split), np.split(normals, split))))
 
-    def detected(self, t: int, target_xy: FloatArray, sensor_xy: FloatArray) -> BoolArray:
-        """Whether each sensor's look would detect its target if in view, at step t."""
-        pd = radar.detection_probabilities(self.table, np.arange(len(self.table)),
-                                           target_xy, sensor_xy)
+    def detected(self, t: int, target_xy: FloatArray, sensor_xy: FloatArray,
+                 table: FloatArray | None = None) -> BoolArray:
+        """Whether each sensor's look would detect its target if in view, at step t
+        (``table``: its rows in place of the run's, :func:`at_heights`)."""
+        rows = self.table if table is None else table
+        pd = radar.detection_probabilities(rows, np.arange(len(rows)), target_xy, sensor_xy)
         return self.u[t - 1] < pd
 
     def looks(self, t: int, seen: BoolArray, z: FloatArray, pos: FloatArray, head: FloatArray,
@@ -112,7 +131,8 @@ class Sensing:
         self._index = np.arange(N)
 
     def look(self, t: int, truth: FloatArray, positions: FloatArray, headings: FloatArray,
-             aimed: IntArray, alive: BoolArray | None = None) -> tuple[Looks, Sensed]:
+             aimed: IntArray, alive: BoolArray | None = None,
+             heights: FloatArray | None = None) -> tuple[Looks, Sensed]:
         """Step ``t``'s looks: sensor i, at ``positions[i]`` with ``headings[i]``, looks at
         target ``aimed[i]`` (-1: it does not look) of the true states ``truth`` ``(M, 4)``,
         of which ``alive`` ``(M,)`` are in the world (default: all).
@@ -120,19 +140,32 @@ class Sensing:
         Visibility and the sampled noise use the true position; a building in the line of
         sight hides the target (false alarms still occur). With ``look_detects = "all"`` a
         look detects every live target in its sensing region (:meth:`look_all`).
+
+        ``heights`` ``(M,)``: each target's own height above the radars (m), a recorded
+        truth's (:class:`~sensorplan.models.traffic.TrafficTruth`). Visibility, detection and
+        the noise are then those of the true slant range and elevation (:func:`at_heights`);
+        the measurement's mean stays the radar model's at the table's altitude, the
+        reference height that trackers and planners assume: the radar corrects its slant
+        range with the target's reported altitude, as an air traffic radar does with the
+        altitude its secondary radar or ADS-B reports.
         """
         if self.look_detects == "all":
-            return self.look_all(t, truth, positions, headings, aimed, alive)
+            return self.look_all(t, truth, positions, headings, aimed, alive, heights)
         table, idx = self.table, self._index
         assigned = aimed >= 0
         tj = np.maximum(aimed, 0)
         h, _, var, seen = radar.measure_looks(table, idx, truth[tj, :2], positions, headings)
+        pd_table, pd_rows = table, idx
+        if heights is not None:
+            pd_table, pd_rows = at_heights(table, idx, heights[tj]), idx
+            _, _, var, seen = radar.measure_looks(pd_table, pd_rows, truth[tj, :2], positions,
+                                                  headings)
         seen &= assigned
         if len(self.buildings):
             seen &= ~radar.hidden_looks(self.buildings, positions, table[:, ALTITUDE],
                                         truth[tj, :2])
         if self.draws is not None:
-            seen &= self.draws.detected(t, truth[tj, :2], positions)
+            seen &= self.draws.detected(t, truth[tj, :2], positions, pd_table)
         z = h + np.sqrt(var) * self.noise[t - 1]
         z[:, 1] = wrap_angle(z[:, 1])
         i = idx[assigned]
@@ -147,13 +180,14 @@ class Sensing:
         return looks, Sensed(seen=seen, missed=assigned & ~seen, false_alarms=false)
 
     def look_all(self, t: int, truth: FloatArray, positions: FloatArray, headings: FloatArray,
-                 aimed: IntArray, alive: BoolArray | None = None) -> tuple[Looks, Sensed]:
+                 aimed: IntArray, alive: BoolArray | None = None,
+                 heights: FloatArray | None = None) -> tuple[Looks, Sensed]:
         """Step ``t``'s looks when a look detects every live target in its sensing region.
 
         Each (sensor, target) pair in view and in sight is detected with the radar's Pd,
         decided by a uniform of the target's own stream (:class:`TargetDraws`), and measured
         with the target's own noise; a look's detections are its detected targets' (in the
-        targets' order) followed by its false alarms.
+        targets' order) followed by its false alarms. ``heights`` as in :meth:`look`.
         """
         table, N, M = self.table, len(self.table), len(truth)
         live = np.ones(M, dtype=bool) if alive is None else np.asarray(alive, dtype=bool)
@@ -165,11 +199,16 @@ class Sensing:
         ii, jj = np.repeat(i, len(j)), np.tile(j, len(i))                   # (L K,)
         xy = truth[jj, :2]
         h, _, var, seen = radar.measure_looks(table, ii, xy, positions[ii], headings[ii])
+        pd_table, pd_rows = table, ii
+        if heights is not None:
+            pd_table, pd_rows = at_heights(table, ii, heights[jj]), np.arange(len(ii))
+            _, _, var, seen = radar.measure_looks(pd_table, pd_rows, xy, positions[ii],
+                                                  headings[ii])
         if len(self.buildings) and len(ii):
             seen &= ~radar.hidden_looks(self.buildings, positions[ii], table[ii, ALTITUDE], xy)
         u, e = self.targets.draws(t, ii, jj)
         if _imperfect(table):
-            seen &= u < radar.detection_probabilities(table, ii, xy, positions[ii])
+            seen &= u < radar.detection_probabilities(pd_table, pd_rows, xy, positions[ii])
         z = h + np.sqrt(np.where(seen[:, None], var, 0.0)) * e
         z[:, 1] = wrap_angle(z[:, 1])
         measured = np.zeros((M, N), dtype=bool)
