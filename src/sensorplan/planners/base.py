@@ -138,7 +138,8 @@ def prepare(problem: PlanningProblem) -> Context:
 
 #: The built-in planners that plan with search looks (``plans_search``; the others refuse a
 #: problem whose search is on).
-SEARCH_PLANNERS = ("brute-force", "pg", "random", "raster", "sequential-greedy")
+SEARCH_PLANNERS = ("brute-force", "pg", "pg-refine", "random", "raster",
+                   "sequential-greedy")
 
 
 def plans_search(planner: Any) -> bool:
