@@ -177,13 +177,22 @@ def test_the_summary_reports_the_search(capsys, tmp_path: Path) -> None:
 @pytest.mark.parametrize(("args", "field"), [
     (("--preset", "radar", "--search", "on"), "--search"),
     (("--preset", "search", "--search", "on", "--search-sectors", "0"), "--search-sectors"),
-    (("--preset", "search", "--search", "on", "--planner", "pg-refine"), "--search"),
     (("--preset", "search", "--search", "sometimes"), "--search"),
     (("--preset", "search", "--search-sectors", "-1"), "--search-sectors"),
 ])
 def test_bad_search_settings_are_one_line(capsys, tmp_path: Path, args: tuple[str, ...],
                                           field: str) -> None:
     assert_bad_input(run(capsys, "simulate", *args, "--out", tmp_path), field)
+
+
+def test_a_planner_that_does_not_plan_search_is_refused_before_the_run(
+        nearest_on_path: None, capsys, tmp_path: Path) -> None:
+    # Every built-in planner plans search looks; a plug-in that does not declare it is
+    # refused when the settings are checked, naming the option.
+    line = assert_bad_input(run(capsys, "simulate", "--preset", "search", "--search", "on",
+                                "--planner", "nearest_planner:NearestTargetPlanner",
+                                "--out", tmp_path), "--search")
+    assert "does not plan search looks" in line
 
 
 def test_bad_search_settings_in_files_name_the_key(capsys, tmp_path: Path) -> None:
@@ -194,6 +203,37 @@ def test_bad_search_settings_in_files_name_the_key(capsys, tmp_path: Path) -> No
     line = assert_bad_input(run(capsys, "simulate", path, "--out", tmp_path),
                             "planning.search")
     assert "tracker.kind = 'pmb'" in line
+
+
+def test_pg_refine_plans_the_loops_search_looks(capsys, tmp_path: Path) -> None:
+    # A study method and simulate with pg-refine and search on: settings accepted, every
+    # decision a converged plan of the searching problem whose Phi is Phi with search.
+    study = parse_study("""
+runs = 1
+steps = 3
+seed = 2
+[scenario]
+preset = "search"
+[[methods]]
+name = "refined"
+planner = "pg-refine"
+search = "on"
+horizon = 2
+""")
+    settings = study.methods[0].settings
+    assert (settings.planner, settings.search) == ("pg-refine", "on")
+    # What a study task runs (study.execution.run_task), each decision recorded.
+    _, decisions = recorded_run(study.scenario, settings, study.run_seed(0))
+    assert decisions
+    for problem, result in decisions:
+        assert problem.searching and result.converged
+        assert result.potential == pytest.approx(search.potential(problem, result.plan)[0],
+                                                 rel=1e-9, abs=1e-12)
+    code, out, err = run(capsys, "simulate", "--preset", "search", "--search", "on",
+                         "--planner", "pg-refine", "--horizon", "2", "--steps", "2",
+                         "--out", tmp_path)
+    assert code == 0, err
+    assert "looked at a search sector" in " ".join(out.split())
 
 
 def test_a_study_of_the_search_preset_takes_its_sectors() -> None:

@@ -140,15 +140,17 @@ def prepare(problem: PlanningProblem) -> Context:
     return _prepare(problem)
 
 
-#: The built-in planners that plan with search looks (``plans_search``; the others refuse a
-#: problem whose search is on).
-SEARCH_PLANNERS = ("brute-force", "pg", "random", "raster", "sequential-greedy")
-
-
 def plans_search(planner: Any) -> bool:
     """Whether a planner (class or object) declares that it plans search looks: its class
     attribute ``plans_search`` (False when it has none)."""
     return getattr(planner, "plans_search", False) is True
+
+
+def search_planner_names() -> tuple[str, ...]:
+    """The registered planners that plan search looks (:func:`plans_search`), by name."""
+    from .registry import planner_class, planner_names
+
+    return tuple(n for n in planner_names() if plans_search(planner_class(n)))
 
 
 def refuse_search(name: str, problem: PlanningProblem) -> None:
@@ -158,7 +160,7 @@ def refuse_search(name: str, problem: PlanningProblem) -> None:
         from ..errors import ConfigError
 
         raise ConfigError("search", f"planner {name!r} does not plan search looks yet; "
-                          f"set search to 'off' or use one of {', '.join(SEARCH_PLANNERS)}")
+                          f"set search to 'off' or use one of {', '.join(search_planner_names())}")
 
 
 def finish(name: str, ctx: Context | PlanningProblem, plan: Plan, start: float,
@@ -195,6 +197,6 @@ def finish(name: str, ctx: Context | PlanningProblem, plan: Plan, start: float,
                       converged, sweeps, anytime.clock() - start, trace, budget_exhausted)
 
 
-__all__ = ["PLANNERS", "SEARCH_PLANNERS", "PlanResult", "Planner", "RngLike", "finish",
-           "make_planner", "make_rng", "plans_search", "prepare", "refuse_search", "register",
-           "start_clock"]
+__all__ = ["PLANNERS", "PlanResult", "Planner", "RngLike", "finish", "make_planner",
+           "make_rng", "plans_search", "prepare", "refuse_search", "register",
+           "search_planner_names", "start_clock"]

@@ -130,8 +130,8 @@ def prepare(problem: PlanningProblem, search: bool = False) -> Context:
         from ..errors import ConfigError
 
         raise ConfigError("search", "this planner does not plan search looks yet; set "
-                          "search to 'off' or use brute-force, pg, random or "
-                          "sequential-greedy")
+                          "search to 'off' or use brute-force, pg, pg-refine, "
+                          "random, raster or sequential-greedy")
     q = np.asarray(problem.process_noise, dtype=float)
     F, Q1 = cv_matrices(problem.dt, 1.0)
     if q.ndim == 0:

@@ -611,12 +611,13 @@ class RunSettings(_Settings):
         if min(sector_counts(self.search_sectors, 1)) < 1:
             raise ConfigError("search_sectors", "must be > 0 with search on (the number of "
                               "bearings a search look may point at)")
+        from ..planners.base import search_planner_names
         from ..planners.registry import planner_class
 
         if getattr(planner_class(self.planner), "plans_search", False) is not True:
             raise ConfigError("search", f"planner {self.planner!r} does not plan search "
-                              "looks; choose one that does (brute-force, pg, random, "
-                              "sequential-greedy) or search = 'off'")
+                              f"looks; choose one that does ({', '.join(search_planner_names())}) "
+                              "or search = 'off'")
 
 
 def all_settings(cls: type = RunSettings, prefix: str = ""

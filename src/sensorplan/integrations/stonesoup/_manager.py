@@ -79,7 +79,7 @@ class SensorplanManager(SensorManager):
     (:meth:`PMBStoneSoupTracker.undetected_intensity`; its map must be the platforms'). A
     search look comes back as an :class:`AimAction` at a :class:`SearchSector` with its
     ``bearing``. The planner must plan search looks (``brute-force``, ``pg``,
-    ``sequential-greedy``, ``random``, ``raster``).
+    ``pg-refine``, ``sequential-greedy``, ``random``, ``raster``).
 
     Tracks: Stone Soup's constant-velocity states ``[x, vx, y, vy]`` or
     ``[x, vx, y, vy, z, vz]`` as they are; any other layout names its ground position and
