@@ -34,14 +34,16 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any, cast
 
 import numpy as np
 
-from .._types import FloatArray, IntArray
+from .._types import BoolArray, FloatArray, IntArray
 from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, wrap_angle
+from ._search_nb import found_nb
 from .information import (Context, chain_information, covariance_recursion, measured,
                           phi_terms, sum_by_target, target_information)
 from .information import prepare as prepare_tracks
@@ -66,6 +68,8 @@ class SearchContext:
     bearings : list of (S_i,) arrays   each sensor's sector bearings
     centres : (C, 2);  d0 : (C,);  births : (C,);  survival : float   the intensity
     weight : float           w, nats per newly found target
+    memo : dict              what :func:`candidate_potentials` keeps between calls: values
+                             that depend on the decision and a look's pose only
     """
 
     ctx: Context
@@ -75,6 +79,7 @@ class SearchContext:
     births: FloatArray
     survival: float
     weight: float
+    memo: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
 
 def first_detection_weight(ctx: Context, cell_cov: FloatArray) -> float:
@@ -308,16 +313,21 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
                          positions: FloatArray, targets: IntArray, sectors: IntArray
                          ) -> FloatArray:
     """Phi with search for each candidate action of player (i, k), the others fixed: one
-    batch over candidates (the track terms in one covariance recursion, mu vectorised over
-    cells and candidates). Player (i, k)'s action also moves the headings of sensor i's
+    batch over candidates. Player (i, k)'s action also moves the headings of sensor i's
     later epochs (the heading rule chains them); those are recomputed per candidate.
+
+    Only what a candidate changes is computed per candidate: the terms of the targets its
+    chain looks at (every other target keeps its term) and the cells its looks cover
+    (:func:`~sensorplan.planners._search_nb.found_nb`); each look's ``P_d v`` and each other
+    sensor's track information are kept in ``sctx.memo`` by the look's pose. The track
+    terms are :func:`evaluate`'s bit for bit, mu equals its value to round-off.
 
     Returns
     -------
     (A,) nats
     """
     ctx = sctx.ctx
-    A, K, L = len(targets), ctx.K, ctx.K - k + 1
+    A, L = len(targets), ctx.K - k + 1
     assert plan.sectors is not None
     headings = plan_headings(sctx, plan)
     # Sensor i's epochs k..K per candidate.
@@ -346,21 +356,93 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
         th[:, l] = h
         prev_ok = True
     info = _candidate_track_information(sctx, plan, i, k, headings, pos, tgt, th)
-    # Search: every other look's miss probability, times each candidate's chain.
-    miss = np.ones((K, len(sctx.centres)))
+    mu = _candidate_found(sctx, plan, i, k, headings, pos, th, assigned)
+    return info + sctx.weight * mu
+
+
+def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: FloatArray,
+                     pos: FloatArray, th: FloatArray, assigned: BoolArray) -> FloatArray:
+    """mu ``(A,)`` for each candidate chain ``pos (A, L, 2)``, ``th (A, L)`` of player
+    (i, k): every other look's misses, times the chain's looks (epoch k and sensor i's later
+    assigned epochs)."""
+    ctx = sctx.ctx
+    pool = _pool(sctx)
+    miss = np.ones((ctx.K, len(sctx.centres)))
     for n in range(ctx.N):
         ks = np.flatnonzero(plan.assigned[n])
         if n == i:
             ks = ks[ks < k - 1]
         if ks.size:
-            miss[ks] *= 1.0 - detection(sctx, n, plan.positions[n, ks], headings[n, ks])
-    miss_c = np.broadcast_to(miss, (A,) + miss.shape).copy()
-    for l in range(L):
-        if assigned[0, l] or l == 0:
-            p = detection(sctx, i, pos[:, l], th[:, l])
-            miss_c[:, k - 1 + l] *= 1.0 - p
-    mu = expected_found(sctx, miss_c)
-    return info + sctx.weight * mu
+            rows = pool.rows(sctx, n, plan.positions[n, ks], headings[n, ks])
+            for kk, r in zip(ks.tolist(), rows.tolist()):
+                idx, val = pool.row(r)
+                # 1 - 0 = 1 exactly: the cells a look misses keep their bits.
+                miss[kk, idx] *= 1.0 - val
+    ls = [l for l in range(pos.shape[1]) if l == 0 or assigned[0, l]]
+    look_row = np.empty((len(pos), len(ls)), dtype=np.int64)
+    for q, l in enumerate(ls):
+        look_row[:, q] = pool.rows(sctx, i, pos[:, l], th[:, l])
+    return found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, k - 1, miss, look_row,
+                    np.array(ls, dtype=np.int64) + (k - 1), *pool.arrays())
+
+
+class _LookPool:
+    """Every look's non-zero ``P_d v`` (:func:`detection`), by the look's pose: sensor,
+    ground position and heading, bit for bit. Rows live in growing flat arrays, the layout
+    :func:`~sensorplan.planners._search_nb.found_nb` reads."""
+
+    def __init__(self) -> None:
+        self.index: dict[tuple[int, bytes], int] = {}
+        self.off = np.zeros(1, dtype=np.int64)
+        self.idx = np.empty(0, dtype=np.int64)
+        self.val = np.empty(0)
+        self.n_rows = 0
+
+    def rows(self, sctx: SearchContext, n: int, positions: FloatArray, headings: FloatArray
+             ) -> IntArray:
+        """The pool's rows of sensor n's looks from ``positions (B, 2)``, ``headings (B,)``
+        (computed, in one batch, for the poses not seen before)."""
+        pose = np.empty((len(headings), 3))
+        pose[:, :2] = positions
+        pose[:, 2] = headings
+        keys = cast("list[bytes]", pose.view(np.dtype((np.void, 24))).ravel().tolist())
+        out = np.empty(len(keys), dtype=np.int64)
+        new: dict[bytes, int] = {}          # unseen pose -> its row
+        first: list[int] = []               # ... and its first look in the batch
+        for b, key in enumerate(keys):
+            r = self.index.get((n, key))
+            if r is None:
+                r = new.get(key)
+                if r is None:
+                    r = new[key] = self.n_rows + len(first)
+                    first.append(b)
+            out[b] = r
+        if new:
+            p = detection(sctx, n, pose[first, :2], pose[first, 2])
+            r_idx, c_idx = np.nonzero(p)
+            counts = np.bincount(r_idx, minlength=len(first))
+            self.off = np.concatenate([self.off, self.off[-1] + np.cumsum(counts)])
+            self.idx = np.concatenate([self.idx, c_idx.astype(np.int64)])
+            self.val = np.concatenate([self.val, p[r_idx, c_idx]])
+            for key, r in new.items():
+                self.index[(n, key)] = r
+            self.n_rows += len(first)
+        return out
+
+    def row(self, r: int) -> tuple[IntArray, FloatArray]:
+        """Cells and values of row r."""
+        a, b = self.off[r], self.off[r + 1]
+        return self.idx[a:b], self.val[a:b]
+
+    def arrays(self) -> tuple[IntArray, IntArray, FloatArray]:
+        return self.off, self.idx, self.val
+
+
+def _pool(sctx: SearchContext) -> _LookPool:
+    pool = sctx.memo.get("looks")
+    if pool is None:
+        pool = sctx.memo["looks"] = _LookPool()
+    return pool
 
 
 def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int,
@@ -368,53 +450,67 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
                                  th: FloatArray) -> FloatArray:
     """The tracks' part of Phi ``(A,)`` for each candidate of player (i, k): every other
     look's information plus the candidate's chain ``pos (A, L, 2)``, ``tgt (A, L)``, ``th
-    (A, L)`` over epochs k..K (0 without tracks)."""
+    (A, L)`` over epochs k..K (0 without tracks).
+
+    A candidate changes the terms of the targets its chain looks at only: the other
+    players' summed information is shared, each target's term without the chain is computed
+    once, and only (candidate, target looked at) pairs run the recursion (each pair's row is
+    the dense computation's row, so its term is the same to the bit).
+    """
     ctx = sctx.ctx
     A, L = tgt.shape
     if ctx.M == 0:
         return np.zeros(A)
+    M, e = ctx.M, ctx.e
     track = tgt >= 0
     others = plan.targets.copy()
     others[i, k - 1:] = -1
-    W_all, _ = _plan_track_W(sctx, plan, headings)
-    base = sum_by_target(ctx, W_all, others)                        # (M, T, 2, 2)
+    base = sum_by_target(ctx, _plan_track_W(sctx, plan, headings), others)   # (M, T, 2, 2)
     w, _ = chain_information(ctx, i, k, np.where(track[..., None], pos, 0.0),
                              np.where(track, th, 0.0), np.maximum(tgt, 0))
     w = np.where(track[..., None, None, None], w, 0.0)               # (A, L, e, 2, 2)
-    Wt = np.broadcast_to(base, (A,) + base.shape).copy()
-    e = ctx.e
+    a_look, l_look = np.nonzero(track)
+    pair, inv = np.unique(a_look * M + tgt[a_look, l_look], return_inverse=True)
+    pj = pair % M
+    rows = base[pj]                                                  # (P, T, 2, 2) copy
     for l in range(L):
+        sel = l_look == l
         for s in range(e):
-            t = (k - 1 + l) * e + s
-            rows = np.flatnonzero(track[:, l])      # one row per candidate: no repeats
-            Wt[rows, tgt[rows, l], t] += w[rows, l, s]
-    M, T = ctx.M, ctx.T
-    P0 = np.broadcast_to(np.asarray(ctx.problem.covs), (A, M, 4, 4)).reshape(A * M, 4, 4)
-    Q = ctx.Q if ctx.Q.shape[0] == 1 else np.broadcast_to(ctx.Q, (A, M, 4, 4)).reshape(
-        A * M, 4, 4)
+            rows[inv[sel], (k - 1 + l) * e + s] += w[a_look[sel], l, s]
+    terms = np.broadcast_to(_target_terms(ctx, base, np.arange(M)), (A, M)).copy()
+    terms[pair // M, pj] = _target_terms(ctx, rows, pj)
+    return terms.sum(axis=1)
+
+
+def _target_terms(ctx: Context, W: FloatArray, j: IntArray) -> FloatArray:
+    """Phi's terms ``(P,)`` of targets ``j (P,)`` with summed information ``W (P, T, 2, 2)``."""
+    P0 = np.asarray(ctx.problem.covs)[j]
+    Q = ctx.Q if ctx.Q.shape[0] == 1 else ctx.Q[j]
     cumulative = ctx.problem.objective == "cumulative"
-    flat = Wt.reshape(A * M, T, 2, 2)
-    _, ld_end, ld_sum = covariance_recursion(np.ascontiguousarray(P0), flat, ctx.F,
+    _, ld_end, ld_sum = covariance_recursion(np.ascontiguousarray(P0), W, ctx.F,
                                              np.ascontiguousarray(Q), cumulative)
-    ld_bar = np.broadcast_to(ctx.ld_bar, (A, M, T + 1)).reshape(A * M, T + 1)
-    info = phi_terms(ld_bar, ld_end, ld_sum, cumulative, measured(flat),
-                     np.tile(ctx.existence, A)).reshape(A, M).sum(axis=1)
-    return info
+    return phi_terms(ctx.ld_bar[j], ld_end, ld_sum, cumulative, measured(W), ctx.existence[j])
 
 
-def _plan_track_W(sctx: SearchContext, plan: Plan, headings: FloatArray
-                  ) -> tuple[FloatArray, IntArray]:
+def _plan_track_W(sctx: SearchContext, plan: Plan, headings: FloatArray) -> FloatArray:
+    """Every player's track information ``(N, K, e, 2, 2)``, each sensor's chain kept in
+    ``sctx.memo`` by its positions, targets and headings."""
     ctx = sctx.ctx
+    memo = sctx.memo.setdefault("track_W", {})
     track = plan.targets >= 0
     W = np.zeros((ctx.N, ctx.K, ctx.e, 2, 2))
     for n in range(ctx.N):
         if track[n].any():
-            w, _ = chain_information(ctx, n, 1,
-                                     np.where(track[n][:, None], plan.positions[n], 0.0)[None],
-                                     np.where(track[n], headings[n], 0.0)[None],
-                                     np.maximum(plan.targets[n], 0)[None])
-            W[n] = np.where(track[n][:, None, None, None], w[0], 0.0)
-    return W, plan.targets
+            pos = np.where(track[n][:, None], plan.positions[n], 0.0)
+            th = np.where(track[n], headings[n], 0.0)
+            tgt = np.maximum(plan.targets[n], 0)
+            key = (n, pos.tobytes(), th.tobytes(), plan.targets[n].tobytes())
+            got = memo.get(key)
+            if got is None:
+                w, _ = chain_information(ctx, n, 1, pos[None], th[None], tgt[None])
+                got = memo[key] = np.where(track[n][:, None, None, None], w[0], 0.0)
+            W[n] = got
+    return W
 
 
 def with_action(plan: Plan, i: int, k: int, position: FloatArray, target: int,

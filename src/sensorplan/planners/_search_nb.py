@@ -1,0 +1,104 @@
+"""Compiled kernel of the search term for a batch of one player's candidates
+(:func:`sensorplan.planners.search.candidate_potentials`).
+
+A look's ``P_d v`` is non-zero on a small part of the grid (its sensing region), and a
+candidate changes the miss probabilities of its own chain's epochs only. So mu of a
+candidate is the others' mu plus, over the cells its looks cover, the change of those cells'
+terms from its first epoch on: the same per-cell recursion as
+:func:`~sensorplan.planners.search.expected_found`, in the same order (each cell's ``D``
+bit for bit), summed over cells in another order (mu equal to round-off).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._compiled.jit import njit
+
+
+@njit(cache=True)
+def _cell_tail(d: float, b: float, survival: float, e: int, miss: np.ndarray, k0: int,
+               c: int, chain: np.ndarray) -> float:
+    """Found targets of cell c from epoch k0 (0-based) on, from ``d`` (its intensity before
+    epoch k0's first step), with epoch kk's miss ``miss[kk, c] * chain[kk - k0]``."""
+    acc = 0.0
+    for kk in range(k0, miss.shape[0]):
+        m = miss[kk, c] * chain[kk - k0]
+        for _ in range(e):
+            d = survival * d + b
+            acc += d * (1.0 - m)
+            d = d * m
+    return acc
+
+
+@njit(cache=True)
+def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, k0: int,
+             miss: np.ndarray, look_row: np.ndarray, look_epoch: np.ndarray,
+             row_off: np.ndarray, row_idx: np.ndarray, row_val: np.ndarray) -> np.ndarray:
+    """mu for each candidate of a player whose chain starts at epoch ``k0`` (0-based).
+
+    Parameters
+    ----------
+    d0, births : (C,)          the undetected intensity now, births per step
+    miss : (K, C)              every other look's product of ``1 - P_d v`` per epoch
+    look_row : (A, n) int      row of each candidate's n chain looks in the pool (-1: none)
+    look_epoch : (n,) int      each chain look's epoch (0-based, ascending, from k0)
+    row_off, row_idx, row_val  the pool of looks: row r's non-zero ``P_d v`` are
+                               ``row_val[row_off[r]:row_off[r+1]]`` at cells ``row_idx[...]``
+
+    Returns
+    -------
+    (A,) expected number of undetected targets found
+    """
+    K, C = miss.shape
+    A, n = look_row.shape
+    L = K - k0
+    # The others alone: mu before k0, each cell's intensity at k0 and its tail from k0.
+    d_k0 = d0.copy()
+    mu_pre = 0.0
+    for kk in range(k0):
+        for c in range(C):
+            d = d_k0[c]
+            m = miss[kk, c]
+            for _ in range(e):
+                d = survival * d + births[c]
+                mu_pre += d * (1.0 - m)
+                d = d * m
+            d_k0[c] = d
+    ones = np.ones(L)
+    tail = np.empty(C)
+    tail_sum = 0.0
+    for c in range(C):
+        tail[c] = _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, ones)
+        tail_sum += tail[c]
+    base = mu_pre + tail_sum
+    # Per candidate: the cells its looks cover, their chain misses in a scratch row.
+    out = np.empty(A)
+    chain = np.ones((C, L))
+    stamp = np.full(C, -1, dtype=np.int64)
+    cells = np.empty(C, dtype=np.int64)
+    for a in range(A):
+        nc = 0
+        for l in range(n):
+            r = look_row[a, l]
+            if r < 0:
+                continue
+            kl = look_epoch[l] - k0
+            for q in range(row_off[r], row_off[r + 1]):
+                c = row_idx[q]
+                if stamp[c] != a:
+                    stamp[c] = a
+                    cells[nc] = c
+                    nc += 1
+                chain[c, kl] = 1.0 - row_val[q]
+        delta = 0.0
+        for q in range(nc):
+            c = cells[q]
+            delta += _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, chain[c]) \
+                - tail[c]
+            chain[c, :] = 1.0
+        out[a] = base + delta
+    return out
+
+
+__all__ = ["found_nb"]
