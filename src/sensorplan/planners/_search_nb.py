@@ -11,9 +11,20 @@ bit for bit), summed over cells in another order (mu equal to round-off).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .._compiled.jit import njit
+from ..models.radar.model import (ANGLE_TOL, RANGE_TOL, detection_probability, hidden,
+                                  visible)
+from ..models.sensors import ALTITUDE, ALTITUDE2, FOV, G_MAX, G_MIN
+
+#: Margins (m, and on the cosine of the wedge's half-angle) outside which a cell is certainly
+#: not visible: many orders of magnitude above the rounding of the radar's own tests, so a
+#: cell they skip is one :func:`~sensorplan.models.radar.model.visible` rejects too.
+_BAND_MARGIN = 1e-6
+_WEDGE_MARGIN = 1e-9
 
 
 @njit(cache=True)
@@ -101,4 +112,54 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, k0: in
     return out
 
 
-__all__ = ["found_nb"]
+@njit(cache=True, error_model="numpy")
+def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
+                     heading: np.ndarray, buildings: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The non-zero ``P_d v`` of B looks of one sensor at the cell centres: the values of
+    :func:`~sensorplan.models.radar.batch.detectable_points` (the radar's tests, called
+    here), cells certainly outside the range band or the wedge skipped before its ``atan2``.
+
+    Parameters
+    ----------
+    row : (n_cols,) the sensor's radar row;  centres : (C, 2);  xy : (B, 2);  heading : (B,)
+    buildings : (nb, 5)
+
+    Returns
+    -------
+    counts : (B,) non-zero cells per look;  idx : (nnz,) their cells, look-major, ascending;
+    val : (nnz,)
+    """
+    B, C = xy.shape[0], centres.shape[0]
+    idx = np.empty(B * C, dtype=np.int64)
+    val = np.empty(B * C)
+    counts = np.zeros(B, dtype=np.int64)
+    g_hi = row[G_MAX] + RANGE_TOL + _BAND_MARGIN
+    g_lo = max(row[G_MIN] - RANGE_TOL - _BAND_MARGIN, 0.0)
+    half = row[FOV] + ANGLE_TOL
+    cut = math.cos(half) - _WEDGE_MARGIN if half < math.pi else -2.0
+    n = 0
+    for b in range(B):
+        sx, sy = xy[b, 0], xy[b, 1]
+        ch, sh = math.cos(heading[b]), math.sin(heading[b])
+        for c in range(C):
+            dx = centres[c, 0] - sx
+            dy = centres[c, 1] - sy
+            g2 = dx * dx + dy * dy
+            if g2 > g_hi * g_hi or g2 < g_lo * g_lo:
+                continue                                 # certainly outside the band
+            if dx * ch + dy * sh < math.sqrt(g2) * cut:
+                continue                                 # certainly outside the wedge
+            if visible(row, dx, dy, heading[b]) and (
+                    buildings.shape[0] == 0
+                    or not hidden(buildings, sx, sy, row[ALTITUDE], sx + dx, sy + dy)):
+                p = detection_probability(row, g2 + row[ALTITUDE2])
+                if p != 0.0:
+                    idx[n] = c
+                    val[n] = p
+                    n += 1
+                    counts[b] += 1
+    return counts, idx[:n].copy(), val[:n].copy()
+
+
+__all__ = ["detect_sparse_nb", "found_nb"]

@@ -39,11 +39,11 @@ from typing import Any, cast
 
 import numpy as np
 
-from .._types import BoolArray, FloatArray, IntArray
+from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, wrap_angle
-from ._search_nb import found_nb
+from ._search_nb import detect_sparse_nb, found_nb
 from .information import (Context, chain_information, covariance_recursion, measured,
                           phi_terms, sum_by_target, target_information)
 from .information import prepare as prepare_tracks
@@ -355,16 +355,45 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
         h = heading_rule(h, b, turn) if prev_ok else heading_rule(theta0, b, kk * turn)
         th[:, l] = h
         prev_ok = True
-    info = _candidate_track_information(sctx, plan, i, k, headings, pos, tgt, th)
-    mu = _candidate_found(sctx, plan, i, k, headings, pos, th, assigned)
+    # The chain's looks: epoch k and sensor i's later assigned epochs.
+    ls = [l for l in range(L) if l == 0 or assigned[0, l]]
+    rows = np.empty((A, len(ls)), dtype=np.int64)
+    w = np.zeros((A, L, ctx.e, 2, 2))
+    for q, l in enumerate(ls):
+        rows[:, q], w[:, l] = _chain_column(sctx, i, k + l, pos[:, l], tgt[:, l], th[:, l])
+    info = _candidate_track_information(sctx, plan, i, k, headings, tgt, w)
+    mu = _candidate_found(sctx, plan, i, k, headings, rows, np.array(ls, dtype=np.int64))
     return info + sctx.weight * mu
 
 
+def _chain_column(sctx: SearchContext, i: int, kk: int, pos: FloatArray, tgt: IntArray,
+                  th: FloatArray) -> tuple[IntArray, FloatArray]:
+    """Sensor i's looks in epoch kk from ``pos (A, 2)``, targets ``tgt (A,)`` (-1: a sector)
+    and headings ``th (A,)``: their rows in the look pool and their track information
+    ``(A, e, 2, 2)`` (0 for a sector look), kept in ``sctx.memo`` (a player's candidates
+    are the same from one iteration of its game to the next)."""
+    memo = sctx.memo.setdefault("columns", {})
+    key = (i, kk, pos.tobytes(), th.tobytes(), tgt.tobytes())
+    got = memo.get(key)
+    if got is None:
+        ctx = sctx.ctx
+        rows = _pool(sctx).rows(sctx, i, pos, th)
+        track = tgt >= 0
+        w = np.zeros((len(tgt), ctx.e, 2, 2))
+        if ctx.M and track.any():
+            wt, _ = chain_information(ctx, i, kk, np.where(track[:, None], pos, 0.0)[:, None],
+                                      np.where(track, th, 0.0)[:, None],
+                                      np.maximum(tgt, 0)[:, None])
+            w = np.where(track[:, None, None, None], wt[:, 0], 0.0)
+        got = memo[key] = (rows, w)
+    return got
+
+
 def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: FloatArray,
-                     pos: FloatArray, th: FloatArray, assigned: BoolArray) -> FloatArray:
-    """mu ``(A,)`` for each candidate chain ``pos (A, L, 2)``, ``th (A, L)`` of player
-    (i, k): every other look's misses, times the chain's looks (epoch k and sensor i's later
-    assigned epochs)."""
+                     rows: IntArray, ls: IntArray) -> FloatArray:
+    """mu ``(A,)`` for each candidate of player (i, k) whose chain's looks in epochs
+    ``k + ls`` are the look pool's ``rows (A, len(ls))``: every other look's misses, times
+    the chain's."""
     ctx = sctx.ctx
     pool = _pool(sctx)
     miss = np.ones((ctx.K, len(sctx.centres)))
@@ -373,29 +402,37 @@ def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: 
         if n == i:
             ks = ks[ks < k - 1]
         if ks.size:
-            rows = pool.rows(sctx, n, plan.positions[n, ks], headings[n, ks])
-            for kk, r in zip(ks.tolist(), rows.tolist()):
+            for kk, r in zip(ks.tolist(), _plan_rows(sctx, n, ks, plan, headings)):
                 idx, val = pool.row(r)
                 # 1 - 0 = 1 exactly: the cells a look misses keep their bits.
                 miss[kk, idx] *= 1.0 - val
-    ls = [l for l in range(pos.shape[1]) if l == 0 or assigned[0, l]]
-    look_row = np.empty((len(pos), len(ls)), dtype=np.int64)
-    for q, l in enumerate(ls):
-        look_row[:, q] = pool.rows(sctx, i, pos[:, l], th[:, l])
-    return found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, k - 1, miss, look_row,
-                    np.array(ls, dtype=np.int64) + (k - 1), *pool.arrays())
+    return found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, k - 1, miss, rows,
+                    ls + (k - 1), *pool.arrays())
+
+
+def _plan_rows(sctx: SearchContext, n: int, ks: IntArray, plan: Plan, headings: FloatArray
+               ) -> list[int]:
+    """The look pool's rows of sensor n's planned looks in epochs ``ks`` (0-based)."""
+    memo = sctx.memo.setdefault("plan_rows", {})
+    pos, th = plan.positions[n, ks], headings[n, ks]
+    key = (n, ks.tobytes(), pos.tobytes(), th.tobytes())
+    got = memo.get(key)
+    if got is None:
+        got = memo[key] = _pool(sctx).rows(sctx, n, pos, th).tolist()
+    return got
 
 
 class _LookPool:
-    """Every look's non-zero ``P_d v`` (:func:`detection`), by the look's pose: sensor,
+    """Every look's non-zero ``P_d v`` (:func:`detection`'s values, from
+    :func:`~sensorplan.planners._search_nb.detect_sparse_nb`), by the look's pose: sensor,
     ground position and heading, bit for bit. Rows live in growing flat arrays, the layout
     :func:`~sensorplan.planners._search_nb.found_nb` reads."""
 
     def __init__(self) -> None:
         self.index: dict[tuple[int, bytes], int] = {}
-        self.off = np.zeros(1, dtype=np.int64)
-        self.idx = np.empty(0, dtype=np.int64)
-        self.val = np.empty(0)
+        self.off = np.zeros(1024, dtype=np.int64)      # rows' starts; room to grow
+        self.idx = np.empty(1 << 16, dtype=np.int64)
+        self.val = np.empty(1 << 16)
         self.n_rows = 0
 
     def rows(self, sctx: SearchContext, n: int, positions: FloatArray, headings: FloatArray
@@ -418,12 +455,18 @@ class _LookPool:
                     first.append(b)
             out[b] = r
         if new:
-            p = detection(sctx, n, pose[first, :2], pose[first, 2])
-            r_idx, c_idx = np.nonzero(p)
-            counts = np.bincount(r_idx, minlength=len(first))
-            self.off = np.concatenate([self.off, self.off[-1] + np.cumsum(counts)])
-            self.idx = np.concatenate([self.idx, c_idx.astype(np.int64)])
-            self.val = np.concatenate([self.val, p[r_idx, c_idx]])
+            ctx = sctx.ctx
+            counts, idx, val = detect_sparse_nb(ctx.radar[n], sctx.centres,
+                                                np.ascontiguousarray(pose[first, :2]),
+                                                np.ascontiguousarray(pose[first, 2]),
+                                                ctx.buildings)
+            R, start = self.n_rows, int(self.off[self.n_rows])
+            self.off = _grown(self.off, R + 1 + len(first))
+            self.off[R + 1:R + 1 + len(first)] = start + np.cumsum(counts)
+            self.idx = _grown(self.idx, start + len(idx))
+            self.idx[start:start + len(idx)] = idx
+            self.val = _grown(self.val, start + len(val))
+            self.val[start:start + len(val)] = val
             for key, r in new.items():
                 self.index[(n, key)] = r
             self.n_rows += len(first)
@@ -435,7 +478,17 @@ class _LookPool:
         return self.idx[a:b], self.val[a:b]
 
     def arrays(self) -> tuple[IntArray, IntArray, FloatArray]:
+        """The pool's flat arrays (with unused room at their ends)."""
         return self.off, self.idx, self.val
+
+
+def _grown(a: np.ndarray, n: int) -> np.ndarray:
+    """``a``, or a copy with room for at least ``n`` items (doubling: appends cost O(1))."""
+    if len(a) >= n:
+        return a
+    out = np.empty(max(n, 2 * len(a)), dtype=a.dtype)
+    out[:len(a)] = a
+    return out
 
 
 def _pool(sctx: SearchContext) -> _LookPool:
@@ -446,11 +499,11 @@ def _pool(sctx: SearchContext) -> _LookPool:
 
 
 def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int,
-                                 headings: FloatArray, pos: FloatArray, tgt: IntArray,
-                                 th: FloatArray) -> FloatArray:
+                                 headings: FloatArray, tgt: IntArray, w: FloatArray
+                                 ) -> FloatArray:
     """The tracks' part of Phi ``(A,)`` for each candidate of player (i, k): every other
-    look's information plus the candidate's chain ``pos (A, L, 2)``, ``tgt (A, L)``, ``th
-    (A, L)`` over epochs k..K (0 without tracks).
+    look's information plus the candidate's chain over epochs k..K, targets ``tgt (A, L)``
+    (-1: none) and information ``w (A, L, e, 2, 2)`` (0 without tracks).
 
     A candidate changes the terms of the targets its chain looks at only: the other
     players' summed information is shared, each target's term without the chain is computed
@@ -462,14 +515,10 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
     if ctx.M == 0:
         return np.zeros(A)
     M, e = ctx.M, ctx.e
-    track = tgt >= 0
     others = plan.targets.copy()
     others[i, k - 1:] = -1
     base = sum_by_target(ctx, _plan_track_W(sctx, plan, headings), others)   # (M, T, 2, 2)
-    w, _ = chain_information(ctx, i, k, np.where(track[..., None], pos, 0.0),
-                             np.where(track, th, 0.0), np.maximum(tgt, 0))
-    w = np.where(track[..., None, None, None], w, 0.0)               # (A, L, e, 2, 2)
-    a_look, l_look = np.nonzero(track)
+    a_look, l_look = np.nonzero(tgt >= 0)
     pair, inv = np.unique(a_look * M + tgt[a_look, l_look], return_inverse=True)
     pj = pair % M
     rows = base[pj]                                                  # (P, T, 2, 2) copy
