@@ -261,9 +261,10 @@ def distinct_headings(headings: FloatArray) -> IntArray:
     """Indices of the first of each distinct heading (to :data:`HEADING_TOL`), ascending:
     the sectors that are distinct actions, given the headings the rule maps them to."""
     h = np.asarray(headings, dtype=float).reshape(-1)
+    same = (np.abs(wrap_angle(h[:, None] - h[None, :])) <= HEADING_TOL).tolist()
     keep: list[int] = []
     for s in range(h.size):
-        if not any(abs(float(wrap_angle(h[s] - h[t]))) <= HEADING_TOL for t in keep):
+        if not any(same[s][t] for t in keep):
             keep.append(s)
     return np.array(keep, dtype=np.int64)
 
@@ -282,11 +283,14 @@ def player_positions(sctx: SearchContext, plan: Plan, i: int, k: int) -> FloatAr
         d = np.abs(nxt[None, None, :] - cand[:, None, :] - moves[None]).max(axis=-1)
         ok &= d.min(axis=1) <= POSITION_TOL * 10
     # Distinct positions only (a zero-length move may repeat the stay).
-    out: list[FloatArray] = []
-    for p in cand[ok]:
-        if not any(np.abs(p - q).max() <= POSITION_TOL * 10 for q in out):
-            out.append(p)
-    return np.array(out).reshape(-1, 2)
+    cand = cand[ok]
+    same = (np.abs(cand[:, None] - cand[None]).max(axis=-1, initial=0.0)
+            <= POSITION_TOL * 10).tolist()
+    out: list[int] = []
+    for a in range(len(cand)):
+        if not any(same[a][b] for b in out):
+            out.append(a)
+    return cand[out].reshape(-1, 2)
 
 
 def player_actions(sctx: SearchContext, plan: Plan, i: int, k: int
@@ -298,7 +302,7 @@ def player_actions(sctx: SearchContext, plan: Plan, i: int, k: int
         prev_h, prev_ok = float(sctx.ctx.problem.headings[i]), True
     else:
         prev_ok = bool(plan.assigned[i, k - 2])
-        prev_h = float(plan_headings(sctx, plan)[i, k - 2]) if prev_ok else 0.0
+        prev_h = float(_plan_headings(sctx, plan)[i, k - 2]) if prev_ok else 0.0
     sectors = sector_actions(sctx, i, k, prev_h, prev_ok)
     pos = player_positions(sctx, plan, i, k)
     M = sctx.ctx.M
@@ -329,7 +333,7 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
     ctx = sctx.ctx
     A, L = len(targets), ctx.K - k + 1
     assert plan.sectors is not None
-    headings = plan_headings(sctx, plan)
+    headings = _plan_headings(sctx, plan)
     # Sensor i's epochs k..K per candidate.
     pos = np.repeat(plan.positions[i, k - 1:][None], A, axis=0)
     tgt = np.repeat(plan.targets[i, k - 1:][None], A, axis=0)
@@ -364,6 +368,18 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
     info = _candidate_track_information(sctx, plan, i, k, headings, tgt, w)
     mu = _candidate_found(sctx, plan, i, k, headings, rows, np.array(ls, dtype=np.int64))
     return info + sctx.weight * mu
+
+
+def _plan_headings(sctx: SearchContext, plan: Plan) -> FloatArray:
+    """:func:`plan_headings`, kept in ``sctx.memo`` by the plan (read-only)."""
+    assert plan.sectors is not None
+    memo = sctx.memo.setdefault("headings", {})
+    key = (plan.positions.tobytes(), plan.targets.tobytes(), plan.sectors.tobytes())
+    got = memo.get(key)
+    if got is None:
+        got = memo[key] = plan_headings(sctx, plan)
+        got.flags.writeable = False
+    return got
 
 
 def _chain_column(sctx: SearchContext, i: int, kk: int, pos: FloatArray, tgt: IntArray,
