@@ -43,15 +43,18 @@ def _cell_tail(d: float, b: float, survival: float, e: int, miss: np.ndarray, k0
 
 
 @njit(cache=True)
-def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, k0: int,
-             miss: np.ndarray, look_row: np.ndarray, look_epoch: np.ndarray,
-             row_off: np.ndarray, row_idx: np.ndarray, row_val: np.ndarray) -> np.ndarray:
+def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int, k0: int,
+             other_epoch: np.ndarray, other_row: np.ndarray, look_row: np.ndarray,
+             look_epoch: np.ndarray, row_off: np.ndarray, row_idx: np.ndarray,
+             row_val: np.ndarray) -> np.ndarray:
     """mu for each candidate of a player whose chain starts at epoch ``k0`` (0-based).
 
     Parameters
     ----------
     d0, births : (C,)          the undetected intensity now, births per step
-    miss : (K, C)              every other look's product of ``1 - P_d v`` per epoch
+    K : int                    epochs
+    other_epoch, other_row : (n_o,) int   every other look's epoch (0-based) and pool row,
+                               in the order their misses multiply (sensor by sensor)
     look_row : (A, n) int      row of each candidate's n chain looks in the pool (-1: none)
     look_epoch : (n,) int      each chain look's epoch (0-based, ascending, from k0)
     row_off, row_idx, row_val  the pool of looks: row r's non-zero ``P_d v`` are
@@ -61,8 +64,15 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, k0: in
     -------
     (A,) expected number of undetected targets found
     """
-    K, C = miss.shape
+    C = d0.shape[0]
     A, n = look_row.shape
+    # Every other look's product of 1 - P_d v per epoch (1 - 0 = 1: cells a look misses
+    # keep their bits).
+    miss = np.ones((K, C))
+    for q in range(other_row.shape[0]):
+        r, kk = other_row[q], other_epoch[q]
+        for p in range(row_off[r], row_off[r + 1]):
+            miss[kk, row_idx[p]] *= 1.0 - row_val[p]
     L = K - k0
     # The others alone: mu before k0, each cell's intensity at k0 and its tail from k0.
     d_k0 = d0.copy()

@@ -412,17 +412,17 @@ def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: 
     the chain's."""
     ctx = sctx.ctx
     pool = _pool(sctx)
-    miss = np.ones((ctx.K, len(sctx.centres)))
+    epoch: list[int] = []
+    row: list[int] = []
     for n in range(ctx.N):
         ks = np.flatnonzero(plan.assigned[n])
         if n == i:
             ks = ks[ks < k - 1]
         if ks.size:
-            for kk, r in zip(ks.tolist(), _plan_rows(sctx, n, ks, plan, headings)):
-                idx, val = pool.row(r)
-                # 1 - 0 = 1 exactly: the cells a look misses keep their bits.
-                miss[kk, idx] *= 1.0 - val
-    return found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, k - 1, miss, rows,
+            epoch += ks.tolist()
+            row += _plan_rows(sctx, n, ks, plan, headings)
+    return found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1,
+                    np.array(epoch, dtype=np.int64), np.array(row, dtype=np.int64), rows,
                     ls + (k - 1), *pool.arrays())
 
 
@@ -542,7 +542,11 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
         sel = l_look == l
         for s in range(e):
             rows[inv[sel], (k - 1 + l) * e + s] += w[a_look[sel], l, s]
-    terms = np.broadcast_to(_target_terms(ctx, base, np.arange(M)), (A, M)).copy()
+    memo = sctx.memo.setdefault("base_terms", {})
+    key = base.tobytes()
+    if key not in memo:
+        memo[key] = _target_terms(ctx, base, np.arange(M))
+    terms = np.broadcast_to(memo[key], (A, M)).copy()
     terms[pair // M, pj] = _target_terms(ctx, rows, pj)
     return terms.sum(axis=1)
 
