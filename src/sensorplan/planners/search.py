@@ -324,12 +324,33 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
     chain looks at (every other target keeps its term) and the cells its looks cover
     (:func:`~sensorplan.planners._search_nb.found_nb`); each look's ``P_d v`` and each other
     sensor's track information are kept in ``sctx.memo`` by the look's pose. The track
-    terms are :func:`evaluate`'s bit for bit, mu equals its value to round-off.
+    terms are :func:`evaluate`'s bit for bit, mu equals its value to round-off. A call
+    that asks again for the same utilities (the others' actions and the candidates as
+    before) gets them from ``sctx.memo``.
 
     Returns
     -------
     (A,) nats
     """
+    assert plan.sectors is not None
+    # The utilities depend on the others' actions and the candidates, not on the player's
+    # own action: a JSFP iteration in which no other player moved asks again for the same.
+    own = np.zeros(plan.targets.shape, dtype=bool)
+    own[i, k - 1] = True
+    key = (i, k, np.where(own[..., None], 0.0, plan.positions).tobytes(),
+           np.where(own, -2, plan.targets).tobytes(), np.where(own, -2, plan.sectors).tobytes(),
+           np.asarray(positions, dtype=float).tobytes(), np.asarray(targets).tobytes(),
+           np.asarray(sectors).tobytes())
+    memo = sctx.memo.setdefault("utilities", {})
+    got = memo.get(key)
+    if got is None:
+        got = memo[key] = _candidate_potentials(sctx, plan, i, k, positions, targets, sectors)
+    return got.copy()
+
+
+def _candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
+                          positions: FloatArray, targets: IntArray, sectors: IntArray
+                          ) -> FloatArray:
     ctx = sctx.ctx
     A, L = len(targets), ctx.K - k + 1
     assert plan.sectors is not None
