@@ -391,14 +391,24 @@ def _candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
     return info + sctx.weight * mu
 
 
-def _plan_headings(sctx: SearchContext, plan: Plan) -> FloatArray:
-    """:func:`plan_headings`, kept in ``sctx.memo`` by the plan (read-only)."""
+def _plan_memo(sctx: SearchContext, plan: Plan) -> dict[str, Any]:
+    """What :func:`candidate_potentials` derives from a whole plan, kept in ``sctx.memo`` by
+    the plan (the players of a JSFP iteration all ask about the same plan)."""
     assert plan.sectors is not None
-    memo = sctx.memo.setdefault("headings", {})
+    memo = sctx.memo.setdefault("plans", {})
     key = (plan.positions.tobytes(), plan.targets.tobytes(), plan.sectors.tobytes())
     got = memo.get(key)
     if got is None:
-        got = memo[key] = plan_headings(sctx, plan)
+        got = memo[key] = {}
+    return got
+
+
+def _plan_headings(sctx: SearchContext, plan: Plan) -> FloatArray:
+    """:func:`plan_headings`, kept with the plan (read-only)."""
+    memo = _plan_memo(sctx, plan)
+    got = memo.get("headings")
+    if got is None:
+        got = memo["headings"] = plan_headings(sctx, plan)
         got.flags.writeable = False
     return got
 
@@ -433,30 +443,21 @@ def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: 
     the chain's."""
     ctx = sctx.ctx
     pool = _pool(sctx)
-    epoch: list[int] = []
-    row: list[int] = []
-    for n in range(ctx.N):
-        ks = np.flatnonzero(plan.assigned[n])
-        if n == i:
-            ks = ks[ks < k - 1]
-        if ks.size:
-            epoch += ks.tolist()
-            row += _plan_rows(sctx, n, ks, plan, headings)
+    memo = _plan_memo(sctx, plan)
+    looks = memo.get("looks")
+    if looks is None:
+        # Every planned look, sensor by sensor (the order the misses multiply in).
+        n_look, k_look = np.nonzero(plan.assigned)
+        row = np.empty(len(n_look), dtype=np.int64)
+        for n in np.unique(n_look).tolist():
+            sel = n_look == n
+            row[sel] = pool.rows(sctx, n, plan.positions[n, k_look[sel]],
+                                 headings[n, k_look[sel]])
+        looks = memo["looks"] = (n_look, k_look, row)
+    n_look, k_look, row = looks
+    other = (n_look != i) | (k_look < k - 1)
     return found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1,
-                    np.array(epoch, dtype=np.int64), np.array(row, dtype=np.int64), rows,
-                    ls + (k - 1), *pool.arrays())
-
-
-def _plan_rows(sctx: SearchContext, n: int, ks: IntArray, plan: Plan, headings: FloatArray
-               ) -> list[int]:
-    """The look pool's rows of sensor n's planned looks in epochs ``ks`` (0-based)."""
-    memo = sctx.memo.setdefault("plan_rows", {})
-    pos, th = plan.positions[n, ks], headings[n, ks]
-    key = (n, ks.tobytes(), pos.tobytes(), th.tobytes())
-    got = memo.get(key)
-    if got is None:
-        got = memo[key] = _pool(sctx).rows(sctx, n, pos, th).tolist()
-    return got
+                    k_look[other], row[other], rows, ls + (k - 1), *pool.arrays())
 
 
 class _LookPool:
@@ -554,7 +555,11 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
     M, e = ctx.M, ctx.e
     others = plan.targets.copy()
     others[i, k - 1:] = -1
-    base = sum_by_target(ctx, _plan_track_W(sctx, plan, headings), others)   # (M, T, 2, 2)
+    memo = _plan_memo(sctx, plan)
+    W = memo.get("track_W")
+    if W is None:
+        W = memo["track_W"] = _plan_track_W(sctx, plan, headings)
+    base = sum_by_target(ctx, W, others)                            # (M, T, 2, 2)
     a_look, l_look = np.nonzero(tgt >= 0)
     pair, inv = np.unique(a_look * M + tgt[a_look, l_look], return_inverse=True)
     pj = pair % M
@@ -563,11 +568,11 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
         sel = l_look == l
         for s in range(e):
             rows[inv[sel], (k - 1 + l) * e + s] += w[a_look[sel], l, s]
-    memo = sctx.memo.setdefault("base_terms", {})
+    terms_memo = sctx.memo.setdefault("base_terms", {})
     key = base.tobytes()
-    if key not in memo:
-        memo[key] = _target_terms(ctx, base, np.arange(M))
-    terms = np.broadcast_to(memo[key], (A, M)).copy()
+    if key not in terms_memo:
+        terms_memo[key] = _target_terms(ctx, base, np.arange(M))
+    terms = np.broadcast_to(terms_memo[key], (A, M)).copy()
     terms[pair // M, pj] = _target_terms(ctx, rows, pj)
     return terms.sum(axis=1)
 
