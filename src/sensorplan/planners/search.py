@@ -68,8 +68,8 @@ class SearchContext:
     bearings : list of (S_i,) arrays   each sensor's sector bearings
     centres : (C, 2);  d0 : (C,);  births : (C,);  survival : float   the intensity
     weight : float           w, nats per newly found target
-    memo : dict              what :func:`candidate_potentials` keeps between calls: values
-                             that depend on the decision and a look's pose only
+    memo : dict              what :func:`candidate_potentials` keeps between its calls for
+                             this decision (by a look's pose, a plan, a candidate set)
     """
 
     ctx: Context
