@@ -80,7 +80,7 @@ def main() -> None:
     parser.add_argument("--sizes", nargs="+", type=int, default=[3, 20])
     args = parser.parse_args()
     print(f"## Search on vs off: K = 3, e = 2, M = 8, 12 sectors, {args.cells}x{args.cells} "
-          f"cells, seed {args.seed}, {args.repeats} interleaved repeats after one warm-up "
+          f"cells, seed {args.seed}, {args.repeats} interleaved repeats after two warm-ups "
           f"(load {os.getloadavg()[0]:.1f})")
     print("| planner | N | search wall ms | no-search wall ms | search CPU ms "
           "| no-search CPU ms | ratio (CPU) | ratio (wall) | <= 3x |")
