@@ -85,10 +85,18 @@ def test_plans_are_those_of_the_replaced_implementation(
         assert (got.converged, got.sweeps) == (want.converged, want.sweeps)
 
 
-def test_the_look_pool_keeps_each_pose_once() -> None:
-    """A look's ``P_d v`` is computed once per pose, and its row equals :func:`search.detection`."""
+TOWN = np.array([[200.0, 200.0, 300.0, 300.0, 40.0], [400.0, 100.0, 450.0, 350.0, 80.0]])
+
+
+@pytest.mark.parametrize("kind", ["ideal", "swerling1 behind buildings"])
+def test_the_look_pool_keeps_each_pose_once(kind: str) -> None:
+    """A look's ``P_d v`` is computed once per pose, and its row equals :func:`search.detection`
+    (the radar's dense evaluation) bit for bit, with and without buildings and detection."""
     rng = np.random.default_rng(1)
     problem = searching(paper_problem(rng, horizon=2), rng, 12, cells=12)
+    if kind != "ideal":
+        problem = dataclasses.replace(problem, buildings=TOWN, sensors=tuple(
+            dataclasses.replace(s, detection="swerling1") for s in problem.sensors))
     sctx = search.prepare(problem)
     xy = np.array([[100.0, 200.0], [300.0, 300.0], [100.0, 200.0]])
     h = np.array([0.5, -2.0, 0.5])
@@ -106,3 +114,14 @@ def test_the_look_pool_keeps_each_pose_once() -> None:
         got[idx] = val
         np.testing.assert_array_equal(got, dense[b])
         assert np.all(val > 0)
+    # Many random poses, the cells near the band's and the wedge's edges among them.
+    xy = rng.uniform(0.0, 600.0, (200, 2))
+    h = rng.uniform(-np.pi, np.pi, 200)
+    rows = pool.rows(sctx, 2, xy, h)
+    dense = search.detection(sctx, 2, xy, h)
+    assert (dense > 0).any() and (dense[dense > 0] < 1).any() == (kind != "ideal")
+    for b, r in enumerate(rows):
+        idx, val = pool.row(int(r))
+        got = np.zeros(len(sctx.centres))
+        got[idx] = val
+        np.testing.assert_array_equal(got, dense[b])
