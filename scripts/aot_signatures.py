@@ -46,7 +46,7 @@ def main() -> None:
     from planner_reference import CASES
     from sensorplan.config import load_decision
     from sensorplan.planners import make_planner
-    from sensorplan.planners.contract_problems import paper_problem
+    from sensorplan.planners.contract_problems import paper_problem, searching
     from sensorplan.planners.problem import PlanningProblem
     from sensorplan.models.sensors import SensorParams
 
@@ -55,7 +55,7 @@ def main() -> None:
                  "planners.epoch_game",
                  "planners.potential_game",
                  "planners.refine", "planners.greedy", "planners.brute_force",
-                 "planners.random_plan"):
+                 "planners.random_plan", "planners._search_nb", "planners.search"):
         importlib.import_module(f"sensorplan.{name}")
     # Every kernel the planners call exists by now: watch their calls.
     _jit.Kernel.__call__ = _recording_call          # type: ignore[method-assign]
@@ -83,6 +83,10 @@ def main() -> None:
         for name in ("pg", "pg-refine", "sequential-greedy", "random"):
             make_planner(name).plan(problem, rng=0)
         make_planner("brute-force").plan(PlanningProblem(**{**fields, "horizon": 1}))
+        # Search looks (the search term's kernels).
+        found = searching(problem, np.random.default_rng(0), 6)
+        for name in ("pg", "sequential-greedy"):
+            make_planner(name).plan(found, rng=0)
     lines = ['"""The kernels the planners call from Python and their argument types (see',
              ":mod:`sensorplan._compiled.aot`); written by ``scripts/aot_signatures.py``.",
              '"""', "",

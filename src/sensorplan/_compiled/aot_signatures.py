@@ -53,4 +53,9 @@ SIGNATURES: tuple = (
      (('d', 2), ('l', 1), ('l', 1), 'b', ('d', 1))),
     ('sensorplan.planners._pairs_nb', 'player_view_nb',
      (('l', 1), 'i', 'i', 'i', ('l', 1), 'i', ('l', 1), ('l', 1), ('l', 1))),
+    ('sensorplan.planners._search_nb', 'detect_sparse_nb',
+     (('d', 1), ('d', 2), ('d', 2), ('d', 1), ('d', 2))),
+    ('sensorplan.planners._search_nb', 'found_nb',
+     (('d', 1), ('d', 1), 'f', 'i', 'i', 'i', ('l', 1), ('l', 1), ('l', 2), ('l', 1), ('l', 1),
+      ('l', 1), ('d', 1))),
 )

@@ -34,7 +34,8 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any, cast
 
 import numpy as np
 
@@ -42,6 +43,7 @@ from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, wrap_angle
+from ._search_nb import detect_sparse_nb, found_nb
 from .information import (Context, chain_information, covariance_recursion, measured,
                           phi_terms, sum_by_target, target_information)
 from .information import prepare as prepare_tracks
@@ -66,6 +68,8 @@ class SearchContext:
     bearings : list of (S_i,) arrays   each sensor's sector bearings
     centres : (C, 2);  d0 : (C,);  births : (C,);  survival : float   the intensity
     weight : float           w, nats per newly found target
+    memo : dict              what :func:`candidate_potentials` keeps between its calls for
+                             this decision (by a look's pose, a plan, a candidate set)
     """
 
     ctx: Context
@@ -75,6 +79,7 @@ class SearchContext:
     births: FloatArray
     survival: float
     weight: float
+    memo: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
 
 def first_detection_weight(ctx: Context, cell_cov: FloatArray) -> float:
@@ -256,9 +261,10 @@ def distinct_headings(headings: FloatArray) -> IntArray:
     """Indices of the first of each distinct heading (to :data:`HEADING_TOL`), ascending:
     the sectors that are distinct actions, given the headings the rule maps them to."""
     h = np.asarray(headings, dtype=float).reshape(-1)
+    same = (np.abs(wrap_angle(h[:, None] - h[None, :])) <= HEADING_TOL).tolist()
     keep: list[int] = []
     for s in range(h.size):
-        if not any(abs(float(wrap_angle(h[s] - h[t]))) <= HEADING_TOL for t in keep):
+        if not any(same[s][t] for t in keep):
             keep.append(s)
     return np.array(keep, dtype=np.int64)
 
@@ -277,11 +283,14 @@ def player_positions(sctx: SearchContext, plan: Plan, i: int, k: int) -> FloatAr
         d = np.abs(nxt[None, None, :] - cand[:, None, :] - moves[None]).max(axis=-1)
         ok &= d.min(axis=1) <= POSITION_TOL * 10
     # Distinct positions only (a zero-length move may repeat the stay).
-    out: list[FloatArray] = []
-    for p in cand[ok]:
-        if not any(np.abs(p - q).max() <= POSITION_TOL * 10 for q in out):
-            out.append(p)
-    return np.array(out).reshape(-1, 2)
+    cand = cand[ok]
+    same = (np.abs(cand[:, None] - cand[None]).max(axis=-1, initial=0.0)
+            <= POSITION_TOL * 10).tolist()
+    out: list[int] = []
+    for a in range(len(cand)):
+        if not any(same[a][b] for b in out):
+            out.append(a)
+    return cand[out].reshape(-1, 2)
 
 
 def player_actions(sctx: SearchContext, plan: Plan, i: int, k: int
@@ -293,7 +302,7 @@ def player_actions(sctx: SearchContext, plan: Plan, i: int, k: int
         prev_h, prev_ok = float(sctx.ctx.problem.headings[i]), True
     else:
         prev_ok = bool(plan.assigned[i, k - 2])
-        prev_h = float(plan_headings(sctx, plan)[i, k - 2]) if prev_ok else 0.0
+        prev_h = float(_plan_headings(sctx, plan)[i, k - 2]) if prev_ok else 0.0
     sectors = sector_actions(sctx, i, k, prev_h, prev_ok)
     pos = player_positions(sctx, plan, i, k)
     M = sctx.ctx.M
@@ -308,18 +317,44 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
                          positions: FloatArray, targets: IntArray, sectors: IntArray
                          ) -> FloatArray:
     """Phi with search for each candidate action of player (i, k), the others fixed: one
-    batch over candidates (the track terms in one covariance recursion, mu vectorised over
-    cells and candidates). Player (i, k)'s action also moves the headings of sensor i's
+    batch over candidates. Player (i, k)'s action also moves the headings of sensor i's
     later epochs (the heading rule chains them); those are recomputed per candidate.
+
+    Only what a candidate changes is computed per candidate: the terms of the targets its
+    chain looks at (every other target keeps its term) and the cells its looks cover
+    (:func:`~sensorplan.planners._search_nb.found_nb`); each look's ``P_d v`` and each other
+    sensor's track information are kept in ``sctx.memo`` by the look's pose. The track
+    terms are :func:`evaluate`'s bit for bit, mu equals its value to round-off. A call
+    that asks again for the same utilities (the others' actions and the candidates as
+    before) gets them from ``sctx.memo``.
 
     Returns
     -------
     (A,) nats
     """
-    ctx = sctx.ctx
-    A, K, L = len(targets), ctx.K, ctx.K - k + 1
     assert plan.sectors is not None
-    headings = plan_headings(sctx, plan)
+    # The utilities depend on the others' actions and the candidates, not on the player's
+    # own action: a JSFP iteration in which no other player moved asks again for the same.
+    own = np.zeros(plan.targets.shape, dtype=bool)
+    own[i, k - 1] = True
+    key = (i, k, np.where(own[..., None], 0.0, plan.positions).tobytes(),
+           np.where(own, -2, plan.targets).tobytes(), np.where(own, -2, plan.sectors).tobytes(),
+           np.asarray(positions, dtype=float).tobytes(), np.asarray(targets).tobytes(),
+           np.asarray(sectors).tobytes())
+    memo = sctx.memo.setdefault("utilities", {})
+    got = memo.get(key)
+    if got is None:
+        got = memo[key] = _candidate_potentials(sctx, plan, i, k, positions, targets, sectors)
+    return got.copy()
+
+
+def _candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
+                          positions: FloatArray, targets: IntArray, sectors: IntArray
+                          ) -> FloatArray:
+    ctx = sctx.ctx
+    A, L = len(targets), ctx.K - k + 1
+    assert plan.sectors is not None
+    headings = _plan_headings(sctx, plan)
     # Sensor i's epochs k..K per candidate.
     pos = np.repeat(plan.positions[i, k - 1:][None], A, axis=0)
     tgt = np.repeat(plan.targets[i, k - 1:][None], A, axis=0)
@@ -345,76 +380,232 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
         h = heading_rule(h, b, turn) if prev_ok else heading_rule(theta0, b, kk * turn)
         th[:, l] = h
         prev_ok = True
-    info = _candidate_track_information(sctx, plan, i, k, headings, pos, tgt, th)
-    # Search: every other look's miss probability, times each candidate's chain.
-    miss = np.ones((K, len(sctx.centres)))
-    for n in range(ctx.N):
-        ks = np.flatnonzero(plan.assigned[n])
-        if n == i:
-            ks = ks[ks < k - 1]
-        if ks.size:
-            miss[ks] *= 1.0 - detection(sctx, n, plan.positions[n, ks], headings[n, ks])
-    miss_c = np.broadcast_to(miss, (A,) + miss.shape).copy()
-    for l in range(L):
-        if assigned[0, l] or l == 0:
-            p = detection(sctx, i, pos[:, l], th[:, l])
-            miss_c[:, k - 1 + l] *= 1.0 - p
-    mu = expected_found(sctx, miss_c)
+    # The chain's looks: epoch k and sensor i's later assigned epochs.
+    ls = [l for l in range(L) if l == 0 or assigned[0, l]]
+    rows = np.empty((A, len(ls)), dtype=np.int64)
+    w = np.zeros((A, L, ctx.e, 2, 2))
+    for q, l in enumerate(ls):
+        rows[:, q], w[:, l] = _chain_column(sctx, i, k + l, pos[:, l], tgt[:, l], th[:, l])
+    info = _candidate_track_information(sctx, plan, i, k, headings, tgt, w)
+    mu = _candidate_found(sctx, plan, i, k, headings, rows, np.array(ls, dtype=np.int64))
     return info + sctx.weight * mu
 
 
+def _plan_memo(sctx: SearchContext, plan: Plan) -> dict[str, Any]:
+    """What :func:`candidate_potentials` derives from a whole plan, kept in ``sctx.memo`` by
+    the plan (the players of a JSFP iteration all ask about the same plan)."""
+    assert plan.sectors is not None
+    memo = sctx.memo.setdefault("plans", {})
+    key = (plan.positions.tobytes(), plan.targets.tobytes(), plan.sectors.tobytes())
+    got = memo.get(key)
+    if got is None:
+        got = memo[key] = {}
+    return got
+
+
+def _plan_headings(sctx: SearchContext, plan: Plan) -> FloatArray:
+    """:func:`plan_headings`, kept with the plan (read-only)."""
+    memo = _plan_memo(sctx, plan)
+    got = memo.get("headings")
+    if got is None:
+        got = memo["headings"] = plan_headings(sctx, plan)
+        got.flags.writeable = False
+    return got
+
+
+def _chain_column(sctx: SearchContext, i: int, kk: int, pos: FloatArray, tgt: IntArray,
+                  th: FloatArray) -> tuple[IntArray, FloatArray]:
+    """Sensor i's looks in epoch kk from ``pos (A, 2)``, targets ``tgt (A,)`` (-1: a sector)
+    and headings ``th (A,)``: their rows in the look pool and their track information
+    ``(A, e, 2, 2)`` (0 for a sector look), kept in ``sctx.memo`` (a player's candidates
+    are the same from one iteration of its game to the next)."""
+    memo = sctx.memo.setdefault("columns", {})
+    key = (i, kk, pos.tobytes(), th.tobytes(), tgt.tobytes())
+    got = memo.get(key)
+    if got is None:
+        ctx = sctx.ctx
+        rows = _pool(sctx).rows(sctx, i, pos, th)
+        track = tgt >= 0
+        w = np.zeros((len(tgt), ctx.e, 2, 2))
+        if ctx.M and track.any():
+            wt, _ = chain_information(ctx, i, kk, np.where(track[:, None], pos, 0.0)[:, None],
+                                      np.where(track, th, 0.0)[:, None],
+                                      np.maximum(tgt, 0)[:, None])
+            w = np.where(track[:, None, None, None], wt[:, 0], 0.0)
+        got = memo[key] = (rows, w)
+    return got
+
+
+def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: FloatArray,
+                     rows: IntArray, ls: IntArray) -> FloatArray:
+    """mu ``(A,)`` for each candidate of player (i, k) whose chain's looks in epochs
+    ``k + ls`` are the look pool's ``rows (A, len(ls))``: every other look's misses, times
+    the chain's."""
+    ctx = sctx.ctx
+    pool = _pool(sctx)
+    memo = _plan_memo(sctx, plan)
+    looks = memo.get("looks")
+    if looks is None:
+        # Every planned look, sensor by sensor (the order the misses multiply in).
+        n_look, k_look = np.nonzero(plan.assigned)
+        row = np.empty(len(n_look), dtype=np.int64)
+        for n in np.unique(n_look).tolist():
+            sel = n_look == n
+            row[sel] = pool.rows(sctx, n, plan.positions[n, k_look[sel]],
+                                 headings[n, k_look[sel]])
+        looks = memo["looks"] = (n_look, k_look, row)
+    n_look, k_look, row = looks
+    other = (n_look != i) | (k_look < k - 1)
+    return found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1,
+                    k_look[other], row[other], rows, ls + (k - 1), *pool.arrays())
+
+
+class _LookPool:
+    """Every look's non-zero ``P_d v`` (:func:`detection`'s values, from
+    :func:`~sensorplan.planners._search_nb.detect_sparse_nb`), by the look's pose: sensor,
+    ground position and heading, bit for bit. Rows live in growing flat arrays, the layout
+    :func:`~sensorplan.planners._search_nb.found_nb` reads."""
+
+    def __init__(self) -> None:
+        self.index: dict[tuple[int, bytes], int] = {}
+        self.off = np.zeros(1024, dtype=np.int64)      # rows' starts; room to grow
+        self.idx = np.empty(1 << 16, dtype=np.int64)
+        self.val = np.empty(1 << 16)
+        self.n_rows = 0
+
+    def rows(self, sctx: SearchContext, n: int, positions: FloatArray, headings: FloatArray
+             ) -> IntArray:
+        """The pool's rows of sensor n's looks from ``positions (B, 2)``, ``headings (B,)``
+        (computed, in one batch, for the poses not seen before)."""
+        pose = np.empty((len(headings), 3))
+        pose[:, :2] = positions
+        pose[:, 2] = headings
+        keys = cast("list[bytes]", pose.view(np.dtype((np.void, 24))).ravel().tolist())
+        out = np.empty(len(keys), dtype=np.int64)
+        new: dict[bytes, int] = {}          # unseen pose -> its row
+        first: list[int] = []               # ... and its first look in the batch
+        for b, key in enumerate(keys):
+            r = self.index.get((n, key))
+            if r is None:
+                r = new.get(key)
+                if r is None:
+                    r = new[key] = self.n_rows + len(first)
+                    first.append(b)
+            out[b] = r
+        if new:
+            ctx = sctx.ctx
+            counts, idx, val = detect_sparse_nb(ctx.radar[n], sctx.centres,
+                                                np.ascontiguousarray(pose[first, :2]),
+                                                np.ascontiguousarray(pose[first, 2]),
+                                                ctx.buildings)
+            R, start = self.n_rows, int(self.off[self.n_rows])
+            self.off = _grown(self.off, R + 1 + len(first))
+            self.off[R + 1:R + 1 + len(first)] = start + np.cumsum(counts)
+            self.idx = _grown(self.idx, start + len(idx))
+            self.idx[start:start + len(idx)] = idx
+            self.val = _grown(self.val, start + len(val))
+            self.val[start:start + len(val)] = val
+            for key, r in new.items():
+                self.index[(n, key)] = r
+            self.n_rows += len(first)
+        return out
+
+    def row(self, r: int) -> tuple[IntArray, FloatArray]:
+        """Cells and values of row r."""
+        a, b = self.off[r], self.off[r + 1]
+        return self.idx[a:b], self.val[a:b]
+
+    def arrays(self) -> tuple[IntArray, IntArray, FloatArray]:
+        """The pool's flat arrays (with unused room at their ends)."""
+        return self.off, self.idx, self.val
+
+
+def _grown(a: np.ndarray, n: int) -> np.ndarray:
+    """``a``, or a copy with room for at least ``n`` items (doubling: appends cost O(1))."""
+    if len(a) >= n:
+        return a
+    out = np.empty(max(n, 2 * len(a)), dtype=a.dtype)
+    out[:len(a)] = a
+    return out
+
+
+def _pool(sctx: SearchContext) -> _LookPool:
+    pool = sctx.memo.get("looks")
+    if pool is None:
+        pool = sctx.memo["looks"] = _LookPool()
+    return pool
+
+
 def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int,
-                                 headings: FloatArray, pos: FloatArray, tgt: IntArray,
-                                 th: FloatArray) -> FloatArray:
+                                 headings: FloatArray, tgt: IntArray, w: FloatArray
+                                 ) -> FloatArray:
     """The tracks' part of Phi ``(A,)`` for each candidate of player (i, k): every other
-    look's information plus the candidate's chain ``pos (A, L, 2)``, ``tgt (A, L)``, ``th
-    (A, L)`` over epochs k..K (0 without tracks)."""
+    look's information plus the candidate's chain over epochs k..K, targets ``tgt (A, L)``
+    (-1: none) and information ``w (A, L, e, 2, 2)`` (0 without tracks).
+
+    A candidate changes the terms of the targets its chain looks at only: the other
+    players' summed information is shared, each target's term without the chain is computed
+    once, and only (candidate, target looked at) pairs run the recursion (each pair's row is
+    the dense computation's row, so its term is the same to the bit).
+    """
     ctx = sctx.ctx
     A, L = tgt.shape
     if ctx.M == 0:
         return np.zeros(A)
-    track = tgt >= 0
+    M, e = ctx.M, ctx.e
     others = plan.targets.copy()
     others[i, k - 1:] = -1
-    W_all, _ = _plan_track_W(sctx, plan, headings)
-    base = sum_by_target(ctx, W_all, others)                        # (M, T, 2, 2)
-    w, _ = chain_information(ctx, i, k, np.where(track[..., None], pos, 0.0),
-                             np.where(track, th, 0.0), np.maximum(tgt, 0))
-    w = np.where(track[..., None, None, None], w, 0.0)               # (A, L, e, 2, 2)
-    Wt = np.broadcast_to(base, (A,) + base.shape).copy()
-    e = ctx.e
+    memo = _plan_memo(sctx, plan)
+    W = memo.get("track_W")
+    if W is None:
+        W = memo["track_W"] = _plan_track_W(sctx, plan, headings)
+    base = sum_by_target(ctx, W, others)                            # (M, T, 2, 2)
+    a_look, l_look = np.nonzero(tgt >= 0)
+    pair, inv = np.unique(a_look * M + tgt[a_look, l_look], return_inverse=True)
+    pj = pair % M
+    rows = base[pj]                                                  # (P, T, 2, 2) copy
     for l in range(L):
+        sel = l_look == l
         for s in range(e):
-            t = (k - 1 + l) * e + s
-            rows = np.flatnonzero(track[:, l])      # one row per candidate: no repeats
-            Wt[rows, tgt[rows, l], t] += w[rows, l, s]
-    M, T = ctx.M, ctx.T
-    P0 = np.broadcast_to(np.asarray(ctx.problem.covs), (A, M, 4, 4)).reshape(A * M, 4, 4)
-    Q = ctx.Q if ctx.Q.shape[0] == 1 else np.broadcast_to(ctx.Q, (A, M, 4, 4)).reshape(
-        A * M, 4, 4)
+            rows[inv[sel], (k - 1 + l) * e + s] += w[a_look[sel], l, s]
+    terms_memo = sctx.memo.setdefault("base_terms", {})
+    key = base.tobytes()
+    if key not in terms_memo:
+        terms_memo[key] = _target_terms(ctx, base, np.arange(M))
+    terms = np.broadcast_to(terms_memo[key], (A, M)).copy()
+    terms[pair // M, pj] = _target_terms(ctx, rows, pj)
+    return terms.sum(axis=1)
+
+
+def _target_terms(ctx: Context, W: FloatArray, j: IntArray) -> FloatArray:
+    """Phi's terms ``(P,)`` of targets ``j (P,)`` with summed information ``W (P, T, 2, 2)``."""
+    P0 = np.asarray(ctx.problem.covs)[j]
+    Q = ctx.Q if ctx.Q.shape[0] == 1 else ctx.Q[j]
     cumulative = ctx.problem.objective == "cumulative"
-    flat = Wt.reshape(A * M, T, 2, 2)
-    _, ld_end, ld_sum = covariance_recursion(np.ascontiguousarray(P0), flat, ctx.F,
+    _, ld_end, ld_sum = covariance_recursion(np.ascontiguousarray(P0), W, ctx.F,
                                              np.ascontiguousarray(Q), cumulative)
-    ld_bar = np.broadcast_to(ctx.ld_bar, (A, M, T + 1)).reshape(A * M, T + 1)
-    info = phi_terms(ld_bar, ld_end, ld_sum, cumulative, measured(flat),
-                     np.tile(ctx.existence, A)).reshape(A, M).sum(axis=1)
-    return info
+    return phi_terms(ctx.ld_bar[j], ld_end, ld_sum, cumulative, measured(W), ctx.existence[j])
 
 
-def _plan_track_W(sctx: SearchContext, plan: Plan, headings: FloatArray
-                  ) -> tuple[FloatArray, IntArray]:
+def _plan_track_W(sctx: SearchContext, plan: Plan, headings: FloatArray) -> FloatArray:
+    """Every player's track information ``(N, K, e, 2, 2)``, each sensor's chain kept in
+    ``sctx.memo`` by its positions, targets and headings."""
     ctx = sctx.ctx
+    memo = sctx.memo.setdefault("track_W", {})
     track = plan.targets >= 0
     W = np.zeros((ctx.N, ctx.K, ctx.e, 2, 2))
     for n in range(ctx.N):
         if track[n].any():
-            w, _ = chain_information(ctx, n, 1,
-                                     np.where(track[n][:, None], plan.positions[n], 0.0)[None],
-                                     np.where(track[n], headings[n], 0.0)[None],
-                                     np.maximum(plan.targets[n], 0)[None])
-            W[n] = np.where(track[n][:, None, None, None], w[0], 0.0)
-    return W, plan.targets
+            pos = np.where(track[n][:, None], plan.positions[n], 0.0)
+            th = np.where(track[n], headings[n], 0.0)
+            tgt = np.maximum(plan.targets[n], 0)
+            key = (n, pos.tobytes(), th.tobytes(), plan.targets[n].tobytes())
+            got = memo.get(key)
+            if got is None:
+                w, _ = chain_information(ctx, n, 1, pos[None], th[None], tgt[None])
+                got = memo[key] = np.where(track[n][:, None, None, None], w[0], 0.0)
+            W[n] = got
+    return W
 
 
 def with_action(plan: Plan, i: int, k: int, position: FloatArray, target: int,

@@ -1,0 +1,175 @@
+"""Compiled kernel of the search term for a batch of one player's candidates
+(:func:`sensorplan.planners.search.candidate_potentials`).
+
+A look's ``P_d v`` is non-zero on a small part of the grid (its sensing region), and a
+candidate changes the miss probabilities of its own chain's epochs only. So mu of a
+candidate is the others' mu plus, over the cells its looks cover, the change of those cells'
+terms from its first epoch on: the same per-cell recursion as
+:func:`~sensorplan.planners.search.expected_found`, in the same order (each cell's ``D``
+bit for bit), summed over cells in another order (mu equal to round-off).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .._compiled.jit import njit
+from ..models.radar.model import (ANGLE_TOL, RANGE_TOL, detection_probability, hidden,
+                                  visible)
+from ..models.sensors import ALTITUDE, ALTITUDE2, FOV, G_MAX, G_MIN
+
+#: Margins (m, and on the cosine of the wedge's half-angle) outside which a cell is certainly
+#: not visible: many orders of magnitude above the rounding of the radar's own tests, so a
+#: cell they skip is one :func:`~sensorplan.models.radar.model.visible` rejects too.
+_BAND_MARGIN = 1e-6
+_WEDGE_MARGIN = 1e-9
+
+
+@njit(cache=True)
+def _cell_tail(d: float, b: float, survival: float, e: int, miss: np.ndarray, k0: int,
+               c: int, chain: np.ndarray) -> float:
+    """Found targets of cell c from epoch k0 (0-based) on, from ``d`` (its intensity before
+    epoch k0's first step), with epoch kk's miss ``miss[kk, c] * chain[kk - k0]``."""
+    acc = 0.0
+    for kk in range(k0, miss.shape[0]):
+        m = miss[kk, c] * chain[kk - k0]
+        for _ in range(e):
+            d = survival * d + b
+            acc += d * (1.0 - m)
+            d = d * m
+    return acc
+
+
+@njit(cache=True)
+def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int, k0: int,
+             other_epoch: np.ndarray, other_row: np.ndarray, look_row: np.ndarray,
+             look_epoch: np.ndarray, row_off: np.ndarray, row_idx: np.ndarray,
+             row_val: np.ndarray) -> np.ndarray:
+    """mu for each candidate of a player whose chain starts at epoch ``k0`` (0-based).
+
+    Parameters
+    ----------
+    d0, births : (C,)          the undetected intensity now, births per step
+    K : int                    epochs
+    other_epoch, other_row : (n_o,) int   every other look's epoch (0-based) and pool row,
+                               in the order their misses multiply (sensor by sensor)
+    look_row : (A, n) int      row of each candidate's n chain looks in the pool (-1: none)
+    look_epoch : (n,) int      each chain look's epoch (0-based, ascending, from k0)
+    row_off, row_idx, row_val  the pool of looks: row r's non-zero ``P_d v`` are
+                               ``row_val[row_off[r]:row_off[r+1]]`` at cells ``row_idx[...]``
+
+    Returns
+    -------
+    (A,) expected number of undetected targets found
+    """
+    C = d0.shape[0]
+    A, n = look_row.shape
+    # Every other look's product of 1 - P_d v per epoch (1 - 0 = 1: cells a look misses
+    # keep their bits).
+    miss = np.ones((K, C))
+    for q in range(other_row.shape[0]):
+        r, kk = other_row[q], other_epoch[q]
+        for p in range(row_off[r], row_off[r + 1]):
+            miss[kk, row_idx[p]] *= 1.0 - row_val[p]
+    L = K - k0
+    # The others alone: mu before k0, each cell's intensity at k0 and its tail from k0.
+    d_k0 = d0.copy()
+    mu_pre = 0.0
+    for kk in range(k0):
+        for c in range(C):
+            d = d_k0[c]
+            m = miss[kk, c]
+            for _ in range(e):
+                d = survival * d + births[c]
+                mu_pre += d * (1.0 - m)
+                d = d * m
+            d_k0[c] = d
+    ones = np.ones(L)
+    tail = np.empty(C)
+    tail_sum = 0.0
+    for c in range(C):
+        tail[c] = _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, ones)
+        tail_sum += tail[c]
+    base = mu_pre + tail_sum
+    # Per candidate: the cells its looks cover, their chain misses in a scratch row.
+    out = np.empty(A)
+    chain = np.ones((C, L))
+    stamp = np.full(C, -1, dtype=np.int64)
+    cells = np.empty(C, dtype=np.int64)
+    for a in range(A):
+        nc = 0
+        for l in range(n):
+            r = look_row[a, l]
+            if r < 0:
+                continue
+            kl = look_epoch[l] - k0
+            for q in range(row_off[r], row_off[r + 1]):
+                c = row_idx[q]
+                if stamp[c] != a:
+                    stamp[c] = a
+                    cells[nc] = c
+                    nc += 1
+                chain[c, kl] = 1.0 - row_val[q]
+        delta = 0.0
+        for q in range(nc):
+            c = cells[q]
+            delta += _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, chain[c]) \
+                - tail[c]
+            chain[c, :] = 1.0
+        out[a] = base + delta
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
+                     heading: np.ndarray, buildings: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The non-zero ``P_d v`` of B looks of one sensor at the cell centres: the values of
+    :func:`~sensorplan.models.radar.batch.detectable_points` (the radar's tests, called
+    here), cells certainly outside the range band or the wedge skipped before its ``atan2``.
+
+    Parameters
+    ----------
+    row : (n_cols,) the sensor's radar row;  centres : (C, 2);  xy : (B, 2);  heading : (B,)
+    buildings : (nb, 5)
+
+    Returns
+    -------
+    counts : (B,) non-zero cells per look;  idx : (nnz,) their cells, look-major, ascending;
+    val : (nnz,)
+    """
+    B, C = xy.shape[0], centres.shape[0]
+    idx = np.empty(B * C, dtype=np.int64)
+    val = np.empty(B * C)
+    counts = np.zeros(B, dtype=np.int64)
+    g_hi = row[G_MAX] + RANGE_TOL + _BAND_MARGIN
+    g_lo = max(row[G_MIN] - RANGE_TOL - _BAND_MARGIN, 0.0)
+    half = row[FOV] + ANGLE_TOL
+    cut = math.cos(half) - _WEDGE_MARGIN if half < math.pi else -2.0
+    n = 0
+    for b in range(B):
+        sx, sy = xy[b, 0], xy[b, 1]
+        ch, sh = math.cos(heading[b]), math.sin(heading[b])
+        for c in range(C):
+            dx = centres[c, 0] - sx
+            dy = centres[c, 1] - sy
+            g2 = dx * dx + dy * dy
+            if g2 > g_hi * g_hi or g2 < g_lo * g_lo:
+                continue                                 # certainly outside the band
+            if dx * ch + dy * sh < math.sqrt(g2) * cut:
+                continue                                 # certainly outside the wedge
+            if visible(row, dx, dy, heading[b]) and (
+                    buildings.shape[0] == 0
+                    or not hidden(buildings, sx, sy, row[ALTITUDE], sx + dx, sy + dy)):
+                p = detection_probability(row, g2 + row[ALTITUDE2])
+                if p != 0.0:
+                    idx[n] = c
+                    val[n] = p
+                    n += 1
+                    counts[b] += 1
+    return counts, idx[:n].copy(), val[:n].copy()
+
+
+__all__ = ["detect_sparse_nb", "found_nb"]

@@ -1,0 +1,127 @@
+"""The batched search utilities (:func:`search.candidate_potentials`, compiled search term
+and cached looks) against the reference definition and against the implementation they
+replaced: equal Phi to round-off, the same plans."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import search_reference
+from sensorplan.planners import make_planner, search
+from sensorplan.planners.contract_problems import paper_problem, searching, tiny_problem
+from sensorplan.planners.problem import Plan, PlanningProblem
+
+
+def partial_plan(sctx: search.SearchContext, rng: np.random.Generator) -> Plan:
+    """A random feasible plan whose sensors leave their last epochs unassigned from a random
+    epoch on (as the planners' plans are while they are built)."""
+    plan = search.random_plan(sctx, rng)
+    assert plan.sectors is not None
+    N, K = plan.targets.shape
+    off = np.arange(K)[None, :] >= rng.integers(0, K + 1, N)[:, None]
+    pos = np.where(off[..., None], np.nan, plan.positions)
+    return Plan(pos, np.where(off, -1, plan.targets), np.where(off, -1, plan.sectors))
+
+
+def problems() -> list[PlanningProblem]:
+    rng = np.random.default_rng(3)
+    out = [searching(tiny_problem(rng, 2000), rng, int(rng.integers(1, 9)))
+           for _ in range(6)]
+    out.append(searching(paper_problem(rng, horizon=3, n_targets=4), rng, 12, cells=12))
+    cum = paper_problem(rng, horizon=2, objective="cumulative", visibility="mean")
+    out.append(searching(cum, rng, (5, 8, 12), cells=10))
+    one = searching(paper_problem(rng, horizon=2, n_sensors=2, n_targets=1), rng, 6, cells=8)
+    out.append(dataclasses.replace(one, means=np.zeros((0, 4)), covs=np.zeros((0, 4, 4)),
+                                   existence=np.zeros(0)))
+    return out
+
+
+@pytest.mark.parametrize("problem", problems())
+def test_utilities_equal_the_reference_phi(problem: PlanningProblem) -> None:
+    """Every candidate of every player of random partial plans: the batched utility equals
+    Phi of the plan with that action (:func:`search.evaluate`, plain numpy) to 1e-12."""
+    sctx = search.prepare(problem)
+    rng = np.random.default_rng(0)
+    for _ in range(3):
+        plan = partial_plan(sctx, rng)
+        for i in range(problem.n_sensors):
+            for k in range(1, problem.horizon + 1):
+                if k > 1 and not plan.assigned[i, k - 2]:
+                    break                    # no planner asks: its predecessor has no position
+                pos, tgt, sec = search.player_actions(sctx, plan, i, k)
+                u = search.candidate_potentials(sctx, plan, i, k, pos, tgt, sec)
+                phi = np.array([search.evaluate(sctx, search.with_action(
+                    plan, i, k, pos[a], int(tgt[a]), int(sec[a]))).potential
+                    for a in range(len(tgt))])
+                np.testing.assert_allclose(u, phi, rtol=1e-12, atol=1e-12)
+
+
+def searching_problems() -> list[PlanningProblem]:
+    rng = np.random.default_rng(5)
+    out = []
+    for n in (2, 3, 5):
+        p = paper_problem(rng, horizon=3, n_sensors=n, n_targets=6)
+        out.append(searching(p, rng, 12, cells=16))
+    out += [searching(tiny_problem(rng, 2000), rng, 6) for _ in range(3)]
+    return out
+
+
+@pytest.mark.parametrize("problem", searching_problems())
+def test_plans_are_those_of_the_replaced_implementation(
+        problem: PlanningProblem, monkeypatch: pytest.MonkeyPatch) -> None:
+    """pg (two seeds) and sequential-greedy plan exactly as with the plain-numpy utilities
+    they replaced (``tests/search_reference.py``), with Phi equal to 1e-12."""
+    runs = [("pg", 0), ("pg", 1), ("sequential-greedy", 0)]
+    fast = [make_planner(name).plan(problem, rng=seed) for name, seed in runs]
+    monkeypatch.setattr(search, "candidate_potentials", search_reference.candidate_potentials)
+    for (name, seed), got in zip(runs, fast):
+        want = make_planner(name).plan(problem, rng=seed)
+        for f in ("positions", "targets", "sectors"):
+            np.testing.assert_array_equal(getattr(got.plan, f), getattr(want.plan, f))
+        assert got.potential == pytest.approx(want.potential, rel=1e-12, abs=1e-12)
+        assert (got.converged, got.sweeps) == (want.converged, want.sweeps)
+
+
+TOWN = np.array([[200.0, 200.0, 300.0, 300.0, 40.0], [400.0, 100.0, 450.0, 350.0, 80.0]])
+
+
+@pytest.mark.parametrize("kind", ["ideal", "swerling1 behind buildings"])
+def test_the_look_pool_keeps_each_pose_once(kind: str) -> None:
+    """A look's ``P_d v`` is computed once per pose, and its row equals :func:`search.detection`
+    (the radar's dense evaluation) bit for bit, with and without buildings and detection."""
+    rng = np.random.default_rng(1)
+    problem = searching(paper_problem(rng, horizon=2), rng, 12, cells=12)
+    if kind != "ideal":
+        problem = dataclasses.replace(problem, buildings=TOWN, sensors=tuple(
+            dataclasses.replace(s, detection="swerling1") for s in problem.sensors))
+    sctx = search.prepare(problem)
+    xy = np.array([[100.0, 200.0], [300.0, 300.0], [100.0, 200.0]])
+    h = np.array([0.5, -2.0, 0.5])
+    pool = search._pool(sctx)
+    rows = pool.rows(sctx, 1, xy, h)
+    assert rows[0] == rows[2] != rows[1] and pool.n_rows == 2
+    again = pool.rows(sctx, 1, xy[::-1], h[::-1])
+    np.testing.assert_array_equal(again, rows[::-1])
+    assert pool.n_rows == 2
+    assert pool.rows(sctx, 0, xy[:1], h[:1])[0] == 2          # another sensor, another look
+    dense = search.detection(sctx, 1, xy, h)
+    for b, r in enumerate(rows):
+        idx, val = pool.row(int(r))
+        got = np.zeros(len(sctx.centres))
+        got[idx] = val
+        np.testing.assert_array_equal(got, dense[b])
+        assert np.all(val > 0)
+    # Many random poses, the cells near the band's and the wedge's edges among them.
+    xy = rng.uniform(0.0, 600.0, (200, 2))
+    h = rng.uniform(-np.pi, np.pi, 200)
+    rows = pool.rows(sctx, 2, xy, h)
+    dense = search.detection(sctx, 2, xy, h)
+    assert (dense > 0).any() and (dense[dense > 0] < 1).any() == (kind != "ideal")
+    for b, r in enumerate(rows):
+        idx, val = pool.row(int(r))
+        got = np.zeros(len(sctx.centres))
+        got[idx] = val
+        np.testing.assert_array_equal(got, dense[b])
