@@ -32,9 +32,11 @@ This module is plain numpy: :func:`potential` is the reference definition,
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -46,6 +48,9 @@ from .information import (Context, chain_information, covariance_recursion, meas
                           phi_terms, sum_by_target, target_information)
 from .information import prepare as prepare_tracks
 from .problem import POSITION_TOL, Plan, PlanningProblem, move_vectors
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .gospa_bound import GospaContext
 
 #: Headings closer than this (rad) are the same heading (sector deduplication).
 HEADING_TOL = 1e-12
@@ -66,6 +71,8 @@ class SearchContext:
     bearings : list of (S_i,) arrays   each sensor's sector bearings
     centres : (C, 2);  d0 : (C,);  births : (C,);  survival : float   the intensity
     weight : float           w, nats per newly found target
+    gospa : GospaContext or None   with ``reward = "gospa"``: Phi is the GOSPA-bound reward
+                             (:mod:`sensorplan.planners.gospa_bound`)
     """
 
     ctx: Context
@@ -75,6 +82,7 @@ class SearchContext:
     births: FloatArray
     survival: float
     weight: float
+    gospa: GospaContext | None = None
 
 
 def first_detection_weight(ctx: Context, cell_cov: FloatArray) -> float:
@@ -106,9 +114,14 @@ def prepare(problem: PlanningProblem) -> SearchContext:
     ctx = prepare_tracks(problem, search=True)
     u = problem.undetected
     weight = first_detection_weight(ctx, u.cell_cov) if u.weight is None else float(u.weight)
-    return SearchContext(ctx, [sector_bearings(S) for S in problem.sector_counts],
+    sctx = SearchContext(ctx, [sector_bearings(S) for S in problem.sector_counts],
                          np.array(u.centres, dtype=float), np.array(u.weights, dtype=float),
                          np.array(u.births, dtype=float), float(u.survival), weight)
+    if problem.reward == "gospa":
+        from . import gospa_bound
+
+        sctx = dataclasses.replace(sctx, gospa=gospa_bound.prepare(sctx))
+    return sctx
 
 
 def look_bearing(sctx: SearchContext, i: int, k: int, position: FloatArray, target: int,
@@ -214,6 +227,10 @@ class SearchEvaluation:
 
 def evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
     """Phi of ``plan`` with search: the reference definition (plain numpy, one plan)."""
+    if sctx.gospa is not None:
+        from . import gospa_bound
+
+        return gospa_bound.evaluate(sctx, plan)
     ctx = sctx.ctx
     headings = plan_headings(sctx, plan)
     info, counts = track_information(sctx, plan, headings)
@@ -316,6 +333,10 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
     -------
     (A,) nats
     """
+    if sctx.gospa is not None:
+        from . import gospa_bound
+
+        return gospa_bound.candidate_potentials(sctx, plan, i, k, positions, targets, sectors)
     ctx = sctx.ctx
     A, K, L = len(targets), ctx.K, ctx.K - k + 1
     assert plan.sectors is not None
