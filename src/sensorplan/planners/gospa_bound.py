@@ -30,12 +30,16 @@ the joint plan, so each player's utility is its marginal contribution and the ga
 exact potential game. docs/planning.md derives it.
 
 :func:`evaluate` is the reference definition (plain loops over targets, steps and looks);
-:func:`candidate_potentials` the batched one the planners use (tested equal).
+:func:`candidate_potentials` the batched one the planners use (tested equal). The planners
+reach both through :func:`sensorplan.planners.search.evaluate` and
+:func:`~sensorplan.planners.search.candidate_potentials`, which hand over the plan's
+headings; this module does not import the search module (it is imported by it).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -43,10 +47,28 @@ from .._types import BoolArray, FloatArray, IntArray
 from ..models import radar
 from ..models.angles import heading_rule
 from ..models.motion import predict_covariance
-from .information import (chain_information, epoch_information, information_update,
-                          sum_by_target)
+from .information import (Context, chain_information, epoch_information,
+                          information_update, sum_by_target)
 from .problem import Plan
-from .search import SearchContext, SearchEvaluation, detection, plan_headings
+
+
+class SearchParts(Protocol):
+    """What this module reads of a :class:`~sensorplan.planners.search.SearchContext`."""
+
+    @property
+    def ctx(self) -> Context: ...
+    @property
+    def bearings(self) -> list[FloatArray]: ...
+    @property
+    def centres(self) -> FloatArray: ...
+    @property
+    def d0(self) -> FloatArray: ...
+    @property
+    def births(self) -> FloatArray: ...
+    @property
+    def survival(self) -> float: ...
+    @property
+    def gospa(self) -> GospaContext | None: ...
 
 
 @dataclass(frozen=True)
@@ -69,7 +91,7 @@ class GospaContext:
     cumulative: bool
 
 
-def found_covariance(sctx: SearchContext) -> FloatArray:
+def found_covariance(sctx: SearchParts) -> FloatArray:
     """``C_f (2, 2)``: a target known only to lie in a cell, after one detection by sensor
     0 on its boresight at the middle of its ground-range band (the detection that fixes
     the information reward's w, without the detection probability: it happened)."""
@@ -98,7 +120,7 @@ def step_weights(survival: float, T: int, cumulative: bool) -> FloatArray:
     return np.asarray((1.0 - survival ** (lag + 1.0)) / (1.0 - survival), dtype=float)
 
 
-def prepare(sctx: SearchContext) -> GospaContext:
+def prepare(sctx: SearchParts) -> GospaContext:
     """The reward's precomputation for a searching decision whose ``reward`` is gospa."""
     ctx = sctx.ctx
     c2 = float(ctx.problem.gospa_c) ** 2
@@ -120,18 +142,37 @@ def _bound_terms(gctx: GospaContext, traces: FloatArray, measured: BoolArray,
     return existence * np.where(measured, np.maximum(term, 0.0), 0.0)
 
 
-def evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
-    """Phi_G of ``plan``: the reference definition (plain loops, one plan).
+def detection(sctx: SearchParts, i: int, positions: FloatArray, headings: FloatArray
+              ) -> FloatArray:
+    """``P_d v (B, C)`` at every cell centre for looks of sensor i from poses ``positions
+    (B, 2)``, ``headings (B,)`` (the radar's one implementation, as search thins with)."""
+    positions = np.asarray(positions, dtype=float).reshape(-1, 2)
+    d = sctx.centres[None, :, :] - positions[:, None, :]
+    B = len(positions)
+    return radar.detectable_points(sctx.ctx.radar, np.full(B, i, dtype=np.int64), d[..., 0],
+                                   d[..., 1], np.asarray(headings, dtype=float).reshape(B),
+                                   positions, sctx.ctx.buildings)
 
-    ``information`` holds the tracks' terms ``r_j (B_j - G_j)`` (m^2), ``found`` is mu and
-    ``weight`` the bound removed per target found (``potential = information.sum() +
-    weight * found``; g itself when mu = 0).
+
+def evaluate(sctx: SearchParts, plan: Plan, headings: FloatArray
+             ) -> tuple[float, FloatArray, float, float, IntArray]:
+    """Phi_G of ``plan`` whose look headings are ``headings (N, K)``: the reference
+    definition (plain loops, one plan).
+
+    Returns
+    -------
+    potential : float           m^2
+    information : (M,)          the tracks' terms ``r_j (B_j - G_j)`` (m^2)
+    found : float               mu
+    weight : float              the bound removed per target found: ``potential =
+                                information.sum() + weight * found`` (g when mu = 0)
+    measurements : (N, K) int   a track look's looks that count, a search look's steps when
+                                it covers a cell
     """
     ctx = sctx.ctx
     gctx = sctx.gospa
     assert gctx is not None and plan.sectors is not None
     N, K, M, T, e = ctx.N, ctx.K, ctx.M, ctx.T, ctx.e
-    headings = plan_headings(sctx, plan)
     counts = np.zeros((N, K), dtype=np.int64)
     W = np.zeros((M, T, 2, 2))
     miss = np.ones((K, len(sctx.centres)))
@@ -182,15 +223,16 @@ def evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
     mu = float(f.sum())
     term = gctx.found_value * kept
     weight = term / mu if mu > 0 else gctx.found_value
-    return SearchEvaluation(float(info.sum()) + term, info, mu, weight, headings, counts)
+    return float(info.sum()) + term, info, mu, weight, counts
 
 
-def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
-                         positions: FloatArray, targets: IntArray, sectors: IntArray
-                         ) -> FloatArray:
+def candidate_potentials(sctx: SearchParts, plan: Plan, i: int, k: int,
+                         positions: FloatArray, targets: IntArray, sectors: IntArray,
+                         headings: FloatArray) -> FloatArray:
     """Phi_G for each candidate action of player (i, k), the others fixed: one batch over
     candidates (the tracks' covariance recursion over candidates x tracks, the finds over
-    candidates x cells). The candidate's heading chains through sensor i's later epochs.
+    candidates x cells). ``headings (N, K)`` are the plan's; the candidate's heading chains
+    through sensor i's later epochs.
 
     Returns
     -------
@@ -200,7 +242,6 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
     gctx = sctx.gospa
     assert gctx is not None and plan.sectors is not None
     A, K, L, M, T, e = len(targets), ctx.K, ctx.K - k + 1, ctx.M, ctx.T, ctx.e
-    headings = plan_headings(sctx, plan)
     pos = np.repeat(plan.positions[i, k - 1:][None], A, axis=0)
     tgt = np.repeat(plan.targets[i, k - 1:][None], A, axis=0)
     sec = np.repeat(plan.sectors[i, k - 1:][None], A, axis=0)
@@ -232,7 +273,7 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
     return value + gctx.found_value * (f @ gctx.step_weights)
 
 
-def _chain_headings(sctx: SearchContext, plan: Plan, i: int, k: int, headings: FloatArray,
+def _chain_headings(sctx: SearchParts, plan: Plan, i: int, k: int, headings: FloatArray,
                     pos: FloatArray, tgt: IntArray, sec: IntArray, assigned: BoolArray
                     ) -> FloatArray:
     """Headings ``(A, L)`` of sensor i's epochs k..K for each candidate (NaN where a later
@@ -261,7 +302,7 @@ def _chain_headings(sctx: SearchContext, plan: Plan, i: int, k: int, headings: F
     return th
 
 
-def _candidate_tracks(sctx: SearchContext, gctx: GospaContext, plan: Plan, i: int, k: int,
+def _candidate_tracks(sctx: SearchParts, gctx: GospaContext, plan: Plan, i: int, k: int,
                       headings: FloatArray, pos: FloatArray, tgt: IntArray, th: FloatArray
                       ) -> FloatArray:
     """The tracks' part of Phi_G ``(A,)``: every other track look plus each candidate's
@@ -301,5 +342,5 @@ def _candidate_tracks(sctx: SearchContext, gctx: GospaContext, plan: Plan, i: in
     return _bound_terms(gctx, traces.reshape(A, M, T), measured, ctx.existence).sum(axis=-1)
 
 
-__all__ = ["GospaContext", "candidate_potentials", "evaluate", "found_covariance", "prepare",
-           "step_weights"]
+__all__ = ["GospaContext", "SearchParts", "candidate_potentials", "detection", "evaluate",
+           "found_covariance", "prepare", "step_weights"]

@@ -230,7 +230,9 @@ def evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
     if sctx.gospa is not None:
         from . import gospa_bound
 
-        return gospa_bound.evaluate(sctx, plan)
+        headings = plan_headings(sctx, plan)
+        phi, info, mu, weight, counts = gospa_bound.evaluate(sctx, plan, headings)
+        return SearchEvaluation(phi, info, mu, weight, headings, counts)
     ctx = sctx.ctx
     headings = plan_headings(sctx, plan)
     info, counts = track_information(sctx, plan, headings)
@@ -336,7 +338,8 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
     if sctx.gospa is not None:
         from . import gospa_bound
 
-        return gospa_bound.candidate_potentials(sctx, plan, i, k, positions, targets, sectors)
+        return gospa_bound.candidate_potentials(sctx, plan, i, k, positions, targets, sectors,
+                                                plan_headings(sctx, plan))
     ctx = sctx.ctx
     A, K, L = len(targets), ctx.K, ctx.K - k + 1
     assert plan.sectors is not None
