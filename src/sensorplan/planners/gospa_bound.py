@@ -112,12 +112,11 @@ def found_covariance(sctx: SearchParts) -> FloatArray:
 
 def step_weights(survival: float, T: int, cumulative: bool) -> FloatArray:
     """``omega (T,)``: the weight of a target found at step s = 1..T in the bound."""
-    lag = np.arange(T, 0, -1) - 1.0                               # T - s
-    if not cumulative:
-        return np.asarray(survival ** lag, dtype=float)
-    if survival == 1.0:
-        return np.asarray(lag + 1.0, dtype=float)
-    return np.asarray((1.0 - survival ** (lag + 1.0)) / (1.0 - survival), dtype=float)
+    powers = float(survival) ** np.arange(T, dtype=float)          # p_S^m, m = 0..T-1
+    # Step s's weight reads m = T - s: the last power, or the sum of the first T - s + 1
+    # (a running sum, not the geometric closed form, which cancels near p_S = 1).
+    table = np.cumsum(powers) if cumulative else powers
+    return np.asarray(table[::-1], dtype=float)
 
 
 def prepare(sctx: SearchParts) -> GospaContext:
