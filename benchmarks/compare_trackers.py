@@ -21,12 +21,11 @@ benchmark's cut-off) and of its localisation, missed and false parts (m^2), and 
 and mean seconds per step (predict and update; the same process runs every configuration,
 one after another). The CSV is resumable: configurations already written for a run are
 skipped, so a stopped study continues with the same command. ``--stop-at HH:MM`` (UTC)
-starts no run index at or after that time; SIGINT or SIGTERM stops at once, keeping every
-row already written (the interrupted tracker's row of that run is redone on resuming). The
-summary
-prints, per configuration: mean GOSPA with a 95 % t-interval, median, the paired
-difference to ``pmb`` with its 95 % t-interval, median seconds per step and the ratio to
-``pmb``'s, and the decision rule's verdicts.
+starts no run index at or after the next time the clock reads it; SIGINT or SIGTERM stops at
+once, keeping every row already written (the interrupted tracker's row of that run is redone
+on resuming). The summary prints, per configuration: mean GOSPA with a 95 % t-interval,
+median, the paired difference to ``pmb`` with its 95 % t-interval, median seconds per step
+and the ratio to ``pmb``'s, and the decision rule's verdicts.
 
 Run::
 
@@ -186,8 +185,34 @@ def groups(configs: list[dict[str, Any]]) -> list[tuple[str, list[dict[str, Any]
     return out
 
 
+class TimedOut(Exception):
+    """A tracker run reached the study's wall-time limit."""
+
+
+def _time_out(signum: int, frame: object) -> None:
+    raise TimedOut
+
+
 def run_group(kind: str, cfgs: list[dict[str, Any]], model: BenchmarkModel,
-              zs: list[np.ndarray]) -> tuple[dict[str, list[np.ndarray]], np.ndarray]:
+              zs: list[np.ndarray], limit: float | None = None
+              ) -> tuple[dict[str, list[np.ndarray]], np.ndarray]:
+    """Run one tracker over a run's detections; raises :class:`TimedOut` once ``limit``
+    seconds of wall time have passed (``None``: no limit)."""
+    if limit is None:
+        return _run_group(kind, cfgs, model, zs)
+    # An interval timer, because the trackers that stall (Stone Soup's exhaustive JPDA)
+    # spend their time in Python, where the alarm's exception is raised.
+    previous = signal.signal(signal.SIGALRM, _time_out)
+    signal.setitimer(signal.ITIMER_REAL, limit)
+    try:
+        return _run_group(kind, cfgs, model, zs)
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, previous)
+
+
+def _run_group(kind: str, cfgs: list[dict[str, Any]], model: BenchmarkModel,
+               zs: list[np.ndarray]) -> tuple[dict[str, list[np.ndarray]], np.ndarray]:
     if kind == "pmb":
         step = pmb_runner(model, cfgs[0])
     elif kind == "gnn":
@@ -242,6 +267,8 @@ def run_study(spec: dict[str, Any], benchmark: str, runs: int, out: Path,
     model = benchmark_model(benchmark)
     c = float(spec["gospa"][benchmark])
     configs = spec["configs"]
+    limit = spec.get("time_limit", {}).get("seconds_per_run")
+    limit = None if limit is None else float(limit)
     seeds = np.random.SeedSequence(spec["seed"]).spawn(int(spec["runs"]))
     if runs > len(seeds):
         fail("--runs", f"at most the study's {len(seeds)} runs")
@@ -264,7 +291,21 @@ def run_study(spec: dict[str, Any], benchmark: str, runs: int, out: Path,
             truth, zs = draw_run(benchmark, np.random.default_rng(seeds[r]))
             for kind, cfgs in groups(missing):
                 t_group = time.perf_counter()
-                tracks, seconds = run_group(kind, cfgs, model, zs)
+                try:
+                    tracks, seconds = run_group(kind, cfgs, model, zs, limit)
+                except TimedOut:
+                    elapsed = time.perf_counter() - t_group
+                    for cf in cfgs:
+                        writer.writerow({"benchmark": benchmark, "run": r, "config": cf["name"],
+                                         "mean_gospa": "nan", "localisation": "nan",
+                                         "missed": "nan", "false": "nan",
+                                         "step_seconds_median": "nan",
+                                         "step_seconds_mean": repr(elapsed / len(zs)),
+                                         "steps": len(zs)})
+                    f.flush()
+                    print(f"  {'/'.join(cf['name'] for cf in cfgs)}: timed out after "
+                          f"{elapsed:.0f} s (limit {limit:.0f} s)", flush=True)
+                    continue
                 for cf in cfgs:
                     g = gospa_parts(truth, tracks[cf["name"]], c)
                     writer.writerow({"benchmark": benchmark, "run": r, "config": cf["name"],
@@ -311,8 +352,16 @@ def summary(out: Path, benchmark: str, runs: int, configs: list[dict[str, Any]],
     def col(name: str, key: str) -> np.ndarray:
         return np.array([rows[name][r][key] for r in common])
 
-    base_g = col("pmb", "mean_gospa")
-    base_t = float(np.median(col("pmb", "step_seconds_median")))
+    def finished(name: str) -> np.ndarray:
+        """Which common runs the configuration finished (a timed-out run has NaN GOSPA)."""
+        return np.isfinite(col(name, "mean_gospa"))
+
+    def paired(name: str) -> tuple[np.ndarray, np.ndarray]:
+        """pmb's and the configuration's mean GOSPA on the runs both finished."""
+        ok = finished(name) & finished("pmb")
+        return col("pmb", "mean_gospa")[ok], col(name, "mean_gospa")[ok]
+
+    base_t = float(np.nanmedian(col("pmb", "step_seconds_median")))
     declared = runs if declared is None else declared
     interim = len(common) < declared
     print(f"\n{benchmark}: {len(common)} paired runs"
@@ -320,33 +369,56 @@ def summary(out: Path, benchmark: str, runs: int, configs: list[dict[str, Any]],
              if interim else "") + ", GOSPA p = 2, alpha = 2 (m)")
     head = (f"{'config':<18} {'mean GOSPA [95% CI]':>24} {'median':>7} "
             f"{'loc':>7} {'missed':>7} {'false':>7} {'diff vs pmb [95% CI]':>26} "
-            f"{'s/step':>8} {'x pmb':>6}")
+            f"{'s/step':>8} {'x pmb':>6} {'timed out':>9}")
     print(head)
     for n in names:
-        g = col(n, "mean_gospa")
+        ok = finished(n)
+        g = col(n, "mean_gospa")[ok]
         m, lo, hi = t_interval(g)
-        d, dlo, dhi = t_interval(base_g - g)
-        t = float(np.median(col(n, "step_seconds_median")))
-        parts = [float(np.mean(col(n, k))) for k in ("localisation", "missed", "false")]
+        pb, pc = paired(n)
+        d, dlo, dhi = t_interval(pb - pc)
+        t = float(np.median(col(n, "step_seconds_median")[ok]))
+        parts = [float(np.mean(col(n, k)[ok])) for k in ("localisation", "missed", "false")]
         diff = "" if n == "pmb" else f"{d:+8.3f} [{dlo:+.3f}, {dhi:+.3f}]"
         print(f"{n:<18} {m:8.3f} [{lo:7.3f}, {hi:7.3f}] {float(np.median(g)):7.3f} "
               f"{parts[0]:7.2f} {parts[1]:7.2f} {parts[2]:7.2f} {diff:>26} "
-              f"{t:8.4f} {t / base_t:6.1f}")
-    print("diff = pmb - config (negative: pmb lower); loc/missed/false: mean parts (m^2); "
-          "s/step: median over runs of each run's median seconds per step")
+              f"{t:8.4f} {t / base_t:6.1f} {int((~ok).sum()):9d}")
+    print("diff = pmb - config (negative: pmb lower) on the runs both finished; "
+          "loc/missed/false: mean parts (m^2); s/step: median over runs of each run's median "
+          "seconds per step; timed out: runs stopped at the study's time limit (figures are "
+          "over the runs finished)")
     if interim:
         print(f"no verdict: the decision rule applies once all {declared} runs are complete")
         return
     for family in ("gmphd", "jpda"):
         fam = [c["name"] for c in configs if c["kind"] == family and c["name"] in names]
-        if not fam:
+        eligible = [n for n in fam if finished(n).all()]
+        if not eligible:
             continue
-        best = min(fam, key=lambda n: float(np.mean(col(n, "mean_gospa"))))
-        d, dlo, dhi = t_interval(base_g - col(best, "mean_gospa"))
+
+        def mean_finished(n: str) -> float:
+            return float(np.mean(col(n, "mean_gospa")[finished(n)]))
+
+        best = min(eligible, key=mean_finished)
+        d, dlo, dhi = t_interval(col("pmb", "mean_gospa") - col(best, "mean_gospa"))
         verdict = ("pmb better" if dhi < 0 else "pmb worse" if dlo > 0
                    else "not distinguished")
         print(f"decision vs {family} (best: {best}): pmb - best = {d:+.3f} "
               f"[{dlo:+.3f}, {dhi:+.3f}] -> {verdict}")
+        for n in fam:
+            if n not in eligible and mean_finished(n) < mean_finished(best):
+                pb, pc = paired(n)
+                d, dlo, dhi = t_interval(pb - pc)
+                print(f"  for transparency: {n} (not eligible, {int((~finished(n)).sum())} "
+                      f"runs timed out) would be best on its finished runs: pmb - {n} = "
+                      f"{d:+.3f} [{dlo:+.3f}, {dhi:+.3f}] over {len(pb)} runs")
+
+
+def next_time_of_day(hour: int, minute: int, now: datetime.datetime) -> datetime.datetime:
+    """The first moment after ``now`` at which the clock reads ``hour:minute``: a session
+    that runs past midnight gives tomorrow's."""
+    at = now.replace(hour=hour, minute=minute, second=0, microsecond=0)
+    return at if at > now else at + datetime.timedelta(days=1)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -358,7 +430,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--runs", type=int, default=None,
                     help="runs to do (the first ones of the study's; default all)")
     ap.add_argument("--stop-at", default=None, metavar="HH:MM",
-                    help="UTC time of day from which no new run index starts (today's)")
+                    help="UTC time of day from which no new run index starts (the next time "
+                         "the clock reads it)")
     ap.add_argument("--summary-only", action="store_true", help="print the summary only")
     args = ap.parse_args(argv)
     spec = load(args.study, args.benchmark)
@@ -371,8 +444,7 @@ def main(argv: list[str] | None = None) -> int:
             hm = datetime.datetime.strptime(args.stop_at, "%H:%M")
         except ValueError:
             fail("--stop-at", f"must be HH:MM (UTC), got {args.stop_at!r}")
-        stop_at = datetime.datetime.now(datetime.UTC).replace(
-            hour=hm.hour, minute=hm.minute, second=0, microsecond=0)
+        stop_at = next_time_of_day(hm.hour, hm.minute, datetime.datetime.now(datetime.UTC))
     if not args.summary_only:
         # SIGTERM stops as Ctrl-C does: the CSV is closed with every finished row in it.
         signal.signal(signal.SIGTERM, signal.default_int_handler)

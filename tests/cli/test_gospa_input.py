@@ -1,7 +1,7 @@
 """The reward setting through the command line: ``reward`` and ``gospa_c`` of a decision
 file, ``--reward`` of simulate and agents and ``planning.reward`` of a scenario file each
 refuse bad input with one line naming the key (exit 2); a gospa decision plans, and its
-potential is its tracks' terms plus its search term."""
+potential is its tracks' terms plus its search term; a gospa run says so."""
 
 from __future__ import annotations
 
@@ -95,13 +95,10 @@ def test_bad_rewards_in_files_name_the_key(capsys: pytest.CaptureFixture[str],
     assert "needs search = 'on'" in line
 
 
-def test_agents_refuse_the_gospa_reward(capsys: pytest.CaptureFixture[str],
-                                        tmp_path: Path) -> None:
-    # It needs search on, which the decentralized agents do not plan.
+def test_agents_refuse_the_gospa_reward_without_search(capsys: pytest.CaptureFixture[str],
+                                                      tmp_path: Path) -> None:
     assert_bad_input(run(capsys, "agents", "--preset", "search", "--reward", "gospa",
                          "--out", tmp_path), "--reward")
-    assert_bad_input(run(capsys, "agents", "--preset", "search", "--search", "on", "--reward",
-                         "gospa", "--out", tmp_path), "--search")
 
 
 def test_a_gospa_run_names_its_reward(capsys: pytest.CaptureFixture[str],

@@ -155,17 +155,18 @@ def _agents(pid: int) -> list[int]:
     return found
 
 
-def _start(tmp_path: Path) -> tuple[subprocess.Popen[str], list[int]]:
+def _start(tmp_path: Path, scenario: tuple[str, ...] = ("--preset", "paper", "--steps", "6"),
+           n_agents: int = 3) -> tuple[subprocess.Popen[str], list[int]]:
     env = {**os.environ, "PYTHONPATH": str(SRC)}
-    proc = subprocess.Popen([sys.executable, "-m", "sensorplan", "agents", "--preset", "paper",
-                             "--steps", "6", "--transport", "bus", "--out", str(tmp_path)],
+    proc = subprocess.Popen([sys.executable, "-m", "sensorplan", "agents", *scenario,
+                             "--transport", "bus", "--out", str(tmp_path)],
                             env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 120
     pids: list[int] = []
-    while time.monotonic() < deadline and proc.poll() is None and len(pids) < 3:
+    while time.monotonic() < deadline and proc.poll() is None and len(pids) < n_agents:
         pids = _agents(proc.pid)
         time.sleep(0.02)
-    assert len(pids) == 3, proc.communicate()
+    assert len(pids) == n_agents, proc.communicate()
     return proc, pids
 
 
@@ -191,3 +192,58 @@ def test_every_agent_process_ends_when_the_run_is_stopped(tmp_path: Path, sig: i
     assert proc.returncode == code, err
     assert err.splitlines() == [line]
     assert wait_gone(pids) == []
+
+
+SEARCHING = """
+look_detects = "all"
+births = "edges"
+birth_rate = 0.05
+initial_targets = 0
+
+[planning]
+planner = "dec-jsfp"
+horizon = 2
+search = "on"
+search_sectors = 6
+
+[tracker]
+kind = "pmb"
+
+[run]
+steps = 3
+seed = 2
+
+[[targets]]
+kind = "cv"
+
+[[sensors]]
+altitude = 490.0
+position = [150.0, 150.0]
+heading = 0.78
+
+[[sensors]]
+altitude = 510.0
+position = [450.0, 450.0]
+heading = -2.35
+"""
+
+
+@pytest.mark.slow
+def test_agents_search_on_the_bus_end_to_end(tmp_path: Path) -> None:
+    """A searching episode with one agent process per platform: it searches, it is the
+    in-process run's episode, and every agent process ends with it."""
+    path = tmp_path / "searching.toml"
+    path.write_text(SEARCHING)
+    proc, pids = _start(tmp_path / "out", (str(path),), n_agents=2)
+    out, err = proc.communicate(timeout=300)
+    assert proc.returncode == 0, err
+    assert re.search(r"links: 3 decisions, \d+ messages sent", out)
+    assert wait_gone(pids) == []
+    episode = Episode.load(tmp_path / "out" / "episode.npz")
+    assert (episode.searched >= 0).any()
+    cfg = load_agents(path)
+    inproc, logs = run_agents(cfg.scenario, cfg.settings, cfg.seed)
+    for name in ("truth", "sensor_positions", "sensor_headings", "searched", "search_found"):
+        np.testing.assert_array_equal(getattr(episode, name), getattr(inproc, name))
+    saved = json.loads((tmp_path / "out" / "agents.json").read_text())["decisions"]
+    assert [d["sent"] for d in saved] == [log.sent for log in logs]

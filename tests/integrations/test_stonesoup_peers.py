@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import datetime
 import runpy
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -143,3 +144,62 @@ def test_runs_go_one_index_at_a_time_and_a_stopped_study_resumes_to_the_same_row
     s["summary"](out, "williams15", 3, spec["configs"], 3)
     text = capsys.readouterr().out
     assert "3 paired runs," in text and "interim" not in text and "no verdict" not in text
+
+
+def test_a_tracker_run_past_the_time_limit_is_written_as_timed_out_and_the_study_goes_on(
+        tmp_path, capsys):
+    s = script()
+    study = tmp_path / "study.toml"
+    study.write_text(STUDY.format(runs=2, vo12="JPDA"))
+    spec = s["load"](study, "williams15")
+    spec["configs"] = spec["configs"][:2]
+    spec["time_limit"] = {"seconds_per_run": 1e-6}     # every run reaches it
+    out = tmp_path / "out.csv"
+    s["run_study"](spec, "williams15", 2, out)
+    got = rows(out)
+    assert [(r["run"], r["config"]) for r in got] == [
+        ("0", "pmb"), ("0", "gnn"), ("1", "pmb"), ("1", "gnn")]
+    assert all(r["mean_gospa"] == "nan" for r in got)
+    assert "timed out after" in capsys.readouterr().out
+    # The limit is lifted after each run: nothing fires later in the process.
+    assert signal.getitimer(signal.ITIMER_REAL) == (0.0, 0.0)
+
+
+def test_a_configuration_with_timed_out_runs_is_not_eligible_as_its_trackers_best(tmp_path,
+                                                                                   capsys):
+    s = script()
+    configs = [{"name": "pmb", "kind": "pmb"}, {"name": "j-fast", "kind": "jpda"},
+               {"name": "j-stall", "kind": "jpda"}]
+    rng = np.random.default_rng(3)
+    gospa = {"pmb": 5.0 + rng.normal(0, 0.1, 4), "j-fast": 9.0 + rng.normal(0, 0.1, 4),
+             "j-stall": np.array([1.0, np.nan, 1.2, 1.1])}
+    out = tmp_path / "out.csv"
+    with out.open("w", newline="") as f:
+        w = csv.DictWriter(f, s["FIELDS"])
+        w.writeheader()
+        for r in range(4):
+            for n, g in gospa.items():
+                w.writerow({"benchmark": "williams15", "run": r, "config": n,
+                            "mean_gospa": repr(float(g[r])), "localisation": 1, "missed": 1,
+                            "false": 1, "step_seconds_median": 0.01,
+                            "step_seconds_mean": 0.01, "steps": 81})
+    s["summary"](out, "williams15", 4, configs, 4)
+    text = capsys.readouterr().out
+    verdict = next(line for line in text.splitlines() if line.startswith("decision vs jpda"))
+    # The stalled configuration is lower on the runs it finished but cannot be the best.
+    assert "(best: j-fast)" in verdict and "pmb better" in verdict
+    assert "for transparency: j-stall (not eligible, 1 runs timed out)" in text
+    assert "over 3 runs" in text
+    stall = next(line for line in text.splitlines() if line.startswith("j-stall"))
+    assert stall.split()[-1] == "1"
+
+
+def test_a_stop_time_of_day_already_past_today_means_tomorrow():
+    s = script()
+    now = datetime.datetime(2026, 12, 3, 22, 40, 5, tzinfo=datetime.UTC)
+    assert s["next_time_of_day"](0, 50, now) == datetime.datetime(2026, 12, 4, 0, 50,
+                                                                 tzinfo=datetime.UTC)
+    assert s["next_time_of_day"](23, 5, now) == datetime.datetime(2026, 12, 3, 23, 5,
+                                                                 tzinfo=datetime.UTC)
+    assert s["next_time_of_day"](22, 40, now) == datetime.datetime(2026, 12, 4, 22, 40,
+                                                                  tzinfo=datetime.UTC)

@@ -94,6 +94,45 @@ def test_check_plan_names_the_first_sensor_and_epoch(problem) -> None:
         check_plan(problem, Plan(positions, good.targets))
 
 
+def test_a_declared_holding_sensor_may_have_no_action_and_only_it(problem) -> None:
+    import dataclasses
+
+    res = make_planner("sequential-greedy").plan(problem, rng=3)
+    targets = np.array(res.plan.targets)
+    positions = np.array(res.plan.positions)
+    targets[1], positions[1] = -1, np.nan           # sensor 1 holds in every epoch
+    held = dataclasses.replace(res, plan=Plan(positions, targets))
+    with pytest.raises(PlanRejected, match="sensor 1 epoch 1\\): no action"):
+        checked_plan(_Fixed(held), problem)
+    checked_plan(_Fixed(dataclasses.replace(held, holding=(1,))), problem)
+    # Declaring a sensor holding does not excuse another one, nor a partial hold.
+    two = np.array(targets)
+    two[2] = -1
+    with pytest.raises(PlanRejected, match="sensor 2 epoch 1\\): no action"):
+        checked_plan(_Fixed(dataclasses.replace(held, plan=Plan(positions, two),
+                                                holding=(1,))), problem)
+    partial = np.array(res.plan.targets)
+    partial[1, 2] = -1
+    with pytest.raises(PlanRejected, match="sensor 1 epoch 1\\): a holding sensor has an "
+                                           "action"):
+        checked_plan(_Fixed(dataclasses.replace(res, plan=Plan(res.plan.positions, partial),
+                                                holding=(1,))), problem)
+    with pytest.raises(PlanRejected, match="holding sensor 7 does not exist"):
+        checked_plan(_Fixed(dataclasses.replace(held, holding=(7,))), problem)
+
+
+class _Fixed:
+    """A planner that returns a given result (under sequential-greedy's name)."""
+
+    name = "sequential-greedy"
+
+    def __init__(self, result) -> None:
+        self.result = result
+
+    def plan(self, problem, rng=None):
+        return self.result
+
+
 def test_check_planner_reports_what_it_ran() -> None:
     report = check_planner("sequential-greedy")
     assert isinstance(report, CheckReport)

@@ -226,8 +226,6 @@ def test_search_off_plans_exactly_as_before() -> None:
 def test_planners_without_search_refuse() -> None:
     with pytest.raises(ConfigError, match="pg-refine"):
         make_planner("pg-refine").plan(mixed_problem(1))
-    with pytest.raises(ConfigError, match="^search: .*does not plan search looks"):
-        make_planner("dec-jsfp").plan(mixed_problem(1))
     for name in ("pg", "sequential-greedy"):
         with pytest.raises(ConfigError, match="planner.time_budget"):
             make_planner(name, time_budget=1.0).plan(mixed_problem(1))

@@ -194,8 +194,6 @@ def test_bad_search_settings_in_files_name_the_key(capsys, tmp_path: Path) -> No
     line = assert_bad_input(run(capsys, "simulate", path, "--out", tmp_path),
                             "planning.search")
     assert "tracker.kind = 'pmb'" in line
-    assert_bad_input(run(capsys, "agents", "--preset", "search", "--search", "on",
-                         "--out", tmp_path), "--search")
 
 
 def test_a_study_of_the_search_preset_takes_its_sectors() -> None:

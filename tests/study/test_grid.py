@@ -186,6 +186,24 @@ def test_clutter_rate_sets_every_sensors_false_alarms() -> None:
                                                            clutter_rate=2.5)
 
 
+def test_birth_rate_sets_the_scenarios_births_and_the_trackers_birth_model() -> None:
+    text = (_one_axis("birth_rate", "[0.03, 0.06, 0.12]", "0.06", preset="search")
+            + '[[methods]]\nname = "gnn"\nplanner = "random"\n[methods.tracker]\nkind = "gnn"\n')
+    grid = parse(text)
+    for cell in grid.cells:
+        rate = cell.study.scenario.birth_rate
+        assert rate in (0.03, 0.06, 0.12) and cell.slug in ("base", f"birth_rate={rate:g}")
+        # Every method's multi-target tracker is told the rate its targets are born at.
+        assert {m.settings.tracker.birth_rate for m in cell.study.methods} == {rate}
+        assert dataclasses.replace(cell.study.scenario, birth_rate=0.06) == grid.study.scenario
+
+
+def test_birth_rate_needs_a_scenario_whose_targets_are_born() -> None:
+    with pytest.raises(ConfigError) as exc:
+        parse(_one_axis("birth_rate", "[0.0, 0.1]", "0.0"))
+    assert exc.value.field == "axes[0].values" and "births" in exc.value.message
+
+
 DEC = """\
 runs = 1
 steps = 4

@@ -490,7 +490,10 @@ def replay(
     Runs method NAME on run R with the study's configuration (DIR/config.resolved.json)
     and the run's seed, checks that it reproduces what the study stored for that run, and
     writes what simulate writes (episode.npz, episode.png) plus an animation
-    (episode.gif). The report names the best and worst runs to look at.
+    (episode.gif). The report names the best and worst runs to look at. A run whose
+    tracker keeps an undetected intensity (pmb) is drawn over it as a heat map (expected
+    undetected targets per km^2, with a colour bar); search looks are drawn as the beam's
+    sector with its bearing, and tracks found by them are ringed.
 
     Example: sensorplan replay runs/paper --run 9 --method ours/olf-pg
     """

@@ -23,11 +23,16 @@ Modes
 ``sequential``
     Round r is agent r - 1's turn: for k = 1..K it takes the action maximising Phi given
     what it has heard (sequential greedy, platform by platform).
+
+A decision whose problem searches is played by :class:`~sensorplan.decentral.search_agent.
+SearchAgent`, the same schedule over track and sector looks
+(:func:`sensorplan.decentral.decision.make_agent` picks).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -43,6 +48,12 @@ def is_best(u: np.ndarray, cur: int, scale: float) -> bool:
     return cur >= 0 and bool(u.max() <= u[cur] + TIE_TOL * max(1.0, scale))
 
 MODES = ("jsfp", "best-response", "sequential")
+
+
+def _same(a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...]) -> bool:
+    """Whether two snapshots of a belief's column are equal (NaN positions included)."""
+    return all(np.array_equal(x, y, equal_nan=x.dtype.kind == "f") for x, y in zip(a, b,
+                                                                                   strict=True))
 
 
 @dataclass(frozen=True)
@@ -87,7 +98,7 @@ class Agent:
                  decision: int = 0, failed: tuple[int, ...] = ()) -> None:
         self.ctx, self.i, self.spec, self.gen, self.decision = ctx, index, spec, gen, decision
         self.N, self.K = ctx.N, ctx.K
-        self.view = GameState(ctx)
+        self.view = self._new_view()
         self.heard: dict[int, Message] = {}
         self.known = np.zeros(self.N, dtype=bool)      # peers heard from in this decision
         self.failed = np.zeros(self.N, dtype=bool)
@@ -100,10 +111,17 @@ class Agent:
         self.trace: list[float] = []
         self._pending: tuple[bool, np.ndarray, int] | None = None
         if spec.mode == "jsfp":
-            self.sweep, self.k, self.t = 1, self.K, 1
-            self.changed, self.all_eq = False, True
-            self.sweeps = 1
-            self._start_epoch()
+            self._start_game()
+
+    def _new_view(self) -> GameState:
+        return GameState(self.ctx)
+
+    def _start_game(self) -> None:
+        """The JSFP schedule's first sweep (every player unassigned: the initialisation)."""
+        self.sweep, self.k, self.t = 1, self.K, 1
+        self.changed, self.all_eq = False, True
+        self.sweeps = 1
+        self._start_epoch()
 
     # ------------------------------------------------------------------ round protocol
     def step(self, rnd: int) -> Message:
@@ -113,7 +131,7 @@ class Agent:
             return self._jsfp_step(rnd)
         if mode == "best-response":
             # A list, not a generator: every player responds, any() must not stop early.
-            changed = [self._best_response(k) for k in range(self.K, 0, -1)]
+            changed = [self._best_response(k) for k in self._response_order()]
             self.settled = not any(changed)
         elif mode == "sequential" and rnd == self.i + 1:
             self._greedy_turn()
@@ -139,7 +157,7 @@ class Agent:
         active = self.spec.mode == "jsfp" and not self.settled and self._pending is not None
         eq = active and self._equilibrium(fresh)
         for m in updated:
-            self._set_peer(m.sender, *m.plan_after(eq and m.round == rnd))
+            self._peer_from(m, eq and m.round == rnd)
         if active:
             self._resolve(eq)
 
@@ -150,12 +168,12 @@ class Agent:
         self.failed[j] = True
         self.known[j] = False
         self.heard.pop(j, None)
-        self._set_peer(j, np.full(self.K, -1), np.full(self.K, -1))
+        self._clear_peer(j)
 
     def complete(self) -> None:
         """Fill any own player still unassigned (round budget spent), k = K..1, alone."""
-        for k in range(self.K, 0, -1):
-            if self.view.tgt[self.i, k - 1] < 0:
+        for k in self._response_order():
+            if not self._assigned(k):
                 self._best_response(k)
                 self.completed += 1
 
@@ -168,11 +186,15 @@ class Agent:
         """The joint plan this agent believes: ``(N, K)`` lattice indices and targets."""
         return self.view.pos.copy(), self.view.tgt.copy()
 
+    def sectors(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """With search on, its own ``(K,)`` and believed ``(N, K)`` sectors; else None."""
+        return None
+
     # ------------------------------------------------------------------ JSFP schedule
     def _start_epoch(self) -> None:
         k = self.k
-        self.before = (self.view.pos[:, k - 1].copy(), self.view.tgt[:, k - 1].copy())
-        self.actions = self.view.player_actions(self.i, k)
+        self.before = self._column(k)
+        self.actions = self._actions(k)
         self.ubar = np.zeros(len(self.actions[0]))
         self.cur = -1
         self.t = 1
@@ -180,25 +202,24 @@ class Agent:
 
     def _jsfp_step(self, rnd: int) -> Message:
         """One JSFP iteration for player (i, k) against the belief (the rules of ``pg``)."""
-        view, i, k, t = self.view, self.i, self.k, self.t
-        pos, tgt = self.actions
-        u = view.chain_gains(i, k, pos[:, None], tgt[:, None])[0]
-        scale = abs(view.potential())
+        k, t = self.k, self.t
+        u = self._utilities(k, self.actions)
         if t == 1:
             # Every feasible action is scored (pg scores one representative of actions with
             # identical pairs); the first-in-order tie rule makes the choices the same.
-            self.cur = current_index(view, i, k, pos, tgt)
-        best_now = is_best(u, self.cur, scale)
+            self.cur = self._current(k, self.actions)
+        self._round_start = self._column(k)
+        best_now = self._is_best(u, self.cur)
         ubar = (t - 1) / t * self.ubar + u / t
-        best = choose(ubar, self.cur, scale)
+        best = self._choose(ubar, self.cur)
         # The switch coin is this agent's entry of the next shared rng.random(N) draw. It is
         # drawn now and taken back in end_round if the round is an equilibrium (pg draws
         # nothing then), so every agent's generator follows the centralized stream.
         self._saved = self.gen.bit_generator.state
-        switch = self.gen.random(self.N)[i] >= self.spec.alpha
+        switch = self.gen.random(self.N)[self.i] >= self.spec.alpha
         nxt = best if best != self.cur and (self.cur < 0 or switch) else self.cur
         self._pending = (best_now, ubar, nxt)
-        cond = (int(pos[nxt]), int(tgt[nxt])) if nxt >= 0 else None
+        cond = self._cond(self.actions, nxt) if nxt >= 0 else None
         return self._message(rnd, best_now, cond)
 
     def _equilibrium(self, fresh: dict[int, Message]) -> bool:
@@ -223,9 +244,9 @@ class Agent:
         else:
             self.ubar = ubar
             if nxt != self.cur:
-                pos, tgt = self.actions
-                self.view.set_action(self.i, self.k, int(pos[nxt]), int(tgt[nxt]))
+                self._apply(self.k, self.actions, nxt)
                 self.cur = nxt
+            self._switched()
             stop = bool(self.gen.random() >= self.spec.beta)
         self.t += 1
         if stop or self.t > self.spec.max_inner:
@@ -234,8 +255,7 @@ class Agent:
     def _end_epoch(self, eq: bool) -> None:
         k = self.k
         self.all_eq &= eq
-        self.changed |= bool(np.any(self.before[0] != self.view.pos[:, k - 1])
-                             or np.any(self.before[1] != self.view.tgt[:, k - 1]))
+        self.changed |= not _same(self.before, self._column(k))
         if k > 1:
             self.k = k - 1
             self._start_epoch()
@@ -251,8 +271,59 @@ class Agent:
             self.k, self.changed, self.all_eq = self.K, False, True
             self._start_epoch()
 
+    # ------------------------------------------------------------------ actions
+    # The hooks below are what the search agent (search_agent.py) replaces: how a player's
+    # actions are listed, scored, compared and applied, and how plans are carried.
+    def _response_order(self) -> range:
+        """The order in which an agent's own players respond alone: k = K..1."""
+        return range(self.K, 0, -1)
+
+    def _assigned(self, k: int) -> bool:
+        return bool(self.view.tgt[self.i, k - 1] >= 0)
+
+    def _actions(self, k: int) -> tuple[np.ndarray, ...]:
+        return self.view.player_actions(self.i, k)
+
+    def _utilities(self, k: int, actions: tuple[np.ndarray, ...]) -> np.ndarray:
+        """Player (i, k)'s utility of every action against the belief (its marginal
+        contribution to Phi: Phi up to a term it cannot change)."""
+        pos, tgt = actions
+        return self.view.chain_gains(self.i, k, pos[:, None], tgt[:, None])[0]
+
+    def _current(self, k: int, actions: tuple[np.ndarray, ...]) -> int:
+        pos, tgt = actions
+        return current_index(self.view, self.i, k, pos, tgt)
+
+    def _is_best(self, u: np.ndarray, cur: int) -> bool:
+        return is_best(u, cur, abs(self.view.potential()))
+
+    def _choose(self, values: np.ndarray, cur: int) -> int:
+        return choose(values, cur, abs(self.view.potential()))
+
+    def _cond(self, actions: tuple[np.ndarray, ...], idx: int) -> tuple[Any, ...]:
+        pos, tgt = actions
+        return int(pos[idx]), int(tgt[idx])
+
+    def _apply(self, k: int, actions: tuple[np.ndarray, ...], idx: int) -> None:
+        pos, tgt = actions
+        self.view.set_action(self.i, k, int(pos[idx]), int(tgt[idx]))
+
+    def _column(self, k: int) -> tuple[np.ndarray, ...]:
+        """Every platform's epoch-k action in the belief (to tell whether it changed)."""
+        return self.view.pos[:, k - 1].copy(), self.view.tgt[:, k - 1].copy()
+
+    def _switched(self) -> None:
+        """A round that was not an equilibrium has been applied (the search agent counts
+        its switches as ``pg`` with search does)."""
+
+    def _peer_from(self, m: Message, equilibrium: bool) -> None:
+        self._set_peer(m.sender, *m.plan_after(equilibrium))
+
+    def _clear_peer(self, j: int) -> None:
+        self._set_peer(j, np.full(self.K, -1), np.full(self.K, -1))
+
     # ------------------------------------------------------------------ helpers
-    def _message(self, rnd: int, best: bool, cond: tuple[int, int] | None = None) -> Message:
+    def _message(self, rnd: int, best: bool, cond: tuple[Any, ...] | None = None) -> Message:
         jsfp = self.spec.mode == "jsfp"
         return Message(self.decision, rnd, self.i, self.sweep if jsfp else 0,
                        self.k if jsfp else 0, self.t if jsfp else 0, self.settled, best,
@@ -267,14 +338,13 @@ class Agent:
 
     def _best_response(self, k: int) -> bool:
         """Player (i, k) takes its best response to the belief; True if it changed."""
-        view, i = self.view, self.i
-        pos, tgt = view.player_actions(i, k)
-        u = view.chain_gains(i, k, pos[:, None], tgt[:, None])[0]
-        cur = current_index(view, i, k, pos, tgt)
-        best = choose(u, cur, abs(view.potential()))
+        actions = self._actions(k)
+        u = self._utilities(k, actions)
+        cur = self._current(k, actions)
+        best = self._choose(u, cur)
         if best == cur:
             return False
-        view.set_action(i, k, int(pos[best]), int(tgt[best]))
+        self._apply(k, actions, best)
         return True
 
     def _greedy_turn(self) -> None:
@@ -285,3 +355,4 @@ class Agent:
             phi = view.evaluate_chains(i, k, pos[:, None], tgt[:, None])
             best = choose(phi)
             view.set_action(i, k, int(pos[best]), int(tgt[best]))
+

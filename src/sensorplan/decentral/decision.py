@@ -19,10 +19,13 @@ import numpy as np
 
 from .._types import IntArray
 from ..planners.information import Context
-from ..planners.problem import Plan
+from ..planners.information import prepare as prepare_tracks
+from ..planners.problem import Plan, PlanningProblem
+from ..planners.search import SearchContext
 from .agent import Agent, AgentSpec
 from .links import Inbox, LinkModel
 from .messages import DecisionLog, decode, encode
+from .search_agent import SearchAgent
 
 
 @dataclass
@@ -30,13 +33,15 @@ class AgentOutcome:
     """What an agent reports when a decision ends (picklable; crosses process boundaries).
 
     ``round_seconds`` and ``work_seconds`` (wall time of each round and the part spent in
-    the agent's own computation) are diagnostics only: nothing is decided by them.
+    the agent's own computation) are diagnostics only: nothing is decided by them. With
+    search on, ``pos`` and ``belief_pos`` are ground positions ``(K, 2)`` and ``(N, K, 2)``
+    (m) instead of lattice indices, and ``sec``, ``belief_sec`` the sectors (else None).
     """
 
     index: int
-    pos: IntArray
+    pos: np.ndarray
     tgt: IntArray
-    belief_pos: IntArray
+    belief_pos: np.ndarray
     belief_tgt: IntArray
     gen_state: dict[str, Any]
     settled: bool
@@ -50,6 +55,37 @@ class AgentOutcome:
     failed: tuple[int, ...] = ()
     round_seconds: tuple[float, ...] = ()
     work_seconds: tuple[float, ...] = ()
+    sec: IntArray | None = None
+    belief_sec: IntArray | None = None
+
+
+#: What the agents of a decision share: the tracks' precomputation, or with search on the
+#: search context (which holds it and the undetected intensity).
+DecisionContext = Context | SearchContext
+
+
+def decision_context(problem: PlanningProblem) -> DecisionContext:
+    """The context every agent of ``problem``'s decision plans with: the search context
+    when its search is on (:func:`sensorplan.planners.search.prepare`), else the tracks'."""
+    if problem.searching:
+        from ..planners import search
+
+        return search.prepare(problem)
+    return prepare_tracks(problem)
+
+
+def tracks_of(ctx: DecisionContext) -> Context:
+    """The tracks' precomputation of a decision context."""
+    return ctx if isinstance(ctx, Context) else ctx.ctx
+
+
+def make_agent(ctx: DecisionContext, index: int, spec: AgentSpec, gen: np.random.Generator,
+               decision: int = 0, failed: tuple[int, ...] = ()) -> Agent:
+    """Agent ``index`` of a decision: a :class:`SearchAgent` when ``ctx`` is a search
+    context, else an :class:`Agent` (both transports build their agents here)."""
+    if isinstance(ctx, Context):
+        return Agent(ctx, index, spec, gen, decision, failed)
+    return SearchAgent(ctx, index, spec, gen, decision, failed)
 
 
 def outcome(agent: Agent, inbox: Inbox | None, rounds: int, sent: int, received: int,
@@ -58,6 +94,8 @@ def outcome(agent: Agent, inbox: Inbox | None, rounds: int, sent: int, received:
     """Collect an agent's result after :meth:`Agent.complete`."""
     pos, tgt = agent.own_plan()
     bpos, btgt = agent.beliefs()
+    sectors = agent.sectors()
+    sec, bsec = (None, None) if sectors is None else sectors
     counts = {"received": received, "delivered": 0, "lost": 0, "out_of_range": 0, "in_flight": 0,
               "ignored": agent.ignored}
     if inbox is not None:
@@ -68,11 +106,15 @@ def outcome(agent: Agent, inbox: Inbox | None, rounds: int, sent: int, received:
                         agent.settled, agent.converged, agent.sweeps, agent.completed,
                         tuple(agent.trace), rounds, sent, counts,
                         tuple(int(j) for j in np.flatnonzero(agent.failed)),
-                        tuple(round_seconds), tuple(work_seconds))
+                        tuple(round_seconds), tuple(work_seconds), sec, bsec)
 
 
-def to_plan(ctx: Context, pos: IntArray, tgt: IntArray) -> Plan:
-    """Lattice indices ``(N, K)`` and targets to a :class:`Plan` (NaN where unassigned)."""
+def to_plan(ctx: Context, pos: np.ndarray, tgt: IntArray, sec: IntArray | None = None
+            ) -> Plan:
+    """Lattice indices ``(N, K)`` and targets to a :class:`Plan` (NaN where unassigned);
+    with ``sec`` (search on), ``pos`` are the ground positions ``(N, K, 2)`` already."""
+    if sec is not None:
+        return Plan(pos.copy(), tgt.copy(), sec.copy())
     positions = np.full((ctx.N, ctx.K, 2), np.nan)
     for i in range(ctx.N):
         for k in range(1, ctx.K + 1):
@@ -85,31 +127,44 @@ def to_plan(ctx: Context, pos: IntArray, tgt: IntArray) -> Plan:
 class Assembled:
     """The joint plan of a decision and what happened."""
 
-    pos: IntArray
+    pos: np.ndarray
     tgt: IntArray
     log: DecisionLog
     trace: tuple[float, ...]
     gen_state: dict[str, Any] | None
     timing: dict[str, Any] = field(default_factory=dict)
+    sec: IntArray | None = None
 
 
-def assemble(ctx: Context, outcomes: Mapping[int, AgentOutcome],
+def assemble(ctx: DecisionContext, outcomes: Mapping[int, AgentOutcome],
              failed: Iterable[int]) -> Assembled:
     """The union of the live agents' own plans; lost agents' platforms hold still.
 
     The caller's generator continues from the lowest-numbered live agent's copy (all copies
-    agree when no message is lost).
+    agree when no message is lost). With search on (a search context) the plan carries
+    ground positions and sectors (:attr:`Assembled.sec`).
     """
-    N, K = ctx.N, ctx.K
+    searching = not isinstance(ctx, Context)
+    N, K = tracks_of(ctx).N, tracks_of(ctx).K
     failed = set(failed) | (set(range(N)) - set(outcomes))
     live = sorted(set(outcomes) - failed)
-    pos = np.full((N, K), -1, dtype=np.int64)
+    pos = np.full((N, K, 2), np.nan) if searching else np.full((N, K), -1, dtype=np.int64)
     tgt = np.full((N, K), -1, dtype=np.int64)
+    sec = np.full((N, K), -1, dtype=np.int64) if searching else None
     for i in live:
         pos[i], tgt[i] = outcomes[i].pos, outcomes[i].tgt
-    stale = sum(1 for a in live for b in live if a != b and not (
-        np.array_equal(outcomes[a].belief_pos[b], pos[b])
-        and np.array_equal(outcomes[a].belief_tgt[b], tgt[b])))
+        own_sec = outcomes[i].sec
+        if sec is not None and own_sec is not None:
+            sec[i] = own_sec
+
+    def believed(a: int, b: int) -> bool:
+        o = outcomes[a]
+        return bool(np.array_equal(o.belief_pos[b], pos[b], equal_nan=searching)
+                    and np.array_equal(o.belief_tgt[b], tgt[b])
+                    and (sec is None or (o.belief_sec is not None
+                                         and np.array_equal(o.belief_sec[b], sec[b]))))
+
+    stale = sum(1 for a in live for b in live if a != b and not believed(a, b))
     total: Counter[str] = Counter()
     for i in live:
         total.update(outcomes[i].counts)
@@ -128,7 +183,7 @@ def assemble(ctx: Context, outcomes: Mapping[int, AgentOutcome],
     timing = {"round_seconds": {i: outcomes[i].round_seconds for i in live},
               "work_seconds": {i: outcomes[i].work_seconds for i in live}}
     return Assembled(pos, tgt, log, first.trace if first else (),
-                     first.gen_state if first else None, timing)
+                     first.gen_state if first else None, timing, sec)
 
 
 class InprocTransport:
@@ -156,7 +211,8 @@ class InprocTransport:
         return self.queues.pop(me, [])
 
 
-def run_inproc(ctx: Context, spec: AgentSpec, link: LinkModel, gen: np.random.Generator,
+def run_inproc(ctx: DecisionContext, spec: AgentSpec, link: LinkModel,
+               gen: np.random.Generator,
                decision: int = 0, failed: Iterable[int] = (),
                fail_at: Mapping[int, int] | None = None,
                transport: InprocTransport | None = None) -> dict[int, AgentOutcome]:
@@ -164,7 +220,7 @@ def run_inproc(ctx: Context, spec: AgentSpec, link: LinkModel, gen: np.random.Ge
 
     Parameters
     ----------
-    ctx, spec, link : the decision, how agents play, the links
+    ctx, spec, link : the decision (:func:`decision_context`), how agents play, the links
     gen : numpy.random.Generator   each agent plays with its own copy (not advanced here)
     decision : int                 stamped on messages
     failed : agents already lost (they take no part; their platforms hold still)
@@ -179,14 +235,16 @@ def run_inproc(ctx: Context, spec: AgentSpec, link: LinkModel, gen: np.random.Ge
     """
     net = transport if transport is not None else InprocTransport()
     failed = tuple(sorted(set(failed)))
-    live = [i for i in range(ctx.N) if i not in failed]
-    agents = {i: Agent(ctx, i, spec, copy.deepcopy(gen), decision, failed) for i in live}
+    N = tracks_of(ctx).N
+    live = [i for i in range(N) if i not in failed]
+    agents: dict[int, Agent] = {i: make_agent(ctx, i, spec, copy.deepcopy(gen), decision,
+                                              failed) for i in live}
     inboxes = {i: Inbox(i, link) for i in live}
     sent: Counter[int] = Counter()
     received: Counter[int] = Counter()
     times: list[float] = []        # wall time of each round, all agents together
     rounds = 0
-    for r in range(1, spec.budget(ctx.N) + 1):
+    for r in range(1, spec.budget(N) + 1):
         for j in sorted(j for j, fr in (fail_at or {}).items() if fr == r and j in agents):
             del agents[j], inboxes[j]
             for other, agent in agents.items():

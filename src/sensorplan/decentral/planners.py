@@ -5,6 +5,10 @@
 ``dec-independent`` agents plan alone (no messages), each treating the others as unassigned;
 ``dec-sequential``  agents decide one after the other over the links (N rounds).
 
+Each plans search looks too: with a problem whose search is on, every agent plays the same
+schedule over track and sector looks against the same undetected intensity
+(:mod:`.search_agent`).
+
 Every planner returns a :class:`DecentralResult`: a :class:`PlanResult` whose plan is the
 union of the agents' own plans (Phi by the one definition, :func:`finish`) plus ``log``, a
 :class:`DecisionLog` of the decision. With ``transport="bus"`` the planner holds one
@@ -21,12 +25,11 @@ from typing import TYPE_CHECKING, Any, ClassVar, Self
 import numpy as np
 
 from ..planners.base import PlanResult, RngLike, finish, make_rng, register, start_clock
-from ..planners.information import prepare
 from ..planners.potential_game import LearningSettings
 from ..planners.problem import PlanningProblem
 from ..planners.registry import seed_param
 from .agent import AgentSpec
-from .decision import assemble, run_inproc, to_plan
+from .decision import assemble, decision_context, run_inproc, to_plan, tracks_of
 from .episode import record
 from .links import LinkModel, decision_key
 from .messages import DecisionLog
@@ -60,8 +63,8 @@ class _Agents(Transport):
     bus's lifetime."""
 
     name: ClassVar[str]
-    #: The agents plan on tracks only: a searching problem is refused.
-    plans_search: ClassVar[bool] = False
+    #: With search on the agents plan track and sector looks (search_agent.py).
+    plans_search: ClassVar[bool] = True
     if TYPE_CHECKING:              # each planner declares its seed (none here at run time)
         seed: int | None = 0
     _runtime: dict = field(default_factory=dict, init=False, repr=False, compare=False)
@@ -77,7 +80,8 @@ class _Agents(Transport):
         """
         start = start_clock()
         gen = make_rng(rng, self.seed)
-        ctx = prepare(problem)
+        dctx = decision_context(problem)
+        ctx = tracks_of(dctx)
         # Planners without link settings have perfect links.
         p_loss, delay, comm_range = (self._links() if isinstance(self, Links)
                                      else (0.0, 0, math.inf))
@@ -87,14 +91,16 @@ class _Agents(Transport):
         if self.transport == "bus":
             outcomes, failed = self._bus(ctx.N).decide(problem, spec, link, gen)
         else:
-            outcomes, failed = run_inproc(ctx, spec, link, gen), ()
-        got = assemble(ctx, outcomes, failed)
+            outcomes, failed = run_inproc(dctx, spec, link, gen), ()
+        got = assemble(dctx, outcomes, failed)
         if got.gen_state is not None:
             gen.bit_generator.state = got.gen_state
         record(got.log)
-        res = finish(self.name, ctx, to_plan(ctx, got.pos, got.tgt), start, None, None,
-                     got.trace)
+        res = finish(self.name, ctx, to_plan(ctx, got.pos, got.tgt, got.sec), start, None,
+                     None, got.trace)
         base = {f.name: getattr(res, f.name) for f in fields(PlanResult)}
+        # Lost agents' platforms hold station: declared, so the plan check admits them.
+        base["holding"] = got.log.failed
         return DecentralResult(**base, log=got.log, timing=got.timing)
 
     def _bus(self, n_agents: int) -> Any:

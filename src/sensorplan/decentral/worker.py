@@ -23,9 +23,8 @@ from typing import Any
 
 import zmq
 
-from ..planners.information import prepare
 from .agent import Agent
-from .decision import outcome
+from .decision import decision_context, make_agent, outcome
 from .links import Inbox
 from .messages import Message, decode, encode
 
@@ -107,8 +106,8 @@ class AgentProcess:
         spec, link, decision = job["spec"], job["link"], job["decision"]
         timeout = job["timeout"]
         every = min(0.5, timeout / 4)
-        ctx = prepare(job["problem"])
-        agent = Agent(ctx, self.i, spec, job["gen"], decision, job["failed"])
+        ctx = decision_context(job["problem"])     # the same on every agent: tracks, grid
+        agent = make_agent(ctx, self.i, spec, job["gen"], decision, job["failed"])
         inbox = Inbox(self.i, link)
         live = set(range(self.n)) - set(job["failed"])
         early: defaultdict[int, dict[int, Message]] = defaultdict(dict)
@@ -217,8 +216,14 @@ def main(argv: list[str] | None = None) -> int:
         from ..planners._chains_nb import warm_up
         from ..planners.epoch_game import warm_engine
 
+        from .._compiled.jit import is_active
+
         warm_up()                # load the compiled kernels before saying ready: a first
         warm_engine()           # compile would otherwise look like a silent, lost agent
+        if is_active():
+            from .._compiled.prepare import warm_listed
+
+            warm_listed()        # the radar's kernels too, which a searching decision calls
         proc = AgentProcess(args.dir, args.index, args.agents, args.parent)
         proc.serve()
     except Orphaned:

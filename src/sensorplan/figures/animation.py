@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .colors import mix_hex, sensor_style, target_color
+from .search import has_search, search_handles
 from .run import (DENSE_SENSORS, DENSE_TARGETS, N_SIGMA, clip_xy, draw_buildings,
                   draw_errors, draw_timeline, ellipse_geometry, episode_title, fade_colors,
                   fov_geometry, map_legend, map_limit, segments, timeline_height)
@@ -290,6 +291,15 @@ class _Frames:
                                fontweight="bold", zorder=6, clip_on=True)
                        for j in range(0 if many else self.M)]
 
+        # Search: the undetected intensity under the scene, sector looks and finds.
+        self.search = None
+        if has_search(episode):
+            from .search import SearchLayer, search_view
+
+            self.search = SearchLayer(ax, search_view(episode, scenario), scenario, self.spos,
+                                      self.shead, self.N > DENSE_SENSORS, border)
+            self.dense.append(self.search)
+        search_entries = search_handles(self.search.view) if self.search is not None else []
         extra = [
             Line2D([], [], color="0.25", linewidth=2.2, marker="o",
                    label="true track (older: lighter)"),
@@ -307,18 +317,26 @@ class _Frames:
                 *_look_entries(f"{N_SIGMA:g}\u03c3 ellipse of a reported track",
                                "sensor \u2192 track it looks at",
                                "the look returned no detection"),
-                extra[-1]]
+                extra[-1], *search_entries]
             set_legend(ax, episode, scenario,
                        set_handles(self.sets, np.array([], int), self.dt)[1:-3] + tail_entries,
                        summary=True)
         else:
-            map_legend(ax, episode, scenario, extra)
+            map_legend(ax, episode, scenario, extra + search_entries)
         # The legend lives in the right-hand column (frames have a fixed size: no "tight").
         leg: Any = ax.get_legend()
         leg.set_bbox_to_anchor((0.0, 1.0), transform=legend_ax.transAxes)
+        floor = None
+        if self.search is not None and self.search.heat is not None:
+            # The heat map's colour bar at the foot of the legend's column.
+            from .search import colour_bar
+
+            cax = legend_ax.inset_axes((0.02, 0.05, 0.85, 0.025))
+            colour_bar(fig, self.search.heat, cax)
+            floor = legend_ax.transAxes.transform((0.0, 0.16))[1]
         for group in self.dense:
             if hasattr(group, "place_log"):
-                group.place_log(leg)
+                group.place_log(leg, floor)
 
         if self.sets is not None:
             from ..study.set_metrics import episode_set_metrics
@@ -331,6 +349,10 @@ class _Frames:
         else:
             draw_timeline(ax_time, episode, self.dt)
             draw_errors(ax_err, episode, self.dt)
+        if self.search is not None:
+            from .search import draw_search_timeline
+
+            draw_search_timeline(ax_time, self.search.view.sectors, self.dt)
         self.future = []
         for a in (ax_time, ax_err):
             veil = Rectangle((0, 0), 0, 1, transform=a.get_xaxis_transform(),
@@ -350,6 +372,14 @@ class _Frames:
             + self.fa_text + [a for pair in self.future for a in pair]
             + [a for group in self.dense for a in group.artists],
             key=lambda a: a.get_zorder())
+        if self.search is not None and self.search.heat is not None:
+            # The heat map moves, so it is drawn after the background: the map's static
+            # artists (border, buildings and their labels) are drawn after it too, in their
+            # z-order, to stay on top of it.
+            moving = {id(a) for a in self.moving}
+            static = [a for a in [*ax.patches, *ax.collections, *ax.texts]
+                      if id(a) not in moving]
+            self.moving = sorted(self.moving + static, key=lambda a: a.get_zorder())
         for a in self.moving + [self.title]:
             a.set_animated(True)
         self.canvas.draw()
@@ -425,7 +455,9 @@ class _Frames:
         self.title.set_text(f"t = {t * self.dt:g} s (step {t} of {self.S})   "
                             f"{self.run_title}" + (f"\n{n_false} false alarms in this step"
                                                    if n_false and not self.fov else "")
-                            + (f"\nthis step: {events}" if self.sets is not None else ""))
+                            + (f"\nthis step: {events}" if self.sets is not None else "")
+                            + (f"{'   ' if self.sets is not None else chr(10)}search: "
+                               f"{self.search.title(t)}" if self.search is not None else ""))
 
 
 __all__ = ["FORMATS", "animate_episode", "check_format", "ffmpeg_available", "frame_steps"]

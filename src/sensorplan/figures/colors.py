@@ -9,7 +9,9 @@ Each palette has one meaning, and no two meanings share a colour:
 - **methods** (study report): Dark2 without its grey, then darker shades of its hues;
 - **target kinds** (study report): slate, crimson and charcoal, used nowhere else;
 - **false tracks** (a multi-target tracker's tracks assigned to no target): black, dashed;
-- **mean / median** markers (study report): black filled circle and grey open diamond.
+- **mean / median** markers (study report): black filled circle and grey open diamond;
+- **the undetected intensity** (expected targets not yet detected, per km^2): the sequential
+  map :data:`INTENSITY_CMAP`, light where there are few, drawn under everything else.
 
 Plain hex strings: this module imports no plotting library.
 """
@@ -39,6 +41,9 @@ MEDIAN_COLOR = "#7a7a7a"
 #: A reported track that GOSPA assigns to no target (drawn dashed, so that it is not taken
 #: for a sensor's grey).
 FALSE_TRACK = "#000000"
+#: Colour map (a matplotlib name) of the undetected intensity: white-yellow to dark blue,
+#: light at zero so that the scene drawn over it stays readable.
+INTENSITY_CMAP = "YlGnBu"
 #: Buildings: light fill, darker outline.
 BUILDING_FACE = "#d9d9d9"
 BUILDING_EDGE = "#6e6e6e"

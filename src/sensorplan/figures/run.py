@@ -502,10 +502,27 @@ def set_episode_figure(episode: Episode, scenario: Scenario) -> Figure:
         draw_set_looks(ax, run.spos, view, run.times)
     draw_set_targets(ax, view)
     draw_set_tracks(ax, view, run.times, map_limit(scenario))
+    from .search import has_search
+
+    search = None
+    if has_search(episode):
+        # Search: the undetected intensity of the last step under the scene.
+        from .search import colour_bar, draw_heat_map, search_view
+
+        search = search_view(episode, scenario)
+        heat = draw_heat_map(ax, search, search.sectors.shape[0] - 1, scenario)
+        if heat is not None:
+            bar = colour_bar(fig, heat, ax.inset_axes((1.03, 0.0, 0.42, 0.025)))
+            bar.set_label("undetected intensity at the last step: expected targets per "
+                          "km\u00b2", fontsize=7.5)
     set_legend(ax, episode, scenario, set_handles(view, run.times, scenario.dt))
     frame_map(ax, W, H, 0.03)
     ax.set_title(set_title(episode, sm.gospa), fontsize=10)
     draw_set_timeline(ax_time, view, scenario.dt, episode.decision_steps)
+    if search is not None:
+        from .search import draw_search_timeline
+
+        draw_search_timeline(ax_time, search.sectors, scenario.dt)
     draw_gospa_parts(ax_err, sm.gospa, sm.n_targets, sm.n_tracks, scenario.dt,
                      episode.settings.gospa_c)
     return fig

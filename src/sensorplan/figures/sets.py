@@ -449,13 +449,14 @@ class SetLayer:
                                    *self.events.values(), *self.names, *self.target_names,
                                    self.log]
 
-    def place_log(self, legend: Any) -> None:
-        """Put the event log just below ``legend`` (in the same axes' column)."""
+    def place_log(self, legend: Any, floor: float | None = None) -> None:
+        """Put the event log just below ``legend`` (in the same axes' column), above
+        ``floor`` (display units; default the column's bottom)."""
         box = legend.get_window_extent(self.log_ax.figure.canvas.get_renderer())  # type: ignore[attr-defined]
         y = self.log_ax.transAxes.inverted().transform((0.0, box.y0))[1]
         self.log.set_position((0.0, y - 0.03))
         # Lines that fit between the legend and the bottom of the column (the heading too).
-        bottom = self.log_ax.get_window_extent().y0
+        bottom = self.log_ax.get_window_extent().y0 if floor is None else floor
         line = 1.25 * float(self.log.get_fontsize()) * float(self.log_ax.figure.dpi) / 72.0
         self.log_room = int(max(0, min(LOG_LINES, (box.y0 - bottom) / line - 2)))
 

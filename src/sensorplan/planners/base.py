@@ -54,6 +54,9 @@ class PlanResult:
                                    targets the plan finds (None with search off)
     search_weight : float or None  with search on: w, nats per target found; Phi's search
                                    term is ``search_weight * found``
+    holding : tuple of int         sensors with no action in any epoch on purpose (they hold
+                                   station and look at nothing: a decentralized planner's
+                                   lost agents); every other sensor acts in every epoch
     """
 
     planner: str
@@ -69,6 +72,7 @@ class PlanResult:
     budget_exhausted: bool = False
     found: float | None = None
     search_weight: float | None = None
+    holding: tuple[int, ...] = ()
 
     @property
     def search_term(self) -> float | None:

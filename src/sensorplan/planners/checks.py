@@ -155,7 +155,8 @@ def _result_problem(planner: Any, p: PlanningProblem, res: Any,
 
 def check_feasible_complete_plan(planner: Any) -> None:
     """Every player is assigned and the plan is feasible: each position lies in the map and
-    in its reachable set, one move from the previous one, and every target exists."""
+    in its reachable set, one move from the previous one, and every target exists. A
+    result's ``holding`` excuses no one here: nothing is lost on a contract problem."""
     for case, res in _results(planner):
         try:
             check_plan(case.problem, res.plan, complete=True)
@@ -429,7 +430,8 @@ def check_result(planner: Any, problem: PlanningProblem, result: Any,
     The rules are the contract's (``result_well_formed`` and ``feasible_complete_plan``):
     a :class:`PlanResult` with the planner's name, the right shapes and a finite Phi >= 0,
     whose plan assigns every sensor in every epoch a target that exists and a position in
-    the map one move from the last. Phi is not recomputed here (``check_planner`` does).
+    the map one move from the last; a sensor the result declares ``holding`` has no action
+    in any epoch instead. Phi is not recomputed here (``check_planner`` does).
 
     Raises
     ------
@@ -443,7 +445,8 @@ def check_result(planner: Any, problem: PlanningProblem, result: Any,
     if problem_text:
         raise PlanRejected(label, problem_text, decision=decision)
     try:
-        check_plan(problem, result.plan, complete=True)
+        check_plan(problem, result.plan, complete=True,
+                   holding=tuple(int(i) for i in result.holding))
     except PlanError as exc:
         raise PlanRejected(label, exc.detail, exc.sensor, exc.epoch, decision) from None
 

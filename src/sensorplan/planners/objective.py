@@ -28,5 +28,3 @@ SEARCH_MODES = ("off", "on")
 #: ``information``: Phi is the tracks' information plus the value of the targets found;
 #: ``gospa``: Phi is the reduction of the expected GOSPA bound the plan buys (needs search on).
 REWARDS = ("information", "gospa")
-#: Most search sectors per sensor.
-MAX_SECTORS = 360

@@ -671,13 +671,16 @@ class PlanError(ValueError):
         return (type(self), (self.detail, self.sensor, self.epoch))
 
 
-def check_plan(problem: PlanningProblem, plan: Plan, complete: bool = True) -> None:
+def check_plan(problem: PlanningProblem, plan: Plan, complete: bool = True,
+               holding: tuple[int, ...] = ()) -> None:
     """Raise :class:`PlanError` (a ``ValueError``) unless ``plan`` is feasible for ``problem``.
 
     Checks shapes, that targets exist, that every position lies in the map and in ``R_k``
     and differs from the previous assigned position by a move (from ``p_0`` at k = 1).
-    With ``complete`` every player must be assigned. The error names the first sensor and
-    epoch (sensor-major order) that breaks a rule.
+    With ``complete`` every player must be assigned, except the sensors in ``holding``,
+    which must have no action in any epoch (they hold station and look at nothing: a
+    decentralized planner's lost agents). The error names the first sensor and epoch
+    (sensor-major order) that breaks a rule.
     """
     N, K, M = problem.n_sensors, problem.horizon, problem.n_targets
     if plan.positions.shape != (N, K, 2) or plan.targets.shape != (N, K):
@@ -688,7 +691,15 @@ def check_plan(problem: PlanningProblem, plan: Plan, complete: bool = True) -> N
         raise PlanError(f"plan has sectors of shape {plan.sectors.shape}, expected ({N}, {K})")
     if plan.searches:
         _check_sectors(problem, plan)
-    lowest = 0 if complete else -1
+    lowest = np.full((N, 1), 0 if complete else -1)
+    for i in holding:
+        if not 0 <= i < N:
+            raise PlanError(f"holding sensor {i} does not exist (the sensors are 0..{N - 1})")
+        acting = np.flatnonzero(plan.assigned[i])
+        if acting.size:
+            raise PlanError("a holding sensor has an action (it holds station and looks at "
+                            "nothing in every epoch)", i, int(acting[0]) + 1)
+        lowest[i] = -1
     # A search look has no target (its sector is checked above).
     targets = plan.targets
     bad = (plan.sectors < 0) & ((targets >= M) | (targets < lowest))

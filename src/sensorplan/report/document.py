@@ -27,6 +27,7 @@ from ..study.model import Method
 from ..study.storage import StudyTables, load_study_dir
 from .figures import FIGURES, draw_figures
 from .headline import SMALL_SAMPLE, headline, headline_paragraphs, results_link
+from .search import SEARCH_FIGURES, draw_search_figures, search_section
 
 
 @dataclass
@@ -250,6 +251,7 @@ def write_report(study_dir: str | Path, out: str | Path | None = None) -> Report
     figs = draw_figures(t, out, {"rmse": rmse, "lost": lost, "diffs": diffs, "plan": plan,
                                  "curves": rmse_over_time(t), "nees": nees_over_time(t),
                                  "gospa": gospa_over_time(t), "quantity": column.upper()})
+    figs.update(draw_search_figures(t, out))
 
     top = headline(t.study, judged,
                    summary(judged, "gospa") if column == "gospa" else rmse, diffs, column)
@@ -261,6 +263,7 @@ def write_report(study_dir: str | Path, out: str | Path | None = None) -> Report
     doc = _document(t, rmse, lost, diffs, plan, sensing, figs, honest, lines, single,
                     example, column)
     _gospa_section(doc, gospa, figs, _gospa_c(t.study))
+    search_section(doc, t, figs)
     title = f"sensorplan study report: {study_dir.name}"
     md = out / "summary.md"
     page = out / "report.html"
@@ -289,6 +292,9 @@ def _gospa_section(doc: _Doc, gospa: Any, figs: dict[str, Path], c: float) -> No
     doc.table(["method", "GOSPA mean (m)", "median", "localisation", "missed", "false",
                "false tracks"], rows, caption=_caption("per run", gospa))
     doc.figure("gospa_time", figs["gospa_time"])
+    if "gospa_parts_time" in figs:                      # a study that searches
+        doc.figure("gospa_parts_time", figs["gospa_parts_time"],
+                   SEARCH_FIGURES["gospa_parts_time"])
     if "gospa_runs" in figs:
         doc.figure("gospa_runs", figs["gospa_runs"])
 

@@ -81,6 +81,15 @@ class Episode:
     search_found : (D,) or None       with search on: mu of each decision's plan, the
                                       expected number of undetected targets it finds
     search_term : (D,) or None        with search on: w mu, the search term of its Phi (nats)
+    undetected : (S+1, ny, nx) float32 or None
+                                      a tracker that keeps an intensity of undetected
+                                      targets (``pmb``): the expected number of them in each
+                                      cell of its grid after step t's update (t = 0: at the
+                                      start), row 0 at the map's bottom edge (y = 0), column
+                                      0 at x = 0; its sum is the expected number of
+                                      undetected targets. None for other trackers (the file
+                                      then has no such entry). float32: 4 bytes a cell and
+                                      step before compression
     """
 
     target_kinds: tuple[str, ...]
@@ -120,6 +129,7 @@ class Episode:
     searched: IntArray | None = None
     search_found: FloatArray | None = None
     search_term: FloatArray | None = None
+    undetected: np.ndarray | None = None
 
     def rmse(self) -> FloatArray:
         """Position RMSE ``(M,)`` of each target over steps ``1..S`` (m)."""
@@ -267,6 +277,9 @@ class Recorder:
         # and w mu.
         self.searched: IntArray | None = None
         self.search_terms: list[tuple[float, float]] = []
+        # With a tracker that keeps an undetected intensity (:meth:`intensity`): its grid
+        # after each step's update.
+        self.undetected: np.ndarray | None = None
 
     def _new(self, name: str, n_targets: int) -> np.ndarray:
         shape, dtype, fill = STEP_ARRAYS[name]
@@ -315,6 +328,16 @@ class Recorder:
         if self.searched is None:
             self.searched = np.full((self.steps + 1, self.n_sensors), -1, dtype=np.int64)
         self.searched[t] = sectors
+
+    def intensity(self, t: int, centres: FloatArray, weights: FloatArray) -> None:
+        """The tracker's undetected intensity after step ``t``'s update: ``weights`` ``(C,)``
+        expected undetected targets in the cells whose centres ``(C, 2)`` are row-major
+        (``c = row * nx + column``, rows from y = 0 up)."""
+        if self.undetected is None:
+            nx = len(np.unique(centres[:, 0]))
+            self.undetected = np.zeros((self.steps + 1, len(weights) // nx, nx),
+                                       dtype=np.float32)
+        self.undetected[t] = np.asarray(weights).reshape(self.undetected.shape[1:])
 
     def search_term(self, found: float, term: float) -> None:
         """With search on: the last decision's mu and w mu (nats)."""
@@ -375,10 +398,12 @@ class Recorder:
             **self._search_records(), **a)
 
     def _search_records(self) -> dict[str, np.ndarray]:
+        out = {} if self.undetected is None else {"undetected": self.undetected}
         if self.searched is None:
-            return {}
+            return out
         f = np.array(self.search_terms, dtype=float).reshape(-1, 2)
-        return {"searched": self.searched, "search_found": f[:, 0], "search_term": f[:, 1]}
+        return {**out, "searched": self.searched, "search_found": f[:, 0],
+                "search_term": f[:, 1]}
 
 
 def _entropy(ss: np.random.SeedSequence) -> Any:

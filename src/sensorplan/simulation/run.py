@@ -132,6 +132,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
                       aims_at_targets=known)
     record = Recorder(S, len(init.truth), N, known_targets=known)
     record.start(init.truth, tracker.tracks(), init.positions, init.headings)
+    _record_intensity(record, 0, tracker)
     schedule = _Schedule(scenario, settings, planner, planner_rng, table, init)
     # Load the compiled kernels now, so that no decision's time includes it (the planners
     # warm them too, before starting their clock; a planner of another package may not).
@@ -154,6 +155,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
             record.pose(t, schedule.positions, schedule.headings)
             record.step(t, x_true, alive, tracker.tracks(), schedule.aimed, looks, sensed,
                         predicted, update)
+            _record_intensity(record, t, tracker)
             if progress is not None:
                 progress(t, S)
     finally:
@@ -167,6 +169,25 @@ def run_episode(scenario: Scenario, settings: RunSettings,
     slots = record.arrays["alive"].shape[1]
     return record.episode(tuple(kinds[s % len(kinds)] for s in range(slots)), settings,
                           seed_ss)
+
+
+def _record_intensity(record: Recorder, t: int, tracker: Tracker) -> None:
+    """Record the tracker's undetected intensity after step ``t`` (nothing for a tracker
+    that keeps none)."""
+    report = undetected_report(tracker)
+    if report is not None:
+        record.intensity(t, report.centres, report.weights)
+
+
+def intensity_grid_shape(scenario: Scenario, tracker: TrackerSettings) -> tuple[int, int]:
+    """``(ny, nx)``: the rows and columns of a multi-target tracker's undetected intensity
+    grid on the scenario's map (cells at most ``tracker.grid_resolution`` m wide), the shape
+    of :attr:`Episode.undetected`'s steps and of a study's stored intensity."""
+    from ..tracking.pmb.undetected import make_grid
+
+    grid = make_grid(scenario.world.width, scenario.world.height, tracker.grid_resolution,
+                     1.0)
+    return grid.ny, grid.nx
 
 
 def map_edge(scenario: Scenario, tracker: TrackerSettings) -> str:

@@ -35,11 +35,10 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ..errors import ConfigError
-from ..limits import (MAX_PLAN_STEPS, MAX_STEPS, RANGES, SIZE_SETTINGS, Param, Range,
-                      coerce)
-from ..planners.objective import (MAX_SECTORS, OBJECTIVES, PLANNING_DETECTIONS,
-                                  PLANNING_OCCLUSIONS, REWARDS, SEARCH_MODES,
-                                  VISIBILITY_MODES)
+from ..limits import (MAX_PLAN_STEPS, MAX_SEARCH_SECTORS, MAX_STEPS, RANGES, SIZE_SETTINGS,
+                      Param, Range, coerce)
+from ..planners.objective import (OBJECTIVES, PLANNING_DETECTIONS,
+                                  PLANNING_OCCLUSIONS, REWARDS, SEARCH_MODES, VISIBILITY_MODES)
 from ..tracking.registry import tracker_kinds
 
 EXECUTIONS = ("ol", "olf")
@@ -273,13 +272,13 @@ def _switching_matrix(value: tuple[tuple[float, ...], ...]) -> None:
 
 
 def _sector_counts(value: int | tuple[int, ...]) -> None:
-    """One count, or one per sensor, each in [0, MAX_SECTORS]."""
+    """One count, or one per sensor, each in [0, MAX_SEARCH_SECTORS]."""
     counts = (value,) if isinstance(value, int) else value
     if not counts:
         raise ValueError("must be a number or a list of one number per sensor, got []")
     for s in counts:
-        if not 0 <= s <= MAX_SECTORS:
-            raise ValueError(f"must be in [0, {MAX_SECTORS}], got {s}")
+        if not 0 <= s <= MAX_SEARCH_SECTORS:
+            raise ValueError(f"must be in [0, {MAX_SEARCH_SECTORS}], got {s}")
 
 
 def sector_counts(value: int | tuple[int, ...], n_sensors: int) -> tuple[int, ...]:

@@ -103,10 +103,36 @@ def clutter_rate(scenario: Scenario, value: Any) -> Scenario:
     return _every_sensor(scenario, lambda p: dataclasses.replace(p, clutter_rate=v))
 
 
+def birth_rate(scenario: Scenario, value: Any) -> Scenario:
+    """The scenario's ``birth_rate``: expected target births per step, >= 0; the scenario
+    must have births (``births`` other than ``none``). The trackers' birth model follows it
+    (:func:`tracker_birth_rate`)."""
+    v = _number(value)
+    if v < 0:
+        raise ValueError(f"must be >= 0, got {value!r}")
+    if scenario.births == "none":
+        raise ValueError('needs a scenario whose targets are born (births other than "none", '
+                         'e.g. the search preset)')
+    return _rebuilt(scenario, birth_rate=v)
+
+
+def tracker_birth_rate(settings: RunSettings, value: Any) -> RunSettings:
+    """A method's settings with its tracker's ``birth_rate`` set to the scenario's: a
+    tracker with a birth model is told the rate the targets are born at, as a preset's is.
+    A tracker without one (``known``) is left as it is."""
+    if settings.tracker.kind == "known":
+        return settings
+    return dataclasses.replace(settings, tracker=dataclasses.replace(
+        settings.tracker, birth_rate=float(value)))
+
+
 #: Scenario features by name.
 SCENARIO_FEATURES: dict[str, Callable[[Scenario, Any], Scenario]] = {
     "sensor_speed": sensor_speed, "min_ground_range": min_ground_range, "town": town,
-    "snr_ref_db": snr_ref_db, "clutter_rate": clutter_rate}
+    "snr_ref_db": snr_ref_db, "clutter_rate": clutter_rate, "birth_rate": birth_rate}
+#: Scenario features that the methods' settings follow (the trackers' model of the scenario).
+METHODS_FOLLOW: dict[str, Callable[[RunSettings, Any], RunSettings]] = {
+    "birth_rate": tracker_birth_rate}
 #: Every feature a grid axis may name.
 FEATURES = (*SCENARIO_FEATURES, "setting")
 #: What a figure calls the axis of each scenario feature: its name, then what its values
@@ -117,6 +143,7 @@ AXIS_TITLES = {
     "town": "town: half width of a block (m)",
     "snr_ref_db": "snr_ref_db (dB)",
     "clutter_rate": "clutter_rate (per look)",
+    "birth_rate": "birth_rate (births per step)",
 }
 
 

@@ -41,7 +41,7 @@ from ..config import files as io
 from ..config.validation import Strict, choice, validate
 from ..errors import ConfigError
 from ..limits import MAX_CELL_NAME, MAX_GRID_CELLS
-from .features import FEATURES, SCENARIO_FEATURES, check_setting_key, setting
+from .features import FEATURES, METHODS_FOLLOW, SCENARIO_FEATURES, check_setting_key, setting
 from .file import StudyFile, study_from_dict
 from .metrics import references
 from .model import Method, Study
@@ -210,6 +210,9 @@ def _apply(base: Study, axes: tuple[Axis, ...], index: tuple[int, ...],
                 scenario = SCENARIO_FEATURES[axis.feature](scenario, value)
             except ValueError as exc:
                 raise ConfigError(field, f"{text}: {exc}") from None
+            follow = METHODS_FOLLOW.get(axis.feature)
+            if follow is not None:
+                methods = [Method(m.name, follow(m.settings, value)) for m in methods]
             continue
         assert axis.key is not None
         left_out = []

@@ -353,7 +353,10 @@ def read_parts(out: Path, tasks: list[tuple[int, int]]) -> dict[str, Any]:
     import pyarrow as pa
 
     sums = {(r, m): _read_sums(sums_path(out, r, m)) for r, m in tasks}
-    return {t: pa.concat_tables([_read_part(out, r, m, t, sums[(r, m)]) for r, m in tasks])
+    # Promoted: only a tracker with an undetected intensity adds its columns to ``gospa``;
+    # the other methods' rows get nulls there.
+    return {t: pa.concat_tables([_read_part(out, r, m, t, sums[(r, m)]) for r, m in tasks],
+                                promote_options="default")
             for t in TABLES}
 
 

@@ -44,8 +44,30 @@ TABLE_DOC = {
     "gospa": "one row per (run, method, step >= 1): run, method, step, gospa (m), "
              "localisation, missed, false (its three parts, m^2: they sum to gospa^2), "
              "targets (live targets), tracks (reported tracks), false_tracks (reported tracks "
-             "assigned to no target); cut-off c = 50 m, alpha = 2, p = 2",
+             "assigned to no target); cut-off c = 50 m, alpha = 2, p = 2; with a tracker "
+             "that keeps an intensity of undetected targets (pmb) also undetected (the "
+             "expected number of targets never detected after the step's update: the "
+             "intensity's sum) and intensity (that intensity on the tracker's grid, float32, "
+             "row-major from the map's corner at the origin, at the steps of "
+             "intensity_steps(S) only, else null)",
 }
+
+#: Steps of a run at which the study stores the whole undetected intensity grid
+#: (:func:`intensity_steps`): enough for the report's small multiples at little cost.
+INTENSITY_SNAPSHOTS = 5
+
+
+def intensity_steps(steps: int) -> list[int]:
+    """The steps (of ``1..steps``) at which a study stores the undetected intensity grid:
+    :data:`INTENSITY_SNAPSHOTS` equally spaced, the last one ``steps``.
+
+    Examples
+    --------
+    >>> intensity_steps(200), intensity_steps(3)
+    ([40, 80, 120, 160, 200], [1, 2, 3])
+    """
+    k = np.arange(1, INTENSITY_SNAPSHOTS + 1)
+    return sorted({max(1, int(round(steps * i / INTENSITY_SNAPSHOTS))) for i in k})
 
 
 @dataclass
@@ -163,6 +185,13 @@ def episode_tables(episode: Episode, run: int, method: str) -> dict[str, dict[st
         "tracks": np.asarray(sm.n_tracks, dtype=np.int32),
         "false_tracks": np.asarray(sm.false_tracks, dtype=np.int32),
     }
+    if episode.undetected is not None:
+        grid = np.asarray(episode.undetected, dtype=np.float32).reshape(S1, -1)
+        gospa["undetected"] = grid[1:].sum(axis=1, dtype=np.float64)
+        snaps = np.full(G, None, dtype=object)
+        for t in intensity_steps(G):
+            snaps[t - 1] = grid[t]
+        gospa["intensity"] = snaps
     return {"steps": steps, "decisions": decisions, "sensors": sensors, "tracks": tracks,
             "gospa": gospa}
 
@@ -174,7 +203,10 @@ def arrow_table(columns: Mapping[str, np.ndarray]) -> Any:
 
     arrays = {}
     for name, col in columns.items():
-        if col.dtype == object:
+        if name == "intensity":
+            arrays[name] = pa.array([None if v is None else np.asarray(v, np.float32)
+                                     for v in col], type=pa.list_(pa.float32()))
+        elif col.dtype == object:
             arrays[name] = pa.array(col.tolist(), type=pa.string())
         elif name in ("converged", "sweeps"):
             mask = np.isnan(col)
