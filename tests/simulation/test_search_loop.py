@@ -334,3 +334,22 @@ search_sectors = [6, 6]
 """)
     assert err.value.field == "methods[0].search_sectors"
     assert "one per sensor (3)" in err.value.message
+
+
+def test_a_gospa_run_plans_the_bound_with_the_runs_cut_off() -> None:
+    """Every decision of a run with the gospa reward is a gospa problem with the run's c,
+    and the recorded search term is that reward's (m^2), recomputed from its plan."""
+    cfg = searching(reward="gospa", gospa_c=35.0, steps=4)
+    ep, decisions = recorded_run(cfg.scenario, cfg.settings, cfg.seed)
+    assert decisions and ep.search_term is not None
+    for d, (problem, result) in enumerate(decisions):
+        assert (problem.reward, problem.gospa_c) == ("gospa", 35.0)
+        ev = search.evaluate(search.prepare(problem), result.plan)
+        assert ev.potential == result.potential
+        assert ep.search_term[d] == pytest.approx(ev.potential - ev.information.sum(),
+                                                  rel=1e-12)
+    # The same run with the information reward plans in nats: another Phi.
+    info = searching(steps=4)
+    _, other = recorded_run(info.scenario, info.settings, info.seed)
+    assert other[0][0].reward == "information"
+    assert other[0][1].potential != decisions[0][1].potential

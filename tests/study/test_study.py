@@ -682,6 +682,21 @@ def test_a_study_directory_written_before_gospa_c_is_the_same_study(tmp_path: Pa
         studies.run_study(other, tmp_path, workers=1)
 
 
+def test_a_study_directory_written_before_the_reward_is_the_same_study(
+        tmp_path: Path) -> None:
+    """The methods gained the planning reward: a directory whose methods lack it ran with
+    the information reward, reads back with it and resumes as the same study."""
+    study = parse_study("runs = 1\nsteps = 2\n[[methods]]\nname = \"r\"\nplanner = \"random\"\n")
+    assert studies.run_study(study, tmp_path, workers=1).ran == 1
+    config = tmp_path / "config.resolved.json"
+    old = json.loads(config.read_text())
+    assert old["methods"][0]["reward"] == "information"
+    del old["methods"][0]["reward"]
+    config.write_text(json.dumps(old))
+    assert studies.Study.from_resolved(old).methods[0].settings.reward == "information"
+    assert studies.run_study(study, tmp_path, workers=1).ran == 0
+
+
 def test_a_scenario_files_unused_planner_settings_are_still_checked(tmp_path) -> None:
     # Its [planning] table is not used (the methods name their planners), but a key its own
     # planner does not take was accepted without a word; a run of the file refuses it.

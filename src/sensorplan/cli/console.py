@@ -183,7 +183,8 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
                         if path.startswith("tracker.") and f.name not in unused)
     counts = s.search_sectors
     sectors = str(counts) if isinstance(counts, int) else "/".join(str(c) for c in counts)
-    searching = f"search on ({sectors} sectors), " if s.search == "on" else ""
+    reward = f"reward {s.reward} (c = {s.gospa_c:g} m), " if s.reward == "gospa" else ""
+    searching = f"search on ({sectors} sectors), {reward}" if s.search == "on" else ""
     console.print(tracker if scan is not None else
                   f"visibility {s.visibility}, objective {s.objective}, {searching}{tracker}",
                   highlight=False)
@@ -279,9 +280,11 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
     console.print(plans)
     if episode.search_term is not None:
         searched = np.asarray(episode.searched)[1:]            # (S, N)
+        # The gospa reward counts the GOSPA bound removed, in m^2.
+        unit = "m^2" if cfg.settings.reward == "gospa" else "nats"
         console.print(f"search: {int((searched >= 0).sum())} of {searched.size} sensor-steps "
                       f"looked at a search sector; Phi's search term w mu per decision: mean "
-                      f"{stat(np.asarray(episode.search_term), '.3f')} nats (mu, the "
+                      f"{stat(np.asarray(episode.search_term), '.3f')} {unit} (mu, the "
                       f"undetected targets a plan expects to find: mean "
                       f"{stat(np.asarray(episode.search_found), '.3f')})", highlight=False)
     for path in written:

@@ -109,6 +109,12 @@ class DecisionFile(Strict):
     buildings: list[BuildingModel] = []
     search: Literal[SEARCH_MODES] = "off"  # type: ignore[valid-type]
     undetected: DecisionUndetected | None = None
+    #: What Phi with search measures: ``information`` or ``gospa`` (the GOSPA bound removed,
+    #: cut-off ``gospa_c`` in m).
+    reward: setting_type(RunSettings, "reward") = (  # type: ignore[valid-type]
+        _problem_default("reward"))
+    gospa_c: setting_type(RunSettings, "gospa_c") = (  # type: ignore[valid-type]
+        _problem_default("gospa_c"))
     #: Epochs of the run before this decision: where a fixed schedule (raster) stands.
     elapsed_epochs: int = _problem_default("elapsed_epochs")
     planner: DecisionPlanner = DecisionPlanner()
@@ -235,7 +241,8 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
         buildings=np.array([b.row() for b in model.buildings], dtype=float),
         existence=np.array([t.existence for t in model.targets], dtype=float),
         search=model.search, search_sectors=tuple(s.search_sectors for s in model.sensors),
-        undetected=_undetected(model), elapsed_epochs=model.elapsed_epochs)
+        undetected=_undetected(model), elapsed_epochs=model.elapsed_epochs,
+        reward=model.reward, gospa_c=model.gospa_c)
     for i, s in enumerate(problem.sensors):
         check_sensor_precision(s, f"sensors[{i}]")
     check_decision_size(problem.horizon, problem.steps_per_epoch, problem.n_targets,

@@ -184,8 +184,8 @@ def search_contract_problems() -> tuple[ContractProblem, ...]:
     plan search looks; every other planner must refuse them): four tiny ones, with one to
     four sectors per sensor, the third with no track worth looking at (every existence 0:
     only search pays) and the fourth with its targets weighted by random probabilities of
-    existence, and one paper-size decision (K = 2, 6 sectors, a 12 x 12 grid). Built once
-    per process."""
+    existence, and one paper-size decision (K = 2, 6 sectors, a 12 x 12 grid); then two tiny
+    ones with the GOSPA-bound reward, one per objective. Built once per process."""
     out = []
     rng = np.random.default_rng(13)
     j = 0
@@ -205,6 +205,21 @@ def search_contract_problems() -> tuple[ContractProblem, ...]:
         j += 1
     paper = searching(paper_problem(rng, horizon=2, objective="cumulative"), rng, 6, cells=12)
     out.append(ContractProblem("paper (probabilistic, cumulative, search)", paper, False))
+    # The GOSPA-bound reward: one tiny problem per objective, two epochs or more, weighted
+    # tracks and a cut-off that clips some tracks' bound (their own generator: the cases
+    # above stay as they are).
+    rng = np.random.default_rng(17)
+    for objective in OBJECTIVES:
+        while True:
+            base = weighted(tiny_problem(rng, 200, objective=objective), rng)
+            sectors = tuple(int(s) for s in rng.integers(1, 3, base.n_sensors))
+            problem = dataclasses.replace(searching(base, rng, sectors), reward="gospa",
+                                          gospa_c=float(rng.uniform(5.0, 60.0)))
+            if (problem.horizon >= 2 and problem.n_targets >= 2
+                    and joint_plan_count(problem) <= TINY_SEARCH_PLANS):
+                break
+        out.append(ContractProblem(f"tiny ({problem.visibility}, {objective}, search, "
+                                   f"gospa)", problem, True))
     return tuple(out)
 
 

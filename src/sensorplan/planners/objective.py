@@ -25,3 +25,6 @@ PLANNING_OCCLUSIONS = ("ignore", "aware")
 #: ``off``: looks point at tracks only; ``on``: a look may also point at a search sector, and
 #: Phi adds the value of the undetected targets the plan is expected to find.
 SEARCH_MODES = ("off", "on")
+#: ``information``: Phi is the tracks' information plus the value of the targets found;
+#: ``gospa``: Phi is the reduction of the expected GOSPA bound the plan buys (needs search on).
+REWARDS = ("information", "gospa")

@@ -21,7 +21,7 @@ from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..limits import MAX_BUILDINGS, RANGES, check_count
 from ..models.sensors import SensorParams
-from .objective import (OBJECTIVES, PLANNING_DETECTIONS, SEARCH_MODES,  # noqa: F401
+from .objective import (OBJECTIVES, PLANNING_DETECTIONS, REWARDS, SEARCH_MODES,  # noqa: F401
                         VISIBILITY_MODES, Objective, Visibility)
 
 #: The 8 lattice directions in move order.
@@ -325,6 +325,12 @@ class PlanningProblem:
         its own). Phi does not depend on it; a planner that follows a fixed schedule
         (``raster``) reads its phase from it, so that the schedule goes on from one
         decision to the next instead of starting again.
+    reward : {"information", "gospa"}
+        What Phi measures with search on. ``information`` (default): the tracks' information
+        plus ``w mu``. ``gospa``: how much the plan lowers the expected GOSPA bound, in m^2
+        (:mod:`sensorplan.planners.gospa_bound`); needs ``search="on"``.
+    gospa_c : float
+        GOSPA's cut-off c (m, > 0; default 50) of the ``gospa`` reward.
     """
 
     means: FloatArray
@@ -346,6 +352,8 @@ class PlanningProblem:
     search_sectors: int | tuple[int, ...] = 0
     undetected: UndetectedIntensity | None = None
     elapsed_epochs: int = 0
+    reward: str = "information"
+    gospa_c: float = 50.0
 
     def __post_init__(self) -> None:
         # Read-only copies: planners cannot mutate the caller's arrays (or each other's).
@@ -431,6 +439,7 @@ class PlanningProblem:
         if isinstance(e, bool) or not isinstance(e, (int, np.integer)) or e < 0:
             raise ConfigError("elapsed_epochs", f"must be an integer >= 0, got {e!r}")
         self._validate_search(N)
+        self._validate_reward()
         if not _covariances_ok(self.covs):           # one batched check; locate on failure
             for j in range(M):
                 check_covariance(self.covs[j], f"targets[{j}].cov")
@@ -473,6 +482,26 @@ class PlanningProblem:
                 raise ConfigError(fields[0], "search is on but no sensor has a search "
                                   "sector; give at least one sensor search_sectors >= 1, or "
                                   "set search to 'off'")
+
+    def _validate_reward(self) -> None:
+        if self.reward not in REWARDS:
+            raise ConfigError("reward", f"must be one of {REWARDS}, got {self.reward!r}")
+        c = self.gospa_c
+        if (isinstance(c, bool) or not isinstance(c, numbers.Real) or not math.isfinite(c)
+                or c <= 0):
+            raise ConfigError("gospa_c", f"must be a finite number > 0, got {c!r}")
+        if self.reward != "gospa":
+            return
+        if self.search != "on":
+            # The bound's missed-target part is what search lowers; without it a track
+            # reward needs the information objective's engine.
+            raise ConfigError("reward", "'gospa' needs search = 'on' (with search off use "
+                              "reward 'information')")
+        assert self.undetected is not None
+        if self.undetected.weight is not None:
+            raise ConfigError("undetected.weight", "is the information reward's nats per "
+                              "found target; leave it out with reward 'gospa' (the bound "
+                              "derives a found target's value)")
 
     @property
     def sector_counts(self) -> tuple[int, ...]:

@@ -32,10 +32,11 @@ This module is plain numpy: :func:`potential` is the reference definition,
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from dataclasses import dataclass, field
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -48,6 +49,9 @@ from .information import (Context, chain_information, covariance_recursion, meas
                           phi_terms, sum_by_target, target_information)
 from .information import prepare as prepare_tracks
 from .problem import POSITION_TOL, Plan, PlanningProblem, move_vectors
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .gospa_bound import GospaContext
 
 #: Headings closer than this (rad) are the same heading (sector deduplication).
 HEADING_TOL = 1e-12
@@ -70,6 +74,8 @@ class SearchContext:
     weight : float           w, nats per newly found target
     memo : dict              what :func:`candidate_potentials` keeps between its calls for
                              this decision (by a look's pose, a plan, a candidate set)
+    gospa : GospaContext or None   with ``reward = "gospa"``: Phi is the GOSPA-bound reward
+                             (:mod:`sensorplan.planners.gospa_bound`)
     """
 
     ctx: Context
@@ -80,6 +86,7 @@ class SearchContext:
     survival: float
     weight: float
     memo: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
+    gospa: GospaContext | None = None
 
 
 def first_detection_weight(ctx: Context, cell_cov: FloatArray) -> float:
@@ -111,9 +118,14 @@ def prepare(problem: PlanningProblem) -> SearchContext:
     ctx = prepare_tracks(problem, search=True)
     u = problem.undetected
     weight = first_detection_weight(ctx, u.cell_cov) if u.weight is None else float(u.weight)
-    return SearchContext(ctx, [sector_bearings(S) for S in problem.sector_counts],
+    sctx = SearchContext(ctx, [sector_bearings(S) for S in problem.sector_counts],
                          np.array(u.centres, dtype=float), np.array(u.weights, dtype=float),
                          np.array(u.births, dtype=float), float(u.survival), weight)
+    if problem.reward == "gospa":
+        from . import gospa_bound
+
+        sctx = dataclasses.replace(sctx, gospa=gospa_bound.prepare(sctx))
+    return sctx
 
 
 def look_bearing(sctx: SearchContext, i: int, k: int, position: FloatArray, target: int,
@@ -219,6 +231,12 @@ class SearchEvaluation:
 
 def evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
     """Phi of ``plan`` with search: the reference definition (plain numpy, one plan)."""
+    if sctx.gospa is not None:
+        from . import gospa_bound
+
+        headings = plan_headings(sctx, plan)
+        phi, info, mu, weight, counts = gospa_bound.evaluate(sctx, plan, headings)
+        return SearchEvaluation(phi, info, mu, weight, headings, counts)
     ctx = sctx.ctx
     headings = plan_headings(sctx, plan)
     info, counts = track_information(sctx, plan, headings)
@@ -332,6 +350,11 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
     -------
     (A,) nats
     """
+    if sctx.gospa is not None:
+        from . import gospa_bound
+
+        return gospa_bound.candidate_potentials(sctx, plan, i, k, positions, targets, sectors,
+                                                _plan_headings(sctx, plan))
     assert plan.sectors is not None
     # The utilities depend on the others' actions and the candidates, not on the player's
     # own action: a JSFP iteration in which no other player moved asks again for the same.

@@ -354,7 +354,8 @@ class _Schedule:
         undetected = UndetectedIntensity(report.centres, report.weights, report.births,
                                          report.survival, report.cell_cov)
         return {"search": "on", "search_sectors": self.settings.search_sectors,
-                "undetected": undetected}
+                "undetected": undetected, "reward": self.settings.reward,
+                "gospa_c": self.settings.gospa_c}
 
 
 def tracks_index(tracks: TrackSet, labels: IntArray) -> IntArray:

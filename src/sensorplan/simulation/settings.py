@@ -38,7 +38,7 @@ from ..errors import ConfigError
 from ..limits import (MAX_PLAN_STEPS, MAX_SEARCH_SECTORS, MAX_STEPS, RANGES, SIZE_SETTINGS,
                       Param, Range, coerce)
 from ..planners.objective import (OBJECTIVES, PLANNING_DETECTIONS,
-                                  PLANNING_OCCLUSIONS, SEARCH_MODES, VISIBILITY_MODES)
+                                  PLANNING_OCCLUSIONS, REWARDS, SEARCH_MODES, VISIBILITY_MODES)
 from ..tracking.registry import tracker_kinds
 
 EXECUTIONS = ("ol", "olf")
@@ -489,6 +489,10 @@ class RunSettings(_Settings):
     search_sectors : int or tuple of int
                                    search sectors of every sensor, or one per sensor (> 0
                                    with search on)
+    reward : {"information", "gospa"}
+                                   what planning with search on maximises: information
+                                   plus the value of targets found, or the reduction of
+                                   the expected GOSPA bound (cut-off ``gospa_c``)
     steps : int                    simulation steps S (>= 1)
     gospa_c : float                GOSPA cut-off c (m, > 0) of the run's set metrics
     tracker : TrackerSettings      (a mapping is accepted and converted)
@@ -573,6 +577,15 @@ class RunSettings(_Settings):
              "list with one per sensor; S sectors are S absolute bearings equally spaced "
              "around the platform (each > 0 with search on; the search preset sets 6, "
              "which its radar's 60-degree beam tiles the circle with).")
+    reward: str = setting(
+        "information", section="planning", cli=("--reward",), metavar="NAME",
+        brief="With --search on, plan for information (default) or for the GOSPA bound "
+              "(gospa)",
+        choices=REWARDS, noun="reward",
+        help="What planning with search on maximises: information (the tracks' information "
+             "plus the value of the targets found; the default) or gospa (how much the "
+             "plan lowers the expected GOSPA bound with cut-off --gospa-c: c^2/2 per "
+             "missed target, min(tr P, c^2) per tracked one; needs --search on).")
     steps: int = setting(
         100, section="run", cli=("--steps", "-n"), metavar="N", bounds=Range(1, MAX_STEPS),
         brief="Simulation steps of the run",
@@ -601,8 +614,12 @@ class RunSettings(_Settings):
             self.planner, self.planner_params, "planner_params", keep_none=True))
 
     def _check_search(self) -> None:
-        """Search on needs a tracker that keeps an undetected intensity, and sectors."""
+        """Search on needs a tracker that keeps an undetected intensity, and sectors; the
+        gospa reward needs search on."""
         if self.search != "on":
+            if self.reward == "gospa":
+                raise ConfigError("reward", "'gospa' needs search = 'on' (with search off "
+                                  "use reward 'information')")
             return
         if self.tracker.kind != "pmb":
             raise ConfigError("search", f"needs a tracker that keeps the intensity of "

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError
+from ..simulation.settings import RunSettings, default_of
 from .model import FORMAT, READABLE_FORMATS, Study
 from .set_metrics import GOSPA_CUTOFF
 from .tables import TABLES, TaskResult, arrow_table
@@ -30,6 +31,8 @@ from .tables import TABLES, TaskResult, arrow_table
 RESULT_KEYS = ("format", "runs", "steps", "gospa_c", "seed", "scenario", "methods")
 #: Their values in a study directory written before the key existed.
 RESULT_DEFAULTS = {"gospa_c": GOSPA_CUTOFF}
+#: Method settings added since, with the value every method written before them ran with.
+METHOD_DEFAULTS = {"reward": default_of(RunSettings.__dataclass_fields__["reward"])}
 
 
 def differences(old: Any, new: Any, path: str = "") -> list[str]:
@@ -269,6 +272,9 @@ def prepare(out: Path, study: Study) -> int | None:
     if config.exists():
         old = _read_resolved(config, "--out", "use another --out or delete it")
         before = {k: old.get(k, RESULT_DEFAULTS.get(k)) for k in RESULT_KEYS}
+        if isinstance(before["methods"], list):
+            before["methods"] = [{**METHOD_DEFAULTS, **m} if isinstance(m, dict) else m
+                                 for m in before["methods"]]
         after: dict[str, Any] = {k: resolved.get(k) for k in RESULT_KEYS}
         grown = (isinstance(before["runs"], int) and not isinstance(before["runs"], bool)
                  and after["runs"] > before["runs"])

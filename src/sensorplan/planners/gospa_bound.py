@@ -1,0 +1,345 @@
+r"""The GOSPA-bound reward: Phi with search as the expected GOSPA bound a plan removes.
+
+With ``reward = "gospa"`` (search on), Phi is how much a plan lowers the expected GOSPA
+bound (alpha = 2, p = 2, cut-off c) of the tracks and of the undetected targets, in m^2:
+
+.. math::
+    \Phi_G(a) = \sum_j r_j\, \big[B_j - G_j(a)\big] + g \sum_{s=1}^{T} \omega_s\, f_s(a),
+
+- ``G_j(a) = min(tr P_j(T | Z_j(a)), c^2)`` (``terminal``) or the same summed over the steps
+  t = 1..T (``cumulative``), ``P_j(t | Z_j(a))`` the position block of track j's covariance
+  after the plan's looks up to t (the covariance-only recursion of the information
+  objective) and ``B_j`` the same without any look; ``r_j`` the track's probability of
+  existence;
+- ``f_s(a)`` the expected number of undetected targets the plan's looks find at step s (the
+  terms of the information reward's mu, :func:`sensorplan.planners.search.expected_found`,
+  so ``sum_s f_s = mu``);
+- ``omega_s = p_S^(T-s)`` (``terminal``) or ``sum_{t=s..T} p_S^(t-s)`` (``cumulative``):
+  a target found at step s is still alive at step t with probability ``p_S^(t-s)``;
+- ``g = max(0, c^2/2 - min(tr C_f, c^2))``: a found target's bound drops from the missed
+  cost c^2/2 to its localisation cost, ``C_f`` the position covariance of a target known
+  only to lie in its cell after one detection (the detection of
+  :func:`~sensorplan.planners.search.first_detection_weight`).
+
+Why this form: a reported track j costs ``r_j min(tr P_j, c^2) + (1 - r_j) c^2/2`` (a false
+track when it does not exist) and an undetected target c^2/2 while alive; looks change
+neither ``r_j`` nor how many targets live, so the ``(1 - r_j)`` part and every target never
+found cancel in the difference. Unmeasured tracks contribute exactly 0 and measured ones at
+least 0 (a look never widens the covariance), so ``Phi_G >= 0``. Phi_G is a closed form of
+the joint plan, so each player's utility is its marginal contribution and the game stays an
+exact potential game. docs/planning.md derives it.
+
+:func:`evaluate` is the reference definition (plain loops over targets, steps and looks);
+:func:`candidate_potentials` the batched one the planners use (tested equal). The planners
+reach both through :func:`sensorplan.planners.search.evaluate` and
+:func:`~sensorplan.planners.search.candidate_potentials`, which hand over the plan's
+headings; this module does not import the search module (it is imported by it).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from .._types import BoolArray, FloatArray, IntArray
+from ..models import radar
+from ..models.angles import heading_rule
+from ..models.motion import predict_covariance
+from .information import (Context, chain_information, epoch_information,
+                          information_update, sum_by_target)
+from .problem import Plan
+
+
+class SearchParts(Protocol):
+    """What this module reads of a :class:`~sensorplan.planners.search.SearchContext`."""
+
+    @property
+    def ctx(self) -> Context: ...
+    @property
+    def bearings(self) -> list[FloatArray]: ...
+    @property
+    def centres(self) -> FloatArray: ...
+    @property
+    def d0(self) -> FloatArray: ...
+    @property
+    def births(self) -> FloatArray: ...
+    @property
+    def survival(self) -> float: ...
+    @property
+    def gospa(self) -> GospaContext | None: ...
+
+
+@dataclass(frozen=True)
+class GospaContext:
+    """Per-decision precomputation of the GOSPA-bound reward.
+
+    Attributes
+    ----------
+    c2 : float               c^2 (m^2)
+    found_value : float      g, m^2 of bound a found target removes (>= 0)
+    step_weights : (T,)      omega_s: how much of a step-s find counts in the bound
+    baseline : (M, T)        ``min(tr Pbar_j(t), c^2)`` for t = 1..T, without any look
+    cumulative : bool        the objective
+    """
+
+    c2: float
+    found_value: float
+    step_weights: FloatArray
+    baseline: FloatArray
+    cumulative: bool
+
+
+def found_covariance(sctx: SearchParts) -> FloatArray:
+    """``C_f (2, 2)``: a target known only to lie in a cell, after one detection by sensor
+    0 on its boresight at the middle of its ground-range band (the detection that fixes
+    the information reward's w, without the detection probability: it happened)."""
+    ctx = sctx.ctx
+    cell = np.asarray(ctx.problem.undetected.cell_cov if ctx.problem.undetected is not None
+                      else np.eye(2), dtype=float)
+    s = ctx.problem.sensors[0]
+    mid = 0.5 * (float(s.min_ground_range) + float(s.max_ground_range))
+    C = np.array([cell[0, 0], cell[0, 1], cell[1, 1]])
+    W, p = radar.look_information(ctx.radar[0], np.array([mid]), np.array([0.0]),
+                                  np.array([0.0]), C[None], True, ctx.buildings,
+                                  np.zeros((1, 2)))
+    if not p[0] > 0:
+        return cell
+    # (C^-1 + W)^-1 = (I + C W)^-1 C, without inverting C.
+    return np.asarray(np.linalg.solve(np.eye(2) + cell @ (W[0] / p[0]), cell))
+
+
+def step_weights(survival: float, T: int, cumulative: bool) -> FloatArray:
+    """``omega (T,)``: the weight of a target found at step s = 1..T in the bound."""
+    powers = float(survival) ** np.arange(T, dtype=float)          # p_S^m, m = 0..T-1
+    # Step s's weight reads m = T - s: the last power, or the sum of the first T - s + 1
+    # (a running sum, not the geometric closed form, which cancels near p_S = 1).
+    table = np.cumsum(powers) if cumulative else powers
+    return np.asarray(table[::-1], dtype=float)
+
+
+def prepare(sctx: SearchParts) -> GospaContext:
+    """The reward's precomputation for a searching decision whose ``reward`` is gospa."""
+    ctx = sctx.ctx
+    c2 = float(ctx.problem.gospa_c) ** 2
+    Cf = found_covariance(sctx)
+    g = max(0.0, 0.5 * c2 - min(float(np.trace(Cf)), c2))
+    cumulative = ctx.problem.objective == "cumulative"
+    Pbar = ctx.Pbar[:, 1:]
+    baseline = np.minimum(Pbar[..., 0, 0] + Pbar[..., 1, 1], c2)
+    return GospaContext(c2, g, step_weights(sctx.survival, ctx.T, cumulative), baseline,
+                        cumulative)
+
+
+def _bound_terms(gctx: GospaContext, traces: FloatArray, measured: BoolArray,
+                 existence: FloatArray) -> FloatArray:
+    """Per-track terms ``r_j (B_j - G_j)`` from the position traces ``(..., M, T)`` after
+    the looks: exactly 0 unmeasured, at least 0 measured (below 0 is round-off)."""
+    drop = gctx.baseline - np.minimum(traces, gctx.c2)
+    term = drop.sum(axis=-1) if gctx.cumulative else drop[..., -1]
+    return existence * np.where(measured, np.maximum(term, 0.0), 0.0)
+
+
+def detection(sctx: SearchParts, i: int, positions: FloatArray, headings: FloatArray
+              ) -> FloatArray:
+    """``P_d v (B, C)`` at every cell centre for looks of sensor i from poses ``positions
+    (B, 2)``, ``headings (B,)`` (the radar's one implementation, as search thins with)."""
+    positions = np.asarray(positions, dtype=float).reshape(-1, 2)
+    d = sctx.centres[None, :, :] - positions[:, None, :]
+    B = len(positions)
+    return radar.detectable_points(sctx.ctx.radar, np.full(B, i, dtype=np.int64), d[..., 0],
+                                   d[..., 1], np.asarray(headings, dtype=float).reshape(B),
+                                   positions, sctx.ctx.buildings)
+
+
+def evaluate(sctx: SearchParts, plan: Plan, headings: FloatArray
+             ) -> tuple[float, FloatArray, float, float, IntArray]:
+    """Phi_G of ``plan`` whose look headings are ``headings (N, K)``: the reference
+    definition (plain loops, one plan).
+
+    Returns
+    -------
+    potential : float           m^2
+    information : (M,)          the tracks' terms ``r_j (B_j - G_j)`` (m^2)
+    found : float               mu
+    weight : float              the bound removed per target found: ``potential =
+                                information.sum() + weight * found`` (g when mu = 0)
+    measurements : (N, K) int   a track look's looks that count, a search look's steps when
+                                it covers a cell
+    """
+    ctx = sctx.ctx
+    gctx = sctx.gospa
+    assert gctx is not None and plan.sectors is not None
+    N, K, M, T, e = ctx.N, ctx.K, ctx.M, ctx.T, ctx.e
+    counts = np.zeros((N, K), dtype=np.int64)
+    W = np.zeros((M, T, 2, 2))
+    miss = np.ones((K, len(sctx.centres)))
+    for i in range(N):
+        for k in range(1, K + 1):
+            if not plan.assigned[i, k - 1]:
+                continue
+            pos, th = plan.positions[i, k - 1], headings[i, k - 1]
+            j = int(plan.targets[i, k - 1])
+            if j >= 0:
+                w, counted = epoch_information(ctx, i, k, pos[None], np.array([th]),
+                                               np.array([j]))
+                for s in range(e):
+                    W[j, (k - 1) * e + s] += w[0, s]
+                counts[i, k - 1] = int(counted[0].sum())
+            p = detection(sctx, i, pos[None], np.array([th]))[0]
+            miss[k - 1] *= 1.0 - p
+            if j < 0 and (p > 0).any():
+                counts[i, k - 1] = e          # a search look counts at each step it covers
+    traces = np.zeros((M, T))
+    for j in range(M):
+        P = np.asarray(ctx.problem.covs[j], dtype=float)
+        Q = ctx.Q_rows(j)[0]
+        for t in range(T):
+            P = ctx.F @ P @ ctx.F.T + Q
+            if np.any(W[j, t] != 0.0):
+                # Information form of the update: P - P G^T (I + W C)^-1 W G P.
+                C = P[:2, :2]
+                S = np.linalg.solve(np.eye(2) + W[j, t] @ C, W[j, t])
+                P = P - P[:, :2] @ S @ P[:2, :]
+                P = 0.5 * (P + P.T)
+            traces[j, t] = P[0, 0] + P[1, 1]
+    measured = np.array([bool(np.any(W[j] != 0.0)) for j in range(M)], dtype=bool)
+    info = _bound_terms(gctx, traces, measured, ctx.existence)
+    # Undetected targets found at each step, and how long each find counts.
+    D = np.array(sctx.d0, dtype=float)
+    f = np.zeros(T)
+    for t in range(T):
+        m = miss[t // e]
+        D = sctx.survival * D + sctx.births
+        f[t] = float(np.sum(D * (1.0 - m)))
+        D = D * m
+    kept = 0.0
+    for t in range(T):                    # bound removed at step t by the targets found so far
+        alive = sum(f[s] * sctx.survival ** (t - s) for s in range(t + 1))
+        if gctx.cumulative or t == T - 1:
+            kept += alive
+    mu = float(f.sum())
+    term = gctx.found_value * kept
+    weight = term / mu if mu > 0 else gctx.found_value
+    return float(info.sum()) + term, info, mu, weight, counts
+
+
+def candidate_potentials(sctx: SearchParts, plan: Plan, i: int, k: int,
+                         positions: FloatArray, targets: IntArray, sectors: IntArray,
+                         headings: FloatArray) -> FloatArray:
+    """Phi_G for each candidate action of player (i, k), the others fixed: one batch over
+    candidates (the tracks' covariance recursion over candidates x tracks, the finds over
+    candidates x cells). ``headings (N, K)`` are the plan's; the candidate's heading chains
+    through sensor i's later epochs.
+
+    Returns
+    -------
+    (A,) m^2
+    """
+    ctx = sctx.ctx
+    gctx = sctx.gospa
+    assert gctx is not None and plan.sectors is not None
+    A, K, L, M, T, e = len(targets), ctx.K, ctx.K - k + 1, ctx.M, ctx.T, ctx.e
+    pos = np.repeat(plan.positions[i, k - 1:][None], A, axis=0)
+    tgt = np.repeat(plan.targets[i, k - 1:][None], A, axis=0)
+    sec = np.repeat(plan.sectors[i, k - 1:][None], A, axis=0)
+    pos[:, 0], tgt[:, 0], sec[:, 0] = positions, targets, sectors
+    assigned = (tgt >= 0) | (sec >= 0)
+    th = _chain_headings(sctx, plan, i, k, headings, pos, tgt, sec, assigned)
+    value = np.zeros(A)
+    if M:
+        value += _candidate_tracks(sctx, gctx, plan, i, k, headings, pos, tgt, th)
+    # Finds: every other look's miss probability, times each candidate's chain.
+    miss = np.ones((K, len(sctx.centres)))
+    for n in range(ctx.N):
+        ks = np.flatnonzero(plan.assigned[n])
+        if n == i:
+            ks = ks[ks < k - 1]
+        if ks.size:
+            miss[ks] *= 1.0 - detection(sctx, n, plan.positions[n, ks], headings[n, ks])
+    miss_c = np.broadcast_to(miss, (A,) + miss.shape).copy()
+    for l in range(L):
+        if assigned[0, l] or l == 0:
+            miss_c[:, k - 1 + l] *= 1.0 - detection(sctx, i, pos[:, l], th[:, l])
+    D = np.broadcast_to(sctx.d0, (A,) + sctx.d0.shape).copy()
+    f = np.zeros((A, T))
+    for t in range(T):
+        m = miss_c[:, t // e]
+        D = sctx.survival * D + sctx.births
+        f[:, t] = (D * (1.0 - m)).sum(axis=-1)
+        D = D * m
+    return value + gctx.found_value * (f @ gctx.step_weights)
+
+
+def _chain_headings(sctx: SearchParts, plan: Plan, i: int, k: int, headings: FloatArray,
+                    pos: FloatArray, tgt: IntArray, sec: IntArray, assigned: BoolArray
+                    ) -> FloatArray:
+    """Headings ``(A, L)`` of sensor i's epochs k..K for each candidate (NaN where a later
+    epoch is unassigned): the heading rule from epoch k-1's heading, as in the plan's."""
+    ctx = sctx.ctx
+    A, L = tgt.shape
+    th = np.full((A, L), np.nan)
+    theta0, turn = float(ctx.problem.headings[i]), float(ctx.max_turn[i])
+    prev_ok = k == 1 or bool(plan.assigned[i, k - 2])
+    h = np.full(A, theta0 if k == 1 or not prev_ok else float(headings[i, k - 2]))
+    for l in range(L):
+        kk = k + l
+        if not assigned[0, l] and l > 0:       # the same for every candidate
+            prev_ok = False
+            continue
+        if ctx.M:
+            aim = ctx.aim[np.maximum(tgt[:, l], 0), kk - 1]
+            toward = np.arctan2(aim[:, 1] - pos[:, l, 1], aim[:, 0] - pos[:, l, 0])
+        else:
+            toward = np.zeros(A)
+        b = np.where(sec[:, l] >= 0, sctx.bearings[i][np.maximum(sec[:, l], 0)]
+                     if sctx.bearings[i].size else 0.0, toward)
+        h = heading_rule(h, b, turn) if prev_ok else heading_rule(theta0, b, kk * turn)
+        th[:, l] = h
+        prev_ok = True
+    return th
+
+
+def _candidate_tracks(sctx: SearchParts, gctx: GospaContext, plan: Plan, i: int, k: int,
+                      headings: FloatArray, pos: FloatArray, tgt: IntArray, th: FloatArray
+                      ) -> FloatArray:
+    """The tracks' part of Phi_G ``(A,)``: every other track look plus each candidate's
+    chain over epochs k..K, one covariance recursion over candidates x tracks."""
+    ctx = sctx.ctx
+    A, L = tgt.shape
+    M, T, e = ctx.M, ctx.T, ctx.e
+    track = tgt >= 0
+    others = plan.targets.copy()
+    others[i, k - 1:] = -1
+    W_plan = np.zeros((ctx.N, ctx.K, e, 2, 2))
+    for n in range(ctx.N):
+        ks = np.flatnonzero(others[n] >= 0)
+        if ks.size:
+            w, _ = chain_information(ctx, n, 1, np.nan_to_num(plan.positions[n])[None],
+                                     np.nan_to_num(headings[n])[None],
+                                     np.maximum(plan.targets[n], 0)[None])
+            W_plan[n, ks] = w[0, ks]
+    base = sum_by_target(ctx, W_plan, others)                        # (M, T, 2, 2)
+    w, _ = chain_information(ctx, i, k, np.where(track[..., None], pos, 0.0),
+                             np.where(track, th, 0.0), np.maximum(tgt, 0))
+    Wt = np.broadcast_to(base, (A,) + base.shape).copy()             # (A, M, T, 2, 2)
+    for l in range(L):
+        rows = np.flatnonzero(track[:, l])          # one row per candidate: no repeats
+        for s in range(e):
+            Wt[rows, tgt[rows, l], (k - 1 + l) * e + s] += w[rows, l, s]
+    flat = Wt.reshape(A * M, T, 2, 2)
+    P = np.broadcast_to(np.asarray(ctx.problem.covs), (A, M, 4, 4)).reshape(A * M, 4, 4)
+    Q = ctx.Q if ctx.Q.shape[0] == 1 else np.broadcast_to(ctx.Q, (A, M, 4, 4)).reshape(
+        A * M, 4, 4)
+    traces = np.empty((A * M, T))
+    for t in range(T):
+        P = predict_covariance(P, ctx.F, Q)
+        P, _ = information_update(P, flat[:, t])
+        traces[:, t] = P[:, 0, 0] + P[:, 1, 1]
+    measured = np.any(flat != 0.0, axis=(-3, -2, -1)).reshape(A, M)
+    return _bound_terms(gctx, traces.reshape(A, M, T), measured, ctx.existence).sum(axis=-1)
+
+
+__all__ = ["GospaContext", "SearchParts", "candidate_potentials", "detection", "evaluate",
+           "found_covariance", "prepare", "step_weights"]
