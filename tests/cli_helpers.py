@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from collections.abc import Callable
 from typing import Any
 
@@ -58,3 +59,13 @@ def set_path(path: str, value: Any) -> Callable[[dict[str, Any]], None]:
             d = d[k]
         d[keys[-1]] = value
     return mutate
+
+
+#: A plain progress line of the command line (``simulate: 2/4 steps done, 6 s elapsed``).
+PROGRESS_LINE = re.compile(r"^[\w -]+: \d+/\d+( \w+)? done")
+
+
+def said(stderr: str) -> list[str]:
+    """The lines of ``stderr`` other than progress lines: a run slowed by a loaded host
+    prints its progress (stderr is a pipe), which says nothing about how it ended."""
+    return [line for line in stderr.splitlines() if not PROGRESS_LINE.match(line)]

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from cli_helpers import SPEC7, assert_bad_input, run
+from cli_helpers import SPEC7, assert_bad_input, run, said
 from sensorplan import limits
 from sensorplan.figures.caps import cap_position_covariances
 from sensorplan.errors import error_line
@@ -708,7 +708,7 @@ def test_ctrl_c_while_starting_prints_no_traceback(tmp_path, delay) -> None:
     # our handler when the Ctrl-C landed in code an extension module ran through
     # PyRun_String (it then flags the interrupt as unhandled).
     assert res.returncode in (130, -signal.SIGINT), res.stderr
-    assert res.stderr.splitlines() == ["error: interrupted"], res.stderr
+    assert said(res.stderr) == ["error: interrupted"], res.stderr
 
 
 @pytest.mark.parametrize("delay", [0.0, 0.3])
@@ -718,7 +718,8 @@ def test_a_command_started_with_ctrl_c_ignored_keeps_ignoring_it(tmp_path, delay
     # that; and a Ctrl-C before it did was lost while one after it stopped the run.
     res = _interrupt_after(["simulate", "--preset", "paper", "--steps", "60", "--out",
                             str(tmp_path / "o")], delay, tmp_path, ignored=True)
-    assert (res.returncode, res.stderr) == (0, ""), res.stderr
+    # A loaded host may show the run's progress; nothing else is said.
+    assert (res.returncode, said(res.stderr)) == (0, []), res.stderr
     assert (tmp_path / "o" / "episode.npz").is_file()
 
 
