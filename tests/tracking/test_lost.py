@@ -283,6 +283,18 @@ def test_a_mode_that_never_triggers_changes_nothing():
         assert not a.lost.any()
 
 
+def test_the_mode_records_what_the_missed_looks_did_as_the_mode_off_does():
+    """The update's record (negative updates, inflations) is the mode-off record while no
+    track is lost: a look that covers nearly all of a track inflates it in both."""
+    a, b = _tracker(True, 1e-300), _tracker(False)
+    for t in (a, b):
+        t.predict()
+    ra, rb = a.update(_miss_look(a, math.pi / 2)), b.update(_miss_look(b, math.pi / 2))
+    assert rb.inflated[0]
+    np.testing.assert_array_equal(ra.negative, rb.negative)
+    np.testing.assert_array_equal(ra.inflated, rb.inflated)
+
+
 def test_the_mode_refuses_imperfect_detection():
     table = radar_table((SensorParams(clutter_rate=1.0),))
     with pytest.raises(ValueError, match="ideal detection"):

@@ -234,7 +234,7 @@ class KnownTargetTracker(ModeMixture):
         gated_out = np.zeros(L, dtype=bool)
         empty = np.flatnonzero(counts == 0)
         if self.lost_grid is not None:
-            negative = self._lost_misses(empty, sensors, aims, pos, head)
+            negative, inflated = self._lost_misses(empty, sensors, aims, pos, head)
         elif self.miss_update is not None and empty.size:
             negative, inflated = self.miss(sensors[empty], aims[empty], pos[empty],
                                            head[empty], kernel=self.miss_update)
@@ -440,21 +440,22 @@ class KnownTargetTracker(ModeMixture):
         self._set_lost_tracks(rows)
 
     def _lost_misses(self, empty: IntArray, sensors: IntArray, aims: IntArray,
-                     pos: FloatArray, head: FloatArray) -> BoolArray:
+                     pos: FloatArray, head: FloatArray) -> tuple[BoolArray, BoolArray]:
         """The missed looks ``empty`` with the lost-target mode: the Gaussian tracks' (with
         the run's probability kept and every look logged), then the lost tracks' grids;
-        then the tracks whose run of misses became too improbable are lost."""
+        then the tracks whose run of misses became too improbable are lost. Returns the
+        tracks that got a negative update and those the Gaussian update inflated."""
         from .lost import detect_probability, miss, replay
 
         assert self.lost_grid is not None
         M = len(self.means)
-        negative = np.zeros(M, dtype=bool)
+        negative, inflated = np.zeros(M, dtype=bool), np.zeros(M, dtype=bool)
         if self.miss_update is None or empty.size == 0:
-            return negative
+            return negative, inflated
         gaussian = empty[~self.lost[aims[empty]]]
         if gaussian.size:
             f = np.zeros(gaussian.size)
-            negative, _ = self.miss(sensors[gaussian], aims[gaussian], pos[gaussian],
+            negative, inflated = self.miss(sensors[gaussian], aims[gaussian], pos[gaussian],
                                     head[gaussian], kernel=self.miss_update, fractions=f)
             np.add.at(self.log_run, aims[gaussian], np.log(np.maximum(1.0 - f, 1e-300)))
             for n in gaussian:
@@ -477,7 +478,7 @@ class KnownTargetTracker(ModeMixture):
         self.lost[newly] = True
         self._set_lost_tracks(np.unique(np.concatenate([aims[lost_looks], newly]).astype(
             np.int64)))
-        return negative
+        return negative, inflated
 
     def _lost_detections(self, i: IntArray, sensors: IntArray, aims: IntArray,
                          pos: FloatArray, head: FloatArray, looks: Looks, used: IntArray,
