@@ -34,6 +34,25 @@ def test_each_preset_brings_its_tracker_length_and_gospa_cutoff(name, steps, c):
     assert (cfg.settings.steps, cfg.settings.gospa_c) == (3, 7.5)
 
 
+def test_the_urban_preset_brings_the_town_tracker_and_a_study_can_turn_it_off(tmp_path):
+    """The town's tracker knows the buildings and has the lost-target mode (results.md,
+    section 11.2); a file's or a study's tracker table replaces the preset's values."""
+    from sensorplan.study.file import load_study
+
+    cfg = load_simulation(preset="urban")
+    assert cfg.settings.tracker.known_buildings and cfg.settings.tracker.lost_mode
+    assert not load_simulation(preset="paper").settings.tracker.lost_mode
+    f = tmp_path / "s.toml"
+    f.write_text('runs = 1\nsteps = 2\nseed = 1\n[scenario]\npreset = "urban"\n'
+                 '[defaults]\nplanner = "pg"\n[[methods]]\nname = "town"\n'
+                 '[[methods]]\nname = "off"\n[methods.tracker]\nlost_mode = false\n')
+    town, off = load_study(f).methods
+    assert town.settings.tracker.lost_mode and town.settings.tracker.known_buildings
+    assert not off.settings.tracker.lost_mode and off.settings.tracker.known_buildings
+    ep = run_episode(PRESETS["urban"](), town.settings, 3)
+    assert np.isfinite(ep.nees).all()
+
+
 def test_the_search_preset():
     sc = PRESETS["search"]()
     assert (sc.births, sc.birth_rate, sc.n_initial, sc.survival_probability) == (

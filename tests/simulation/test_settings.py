@@ -36,7 +36,8 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
                      "tracker.mode_process_noise", "tracker.switching", "tracker.gate",
                      "tracker.gate_probability", "tracker.reacquire", "tracker.association",
                      "tracker.known_map", "tracker.known_buildings",
-                     "tracker.reflect_walls", "tracker.births", "tracker.map_edge",
+                     "tracker.reflect_walls", "tracker.lost_mode", "tracker.lost_probability",
+                     "tracker.lost_resolution", "tracker.births", "tracker.map_edge",
                      "tracker.birth_rate",
                      "tracker.survival_probability", "tracker.report_threshold",
                      "tracker.prune_threshold", "tracker.grid_resolution",
@@ -242,12 +243,16 @@ def test_the_size_limits_name_each_setting_as_its_input_spells_it() -> None:
 
 
 def test_unused_names_what_the_tracker_ignores() -> None:
+    from sensorplan.simulation.settings import LOST_SETTINGS as LS
     from sensorplan.simulation.settings import MULTI_TARGET_SETTINGS as MT
 
-    assert TrackerSettings().unused() == ("process_noise", *MT)
-    assert TrackerSettings(model="cv").unused() == ("mode_process_noise", "switching", *MT)
-    assert TrackerSettings(gate=False, reacquire=False).unused() == ("process_noise",
-                                                                      "gate_probability", *MT)
+    assert TrackerSettings().unused() == ("process_noise", *LS, *MT)
+    assert TrackerSettings(model="cv").unused() == ("mode_process_noise", "switching", *LS,
+                                                    *MT)
+    assert TrackerSettings(gate=False, reacquire=False).unused() == (
+        "process_noise", "gate_probability", *LS, *MT)
+    assert TrackerSettings(lost_mode=True).unused() == ("process_noise", *MT)
+    assert set(LS) | {"lost_mode"} <= set(TrackerSettings(kind="pmb").unused())
     assert "births" not in TrackerSettings(kind="pmb").unused()
     assert "model" in TrackerSettings(kind="pmb").unused()
     # the PMB and the GNN each ignore the other's own settings

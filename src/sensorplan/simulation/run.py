@@ -219,6 +219,34 @@ def map_model(scenario: Scenario, tracker: TrackerSettings, table: FloatArray) -
                     map_edge=map_edge(scenario, tracker), buildings=scenario.building_array)
 
 
+def lost_grid(scenario: Scenario, tracker: TrackerSettings, table: FloatArray) -> Any:
+    """The grid of the known-target tracker's lost-target mode (None when it is off): the
+    map in cells of ``lost_resolution``, the buildings closed, the velocity prior of the
+    scenario's speeds (:func:`sensorplan.tracking.lost.velocity_variance`).
+
+    Raises
+    ------
+    ConfigError
+        The mode without the negative miss update, or with detection that is not ideal
+        (missed detections, false alarms, looks that detect every target).
+    """
+    if not tracker.lost_mode:
+        return None
+    if tracker.miss_update != "negative":
+        raise ConfigError("tracker.lost_mode", "needs miss_update = 'negative'")
+    from ..models.sensors import CLUTTER_RATE, SWERLING
+
+    if (table[:, SWERLING].any() or table[:, CLUTTER_RATE].any()
+            or scenario.look_detects == "all"):
+        raise ConfigError("tracker.lost_mode", "needs ideal detection: no missed detections, "
+                          "no false alarms, a look detecting only its target")
+    from ..tracking.lost import make_lost_grid, velocity_variance
+
+    return make_lost_grid(scenario.world.width, scenario.world.height,
+                          tracker.lost_resolution, velocity_variance(scenario.speed_range),
+                          scenario.dt, scenario.building_array)
+
+
 def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray,
                  table: FloatArray) -> Tracker:
     """The run's tracker (``settings.tracker.kind``), started at the initial estimates
@@ -232,7 +260,8 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
             world=(scenario.world.width, scenario.world.height) if tr.known_map else None,
             restart_velocity_var=(P0[2, 2], P0[3, 3]), buildings=scenario.building_array,
             miss_update=_miss_update_kernel() if tr.miss_update == "negative" else None,
-            detects_all=scenario.look_detects == "all", **tr.tracker_options())
+            detects_all=scenario.look_detects == "all",
+            lost_grid=lost_grid(scenario, tr, table), **tr.tracker_options())
     model = map_model(scenario, tr, table)
     if tr.kind == "gnn":
         return cls(model, means=estimate, covs=P0, confirm_hits=tr.confirm_hits,

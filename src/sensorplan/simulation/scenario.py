@@ -555,6 +555,10 @@ SEARCH_SECTORS = 6
 #: scenario file's tables would: a given option, file key or study key replaces them. The scan
 #: presets set their length and GOSPA cut-off from their sources.
 PRESET_SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
+    # The town's tracker knows the buildings and holds a lost target on a grid: chosen by
+    # the check of docs/results.md, section 11.2 (studies/honest_urban_lost.toml), whose
+    # rule it passed for both planners.
+    "urban": {"tracker": {"known_buildings": True, "lost_mode": True}},
     # The tracker's birth model is the scenario's own: its targets are born at the edges at
     # the preset's rate (the filter benchmarks' trackers, too, have their sources' births).
     # Search stays off; with it on, 6 sectors: the radar's 60-degree beam tiles the circle.

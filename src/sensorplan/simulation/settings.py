@@ -84,6 +84,8 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
 PMB_SETTINGS = ("births", "birth_rate", "survival_probability", "report_threshold",
                 "prune_threshold")
 GNN_SETTINGS = ("confirm_hits", "confirm_looks", "delete_misses")
+#: The settings only the lost-target mode of the tracker of known targets reads.
+LOST_SETTINGS = ("lost_probability", "lost_resolution")
 #: The settings only a multi-target tracker reads.
 MULTI_TARGET_SETTINGS = ("map_edge", *PMB_SETTINGS, "grid_resolution", *GNN_SETTINGS)
 #: A multi-target tracker's model of the map's edge: as the scenario's truth, or one of
@@ -378,6 +380,20 @@ class TrackerSettings(_Settings):
         False, section="tracker", label="reflect walls",
         help="Predict the part of a track that leaves the map reflected off its walls, as "
              "targets are (needs known_map).")
+    lost_mode: bool = setting(
+        False, section="tracker", label="lost mode",
+        help="Turn a track that has lost its target (its run of missed looks since its last "
+             "detection is improbable under it: below lost_probability) into a density on a "
+             "grid over the map, thinned by every missed look, until a detection finds the "
+             "target again (needs the negative miss update and ideal detection).")
+    lost_probability: float = setting(
+        0.01, section="tracker", label="lost probability",
+        bounds=Range(0.0, 1.0, lo_open=True, hi_open=True),
+        help="A track is lost when the probability of its run of misses under it falls "
+             "below this (the test's rate of false alarms for a right track).")
+    lost_resolution: float = setting(
+        10.0, section="tracker", label="lost grid resolution", bounds=Range(1.0, 1e5),
+        help="Side (m) of the cells of a lost track's grid.")
     births: str = setting(
         "edges", section="tracker", label="tracker births", choices=lambda: _births(),
         noun="births",
@@ -448,10 +464,12 @@ class TrackerSettings(_Settings):
         if self.kind != "known":               # a multi-target tracker: cv, its own births
             return ("miss_update", "model", "mode_process_noise", "switching", "gate",
                     "reacquire", "association", "known_map", "known_buildings",
-                    "reflect_walls") + (PMB_SETTINGS if self.kind == "gnn" else GNN_SETTINGS)
+                    "reflect_walls", *LOST_SETTINGS, "lost_mode") + (
+                        PMB_SETTINGS if self.kind == "gnn" else GNN_SETTINGS)
         out = ("process_noise",) if self.model == "imm" else ("mode_process_noise",
                                                               "switching")
-        return out + (() if self.gate else ("gate_probability",)) + MULTI_TARGET_SETTINGS
+        return out + (() if self.gate else ("gate_probability",)) + (
+            () if self.lost_mode else LOST_SETTINGS) + MULTI_TARGET_SETTINGS
 
     def tracker_options(self) -> dict[str, Any]:
         """Keyword arguments of :class:`sensorplan.tracking.tracker.KnownTargetTracker` for
@@ -464,7 +482,8 @@ class TrackerSettings(_Settings):
                     switching=np.array(self.switching) if imm else None,
                     gate_probability=self.gate_probability if self.gate else None,
                     reacquire=self.reacquire, association=self.association,
-                    known_buildings=self.known_buildings, reflect_walls=self.reflect_walls)
+                    known_buildings=self.known_buildings, reflect_walls=self.reflect_walls,
+                    lost_probability=self.lost_probability)
 
 
 @dataclass(frozen=True)

@@ -35,6 +35,10 @@ Bar-Shalom 1988). The options, each switchable:
 - **Missed looks** (:mod:`sensorplan.tracking.missed`): a look that missed applies its negative
   information to every mode; an IMM mode's likelihood of the miss is the probability mass it
   puts outside the sensing region.
+- **Lost targets** (:mod:`sensorplan.tracking.lost`): a track under which the probability of
+  its run of misses since its last detection falls below ``lost_probability`` becomes a
+  point-mass density on a grid (replayed from its last detection), thinned by every missed
+  look and reported by its moments, until a detection re-initialises its Gaussian.
 
 With every option off (one mode, no gate, no map) the tracker is the plain EKF.
 """
@@ -56,6 +60,7 @@ from .base import Looks, TrackSet, UpdateRecord
 from .ekf import innovations, mahalanobis2, position_update, update, update_rounds
 from .imm import ModeMixture, stationary
 from .known_map import building_constraint, map_constraint, map_reflection
+from .lost import LostGrid, MissLog
 
 __all__ = ["ASSOCIATIONS", "KnownTargetTracker", "LookResults", "SetResults", "gate_threshold",
            "stationary"]
@@ -141,6 +146,13 @@ class KnownTargetTracker(ModeMixture):
         A look returns every target in view, not only the one it points at: a look's
         detections are then associated with its target's track (the nearest gated one
         without false alarms, PDA with them).
+    lost_grid : LostGrid, optional
+        The grid of the lost-target mode (:func:`sensorplan.tracking.lost.make_lost_grid`);
+        None: the mode is off. Needs the missed-look update and ideal detection (every look
+        detects its target in view, no false alarms).
+    lost_probability : float in (0, 1)
+        A track whose run of misses since its last detection had a probability below this
+        under the track is lost.
     """
 
     def __init__(self, means: FloatArray, covs: FloatArray, dt: float, table: FloatArray, *,
@@ -152,7 +164,8 @@ class KnownTargetTracker(ModeMixture):
                  reflect_walls: bool = False,
                  restart_velocity_var: tuple[float, float] = (4.0, 4.0),
                  miss_update: Callable[..., Any] | None = None,
-                 detects_all: bool = False) -> None:
+                 detects_all: bool = False, lost_grid: LostGrid | None = None,
+                 lost_probability: float = 0.01) -> None:
         super().__init__(means, covs, dt, process_noise=process_noise,
                          mode_process_noise=mode_process_noise, switching=switching)
         self.table = np.ascontiguousarray(table, dtype=float)
@@ -177,6 +190,22 @@ class KnownTargetTracker(ModeMixture):
         self.detects_all = detects_all
         self.imperfect = bool(self.table[:, SWERLING].any() or self.table[:, CLUTTER_RATE].any()
                               or detects_all)
+        self.lost_grid = lost_grid
+        if lost_grid is not None:
+            if self.imperfect:
+                raise ValueError("the lost-target mode needs ideal detection (no false "
+                                 "alarms, every look detects its target in view)")
+            if not 0.0 < lost_probability < 1.0:
+                raise ValueError(f"lost_probability must be in (0, 1), got {lost_probability!r}")
+            M = len(self.means)
+            self.log_lost = math.log(lost_probability)
+            self.lost = np.zeros(M, dtype=bool)
+            self.log_run = np.zeros(M)                 # log P(misses since the anchor)
+            self.since = np.zeros(M, dtype=np.int64)   # steps since the anchor
+            self.anchor_means = self.means.copy()
+            self.anchor_covs = self.covs.copy()
+            self.miss_logs = [MissLog.empty() for _ in range(M)]
+            self.lost_weights: dict[int, FloatArray] = {}
 
     # ---------------------------------------------------------------- the tracker protocol
     def tracks(self) -> TrackSet:
@@ -204,10 +233,14 @@ class KnownTargetTracker(ModeMixture):
         used, discarded = np.zeros(L, dtype=np.int64), np.zeros(L, dtype=np.int64)
         gated_out = np.zeros(L, dtype=bool)
         empty = np.flatnonzero(counts == 0)
-        if self.miss_update is not None and empty.size:
+        if self.lost_grid is not None:
+            negative, inflated = self._lost_misses(empty, sensors, aims, pos, head)
+        elif self.miss_update is not None and empty.size:
             negative, inflated = self.miss(sensors[empty], aims[empty], pos[empty],
                                            head[empty], kernel=self.miss_update)
         i = np.flatnonzero(counts > 0)
+        if self.lost_grid is not None and i.size:
+            i = self._lost_detections(i, sensors, aims, pos, head, looks, used, restarted)
         if i.size and self.imperfect:
             res = self.update_sets(sensors[i], aims[i], [looks.detections[n] for n in i],
                                    pos[i], head[i], kernel=self.miss_update)
@@ -226,6 +259,9 @@ class KnownTargetTracker(ModeMixture):
         # a detection can move a track into a building.
         if i.size:
             corrected |= self.apply_buildings(targets=np.unique(aims[i]))
+        if self.lost_grid is not None:
+            seen = np.flatnonzero(counts > 0)
+            self._anchor(np.unique(aims[seen][(used[seen] > 0) | restarted[aims[seen]]]))
         return UpdateRecord(negative, inflated, restarted, corrected, used, discarded,
                             gated_out)
 
@@ -242,8 +278,13 @@ class KnownTargetTracker(ModeMixture):
         """
         self.predict_modes()
         hit = self.reflect_off_map()
-        hit |= self.apply_map()
-        return hit | self.apply_buildings(reflect_dt=self.dt)
+        # A reflected track is already on the map: truncating its Gaussian at the wall
+        # would count the wall twice.
+        hit |= self.apply_map(skip=hit)
+        hit |= self.apply_buildings(reflect_dt=self.dt)
+        if self.lost_grid is not None:
+            self._lost_predict()
+        return hit
 
     def reflect_off_map(self) -> BoolArray:
         """Reflect the modes that left the map off its walls (no-op unless
@@ -259,16 +300,24 @@ class KnownTargetTracker(ModeMixture):
             self.combine(np.flatnonzero(hit))
         return hit
 
-    def apply_map(self) -> BoolArray:
-        """Truncate the modes that leave the map to it (no-op without a map)."""
+    def apply_map(self, skip: BoolArray | None = None) -> BoolArray:
+        """Truncate the modes that leave the map to it (no-op without a map), except the
+        tracks ``skip`` ``(M,)`` (those just reflected off its walls)."""
         M = len(self.means)
         if self.world is None:
             return np.zeros(M, dtype=bool)
         m, P, applied, log_mass = map_constraint(self.mode_means, self.mode_covs, *self.world)
         hit = np.asarray(applied.any(axis=1))
+        partial = skip is not None and bool(skip.any())
+        if partial:
+            assert skip is not None
+            hit &= ~skip
         if hit.any():
-            self.mode_means, self.mode_covs = m, P
             idx = np.flatnonzero(hit)
+            if partial:
+                self.mode_means[idx], self.mode_covs[idx] = m[idx], P[idx]
+            else:
+                self.mode_means, self.mode_covs = m, P
             self.reweight(idx, log_mass[idx])
             self.combine(idx)
         return hit
@@ -299,8 +348,8 @@ class KnownTargetTracker(ModeMixture):
 
     # ---------------------------------------------------------------- missed looks
     def miss(self, sensors: IntArray, targets: IntArray, sensor_xy: FloatArray,
-             heading: FloatArray, kernel: Callable[..., Any] | None = None
-             ) -> tuple[BoolArray, BoolArray]:
+             heading: FloatArray, kernel: Callable[..., Any] | None = None,
+             fractions: FloatArray | None = None) -> tuple[BoolArray, BoolArray]:
         """Negative information of L missed looks, applied in the given (sensor) order.
 
         Parameters
@@ -308,6 +357,9 @@ class KnownTargetTracker(ModeMixture):
         sensors, targets : (L,) int;  sensor_xy : (L, 2);  heading : (L,)
         kernel : callable, optional
             The missed-look update (default :func:`sensorplan.tracking.missed.miss_update`).
+        fractions : (L,) float, optional
+            Filled with each look's probability, under its track just before it, of a
+            gated detection (the mass it removed; mixed over the modes).
 
         Returns
         -------
@@ -331,7 +383,13 @@ class KnownTargetTracker(ModeMixture):
                 gate_kw["buildings"] = self.buildings
                 if self.known_buildings:
                     gate_kw["footprints"] = self.buildings
-            if self.n_modes == 1:
+            if self.n_modes == 1 and fractions is not None:
+                m, P, infl, f1 = kernel(self.mode_means[j, 0], self.mode_covs[j, 0],
+                                        sensor_xy[rnd], heading[rnd], self.table, i,
+                                        return_fraction=True, **gate_kw)
+                self.mode_means[j, 0], self.mode_covs[j, 0] = m, P
+                fractions[rnd] = f1
+            elif self.n_modes == 1:
                 m, P, infl = kernel(self.mode_means[j, 0], self.mode_covs[j, 0], sensor_xy[rnd],
                                     heading[rnd], self.table, i, **gate_kw)
                 self.mode_means[j, 0], self.mode_covs[j, 0] = m, P
@@ -342,6 +400,8 @@ class KnownTargetTracker(ModeMixture):
                                        self.table, np.repeat(i[:, None], R, axis=1),
                                        return_fraction=True, **gate_kw)
                 self.mode_means[j], self.mode_covs[j] = m, P
+                if fractions is not None:
+                    fractions[rnd] = np.einsum("br,br->b", self.mode_probs[j], f)
                 # The mode's probability of the miss: the mass the look did not remove.
                 self.reweight(j, np.log(np.maximum(1.0 - f, 1.0 / 512)))
                 infl = infl.any(axis=1)
@@ -349,6 +409,117 @@ class KnownTargetTracker(ModeMixture):
             negative[j] = True
             inflated[j] |= infl
         return negative, inflated
+
+    # ---------------------------------------------------------------- lost targets
+    def _lost_args(self) -> tuple[FloatArray | None, float]:
+        pg = 1.0 if self.gate_probability is None else float(self.gate_probability)
+        return self.buildings, pg
+
+    def _set_lost_tracks(self, rows: IntArray) -> None:
+        """Report the grids of the lost tracks ``rows`` by their moments (every mode)."""
+        from .lost import moments
+
+        assert self.lost_grid is not None
+        rows = np.asarray(rows, dtype=np.int64)
+        if rows.size == 0:
+            return
+        mc = [moments(self.lost_grid, self.lost_weights[int(j)]) for j in rows]
+        self.restart(rows, np.stack([m for m, _ in mc]), np.stack([c for _, c in mc]))
+
+    def _lost_predict(self) -> None:
+        """Count the steps since each anchor; diffuse the lost tracks' grids."""
+        from .lost import diffuse, step_variance
+
+        assert self.lost_grid is not None
+        self.since += 1
+        rows = np.flatnonzero(self.lost)
+        for j in rows:
+            self.lost_weights[int(j)] = diffuse(self.lost_grid, self.lost_weights[int(j)],
+                                                step_variance(self.lost_grid,
+                                                              int(self.since[j])))
+        self._set_lost_tracks(rows)
+
+    def _lost_misses(self, empty: IntArray, sensors: IntArray, aims: IntArray,
+                     pos: FloatArray, head: FloatArray) -> tuple[BoolArray, BoolArray]:
+        """The missed looks ``empty`` with the lost-target mode: the Gaussian tracks' (with
+        the run's probability kept and every look logged), then the lost tracks' grids;
+        then the tracks whose run of misses became too improbable are lost. Returns the
+        tracks that got a negative update and those the Gaussian update inflated."""
+        from .lost import detect_probability, miss, replay
+
+        assert self.lost_grid is not None
+        M = len(self.means)
+        negative, inflated = np.zeros(M, dtype=bool), np.zeros(M, dtype=bool)
+        if self.miss_update is None or empty.size == 0:
+            return negative, inflated
+        gaussian = empty[~self.lost[aims[empty]]]
+        if gaussian.size:
+            f = np.zeros(gaussian.size)
+            negative, inflated = self.miss(sensors[gaussian], aims[gaussian], pos[gaussian],
+                                    head[gaussian], kernel=self.miss_update, fractions=f)
+            np.add.at(self.log_run, aims[gaussian], np.log(np.maximum(1.0 - f, 1e-300)))
+            for n in gaussian:
+                j = int(aims[n])
+                self.miss_logs[j].add(int(self.since[j]), int(sensors[n]), pos[n],
+                                      float(head[n]))
+        blds, pg = self._lost_args()
+        lost_looks = empty[self.lost[aims[empty]]]
+        for n in lost_looks:
+            j = int(aims[n])
+            det = detect_probability(self.lost_grid, self.table, int(sensors[n]), pos[n],
+                                     float(head[n]), blds, pg)
+            self.lost_weights[j], _ = miss(self.lost_grid, self.lost_weights[j], det)
+            negative[j] = True
+        newly = np.flatnonzero(~self.lost & (self.log_run < self.log_lost))
+        for r in newly:
+            self.lost_weights[int(r)] = replay(self.lost_grid, self.anchor_means[r],
+                                               self.anchor_covs[r], int(self.since[r]),
+                                               self.miss_logs[r], self.table, blds, pg)
+        self.lost[newly] = True
+        self._set_lost_tracks(np.unique(np.concatenate([aims[lost_looks], newly]).astype(
+            np.int64)))
+        return negative, inflated
+
+    def _lost_detections(self, i: IntArray, sensors: IntArray, aims: IntArray,
+                         pos: FloatArray, head: FloatArray, looks: Looks, used: IntArray,
+                         restarted: BoolArray) -> IntArray:
+        """Re-initialise each lost track from the first of its looks ``i`` with a detection
+        (the grid's posterior, or a restart from the detection when no cell passes the
+        gate); returns the looks left for the Gaussian update."""
+        from .lost import reacquire
+
+        assert self.lost_grid is not None
+        keep = np.ones(i.size, dtype=bool)
+        for k, n in enumerate(i):
+            j = int(aims[n])
+            if not self.lost[j]:
+                continue
+            z = np.asarray(looks.detections[n], dtype=float)[0]
+            got = reacquire(self.lost_grid, self.lost_weights.pop(j), z, pos[n],
+                            float(head[n]), self.table, int(sensors[n]), self.gate)
+            if got is None:
+                nn = np.array([n])
+                self._restart(np.zeros(1, dtype=np.int64), sensors[nn], aims[nn],
+                              z[None], pos[nn], head[nn])
+            else:
+                self.restart(np.array([j]), got[0][None], got[1][None])
+            self.lost[j] = False
+            used[n] = 1
+            restarted[j] = True
+            keep[k] = False
+        return i[keep]
+
+    def _anchor(self, targets: IntArray) -> None:
+        """Tracks ``targets`` were just detected: their current state is the new anchor."""
+        t = np.asarray(targets, dtype=np.int64)
+        if t.size == 0:
+            return
+        self.anchor_means[t] = self.means[t]
+        self.anchor_covs[t] = self.covs[t]
+        self.since[t] = 0
+        self.log_run[t] = 0.0
+        for j in t:
+            self.miss_logs[int(j)] = MissLog.empty()
 
     # ---------------------------------------------------------------- detections
     def update_detections(self, sensors: IntArray, targets: IntArray, z: FloatArray,
