@@ -47,6 +47,7 @@ from .._types import BoolArray, FloatArray, IntArray
 from ..models import radar
 from ..models.angles import heading_rule
 from ..models.motion import predict_covariance
+from .cells import detection
 from .information import (Context, chain_information, epoch_information,
                           information_update, sum_by_target)
 from .problem import Plan
@@ -139,18 +140,6 @@ def _bound_terms(gctx: GospaContext, traces: FloatArray, measured: BoolArray,
     drop = gctx.baseline - np.minimum(traces, gctx.c2)
     term = drop.sum(axis=-1) if gctx.cumulative else drop[..., -1]
     return existence * np.where(measured, np.maximum(term, 0.0), 0.0)
-
-
-def detection(sctx: SearchParts, i: int, positions: FloatArray, headings: FloatArray
-              ) -> FloatArray:
-    """``P_d v (B, C)`` at every cell centre for looks of sensor i from poses ``positions
-    (B, 2)``, ``headings (B,)`` (the radar's one implementation, as search thins with)."""
-    positions = np.asarray(positions, dtype=float).reshape(-1, 2)
-    d = sctx.centres[None, :, :] - positions[:, None, :]
-    B = len(positions)
-    return radar.detectable_points(sctx.ctx.radar, np.full(B, i, dtype=np.int64), d[..., 0],
-                                   d[..., 1], np.asarray(headings, dtype=float).reshape(B),
-                                   positions, sctx.ctx.buildings)
 
 
 def evaluate(sctx: SearchParts, plan: Plan, headings: FloatArray

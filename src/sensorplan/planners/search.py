@@ -45,6 +45,7 @@ from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, wrap_angle
 from ._search_nb import detect_sparse_nb, found_nb
+from .cells import detection
 from .information import (Context, chain_information, covariance_recursion, measured,
                           phi_terms, sum_by_target, target_information)
 from .information import prepare as prepare_tracks
@@ -160,18 +161,6 @@ def plan_headings(sctx: SearchContext, plan: Plan) -> FloatArray:
             out[i, k - 1] = h
             prev_ok = True
     return out
-
-
-def detection(sctx: SearchContext, i: int, positions: FloatArray, headings: FloatArray
-              ) -> FloatArray:
-    """``P_d v`` at every cell centre for looks of sensor i: ``(B, C)`` from poses
-    ``positions (B, 2)``, ``headings (B,)`` (the radar's one implementation)."""
-    positions = np.asarray(positions, dtype=float).reshape(-1, 2)
-    d = sctx.centres[None, :, :] - positions[:, None, :]
-    B = len(positions)
-    return radar.detectable_points(sctx.ctx.radar, np.full(B, i, dtype=np.int64), d[..., 0],
-                                   d[..., 1], np.asarray(headings, dtype=float).reshape(B),
-                                   positions, sctx.ctx.buildings)
 
 
 def expected_found(sctx: SearchContext, miss: FloatArray) -> FloatArray:
