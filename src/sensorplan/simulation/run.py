@@ -268,7 +268,8 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
                    confirm_looks=tr.confirm_looks, delete_misses=tr.delete_misses)
     return cls(model, means=estimate, covs=P0, survival_probability=tr.survival_probability,
                births=tr.births, birth_rate=tr.birth_rate if tr.births != "none" else 0.0,
-               prune_threshold=tr.prune_threshold, report_threshold=tr.report_threshold)
+               prune_threshold=tr.prune_threshold, report_threshold=tr.report_threshold,
+               recycle_threshold=tr.recycle_threshold)
 
 
 class _Schedule:

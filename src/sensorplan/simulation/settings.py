@@ -82,7 +82,7 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
 
 #: The settings only the PMB tracker reads, and only the GNN tracker.
 PMB_SETTINGS = ("births", "birth_rate", "survival_probability", "report_threshold",
-                "prune_threshold")
+                "prune_threshold", "recycle_threshold")
 GNN_SETTINGS = ("confirm_hits", "confirm_looks", "delete_misses")
 #: The settings only the lost-target mode of the tracker of known targets reads.
 LOST_SETTINGS = ("lost_probability", "lost_resolution")
@@ -424,6 +424,12 @@ class TrackerSettings(_Settings):
         bounds=Range(0.0, 1.0, hi_open=True),
         help="A multi-target tracker forgets the tracks whose probability of existence falls "
              "below this.")
+    recycle_threshold: float = setting(
+        0.0, section="tracker", label="recycle threshold",
+        bounds=Range(0.0, 1.0, hi_open=True),
+        help="The PMB tracker turns a track whose probability of existence falls below this "
+             "into undetected intensity where it was instead of forgetting it (0: off; else "
+             "at least prune_threshold and below report_threshold).")
     grid_resolution: float = setting(
         25.0, section="tracker", label="grid resolution", bounds=Range(1.0, 1e5),
         help="Side (m) of the map cells on which a multi-target tracker keeps the expected "
@@ -450,6 +456,12 @@ class TrackerSettings(_Settings):
         if self.confirm_hits > self.confirm_looks:
             raise ConfigError("confirm_hits", f"must be at most confirm_looks "
                               f"({self.confirm_looks}), got {self.confirm_hits}")
+        if self.recycle_threshold > 0.0 and not (
+                self.prune_threshold <= self.recycle_threshold < self.report_threshold):
+            raise ConfigError("recycle_threshold", f"must be 0 (off) or at least "
+                              f"prune_threshold ({self.prune_threshold}) and below "
+                              f"report_threshold ({self.report_threshold}), got "
+                              f"{self.recycle_threshold}")
         if self.reacquire and not self.gate:
             raise ConfigError("reacquire", "needs gate = true (a detection outside the gate "
                               "triggers it)")

@@ -51,7 +51,20 @@ truncated to the map and :math:`r` is multiplied by its mass on the map; with ``
    :math:`\lambda_u(z_j)` and moment matched; it gets the next unused label. One below
    the pruning threshold is not created (its label is not used).
 6. :math:`D_u` is thinned by the look; Bernoullis with :math:`r` below
-   ``prune_threshold`` are dropped.
+   ``prune_threshold`` are dropped, or, with recycling on, those below
+   ``recycle_threshold`` are recycled.
+
+**Recycling** (Williams 2012, "Hybrid Poisson and multi-Bernoulli filters", FUSION; off
+by default). With ``recycle_threshold > 0``, a Bernoulli whose existence falls below it
+(after a prediction or a look) is not dropped but approximated as a Poisson component:
+:math:`r\, N(m, P)` is added to :math:`D_u` by its position marginal's mass in each cell
+(:func:`~sensorplan.tracking.pmb.undetected.recycle`; the grid's total rises by exactly
+:math:`r`). The intensity then carries the target where it went: looks thin it,
+predictions keep it, and a later detection there starts a Bernoulli from it (with a new
+label). Recycling replaces pruning: no Bernoulli is dropped, and ``prune_threshold`` only
+keeps a detection from starting a Bernoulli below it; so ``recycle_threshold`` may not be
+below ``prune_threshold``, nor at or above ``report_threshold`` (a reported track would
+be recycled at once).
 
 Missed looks are the same update with no detection: step 4 leaves :math:`r'_i` and the
 missed-look density. The missed-look probability :math:`\bar P` ignores the gate (a
@@ -149,13 +162,18 @@ class PMBTracker(MapTracker):
         Bernoullis below this existence are dropped; default 1e-3.
     report_threshold : float in (0, 1)
         :meth:`tracks` reports Bernoullis with at least this existence; default 0.5.
+    recycle_threshold : float in [0, 1)
+        0 (default): no recycling. Else Bernoullis below this existence are recycled into
+        the undetected intensity instead of being dropped (module docstring); it must lie
+        in ``[prune_threshold, report_threshold)``.
     """
 
     def __init__(self, model: MapModel, *, means: FloatArray | None = None,
                  covs: FloatArray | None = None, existence: float | FloatArray = 1.0,
                  survival_probability: float = 0.99, births: str | FloatArray = "none",
                  birth_rate: float = 0.0, initial_undetected: float = 0.0,
-                 prune_threshold: float = 1e-3, report_threshold: float = 0.5) -> None:
+                 prune_threshold: float = 1e-3, report_threshold: float = 0.5,
+                 recycle_threshold: float = 0.0) -> None:
         if not 0.0 < survival_probability <= 1.0:
             raise ValueError(f"survival_probability must be in (0, 1], got "
                              f"{survival_probability!r}")
@@ -163,12 +181,22 @@ class PMBTracker(MapTracker):
             raise ValueError(f"prune_threshold must be in [0, 1), got {prune_threshold!r}")
         if not 0.0 < report_threshold < 1.0:
             raise ValueError(f"report_threshold must be in (0, 1), got {report_threshold!r}")
+        if not 0.0 <= recycle_threshold < 1.0:
+            raise ValueError(f"recycle_threshold must be in [0, 1), got {recycle_threshold!r}")
+        if recycle_threshold > 0.0 and not (
+                prune_threshold <= recycle_threshold < report_threshold):
+            raise ValueError(f"recycle_threshold must be 0 (off) or in [prune_threshold, "
+                             f"report_threshold) = [{prune_threshold!r}, "
+                             f"{report_threshold!r}), got {recycle_threshold!r}")
         if not (math.isfinite(initial_undetected) and initial_undetected >= 0.0):
             raise ValueError(f"initial_undetected must be >= 0, got {initial_undetected!r}")
         super().__init__(model)
         self.survival_probability = float(survival_probability)
         self.prune_threshold = float(prune_threshold)
         self.report_threshold = float(report_threshold)
+        self.recycle_threshold = float(recycle_threshold)
+        #: Bernoullis recycled into the undetected intensity so far, and their existence.
+        self.recycled, self.recycled_mass = 0, 0.0
         if isinstance(births, str):
             self.births = undetected.birth_intensity(self.grid, births, birth_rate)
         else:
@@ -324,9 +352,21 @@ class PMBTracker(MapTracker):
         return outcome
 
     def _prune(self) -> None:
-        keep = self.bern.r >= self.prune_threshold
+        """Drop the Bernoullis below ``prune_threshold``, or with recycling on, recycle
+        those below ``recycle_threshold`` into the undetected intensity."""
+        b = self.bern
+        if self.recycle_threshold > 0.0:
+            low = b.r < self.recycle_threshold
+            if low.any():
+                self.undetected = self.undetected + undetected.recycle(
+                    self.grid, b.r[low], b.means[low, :2], b.covs[low, :2, :2])
+                self.recycled += int(np.count_nonzero(low))
+                self.recycled_mass += float(b.r[low].sum())
+                b.keep(~low)
+            return
+        keep = b.r >= self.prune_threshold
         if not keep.all():
-            self.bern.keep(keep)
+            b.keep(keep)
 
 
 __all__ = ["MIN_WEIGHT", "LookOutcome", "PMBTracker"]
