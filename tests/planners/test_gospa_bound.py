@@ -7,10 +7,13 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+from typing import Any
 
 import numpy as np
 import pytest
 
+import search_problems
+from search_problems import SWERLING, grid, sector_plan, swerling_pd
 from sensorplan.errors import ConfigError
 from sensorplan.models import radar
 from sensorplan.models.sensors import SensorParams
@@ -21,39 +24,12 @@ from sensorplan.planners.problem import Plan, PlanningProblem, UndetectedIntensi
 from sensorplan.planners.registry import make_planner
 from sensorplan.simulation.settings import RunSettings
 
-SWERLING = SensorParams(detection="swerling1", snr_ref_db=10.0, range_ref=700.0,
-                        false_alarm_probability=1e-4)
-
-
-def swerling_pd(s: SensorParams, ground: float) -> float:
-    """Swerling 1, square-law: Pd = Pfa^(1 / (1 + SNR)), SNR = s0 (r_ref / r)^4."""
-    r2 = ground * ground + s.altitude * s.altitude
-    snr = 10.0 ** (s.snr_ref_db / 10.0) * (s.range_ref * s.range_ref / r2) ** 2
-    return float(s.false_alarm_probability ** (1.0 / (1.0 + snr)))
-
-
-def grid(centres: list[tuple[float, float]], d0: float | list[float], births: float = 0.0,
-         survival: float = 1.0) -> UndetectedIntensity:
-    C = len(centres)
-    return UndetectedIntensity(np.array(centres, dtype=float), np.broadcast_to(d0, (C,)),
-                               np.full(C, births), survival)
-
-
 def problem(positions: list[tuple[float, float]], headings: list[float], u: UndetectedIntensity,
-            sectors: int = 4, horizon: int = 1, sensor: SensorParams = SWERLING,
-            existence: float | list[float] = 0.0, means: list[list[float]] | None = None,
-            steps_per_epoch: int = 1, objective: str = "terminal",
-            c: float = 50.0) -> PlanningProblem:
-    means = means or [[20.0, 20.0, 0.0, 0.0]]
-    M = len(means)
-    return PlanningProblem(means=np.array(means), covs=np.repeat(np.eye(4)[None] * 50, M, 0),
-                           positions=np.array(positions, dtype=float),
-                           headings=np.array(headings, dtype=float),
-                           sensors=tuple(sensor for _ in positions), horizon=horizon,
-                           steps_per_epoch=steps_per_epoch,
-                           existence=np.broadcast_to(existence, (M,)), objective=objective,
-                           search="on", search_sectors=sectors, undetected=u, reward="gospa",
-                           gospa_c=c)
+            *args: Any, objective: str = "terminal", c: float = 50.0,
+            **kwargs: Any) -> PlanningProblem:
+    """:func:`search_problems.problem` with the GOSPA-bound reward at cut-off ``c``."""
+    return search_problems.problem(positions, headings, u, *args, objective=objective,
+                                   reward="gospa", gospa_c=c, **kwargs)
 
 
 def mixed_problem(horizon: int = 2, objective: str = "cumulative", steps_per_epoch: int = 1,
@@ -67,13 +43,6 @@ def mixed_problem(horizon: int = 2, objective: str = "cumulative", steps_per_epo
                    horizon=horizon, sensor=SensorParams(moves=(20.0,)), existence=[0.6, 1.0],
                    means=[[120.0, 90.0, 2.0, 1.0], [480.0, 420.0, -1.0, 0.5]],
                    steps_per_epoch=steps_per_epoch, objective=objective, c=c)
-
-
-def sector_plan(prob: PlanningProblem, sectors: list[list[int]]) -> Plan:
-    """Every sensor stays where it is and looks at the given sectors."""
-    N, K = prob.n_sensors, prob.horizon
-    pos = np.repeat(prob.positions[:, None, :], K, axis=1)
-    return Plan(pos, np.full((N, K), -1), np.array(sectors))
 
 
 def expected_bound(prob: PlanningProblem, plan: Plan | None) -> float:

@@ -4,12 +4,15 @@ the potential property and the deduplication of sectors."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import itertools
 import math
 
 import numpy as np
 import pytest
 
+import search_problems
+from search_problems import SWERLING, problem, sector_plan, swerling_pd
 from sensorplan.errors import ConfigError
 from sensorplan.models.sensors import SensorParams
 from sensorplan.planners import search
@@ -17,43 +20,8 @@ from sensorplan.planners.problem import (Plan, PlanError, PlanningProblem, Undet
                                          check_plan, move_vectors)
 from sensorplan.planners.registry import make_planner
 
-SWERLING = SensorParams(detection="swerling1", snr_ref_db=10.0, range_ref=700.0,
-                        false_alarm_probability=1e-4)
-
-
-def swerling_pd(s: SensorParams, ground: float) -> float:
-    """Swerling 1, square-law: Pd = Pfa^(1 / (1 + SNR)), SNR = s0 (r_ref / r)^4."""
-    r2 = ground * ground + s.altitude * s.altitude
-    snr = 10.0 ** (s.snr_ref_db / 10.0) * (s.range_ref * s.range_ref / r2) ** 2
-    return float(s.false_alarm_probability ** (1.0 / (1.0 + snr)))
-
-
-def grid(centres: list[tuple[float, float]], d0: float | list[float], births: float = 0.0,
-         survival: float = 1.0, weight: float | None = 1.0) -> UndetectedIntensity:
-    C = len(centres)
-    return UndetectedIntensity(np.array(centres, dtype=float), np.broadcast_to(d0, (C,)),
-                               np.full(C, births), survival, weight=weight)
-
-
-def problem(positions: list[tuple[float, float]], headings: list[float], u: UndetectedIntensity,
-            sectors: int = 4, horizon: int = 1, sensor: SensorParams = SWERLING,
-            existence: float = 0.0, means: list[list[float]] | None = None,
-            steps_per_epoch: int = 1) -> PlanningProblem:
-    means = means or [[20.0, 20.0, 0.0, 0.0]]
-    M = len(means)
-    return PlanningProblem(means=np.array(means), covs=np.repeat(np.eye(4)[None] * 50, M, 0),
-                           positions=np.array(positions, dtype=float),
-                           headings=np.array(headings, dtype=float),
-                           sensors=tuple(sensor for _ in positions), horizon=horizon,
-                           steps_per_epoch=steps_per_epoch, existence=np.full(M, existence),
-                           search="on", search_sectors=sectors, undetected=u)
-
-
-def sector_plan(prob: PlanningProblem, sectors: list[list[int]]) -> Plan:
-    """Every sensor stays where it is and looks at the given sectors."""
-    N, K = prob.n_sensors, prob.horizon
-    pos = np.repeat(prob.positions[:, None, :], K, axis=1)
-    return Plan(pos, np.full((N, K), -1), np.array(sectors))
+#: The intensity grid these tests plan on: a found target is worth 1 nat unless set.
+grid = functools.partial(search_problems.grid, weight=1.0)
 
 
 def test_one_cell_one_look_finds_d_times_pd() -> None:
