@@ -45,9 +45,8 @@ import numpy as np
 
 from .._types import BoolArray, FloatArray, IntArray
 from ..models import radar
-from ..models.angles import heading_rule
 from ..models.motion import predict_covariance
-from .cells import detection
+from .cells import candidate_chains, detection
 from .information import (Context, chain_information, epoch_information,
                           information_update, sum_by_target)
 from .problem import Plan
@@ -230,12 +229,8 @@ def candidate_potentials(sctx: SearchParts, plan: Plan, i: int, k: int,
     gctx = sctx.gospa
     assert gctx is not None and plan.sectors is not None
     A, K, L, M, T, e = len(targets), ctx.K, ctx.K - k + 1, ctx.M, ctx.T, ctx.e
-    pos = np.repeat(plan.positions[i, k - 1:][None], A, axis=0)
-    tgt = np.repeat(plan.targets[i, k - 1:][None], A, axis=0)
-    sec = np.repeat(plan.sectors[i, k - 1:][None], A, axis=0)
-    pos[:, 0], tgt[:, 0], sec[:, 0] = positions, targets, sectors
-    assigned = (tgt >= 0) | (sec >= 0)
-    th = _chain_headings(sctx, plan, i, k, headings, pos, tgt, sec, assigned)
+    pos, tgt, assigned, th = candidate_chains(sctx, plan, i, k, positions, targets,
+                                                sectors, headings)
     value = np.zeros(A)
     if M:
         value += _candidate_tracks(sctx, gctx, plan, i, k, headings, pos, tgt, th)
@@ -259,35 +254,6 @@ def candidate_potentials(sctx: SearchParts, plan: Plan, i: int, k: int,
         f[:, t] = (D * (1.0 - m)).sum(axis=-1)
         D = D * m
     return value + gctx.found_value * (f @ gctx.step_weights)
-
-
-def _chain_headings(sctx: SearchParts, plan: Plan, i: int, k: int, headings: FloatArray,
-                    pos: FloatArray, tgt: IntArray, sec: IntArray, assigned: BoolArray
-                    ) -> FloatArray:
-    """Headings ``(A, L)`` of sensor i's epochs k..K for each candidate (NaN where a later
-    epoch is unassigned): the heading rule from epoch k-1's heading, as in the plan's."""
-    ctx = sctx.ctx
-    A, L = tgt.shape
-    th = np.full((A, L), np.nan)
-    theta0, turn = float(ctx.problem.headings[i]), float(ctx.max_turn[i])
-    prev_ok = k == 1 or bool(plan.assigned[i, k - 2])
-    h = np.full(A, theta0 if k == 1 or not prev_ok else float(headings[i, k - 2]))
-    for l in range(L):
-        kk = k + l
-        if not assigned[0, l] and l > 0:       # the same for every candidate
-            prev_ok = False
-            continue
-        if ctx.M:
-            aim = ctx.aim[np.maximum(tgt[:, l], 0), kk - 1]
-            toward = np.arctan2(aim[:, 1] - pos[:, l, 1], aim[:, 0] - pos[:, l, 0])
-        else:
-            toward = np.zeros(A)
-        b = np.where(sec[:, l] >= 0, sctx.bearings[i][np.maximum(sec[:, l], 0)]
-                     if sctx.bearings[i].size else 0.0, toward)
-        h = heading_rule(h, b, turn) if prev_ok else heading_rule(theta0, b, kk * turn)
-        th[:, l] = h
-        prev_ok = True
-    return th
 
 
 def _candidate_tracks(sctx: SearchParts, gctx: GospaContext, plan: Plan, i: int, k: int,

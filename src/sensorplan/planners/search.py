@@ -45,7 +45,7 @@ from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, wrap_angle
 from ._search_nb import detect_sparse_nb, found_nb
-from .cells import detection
+from .cells import candidate_chains, detection
 from .information import (Context, chain_information, covariance_recursion, measured,
                           phi_terms, sum_by_target, target_information)
 from .information import prepare as prepare_tracks
@@ -367,31 +367,8 @@ def _candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
     A, L = len(targets), ctx.K - k + 1
     assert plan.sectors is not None
     headings = _plan_headings(sctx, plan)
-    # Sensor i's epochs k..K per candidate.
-    pos = np.repeat(plan.positions[i, k - 1:][None], A, axis=0)
-    tgt = np.repeat(plan.targets[i, k - 1:][None], A, axis=0)
-    sec = np.repeat(plan.sectors[i, k - 1:][None], A, axis=0)
-    pos[:, 0], tgt[:, 0], sec[:, 0] = positions, targets, sectors
-    assigned = (tgt >= 0) | (sec >= 0)
-    th = np.full((A, L), np.nan)
-    theta0, turn = float(ctx.problem.headings[i]), float(ctx.max_turn[i])
-    prev_ok = k == 1 or bool(plan.assigned[i, k - 2])
-    h = np.full(A, theta0 if k == 1 or not prev_ok else float(headings[i, k - 2]))
-    for l in range(L):
-        kk = k + l
-        if not assigned[0, l] and l > 0:       # later epochs: the same for every candidate
-            prev_ok = False
-            continue
-        if ctx.M:
-            aim = ctx.aim[np.maximum(tgt[:, l], 0), kk - 1]
-            toward = np.arctan2(aim[:, 1] - pos[:, l, 1], aim[:, 0] - pos[:, l, 0])
-        else:                                   # no track: every look is a sector look
-            toward = np.zeros(A)
-        b = np.where(sec[:, l] >= 0, sctx.bearings[i][np.maximum(sec[:, l], 0)]
-                     if sctx.bearings[i].size else 0.0, toward)
-        h = heading_rule(h, b, turn) if prev_ok else heading_rule(theta0, b, kk * turn)
-        th[:, l] = h
-        prev_ok = True
+    pos, tgt, assigned, th = candidate_chains(sctx, plan, i, k, positions, targets,
+                                                sectors, headings)
     # The chain's looks: epoch k and sensor i's later assigned epochs.
     ls = [l for l in range(L) if l == 0 or assigned[0, l]]
     rows = np.empty((A, len(ls)), dtype=np.int64)
