@@ -27,6 +27,7 @@ import numpy as np
 
 from .colors import mix_hex, sensor_style, target_color
 from .search import has_search, search_handles
+from .view import move_fov
 from .run import (DENSE_SENSORS, DENSE_TARGETS, N_SIGMA, clip_xy, draw_buildings,
                   draw_errors, draw_timeline, ellipse_geometry, episode_title, fade_colors,
                   fov_geometry, map_legend, map_limit, segments, timeline_height)
@@ -420,12 +421,7 @@ class _Frames:
         for i in range(len(self.fov)):
             color, _ = sensor_style(i)
             wedge, params = self.fov[i]
-            geo = fov_geometry(self.spos[t, i], self.shead[t, i], params)
-            wedge.set_center(geo["center"])
-            wedge.set_radius(geo["r"])
-            wedge.set_theta1(geo["theta1"])
-            wedge.set_theta2(geo["theta2"])
-            wedge.set_width(geo["width"])
+            move_fov(wedge, self.spos[t, i], self.shead[t, i], params)
             self.spath[i].set_segments(segments(self.spos[:t + 1, i]) if t else [])
             self.spath[i].set_color(fade_colors(mix_hex(color, 0.8), ages, self.tail)
                                     if t else color)

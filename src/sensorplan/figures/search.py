@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .colors import INTENSITY_CMAP, sensor_style
-from .view import fov_geometry
+from .view import fov_geometry, move_fov
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -286,12 +286,7 @@ class SearchLayer:
                 self.rays[i].set_data([], [])
                 self.texts[i].set_text("")
                 continue
-            geo = fov_geometry(self.spos[t, i], self.shead[t, i], params)
-            wedge.set_center(geo["center"])
-            wedge.set_radius(geo["r"])
-            wedge.set_theta1(geo["theta1"])
-            wedge.set_theta2(geo["theta2"])
-            wedge.set_width(geo["width"])
+            move_fov(wedge, self.spos[t, i], self.shead[t, i], params)
             b = float(v.bearings[t, i])
             x, y = self.spos[t, i]
             reach = float(params.max_ground_range)

@@ -70,6 +70,17 @@ def fov_geometry(xy: Any, heading: float, params: Any) -> dict[str, Any]:
             "theta2": centre + half, "width": g_max - g_min}
 
 
+def move_fov(wedge: Any, xy: Any, heading: float, params: Any) -> None:
+    """Move a field-of-view ``Wedge`` drawn with :func:`fov_geometry` to a new pose (an
+    animation's frame)."""
+    geo = fov_geometry(xy, heading, params)
+    wedge.set_center(geo["center"])
+    wedge.set_radius(geo["r"])
+    wedge.set_theta1(geo["theta1"])
+    wedge.set_theta2(geo["theta2"])
+    wedge.set_width(geo["width"])
+
+
 def fade_colors(color: str, ages: Any, tau: float | None) -> np.ndarray:
     """RGB ``(n, 3)`` tints of ``color`` for path segments of the given ages (steps before
     now): full colour now, lighter with age (``exp(-age / tau)``; linear over the whole path
