@@ -21,12 +21,19 @@ born ones alive for at least 20 steps, who had time to be found); how long a rep
 target is held: the share of its live steps from its first report on with a track. The
 ANEES of assigned tracks (target-steps whose estimate is within c). Markdown on stdout.
 
-    python scripts/search_summary.py STUDY_DIR [--reference myopic]
+    python scripts/search_summary.py STUDY_DIR [--with OTHER_DIR ...] [--reference myopic]
+
+``--with`` joins the methods of other study directories run with the same scenario, seed,
+run count and steps (a study split into parts): run r of every method starts from the same
+random streams whichever file it is in, so the methods stay paired run by run. Only the runs
+finished in every directory are kept.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import sys
 from typing import Any
 
 import numpy as np
@@ -211,13 +218,51 @@ def summary_lines(tables: Any, reference: str) -> list[str]:
     return out
 
 
+def join(parts: list[Any]) -> Any:
+    """The tables of several parts of one study as the tables of one study: same scenario,
+    seed, run count, steps and study-wide settings, distinct method names; the runs
+    finished in every part."""
+    import pandas as pd
+
+    first = parts[0].study
+    for p in parts[1:]:
+        for key in ("scenario", "seed", "runs", "steps"):
+            if getattr(p.study, key) != getattr(first, key):
+                raise SystemExit(f"error: --with: the studies differ in {key}; their runs "
+                                 "are not paired")
+    methods = tuple(m for p in parts for m in p.study.methods)
+    try:
+        study = dataclasses.replace(first, methods=methods)
+    except ValueError as exc:        # a repeated method name or a different study-wide key
+        raise SystemExit(f"error: --with: {exc}") from None
+    runs = sorted(set.intersection(*(set(p.runs_done) for p in parts)))
+    order = pd.CategoricalDtype(study.method_names, ordered=True)
+
+    def frame(name: str) -> Any:
+        df = pd.concat([getattr(p, name)[getattr(p, name)["run"].isin(runs)].astype(
+            {"method": str}) for p in parts], ignore_index=True)
+        return df.astype({"method": order})
+
+    return dataclasses.replace(
+        parts[0], study=study, steps=frame("steps"), decisions=frame("decisions"),
+        sensors=frame("sensors"), tracks=frame("tracks"), gospa=frame("gospa"),
+        complete=all(p.complete for p in parts), runs_done=runs)
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("study_dir")
+    parser.add_argument("--with", dest="others", action="append", default=[],
+                        metavar="OTHER_DIR", help="another part of the same study to join")
     parser.add_argument("--reference", default="myopic",
                         help="the method the paired differences are taken against")
     args = parser.parse_args(argv)
-    print("\n".join(summary_lines(load_study_dir(args.study_dir), args.reference)))
+    parts = [load_study_dir(d) for d in [args.study_dir, *args.others]]
+    tables = join(parts) if len(parts) > 1 else parts[0]
+    if not tables.complete:
+        sys.stderr.write(f"note: {len(tables.runs_done)} of {tables.study.runs} runs finished "
+                         "in every directory; the tables use those\n")
+    print("\n".join(summary_lines(tables, args.reference)))
 
 
 if __name__ == "__main__":

@@ -119,3 +119,45 @@ def test_the_latency_line_is_the_pooled_distribution(study_dir: Path) -> None:
     assert (f"| gnn | born: {len(t)} | {np.median(d):.0f}; {np.percentile(d, 90):.0f}; "
             f"{d.max():.0f} | {never} ({100 * never / len(t):.1f} %) |") in text
     assert "Paired differences against myopic" in text
+
+
+def test_a_study_split_into_parts_joins_to_the_whole(study_dir: Path, tmp_path: Path) -> None:
+    """The same methods run as two study files with the same seed give, joined, the tables
+    and summary of the one file: runs stay paired across the files."""
+    head, tail = STUDY.split("[[methods]]\nname = \"gnn\"")
+    (tmp_path / "a.toml").write_text(head)
+    (tmp_path / "b.toml").write_text(head.split("[[methods]]")[0] + "[[methods]]\nname = \"gnn\""
+                                     + tail)
+    for part in ("a", "b"):
+        run_study(load_study(tmp_path / f"{part}.toml"), tmp_path / part, workers=1)
+    script = _script()
+    joined = script.join([load_study_dir(tmp_path / "a"), load_study_dir(tmp_path / "b")])
+    whole = load_study_dir(study_dir)
+    assert joined.study.method_names == whole.study.method_names == ["myopic", "gnn"]
+    keys = ["method", "run", "step"]
+    for name in ("gospa", "tracks"):
+        got = getattr(joined, name).sort_values(keys + (["label"] if name == "tracks" else []))
+        want = getattr(whole, name).sort_values(keys + (["label"] if name == "tracks" else []))
+        # the recorded intensity (arrays, or nothing for a tracker without one) is compared
+        # apart: concatenation may store "nothing" as NaN rather than None
+        a, b = (f.reset_index(drop=True) for f in (got, want))
+        if "intensity" in a:
+            def missing(v: object) -> bool:
+                return v is None or (isinstance(v, float) and np.isnan(v))
+
+            for x, y in zip(a.pop("intensity"), b.pop("intensity")):
+                assert missing(x) == missing(y)
+                if not missing(x):
+                    np.testing.assert_array_equal(x, y)
+        pd.testing.assert_frame_equal(a, b, check_categorical=False)
+    assert script.summary_lines(joined, "myopic") == script.summary_lines(whole, "myopic")
+
+
+def test_parts_of_different_studies_are_refused(study_dir: Path, tmp_path: Path) -> None:
+    (tmp_path / "c.toml").write_text(STUDY.replace("seed = 17", "seed = 18").split(
+        "[[methods]]\nname = \"gnn\"")[0].replace('name = "myopic"', 'name = "other"'))
+    run_study(load_study(tmp_path / "c.toml"), tmp_path / "c", workers=1)
+    with pytest.raises(SystemExit, match="differ in seed"):
+        _script().join([load_study_dir(study_dir), load_study_dir(tmp_path / "c")])
+    with pytest.raises(SystemExit, match="duplicate method name"):
+        _script().join([load_study_dir(study_dir), load_study_dir(study_dir)])
