@@ -12,7 +12,11 @@ targets never reported, those of reported targets before their first report and 
 it; false tracks per step; label switches; targets lost (unassigned for 20 or more
 consecutive steps); targets born and the share of them ever reported. Paired differences
 against a reference method per run (mean with its paired 95 % t-interval, median with its
-order-statistic interval).
+order-statistic interval), and the ratio of each method's mean GOSPA to the reference's.
+The reference is named (``--reference``) or chosen by a rule (``--best-of PREFIX``: of the
+methods whose names start with PREFIX, the one with the lowest mean GOSPA over the runs,
+the first in the study's order on a tie; the choice and the range of their means are
+printed first).
 
 Per target, pooled over runs: the steps from birth (its first live step) to its first
 report (median, 90th percentile, max) for the targets born during the run and for the ones
@@ -21,7 +25,8 @@ born ones alive for at least 20 steps, who had time to be found); how long a rep
 target is held: the share of its live steps from its first report on with a track. The
 ANEES of assigned tracks (target-steps whose estimate is within c). Markdown on stdout.
 
-    python scripts/search_summary.py STUDY_DIR [--with OTHER_DIR ...] [--reference myopic]
+    python scripts/search_summary.py STUDY_DIR [--with OTHER_DIR ...]
+                                     [--reference myopic | --best-of raster/]
 
 ``--with`` joins the methods of other study directories run with the same scenario, seed,
 run count and steps (a study split into parts): run r of every method starts from the same
@@ -130,6 +135,41 @@ def per_run(tables: Any, targets: Any) -> Any:
     return runs.reset_index()
 
 
+def mean_gospa(tables: Any) -> dict[str, float]:
+    """Per method, in the study's order: the mean GOSPA (m) over steps 1..S per run, then
+    over runs."""
+    per = tables.gospa.groupby(["method", "run"], observed=True)["gospa"].mean()
+    means = per.groupby(level="method", observed=True).mean()
+    return {m.name: float(means[m.name]) for m in tables.study.methods
+            if m.name in means.index}
+
+
+def best_of(tables: Any, prefix: str) -> tuple[str, dict[str, float]]:
+    """The method whose name starts with ``prefix`` with the lowest mean GOSPA
+    (:func:`mean_gospa`; the first in the study's order on a tie), and every such method's
+    mean GOSPA.
+
+    Raises
+    ------
+    ValueError
+        No method's name starts with ``prefix``.
+    """
+    means = {m: v for m, v in mean_gospa(tables).items() if m.startswith(prefix)}
+    if not means:
+        raise ValueError(f"no method's name starts with {prefix!r}")
+    return min(means, key=means.__getitem__), means
+
+
+def best_of_lines(tables: Any, prefix: str) -> tuple[str, list[str]]:
+    """:func:`best_of`'s choice and the markdown lines that state it."""
+    best, means = best_of(tables, prefix)
+    lo, hi = min(means.values()), max(means.values())
+    return best, [f"Reference: {best}, the lowest mean GOSPA ({means[best]:.2f} m) of the "
+                  f"{len(means)} methods named {prefix}... (their means {lo:.2f}-{hi:.2f} m), "
+                  "chosen on these runs (which favours it: the paired intervals do not allow "
+                  "for the choice).", ""]
+
+
 def anees_assigned(tables: Any) -> dict[str, tuple[float, int]]:
     """Per method: the mean NEES over the target-steps (1..S) whose estimate is within c,
     and how many there are."""
@@ -215,6 +255,9 @@ def summary_lines(tables: Any, reference: str) -> list[str]:
                              f"[{_fmt(mlo, dec, '+')}, {_fmt(mhi, dec, '+')}]; "
                              f"{(d < 0).sum()} / {(d > 0).sum()}")
             out.append(f"| {label} | " + " | ".join(cells) + " |")
+        means = mean_gospa(tables)
+        out.append(f"| mean GOSPA ratio (method / {reference}) | " + " | ".join(
+            f"{means[m] / means[reference]:.3f}" for m in others) + " |")
     return out
 
 
@@ -254,15 +297,25 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("study_dir")
     parser.add_argument("--with", dest="others", action="append", default=[],
                         metavar="OTHER_DIR", help="another part of the same study to join")
-    parser.add_argument("--reference", default="myopic",
-                        help="the method the paired differences are taken against")
+    which = parser.add_mutually_exclusive_group()
+    which.add_argument("--reference", default="myopic",
+                       help="the method the paired differences are taken against")
+    which.add_argument("--best-of", metavar="PREFIX",
+                       help="take them against the method named PREFIX... with the lowest "
+                            "mean GOSPA")
     args = parser.parse_args(argv)
     parts = [load_study_dir(d) for d in [args.study_dir, *args.others]]
     tables = join(parts) if len(parts) > 1 else parts[0]
     if not tables.complete:
         sys.stderr.write(f"note: {len(tables.runs_done)} of {tables.study.runs} runs finished "
                          "in every directory; the tables use those\n")
-    print("\n".join(summary_lines(tables, args.reference)))
+    reference, head = args.reference, []
+    if args.best_of is not None:
+        try:
+            reference, head = best_of_lines(tables, args.best_of)
+        except ValueError as err:
+            parser.error(str(err))
+    print("\n".join(head + summary_lines(tables, reference)))
 
 
 if __name__ == "__main__":

@@ -161,3 +161,57 @@ def test_parts_of_different_studies_are_refused(study_dir: Path, tmp_path: Path)
         _script().join([load_study_dir(study_dir), load_study_dir(tmp_path / "c")])
     with pytest.raises(SystemExit, match="duplicate method name"):
         _script().join([load_study_dir(study_dir), load_study_dir(study_dir)])
+
+
+def _mean_gospa_direct(study_dir: Path) -> dict[str, float]:
+    """Per method: the mean over runs of each run's mean GOSPA, in plain Python."""
+    g = pd.read_parquet(study_dir / "gospa.parquet")
+    per_run: dict[str, list[float]] = {}
+    for (m, _r), x in g.groupby(["method", "run"]):
+        values = x["gospa"].to_list()
+        per_run.setdefault(str(m), []).append(sum(values) / len(values))
+    return {m: sum(v) / len(v) for m, v in per_run.items()}
+
+
+def test_best_of_takes_the_lowest_mean_gospa_among_the_prefixed_methods(
+        study_dir: Path) -> None:
+    script = _script()
+    tables = load_study_dir(study_dir)
+    want = _mean_gospa_direct(study_dir)
+    best, means = script.best_of(tables, "")
+    assert set(means) == {"myopic", "gnn"}
+    for m, v in want.items():
+        assert means[m] == pytest.approx(v, rel=1e-12)
+    assert best == min(want, key=want.__getitem__)
+    # a prefix narrows the candidates, even to one that is not the lowest overall
+    for name in ("myopic", "gnn"):
+        assert script.best_of(tables, name[:2]) == (name, {name: means[name]})
+    with pytest.raises(ValueError, match="starts with 'raster/'"):
+        script.best_of(tables, "raster/")
+
+
+def test_best_of_on_the_command_line_names_its_choice_and_takes_it_as_reference(
+        study_dir: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    script = _script()
+    want = _mean_gospa_direct(study_dir)
+    best = min(want, key=want.__getitem__)
+    other = next(m for m in want if m != best)
+    script.main([str(study_dir), "--best-of", ""])
+    text = capsys.readouterr().out
+    lo, hi = min(want.values()), max(want.values())
+    assert text.startswith(f"Reference: {best}, the lowest mean GOSPA ({want[best]:.2f} m) "
+                           f"of the 2 methods named ... (their means {lo:.2f}-{hi:.2f} m)")
+    assert f"Paired differences against {best} per run" in text
+    assert (f"| mean GOSPA ratio (method / {best}) | {want[other] / want[best]:.3f} |"
+            in text)
+    with pytest.raises(SystemExit) as exit_info:
+        script.main([str(study_dir), "--best-of", "raster/"])
+    assert exit_info.value.code == 2
+    assert "no method's name starts with 'raster/'" in capsys.readouterr().err
+
+
+def test_the_ratio_row_is_the_ratio_of_the_mean_gospas(study_dir: Path) -> None:
+    want = _mean_gospa_direct(study_dir)
+    text = "\n".join(_script().summary_lines(load_study_dir(study_dir), "myopic"))
+    assert f"| mean GOSPA ratio (method / myopic) | {want['gnn'] / want['myopic']:.3f} |" \
+        in text
