@@ -67,8 +67,8 @@ def radar_all(planning_threshold: float | None, steps: int = 30, seed: int = 11)
 
 def test_a_planning_threshold_at_or_above_the_report_threshold_changes_nothing() -> None:
     # Seed 14: a track fades below the report threshold within the 60 steps.
-    scenario, base, seed = radar_all(None, steps=60, seed=14)
-    assert base.tracker.planning_threshold == base.tracker.report_threshold == 0.5
+    scenario, base, seed = radar_all(0.5, steps=60, seed=14)
+    assert base.tracker.report_threshold == 0.5
     a = run_episode(scenario, base, seed)
     b = run_episode(*radar_all(0.9, steps=60, seed=14)[:2], seed)
     for f in dataclasses.fields(a):
@@ -78,7 +78,9 @@ def test_a_planning_threshold_at_or_above_the_report_threshold_changes_nothing()
                 np.testing.assert_array_equal(x, y, err_msg=f.name)
             else:
                 assert x == y, f.name
-    c = run_episode(*radar_all(0.1, steps=60, seed=14)[:2], seed)
+    today = radar_all(None, steps=60, seed=14)[1]
+    assert today.tracker.planning_threshold == 0.1                      # the default
+    c = run_episode(scenario, today, seed)
     assert not np.array_equal(a.potential, c.potential)
 
 

@@ -431,7 +431,7 @@ class TrackerSettings(_Settings):
              "into undetected intensity where it was instead of forgetting it (0: off; else "
              "at least prune_threshold and below report_threshold).")
     planning_threshold: float = setting(
-        0.5, section="tracker", label="planning threshold",
+        0.1, section="tracker", label="planning threshold",
         bounds=Range(0.0, 1.0, lo_open=True, hi_open=True),
         help="The PMB tracker's planning sees every track whose probability of existence is "
              "at least the smaller of this and report_threshold, weighted by its existence, "
