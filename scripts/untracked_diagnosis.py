@@ -22,7 +22,7 @@ Bernoulli within c, the target's last label still held by a Bernoulli beyond c);
 *gone* (no Bernoulli within c, the target's last label pruned, or never had one). Per class:
 the steps since the target was last detected and since a look was last aimed at the label.
 
-    python scripts/untracked_diagnosis.py study /work/main/runs/search_conditions_search
+    python scripts/untracked_diagnosis.py study runs/search_conditions_search
     python scripts/untracked_diagnosis.py closed-loop studies/search_conditions_search.toml \
         --method pmb --seed 120419 --runs 60 [--planning-threshold 0.1]
 """
