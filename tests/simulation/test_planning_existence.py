@@ -46,3 +46,72 @@ def test_each_decision_gets_the_tracks_existence(monkeypatch) -> None:
         # The weights of the tracks of the call that led to this decision.
         assert any(np.array_equal(problem.existence, r) for r in reported)
     assert len({p.existence.tobytes() for p in Recording.problems}) == len(Recording.problems)
+
+
+def radar_all(planning_threshold: float | None, steps: int = 30, seed: int = 11) -> Any:
+    """configs/radar_all.toml with the PMB tracker (closed map edge), its planning threshold
+    replaced when given."""
+    from pathlib import Path
+
+    from sensorplan.config import load_simulation
+
+    cfg = load_simulation(Path(__file__).parents[2] / "configs" / "radar_all.toml",
+                          overrides={"steps": steps, "seed": seed})
+    tr = dataclasses.replace(cfg.settings.tracker, kind="pmb", map_edge="closed")
+    if planning_threshold is not None:
+        tr = dataclasses.replace(tr, planning_threshold=planning_threshold)
+    # Decisions every two steps, as in the studies of this preset.
+    return (cfg.scenario, dataclasses.replace(cfg.settings, tracker=tr, steps_per_epoch=2),
+            cfg.seed)
+
+
+def test_a_planning_threshold_at_or_above_the_report_threshold_changes_nothing() -> None:
+    # Seed 14: a track fades below the report threshold within the 60 steps.
+    scenario, base, seed = radar_all(0.5, steps=60, seed=14)
+    assert base.tracker.report_threshold == 0.5
+    a = run_episode(scenario, base, seed)
+    b = run_episode(*radar_all(0.9, steps=60, seed=14)[:2], seed)
+    for f in dataclasses.fields(a):
+        if f.name not in ("planning_seconds", "settings"):
+            x, y = getattr(a, f.name), getattr(b, f.name)
+            if isinstance(x, np.ndarray):
+                np.testing.assert_array_equal(x, y, err_msg=f.name)
+            else:
+                assert x == y, f.name
+    today = radar_all(None, steps=60, seed=14)[1]
+    assert today.tracker.planning_threshold == 0.1                      # the default
+    c = run_episode(scenario, today, seed)
+    assert not np.array_equal(a.potential, c.potential)
+
+
+def test_planning_sees_the_bernoullis_above_the_planning_threshold(monkeypatch) -> None:
+    from sensorplan.tracking.pmb.tracker import PMBTracker
+
+    seen: list[Any] = []
+    plain = PMBTracker.planning_tracks
+
+    def planning_tracks(self: PMBTracker) -> Any:
+        ts = plain(self)
+        # What the tracker holds: the Bernoullis at or above 0.1, none below.
+        np.testing.assert_array_equal(ts.labels, self.bern.labels[self.bern.r >= 0.1])
+        seen.append(ts)
+        return ts
+
+    monkeypatch.setattr(PMBTracker, "planning_tracks", planning_tracks)
+    monkeypatch.setitem(PLANNERS, "recording", Recording)
+    Recording.problems.clear()
+    scenario, settings, seed = radar_all(0.1, steps=40)
+    ep = run_episode(scenario, dataclasses.replace(settings, planner="recording"), seed)
+    assert len(Recording.problems) == 20                           # e = 2: every other step
+    faint = 0
+    for problem in Recording.problems:
+        match = [ts for ts in seen if ts.existence.tobytes() == problem.existence.tobytes()]
+        assert match and np.array_equal(match[0].means, problem.means)
+        faint += int(np.any(problem.existence < 0.5))
+    assert faint > 0                 # some decision planned on a track that was not reported
+    # The record names reported tracks only: every recorded look's index is in the set
+    # reported at the epoch's start.
+    reported = np.bincount(ep.track_step, minlength=ep.looked.shape[0])
+    t = np.arange(1, ep.looked.shape[0])
+    start = t - 1 - (t - 1) % 2
+    assert np.all(ep.looked[1:] < reported[start][:, None])

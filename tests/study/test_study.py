@@ -715,3 +715,27 @@ def test_a_scenario_files_unused_planner_settings_are_still_checked(tmp_path) ->
     assert "planning.planner_params.bogus" in exc.value.message
     (tmp_path / "scenario.toml").write_text(good)
     assert parse_study(study, base_dir=tmp_path).methods[0].name == "rnd"
+
+
+def test_a_study_directory_written_before_the_planning_threshold_planned_on_reported_tracks(
+        tmp_path: Path) -> None:
+    """The tracker gained planning_threshold (default 0.1) after PMB studies had run with
+    planning on the reported tracks only: a directory whose methods lack it reads back with
+    the method's report threshold, resumes as the same study when the file names that value,
+    and is a different study under today's default."""
+    text = ("runs = 1\nsteps = 2\n[scenario]\npreset = \"search\"\n[[methods]]\nname = \"r\"\n"
+            "planner = \"random\"\n[methods.tracker]\nkind = \"pmb\"\nreport_threshold = 0.6\n")
+    pinned = parse_study(text + "planning_threshold = 0.6\n")
+    assert studies.run_study(pinned, tmp_path, workers=1).ran == 1
+    config = tmp_path / "config.resolved.json"
+    old = json.loads(config.read_text())
+    assert old["methods"][0]["tracker"]["planning_threshold"] == 0.6
+    del old["methods"][0]["tracker"]["planning_threshold"]
+    config.write_text(json.dumps(old))
+    assert studies.Study.from_resolved(old).methods[0].settings.tracker.planning_threshold \
+        == 0.6
+    assert studies.run_study(pinned, tmp_path, workers=1).ran == 0
+    today = parse_study(text)
+    assert today.methods[0].settings.tracker.planning_threshold == 0.1
+    with pytest.raises(ConfigError, match="planning_threshold"):
+        studies.run_study(today, tmp_path, workers=1)

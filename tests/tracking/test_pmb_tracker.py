@@ -18,7 +18,7 @@ from sensorplan.models import linear, radar
 from sensorplan.models.angles import wrap_angle
 from sensorplan.models.motion import cv_matrices
 from sensorplan.models.sensors import SensorParams, radar_table
-from sensorplan.tracking.base import Looks, Tracker
+from sensorplan.tracking.base import Looks, Tracker, planning_tracks
 from sensorplan.tracking.registry import TRACKERS
 from sensorplan.tracking.checks import CHECKS, Scene, check_tracker
 from sensorplan.tracking.missed import miss_update, standard_points
@@ -407,7 +407,42 @@ def test_pruning_and_reporting_thresholds() -> None:
     assert tr2.tracks().labels.tolist() == [1, 2, 3, 4]
 
 
+@pytest.mark.parametrize(("planning", "report", "seen"), [
+    (None, 0.5, [2, 4]),                 # default: the reported tracks
+    (0.1, 0.5, [1, 2, 3, 4]),            # every Bernoulli at or above 0.1
+    (0.3, 0.5, [1, 2, 3, 4]),            # r = 0.3 is at the threshold: seen
+    (0.30001, 0.5, [2, 3, 4]),
+    (0.9, 0.5, [2, 4]),                  # never above the report threshold
+    (0.2, 0.25, [1, 2, 3, 4])])
+def test_planning_sees_the_bernoullis_at_or_above_its_threshold(planning, report, seen) -> None:
+    r = np.array([0.0015, 0.3, 0.5, 0.49999, 0.9])
+    means = np.column_stack([np.linspace(50, 250, 5), np.full(5, 150.0), np.zeros((5, 2))])
+    covs = P0 * np.linspace(1.0, 2.0, 5)[:, None, None]
+    tr = PMBTracker(MapModel(linear.williams15(), 1.0, (300.0, 300.0)), means=means, covs=covs,
+                    existence=r, report_threshold=report, planning_threshold=planning)
+    got = tr.planning_tracks()
+    assert got.labels.tolist() == seen
+    # The Bernoullis as they are: their existence (planning's weights) and moments.
+    np.testing.assert_array_equal(got.existence, r[seen])
+    np.testing.assert_array_equal(got.means, means[seen])
+    np.testing.assert_array_equal(got.covs, covs[seen])
+    # Every reported track is among them.
+    assert set(tr.tracks().labels.tolist()) <= set(seen)
+    got.means[:] = 0.0                                          # a copy
+    assert np.array_equal(tr.bern.means, means)
+
+
+def test_planning_tracks_fall_back_to_the_reported_ones() -> None:
+    from sensorplan.tracking.gnn import GNNTracker
+
+    tr = GNNTracker(MapModel(linear.williams15(), 1.0, (300.0, 300.0)), means=MEANS[:2], covs=P0)
+    assert not hasattr(tr, "planning_tracks")
+    np.testing.assert_array_equal(planning_tracks(tr).labels, tr.tracks().labels)
+
+
 @pytest.mark.parametrize(("key", "value"), [("report_threshold", 1.0), ("report_threshold", 0.0),
+                                            ("planning_threshold", 0.0),
+                                            ("planning_threshold", 1.0),
                                             ("prune_threshold", 1.0),
                                             ("survival_probability", 0.0),
                                             ("initial_undetected", -1.0), ("births", "sides"),

@@ -49,7 +49,7 @@ from ..models.motion import cv_matrices
 from ..models.sensors import radar_table
 from ..planners import checked_plan, make_planner
 from ..planners.problem import PlanningProblem, UndetectedIntensity
-from ..tracking.base import Tracker, TrackSet, undetected_report
+from ..tracking.base import Tracker, TrackSet, planning_tracks, undetected_report
 from ..tracking.registry import tracker_class
 from .episode import Episode, Recorder, _is_int
 from .scenario import Scenario, draw_initial, make_population
@@ -154,7 +154,7 @@ def run_episode(scenario: Scenario, settings: RunSettings,
                                          getattr(truth_model, "heights", None))
             update = tracker.update(looks)
             record.pose(t, schedule.positions, schedule.headings)
-            record.step(t, x_true, alive, tracker.tracks(), schedule.aimed, looks, sensed,
+            record.step(t, x_true, alive, tracker.tracks(), schedule.recorded, looks, sensed,
                         predicted, update)
             _record_intensity(record, t, tracker)
             if progress is not None:
@@ -269,16 +269,21 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
     return cls(model, means=estimate, covs=P0, survival_probability=tr.survival_probability,
                births=tr.births, birth_rate=tr.birth_rate if tr.births != "none" else 0.0,
                prune_threshold=tr.prune_threshold, report_threshold=tr.report_threshold,
-               recycle_threshold=tr.recycle_threshold)
+               recycle_threshold=tr.recycle_threshold,
+               planning_threshold=tr.planning_threshold)
 
 
 class _Schedule:
     """The plan being executed: decisions when one is due, and each epoch's poses and aims.
 
-    At a decision the tracker's tracks and the platforms' poses form the planning problem;
-    ``olf`` executes the plan's first epoch, ``ol`` all K. At an epoch's start each platform
-    moves to its planned position and turns (heading rule) toward its planned track's mean
-    predicted to the epoch's first step.
+    At a decision the tracks planning sees (:func:`~sensorplan.tracking.base.planning_tracks`:
+    the reported ones, or with a PMB tracker's ``planning_threshold`` below its report
+    threshold also fainter ones) and the platforms' poses form the planning problem; ``olf``
+    executes the plan's first epoch, ``ol`` all K. At an epoch's start each platform moves to
+    its planned position and turns (heading rule) toward its planned track's mean predicted
+    to the epoch's first step. ``aimed`` indexes the tracks planning saw at the epoch's
+    start, ``recorded`` the reported ones (-1 for a look at a track not reported), as the
+    run's record wants.
     """
 
     def __init__(self, scenario: Scenario, settings: RunSettings, planner: Any,
@@ -290,6 +295,7 @@ class _Schedule:
         self.headings = init.headings.copy()
         N = len(self.sensors)
         self.aimed = np.full(N, -1, dtype=np.int64)
+        self.recorded = self.aimed
         self.per_plan = settings.horizon if settings.execution == "ol" else 1
         self.epoch_index = self.per_plan                 # the first step is a decision
         self.plan_labels = np.full((N, 0), -1, dtype=np.int64)
@@ -309,12 +315,13 @@ class _Schedule:
 
     def epoch(self, t: int, tracker: Tracker, record: Recorder) -> None:
         """Start the epoch that begins with step ``t`` (deciding first if a plan is due)."""
-        tracks = tracker.tracks()
+        tracks = planning_tracks(tracker)
         if self.epoch_index == self.per_plan:
             self._decide(t, tracks, tracker.planning_process_noise(), record, tracker)
         k = self.epoch_index
         label = self.plan_labels[:, k]
         self.aimed = tracks_index(tracks, label)
+        self.recorded = tracks_index(tracker.tracks(), np.where(self.aimed >= 0, label, -1))
         assigned = self.aimed >= 0
         self.sectors = self.plan_sectors[:, k] if self.searching else self.sectors
         search = self.sectors >= 0

@@ -82,7 +82,7 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
 
 #: The settings only the PMB tracker reads, and only the GNN tracker.
 PMB_SETTINGS = ("births", "birth_rate", "survival_probability", "report_threshold",
-                "prune_threshold", "recycle_threshold")
+                "prune_threshold", "recycle_threshold", "planning_threshold")
 GNN_SETTINGS = ("confirm_hits", "confirm_looks", "delete_misses")
 #: The settings only the lost-target mode of the tracker of known targets reads.
 LOST_SETTINGS = ("lost_probability", "lost_resolution")
@@ -430,6 +430,12 @@ class TrackerSettings(_Settings):
         help="The PMB tracker turns a track whose probability of existence falls below this "
              "into undetected intensity where it was instead of forgetting it (0: off; else "
              "at least prune_threshold and below report_threshold).")
+    planning_threshold: float = setting(
+        0.1, section="tracker", label="planning threshold",
+        bounds=Range(0.0, 1.0, lo_open=True, hi_open=True),
+        help="The PMB tracker's planning sees every track whose probability of existence is "
+             "at least the smaller of this and report_threshold, weighted by its existence, "
+             "so a track below the report threshold can still be looked at.")
     grid_resolution: float = setting(
         25.0, section="tracker", label="grid resolution", bounds=Range(1.0, 1e5),
         help="Side (m) of the map cells on which a multi-target tracker keeps the expected "

@@ -39,6 +39,18 @@ class Method:
         return {"name": self.name, **d}
 
 
+def planned_as_written(method: Mapping[str, Any]) -> dict[str, Any]:
+    """A method of a ``config.resolved.json`` with the tracker's planning threshold it ran
+    with: before ``tracker.planning_threshold`` existed planning saw the reported tracks
+    only, so a method without it gets its report threshold (0.5 unless written), not
+    today's default."""
+    m = dict(method)
+    tracker = dict(m.get("tracker", {}))
+    tracker.setdefault("planning_threshold", tracker.get("report_threshold", 0.5))
+    m["tracker"] = tracker
+    return m
+
+
 @dataclass(frozen=True)
 class Study:
     """A Monte Carlo study: ``runs`` paired runs of ``steps`` steps for every method.
@@ -114,6 +126,7 @@ class Study:
         for m in data["methods"]:
             m = dict(m)
             name = m.pop("name")
+            m = planned_as_written(m)
             # Trusted: the planner is not imported (the report of a study run with a
             # planner from another package must not need that package).
             methods.append(Method(name, RunSettings.from_dict({**m, **shared}, trusted=True)))

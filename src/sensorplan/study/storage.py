@@ -23,7 +23,7 @@ from typing import Any
 
 from ..errors import ConfigError
 from ..simulation.settings import RunSettings, default_of
-from .model import FORMAT, READABLE_FORMATS, Study
+from .model import FORMAT, READABLE_FORMATS, Study, planned_as_written
 from .set_metrics import GOSPA_CUTOFF
 from .tables import TABLES, TaskResult, arrow_table
 
@@ -273,7 +273,9 @@ def prepare(out: Path, study: Study) -> int | None:
         old = _read_resolved(config, "--out", "use another --out or delete it")
         before = {k: old.get(k, RESULT_DEFAULTS.get(k)) for k in RESULT_KEYS}
         if isinstance(before["methods"], list):
-            before["methods"] = [{**METHOD_DEFAULTS, **m} if isinstance(m, dict) else m
+            before["methods"] = [{**METHOD_DEFAULTS, **planned_as_written(m)}
+                                 if isinstance(m, dict) and isinstance(m.get("tracker", {}), dict)
+                                 else m
                                  for m in before["methods"]]
         after: dict[str, Any] = {k: resolved.get(k) for k in RESULT_KEYS}
         grown = (isinstance(before["runs"], int) and not isinstance(before["runs"], bool)

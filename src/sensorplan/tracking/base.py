@@ -164,6 +164,16 @@ class Tracker(Protocol):
 
     # A tracker that keeps the intensity of undetected targets also offers
     # ``undetected_intensity() -> UndetectedReport`` (optional: :func:`undetected_report`).
+    # One that lets planning see tracks it does not report offers
+    # ``planning_tracks() -> TrackSet`` (optional: :func:`planning_tracks`).
+
+
+def planning_tracks(tracker: Any) -> TrackSet:
+    """The tracks planning sees: the tracker's optional ``planning_tracks()`` (a
+    multi-target tracker may let planning see tracks below its report threshold, each
+    weighted by its existence), else its reported :meth:`Tracker.tracks`."""
+    tracks = getattr(tracker, "planning_tracks", None)
+    return tracks() if callable(tracks) else tracker.tracks()
 
 
 def given_tracks(means: Any, covs: Any) -> tuple[FloatArray, FloatArray]:

@@ -72,8 +72,12 @@ target detected outside its gate would start a new Bernoulli; at the default gat
 probability 0.999 the difference is 1e-3 of :math:`\bar P`).
 
 **Reporting**. :meth:`tracks` reports the Bernoullis with :math:`r \ge`
-``report_threshold``, with their existence and labels. Each Bernoulli holds a single
-constant-velocity EKF; the known-target tracker's IMM modes are not offered here.
+``report_threshold``, with their existence and labels. **Planning** sees
+:meth:`planning_tracks`: the Bernoullis with :math:`r \ge` ``planning_threshold`` (the
+report threshold unless set lower), each weighted by its existence, so a track that has
+faded below the report threshold can still be looked at and confirmed or dropped. Each
+Bernoulli holds a single constant-velocity EKF; the known-target tracker's IMM modes are
+not offered here.
 
 **Arrays**. A look's work is batched: the quadrature of every Bernoulli at once, one
 compiled pass over every (Bernoulli or cell, detection) pair for the innovations and
@@ -166,6 +170,10 @@ class PMBTracker(MapTracker):
         0 (default): no recycling. Else Bernoullis below this existence are recycled into
         the undetected intensity instead of being dropped (module docstring); it must lie
         in ``[prune_threshold, report_threshold)``.
+    planning_threshold : float in (0, 1), optional
+        :meth:`planning_tracks` returns the Bernoullis with at least the smaller of this and
+        ``report_threshold`` (default None: the report threshold, so planning sees the
+        reported tracks only).
     """
 
     def __init__(self, model: MapModel, *, means: FloatArray | None = None,
@@ -173,7 +181,8 @@ class PMBTracker(MapTracker):
                  survival_probability: float = 0.99, births: str | FloatArray = "none",
                  birth_rate: float = 0.0, initial_undetected: float = 0.0,
                  prune_threshold: float = 1e-3, report_threshold: float = 0.5,
-                 recycle_threshold: float = 0.0) -> None:
+                 recycle_threshold: float = 0.0,
+                 planning_threshold: float | None = None) -> None:
         if not 0.0 < survival_probability <= 1.0:
             raise ValueError(f"survival_probability must be in (0, 1], got "
                              f"{survival_probability!r}")
@@ -188,6 +197,9 @@ class PMBTracker(MapTracker):
             raise ValueError(f"recycle_threshold must be 0 (off) or in [prune_threshold, "
                              f"report_threshold) = [{prune_threshold!r}, "
                              f"{report_threshold!r}), got {recycle_threshold!r}")
+        if planning_threshold is not None and not 0.0 < planning_threshold < 1.0:
+            raise ValueError(f"planning_threshold must be in (0, 1), got "
+                             f"{planning_threshold!r}")
         if not (math.isfinite(initial_undetected) and initial_undetected >= 0.0):
             raise ValueError(f"initial_undetected must be >= 0, got {initial_undetected!r}")
         super().__init__(model)
@@ -195,6 +207,8 @@ class PMBTracker(MapTracker):
         self.prune_threshold = float(prune_threshold)
         self.report_threshold = float(report_threshold)
         self.recycle_threshold = float(recycle_threshold)
+        self.planning_threshold = (self.report_threshold if planning_threshold is None
+                                   else min(float(planning_threshold), self.report_threshold))
         #: Bernoullis recycled into the undetected intensity so far, and their existence.
         self.recycled, self.recycled_mass = 0, 0.0
         if isinstance(births, str):
@@ -221,6 +235,14 @@ class PMBTracker(MapTracker):
         """The Bernoullis with existence at least ``report_threshold`` (copies)."""
         k = self._reported()
         b = self.bern
+        return TrackSet(b.means[k], b.covs[k], b.r[k], b.labels[k])
+
+    def planning_tracks(self) -> TrackSet:
+        """The Bernoullis planning sees (copies): existence at least ``planning_threshold``
+        (never above the report threshold, so every reported track is among them); planning
+        weights each by its existence."""
+        b = self.bern
+        k = b.r >= self.planning_threshold
         return TrackSet(b.means[k], b.covs[k], b.r[k], b.labels[k])
 
     def planning_process_noise(self) -> float | FloatArray:

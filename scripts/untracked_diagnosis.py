@@ -1,0 +1,298 @@
+"""Where the untracked target-steps of a multi-target tracker come from.
+
+A live target-step is *untracked* when no reported track is assigned to the target within c
+(GOSPA's assignment, :func:`sensorplan.study.set_metrics.set_metrics`), the share that the
+search-and-track rule (a) bounds.
+
+``study DIR [--method pmb]``: a finished study's tables (reported tracks only). Each
+untracked target-step is split by what became of the last track assigned to the target:
+*taken* (a reported track within c, assigned to another target), *displaced* (the target's
+last track still reported, farther than c), *unreported* (the target's last track no longer
+reported: faded below the report threshold or pruned; the tables cannot tell which) and
+*never* (the target never had a track). Also the share of all untracked target-steps in the
+worst 10 % of runs.
+
+``closed-loop STUDY.toml --method pmb --seed S --runs R``: runs the method's closed loop on
+seed S (a development seed, not a study's) and records every Bernoulli after every step,
+reported or not, and each look's aim. Each untracked target-step is then
+*taken* (as above); *faded* (a Bernoulli within c, its existence below the report
+threshold; with its existence, whether it carries the target's last label, and whether it
+was reported at the last decision: planning sees only reported tracks); *displaced* (no
+Bernoulli within c, the target's last label still held by a Bernoulli beyond c);
+*gone* (no Bernoulli within c, the target's last label pruned, or never had one). Per class:
+the steps since the target was last detected and since a look was last aimed at the label.
+
+    python scripts/untracked_diagnosis.py study runs/search_conditions_search
+    python scripts/untracked_diagnosis.py closed-loop studies/search_conditions_search.toml \
+        --method pmb --seed 120419 --runs 60 [--planning-threshold 0.1]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from sensorplan.study.set_metrics import GOSPA_CUTOFF, set_metrics
+
+CLASSES_STUDY = ("taken", "displaced", "unreported", "never")
+CLASSES_LOOP = ("taken", "faded", "displaced", "gone")
+
+
+def _last_label(target: np.ndarray, step: np.ndarray, label: np.ndarray) -> np.ndarray:
+    """Per row (sorted by target, then step): the label assigned to the target at its latest
+    earlier-or-same step with an assignment (-1: none yet)."""
+    out = np.full(len(label), -1, dtype=np.int64)
+    order = np.lexsort((step, target))
+    cur_t, cur = None, -1
+    for k in order:
+        if target[k] != cur_t:
+            cur_t, cur = target[k], -1
+        if label[k] >= 0:
+            cur = label[k]
+        out[k] = cur
+    return out
+
+
+def _worst_share(untracked: np.ndarray) -> float:
+    """Share (%) of all untracked target-steps in the worst 10 % of runs (by count)."""
+    n = max(1, int(round(0.1 * len(untracked))))
+    return 100.0 * float(np.sort(untracked)[::-1][:n].sum()) / max(float(untracked.sum()), 1.0)
+
+
+def study_breakdown(directory: str, method: str) -> list[str]:
+    """The breakdown of a finished study's untracked target-steps (module docstring)."""
+    from sensorplan.study.storage import load_study_dir
+
+    tables = load_study_dir(directory)
+    c = float(tables.study.methods[0].settings.gospa_c)
+    steps = tables.steps[(tables.steps["step"] >= 1) & (tables.steps["method"] == method)]
+    tracks = tables.tracks[(tables.tracks["step"] >= 1) & (tables.tracks["method"] == method)]
+    by_run = dict(tuple(tracks.groupby("run", observed=True)))
+    counts = dict.fromkeys(CLASSES_STUDY, 0)
+    per_run_untracked, per_run_live = [], []
+    for run, s in steps.groupby("run", observed=True):
+        y = by_run[run]
+        step, target = s["step"].to_numpy(np.int64), s["target"].to_numpy(np.int64)
+        xy = s[["x", "y"]].to_numpy(float)
+        ystep, ylabel = y["step"].to_numpy(np.int64), y["label"].to_numpy(np.int64)
+        yxy = y[["x", "y"]].to_numpy(float)
+        sm = set_metrics(step - 1, target, xy, ystep - 1, ylabel, yxy, c,
+                         n_steps=tables.study.steps)
+        last = _last_label(target, step, sm.label)
+        gap = np.flatnonzero(~sm.assigned)
+        per_run_untracked.append(len(gap))
+        per_run_live.append(len(step))
+        reported = {(int(a), int(b)): k for k, (a, b) in enumerate(zip(ystep, ylabel))}
+        for k in gap:
+            at = ystep == step[k]
+            d = np.hypot(*(yxy[at] - xy[k]).T)
+            if np.any(d < c):
+                counts["taken"] += 1
+            elif last[k] < 0:
+                counts["never"] += 1
+            elif (int(step[k]), int(last[k])) in reported:
+                counts["displaced"] += 1
+            else:
+                counts["unreported"] += 1
+    u = np.array(per_run_untracked, dtype=float)
+    live = np.array(per_run_live, dtype=float)
+    total = u.sum()
+    lines = [f"method {method}: {len(u)} runs, {int(total)} untracked of {int(live.sum())} "
+             f"live target-steps ({100 * total / live.sum():.2f} %; mean of run shares "
+             f"{100 * np.mean(u / live):.2f} %)",
+             f"share of the untracked target-steps in the worst 10 % of runs: "
+             f"{_worst_share(u):.1f} %",
+             f"runs with no untracked target-step: {int(np.sum(u == 0))}"]
+    lines += [f"  {k}: {v} ({100 * v / max(total, 1):.1f} %)" for k, v in counts.items()]
+    return lines
+
+
+class _Probe:
+    """Records a run's Bernoullis after every step and each epoch's aimed labels."""
+
+    def __init__(self) -> None:
+        self.bern: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self.aims: list[np.ndarray] = []           # per step: labels looked at (-1 none)
+        self.decided: list[set[int]] = []          # per step: labels reported at the
+        self.current_aims = np.zeros(0, dtype=np.int64)   # last decision
+        self.current_decided: set[int] = set()
+
+    def install(self) -> Any:
+        import sensorplan.simulation.run as run_mod
+        from sensorplan.tracking.base import planning_tracks
+
+        probe = self
+        make_tracker, epoch = run_mod.make_tracker, run_mod._Schedule.epoch
+
+        def make(*args: Any, **kwargs: Any) -> Any:
+            tracker = make_tracker(*args, **kwargs)
+            update = tracker.update
+
+            def recorded(looks: Any) -> Any:
+                out = update(looks)
+                b = tracker.bern
+                probe.bern.append((b.r.copy(), b.means[:, :2].copy(), b.labels.copy()))
+                probe.aims.append(probe.current_aims.copy())
+                probe.decided.append(probe.current_decided)
+                return out
+
+            tracker.update = recorded
+            return tracker
+
+        def epoch_(self: Any, t: int, tracker: Any, record: Any) -> None:
+            due = self.epoch_index == self.per_plan
+            epoch(self, t, tracker, record)
+            tracks = planning_tracks(tracker)
+            if due:
+                probe.current_decided = {int(v) for v in tracks.labels}
+            probe.current_aims = np.where(self.aimed >= 0,
+                                          tracks.labels[np.maximum(self.aimed, 0)]
+                                          if len(tracks) else -1, -1)
+
+        run_mod.make_tracker = make
+        run_mod._Schedule.epoch = epoch_
+        return lambda: (setattr(run_mod, "make_tracker", make_tracker),
+                        setattr(run_mod._Schedule, "epoch", epoch))
+
+
+def loop_breakdown(study_file: str, method: str, seed: int, runs: int,
+                   planning_threshold: float | None = None) -> list[str]:
+    """Run ``runs`` closed loops of ``method`` on ``seed`` (with its tracker's
+    ``planning_threshold`` replaced, if given) and break their untracked target-steps down
+    (module docstring)."""
+    from sensorplan.simulation.run import run_episode
+    from sensorplan.study.file import load_study
+
+    study = dataclasses.replace(load_study(study_file), seed=seed, runs=runs)
+    m = next(x for x in study.methods if x.name == method)
+    if planning_threshold is not None:
+        tracker = dataclasses.replace(m.settings.tracker, planning_threshold=planning_threshold)
+        m = dataclasses.replace(m, settings=dataclasses.replace(m.settings, tracker=tracker))
+    threshold = float(m.settings.tracker.report_threshold)
+    c = GOSPA_CUTOFF
+    counts = dict.fromkeys(CLASSES_LOOP, 0)
+    faded_r: list[float] = []
+    displaced_r: list[float] = []
+    displaced_d: list[float] = []
+    starts = dict.fromkeys(CLASSES_LOOP, 0)
+    faded_same, faded_decided = 0, 0
+    since_det: dict[str, list[int]] = {k: [] for k in CLASSES_LOOP}
+    since_aim: dict[str, list[int]] = {k: [] for k in CLASSES_LOOP}
+    per_run_u, per_run_live = [], []
+    for run in range(runs):
+        probe = _Probe()
+        restore = probe.install()
+        try:
+            ep = run_episode(study.scenario, m.settings, study.run_seed(run))
+        finally:
+            restore()
+        S = ep.truth.shape[0] - 1
+        alive = ep.alive[1:]
+        t_idx, j_idx = np.nonzero(alive)
+        step = t_idx + 1
+        xy = ep.truth[step, j_idx, :2]
+        ys = ep.track_step >= 1
+        sm = set_metrics(step - 1, j_idx, xy, ep.track_step[ys] - 1, ep.track_label[ys],
+                         ep.track_mean[ys, :2], c, n_steps=S)
+        last = _last_label(j_idx, step, sm.label)
+        detected = ep.measured[:, :, :].any(axis=2)                     # (S+1, M)
+        gap = np.flatnonzero(~sm.assigned)
+        row = {(int(a), int(b)): k for k, (a, b) in enumerate(zip(step, j_idx))}
+        per_run_u.append(len(gap))
+        per_run_live.append(len(step))
+        for k in gap:
+            t, j = int(step[k]), int(j_idx[k])
+            r, pos, labels = probe.bern[t - 1]
+            d = np.hypot(*(pos - xy[k]).T) if len(r) else np.zeros(0)
+            near = d < c
+            rep_near = near & (r >= threshold)
+            prev = np.flatnonzero(detected[1:t + 1, j])
+            sd = t - (int(prev[-1]) + 1) if prev.size else t
+            lab = int(last[k])
+            if rep_near.any():
+                cls = "taken"
+            elif near.any():
+                cls = "faded"
+                i = np.flatnonzero(near)[np.argmax(r[near])]
+                faded_r.append(float(r[i]))
+                faded_same += int(labels[i] == lab)
+                faded_decided += int(int(labels[i]) in probe.decided[t - 1])
+                lab = int(labels[i])
+            elif lab >= 0 and np.any(labels == lab):
+                cls = "displaced"
+                i = int(np.flatnonzero(labels == lab)[0])
+                displaced_r.append(float(r[i]))
+                displaced_d.append(float(d[i]))
+            else:
+                cls = "gone"
+            aimed = [s for s in range(t) if lab >= 0 and np.any(probe.aims[s] == lab)]
+            counts[cls] += 1
+            before = row.get((t - 1, j))
+            if before is None or sm.assigned[before]:
+                starts[cls] += 1          # the first step of a stretch without a track
+            since_det[cls].append(sd)
+            since_aim[cls].append(t - (aimed[-1] + 1) if aimed else t)
+    u, live = np.array(per_run_u, dtype=float), np.array(per_run_live, dtype=float)
+    total = u.sum()
+    lines = [f"method {method}, seed {seed}, {runs} runs: {int(total)} untracked of "
+             f"{int(live.sum())} live target-steps (mean of run shares "
+             f"{100 * np.mean(u / live):.2f} %, median {100 * np.median(u / live):.2f} %, "
+             f"max {100 * np.max(u / live):.2f} %); planning threshold "
+             f"{m.settings.tracker.planning_threshold}",
+             f"share of the untracked target-steps in the worst 10 % of runs: "
+             f"{_worst_share(u):.1f} %"]
+    for k in CLASSES_LOOP:
+        v = counts[k]
+        row = f"  {k}: {v} ({100 * v / max(total, 1):.1f} %)"
+        if v:
+            row += (f"; steps since last detected median {np.median(since_det[k]):.0f} "
+                    f"(90 % {np.percentile(since_det[k], 90):.0f}); since a look was aimed "
+                    f"at its label median {np.median(since_aim[k]):.0f} "
+                    f"(90 % {np.percentile(since_aim[k], 90):.0f})")
+        lines.append(row)
+    n_starts = sum(starts.values())
+    lines.append(f"  stretches without a track: {n_starts}; class at their first step: "
+                 + ", ".join(f"{k} {100 * v / max(n_starts, 1):.1f} %"
+                             for k, v in starts.items()))
+    if displaced_r:
+        dr, dd = np.array(displaced_r), np.array(displaced_d)
+        lines.append(f"  displaced: its Bernoulli's existence median {np.median(dr):.3f}, "
+                     f"reported (>= threshold) {100 * np.mean(dr >= threshold):.1f} %; its "
+                     f"distance to the target median {np.median(dd):.0f} m (90 % "
+                     f"{np.percentile(dd, 90):.0f} m)")
+    if faded_r:
+        fr = np.array(faded_r)
+        lines.append(f"  faded: existence median {np.median(fr):.3f}, quartiles "
+                     f"{np.percentile(fr, 25):.3f}-{np.percentile(fr, 75):.3f}; >= 0.1: "
+                     f"{100 * np.mean(fr >= 0.1):.1f} %, >= 0.01: "
+                     f"{100 * np.mean(fr >= 0.01):.1f} %; carries the target's last label "
+                     f"{100 * faded_same / len(fr):.1f} %; reported at the last decision "
+                     f"(planned on) {100 * faded_decided / len(fr):.1f} %")
+    return lines
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="what", required=True)
+    a = sub.add_parser("study")
+    a.add_argument("directory")
+    a.add_argument("--method", default="pmb")
+    b = sub.add_parser("closed-loop")
+    b.add_argument("study_file")
+    b.add_argument("--method", default="pmb")
+    b.add_argument("--seed", type=int, required=True)
+    b.add_argument("--runs", type=int, default=40)
+    b.add_argument("--planning-threshold", type=float, default=None)
+    args = ap.parse_args(argv)
+    if args.what == "study":
+        print("\n".join(study_breakdown(args.directory, args.method)))
+    else:
+        print("\n".join(loop_breakdown(args.study_file, args.method, args.seed, args.runs,
+                                        args.planning_threshold)))
+
+
+if __name__ == "__main__":
+    main()
