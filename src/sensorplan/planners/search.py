@@ -219,7 +219,17 @@ class SearchEvaluation:
 
 
 def evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
-    """Phi of ``plan`` with search: the reference definition (plain numpy, one plan)."""
+    """Phi of ``plan`` with search: the reference definition (plain numpy, one plan), kept
+    in ``sctx.memo`` by the plan (a game's last sweep and the planner's result ask about the
+    same plan)."""
+    memo = _plan_memo(sctx, plan)
+    got = memo.get("evaluation")
+    if got is None:
+        got = memo["evaluation"] = _evaluate(sctx, plan)
+    return cast(SearchEvaluation, got)
+
+
+def _evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
     if sctx.gospa is not None:
         from . import gospa_bound
 
