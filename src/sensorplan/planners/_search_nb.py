@@ -16,6 +16,7 @@ import math
 import numpy as np
 
 from .._compiled.jit import njit
+from ._chains_nb import covariance_recursion_nb
 from ..models.radar.model import (ANGLE_TOL, RANGE_TOL, detection_probability, hidden,
                                   visible)
 from ..models.sensors import ALTITUDE, ALTITUDE2, FOV, G_MAX, G_MIN
@@ -172,4 +173,86 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
     return counts, idx[:n].copy(), val[:n].copy()
 
 
-__all__ = ["detect_sparse_nb", "found_nb"]
+@njit(cache=True)
+def pair_terms_nb(base: np.ndarray, base_terms: np.ndarray, tgt: np.ndarray, w: np.ndarray,
+                  k0: int, P0: np.ndarray, F: np.ndarray, Q: np.ndarray, cumulative: bool,
+                  cv: bool, dt: float, ld_ref: np.ndarray, existence: np.ndarray
+                  ) -> np.ndarray:
+    """Each target's term of Phi ``(A, M)`` for each candidate of a player whose chain
+    starts at epoch ``k0`` (0-based): the others' term where the chain does not look at the
+    target, else the recursion over the others' information plus the chain's.
+
+    Parameters
+    ----------
+    base : (M, T, 2, 2)   the other looks' information by target;  base_terms : (M,) its terms
+    tgt : (A, L) int      the chain's targets (-1: none);  w : (A, L, e, 2, 2) its information
+    P0 : (M, 4, 4);  F : (4, 4);  Q : (1, 4, 4) or (M, 4, 4);  cumulative, cv, dt   as in
+                          :func:`~sensorplan.planners._chains_nb.covariance_recursion_nb`
+    ld_ref : (M,)         the unmeasured log-det the terms are measured from (the last, or
+                          for ``cumulative`` the sum over steps 1..T)
+    existence : (M,)
+
+    Each (candidate, target looked at) pair runs the recursion on its own row, the sums and
+    the terms' arithmetic in the order of :func:`~sensorplan.planners.information.phi_terms`
+    (bit for bit).
+    """
+    A, L = tgt.shape
+    M, T = base.shape[0], base.shape[1]
+    e = w.shape[2]
+    pa = np.empty(A * L, dtype=np.int64)
+    pj = np.empty(A * L, dtype=np.int64)
+    n = 0
+    for a in range(A):
+        for l in range(L):
+            j = tgt[a, l]
+            if j < 0:
+                continue
+            seen = False
+            for l2 in range(l):
+                if tgt[a, l2] == j:
+                    seen = True
+            if not seen:
+                pa[n] = a
+                pj[n] = j
+                n += 1
+    rows = np.empty((n, T, 2, 2))
+    P = np.empty((n, 4, 4))
+    shared_q = Q.shape[0] == 1
+    Qp = np.empty((1 if shared_q else n, 4, 4))
+    if shared_q:
+        Qp[0] = Q[0]
+    for p in range(n):
+        a, j = pa[p], pj[p]
+        rows[p] = base[j]
+        P[p] = P0[j]
+        if not shared_q:
+            Qp[p] = Q[j]
+        for l in range(L):
+            if tgt[a, l] != j:
+                continue
+            for s in range(e):
+                t = (k0 + l) * e + s
+                for r in range(2):
+                    for c in range(2):
+                        rows[p, t, r, c] += w[a, l, s, r, c]
+    _, ld_end, ld_sum = covariance_recursion_nb(P, rows, F, Qp, cumulative, cv, dt)
+    out = np.empty((A, M))
+    for a in range(A):
+        for j in range(M):
+            out[a, j] = base_terms[j]
+    for p in range(n):
+        j = pj[p]
+        measured = False
+        for t in range(T):
+            for r in range(2):
+                for c in range(2):
+                    if rows[p, t, r, c] != 0.0:
+                        measured = True
+        info = 0.5 * (ld_ref[j] - (ld_sum[p] if cumulative else ld_end[p]))
+        # np.maximum's rule (the first argument when not below, NaN kept), then r_j.
+        kept = info if (info >= 0.0 or math.isnan(info)) else 0.0
+        out[pa[p], j] = existence[j] * (kept if measured else 0.0)
+    return out
+
+
+__all__ = ["detect_sparse_nb", "found_nb", "pair_terms_nb"]

@@ -44,10 +44,10 @@ from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, wrap_angle
-from ._search_nb import detect_sparse_nb, found_nb
+from ._search_nb import detect_sparse_nb, found_nb, pair_terms_nb
 from .cells import candidate_chains, detection
-from .information import (Context, chain_information, covariance_recursion, measured,
-                          phi_terms, sum_by_target, target_information)
+from .information import (BACKEND, Context, chain_information, covariance_recursion,
+                          cv_form, measured, phi_terms, sum_by_target, target_information)
 from .information import prepare as prepare_tracks
 from .problem import POSITION_TOL, Plan, PlanningProblem, move_vectors
 
@@ -278,10 +278,20 @@ def distinct_headings(headings: FloatArray) -> IntArray:
     """Indices of the first of each distinct heading (to :data:`HEADING_TOL`), ascending:
     the sectors that are distinct actions, given the headings the rule maps them to."""
     h = np.asarray(headings, dtype=float).reshape(-1)
-    same = (np.abs(wrap_angle(h[:, None] - h[None, :])) <= HEADING_TOL).tolist()
+    return _first_of_each(np.abs(wrap_angle(h[:, None] - h[None, :])) <= HEADING_TOL)
+
+
+def _first_of_each(same: np.ndarray) -> IntArray:
+    """Indices kept by one pass in order that keeps an item unless it is the same
+    (``same (n, n)``, symmetric) as an item already kept; ascending."""
+    n = same.shape[0]
+    alone = same.sum(axis=1) == 1          # the same as itself only: always kept
+    if alone.all():
+        return np.arange(n, dtype=np.int64)
+    rows = same.tolist()
     keep: list[int] = []
-    for s in range(h.size):
-        if not any(same[s][t] for t in keep):
+    for s in range(n):
+        if alone[s] or not any(rows[s][t] for t in keep):
             keep.append(s)
     return np.array(keep, dtype=np.int64)
 
@@ -302,12 +312,8 @@ def player_positions(sctx: SearchContext, plan: Plan, i: int, k: int) -> FloatAr
     # Distinct positions only (a zero-length move may repeat the stay).
     cand = cand[ok]
     same = (np.abs(cand[:, None] - cand[None]).max(axis=-1, initial=0.0)
-            <= POSITION_TOL * 10).tolist()
-    out: list[int] = []
-    for a in range(len(cand)):
-        if not any(same[a][b] for b in out):
-            out.append(a)
-    return cand[out].reshape(-1, 2)
+            <= POSITION_TOL * 10)
+    return cand[_first_of_each(same)].reshape(-1, 2)
 
 
 def player_actions(sctx: SearchContext, plan: Plan, i: int, k: int
@@ -320,14 +326,25 @@ def player_actions(sctx: SearchContext, plan: Plan, i: int, k: int
     else:
         prev_ok = bool(plan.assigned[i, k - 2])
         prev_h = float(_plan_headings(sctx, plan)[i, k - 2]) if prev_ok else 0.0
-    sectors = sector_actions(sctx, i, k, prev_h, prev_ok)
-    pos = player_positions(sctx, plan, i, k)
-    M = sctx.ctx.M
-    looks_t = np.concatenate([np.arange(M), np.full(sectors.size, -1)])
-    looks_s = np.concatenate([np.full(M, -1), sectors])
-    n = looks_t.size
-    return (np.repeat(pos, n, axis=0), np.tile(looks_t, len(pos)),
-            np.tile(looks_s, len(pos)))
+    # The actions depend on the player's previous heading and its neighbouring epochs'
+    # positions only: kept in sctx.memo by those (read-only), as sweeps ask again.
+    nxt = k < sctx.ctx.K and bool(plan.assigned[i, k])
+    key = (i, k, prev_ok, prev_h, plan.positions[i, k - 2].tobytes() if k > 1 else b"",
+           plan.positions[i, k].tobytes() if nxt else b"")
+    memo = sctx.memo.setdefault("actions", {})
+    got = memo.get(key)
+    if got is None:
+        sectors = sector_actions(sctx, i, k, prev_h, prev_ok)
+        pos = player_positions(sctx, plan, i, k)
+        M = sctx.ctx.M
+        looks_t = np.concatenate([np.arange(M), np.full(sectors.size, -1)])
+        looks_s = np.concatenate([np.full(M, -1), sectors])
+        n = looks_t.size
+        got = memo[key] = (np.repeat(pos, n, axis=0), np.tile(looks_t, len(pos)),
+                           np.tile(looks_s, len(pos)))
+        for a in got:
+            a.flags.writeable = False
+    return got
 
 
 def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
@@ -427,10 +444,11 @@ def _chain_column(sctx: SearchContext, i: int, kk: int, pos: FloatArray, tgt: In
         track = tgt >= 0
         w = np.zeros((len(tgt), ctx.e, 2, 2))
         if ctx.M and track.any():
-            wt, _ = chain_information(ctx, i, kk, np.where(track[:, None], pos, 0.0)[:, None],
-                                      np.where(track, th, 0.0)[:, None],
-                                      np.maximum(tgt, 0)[:, None])
-            w = np.where(track[:, None, None, None], wt[:, 0], 0.0)
+            # Each look's information is its own (the radar's batch is elementwise): the
+            # track looks only.
+            wt, _ = chain_information(ctx, i, kk, pos[track][:, None], th[track][:, None],
+                                      tgt[track][:, None])
+            w[track] = wt[:, 0]
         got = memo[key] = (rows, w)
     return got
 
@@ -455,8 +473,26 @@ def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: 
         looks = memo["looks"] = (n_look, k_look, row)
     n_look, k_look, row = looks
     other = (n_look != i) | (k_look < k - 1)
-    return found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1,
-                    k_look[other], row[other], rows, ls + (k - 1), *pool.arrays())
+    # Candidates whose chains are the same looks (track looks the turn limit clips to one
+    # heading, say) have the same mu: computed once.
+    uniq, inv = _distinct_rows(rows, pool.n_rows)
+    mu = found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1,
+                  k_look[other], row[other], uniq, ls + (k - 1), *pool.arrays())
+    return mu[inv]
+
+
+def _distinct_rows(rows: IntArray, n_rows: int) -> tuple[IntArray, IntArray]:
+    """The distinct rows of ``rows (A, n)`` (entries in -1..n_rows-1) and each row's index
+    among them."""
+    A, n = rows.shape
+    if n and n * math.log2(n_rows + 1) < 62:
+        key = np.zeros(A, dtype=np.int64)
+        for l in range(n):
+            key = key * (n_rows + 1) + (rows[:, l] + 1)
+        _, first, inv = np.unique(key, return_index=True, return_inverse=True)
+        return np.ascontiguousarray(rows[first]), inv
+    uniq, inv = np.unique(rows, axis=0, return_inverse=True)
+    return np.ascontiguousarray(uniq), inv.reshape(-1)
 
 
 class _LookPool:
@@ -551,7 +587,6 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
     A, L = tgt.shape
     if ctx.M == 0:
         return np.zeros(A)
-    M, e = ctx.M, ctx.e
     others = plan.targets.copy()
     others[i, k - 1:] = -1
     memo = _plan_memo(sctx, plan)
@@ -559,6 +594,33 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
     if W is None:
         W = memo["track_W"] = _plan_track_W(sctx, plan, headings)
     base = sum_by_target(ctx, W, others)                            # (M, T, 2, 2)
+    terms_memo = sctx.memo.setdefault("base_terms", {})
+    key = base.tobytes()
+    if key not in terms_memo:
+        terms_memo[key] = _target_terms(ctx, base, np.arange(ctx.M))
+    if BACKEND == "numpy":
+        return pair_terms_numpy(ctx, base, terms_memo[key], tgt, w, k).sum(axis=1)
+    arrays = sctx.memo.get("pair_arrays")
+    if arrays is None:
+        cumulative = ctx.problem.objective == "cumulative"
+        ld_ref = ctx.ld_bar[:, 1:].sum(axis=-1) if cumulative else ctx.ld_bar[:, -1]
+        arrays = sctx.memo["pair_arrays"] = (
+            np.ascontiguousarray(ctx.problem.covs, dtype=float), ctx.F,
+            np.ascontiguousarray(ctx.Q, dtype=float), cumulative, *cv_form(ctx.F),
+            np.ascontiguousarray(ld_ref), np.ascontiguousarray(ctx.existence, dtype=float))
+    P0, F, Q, cumulative, cv, dt, ld_ref, existence = arrays
+    terms = pair_terms_nb(base, terms_memo[key], np.ascontiguousarray(tgt), w, k - 1, P0, F,
+                          Q, cumulative, cv, dt, ld_ref, existence)
+    return terms.sum(axis=1)
+
+
+def pair_terms_numpy(ctx: Context, base: FloatArray, base_terms: FloatArray, tgt: IntArray,
+                     w: FloatArray, k: int) -> FloatArray:
+    """Plain-numpy reference of :func:`~sensorplan.planners._search_nb.pair_terms_nb` (the
+    ``numpy`` backend, tests): each target's term ``(A, M)`` for each candidate of player
+    (i, k), the chain's targets ``tgt (A, L)`` and information ``w (A, L, e, 2, 2)``."""
+    A, L = tgt.shape
+    M, e = ctx.M, ctx.e
     a_look, l_look = np.nonzero(tgt >= 0)
     pair, inv = np.unique(a_look * M + tgt[a_look, l_look], return_inverse=True)
     pj = pair % M
@@ -567,13 +629,9 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
         sel = l_look == l
         for s in range(e):
             rows[inv[sel], (k - 1 + l) * e + s] += w[a_look[sel], l, s]
-    terms_memo = sctx.memo.setdefault("base_terms", {})
-    key = base.tobytes()
-    if key not in terms_memo:
-        terms_memo[key] = _target_terms(ctx, base, np.arange(M))
-    terms = np.broadcast_to(terms_memo[key], (A, M)).copy()
+    terms = np.broadcast_to(base_terms, (A, M)).copy()
     terms[pair // M, pj] = _target_terms(ctx, rows, pj)
-    return terms.sum(axis=1)
+    return terms
 
 
 def _target_terms(ctx: Context, W: FloatArray, j: IntArray) -> FloatArray:
