@@ -17,7 +17,7 @@ import numpy as np
 
 from .._compiled.jit import njit
 from ._chains_nb import covariance_recursion_nb
-from ..models.radar.model import (ANGLE_TOL, RANGE_TOL, detection_probability, hidden,
+from ..models.radar.model import (ANGLE_TOL, RANGE_TOL, detection_probability, hidden, look,
                                   visible)
 from ..models.sensors import ALTITUDE, ALTITUDE2, FOV, G_MAX, G_MIN
 
@@ -255,4 +255,38 @@ def pair_terms_nb(base: np.ndarray, base_terms: np.ndarray, tgt: np.ndarray, w: 
     return out
 
 
-__all__ = ["detect_sparse_nb", "found_nb", "pair_terms_nb"]
+@njit(cache=True, error_model="numpy")
+def column_information_nb(row: np.ndarray, buildings: np.ndarray, xbar: np.ndarray,
+                          Cbar: np.ndarray, pos: np.ndarray, th: np.ndarray, tgt: np.ndarray,
+                          kk: int, probabilistic: bool, W: np.ndarray) -> None:
+    """Track information of one sensor's looks in epoch ``kk`` (1-based) into
+    ``W (B, e, 2, 2)`` (left as it is where ``tgt`` is -1: a sector look).
+
+    Parameters
+    ----------
+    row : the sensor's radar row;  buildings : (nb, 5)
+    xbar : (M, T + 1, >=2), Cbar : (M, T + 1, 3)   the targets' predicted means and position
+                          covariances (``Context.xbar``, ``Context.Cbar``)
+    pos : (B, 2);  th : (B,);  tgt : (B,) int   the looks' positions, headings and targets
+
+    Each look at step t is the radar's :func:`~sensorplan.models.radar.model.look` of the
+    target's predicted mean and covariance at t (the values of
+    :func:`~sensorplan.planners.information.chain_information`, bit for bit).
+    """
+    e = W.shape[1]
+    for b in range(tgt.shape[0]):
+        j = tgt[b]
+        if j < 0:
+            continue
+        for s in range(e):
+            t = (kk - 1) * e + 1 + s
+            p, w00, w01, w11 = look(row, buildings, pos[b, 0], pos[b, 1],
+                                    xbar[j, t, 0] - pos[b, 0], xbar[j, t, 1] - pos[b, 1], th[b],
+                                    Cbar[j, t, 0], Cbar[j, t, 1], Cbar[j, t, 2], probabilistic)
+            W[b, s, 0, 0] = w00
+            W[b, s, 0, 1] = w01
+            W[b, s, 1, 0] = w01
+            W[b, s, 1, 1] = w11
+
+
+__all__ = ["column_information_nb", "detect_sparse_nb", "found_nb", "pair_terms_nb"]

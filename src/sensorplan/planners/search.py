@@ -44,7 +44,7 @@ from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, wrap_angle
-from ._search_nb import detect_sparse_nb, found_nb, pair_terms_nb
+from ._search_nb import column_information_nb, detect_sparse_nb, found_nb, pair_terms_nb
 from .cells import candidate_chains, detection
 from .information import (BACKEND, Context, chain_information, covariance_recursion,
                           cv_form, measured, phi_terms, sum_by_target, target_information)
@@ -444,11 +444,14 @@ def _chain_column(sctx: SearchContext, i: int, kk: int, pos: FloatArray, tgt: In
         track = tgt >= 0
         w = np.zeros((len(tgt), ctx.e, 2, 2))
         if ctx.M and track.any():
-            # Each look's information is its own (the radar's batch is elementwise): the
-            # track looks only.
-            wt, _ = chain_information(ctx, i, kk, pos[track][:, None], th[track][:, None],
-                                      tgt[track][:, None])
-            w[track] = wt[:, 0]
+            if BACKEND == "numpy":
+                wt, _ = chain_information(ctx, i, kk, pos[track][:, None],
+                                          th[track][:, None], tgt[track][:, None])
+                w[track] = wt[:, 0]
+            else:
+                column_information_nb(ctx.radar[i], ctx.buildings, ctx.xbar, ctx.Cbar,
+                                      np.ascontiguousarray(pos), np.ascontiguousarray(th),
+                                      np.ascontiguousarray(tgt), kk, ctx.probabilistic, w)
         got = memo[key] = (rows, w)
     return got
 
