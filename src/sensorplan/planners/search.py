@@ -43,7 +43,7 @@ import numpy as np
 from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..models import radar
-from ..models.angles import heading_rule, wrap_angle
+from ..models.angles import heading_rule, heading_rule_scalar, wrap_angle
 from ._search_nb import column_information_nb, detect_sparse_nb, found_nb, pair_terms_nb
 from .cells import candidate_chains, detection
 from .information import (BACKEND, Context, chain_information, covariance_recursion,
@@ -129,8 +129,8 @@ def prepare(problem: PlanningProblem) -> SearchContext:
     return sctx
 
 
-def look_bearing(sctx: SearchContext, i: int, k: int, position: FloatArray, target: int,
-                 sector: int) -> float:
+def look_bearing(sctx: SearchContext, i: int, k: int, position: FloatArray | list[float],
+                 target: int, sector: int) -> float:
     """The bearing the heading rule aims at for sensor i's look in epoch k (1-based)."""
     if sector >= 0:
         return float(sctx.bearings[i][sector])
@@ -148,16 +148,20 @@ def plan_headings(sctx: SearchContext, plan: Plan) -> FloatArray:
     ctx = sctx.ctx
     assert plan.sectors is not None
     out = np.full((ctx.N, ctx.K), np.nan)
+    # Python floats and lists: a plan is N K single looks.
+    assigned, positions = plan.assigned.tolist(), plan.positions.tolist()
+    targets, sectors = plan.targets.tolist(), plan.sectors.tolist()
     for i in range(ctx.N):
         h, prev_ok = float(ctx.problem.headings[i]), True
         theta0, turn = float(ctx.problem.headings[i]), float(ctx.max_turn[i])
         for k in range(1, ctx.K + 1):
-            if not plan.assigned[i, k - 1]:
+            if not assigned[i][k - 1]:
                 prev_ok = False
                 continue
-            b = look_bearing(sctx, i, k, plan.positions[i, k - 1], int(plan.targets[i, k - 1]),
-                             int(plan.sectors[i, k - 1]))
-            h = float(heading_rule(h, b, turn) if prev_ok else heading_rule(theta0, b, k * turn))
+            b = look_bearing(sctx, i, k, positions[i][k - 1], targets[i][k - 1],
+                             sectors[i][k - 1])
+            h = (heading_rule_scalar(h, b, turn) if prev_ok
+                 else heading_rule_scalar(theta0, b, k * turn))
             out[i, k - 1] = h
             prev_ok = True
     return out
