@@ -256,18 +256,20 @@ def pair_terms_nb(base: np.ndarray, base_terms: np.ndarray, tgt: np.ndarray, w: 
 
 
 @njit(cache=True, error_model="numpy")
-def column_information_nb(row: np.ndarray, buildings: np.ndarray, xbar: np.ndarray,
-                          Cbar: np.ndarray, pos: np.ndarray, th: np.ndarray, tgt: np.ndarray,
-                          kk: int, probabilistic: bool, W: np.ndarray) -> None:
-    """Track information of one sensor's looks in epoch ``kk`` (1-based) into
-    ``W (B, e, 2, 2)`` (left as it is where ``tgt`` is -1: a sector look).
+def look_information_nb(table: np.ndarray, sensor: np.ndarray, buildings: np.ndarray,
+                        xbar: np.ndarray, Cbar: np.ndarray, pos: np.ndarray, th: np.ndarray,
+                        tgt: np.ndarray, epoch: np.ndarray, probabilistic: bool,
+                        W: np.ndarray) -> None:
+    """Track information of B looks into ``W (B, e, 2, 2)`` (left as it is where ``tgt`` is
+    -1: a sector look or none).
 
     Parameters
     ----------
-    row : the sensor's radar row;  buildings : (nb, 5)
+    table : (N, n_cols) the radar table;  sensor : (B,) int   each look's sensor (its row)
+    buildings : (nb, 5)
     xbar : (M, T + 1, >=2), Cbar : (M, T + 1, 3)   the targets' predicted means and position
                           covariances (``Context.xbar``, ``Context.Cbar``)
-    pos : (B, 2);  th : (B,);  tgt : (B,) int   the looks' positions, headings and targets
+    pos : (B, 2);  th : (B,);  tgt : (B,) int;  epoch : (B,) int (1-based)   the looks
 
     Each look at step t is the radar's :func:`~sensorplan.models.radar.model.look` of the
     target's predicted mean and covariance at t (the values of
@@ -278,8 +280,9 @@ def column_information_nb(row: np.ndarray, buildings: np.ndarray, xbar: np.ndarr
         j = tgt[b]
         if j < 0:
             continue
+        row = table[sensor[b]]
         for s in range(e):
-            t = (kk - 1) * e + 1 + s
+            t = (epoch[b] - 1) * e + 1 + s
             p, w00, w01, w11 = look(row, buildings, pos[b, 0], pos[b, 1],
                                     xbar[j, t, 0] - pos[b, 0], xbar[j, t, 1] - pos[b, 1], th[b],
                                     Cbar[j, t, 0], Cbar[j, t, 1], Cbar[j, t, 2], probabilistic)
@@ -288,5 +291,4 @@ def column_information_nb(row: np.ndarray, buildings: np.ndarray, xbar: np.ndarr
             W[b, s, 1, 0] = w01
             W[b, s, 1, 1] = w11
 
-
-__all__ = ["column_information_nb", "detect_sparse_nb", "found_nb", "pair_terms_nb"]
+__all__ = ["detect_sparse_nb", "found_nb", "look_information_nb", "pair_terms_nb"]

@@ -44,7 +44,7 @@ from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, heading_rule_scalar, wrap_angle
-from ._search_nb import column_information_nb, detect_sparse_nb, found_nb, pair_terms_nb
+from ._search_nb import detect_sparse_nb, found_nb, look_information_nb, pair_terms_nb
 from .cells import candidate_chains, detection
 from .information import (BACKEND, Context, chain_information, covariance_recursion,
                           cv_form, measured, phi_terms, sum_by_target, target_information)
@@ -453,9 +453,11 @@ def _chain_column(sctx: SearchContext, i: int, kk: int, pos: FloatArray, tgt: In
                                           th[track][:, None], tgt[track][:, None])
                 w[track] = wt[:, 0]
             else:
-                column_information_nb(ctx.radar[i], ctx.buildings, ctx.xbar, ctx.Cbar,
-                                      np.ascontiguousarray(pos), np.ascontiguousarray(th),
-                                      np.ascontiguousarray(tgt), kk, ctx.probabilistic, w)
+                B = len(tgt)
+                look_information_nb(ctx.radar, np.full(B, i), ctx.buildings, ctx.xbar, ctx.Cbar,
+                                    np.ascontiguousarray(pos), np.ascontiguousarray(th),
+                                    np.ascontiguousarray(tgt), np.full(B, kk),
+                                    ctx.probabilistic, w)
         got = memo[key] = (rows, w)
     return got
 
@@ -652,24 +654,26 @@ def _target_terms(ctx: Context, W: FloatArray, j: IntArray) -> FloatArray:
 
 
 def _plan_track_W(sctx: SearchContext, plan: Plan, headings: FloatArray) -> FloatArray:
-    """Every player's track information ``(N, K, e, 2, 2)``, each sensor's chain kept in
-    ``sctx.memo`` by its positions, targets and headings."""
+    """Every player's track information ``(N, K, e, 2, 2)`` (0 where not a track look)."""
     ctx = sctx.ctx
-    memo = sctx.memo.setdefault("track_W", {})
-    track = plan.targets >= 0
-    W = np.zeros((ctx.N, ctx.K, ctx.e, 2, 2))
-    for n in range(ctx.N):
-        if track[n].any():
-            pos = np.where(track[n][:, None], plan.positions[n], 0.0)
-            th = np.where(track[n], headings[n], 0.0)
-            tgt = np.maximum(plan.targets[n], 0)
-            key = (n, pos.tobytes(), th.tobytes(), plan.targets[n].tobytes())
-            got = memo.get(key)
-            if got is None:
-                w, _ = chain_information(ctx, n, 1, pos[None], th[None], tgt[None])
-                got = memo[key] = np.where(track[n][:, None, None, None], w[0], 0.0)
-            W[n] = got
-    return W
+    N, K = ctx.N, ctx.K
+    W = np.zeros((N * K, ctx.e, 2, 2))
+    if BACKEND == "numpy":
+        track = plan.targets >= 0
+        for n in range(N):
+            if track[n].any():
+                w, _ = chain_information(ctx, n, 1, np.where(track[n][:, None],
+                                                             plan.positions[n], 0.0)[None],
+                                         np.where(track[n], headings[n], 0.0)[None],
+                                         np.maximum(plan.targets[n], 0)[None])
+                W[n * K:(n + 1) * K] = np.where(track[n][:, None, None, None], w[0], 0.0)
+    else:
+        look_information_nb(ctx.radar, np.repeat(np.arange(N), K), ctx.buildings, ctx.xbar,
+                            ctx.Cbar, np.ascontiguousarray(plan.positions.reshape(-1, 2)),
+                            np.ascontiguousarray(headings.reshape(-1)),
+                            np.ascontiguousarray(plan.targets.reshape(-1)),
+                            np.tile(np.arange(1, K + 1), N), ctx.probabilistic, W)
+    return W.reshape(N, K, ctx.e, 2, 2)
 
 
 def with_action(plan: Plan, i: int, k: int, position: FloatArray, target: int,
