@@ -511,7 +511,7 @@ class _LookPool:
     :func:`~sensorplan.planners._search_nb.found_nb` reads."""
 
     def __init__(self) -> None:
-        self.index: dict[tuple[int, bytes], int] = {}
+        self.index: dict[int, dict[bytes, int]] = {}   # by sensor, by pose
         self.off = np.zeros(1024, dtype=np.int64)      # rows' starts; room to grow
         self.idx = np.empty(1 << 16, dtype=np.int64)
         self.val = np.empty(1 << 16)
@@ -525,17 +525,19 @@ class _LookPool:
         pose[:, :2] = positions
         pose[:, 2] = headings
         keys = cast("list[bytes]", pose.view(np.dtype((np.void, 24))).ravel().tolist())
-        out = np.empty(len(keys), dtype=np.int64)
+        index = self.index.setdefault(n, {})
+        found = [index.get(key, -1) for key in keys]
         new: dict[bytes, int] = {}          # unseen pose -> its row
         first: list[int] = []               # ... and its first look in the batch
-        for b, key in enumerate(keys):
-            r = self.index.get((n, key))
-            if r is None:
-                r = new.get(key)
-                if r is None:
-                    r = new[key] = self.n_rows + len(first)
-                    first.append(b)
-            out[b] = r
+        if -1 in found:
+            for b, key in enumerate(keys):
+                if found[b] < 0:
+                    r = new.get(key)
+                    if r is None:
+                        r = new[key] = self.n_rows + len(first)
+                        first.append(b)
+                    found[b] = r
+        out = np.array(found, dtype=np.int64)
         if new:
             ctx = sctx.ctx
             counts, idx, val = detect_sparse_nb(ctx.radar[n], sctx.centres,
@@ -549,8 +551,7 @@ class _LookPool:
             self.idx[start:start + len(idx)] = idx
             self.val = _grown(self.val, start + len(val))
             self.val[start:start + len(val)] = val
-            for key, r in new.items():
-                self.index[(n, key)] = r
+            index.update(new)
             self.n_rows += len(first)
         return out
 
