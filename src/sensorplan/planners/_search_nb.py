@@ -94,11 +94,18 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
         tail[c] = _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, ones)
         tail_sum += tail[c]
     base = mu_pre + tail_sum
-    # Per candidate: the cells its looks cover, their chain misses in a scratch row.
+    # Per candidate: the cells its looks cover, their chain misses in a scratch row. A cell
+    # only one of the chain's looks covers changes by a function of (cell, that look's
+    # epoch, its miss): kept, and reused when another candidate's look there misses with
+    # the same bits (every covered cell, with ideal detection).
     out = np.empty(A)
     chain = np.ones((C, L))
     stamp = np.full(C, -1, dtype=np.int64)
     cells = np.empty(C, dtype=np.int64)
+    covered = np.zeros(C, dtype=np.int64)
+    slot = np.zeros(C, dtype=np.int64)
+    kept_miss = np.full((C, L), np.nan)
+    kept_delta = np.empty((C, L))
     for a in range(A):
         nc = 0
         for l in range(n):
@@ -112,13 +119,26 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
                     stamp[c] = a
                     cells[nc] = c
                     nc += 1
+                    covered[c] = 0
+                covered[c] += 1
+                slot[c] = kl
                 chain[c, kl] = 1.0 - row_val[q]
         delta = 0.0
         for q in range(nc):
             c = cells[q]
-            delta += _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, chain[c]) \
-                - tail[c]
-            chain[c, :] = 1.0
+            if covered[c] == 1:
+                kl = slot[c]
+                m = chain[c, kl]
+                if kept_miss[c, kl] != m:
+                    kept_delta[c, kl] = _cell_tail(d_k0[c], births[c], survival, e, miss, k0,
+                                                   c, chain[c]) - tail[c]
+                    kept_miss[c, kl] = m
+                delta += kept_delta[c, kl]
+                chain[c, kl] = 1.0
+            else:
+                delta += _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, chain[c]) \
+                    - tail[c]
+                chain[c, :] = 1.0
         out[a] = base + delta
     return out
 
