@@ -810,13 +810,18 @@ def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, 
         for k in range(K, 0, -1):
             actions = [player_actions(sctx, plan, i, k) for i in range(N)]
             ubar = [np.zeros(len(a[1])) for a in actions]
+            # Each player's current action (its index moves with its switches only: actions
+            # are distinct) and its utilities, asked again only after another player moved.
+            cur = [_index_of(*actions[i], plan, i, k) for i in range(N)]
+            utilities: list[FloatArray | None] = [None] * N
             eq = False
             for t in range(1, max_inner + 1):
-                cur = [_index_of(*actions[i], plan, i, k) for i in range(N)]
                 best = []
                 eq = True
                 for i in range(N):
-                    u = candidate_potentials(sctx, plan, i, k, *actions[i])
+                    u = utilities[i]
+                    if u is None:
+                        u = utilities[i] = candidate_potentials(sctx, plan, i, k, *actions[i])
                     eq &= best_index(u, cur[i]) == cur[i]
                     ubar[i] = (t - 1) / t * ubar[i] + u / t
                     best.append(best_index(ubar[i], cur[i]))
@@ -826,9 +831,10 @@ def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, 
                 for i in range(N):
                     if best[i] != cur[i] and (cur[i] < 0 or switch[i]):
                         pos, tgt, sec = actions[i]
-                        b = best[i]
+                        b = cur[i] = best[i]
                         plan = with_action(plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
                         changed = True
+                        utilities = [u if j == i else None for j, u in enumerate(utilities)]
                 if rng.random() >= beta:
                     break
             all_eq &= eq
