@@ -58,4 +58,13 @@ SIGNATURES: tuple = (
     ('sensorplan.planners._search_nb', 'found_nb',
      (('d', 1), ('d', 1), 'f', 'i', 'i', 'i', ('l', 1), ('l', 1), ('l', 2), ('l', 1), ('l', 1),
       ('l', 1), ('d', 1))),
+    ('sensorplan.planners._search_nb', 'look_information_nb',
+     (('d', 2), ('l', 1), ('d', 2), ('d', 3), ('d', 3), ('d', 2), ('d', 1), ('l', 1), ('l', 1),
+      'b', ('d', 4))),
+    ('sensorplan.planners._search_nb', 'look_information_nb',
+     (('d', 2), ('l', 1), ('d', 2), ('d', 3), ('d', 3), ('d', 2, 'r'), ('d', 1, 'r'),
+      ('l', 1, 'r'), ('l', 1), 'b', ('d', 4))),
+    ('sensorplan.planners._search_nb', 'pair_terms_nb',
+     (('d', 4), ('d', 1), ('l', 2), ('d', 5), 'i', ('d', 3, 'r'), ('d', 2), ('d', 3), 'b', 'b',
+      'f', ('d', 1), ('d', 1))),
 )
