@@ -133,7 +133,7 @@ def test_pair_terms_are_the_numpy_steps(name: str, problem: PlanningProblem,
         want = search.pair_terms_numpy(ctx, base, base_terms, tgt, w, k)
         cumulative = ctx.problem.objective == "cumulative"
         ld_ref = ctx.ld_bar[:, 1:].sum(axis=-1) if cumulative else ctx.ld_bar[:, -1]
-        got = pair_terms_nb(base, base_terms, tgt, w, k - 1,
+        got = pair_terms_nb(base, tgt, w, k - 1,
                             np.ascontiguousarray(ctx.problem.covs), ctx.F,
                             np.ascontiguousarray(ctx.Q), cumulative, *cv_form(ctx.F),
                             np.ascontiguousarray(ld_ref), np.ascontiguousarray(ctx.existence))

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from .._compiled.jit import njit
-from ._chains_nb import covariance_recursion_nb
+from ._chains_nb import logdet4, predict_step, update_step
 from ..models.radar.model import (ANGLE_TOL, RANGE_TOL, detection_probability, hidden, look,
                                   visible)
 from ..models.sensors import ALTITUDE, ALTITUDE2, FOV, G_MAX, G_MIN
@@ -193,18 +193,40 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
     return counts, idx[:n].copy(), val[:n].copy()
 
 
+@njit(cache=True, fastmath=False, inline="always")
+def _term(info: float, measured: bool, existence: float) -> float:
+    """:func:`~sensorplan.planners.information.phi_terms`'s rule for one target, bit for bit:
+    ``np.maximum(info, 0)`` (the first argument unless below, NaN kept), 0 unmeasured, times
+    r."""
+    kept = info if (info >= 0.0 or math.isnan(info)) else 0.0
+    return existence * (kept if measured else 0.0)
+
+
+@njit(cache=True, fastmath=False, inline="always")
+def _run(P: np.ndarray, W: np.ndarray, t0: int, F: np.ndarray, Q: np.ndarray, qb: int,
+         cv: bool, dt: float, need_sum: bool, ld_sum: float, FP: np.ndarray) -> float:
+    """In place: steps ``t0..`` of :func:`~sensorplan.planners._chains_nb.
+    covariance_recursion_nb`'s loop on ``P``, from its sum of log-dets so far; returns the
+    sum."""
+    for t in range(t0, W.shape[0]):
+        predict_step(P, F, Q, qb, cv, dt, FP)
+        update_step(P, W[t, 0, 0], W[t, 0, 1], W[t, 1, 1])
+        if need_sum:
+            ld_sum += logdet4(P)
+    return ld_sum
+
+
 @njit(cache=True)
-def pair_terms_nb(base: np.ndarray, base_terms: np.ndarray, tgt: np.ndarray, w: np.ndarray,
-                  k0: int, P0: np.ndarray, F: np.ndarray, Q: np.ndarray, cumulative: bool,
-                  cv: bool, dt: float, ld_ref: np.ndarray, existence: np.ndarray
-                  ) -> np.ndarray:
+def pair_terms_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0: np.ndarray,
+                  F: np.ndarray, Q: np.ndarray, cumulative: bool, cv: bool, dt: float,
+                  ld_ref: np.ndarray, existence: np.ndarray) -> np.ndarray:
     """Each target's term of Phi ``(A, M)`` for each candidate of a player whose chain
     starts at epoch ``k0`` (0-based): the others' term where the chain does not look at the
     target, else the recursion over the others' information plus the chain's.
 
     Parameters
     ----------
-    base : (M, T, 2, 2)   the other looks' information by target;  base_terms : (M,) its terms
+    base : (M, T, 2, 2)   the other looks' information by target
     tgt : (A, L) int      the chain's targets (-1: none);  w : (A, L, e, 2, 2) its information
     P0 : (M, 4, 4);  F : (4, 4);  Q : (1, 4, 4) or (M, 4, 4);  cumulative, cv, dt   as in
                           :func:`~sensorplan.planners._chains_nb.covariance_recursion_nb`
@@ -212,16 +234,44 @@ def pair_terms_nb(base: np.ndarray, base_terms: np.ndarray, tgt: np.ndarray, w: 
                           for ``cumulative`` the sum over steps 1..T)
     existence : (M,)
 
-    Each (candidate, target looked at) pair runs the recursion on its own row, the sums and
-    the terms' arithmetic in the order of :func:`~sensorplan.planners.information.phi_terms`
-    (bit for bit).
+    Every row (the others' of a target, or a (candidate, target looked at) pair's) runs
+    :func:`~sensorplan.planners._chains_nb.covariance_recursion_nb`'s steps in its order,
+    and the terms are :func:`~sensorplan.planners.information.phi_terms`'s, bit for bit. A
+    pair's row equals its target's before the chain's first step: the pairs continue from
+    the target's covariance there.
     """
     A, L = tgt.shape
     M, T = base.shape[0], base.shape[1]
     e = w.shape[2]
-    pa = np.empty(A * L, dtype=np.int64)
-    pj = np.empty(A * L, dtype=np.int64)
-    n = 0
+    t0 = k0 * e                                  # the chain's first step
+    shared_q = Q.shape[0] == 1
+    FP = np.empty((4, 4))
+    # Each target: its covariance and sum of log-dets before t0, then the others' term.
+    P_t0 = np.empty((M, 4, 4))
+    sum_t0 = np.zeros(M)
+    measured_t0 = np.zeros(M, dtype=np.bool_)
+    out = np.empty((A, M))
+    P = np.empty((4, 4))
+    for j in range(M):
+        qb = 0 if shared_q else j
+        P[:, :] = P0[j]
+        sum_t0[j] = _run(P, base[j, :t0], 0, F, Q, qb, cv, dt, cumulative, 0.0, FP)
+        P_t0[j] = P
+        measured = False
+        for t in range(T):
+            for r in range(2):
+                for c in range(2):
+                    if base[j, t, r, c] != 0.0:
+                        measured = True
+                        if t < t0:
+                            measured_t0[j] = True
+        ld_sum = _run(P, base[j], t0, F, Q, qb, cv, dt, cumulative, sum_t0[j], FP)
+        info = 0.5 * (ld_ref[j] - (ld_sum if cumulative else logdet4(P)))
+        term = _term(info, measured, existence[j])
+        for a in range(A):
+            out[a, j] = term
+    # Each (candidate, target looked at) pair, from the target's state at t0.
+    row = np.empty((T, 2, 2))
     for a in range(A):
         for l in range(L):
             j = tgt[a, l]
@@ -231,47 +281,28 @@ def pair_terms_nb(base: np.ndarray, base_terms: np.ndarray, tgt: np.ndarray, w: 
             for l2 in range(l):
                 if tgt[a, l2] == j:
                     seen = True
-            if not seen:
-                pa[n] = a
-                pj[n] = j
-                n += 1
-    rows = np.empty((n, T, 2, 2))
-    P = np.empty((n, 4, 4))
-    shared_q = Q.shape[0] == 1
-    Qp = np.empty((1 if shared_q else n, 4, 4))
-    if shared_q:
-        Qp[0] = Q[0]
-    for p in range(n):
-        a, j = pa[p], pj[p]
-        rows[p] = base[j]
-        P[p] = P0[j]
-        if not shared_q:
-            Qp[p] = Q[j]
-        for l in range(L):
-            if tgt[a, l] != j:
+            if seen:
                 continue
-            for s in range(e):
-                t = (k0 + l) * e + s
+            row[:, :, :] = base[j]
+            for l2 in range(l, L):
+                if tgt[a, l2] != j:
+                    continue
+                for s in range(e):
+                    t = (k0 + l2) * e + s
+                    for r in range(2):
+                        for c in range(2):
+                            row[t, r, c] += w[a, l2, s, r, c]
+            measured = measured_t0[j]
+            for t in range(t0, T):
                 for r in range(2):
                     for c in range(2):
-                        rows[p, t, r, c] += w[a, l, s, r, c]
-    _, ld_end, ld_sum = covariance_recursion_nb(P, rows, F, Qp, cumulative, cv, dt)
-    out = np.empty((A, M))
-    for a in range(A):
-        for j in range(M):
-            out[a, j] = base_terms[j]
-    for p in range(n):
-        j = pj[p]
-        measured = False
-        for t in range(T):
-            for r in range(2):
-                for c in range(2):
-                    if rows[p, t, r, c] != 0.0:
-                        measured = True
-        info = 0.5 * (ld_ref[j] - (ld_sum[p] if cumulative else ld_end[p]))
-        # np.maximum's rule (the first argument when not below, NaN kept), then r_j.
-        kept = info if (info >= 0.0 or math.isnan(info)) else 0.0
-        out[pa[p], j] = existence[j] * (kept if measured else 0.0)
+                        if row[t, r, c] != 0.0:
+                            measured = True
+            P[:, :] = P_t0[j]
+            ld_sum = _run(P, row, t0, F, Q, 0 if shared_q else j, cv, dt, cumulative,
+                          sum_t0[j], FP)
+            info = 0.5 * (ld_ref[j] - (ld_sum if cumulative else logdet4(P)))
+            out[a, j] = _term(info, measured, existence[j])
     return out
 
 

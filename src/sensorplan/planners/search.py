@@ -590,8 +590,9 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
 
     A candidate changes the terms of the targets its chain looks at only: the other
     players' summed information is shared, each target's term without the chain is computed
-    once, and only (candidate, target looked at) pairs run the recursion (each pair's row is
-    the dense computation's row, so its term is the same to the bit).
+    once, and only (candidate, target looked at) pairs run the recursion, from their
+    target's covariance before the chain's first step (each pair's row is the dense
+    computation's row and runs its steps in order, so its term is the same to the bit).
     """
     ctx = sctx.ctx
     A, L = tgt.shape
@@ -604,12 +605,9 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
     if W is None:
         W = memo["track_W"] = _plan_track_W(sctx, plan, headings)
     base = sum_by_target(ctx, W, others)                            # (M, T, 2, 2)
-    terms_memo = sctx.memo.setdefault("base_terms", {})
-    key = base.tobytes()
-    if key not in terms_memo:
-        terms_memo[key] = _target_terms(ctx, base, np.arange(ctx.M))
     if BACKEND == "numpy":
-        return pair_terms_numpy(ctx, base, terms_memo[key], tgt, w, k).sum(axis=1)
+        base_terms = _target_terms(ctx, base, np.arange(ctx.M))
+        return pair_terms_numpy(ctx, base, base_terms, tgt, w, k).sum(axis=1)
     arrays = sctx.memo.get("pair_arrays")
     if arrays is None:
         cumulative = ctx.problem.objective == "cumulative"
@@ -619,8 +617,8 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
             np.ascontiguousarray(ctx.Q, dtype=float), cumulative, *cv_form(ctx.F),
             np.ascontiguousarray(ld_ref), np.ascontiguousarray(ctx.existence, dtype=float))
     P0, F, Q, cumulative, cv, dt, ld_ref, existence = arrays
-    terms = pair_terms_nb(base, terms_memo[key], np.ascontiguousarray(tgt), w, k - 1, P0, F,
-                          Q, cumulative, cv, dt, ld_ref, existence)
+    terms = pair_terms_nb(base, np.ascontiguousarray(tgt), w, k - 1, P0, F, Q, cumulative, cv,
+                          dt, ld_ref, existence)
     return terms.sum(axis=1)
 
 
