@@ -164,8 +164,8 @@ def test_found_of_a_batch_is_each_candidates_alone(name: str, problem: PlanningP
                             axis=1)
             rows = np.concatenate([rows, rows[::3]])   # repeated candidates among them
             other = (n_look != i) | (k_look < k - 1)
-            args = (sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1,
-                    k_look[other], row[other])
+            args = (sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, i, n_look,
+                    k_look, row)
             epochs = np.array(ls, dtype=np.int64) + (k - 1)
             batch = found_nb(*args, rows, epochs, *pool.arrays())
             alone = np.array([found_nb(*args, rows[a:a + 1], epochs, *pool.arrays())[0]

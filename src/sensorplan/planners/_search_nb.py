@@ -45,17 +45,19 @@ def _cell_tail(d: float, b: float, survival: float, e: int, miss: np.ndarray, k0
 
 @njit(cache=True)
 def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int, k0: int,
-             other_epoch: np.ndarray, other_row: np.ndarray, look_row: np.ndarray,
-             look_epoch: np.ndarray, row_off: np.ndarray, row_idx: np.ndarray,
-             row_val: np.ndarray) -> np.ndarray:
-    """mu for each candidate of a player whose chain starts at epoch ``k0`` (0-based).
+             player: int, plan_sensor: np.ndarray, plan_epoch: np.ndarray,
+             plan_row: np.ndarray, look_row: np.ndarray, look_epoch: np.ndarray,
+             row_off: np.ndarray, row_idx: np.ndarray, row_val: np.ndarray) -> np.ndarray:
+    """mu for each candidate of a player (sensor ``player``) whose chain starts at epoch
+    ``k0`` (0-based).
 
     Parameters
     ----------
     d0, births : (C,)          the undetected intensity now, births per step
     K : int                    epochs
-    other_epoch, other_row : (n_o,) int   every other look's epoch (0-based) and pool row,
-                               in the order their misses multiply (sensor by sensor)
+    plan_sensor, plan_epoch, plan_row : (n_p,) int   every planned look's sensor, epoch
+                               (0-based) and pool row, in the order their misses multiply
+                               (sensor by sensor); the player's from k0 on are not counted
     look_row : (A, n) int      row of each candidate's n chain looks in the pool (-1: none)
     look_epoch : (n,) int      each chain look's epoch (0-based, ascending, from k0)
     row_off, row_idx, row_val  the pool of looks: row r's non-zero ``P_d v`` are
@@ -70,10 +72,28 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
     # Every other look's product of 1 - P_d v per epoch (1 - 0 = 1: cells a look misses
     # keep their bits).
     miss = np.ones((K, C))
-    for q in range(other_row.shape[0]):
-        r, kk = other_row[q], other_epoch[q]
+    for q in range(plan_row.shape[0]):
+        if plan_sensor[q] == player and plan_epoch[q] >= k0:
+            continue
+        r, kk = plan_row[q], plan_epoch[q]
         for p in range(row_off[r], row_off[r + 1]):
             miss[kk, row_idx[p]] *= 1.0 - row_val[p]
+    # Candidates whose chains are the same looks (track looks the turn limit clips to one
+    # heading, say) have the same mu: each computed once, by its first in key order.
+    rep = np.arange(A)
+    top = 1
+    for a in range(A):
+        for l in range(n):
+            top = max(top, look_row[a, l] + 2)
+    if n > 0 and n * math.log2(top) < 62.0:
+        key = np.zeros(A, dtype=np.int64)
+        for a in range(A):
+            for l in range(n):
+                key[a] = key[a] * top + look_row[a, l] + 1
+        order = np.argsort(key, kind="mergesort")
+        for q in range(1, A):
+            if key[order[q]] == key[order[q - 1]]:
+                rep[order[q]] = rep[order[q - 1]]
     L = K - k0
     # The others alone: mu before k0, each cell's intensity at k0 and its tail from k0.
     d_k0 = d0.copy()
@@ -107,6 +127,8 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
     kept_miss = np.full((C, L), np.nan)
     kept_delta = np.empty((C, L))
     for a in range(A):
+        if rep[a] != a:
+            continue
         nc = 0
         for l in range(n):
             r = look_row[a, l]
@@ -140,6 +162,8 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
                     - tail[c]
                 chain[c, :] = 1.0
         out[a] = base + delta
+    for a in range(A):
+        out[a] = out[rep[a]]
     return out
 
 

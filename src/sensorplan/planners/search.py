@@ -473,7 +473,7 @@ def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: 
     looks = memo.get("looks")
     if looks is None:
         # Every planned look, sensor by sensor (the order the misses multiply in).
-        n_look, k_look = np.nonzero(plan.assigned)
+        n_look, k_look = (np.ascontiguousarray(a) for a in np.nonzero(plan.assigned))
         row = np.empty(len(n_look), dtype=np.int64)
         for n in np.unique(n_look).tolist():
             sel = n_look == n
@@ -481,27 +481,8 @@ def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: 
                                  headings[n, k_look[sel]])
         looks = memo["looks"] = (n_look, k_look, row)
     n_look, k_look, row = looks
-    other = (n_look != i) | (k_look < k - 1)
-    # Candidates whose chains are the same looks (track looks the turn limit clips to one
-    # heading, say) have the same mu: computed once.
-    uniq, inv = _distinct_rows(rows, pool.n_rows)
-    mu = found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1,
-                  k_look[other], row[other], uniq, ls + (k - 1), *pool.arrays())
-    return mu[inv]
-
-
-def _distinct_rows(rows: IntArray, n_rows: int) -> tuple[IntArray, IntArray]:
-    """The distinct rows of ``rows (A, n)`` (entries in -1..n_rows-1) and each row's index
-    among them."""
-    A, n = rows.shape
-    if n and n * math.log2(n_rows + 1) < 62:
-        key = np.zeros(A, dtype=np.int64)
-        for l in range(n):
-            key = key * (n_rows + 1) + (rows[:, l] + 1)
-        _, first, inv = np.unique(key, return_index=True, return_inverse=True)
-        return np.ascontiguousarray(rows[first]), inv
-    uniq, inv = np.unique(rows, axis=0, return_inverse=True)
-    return np.ascontiguousarray(uniq), inv.reshape(-1)
+    return found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, int(i), n_look,
+                    k_look, row, rows, ls + (k - 1), *pool.arrays())
 
 
 class _LookPool:
