@@ -474,11 +474,17 @@ def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: 
     if looks is None:
         # Every planned look, sensor by sensor (the order the misses multiply in).
         n_look, k_look = (np.ascontiguousarray(a) for a in np.nonzero(plan.assigned))
-        row = np.empty(len(n_look), dtype=np.int64)
+        # A sensor's rows by its part of the plan (plans met in a game differ in a few).
+        by_sensor = sctx.memo.setdefault("sensor_looks", {})
+        parts = []
         for n in np.unique(n_look).tolist():
-            sel = n_look == n
-            row[sel] = pool.rows(sctx, n, plan.positions[n, k_look[sel]],
-                                 headings[n, k_look[sel]])
+            ks = np.flatnonzero(plan.assigned[n])
+            key = (n, ks.tobytes(), plan.positions[n].tobytes(), headings[n].tobytes())
+            got = by_sensor.get(key)
+            if got is None:
+                got = by_sensor[key] = pool.rows(sctx, n, plan.positions[n, ks], headings[n, ks])
+            parts.append(got)
+        row = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
         looks = memo["looks"] = (n_look, k_look, row)
     n_look, k_look, row = looks
     return found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, int(i), n_look,
