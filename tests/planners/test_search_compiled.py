@@ -14,7 +14,8 @@ import search_game_reference
 import search_reference
 from sensorplan.models.angles import heading_rule, heading_rule_scalar, wrap_angle, wrap_scalar
 from sensorplan.planners import make_planner, search
-from sensorplan.planners._search_nb import found_nb, look_information_nb, pair_terms_nb
+from sensorplan.planners._search_nb import (found_nb, heading_rule_nb, look_information_nb,
+                                            pair_terms_nb)
 from sensorplan.planners.contract_problems import paper_problem, searching
 from sensorplan.planners.information import chain_information, cv_form
 from sensorplan.planners.problem import PlanningProblem
@@ -68,8 +69,8 @@ def test_plans_are_those_of_the_reference(name: str, problem: PlanningProblem,
 
 
 def test_the_scalar_heading_rule_is_numpys_bit_for_bit() -> None:
-    """The plain-Python heading rule and wrap give numpy's bits, the edges of (-pi, pi] and
-    zero turn limits among the inputs."""
+    """The plain-Python and the compiled heading rule (and wrap) give numpy's bits, the
+    edges of (-pi, pi] and zero turn limits among the inputs."""
     rng = np.random.default_rng(0)
     edges = [np.pi, -np.pi, 0.0, -0.0, 2 * np.pi, -2 * np.pi, 3 * np.pi,
              np.nextafter(np.pi, 4.0), np.nextafter(-np.pi, -4.0), 1e-300]
@@ -83,6 +84,9 @@ def test_the_scalar_heading_rule_is_numpys_bit_for_bit() -> None:
     want = heading_rule(th, b, m)
     got = np.array([heading_rule_scalar(*x) for x in zip(th.tolist(), b.tolist(), m.tolist())])
     np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+    for turn in (0.0, 0.3, np.pi / 4, np.pi, 2 * np.pi):
+        np.testing.assert_array_equal(heading_rule_nb(th, b, turn).view(np.int64),
+                                      heading_rule(th, b, turn).view(np.int64))
 
 
 @pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])

@@ -58,6 +58,7 @@ SIGNATURES: tuple = (
     ('sensorplan.planners._search_nb', 'found_nb',
      (('d', 1), ('d', 1), 'f', 'i', 'i', 'i', 'i', ('l', 1), ('l', 1), ('l', 1), ('l', 2),
       ('l', 1), ('l', 1), ('l', 1), ('d', 1))),
+    ('sensorplan.planners._search_nb', 'heading_rule_nb', (('d', 1), ('d', 1), 'f')),
     ('sensorplan.planners._search_nb', 'look_information_nb',
      (('d', 2), ('l', 1), ('d', 2), ('d', 3), ('d', 3), ('d', 2), ('d', 1), ('l', 1), ('l', 1),
       'b', ('d', 4))),

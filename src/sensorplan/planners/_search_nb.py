@@ -366,4 +366,29 @@ def look_information_nb(table: np.ndarray, sensor: np.ndarray, buildings: np.nda
             W[b, s, 1, 0] = w01
             W[b, s, 1, 1] = w11
 
-__all__ = ["detect_sparse_nb", "found_nb", "look_information_nb", "pair_terms_nb"]
+@njit(cache=True, fastmath=False, inline="always")
+def _wrap(a: float) -> float:
+    """:func:`~sensorplan.models.angles.wrap_angle` of one float, bit for bit (``%`` on
+    floats is numpy's ``mod``: the C ``fmod`` moved to the divisor's sign)."""
+    two_pi = 2.0 * math.pi
+    w = math.pi - (math.pi - a) % two_pi
+    return w + two_pi if w <= -math.pi else w
+
+
+@njit(cache=True, fastmath=False)
+def heading_rule_nb(theta: np.ndarray, bearing: np.ndarray, max_turn: float) -> np.ndarray:
+    """:func:`~sensorplan.models.angles.heading_rule` of ``theta (A,)``, ``bearing (A,)``,
+    bit for bit (``np.clip``'s comparisons, NaN kept)."""
+    out = np.empty(theta.shape[0])
+    for a in range(theta.shape[0]):
+        turn = _wrap(bearing[a] - theta[a])
+        if not (math.isnan(turn) or turn > -max_turn):
+            turn = -max_turn
+        if not (math.isnan(turn) or turn < max_turn):
+            turn = max_turn
+        out[a] = _wrap(theta[a] + turn)
+    return out
+
+
+__all__ = ["detect_sparse_nb", "found_nb", "heading_rule_nb", "look_information_nb",
+           "pair_terms_nb"]
