@@ -49,7 +49,7 @@ from .cells import candidate_chains, detection
 from .information import (BACKEND, Context, chain_information, covariance_recursion,
                           cv_form, measured, phi_terms, sum_by_target, target_information)
 from .information import prepare as prepare_tracks
-from .problem import POSITION_TOL, Plan, PlanningProblem, move_vectors
+from .problem import POSITION_TOL, TIE_TOL, Plan, PlanningProblem, move_vectors
 
 if TYPE_CHECKING:  # pragma: no cover
     from .gospa_bound import GospaContext
@@ -704,8 +704,6 @@ def count_plans(sctx: SearchContext, n_chains: list[int]) -> int:
 def brute_force(sctx: SearchContext, chains: list[IntArray]) -> tuple[Plan, float]:
     """The first joint plan in enumeration order (:func:`enumerate_plans`) within the tie
     tolerance of the best, and its Phi."""
-    from .problem import TIE_TOL
-
     best: Plan | None = None
     best_phi = -np.inf
     for parts in enumerate_plans(sctx, chains):
@@ -721,12 +719,11 @@ def brute_force(sctx: SearchContext, chains: list[IntArray]) -> tuple[Plan, floa
 def best_index(u: FloatArray, current: int) -> int:
     """The best action: the current one if within the tie tolerance of the maximum, else
     the first maximum."""
-    from .problem import TIE_TOL
-
     top = float(u.max())
-    if current >= 0 and u[current] >= top - TIE_TOL * max(1.0, abs(top)):
+    floor = top - TIE_TOL * max(1.0, abs(top))
+    if current >= 0 and u[current] >= floor:
         return current
-    return int(np.flatnonzero(u >= top - TIE_TOL * max(1.0, abs(top)))[0])
+    return int(np.flatnonzero(u >= floor)[0])
 
 
 def _index_of(pos: FloatArray, tgt: IntArray, sec: IntArray, plan: Plan, i: int,
