@@ -376,6 +376,13 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
         return gospa_bound.candidate_potentials(sctx, plan, i, k, positions, targets, sectors,
                                                 _plan_headings(sctx, plan))
     assert plan.sectors is not None
+    # The same plan and read-only candidates as this player's last call (a JSFP iteration
+    # in which nobody moved): its utilities.
+    last = sctx.memo.setdefault("last_call", {})
+    prev = last.get((i, k))
+    if (prev is not None and prev[0] is plan and prev[1] is positions and prev[2] is targets
+            and prev[3] is sectors):
+        return cast(FloatArray, prev[4].copy())
     # The utilities depend on the others' actions and the candidates, not on the player's
     # own action: a JSFP iteration in which no other player moved asks again for the same.
     own = np.zeros(plan.targets.shape, dtype=bool)
@@ -388,6 +395,9 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
     got = memo.get(key)
     if got is None:
         got = memo[key] = _candidate_potentials(sctx, plan, i, k, positions, targets, sectors)
+    if all(isinstance(a, np.ndarray) and not a.flags.writeable
+           for a in (positions, targets, sectors)):
+        last[(i, k)] = (plan, positions, targets, sectors, got)
     return got.copy()
 
 
@@ -792,18 +802,15 @@ def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, 
         for k in range(K, 0, -1):
             actions = [player_actions(sctx, plan, i, k) for i in range(N)]
             ubar = [np.zeros(len(a[1])) for a in actions]
-            # Each player's current action (its index moves with its switches only: actions
-            # are distinct) and its utilities, asked again only after another player moved.
+            # Each player's current action: its index moves with its switches only (a
+            # player's actions are distinct).
             cur = [_index_of(*actions[i], plan, i, k) for i in range(N)]
-            utilities: list[FloatArray | None] = [None] * N
             eq = False
             for t in range(1, max_inner + 1):
                 best = []
                 eq = True
                 for i in range(N):
-                    u = utilities[i]
-                    if u is None:
-                        u = utilities[i] = candidate_potentials(sctx, plan, i, k, *actions[i])
+                    u = candidate_potentials(sctx, plan, i, k, *actions[i])
                     eq &= best_index(u, cur[i]) == cur[i]
                     ubar[i] = (t - 1) / t * ubar[i] + u / t
                     best.append(best_index(ubar[i], cur[i]))
@@ -816,7 +823,6 @@ def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, 
                         b = cur[i] = best[i]
                         plan = with_action(plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
                         changed = True
-                        utilities = [u if j == i else None for j, u in enumerate(utilities)]
                 if rng.random() >= beta:
                     break
             all_eq &= eq
