@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -34,3 +36,19 @@ def heading_rule(theta: ArrayLike, bearing: ArrayLike, max_turn: ArrayLike) -> F
     max_turn = np.asarray(max_turn, dtype=float)
     turn = np.clip(wrap_angle(np.asarray(bearing, dtype=float) - theta), -max_turn, max_turn)
     return wrap_angle(theta + turn)
+
+
+def wrap_scalar(a: float) -> float:
+    """:func:`wrap_angle` of one float in plain Python, bit for bit (Python's float ``%`` is
+    numpy's ``mod``: the C ``fmod`` moved to the divisor's sign)."""
+    w = math.pi - (math.pi - a) % TWO_PI
+    return w + TWO_PI if w <= -math.pi else w
+
+
+def heading_rule_scalar(theta: float, bearing: float, max_turn: float) -> float:
+    """:func:`heading_rule` of floats in plain Python, bit for bit (``np.clip``'s order of
+    comparisons), for loops over single looks."""
+    turn = wrap_scalar(bearing - theta)
+    turn = turn if turn > -max_turn else -max_turn
+    turn = turn if turn < max_turn else max_turn
+    return wrap_scalar(theta + turn)

@@ -16,7 +16,8 @@ import math
 import numpy as np
 
 from .._compiled.jit import njit
-from ..models.radar.model import (ANGLE_TOL, RANGE_TOL, detection_probability, hidden,
+from ._chains_nb import logdet4, predict_step, update_step
+from ..models.radar.model import (ANGLE_TOL, RANGE_TOL, detection_probability, hidden, look,
                                   visible)
 from ..models.sensors import ALTITUDE, ALTITUDE2, FOV, G_MAX, G_MIN
 
@@ -44,17 +45,19 @@ def _cell_tail(d: float, b: float, survival: float, e: int, miss: np.ndarray, k0
 
 @njit(cache=True)
 def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int, k0: int,
-             other_epoch: np.ndarray, other_row: np.ndarray, look_row: np.ndarray,
-             look_epoch: np.ndarray, row_off: np.ndarray, row_idx: np.ndarray,
-             row_val: np.ndarray) -> np.ndarray:
-    """mu for each candidate of a player whose chain starts at epoch ``k0`` (0-based).
+             player: int, plan_sensor: np.ndarray, plan_epoch: np.ndarray,
+             plan_row: np.ndarray, look_row: np.ndarray, look_epoch: np.ndarray,
+             row_off: np.ndarray, row_idx: np.ndarray, row_val: np.ndarray) -> np.ndarray:
+    """mu for each candidate of a player (sensor ``player``) whose chain starts at epoch
+    ``k0`` (0-based).
 
     Parameters
     ----------
     d0, births : (C,)          the undetected intensity now, births per step
     K : int                    epochs
-    other_epoch, other_row : (n_o,) int   every other look's epoch (0-based) and pool row,
-                               in the order their misses multiply (sensor by sensor)
+    plan_sensor, plan_epoch, plan_row : (n_p,) int   every planned look's sensor, epoch
+                               (0-based) and pool row, in the order their misses multiply
+                               (sensor by sensor); the player's from k0 on are not counted
     look_row : (A, n) int      row of each candidate's n chain looks in the pool (-1: none)
     look_epoch : (n,) int      each chain look's epoch (0-based, ascending, from k0)
     row_off, row_idx, row_val  the pool of looks: row r's non-zero ``P_d v`` are
@@ -69,10 +72,28 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
     # Every other look's product of 1 - P_d v per epoch (1 - 0 = 1: cells a look misses
     # keep their bits).
     miss = np.ones((K, C))
-    for q in range(other_row.shape[0]):
-        r, kk = other_row[q], other_epoch[q]
+    for q in range(plan_row.shape[0]):
+        if plan_sensor[q] == player and plan_epoch[q] >= k0:
+            continue
+        r, kk = plan_row[q], plan_epoch[q]
         for p in range(row_off[r], row_off[r + 1]):
             miss[kk, row_idx[p]] *= 1.0 - row_val[p]
+    # Candidates whose chains are the same looks (track looks the turn limit clips to one
+    # heading, say) have the same mu: each computed once, by its first in key order.
+    rep = np.arange(A)
+    top = 1
+    for a in range(A):
+        for l in range(n):
+            top = max(top, look_row[a, l] + 2)
+    if n > 0 and n * math.log2(top) < 62.0:
+        key = np.zeros(A, dtype=np.int64)
+        for a in range(A):
+            for l in range(n):
+                key[a] = key[a] * top + look_row[a, l] + 1
+        order = np.argsort(key, kind="mergesort")
+        for q in range(1, A):
+            if key[order[q]] == key[order[q - 1]]:
+                rep[order[q]] = rep[order[q - 1]]
     L = K - k0
     # The others alone: mu before k0, each cell's intensity at k0 and its tail from k0.
     d_k0 = d0.copy()
@@ -93,12 +114,21 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
         tail[c] = _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, ones)
         tail_sum += tail[c]
     base = mu_pre + tail_sum
-    # Per candidate: the cells its looks cover, their chain misses in a scratch row.
+    # Per candidate: the cells its looks cover, their chain misses in a scratch row. A cell
+    # only one of the chain's looks covers changes by a function of (cell, that look's
+    # epoch, its miss): kept, and reused when another candidate's look there misses with
+    # the same bits (every covered cell, with ideal detection).
     out = np.empty(A)
     chain = np.ones((C, L))
     stamp = np.full(C, -1, dtype=np.int64)
     cells = np.empty(C, dtype=np.int64)
+    covered = np.zeros(C, dtype=np.int64)
+    slot = np.zeros(C, dtype=np.int64)
+    kept_miss = np.full((C, L), np.nan)
+    kept_delta = np.empty((C, L))
     for a in range(A):
+        if rep[a] != a:
+            continue
         nc = 0
         for l in range(n):
             r = look_row[a, l]
@@ -111,14 +141,29 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
                     stamp[c] = a
                     cells[nc] = c
                     nc += 1
+                    covered[c] = 0
+                covered[c] += 1
+                slot[c] = kl
                 chain[c, kl] = 1.0 - row_val[q]
         delta = 0.0
         for q in range(nc):
             c = cells[q]
-            delta += _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, chain[c]) \
-                - tail[c]
-            chain[c, :] = 1.0
+            if covered[c] == 1:
+                kl = slot[c]
+                m = chain[c, kl]
+                if kept_miss[c, kl] != m:
+                    kept_delta[c, kl] = _cell_tail(d_k0[c], births[c], survival, e, miss, k0,
+                                                   c, chain[c]) - tail[c]
+                    kept_miss[c, kl] = m
+                delta += kept_delta[c, kl]
+                chain[c, kl] = 1.0
+            else:
+                delta += _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, chain[c]) \
+                    - tail[c]
+                chain[c, :] = 1.0
         out[a] = base + delta
+    for a in range(A):
+        out[a] = out[rep[a]]
     return out
 
 
@@ -172,4 +217,178 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
     return counts, idx[:n].copy(), val[:n].copy()
 
 
-__all__ = ["detect_sparse_nb", "found_nb"]
+@njit(cache=True, fastmath=False, inline="always")
+def _term(info: float, measured: bool, existence: float) -> float:
+    """:func:`~sensorplan.planners.information.phi_terms`'s rule for one target, bit for bit:
+    ``np.maximum(info, 0)`` (the first argument unless below, NaN kept), 0 unmeasured, times
+    r."""
+    kept = info if (info >= 0.0 or math.isnan(info)) else 0.0
+    return existence * (kept if measured else 0.0)
+
+
+@njit(cache=True, fastmath=False, inline="always")
+def _run(P: np.ndarray, W: np.ndarray, t0: int, F: np.ndarray, Q: np.ndarray, qb: int,
+         cv: bool, dt: float, need_sum: bool, ld_sum: float, FP: np.ndarray) -> float:
+    """In place: steps ``t0..`` of :func:`~sensorplan.planners._chains_nb.
+    covariance_recursion_nb`'s loop on ``P``, from its sum of log-dets so far; returns the
+    sum."""
+    for t in range(t0, W.shape[0]):
+        predict_step(P, F, Q, qb, cv, dt, FP)
+        update_step(P, W[t, 0, 0], W[t, 0, 1], W[t, 1, 1])
+        if need_sum:
+            ld_sum += logdet4(P)
+    return ld_sum
+
+
+@njit(cache=True)
+def pair_terms_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0: np.ndarray,
+                  F: np.ndarray, Q: np.ndarray, cumulative: bool, cv: bool, dt: float,
+                  ld_ref: np.ndarray, existence: np.ndarray) -> np.ndarray:
+    """Each target's term of Phi ``(A, M)`` for each candidate of a player whose chain
+    starts at epoch ``k0`` (0-based): the others' term where the chain does not look at the
+    target, else the recursion over the others' information plus the chain's.
+
+    Parameters
+    ----------
+    base : (M, T, 2, 2)   the other looks' information by target
+    tgt : (A, L) int      the chain's targets (-1: none);  w : (A, L, e, 2, 2) its information
+    P0 : (M, 4, 4);  F : (4, 4);  Q : (1, 4, 4) or (M, 4, 4);  cumulative, cv, dt   as in
+                          :func:`~sensorplan.planners._chains_nb.covariance_recursion_nb`
+    ld_ref : (M,)         the unmeasured log-det the terms are measured from (the last, or
+                          for ``cumulative`` the sum over steps 1..T)
+    existence : (M,)
+
+    Every row (the others' of a target, or a (candidate, target looked at) pair's) runs
+    :func:`~sensorplan.planners._chains_nb.covariance_recursion_nb`'s steps in its order,
+    and the terms are :func:`~sensorplan.planners.information.phi_terms`'s, bit for bit. A
+    pair's row equals its target's before the chain's first step: the pairs continue from
+    the target's covariance there.
+    """
+    A, L = tgt.shape
+    M, T = base.shape[0], base.shape[1]
+    e = w.shape[2]
+    t0 = k0 * e                                  # the chain's first step
+    shared_q = Q.shape[0] == 1
+    FP = np.empty((4, 4))
+    # Each target: its covariance and sum of log-dets before t0, then the others' term.
+    P_t0 = np.empty((M, 4, 4))
+    sum_t0 = np.zeros(M)
+    measured_t0 = np.zeros(M, dtype=np.bool_)
+    out = np.empty((A, M))
+    P = np.empty((4, 4))
+    for j in range(M):
+        qb = 0 if shared_q else j
+        P[:, :] = P0[j]
+        sum_t0[j] = _run(P, base[j, :t0], 0, F, Q, qb, cv, dt, cumulative, 0.0, FP)
+        P_t0[j] = P
+        measured = False
+        for t in range(T):
+            for r in range(2):
+                for c in range(2):
+                    if base[j, t, r, c] != 0.0:
+                        measured = True
+                        if t < t0:
+                            measured_t0[j] = True
+        ld_sum = _run(P, base[j], t0, F, Q, qb, cv, dt, cumulative, sum_t0[j], FP)
+        info = 0.5 * (ld_ref[j] - (ld_sum if cumulative else logdet4(P)))
+        term = _term(info, measured, existence[j])
+        for a in range(A):
+            out[a, j] = term
+    # Each (candidate, target looked at) pair, from the target's state at t0.
+    row = np.empty((T, 2, 2))
+    for a in range(A):
+        for l in range(L):
+            j = tgt[a, l]
+            if j < 0:
+                continue
+            seen = False
+            for l2 in range(l):
+                if tgt[a, l2] == j:
+                    seen = True
+            if seen:
+                continue
+            row[:, :, :] = base[j]
+            for l2 in range(l, L):
+                if tgt[a, l2] != j:
+                    continue
+                for s in range(e):
+                    t = (k0 + l2) * e + s
+                    for r in range(2):
+                        for c in range(2):
+                            row[t, r, c] += w[a, l2, s, r, c]
+            measured = measured_t0[j]
+            for t in range(t0, T):
+                for r in range(2):
+                    for c in range(2):
+                        if row[t, r, c] != 0.0:
+                            measured = True
+            P[:, :] = P_t0[j]
+            ld_sum = _run(P, row, t0, F, Q, 0 if shared_q else j, cv, dt, cumulative,
+                          sum_t0[j], FP)
+            info = 0.5 * (ld_ref[j] - (ld_sum if cumulative else logdet4(P)))
+            out[a, j] = _term(info, measured, existence[j])
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def look_information_nb(table: np.ndarray, sensor: np.ndarray, buildings: np.ndarray,
+                        xbar: np.ndarray, Cbar: np.ndarray, pos: np.ndarray, th: np.ndarray,
+                        tgt: np.ndarray, epoch: np.ndarray, probabilistic: bool,
+                        W: np.ndarray) -> None:
+    """Track information of B looks into ``W (B, e, 2, 2)`` (left as it is where ``tgt`` is
+    -1: a sector look or none).
+
+    Parameters
+    ----------
+    table : (N, n_cols) the radar table;  sensor : (B,) int   each look's sensor (its row)
+    buildings : (nb, 5)
+    xbar : (M, T + 1, >=2), Cbar : (M, T + 1, 3)   the targets' predicted means and position
+                          covariances (``Context.xbar``, ``Context.Cbar``)
+    pos : (B, 2);  th : (B,);  tgt : (B,) int;  epoch : (B,) int (1-based)   the looks
+
+    Each look at step t is the radar's :func:`~sensorplan.models.radar.model.look` of the
+    target's predicted mean and covariance at t (the values of
+    :func:`~sensorplan.planners.information.chain_information`, bit for bit).
+    """
+    e = W.shape[1]
+    for b in range(tgt.shape[0]):
+        j = tgt[b]
+        if j < 0:
+            continue
+        row = table[sensor[b]]
+        for s in range(e):
+            t = (epoch[b] - 1) * e + 1 + s
+            p, w00, w01, w11 = look(row, buildings, pos[b, 0], pos[b, 1],
+                                    xbar[j, t, 0] - pos[b, 0], xbar[j, t, 1] - pos[b, 1], th[b],
+                                    Cbar[j, t, 0], Cbar[j, t, 1], Cbar[j, t, 2], probabilistic)
+            W[b, s, 0, 0] = w00
+            W[b, s, 0, 1] = w01
+            W[b, s, 1, 0] = w01
+            W[b, s, 1, 1] = w11
+
+@njit(cache=True, fastmath=False, inline="always")
+def _wrap(a: float) -> float:
+    """:func:`~sensorplan.models.angles.wrap_angle` of one float, bit for bit (``%`` on
+    floats is numpy's ``mod``: the C ``fmod`` moved to the divisor's sign)."""
+    two_pi = 2.0 * math.pi
+    w = math.pi - (math.pi - a) % two_pi
+    return w + two_pi if w <= -math.pi else w
+
+
+@njit(cache=True, fastmath=False)
+def heading_rule_nb(theta: np.ndarray, bearing: np.ndarray, max_turn: float) -> np.ndarray:
+    """:func:`~sensorplan.models.angles.heading_rule` of ``theta (A,)``, ``bearing (A,)``,
+    bit for bit (``np.clip``'s comparisons, NaN kept)."""
+    out = np.empty(theta.shape[0])
+    for a in range(theta.shape[0]):
+        turn = _wrap(bearing[a] - theta[a])
+        if not (math.isnan(turn) or turn > -max_turn):
+            turn = -max_turn
+        if not (math.isnan(turn) or turn < max_turn):
+            turn = max_turn
+        out[a] = _wrap(theta[a] + turn)
+    return out
+
+
+__all__ = ["detect_sparse_nb", "found_nb", "heading_rule_nb", "look_information_nb",
+           "pair_terms_nb"]

@@ -25,6 +25,7 @@ from .registry import PLANNERS, make_planner, register
 
 if TYPE_CHECKING:  # pragma: no cover
     from .information import Context
+    from .search import SearchContext
 
 RngLike = np.random.Generator | int | None
 
@@ -163,35 +164,41 @@ def refuse_search(name: str, problem: PlanningProblem) -> None:
                           f"set search to 'off' or use one of {', '.join(search_planner_names())}")
 
 
-def finish(name: str, ctx: Context | PlanningProblem, plan: Plan, start: float,
-           converged: bool | None = None, sweeps: int | None = None,
+def finish(name: str, ctx: Context | PlanningProblem | SearchContext, plan: Plan,
+           start: float, converged: bool | None = None, sweeps: int | None = None,
            trace: tuple[float, ...] = (), budget_exhausted: bool = False) -> PlanResult:
     """Evaluate ``plan`` with the one definition of Phi and wrap it in a :class:`PlanResult`.
 
     Parameters
     ----------
     name : str               the planner's name
-    ctx : Context or PlanningProblem
-                             :func:`prepare`'s result, or the problem (prepared here)
+    ctx : Context, SearchContext or PlanningProblem
+                             :func:`prepare`'s result (with search,
+                             :func:`~sensorplan.planners.search.prepare`'s, whose memo may
+                             already hold the plan's Phi), or the problem (prepared here)
     plan : Plan              feasible and complete
     start : float            :func:`start_clock`'s value; ``seconds`` runs until now
     converged, sweeps, trace, budget_exhausted : as in :class:`PlanResult`
     """
     from . import anytime
-    from .information import evaluate
+    from .information import Context, evaluate
     from .information import prepare as _prepare
 
-    problem = ctx if isinstance(ctx, PlanningProblem) else ctx.problem
+    if isinstance(ctx, PlanningProblem | Context):
+        problem = ctx if isinstance(ctx, PlanningProblem) else ctx.problem
+    else:
+        problem = ctx.ctx.problem
     if problem.searching:
         # Phi with search: the tracks' terms plus the value of the targets found.
         from . import search
 
-        sev = search.evaluate(search.prepare(problem), plan)
+        sctx = ctx if isinstance(ctx, search.SearchContext) else search.prepare(problem)
+        sev = search.evaluate(sctx, plan)
         return PlanResult(name, plan, sev.potential, sev.information, sev.headings,
                           sev.measurements, converged, sweeps, anytime.clock() - start, trace,
                           budget_exhausted, sev.found, sev.weight)
-    if isinstance(ctx, PlanningProblem):
-        ctx = _prepare(ctx)
+    if not isinstance(ctx, Context):
+        ctx = _prepare(problem)
     ev = evaluate(ctx, plan)
     return PlanResult(name, plan, ev.potential, ev.information, ev.headings, ev.measurements,
                       converged, sweeps, anytime.clock() - start, trace, budget_exhausted)

@@ -10,7 +10,7 @@ import numpy as np
 
 from .._types import BoolArray, FloatArray, IntArray
 from ..models import radar
-from ..models.angles import heading_rule
+from ._search_nb import heading_rule_nb
 from .information import Context
 from .problem import Plan
 
@@ -75,7 +75,8 @@ def candidate_chains(cells: Cells, plan: Plan, i: int, k: int, positions: FloatA
             toward = np.zeros(A)
         b = np.where(sec[:, l] >= 0, cells.bearings[i][np.maximum(sec[:, l], 0)]
                      if cells.bearings[i].size else 0.0, toward)
-        h = heading_rule(h, b, turn) if prev_ok else heading_rule(theta0, b, kk * turn)
+        h = (heading_rule_nb(h, b, turn) if prev_ok
+             else heading_rule_nb(np.full(A, theta0), b, kk * turn))
         th[:, l] = h
         prev_ok = True
     return pos, tgt, assigned, th

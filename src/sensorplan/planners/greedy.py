@@ -60,8 +60,8 @@ class SequentialGreedyPlanner(PlannerSettings):
                 raise ConfigError("planner.time_budget", "sequential-greedy with search has "
                                   "no time budget yet; leave it unset")
 
-            return finish(self.name, problem, search.sequential_greedy(
-                search.prepare(problem)), start)
+            sctx = search.prepare(problem)
+            return finish(self.name, sctx, search.sequential_greedy(sctx), start)
         ctx = prepare(problem)
         if self.time_budget is None:
             return finish(self.name, ctx, sequential_greedy(ctx).to_plan(), start)

@@ -219,7 +219,7 @@ class PotentialGamePlanner(BudgetedLearningSettings):
                                   "budget yet; leave it unset")
             sctx = search.prepare(problem)
             plan, converged, sweeps, trace = search.potential_game(sctx, gen, *self.learning)
-            return finish(self.name, problem, plan, start, converged, sweeps, tuple(trace))
+            return finish(self.name, sctx, plan, start, converged, sweeps, tuple(trace))
         ctx = prepare(problem)
         state = GameState(ctx)
         if self.time_budget is None:

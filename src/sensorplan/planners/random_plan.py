@@ -28,8 +28,8 @@ class RandomPlanner(PlannerSettings):
         if problem.searching:
             from . import search
 
-            return finish(self.name, problem, search.random_plan(search.prepare(problem), gen),
-                          start)
+            sctx = search.prepare(problem)
+            return finish(self.name, sctx, search.random_plan(sctx, gen), start)
         ctx = prepare(problem)
         N, K = problem.n_sensors, problem.horizon
         positions = np.empty((N, K, 2))

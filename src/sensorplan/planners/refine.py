@@ -334,4 +334,4 @@ class RefinedPlanner(BudgetedLearningSettings):
         values = [search.evaluate(sctx, p).potential for p in starts]
         plan, rounds = search_local_search(sctx, starts[int(np.argmax(values))])
         trace_all = tuple(trace) + (search.evaluate(sctx, plan).potential,)
-        return finish(self.name, problem, plan, start, True, sweeps + rounds, trace_all)
+        return finish(self.name, sctx, plan, start, True, sweeps + rounds, trace_all)

@@ -43,13 +43,13 @@ import numpy as np
 from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..models import radar
-from ..models.angles import heading_rule, wrap_angle
-from ._search_nb import detect_sparse_nb, found_nb
+from ..models.angles import heading_rule, heading_rule_scalar, wrap_angle
+from ._search_nb import detect_sparse_nb, found_nb, look_information_nb, pair_terms_nb
 from .cells import candidate_chains, detection
-from .information import (Context, chain_information, covariance_recursion, measured,
-                          phi_terms, sum_by_target, target_information)
+from .information import (BACKEND, Context, chain_information, covariance_recursion,
+                          cv_form, measured, phi_terms, sum_by_target, target_information)
 from .information import prepare as prepare_tracks
-from .problem import POSITION_TOL, Plan, PlanningProblem, move_vectors
+from .problem import POSITION_TOL, TIE_TOL, Plan, PlanningProblem, move_vectors
 
 if TYPE_CHECKING:  # pragma: no cover
     from .gospa_bound import GospaContext
@@ -129,8 +129,8 @@ def prepare(problem: PlanningProblem) -> SearchContext:
     return sctx
 
 
-def look_bearing(sctx: SearchContext, i: int, k: int, position: FloatArray, target: int,
-                 sector: int) -> float:
+def look_bearing(sctx: SearchContext, i: int, k: int, position: FloatArray | list[float],
+                 target: int, sector: int) -> float:
     """The bearing the heading rule aims at for sensor i's look in epoch k (1-based)."""
     if sector >= 0:
         return float(sctx.bearings[i][sector])
@@ -148,16 +148,20 @@ def plan_headings(sctx: SearchContext, plan: Plan) -> FloatArray:
     ctx = sctx.ctx
     assert plan.sectors is not None
     out = np.full((ctx.N, ctx.K), np.nan)
+    # Python floats and lists: a plan is N K single looks.
+    assigned, positions = plan.assigned.tolist(), plan.positions.tolist()
+    targets, sectors = plan.targets.tolist(), plan.sectors.tolist()
     for i in range(ctx.N):
         h, prev_ok = float(ctx.problem.headings[i]), True
         theta0, turn = float(ctx.problem.headings[i]), float(ctx.max_turn[i])
         for k in range(1, ctx.K + 1):
-            if not plan.assigned[i, k - 1]:
+            if not assigned[i][k - 1]:
                 prev_ok = False
                 continue
-            b = look_bearing(sctx, i, k, plan.positions[i, k - 1], int(plan.targets[i, k - 1]),
-                             int(plan.sectors[i, k - 1]))
-            h = float(heading_rule(h, b, turn) if prev_ok else heading_rule(theta0, b, k * turn))
+            b = look_bearing(sctx, i, k, positions[i][k - 1], targets[i][k - 1],
+                             sectors[i][k - 1])
+            h = (heading_rule_scalar(h, b, turn) if prev_ok
+                 else heading_rule_scalar(theta0, b, k * turn))
             out[i, k - 1] = h
             prev_ok = True
     return out
@@ -219,7 +223,17 @@ class SearchEvaluation:
 
 
 def evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
-    """Phi of ``plan`` with search: the reference definition (plain numpy, one plan)."""
+    """Phi of ``plan`` with search: the reference definition (plain numpy, one plan), kept
+    in ``sctx.memo`` by the plan (a game's last sweep and the planner's result ask about the
+    same plan)."""
+    memo = _plan_memo(sctx, plan)
+    got = memo.get("evaluation")
+    if got is None:
+        got = memo["evaluation"] = _evaluate(sctx, plan)
+    return cast(SearchEvaluation, got)
+
+
+def _evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
     if sctx.gospa is not None:
         from . import gospa_bound
 
@@ -268,10 +282,20 @@ def distinct_headings(headings: FloatArray) -> IntArray:
     """Indices of the first of each distinct heading (to :data:`HEADING_TOL`), ascending:
     the sectors that are distinct actions, given the headings the rule maps them to."""
     h = np.asarray(headings, dtype=float).reshape(-1)
-    same = (np.abs(wrap_angle(h[:, None] - h[None, :])) <= HEADING_TOL).tolist()
+    return _first_of_each(np.abs(wrap_angle(h[:, None] - h[None, :])) <= HEADING_TOL)
+
+
+def _first_of_each(same: np.ndarray) -> IntArray:
+    """Indices kept by one pass in order that keeps an item unless it is the same
+    (``same (n, n)``, symmetric) as an item already kept; ascending."""
+    n = same.shape[0]
+    alone = same.sum(axis=1) == 1          # the same as itself only: always kept
+    if alone.all():
+        return np.arange(n, dtype=np.int64)
+    rows = same.tolist()
     keep: list[int] = []
-    for s in range(h.size):
-        if not any(same[s][t] for t in keep):
+    for s in range(n):
+        if alone[s] or not any(rows[s][t] for t in keep):
             keep.append(s)
     return np.array(keep, dtype=np.int64)
 
@@ -292,12 +316,8 @@ def player_positions(sctx: SearchContext, plan: Plan, i: int, k: int) -> FloatAr
     # Distinct positions only (a zero-length move may repeat the stay).
     cand = cand[ok]
     same = (np.abs(cand[:, None] - cand[None]).max(axis=-1, initial=0.0)
-            <= POSITION_TOL * 10).tolist()
-    out: list[int] = []
-    for a in range(len(cand)):
-        if not any(same[a][b] for b in out):
-            out.append(a)
-    return cand[out].reshape(-1, 2)
+            <= POSITION_TOL * 10)
+    return cand[_first_of_each(same)].reshape(-1, 2)
 
 
 def player_actions(sctx: SearchContext, plan: Plan, i: int, k: int
@@ -310,14 +330,25 @@ def player_actions(sctx: SearchContext, plan: Plan, i: int, k: int
     else:
         prev_ok = bool(plan.assigned[i, k - 2])
         prev_h = float(_plan_headings(sctx, plan)[i, k - 2]) if prev_ok else 0.0
-    sectors = sector_actions(sctx, i, k, prev_h, prev_ok)
-    pos = player_positions(sctx, plan, i, k)
-    M = sctx.ctx.M
-    looks_t = np.concatenate([np.arange(M), np.full(sectors.size, -1)])
-    looks_s = np.concatenate([np.full(M, -1), sectors])
-    n = looks_t.size
-    return (np.repeat(pos, n, axis=0), np.tile(looks_t, len(pos)),
-            np.tile(looks_s, len(pos)))
+    # The actions depend on the player's previous heading and its neighbouring epochs'
+    # positions only: kept in sctx.memo by those (read-only), as sweeps ask again.
+    nxt = k < sctx.ctx.K and bool(plan.assigned[i, k])
+    key = (i, k, prev_ok, prev_h, plan.positions[i, k - 2].tobytes() if k > 1 else b"",
+           plan.positions[i, k].tobytes() if nxt else b"")
+    memo = sctx.memo.setdefault("actions", {})
+    got = memo.get(key)
+    if got is None:
+        sectors = sector_actions(sctx, i, k, prev_h, prev_ok)
+        pos = player_positions(sctx, plan, i, k)
+        M = sctx.ctx.M
+        looks_t = np.concatenate([np.arange(M), np.full(sectors.size, -1)])
+        looks_s = np.concatenate([np.full(M, -1), sectors])
+        n = looks_t.size
+        got = memo[key] = (np.repeat(pos, n, axis=0), np.tile(looks_t, len(pos)),
+                           np.tile(looks_s, len(pos)))
+        for a in got:
+            a.flags.writeable = False
+    return got
 
 
 def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
@@ -345,6 +376,13 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
         return gospa_bound.candidate_potentials(sctx, plan, i, k, positions, targets, sectors,
                                                 _plan_headings(sctx, plan))
     assert plan.sectors is not None
+    # The same plan and read-only candidates as this player's last call (a JSFP iteration
+    # in which nobody moved): its utilities.
+    last = sctx.memo.setdefault("last_call", {})
+    prev = last.get((i, k))
+    if (prev is not None and prev[0] is plan and prev[1] is positions and prev[2] is targets
+            and prev[3] is sectors):
+        return cast(FloatArray, prev[4].copy())
     # The utilities depend on the others' actions and the candidates, not on the player's
     # own action: a JSFP iteration in which no other player moved asks again for the same.
     own = np.zeros(plan.targets.shape, dtype=bool)
@@ -357,6 +395,9 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
     got = memo.get(key)
     if got is None:
         got = memo[key] = _candidate_potentials(sctx, plan, i, k, positions, targets, sectors)
+    if all(isinstance(a, np.ndarray) and not a.flags.writeable
+           for a in (positions, targets, sectors)):
+        last[(i, k)] = (plan, positions, targets, sectors, got)
     return got.copy()
 
 
@@ -417,10 +458,16 @@ def _chain_column(sctx: SearchContext, i: int, kk: int, pos: FloatArray, tgt: In
         track = tgt >= 0
         w = np.zeros((len(tgt), ctx.e, 2, 2))
         if ctx.M and track.any():
-            wt, _ = chain_information(ctx, i, kk, np.where(track[:, None], pos, 0.0)[:, None],
-                                      np.where(track, th, 0.0)[:, None],
-                                      np.maximum(tgt, 0)[:, None])
-            w = np.where(track[:, None, None, None], wt[:, 0], 0.0)
+            if BACKEND == "numpy":
+                wt, _ = chain_information(ctx, i, kk, pos[track][:, None],
+                                          th[track][:, None], tgt[track][:, None])
+                w[track] = wt[:, 0]
+            else:
+                B = len(tgt)
+                look_information_nb(ctx.radar, np.full(B, i), ctx.buildings, ctx.xbar, ctx.Cbar,
+                                    np.ascontiguousarray(pos), np.ascontiguousarray(th),
+                                    np.ascontiguousarray(tgt), np.full(B, kk),
+                                    ctx.probabilistic, w)
         got = memo[key] = (rows, w)
     return got
 
@@ -436,17 +483,22 @@ def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: 
     looks = memo.get("looks")
     if looks is None:
         # Every planned look, sensor by sensor (the order the misses multiply in).
-        n_look, k_look = np.nonzero(plan.assigned)
-        row = np.empty(len(n_look), dtype=np.int64)
+        n_look, k_look = (np.ascontiguousarray(a) for a in np.nonzero(plan.assigned))
+        # A sensor's rows by its part of the plan (plans met in a game differ in a few).
+        by_sensor = sctx.memo.setdefault("sensor_looks", {})
+        parts = []
         for n in np.unique(n_look).tolist():
-            sel = n_look == n
-            row[sel] = pool.rows(sctx, n, plan.positions[n, k_look[sel]],
-                                 headings[n, k_look[sel]])
+            ks = np.flatnonzero(plan.assigned[n])
+            key = (n, ks.tobytes(), plan.positions[n].tobytes(), headings[n].tobytes())
+            got = by_sensor.get(key)
+            if got is None:
+                got = by_sensor[key] = pool.rows(sctx, n, plan.positions[n, ks], headings[n, ks])
+            parts.append(got)
+        row = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
         looks = memo["looks"] = (n_look, k_look, row)
     n_look, k_look, row = looks
-    other = (n_look != i) | (k_look < k - 1)
-    return found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1,
-                    k_look[other], row[other], rows, ls + (k - 1), *pool.arrays())
+    return found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, int(i), n_look,
+                    k_look, row, rows, ls + (k - 1), *pool.arrays())
 
 
 class _LookPool:
@@ -456,7 +508,7 @@ class _LookPool:
     :func:`~sensorplan.planners._search_nb.found_nb` reads."""
 
     def __init__(self) -> None:
-        self.index: dict[tuple[int, bytes], int] = {}
+        self.index: dict[int, dict[bytes, int]] = {}   # by sensor, by pose
         self.off = np.zeros(1024, dtype=np.int64)      # rows' starts; room to grow
         self.idx = np.empty(1 << 16, dtype=np.int64)
         self.val = np.empty(1 << 16)
@@ -470,17 +522,19 @@ class _LookPool:
         pose[:, :2] = positions
         pose[:, 2] = headings
         keys = cast("list[bytes]", pose.view(np.dtype((np.void, 24))).ravel().tolist())
-        out = np.empty(len(keys), dtype=np.int64)
+        index = self.index.setdefault(n, {})
+        found = [index.get(key, -1) for key in keys]
         new: dict[bytes, int] = {}          # unseen pose -> its row
         first: list[int] = []               # ... and its first look in the batch
-        for b, key in enumerate(keys):
-            r = self.index.get((n, key))
-            if r is None:
-                r = new.get(key)
-                if r is None:
-                    r = new[key] = self.n_rows + len(first)
-                    first.append(b)
-            out[b] = r
+        if -1 in found:
+            for b, key in enumerate(keys):
+                if found[b] < 0:
+                    r = new.get(key)
+                    if r is None:
+                        r = new[key] = self.n_rows + len(first)
+                        first.append(b)
+                    found[b] = r
+        out = np.array(found, dtype=np.int64)
         if new:
             ctx = sctx.ctx
             counts, idx, val = detect_sparse_nb(ctx.radar[n], sctx.centres,
@@ -494,8 +548,7 @@ class _LookPool:
             self.idx[start:start + len(idx)] = idx
             self.val = _grown(self.val, start + len(val))
             self.val[start:start + len(val)] = val
-            for key, r in new.items():
-                self.index[(n, key)] = r
+            index.update(new)
             self.n_rows += len(first)
         return out
 
@@ -534,14 +587,14 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
 
     A candidate changes the terms of the targets its chain looks at only: the other
     players' summed information is shared, each target's term without the chain is computed
-    once, and only (candidate, target looked at) pairs run the recursion (each pair's row is
-    the dense computation's row, so its term is the same to the bit).
+    once, and only (candidate, target looked at) pairs run the recursion, from their
+    target's covariance before the chain's first step (each pair's row is the dense
+    computation's row and runs its steps in order, so its term is the same to the bit).
     """
     ctx = sctx.ctx
     A, L = tgt.shape
     if ctx.M == 0:
         return np.zeros(A)
-    M, e = ctx.M, ctx.e
     others = plan.targets.copy()
     others[i, k - 1:] = -1
     memo = _plan_memo(sctx, plan)
@@ -549,6 +602,30 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
     if W is None:
         W = memo["track_W"] = _plan_track_W(sctx, plan, headings)
     base = sum_by_target(ctx, W, others)                            # (M, T, 2, 2)
+    if BACKEND == "numpy":
+        base_terms = _target_terms(ctx, base, np.arange(ctx.M))
+        return pair_terms_numpy(ctx, base, base_terms, tgt, w, k).sum(axis=1)
+    arrays = sctx.memo.get("pair_arrays")
+    if arrays is None:
+        cumulative = ctx.problem.objective == "cumulative"
+        ld_ref = ctx.ld_bar[:, 1:].sum(axis=-1) if cumulative else ctx.ld_bar[:, -1]
+        arrays = sctx.memo["pair_arrays"] = (
+            np.ascontiguousarray(ctx.problem.covs, dtype=float), ctx.F,
+            np.ascontiguousarray(ctx.Q, dtype=float), cumulative, *cv_form(ctx.F),
+            np.ascontiguousarray(ld_ref), np.ascontiguousarray(ctx.existence, dtype=float))
+    P0, F, Q, cumulative, cv, dt, ld_ref, existence = arrays
+    terms = pair_terms_nb(base, np.ascontiguousarray(tgt), w, k - 1, P0, F, Q, cumulative, cv,
+                          dt, ld_ref, existence)
+    return terms.sum(axis=1)
+
+
+def pair_terms_numpy(ctx: Context, base: FloatArray, base_terms: FloatArray, tgt: IntArray,
+                     w: FloatArray, k: int) -> FloatArray:
+    """Plain-numpy reference of :func:`~sensorplan.planners._search_nb.pair_terms_nb` (the
+    ``numpy`` backend, tests): each target's term ``(A, M)`` for each candidate of player
+    (i, k), the chain's targets ``tgt (A, L)`` and information ``w (A, L, e, 2, 2)``."""
+    A, L = tgt.shape
+    M, e = ctx.M, ctx.e
     a_look, l_look = np.nonzero(tgt >= 0)
     pair, inv = np.unique(a_look * M + tgt[a_look, l_look], return_inverse=True)
     pj = pair % M
@@ -557,13 +634,9 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
         sel = l_look == l
         for s in range(e):
             rows[inv[sel], (k - 1 + l) * e + s] += w[a_look[sel], l, s]
-    terms_memo = sctx.memo.setdefault("base_terms", {})
-    key = base.tobytes()
-    if key not in terms_memo:
-        terms_memo[key] = _target_terms(ctx, base, np.arange(M))
-    terms = np.broadcast_to(terms_memo[key], (A, M)).copy()
+    terms = np.broadcast_to(base_terms, (A, M)).copy()
     terms[pair // M, pj] = _target_terms(ctx, rows, pj)
-    return terms.sum(axis=1)
+    return terms
 
 
 def _target_terms(ctx: Context, W: FloatArray, j: IntArray) -> FloatArray:
@@ -577,24 +650,26 @@ def _target_terms(ctx: Context, W: FloatArray, j: IntArray) -> FloatArray:
 
 
 def _plan_track_W(sctx: SearchContext, plan: Plan, headings: FloatArray) -> FloatArray:
-    """Every player's track information ``(N, K, e, 2, 2)``, each sensor's chain kept in
-    ``sctx.memo`` by its positions, targets and headings."""
+    """Every player's track information ``(N, K, e, 2, 2)`` (0 where not a track look)."""
     ctx = sctx.ctx
-    memo = sctx.memo.setdefault("track_W", {})
-    track = plan.targets >= 0
-    W = np.zeros((ctx.N, ctx.K, ctx.e, 2, 2))
-    for n in range(ctx.N):
-        if track[n].any():
-            pos = np.where(track[n][:, None], plan.positions[n], 0.0)
-            th = np.where(track[n], headings[n], 0.0)
-            tgt = np.maximum(plan.targets[n], 0)
-            key = (n, pos.tobytes(), th.tobytes(), plan.targets[n].tobytes())
-            got = memo.get(key)
-            if got is None:
-                w, _ = chain_information(ctx, n, 1, pos[None], th[None], tgt[None])
-                got = memo[key] = np.where(track[n][:, None, None, None], w[0], 0.0)
-            W[n] = got
-    return W
+    N, K = ctx.N, ctx.K
+    W = np.zeros((N * K, ctx.e, 2, 2))
+    if BACKEND == "numpy":
+        track = plan.targets >= 0
+        for n in range(N):
+            if track[n].any():
+                w, _ = chain_information(ctx, n, 1, np.where(track[n][:, None],
+                                                             plan.positions[n], 0.0)[None],
+                                         np.where(track[n], headings[n], 0.0)[None],
+                                         np.maximum(plan.targets[n], 0)[None])
+                W[n * K:(n + 1) * K] = np.where(track[n][:, None, None, None], w[0], 0.0)
+    else:
+        look_information_nb(ctx.radar, np.repeat(np.arange(N), K), ctx.buildings, ctx.xbar,
+                            ctx.Cbar, np.ascontiguousarray(plan.positions.reshape(-1, 2)),
+                            np.ascontiguousarray(headings.reshape(-1)),
+                            np.ascontiguousarray(plan.targets.reshape(-1)),
+                            np.tile(np.arange(1, K + 1), N), ctx.probabilistic, W)
+    return W.reshape(N, K, ctx.e, 2, 2)
 
 
 def with_action(plan: Plan, i: int, k: int, position: FloatArray, target: int,
@@ -639,8 +714,6 @@ def count_plans(sctx: SearchContext, n_chains: list[int]) -> int:
 def brute_force(sctx: SearchContext, chains: list[IntArray]) -> tuple[Plan, float]:
     """The first joint plan in enumeration order (:func:`enumerate_plans`) within the tie
     tolerance of the best, and its Phi."""
-    from .problem import TIE_TOL
-
     best: Plan | None = None
     best_phi = -np.inf
     for parts in enumerate_plans(sctx, chains):
@@ -656,12 +729,11 @@ def brute_force(sctx: SearchContext, chains: list[IntArray]) -> tuple[Plan, floa
 def best_index(u: FloatArray, current: int) -> int:
     """The best action: the current one if within the tie tolerance of the maximum, else
     the first maximum."""
-    from .problem import TIE_TOL
-
     top = float(u.max())
-    if current >= 0 and u[current] >= top - TIE_TOL * max(1.0, abs(top)):
+    floor = top - TIE_TOL * max(1.0, abs(top))
+    if current >= 0 and u[current] >= floor:
         return current
-    return int(np.flatnonzero(u >= top - TIE_TOL * max(1.0, abs(top)))[0])
+    return int(np.flatnonzero(u >= floor)[0])
 
 
 def _index_of(pos: FloatArray, tgt: IntArray, sec: IntArray, plan: Plan, i: int,
@@ -730,9 +802,11 @@ def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, 
         for k in range(K, 0, -1):
             actions = [player_actions(sctx, plan, i, k) for i in range(N)]
             ubar = [np.zeros(len(a[1])) for a in actions]
+            # Each player's current action: its index moves with its switches only (a
+            # player's actions are distinct).
+            cur = [_index_of(*actions[i], plan, i, k) for i in range(N)]
             eq = False
             for t in range(1, max_inner + 1):
-                cur = [_index_of(*actions[i], plan, i, k) for i in range(N)]
                 best = []
                 eq = True
                 for i in range(N):
@@ -746,7 +820,7 @@ def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, 
                 for i in range(N):
                     if best[i] != cur[i] and (cur[i] < 0 or switch[i]):
                         pos, tgt, sec = actions[i]
-                        b = best[i]
+                        b = cur[i] = best[i]
                         plan = with_action(plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
                         changed = True
                 if rng.random() >= beta:

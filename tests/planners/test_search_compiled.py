@@ -1,0 +1,187 @@
+"""The compiled parts of the search utilities and the search game's loop against the code
+they replaced: the same bits kernel by kernel, and the same plans planner by planner (the
+plain-numpy utilities of ``tests/search_reference.py`` and the loop of
+``tests/search_game_reference.py`` as the oracle)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import search_game_reference
+import search_reference
+from sensorplan.models.angles import heading_rule, heading_rule_scalar, wrap_angle, wrap_scalar
+from sensorplan.planners import make_planner, search
+from sensorplan.planners._search_nb import (found_nb, heading_rule_nb, look_information_nb,
+                                            pair_terms_nb)
+from sensorplan.planners.contract_problems import paper_problem, searching
+from sensorplan.planners.information import chain_information, cv_form
+from sensorplan.planners.problem import PlanningProblem
+
+TOWN = np.array([[200.0, 200.0, 300.0, 300.0, 40.0], [400.0, 100.0, 450.0, 350.0, 80.0]])
+
+
+def swerling(problem: PlanningProblem) -> PlanningProblem:
+    """``problem`` with Swerling 1 detection and two buildings (misses below 1 that vary)."""
+    return dataclasses.replace(problem, buildings=TOWN, sensors=tuple(
+        dataclasses.replace(s, detection="swerling1") for s in problem.sensors))
+
+
+def decisions() -> list[tuple[str, PlanningProblem]]:
+    """The search benchmark's decision (3 sensors, K = 3, e = 2, 8 targets, 12 sectors) on
+    several seeds and grids, a cumulative one, and one with detection and buildings."""
+    out = []
+    for seed, cells in ((0, 24), (1, 16), (2, 10)):
+        rng = np.random.default_rng(seed)
+        p = paper_problem(rng, horizon=3, steps_per_epoch=2, n_sensors=3, n_targets=8)
+        out.append((f"seed {seed}", searching(p, rng, 12, cells=cells)))
+    rng = np.random.default_rng(7)
+    cum = paper_problem(rng, horizon=2, objective="cumulative", n_sensors=2, n_targets=4)
+    out.append(("cumulative", searching(cum, rng, (6, 9), cells=10)))
+    rng = np.random.default_rng(8)
+    out.append(("swerling, buildings", swerling(searching(
+        paper_problem(rng, horizon=3, n_sensors=3, n_targets=5), rng, 8, cells=12))))
+    return out
+
+
+DECISIONS = decisions()
+
+
+@pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
+def test_plans_are_those_of_the_reference(name: str, problem: PlanningProblem,
+                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """pg (two seeds), sequential-greedy and dec-jsfp plan exactly as with the plain-numpy
+    utilities and the game loop before its utilities were kept per player: the same plans,
+    sweeps and convergence, Phi and each sweep's Phi equal to 1e-12."""
+    runs = [("pg", 0), ("pg", 1), ("sequential-greedy", 0), ("dec-jsfp", 0)]
+    fast = [make_planner(planner).plan(problem, rng=seed) for planner, seed in runs]
+    monkeypatch.setattr(search, "candidate_potentials", search_reference.candidate_potentials)
+    monkeypatch.setattr(search, "potential_game", search_game_reference.potential_game)
+    for (planner, seed), got in zip(runs, fast):
+        want = make_planner(planner).plan(problem, rng=seed)
+        for f in ("positions", "targets", "sectors"):
+            np.testing.assert_array_equal(getattr(got.plan, f), getattr(want.plan, f))
+        assert got.potential == pytest.approx(want.potential, rel=1e-12, abs=1e-12)
+        assert (got.converged, got.sweeps) == (want.converged, want.sweeps)
+        np.testing.assert_allclose(got.trace, want.trace, rtol=1e-12, atol=1e-12)
+
+
+def test_the_scalar_heading_rule_is_numpys_bit_for_bit() -> None:
+    """The plain-Python and the compiled heading rule (and wrap) give numpy's bits, the
+    edges of (-pi, pi] and zero turn limits among the inputs."""
+    rng = np.random.default_rng(0)
+    edges = [np.pi, -np.pi, 0.0, -0.0, 2 * np.pi, -2 * np.pi, 3 * np.pi,
+             np.nextafter(np.pi, 4.0), np.nextafter(-np.pi, -4.0), 1e-300]
+    a = np.concatenate([rng.uniform(-10.0, 10.0, 20_000), edges])
+    want = wrap_angle(a)
+    got = np.array([wrap_scalar(x) for x in a.tolist()])
+    np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+    th = np.concatenate([rng.uniform(-4.0, 4.0, 20_000), edges])
+    b = np.concatenate([rng.uniform(-4.0, 4.0, 20_000), edges[::-1]])
+    m = rng.choice([0.0, 0.3, np.pi / 4, np.pi, 2 * np.pi], th.size)
+    want = heading_rule(th, b, m)
+    got = np.array([heading_rule_scalar(*x) for x in zip(th.tolist(), b.tolist(), m.tolist())])
+    np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+    for turn in (0.0, 0.3, np.pi / 4, np.pi, 2 * np.pi):
+        np.testing.assert_array_equal(heading_rule_nb(th, b, turn).view(np.int64),
+                                      heading_rule(th, b, turn).view(np.int64))
+
+
+@pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
+def test_look_information_is_chain_informations(name: str, problem: PlanningProblem) -> None:
+    """The compiled track information of looks equals :func:`chain_information`'s bit for
+    bit, sector looks (target -1) left as they were."""
+    sctx = search.prepare(problem)
+    ctx = sctx.ctx
+    rng = np.random.default_rng(1)
+    B = 50
+    for i in range(ctx.N):
+        for kk in range(1, ctx.K + 1):
+            pos = rng.uniform(0.0, 600.0, (B, 2))
+            th = rng.uniform(-np.pi, np.pi, B)
+            tgt = rng.integers(-1, ctx.M, B)
+            W = np.full((B, ctx.e, 2, 2), 7.0)
+            look_information_nb(ctx.radar, np.full(B, i), ctx.buildings, ctx.xbar, ctx.Cbar,
+                                pos, th, tgt, np.full(B, kk), ctx.probabilistic, W)
+            want, _ = chain_information(ctx, i, kk, pos[:, None], th[:, None],
+                                        np.maximum(tgt, 0)[:, None])
+            track = tgt >= 0
+            np.testing.assert_array_equal(W[track], want[track, 0])
+            assert np.all(W[~track] == 7.0)
+
+
+@pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
+@pytest.mark.parametrize("shared_q", [True, False])
+def test_pair_terms_are_the_numpy_steps(name: str, problem: PlanningProblem,
+                                        shared_q: bool) -> None:
+    """The compiled (candidate, target) terms equal their numpy computation bit for bit:
+    chains looking at one target twice, at none, existence below 1, one process noise per
+    target or a shared one."""
+    rng = np.random.default_rng(2)
+    problem = dataclasses.replace(problem, existence=rng.uniform(0.3, 1.0, problem.n_targets))
+    ctx = search.prepare(problem).ctx
+    if not shared_q:
+        ctx = dataclasses.replace(ctx, Q=ctx.Q * rng.uniform(0.5, 2.0, (ctx.M, 1, 1)))
+    for k in range(1, ctx.K + 1):
+        A, L = 40, ctx.K - k + 1
+        base = np.zeros((ctx.M, ctx.T, 2, 2))
+        G = rng.normal(0.0, 0.05, (ctx.M, ctx.T, 2, 2))
+        base += G @ np.swapaxes(G, -1, -2) * (rng.random((ctx.M, ctx.T, 1, 1)) < 0.5)
+        base_terms = search._target_terms(ctx, base, np.arange(ctx.M))
+        tgt = rng.integers(-1, ctx.M, (A, L))
+        tgt[0, :] = tgt[0, 0]                          # one target looked at in every epoch
+        G = rng.normal(0.0, 0.05, (A, L, ctx.e, 2, 2))
+        w = np.where((tgt >= 0)[..., None, None, None], G @ np.swapaxes(G, -1, -2), 0.0)
+        want = search.pair_terms_numpy(ctx, base, base_terms, tgt, w, k)
+        cumulative = ctx.problem.objective == "cumulative"
+        ld_ref = ctx.ld_bar[:, 1:].sum(axis=-1) if cumulative else ctx.ld_bar[:, -1]
+        got = pair_terms_nb(base, tgt, w, k - 1,
+                            np.ascontiguousarray(ctx.problem.covs), ctx.F,
+                            np.ascontiguousarray(ctx.Q), cumulative, *cv_form(ctx.F),
+                            np.ascontiguousarray(ld_ref), np.ascontiguousarray(ctx.existence))
+        np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+
+
+@pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
+def test_found_of_a_batch_is_each_candidates_alone(name: str, problem: PlanningProblem
+                                                    ) -> None:
+    """mu of candidates in one batch (whose cells' changes are kept for the next candidate)
+    equals each candidate's computed alone bit for bit, and the reference mu to 1e-12."""
+    sctx = search.prepare(problem)
+    ctx = sctx.ctx
+    rng = np.random.default_rng(3)
+    plan = search.random_plan(sctx, rng)
+    headings = search.plan_headings(sctx, plan)
+    pool = search._pool(sctx)
+    n_look, k_look = np.nonzero(plan.assigned)
+    row = np.concatenate([pool.rows(sctx, int(n), plan.positions[n, k_look[n_look == n]],
+                                    headings[n, k_look[n_look == n]])
+                          for n in np.unique(n_look)])
+    for i in range(ctx.N):
+        for k in range(1, ctx.K + 1):
+            pos, tgt, sec = search.player_actions(sctx, plan, i, k)
+            chains = search.candidate_chains(sctx, plan, i, k, pos, tgt, sec, headings)
+            ls = [l for l in range(ctx.K - k + 1) if l == 0 or chains[2][0, l]]
+            rows = np.stack([pool.rows(sctx, i, chains[0][:, l], chains[3][:, l]) for l in ls],
+                            axis=1)
+            rows = np.concatenate([rows, rows[::3]])   # repeated candidates among them
+            other = (n_look != i) | (k_look < k - 1)
+            args = (sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, i, n_look,
+                    k_look, row)
+            epochs = np.array(ls, dtype=np.int64) + (k - 1)
+            batch = found_nb(*args, rows, epochs, *pool.arrays())
+            alone = np.array([found_nb(*args, rows[a:a + 1], epochs, *pool.arrays())[0]
+                              for a in range(len(rows))])
+            np.testing.assert_array_equal(batch.view(np.int64), alone.view(np.int64))
+            miss = np.ones((len(rows), ctx.K, len(sctx.centres)))
+            for q in np.flatnonzero(other):
+                idx, val = pool.row(int(row[q]))
+                miss[:, k_look[q], idx] *= 1.0 - val
+            for a in range(len(rows)):
+                for q, l in enumerate(ls):
+                    idx, val = pool.row(int(rows[a, q]))
+                    miss[a, k - 1 + l, idx] *= 1.0 - val
+            np.testing.assert_allclose(batch, search.expected_found(sctx, miss), rtol=1e-12,
+                                       atol=1e-12)
