@@ -143,8 +143,9 @@ def cells(study_dir: str) -> list[Cell]:
     for m in study.methods:
         g = steps[steps["method"] == m.name]
         runs = int(g["run"].nunique())
-        if m.name in sets:
-            g = g[(g["error"] < c) & g["nees"].notna()]
+        # A target-step without an estimate has no NEES (as in the report's consistency
+        # table); for a set tracker only the estimates within c count.
+        g = g[g["nees"].notna() & (g["error"] < c)] if m.name in sets else g[g["nees"].notna()]
         per_run = g.groupby("run", observed=True)["nees"].mean()
         nees = g["nees"].to_numpy(float)
         if per_run.size:
