@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/search_decision.py [--repeats 7] [--seed 0] [--cells 24]
         [--planners pg sequential-greedy] [--sizes 3 20]
 
-Target (the issue): a decision with 3 sensors, K = 3, 8 tracks and 12 search sectors per
+Target: a decision with 3 sensors, K = 3, 8 tracks and 12 search sectors per
 sensor takes at most 3x the same decision with search off; at N = 20 sensors the same.
 
 Both decisions of a pair come from one seeded problem, built by the project's builders
