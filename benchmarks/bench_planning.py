@@ -15,11 +15,12 @@
 
 ``--detection`` and ``--occlusion`` run only what the planning modes cost (target: aware
 <= 1.2x ignore): planning problems built exactly as closed-loop runs build them (random
-planner, e = 2; the ``radar`` preset for detection, ``urban`` for occlusion), each planned
-by ``pg`` (K = 1 and 3) under ``aware`` and under ``ignore`` in alternation on the same
-problem, so that the machine's load hits both alike; medians per decision, the ratio of
-the medians and the median of the per-problem ratios. ``--existence`` does the same for
-targets weighted by probabilities of existence against no weights (the paper preset).
+planner, e = 2; ``configs/radar.toml``, the radar of results.md section 7, for detection,
+``urban`` for occlusion), each planned by ``pg`` (K = 1 and 3) under ``aware`` and under
+``ignore`` in alternation on the same problem, so that the machine's load hits both
+alike; medians per decision, the ratio of the medians and the median of the per-problem
+ratios. ``--existence`` does the same for targets weighted by probabilities of existence
+against no weights (the paper preset).
 
 The scale cases (N = 20, M = 50, K = 10 and the swarm) are in ``bench_scale.py``, quality
 against a time budget in ``bench_anytime.py``.
@@ -68,7 +69,8 @@ def paper_states(n: int, seed: int = 0) -> list[dict]:
 
 
 def preset_problems(preset: str, n: int, seed: int = 0) -> list[PlanningProblem]:
-    """Planning problems of closed-loop runs of a preset, as the simulation builds them.
+    """Planning problems of closed-loop runs of a preset (or a scenario file: a path ending
+    in .toml, from the repository root), as the simulation builds them.
 
     What ``sensorplan simulate --preset NAME --planner random -e 2 --steps 60`` runs, with
     every ``PlanningProblem`` it builds recorded (the tracker's means, covariances and
@@ -78,8 +80,9 @@ def preset_problems(preset: str, n: int, seed: int = 0) -> list[PlanningProblem]
     from sensorplan.simulation import run as simulation
     from sensorplan.config.simulate import load_simulation
 
-    cfg = load_simulation(preset=preset, overrides={"planner": "random",
-                                                         "steps_per_epoch": 2, "steps": 60})
+    overrides = {"planner": "random", "steps_per_epoch": 2, "steps": 60}
+    cfg = (load_simulation(ROOT / preset, overrides=overrides) if preset.endswith(".toml")
+           else load_simulation(preset=preset, overrides=overrides))
     built: list[PlanningProblem] = []
     real = simulation.PlanningProblem
 
@@ -166,8 +169,10 @@ def mode_cost(label: str, preset: str,
 
 
 def detection_cost(args: argparse.Namespace) -> None:
-    """``planning_detection`` aware against ignore on the radar preset's decisions."""
-    mode_cost("Detection in planning", "radar", lambda p: {
+    """``planning_detection`` aware against ignore on the decisions of configs/radar.toml
+    (known targets)."""
+    # The radar of docs/results.md section 7 (known targets), whose decisions these are.
+    mode_cost("Detection in planning", "configs/radar.toml", lambda p: {
         m: dataclasses.replace(p, planning_detection=m) for m in ("aware", "ignore")}, args)
 
 
@@ -318,7 +323,7 @@ def main() -> None:
     ap.add_argument("--quality", type=int, default=200)
     ap.add_argument("--quick", action="store_true", help="K <= 4, 50 problems")
     ap.add_argument("--detection", action="store_true",
-                    help="only: planning_detection aware vs ignore (radar preset)")
+                    help="only: planning_detection aware vs ignore (configs/radar.toml)")
     ap.add_argument("--occlusion", action="store_true",
                     help="only: planning_occlusion aware vs ignore (urban preset)")
     ap.add_argument("--existence", action="store_true",

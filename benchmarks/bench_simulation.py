@@ -7,17 +7,19 @@ time (``time.process_time``; robust when other jobs share the machine). One unti
 comes first (imports, compiled kernels, caches).
 
     .venv/bin/python benchmarks/bench_simulation.py [--preset paper|radar|urban|swarm]
-        [--steps 100] [--repeats 20] [--miss-update negative|none] [--profile]
+        [--config FILE.toml] [--steps 100] [--repeats 20] [--miss-update negative|none] [--profile]
         [--set KEY=VALUE ...]
 
 ``--preset`` picks a built-in scenario with the run settings ``sensorplan simulate --preset
 NAME`` gives it (tracker, association, planning modes), with this script's planner, K, e,
-steps and miss update on top: ``radar`` is Swerling 1 detection with clutter and the PDA
-tracker, ``urban`` the paper's scenario among buildings. ``--set`` overrides any other run
+steps and miss update on top: ``radar`` is Swerling 1 detection with clutter and the
+``pmb`` tracker, ``urban`` the paper's scenario among buildings; ``--config`` reads a
+scenario file instead (``configs/radar.toml``: the radar with the known-target PDA
+tracker, what the radar target below was set for). ``--set`` overrides any other run
 setting as ``simulate``'s options do (``--set model=cv --set known_map=false``), to see
 what a part of the tracker costs.
 
-Targets: <= 1 ms per step on the paper preset, <= 1.5 ms on the radar preset, so that
+Targets: <= 1 ms per step on the paper preset, <= 1.5 ms on configs/radar.toml, so that
 studies are bound by planning, not by simulation.
 """
 
@@ -30,6 +32,7 @@ import platform
 import pstats
 import statistics
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -78,6 +81,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--preset", choices=PRESETS, default="paper",
                     help="built-in scenario, with the run settings simulate gives it")
+    ap.add_argument("--config", type=Path, default=None, metavar="FILE.toml",
+                    help="scenario file instead of --preset (its run settings too)")
     ap.add_argument("--steps", type=int, default=100)
     ap.add_argument("--repeats", type=int, default=20)
     ap.add_argument("--planner", default="random")
@@ -98,10 +103,11 @@ def main() -> None:
             extra[key] = text
 
     # What `sensorplan simulate --preset NAME --planner ... -K ... -e ... --steps ...` runs.
-    config = load_simulation(preset=args.preset, overrides={
-        "planner": args.planner, "horizon": args.horizon,
-        "steps_per_epoch": args.steps_per_epoch, "steps": args.steps,
-        "miss_update": args.miss_update, **extra})
+    overrides = {"planner": args.planner, "horizon": args.horizon,
+                 "steps_per_epoch": args.steps_per_epoch, "steps": args.steps,
+                 "miss_update": args.miss_update, **extra}
+    config = (load_simulation(args.config, overrides=overrides) if args.config is not None
+              else load_simulation(preset=args.preset, overrides=overrides))
     scenario, settings = config.scenario, config.settings
     clock = _DecisionClock()
     clock.install()
@@ -122,15 +128,17 @@ def main() -> None:
         plan_wall.append(1e3 * clock.wall / args.steps)
         plan_cpu.append(1e3 * clock.cpu / args.steps)
     med = statistics.median
-    print(f"{args.preset} preset, planner={args.planner}, K={args.horizon}, "
+    source = f"{args.config}" if args.config is not None else f"{args.preset} preset"
+    print(f"{source}, planner={args.planner}, K={args.horizon}, "
           f"e={args.steps_per_epoch}, miss_update={settings.tracker.miss_update}, "
           f"{args.steps} steps x {args.repeats} runs "
           f"(python {platform.python_version()}, numpy {np.__version__})")
-    if args.preset != "paper" or extra:
+    if args.preset != "paper" or args.config is not None or extra:
         s0 = scenario.sensors[0].params
         print(f"N={len(scenario.sensors)}, M={len(scenario.targets)}, "
               f"buildings={len(scenario.buildings)}, detection={s0.detection}, "
-              f"clutter_rate={s0.clutter_rate}, tracker={settings.tracker.model}, "
+              f"clutter_rate={s0.clutter_rate}, tracker={settings.tracker.kind} "
+              f"{settings.tracker.model}, "
               f"association={settings.tracker.association}, "
               f"planning_detection={settings.planning_detection}, "
               f"planning_occlusion={settings.planning_occlusion}"

@@ -377,3 +377,15 @@ def test_the_radar_preset_is_the_paper_scenario_with_radar_detection() -> None:
     for spec, paper in zip(sc.sensors, paper_scenario().sensors):
         assert spec.params.altitude == paper.params.altitude
         assert {k: getattr(spec.params, k) for k in RADAR_DETECTION} == RADAR_DETECTION
+    # A radar's look detects every target in view, and the multi-target tracker keeps them.
+    cfg = load_simulation(preset="radar")
+    assert sc.look_detects == "all" and cfg.settings.tracker.kind == "pmb"
+    assert cfg.settings.search_sectors == 6 and cfg.settings.search == "off"
+
+
+def test_configs_radar_is_the_radar_preset_with_looks_at_one_target() -> None:
+    # What docs/results.md section 7 ran: the preset's radar, the paper's looks, known targets.
+    cfg = load_simulation(CONFIGS / "radar.toml")
+    preset = load_simulation(preset="radar")
+    assert cfg.scenario == dataclasses.replace(preset.scenario, look_detects="target")
+    assert cfg.settings.tracker.kind == "known"

@@ -112,7 +112,7 @@ def test_the_recorded_intensity_is_the_trackers() -> None:
     np.testing.assert_allclose(report.cell_cov, np.diag([625.0 / 12] * 2), rtol=1e-12)
     report.weights[:] = 1.0                       # a copy: the tracker is untouched
     assert not np.array_equal(tracker.undetected, report.weights)
-    known = load_simulation(preset="radar", overrides={"steps": 2})
+    known = load_simulation(preset="paper", overrides={"steps": 2})
     assert undetected_report(make_tracker(known.scenario, known.settings,
                                           np.zeros((5, 4)), _table(known))) is None
 
@@ -175,7 +175,7 @@ def test_the_summary_reports_the_search(capsys, tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(("args", "field"), [
-    (("--preset", "radar", "--search", "on"), "--search"),
+    (("--preset", "paper", "--search", "on"), "--search"),
     (("--preset", "search", "--search", "on", "--search-sectors", "0"), "--search-sectors"),
     (("--preset", "search", "--search", "sometimes"), "--search"),
     (("--preset", "search", "--search-sectors", "-1"), "--search-sectors"),

@@ -176,7 +176,7 @@ def test_the_study_files_cover_every_planner_but_the_baselines() -> None:
 
     root = Path(__file__).resolve().parents[2] / "studies"
     planners = set(planner_names()) - {"random", "raster"}
-    left_out = {"search": {"brute-force"}, "traffic": {"brute-force"},
+    left_out = {"search": {"brute-force"}, "traffic": {"brute-force"}, "radar": {"brute-force"},
                 "swarm": {"brute-force", "dec-sequential", "dec-jsfp"}}
     seeds = set()
     for preset in sorted(set(PRESETS) - {"williams15", "vo12"}):
