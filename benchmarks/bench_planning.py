@@ -171,7 +171,6 @@ def mode_cost(label: str, preset: str,
 def detection_cost(args: argparse.Namespace) -> None:
     """``planning_detection`` aware against ignore on the decisions of configs/radar.toml
     (known targets)."""
-    # The radar of docs/results.md section 7 (known targets), whose decisions these are.
     mode_cost("Detection in planning", "configs/radar.toml", lambda p: {
         m: dataclasses.replace(p, planning_detection=m) for m in ("aware", "ignore")}, args)
 
