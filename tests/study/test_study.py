@@ -236,6 +236,39 @@ def test_changed_study_in_existing_dir_is_an_error(serial_dir: Path) -> None:
     assert studies.run_study(same, serial_dir, workers=1).ran == 0
 
 
+def test_methods_run_apart_give_the_tables_of_one_call(serial_dir: Path,
+                                                        tmp_path: Path) -> None:
+    study, out = tiny_study(), tmp_path / "apart"
+    first = studies.run_study(study, out, workers=1, methods=["paper/olf"])
+    assert (first.ran, first.done, first.total, first.complete) == (3, 3, 9, False)
+    assert not (out / "steps.parquet").exists()
+    assert not json.loads((out / "meta.json").read_text())["complete"]
+    # Until the others run, the directory reads as a study of the method that has.
+    t = studies.load_study_dir(out)
+    assert t.study.method_names == ["paper/olf"] and not t.complete
+    assert t.methods_missing == ["ours/random", "ours/myopic"]
+    whole = studies.load_study_dir(serial_dir)
+    pd.testing.assert_frame_equal(
+        t.steps.astype({"method": str}).reset_index(drop=True),
+        whole.steps[whole.steps["method"] == "paper/olf"].astype({"method": str})
+        .reset_index(drop=True), check_exact=True)
+    again = studies.run_study(study, out, workers=1, methods=["paper/olf"])
+    assert (again.ran, again.done) == (0, 3)
+    rest = studies.run_study(study, out, workers=1, methods=["ours/random", "ours/myopic"])
+    assert (rest.ran, rest.done, rest.complete) == (6, 9, True)
+    assert_same_tables(serial_dir, out)
+
+
+@pytest.mark.parametrize("methods, said", [(["nope"], "unknown method 'nope'"),
+                                           ([], "non-empty"), ("paper/olf", "non-empty")])
+def test_unknown_or_empty_methods_are_refused(tmp_path: Path, methods: Any,
+                                              said: str) -> None:
+    with pytest.raises(ConfigError, match=said) as info:
+        studies.run_study(tiny_study(), tmp_path / "s", workers=1, methods=methods)
+    assert info.value.field == "--methods"
+    assert not (tmp_path / "s").exists()
+
+
 def test_non_study_directory_is_refused(tmp_path: Path) -> None:
     (tmp_path / "something.txt").write_text("x")
     with pytest.raises(ConfigError, match="not a study directory"):

@@ -112,6 +112,9 @@ def test_bad_options(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None
     (tmp_path / "file").write_text("x")
     assert_bad_input(run(capsys, "study", path, "--out", tmp_path / "file"), "--out")
     assert_bad_input(run(capsys, "report", tmp_path), "DIR")
+    for methods in ("olf,nope", "olf,,random", ""):
+        assert_bad_input(run(capsys, "study", path, "--methods", methods,
+                             "--out", tmp_path / "m"), "--methods")
     assert_bad_input(run(capsys, "demo", "--workers", "0"), "--workers")
     assert_bad_input(run(capsys, "demo", "--scenario", "town", "--out", tmp_path / "o"),
                      "--scenario")
@@ -142,6 +145,25 @@ def test_study_then_resume_then_changed_study(capsys: pytest.CaptureFixture[str]
     assert code == 0, err
     assert f"report: {out / 'report' / 'report.html'}" in stdout
     assert (out / "report" / "report.html").exists()
+
+
+def test_some_methods_now_the_others_later(capsys: pytest.CaptureFixture[str],
+                                          tmp_path: Path) -> None:
+    path, out = tmp_path / "good.toml", tmp_path / "study"
+    path.write_text(GOOD)
+    code, stdout, err = run(capsys, "study", path, "--out", out, "-j", "1", "--methods",
+                            "olf, random")
+    assert code == 0, err
+    assert "ran 4 (run, method) pairs" in stdout and "2 of 6 pairs" in stdout
+    code, stdout, err = run(capsys, "study", path, "--out", out, "-m", "olf")
+    assert code == 0 and "olf already done; 2 of 6" in stdout
+    code, stdout, err = run(capsys, "report", out)
+    assert code == 0, err
+    page = (out / "report" / "summary.md").read_text()
+    assert "methods not run yet (left out): myopic" in page
+    code, stdout, err = run(capsys, "study", path, "--out", out, "-j", "1")
+    assert code == 0 and "ran 2 of 6 (run, method) pairs" in stdout, err
+    assert studies.load_study_dir(out).complete
 
 
 def test_default_out_is_runs_slash_the_file_name(capsys: pytest.CaptureFixture[str],

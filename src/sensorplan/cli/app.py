@@ -309,7 +309,8 @@ app.command()(with_setting_options(agents, skip=("planner",)))
 
 
 def _run_study_command(study_obj: Any, out: Path, workers: int | None,
-                       scheduler: str | None, label: str) -> Any:
+                       scheduler: str | None, label: str,
+                       methods: list[str] | None = None) -> Any:
     from ..study import StudyInterrupted, default_workers, run_study
     from ..study.execution import StudyLost
     from .console import study_progress
@@ -319,7 +320,7 @@ def _run_study_command(study_obj: Any, out: Path, workers: int | None,
     try:
         with _bad_input(), term, study_progress(label, parallel) as progress:
             return run_study(study_obj, out, workers=workers, scheduler=scheduler,
-                             progress=progress)
+                             progress=progress, methods=methods)
     except StudyInterrupted as exc:
         # run_study has stopped the workers; a rerun resumes.
         sys.stdout.flush()
@@ -357,6 +358,11 @@ def study(
              "[default: runs/NAME for NAME.toml]")] = None,
     workers: _WorkersOption = None,
     scheduler: _SchedulerOption = None,
+    methods: Annotated[str | None, typer.Option(
+        "--methods", "-m", metavar="NAME,...", show_default=False,
+        help="Run only these of the study's methods (comma-separated names). The "
+             "directory still holds the whole study: run the others later, into the same "
+             "DIR; until then report reads the methods that have run.")] = None,
 ) -> None:
     """Run a Monte Carlo study: every method on the same paired runs.
 
@@ -376,11 +382,24 @@ def study(
         study_obj = load_study(study_file)
         if workers is not None and workers < 1:
             raise ConfigError("--workers", f"must be an integer >= 1, got {workers}")
+        chosen = None if methods is None else [m.strip() for m in methods.split(",")]
+        if chosen is not None and not all(chosen):
+            raise ConfigError("--methods", f"must be comma-separated method names, got "
+                              f"{methods!r}")
     out = out if out is not None else Path("runs") / study_file.stem
-    res = _run_study_command(study_obj, out, workers, scheduler, f"study {study_file.stem}")
-    if res.ran == 0:
+    res = _run_study_command(study_obj, out, workers, scheduler, f"study {study_file.stem}",
+                             chosen)
+    left = res.total - res.done
+    if res.ran == 0 and not left:
         print(f"{out}: study already complete ({res.total} (run, method) pairs); nothing to "
               "run")
+    elif res.ran == 0:
+        print(f"{out}: {', '.join(chosen or [])} already done; {left} of {res.total} "
+              "(run, method) pairs of the study's other methods still to run")
+    elif left:
+        print(f"{out}: ran {res.ran} (run, method) pairs in {res.wall:.1f} s; {left} of "
+              f"{res.total} pairs of the study's other methods still to run (the tables are "
+              "written when the last has run)")
     else:
         print(f"{out}: ran {res.ran} of {res.total} (run, method) pairs in "
               f"{res.wall:.1f} s; tables: steps.parquet, decisions.parquet, sensors.parquet")

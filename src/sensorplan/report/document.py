@@ -369,6 +369,8 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
              f"{study.steps} steps of {study.scenario.dt:g} s", f"seed {study.seed}",
              f"scenario: {study.scenario_source}",
              f"{population_text(study.scenario)}, {len(study.scenario.sensors)} sensors"]
+    if t.methods_missing:
+        facts.append(f"methods not run yet (left out): {', '.join(t.methods_missing)}")
     doc.p("; ".join(facts) + ".")
     if wall is not None:
         ex_names = ", ".join(dict.fromkeys(s.get("executor", "?") for s in sessions))

@@ -291,6 +291,8 @@ class StudyRun:
     ran : int            pairs computed by this call (0: the study was already complete)
     wall : float         this call's wall time (s)
     timing : dict        this session's record in meta.json
+    done : int           pairs on disk after this call (``total`` once the study is
+                         complete; fewer after a call that ran some of its methods)
     """
 
     out: Path
@@ -298,6 +300,16 @@ class StudyRun:
     ran: int
     wall: float
     timing: dict[str, Any] = field(default_factory=dict)
+    done: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.done is None:
+            self.done = self.total
+
+    @property
+    def complete(self) -> bool:
+        """Whether every (run, method) pair of the study is done."""
+        return self.done == self.total
 
 
 def _is_main_guard(node: ast.AST) -> TypeGuard[ast.If]:
@@ -357,7 +369,8 @@ ProgressFn = Callable[[int, int, int], None]
 
 def run_study(study: Study, out: str | Path, *, workers: int | None = None,
               scheduler: str | None = None, processes: bool = True,
-              progress: ProgressFn | None = None) -> StudyRun:
+              progress: ProgressFn | None = None,
+              methods: Sequence[str] | None = None) -> StudyRun:
     """Run what is missing of ``study`` into directory ``out`` and write its tables.
 
     Parameters
@@ -377,6 +390,11 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
     progress : callable(done, total, already), optional
         Called before the first task and after each one: pairs done by this call, pairs
         this call has to do, pairs that were already on disk.
+    methods : sequence of str, optional
+        Run only these methods (names of ``study``'s methods); the directory still holds
+        the whole study, and another call runs the rest. The tables are written once
+        every method has run; until then :func:`load_study_dir` reads the methods that
+        have.
 
     Returns
     -------
@@ -395,6 +413,7 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
     """
     out = Path(out)
     workers = _check_executor(workers, scheduler, processes)
+    chosen = _chosen_methods(study, methods)
     ensure_out_dir(out)
 
     import pyarrow.parquet  # noqa: F401  (imported now, not inside the first write's timing)
@@ -402,13 +421,16 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
     start = time.perf_counter()
     with locked(out):
         done = _open_study_dir(out, study)
-        todo = [t for t in study.tasks() if t not in done]
-        if not todo and tables_intact(out, study):
-            return StudyRun(out, len(study.tasks()), 0, time.perf_counter() - start)
+        todo = [t for t in study.tasks() if t not in done and t[1] in chosen]
+        # The tables are the whole study's: written once its last pair is done.
+        whole = len(done) + len(todo) == len(study.tasks())
+        if not todo and (not whole or tables_intact(out, study)):
+            return StudyRun(out, len(study.tasks()), 0, time.perf_counter() - start,
+                            done=len(done))
         executor = _Executor(study, todo, workers, scheduler, processes)
         try:
             session = _Session(out, study, executor.name if todo else "none (complete)",
-                               len(done))
+                               len(done), consolidate=whole)
             try:
                 session.run(executor, _progress_calls(progress), len(todo))
             finally:
@@ -416,7 +438,23 @@ def run_study(study: Study, out: str | Path, *, workers: int | None = None,
                 session.finish()
         finally:
             executor.close()
-    return StudyRun(out, len(study.tasks()), session.ran, session.wall, session.record)
+    return StudyRun(out, len(study.tasks()), session.ran, session.wall, session.record,
+                    done=len(done) + session.ran)
+
+
+def _chosen_methods(study: Study, methods: Sequence[str] | None) -> set[int]:
+    """The indices of the methods to run (all of them when ``methods`` is None)."""
+    names = study.method_names
+    if methods is None:
+        return set(range(len(names)))
+    if isinstance(methods, str) or not methods:
+        raise ConfigError("--methods", f"must be a non-empty list of method names, got "
+                          f"{methods!r}")
+    unknown = [m for m in methods if m not in names]
+    if unknown:
+        raise ConfigError("--methods", f"unknown method {unknown[0]!r}; the study's methods "
+                          f"are {', '.join(names)}")
+    return {names.index(m) for m in methods}
 
 
 def _check_executor(workers: int | None, scheduler: str | None, processes: bool) -> int:
@@ -510,8 +548,10 @@ class _Session:
     """One call's work on a study directory: what it ran and how long it took, recorded in
     ``meta.json`` as it starts and when it ends (interrupted or not)."""
 
-    def __init__(self, out: Path, study: Study, executor: str, before: int) -> None:
+    def __init__(self, out: Path, study: Study, executor: str, before: int,
+                 consolidate: bool = True) -> None:
         self.out, self.study, self.before = out, study, before
+        self.consolidate = consolidate
         self.start_wall, self.start_cpu = time.perf_counter(), time.process_time()
         self.record: dict[str, Any] = {
             "id": f"{now()}-{os.getpid()}", "started": now(), "finished": None,
@@ -545,10 +585,11 @@ class _Session:
                 if progress is not None:
                     progress(self.ran, todo, self.before,
                              seconds=None if res.loaded else res.wall)
-            t0 = time.perf_counter()
-            self._write(consolidate, self.out, self.study)
-            self.timing["consolidate_seconds"] = time.perf_counter() - t0
-            self.finished = True
+            if self.consolidate:
+                t0 = time.perf_counter()
+                self._write(consolidate, self.out, self.study)
+                self.timing["consolidate_seconds"] = time.perf_counter() - t0
+                self.finished = True
         except KeyboardInterrupt:
             self.record["interrupted"] = True
             raise StudyInterrupted(self.before + self.ran, len(self.study.tasks())) from None

@@ -9,6 +9,7 @@ recomputes what is done; the directory layout and the resume rules are in docs/s
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import hashlib
 import json
 import os
@@ -16,7 +17,7 @@ import platform
 import subprocess
 import sys
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -412,7 +413,8 @@ class StudyTables:
 
     ``complete`` is False when some (run, method) pairs are missing; the tables then hold
     the finished ones (read from the parts) and ``runs_done`` the runs finished by every
-    method.
+    method that has started. Methods without a finished run are left out of ``study``
+    and the tables, and named in ``methods_missing``.
     """
 
     study: Study
@@ -424,6 +426,7 @@ class StudyTables:
     gospa: Any
     complete: bool
     runs_done: list[int]
+    methods_missing: list[str] = field(default_factory=list)
 
 
 def load_study_dir(out: str | Path) -> StudyTables:
@@ -448,6 +451,7 @@ def load_study_dir(out: str | Path) -> StudyTables:
     except (ValueError, KeyError, TypeError) as exc:
         raise ConfigError("DIR", f"{config} cannot be read ({exc})") from None
     meta = _read_meta(out)
+    missing: list[str] = []
     if tables_intact(out, study):
         complete = True
         frames = {t: pq.read_table(out / f"{t}.parquet").to_pandas() for t in TABLES}
@@ -459,12 +463,17 @@ def load_study_dir(out: str | Path) -> StudyTables:
             sys.stderr.write(f"warning: {part_path(out, r, m, 'steps').parent.name}/m{m:02d} "
                              f"of {out} is damaged ({problem}); its run is left out (run the "
                              "study command again to recompute it)\n")
-        runs_done = [r for r in range(study.runs)
-                     if all((r, m) in done for m in range(len(study.methods)))]
+        # A method with no finished run has not been started (a study run some methods
+        # at a time): it is left out rather than leaving no run finished by every method.
+        ran = [m for m in range(len(study.methods)) if any((r, m) in done
+                                                           for r in range(study.runs))]
+        missing = [study.methods[m].name for m in range(len(study.methods)) if m not in ran]
+        runs_done = [r for r in range(study.runs) if ran and all((r, m) in done for m in ran)]
         if not runs_done:
             raise ConfigError("DIR", f"{out} holds no run finished by every method yet")
-        complete = len(runs_done) == study.runs
-        tasks = [(r, m) for r in runs_done for m in range(len(study.methods))]
+        complete = len(runs_done) == study.runs and not missing
+        tasks = [(r, m) for r in runs_done for m in ran]
+        study = dataclasses.replace(study, methods=tuple(study.methods[m] for m in ran))
         try:
             frames = {t: tab.to_pandas() for t, tab in read_parts(out, tasks).items()}
         except DamagedPart as exc:
@@ -484,4 +493,4 @@ def load_study_dir(out: str | Path) -> StudyTables:
     frames["steps"]["kind"] = frames["steps"]["kind"].astype(
         pd.CategoricalDtype(sorted(kinds), ordered=True))
     return StudyTables(study, meta, frames["steps"], frames["decisions"], frames["sensors"],
-                       frames["tracks"], frames["gospa"], complete, runs_done)
+                       frames["tracks"], frames["gospa"], complete, runs_done, missing)
