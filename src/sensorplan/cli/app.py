@@ -360,9 +360,8 @@ def study(
     scheduler: _SchedulerOption = None,
     methods: Annotated[str | None, typer.Option(
         "--methods", "-m", metavar="NAME,...", show_default=False,
-        help="Run only these of the study's methods (comma-separated names). The "
-             "directory still holds the whole study: run the others later, into the same "
-             "DIR; until then report reads the methods that have run.")] = None,
+        help="Run only these methods (comma-separated); the others later into the same "
+             "DIR (until then report reads those that ran).")] = None,
 ) -> None:
     """Run a Monte Carlo study: every method on the same paired runs.
 
