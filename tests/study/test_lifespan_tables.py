@@ -157,3 +157,25 @@ def test_a_study_of_the_previous_layout_is_read(search_dir: Path, tmp_path: Path
     with pytest.raises(ConfigError) as info:
         studies.run_study(_search_study(), old, workers=1)
     assert info.value.field == "--out" and "sensorplan-study/3" in info.value.message
+
+
+def test_the_decisions_table_holds_each_searching_plans_mu(tmp_path: Path) -> None:
+    """With search on, each decision's mu and w mu as the episode recorded them (the
+    replay's, an independent run of the same seed); with search off, nulls."""
+    from sensorplan import study as studies
+    from sensorplan.study.replay import replay_run
+
+    base = _search_study()
+    on = dataclasses.replace(base.methods[0].settings, search="on", search_sectors=6, steps=8)
+    off = dataclasses.replace(base.methods[0].settings, steps=8)
+    study = dataclasses.replace(base, runs=1, steps=8, methods=(
+        studies.Method("search", on), studies.Method("track-only", off)))
+    out = tmp_path / "study"
+    studies.run_study(study, out, workers=1)
+    d = pd.read_parquet(out / "decisions.parquet")
+    searched = d[d["method"] == "search"].sort_values("decision")
+    ep = replay_run(out, 0, "search").episode
+    np.testing.assert_array_equal(searched["mu"].to_numpy(), ep.search_found)
+    np.testing.assert_array_equal(searched["search_term"].to_numpy(), ep.search_term)
+    assert (searched["mu"] > 0).any() and (searched["search_term"] >= 0).all()
+    assert d.loc[d["method"] == "track-only", ["mu", "search_term"]].isna().all().all()

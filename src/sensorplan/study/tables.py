@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from .._types import FloatArray
 from ..simulation.run import Episode
 from .lifespan import looked_labels, slot_kinds
 from .set_metrics import episode_set_metrics, with_assigned_tracks
@@ -31,7 +32,9 @@ TABLE_DOC = {
     "decisions": "one row per (run, method, decision): run, method, decision (0-based), step "
                  "(time index of the decision), planning_seconds (wall time of the planner "
                  "call), phi (potential of the chosen plan, nats), converged (null for "
-                 "planners without the notion), sweeps (null likewise)",
+                 "planners without the notion), sweeps (null likewise), mu (with search on: "
+                 "the undetected targets the plan expects to find; null with search off), "
+                 "search_term (with search on: w mu, Phi's search term, nats; null likewise)",
     "sensors": "one row per (run, method, step, sensor): run, method, step, sensor, x, y "
                "(ground position, m), heading (rad), target (looked-at target, -1 none; for "
                "a multi-target tracker the looked-at track's index in the set the epoch "
@@ -152,6 +155,8 @@ def episode_tables(episode: Episode, run: int, method: str) -> dict[str, dict[st
         # NaN marks "no notion of convergence"; it becomes a null in Parquet.
         "converged": converged,
         "sweeps": sweeps,
+        "mu": _per_decision(episode.search_found, D),
+        "search_term": _per_decision(episode.search_term, D),
     }
     sensors = {
         "run": np.full(S1 * N, run, dtype=np.int32),
@@ -217,3 +222,10 @@ def arrow_table(columns: Mapping[str, np.ndarray]) -> Any:
         else:
             arrays[name] = pa.array(col)
     return pa.table(arrays)
+
+
+def _per_decision(values: Any, n: int) -> FloatArray:
+    """A per-decision record of search runs; NaN (null in Parquet) without search."""
+    if values is None:
+        return np.full(n, np.nan)
+    return np.asarray(values, dtype=float).reshape(n)
