@@ -185,3 +185,60 @@ def test_found_of_a_batch_is_each_candidates_alone(name: str, problem: PlanningP
                     miss[a, k - 1 + l, idx] *= 1.0 - val
             np.testing.assert_allclose(batch, search.expected_found(sctx, miss), rtol=1e-12,
                                        atol=1e-12)
+
+
+def numpy_player_actions(sctx: search.SearchContext, plan, i: int, k: int) -> tuple:
+    """Player (i, k)'s actions from :func:`search.sector_actions` and
+    :func:`search.player_positions` (the numpy steps :func:`player_actions_nb` replaces)."""
+    if k == 1:
+        prev_h, prev_ok = float(sctx.ctx.problem.headings[i]), True
+    else:
+        prev_ok = bool(plan.assigned[i, k - 2])
+        prev_h = float(search.plan_headings(sctx, plan)[i, k - 2]) if prev_ok else 0.0
+    sectors = search.sector_actions(sctx, i, k, prev_h, prev_ok)
+    pos = search.player_positions(sctx, plan, i, k)
+    M = sctx.ctx.M
+    looks_t = np.concatenate([np.arange(M), np.full(sectors.size, -1)])
+    looks_s = np.concatenate([np.full(M, -1), sectors])
+    return (np.repeat(pos, looks_t.size, axis=0), np.tile(looks_t, len(pos)),
+            np.tile(looks_s, len(pos)))
+
+
+@pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
+def test_player_actions_are_those_of_the_numpy_steps(name: str,
+                                                     problem: PlanningProblem) -> None:
+    """:func:`player_actions_nb` (through :func:`search.player_actions`) gives every player's
+    actions of random and partial plans as :func:`search.sector_actions` and
+    :func:`search.player_positions` do, bit for bit: positions at the map's edge, sector
+    headings the turn limit merges, unassigned neighbouring epochs."""
+    rng = np.random.default_rng(11)
+    sctx = search.prepare(problem)
+    plans = []
+    for _ in range(6):
+        plan = search.random_plan(sctx, rng)
+        N, K = plan.targets.shape
+        off = np.arange(K)[None, :] >= rng.integers(0, K + 1, N)[:, None]
+        off |= rng.random((N, K)) < 0.2
+        plans.append(type(plan)(np.where(off[..., None], np.nan, plan.positions),
+                                np.where(off, -1, plan.targets), np.where(off, -1, plan.sectors)))
+    # Sensors on the map's corners and edges: moves that leave the map.
+    edge = search.random_plan(sctx, rng)
+    corners = np.array([[0.0, 0.0], [problem.world.width, 0.5 * problem.world.height],
+                        [-0.0, problem.world.height]])
+    pos = edge.positions.copy()
+    pos[:, 0] = corners[np.arange(len(pos)) % 3]
+    plans.append(type(edge)(pos, edge.targets, edge.sectors))
+    n_merged = n_cut = 0
+    for plan in plans:
+        for i in range(sctx.ctx.N):
+            for k in range(1, sctx.ctx.K + 1):
+                got = search.player_actions(dataclasses.replace(sctx, memo={}), plan, i, k)
+                want = numpy_player_actions(sctx, plan, i, k)
+                for g, w in zip(got, want):
+                    assert g.dtype == w.dtype and g.shape == w.shape
+                    assert g.tobytes() == w.tobytes()
+                n_sec = int(np.unique(want[2][want[2] >= 0]).size)
+                n_merged += n_sec < sctx.bearings[i].size
+                n_pos = len(np.unique(want[0], axis=0))
+                n_cut += n_pos < len(search.move_vectors(problem.sensors[i].moves))
+    assert n_merged > 0 and n_cut > 0

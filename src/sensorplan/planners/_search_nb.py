@@ -17,14 +17,13 @@ import numpy as np
 
 from .._compiled.jit import njit
 from ._chains_nb import logdet4, predict_step, update_step
-from ..models.radar.model import (ANGLE_TOL, RANGE_TOL, detection_probability, hidden, look,
-                                  visible)
-from ..models.sensors import ALTITUDE, ALTITUDE2, FOV, G_MAX, G_MIN
+from ..models.radar.model import (ANGLE_TOL, cos_psi, detection_probability, hidden, in_band,
+                                  in_wedge, look, wrap)
+from ..models.sensors import ALTITUDE, ALTITUDE2, FOV
 
-#: Margins (m, and on the cosine of the wedge's half-angle) outside which a cell is certainly
-#: not visible: many orders of magnitude above the rounding of the radar's own tests, so a
-#: cell they skip is one :func:`~sensorplan.models.radar.model.visible` rejects too.
-_BAND_MARGIN = 1e-6
+#: Margin on the cosine of the wedge's half-angle outside which a cell is certainly not
+#: visible: many orders of magnitude above the rounding of the radar's own tests, so a cell
+#: it skips is one :func:`~sensorplan.models.radar.model.visible` rejects too.
 _WEDGE_MARGIN = 1e-9
 
 
@@ -167,13 +166,74 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
     return out
 
 
+@njit(cache=True)
+def _pose_slot(keys: np.ndarray, sensor: int, bits: np.ndarray) -> int:
+    """The slot of ``(sensor, bits)`` in the open-addressing table ``keys (cap, 4)`` (a free
+    slot, ``keys[s, 0] == -1``, if absent); ``cap`` a power of two."""
+    mask = keys.shape[0] - 1
+    # FNV-style mixing in wrapping int64 arithmetic (constants kept below 2**63: a uint64
+    # would make numba's mixed arithmetic float).
+    h = (sensor + 1) * -7046029254386353131
+    for q in range(3):
+        h = (h ^ bits[q]) * 1099511628211
+        h ^= h >> 29
+    s = h & mask
+    while True:
+        if keys[s, 0] == -1:
+            return s
+        if (keys[s, 0] == sensor and keys[s, 1] == bits[0] and keys[s, 2] == bits[1]
+                and keys[s, 3] == bits[2]):
+            return s
+        s = (s + 1) & mask
+
+
+@njit(cache=True)
+def pose_rows_nb(keys: np.ndarray, vals: np.ndarray, sensor: int, bits: np.ndarray,
+                 n_rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of a look pool by pose: each of B poses' row, new poses numbered from ``n_rows``
+    in the order of their first look, and entered in the table.
+
+    Parameters
+    ----------
+    keys : (cap, 4) int   the table (``-1`` in column 0: free), at most half full after the
+                          call (the caller grows it);  vals : (cap,) int   the rows
+    bits : (B, 3) int     each pose's x, y and heading as their float64 bits (poses are the
+                          same when their bits are: the equality of their bytes)
+
+    Returns
+    -------
+    rows : (B,);  first : (n_new,) the batch index of each new pose's first look
+    """
+    B = bits.shape[0]
+    rows = np.empty(B, dtype=np.int64)
+    first = np.empty(B, dtype=np.int64)
+    n_new = 0
+    for b in range(B):
+        s = _pose_slot(keys, sensor, bits[b])
+        if keys[s, 0] == -1:
+            keys[s, 0] = sensor
+            keys[s, 1] = bits[b, 0]
+            keys[s, 2] = bits[b, 1]
+            keys[s, 3] = bits[b, 2]
+            vals[s] = n_rows + n_new
+            first[n_new] = b
+            n_new += 1
+        rows[b] = vals[s]
+    return rows, first[:n_new].copy()
+
+
 @njit(cache=True, error_model="numpy")
 def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
                      heading: np.ndarray, buildings: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The non-zero ``P_d v`` of B looks of one sensor at the cell centres: the values of
-    :func:`~sensorplan.models.radar.batch.detectable_points` (the radar's tests, called
-    here), cells certainly outside the range band or the wedge skipped before its ``atan2``.
+    :func:`~sensorplan.models.radar.batch.detectable_points`, bit for bit.
+
+    :func:`~sensorplan.models.radar.model.visible`'s tests in its order, split by what they
+    depend on: the ground range, the band test, the bearing's ``atan2`` and the slant range
+    depend on the look's position only and are computed once for a run of looks from the
+    same position (a player's candidates are position-major); the wedge and boresight
+    tests, per heading. Cells certainly outside the wedge are skipped before them.
 
     Parameters
     ----------
@@ -189,31 +249,54 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
     idx = np.empty(B * C, dtype=np.int64)
     val = np.empty(B * C)
     counts = np.zeros(B, dtype=np.int64)
-    g_hi = row[G_MAX] + RANGE_TOL + _BAND_MARGIN
-    g_lo = max(row[G_MIN] - RANGE_TOL - _BAND_MARGIN, 0.0)
     half = row[FOV] + ANGLE_TOL
     cut = math.cos(half) - _WEDGE_MARGIN if half < math.pi else -2.0
+    # The band's cells of the current position: cell, offsets, ground range, bearing and
+    # slant range (visible()'s g, atan2(dy, dx) and r).
+    band = np.empty(C, dtype=np.int64)
+    bdx, bdy, bg = np.empty(C), np.empty(C), np.empty(C)
+    bearing, slant = np.empty(C), np.empty(C)
+    nb = 0
+    sx, sy = math.nan, math.nan
     n = 0
     for b in range(B):
-        sx, sy = xy[b, 0], xy[b, 1]
-        ch, sh = math.cos(heading[b]), math.sin(heading[b])
-        for c in range(C):
-            dx = centres[c, 0] - sx
-            dy = centres[c, 1] - sy
-            g2 = dx * dx + dy * dy
-            if g2 > g_hi * g_hi or g2 < g_lo * g_lo:
-                continue                                 # certainly outside the band
-            if dx * ch + dy * sh < math.sqrt(g2) * cut:
+        # The same position to the bit (a signed zero is another position: its offsets
+        # could differ in their zeros' signs).
+        if b == 0 or not (xy[b, 0] == sx and xy[b, 1] == sy
+                          and math.copysign(1.0, xy[b, 0]) == math.copysign(1.0, sx)
+                          and math.copysign(1.0, xy[b, 1]) == math.copysign(1.0, sy)):
+            sx, sy = xy[b, 0], xy[b, 1]
+            nb = 0
+            for c in range(C):
+                dx = centres[c, 0] - sx
+                dy = centres[c, 1] - sy
+                g = math.sqrt(dx * dx + dy * dy)
+                if not in_band(row, g):
+                    continue
+                band[nb] = c
+                bdx[nb], bdy[nb], bg[nb] = dx, dy, g
+                bearing[nb] = math.atan2(dy, dx)
+                slant[nb] = math.sqrt(g * g + row[ALTITUDE2])
+                nb += 1
+        h = heading[b]
+        ch, sh = math.cos(h), math.sin(h)
+        for q in range(nb):
+            dx, dy = bdx[q], bdy[q]
+            if dx * ch + dy * sh < bg[q] * cut:
                 continue                                 # certainly outside the wedge
-            if visible(row, dx, dy, heading[b]) and (
-                    buildings.shape[0] == 0
-                    or not hidden(buildings, sx, sy, row[ALTITUDE], sx + dx, sy + dy)):
-                p = detection_probability(row, g2 + row[ALTITUDE2])
-                if p != 0.0:
-                    idx[n] = c
-                    val[n] = p
-                    n += 1
-                    counts[b] += 1
+            if not in_wedge(row, wrap(bearing[q] - h)):
+                continue
+            if not cos_psi(row, dx, dy, ch, sh, slant[q]) > 0.0:
+                continue
+            if buildings.shape[0] and hidden(buildings, sx, sy, row[ALTITUDE], sx + dx,
+                                             sy + dy):
+                continue
+            p = detection_probability(row, dx * dx + dy * dy + row[ALTITUDE2])
+            if p != 0.0:
+                idx[n] = band[q]
+                val[n] = p
+                n += 1
+                counts[b] += 1
     return counts, idx[:n].copy(), val[:n].copy()
 
 
@@ -390,5 +473,106 @@ def heading_rule_nb(theta: np.ndarray, bearing: np.ndarray, max_turn: float) -> 
     return out
 
 
+@njit(cache=True)
+def _first_of_each_nb(same: np.ndarray) -> np.ndarray:
+    """:func:`~sensorplan.planners.search._first_of_each`: the items one pass in order keeps
+    unless the same as an item already kept (``same (n, n)``)."""
+    n = same.shape[0]
+    keep = np.empty(n, dtype=np.int64)
+    nk = 0
+    for s in range(n):
+        dup = False
+        for q in range(nk):
+            if same[s, keep[q]]:
+                dup = True
+                break
+        if not dup:
+            keep[nk] = s
+            nk += 1
+    return keep[:nk].copy()
+
+
+@njit(cache=True, fastmath=False)
+def player_actions_nb(prev: np.ndarray, moves: np.ndarray, width: float, height: float,
+                      tol: float, nxt: np.ndarray, has_next: bool, bearings: np.ndarray,
+                      theta: float, max_turn: float, heading_tol: float, M: int
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`~sensorplan.planners.search.player_actions` of a player, bit for bit.
+
+    Parameters
+    ----------
+    prev : (2,)          the position one move before (the start, or the previous epoch's)
+    moves : (m, 2)       the sensor's moves;  width, height, tol   the map and
+                         :data:`~sensorplan.planners.problem.POSITION_TOL`
+    nxt : (2,)           the next epoch's position, if ``has_next``
+    bearings : (S,)      the sector bearings;  theta, max_turn   the heading the sectors'
+                         headings turn from and by at most (the heading rule)
+    heading_tol : float  :data:`~sensorplan.planners.search.HEADING_TOL`;  M : int  tracks
+
+    Returns
+    -------
+    positions (A, 2), targets (A,), sectors (A,): position-major, tracks before sectors
+    """
+    m = moves.shape[0]
+    near = tol * 10
+    cand = np.empty((m, 2))
+    n = 0
+    for q in range(m):
+        x = prev[0] + moves[q, 0]
+        y = prev[1] + moves[q, 1]
+        if not (x >= -tol and x <= width + tol and y >= -tol and y <= height + tol):
+            continue
+        if has_next:
+            # numpy's max over the axes and min over the moves: a NaN anywhere fails.
+            lo = math.inf
+            nan = False
+            for r in range(m):
+                a = abs(nxt[0] - x - moves[r, 0])
+                b = abs(nxt[1] - y - moves[r, 1])
+                d = a if (a >= b or math.isnan(a)) else b
+                if math.isnan(d):
+                    nan = True
+                elif d < lo:
+                    lo = d
+            if nan or not lo <= near:
+                continue
+        cand[n, 0] = x
+        cand[n, 1] = y
+        n += 1
+    same = np.empty((n, n), dtype=np.bool_)
+    for a in range(n):
+        for b in range(n):
+            # numpy's max with initial 0: NaN kept.
+            d = abs(cand[a, 0] - cand[b, 0])
+            d = d if (d >= 0.0 or math.isnan(d)) else 0.0
+            db = abs(cand[a, 1] - cand[b, 1])
+            d = d if (d >= db or math.isnan(d)) else db
+            same[a, b] = d <= near
+    keep = _first_of_each_nb(same)
+    S = bearings.shape[0]
+    if S:
+        h = heading_rule_nb(np.full(S, theta), bearings, max_turn)
+        hs = np.empty((S, S), dtype=np.bool_)
+        for a in range(S):
+            for b in range(S):
+                hs[a, b] = abs(_wrap(h[a] - h[b])) <= heading_tol
+        sectors = _first_of_each_nb(hs)
+    else:
+        sectors = np.zeros(0, dtype=np.int64)
+    n_look = M + sectors.shape[0]
+    A = keep.shape[0] * n_look
+    pos = np.empty((A, 2))
+    tgt = np.empty(A, dtype=np.int64)
+    sec = np.empty(A, dtype=np.int64)
+    for p in range(keep.shape[0]):
+        for l in range(n_look):
+            a = p * n_look + l
+            pos[a, 0] = cand[keep[p], 0]
+            pos[a, 1] = cand[keep[p], 1]
+            tgt[a] = l if l < M else -1
+            sec[a] = -1 if l < M else sectors[l - M]
+    return pos, tgt, sec
+
+
 __all__ = ["detect_sparse_nb", "found_nb", "heading_rule_nb", "look_information_nb",
-           "pair_terms_nb"]
+           "pair_terms_nb", "player_actions_nb", "pose_rows_nb"]

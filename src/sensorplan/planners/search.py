@@ -44,7 +44,8 @@ from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, heading_rule_scalar, wrap_angle
-from ._search_nb import detect_sparse_nb, found_nb, look_information_nb, pair_terms_nb
+from ._search_nb import (detect_sparse_nb, found_nb, look_information_nb, pair_terms_nb,
+                         player_actions_nb, pose_rows_nb)
 from .cells import candidate_chains, detection
 from .information import (BACKEND, Context, chain_information, covariance_recursion,
                           cv_form, measured, phi_terms, sum_by_target, target_information)
@@ -338,14 +339,16 @@ def player_actions(sctx: SearchContext, plan: Plan, i: int, k: int
     memo = sctx.memo.setdefault("actions", {})
     got = memo.get(key)
     if got is None:
-        sectors = sector_actions(sctx, i, k, prev_h, prev_ok)
-        pos = player_positions(sctx, plan, i, k)
-        M = sctx.ctx.M
-        looks_t = np.concatenate([np.arange(M), np.full(sectors.size, -1)])
-        looks_s = np.concatenate([np.full(M, -1), sectors])
-        n = looks_t.size
-        got = memo[key] = (np.repeat(pos, n, axis=0), np.tile(looks_t, len(pos)),
-                           np.tile(looks_s, len(pos)))
+        # sector_actions and player_positions in one compiled call.
+        problem, turn = sctx.ctx.problem, float(sctx.ctx.max_turn[i])
+        theta, limit = ((prev_h, turn) if prev_ok else (float(problem.headings[i]), k * turn))
+        prev = problem.positions[i] if k == 1 else plan.positions[i, k - 2]
+        got = memo[key] = player_actions_nb(
+            np.ascontiguousarray(prev, dtype=float),
+            np.ascontiguousarray(move_vectors(problem.sensors[i].moves)),
+            float(problem.world.width), float(problem.world.height), POSITION_TOL,
+            np.ascontiguousarray(plan.positions[i, k] if nxt else np.zeros(2)), nxt,
+            sctx.bearings[i], theta, limit, HEADING_TOL, sctx.ctx.M)
         for a in got:
             a.flags.writeable = False
     return got
@@ -508,7 +511,9 @@ class _LookPool:
     :func:`~sensorplan.planners._search_nb.found_nb` reads."""
 
     def __init__(self) -> None:
-        self.index: dict[int, dict[bytes, int]] = {}   # by sensor, by pose
+        # Open-addressing table of poses -> rows (:func:`pose_rows_nb`): at most half full.
+        self.keys = np.full((1 << 12, 4), -1, dtype=np.int64)
+        self.vals = np.zeros(1 << 12, dtype=np.int64)
         self.off = np.zeros(1024, dtype=np.int64)      # rows' starts; room to grow
         self.idx = np.empty(1 << 16, dtype=np.int64)
         self.val = np.empty(1 << 16)
@@ -518,24 +523,15 @@ class _LookPool:
              ) -> IntArray:
         """The pool's rows of sensor n's looks from ``positions (B, 2)``, ``headings (B,)``
         (computed, in one batch, for the poses not seen before)."""
-        pose = np.empty((len(headings), 3))
+        B = len(headings)
+        pose = np.empty((B, 3))
         pose[:, :2] = positions
         pose[:, 2] = headings
-        keys = cast("list[bytes]", pose.view(np.dtype((np.void, 24))).ravel().tolist())
-        index = self.index.setdefault(n, {})
-        found = [index.get(key, -1) for key in keys]
-        new: dict[bytes, int] = {}          # unseen pose -> its row
-        first: list[int] = []               # ... and its first look in the batch
-        if -1 in found:
-            for b, key in enumerate(keys):
-                if found[b] < 0:
-                    r = new.get(key)
-                    if r is None:
-                        r = new[key] = self.n_rows + len(first)
-                        first.append(b)
-                    found[b] = r
-        out = np.array(found, dtype=np.int64)
-        if new:
+        if 2 * (self.n_rows + B) > len(self.vals):
+            self._grow(self.n_rows + B)
+        out, first = pose_rows_nb(self.keys, self.vals, int(n), pose.view(np.int64),
+                                  self.n_rows)
+        if len(first):
             ctx = sctx.ctx
             counts, idx, val = detect_sparse_nb(ctx.radar[n], sctx.centres,
                                                 np.ascontiguousarray(pose[first, :2]),
@@ -548,9 +544,24 @@ class _LookPool:
             self.idx[start:start + len(idx)] = idx
             self.val = _grown(self.val, start + len(val))
             self.val[start:start + len(val)] = val
-            index.update(new)
             self.n_rows += len(first)
         return out
+
+    def _grow(self, n: int) -> None:
+        """A table with room for ``n`` poses at most half full, every pose entered again."""
+        cap = len(self.vals)
+        while cap < 2 * n:
+            cap *= 2
+        used = np.flatnonzero(self.keys[:, 0] >= 0)
+        old = self.keys[used[np.argsort(self.vals[used])]]   # by row: rows 0..n_rows-1
+        self.keys = np.full((cap, 4), -1, dtype=np.int64)
+        self.vals = np.zeros(cap, dtype=np.int64)
+        # Runs of one sensor's consecutive rows, entered again under the same rows.
+        cuts = np.flatnonzero(np.diff(old[:, 0])) + 1
+        for lo, hi in ([] if len(old) == 0 else
+                       zip([0, *cuts.tolist()], [*cuts.tolist(), len(old)])):
+            pose_rows_nb(self.keys, self.vals, int(old[lo, 0]),
+                         np.ascontiguousarray(old[lo:hi, 1:]), lo)
 
     def row(self, r: int) -> tuple[IntArray, FloatArray]:
         """Cells and values of row r."""
