@@ -68,4 +68,10 @@ SIGNATURES: tuple = (
     ('sensorplan.planners._search_nb', 'pair_terms_nb',
      (('d', 4), ('l', 2), ('d', 5), 'i', ('d', 3, 'r'), ('d', 2), ('d', 3), 'b', 'b', 'f',
       ('d', 1), ('d', 1))),
+    ('sensorplan.planners._search_nb', 'player_actions_nb',
+     (('d', 1, 'r'), ('d', 2, 'r'), 'f', 'f', 'f', ('d', 1), 'b', ('d', 1), 'f', 'f', 'f', 'i')),
+    ('sensorplan.planners._search_nb', 'player_actions_nb',
+     (('d', 1, 'r'), ('d', 2, 'r'), 'f', 'f', 'f', ('d', 1, 'r'), 'b', ('d', 1), 'f', 'f', 'f',
+      'i')),
+    ('sensorplan.planners._search_nb', 'pose_rows_nb', (('l', 2), ('l', 1), 'i', ('l', 2), 'i')),
 )

@@ -527,9 +527,9 @@ def player_actions_nb(prev: np.ndarray, moves: np.ndarray, width: float, height:
             lo = math.inf
             nan = False
             for r in range(m):
-                a = abs(nxt[0] - x - moves[r, 0])
-                b = abs(nxt[1] - y - moves[r, 1])
-                d = a if (a >= b or math.isnan(a)) else b
+                ex = abs(nxt[0] - x - moves[r, 0])
+                ey = abs(nxt[1] - y - moves[r, 1])
+                d = ex if (ex >= ey or math.isnan(ex)) else ey
                 if math.isnan(d):
                     nan = True
                 elif d < lo:
