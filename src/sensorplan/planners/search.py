@@ -147,24 +147,31 @@ def plan_headings(sctx: SearchContext, plan: Plan) -> FloatArray:
     limits (what is reachable in k epochs).
     """
     ctx = sctx.ctx
-    assert plan.sectors is not None
     out = np.full((ctx.N, ctx.K), np.nan)
-    # Python floats and lists: a plan is N K single looks.
-    assigned, positions = plan.assigned.tolist(), plan.positions.tolist()
-    targets, sectors = plan.targets.tolist(), plan.sectors.tolist()
     for i in range(ctx.N):
-        h, prev_ok = float(ctx.problem.headings[i]), True
-        theta0, turn = float(ctx.problem.headings[i]), float(ctx.max_turn[i])
-        for k in range(1, ctx.K + 1):
-            if not assigned[i][k - 1]:
-                prev_ok = False
-                continue
-            b = look_bearing(sctx, i, k, positions[i][k - 1], targets[i][k - 1],
-                             sectors[i][k - 1])
-            h = (heading_rule_scalar(h, b, turn) if prev_ok
-                 else heading_rule_scalar(theta0, b, k * turn))
-            out[i, k - 1] = h
-            prev_ok = True
+        out[i] = _sensor_headings(sctx, plan, i)
+    return out
+
+
+def _sensor_headings(sctx: SearchContext, plan: Plan, i: int) -> list[float]:
+    """Row i of :func:`plan_headings` (a sensor's headings depend on its own looks only)."""
+    ctx = sctx.ctx
+    assert plan.sectors is not None
+    out = [math.nan] * ctx.K
+    # Python floats and lists: a sensor's part of a plan is K single looks.
+    assigned, positions = plan.assigned[i].tolist(), plan.positions[i].tolist()
+    targets, sectors = plan.targets[i].tolist(), plan.sectors[i].tolist()
+    h, prev_ok = float(ctx.problem.headings[i]), True
+    theta0, turn = float(ctx.problem.headings[i]), float(ctx.max_turn[i])
+    for k in range(1, ctx.K + 1):
+        if not assigned[k - 1]:
+            prev_ok = False
+            continue
+        b = look_bearing(sctx, i, k, positions[k - 1], targets[k - 1], sectors[k - 1])
+        h = (heading_rule_scalar(h, b, turn) if prev_ok
+             else heading_rule_scalar(theta0, b, k * turn))
+        out[k - 1] = h
+        prev_ok = True
     return out
 
 
@@ -441,9 +448,23 @@ def _plan_headings(sctx: SearchContext, plan: Plan) -> FloatArray:
     memo = _plan_memo(sctx, plan)
     got = memo.get("headings")
     if got is None:
-        got = memo["headings"] = plan_headings(sctx, plan)
+        got = memo["headings"] = np.array([_sensor_part(sctx, plan, n)["headings"]
+                                           for n in range(sctx.ctx.N)], dtype=float)
         got.flags.writeable = False
     return got
+
+
+def _sensor_part(sctx: SearchContext, plan: Plan, n: int) -> dict[str, Any]:
+    """What a sensor's own looks determine (its headings, its looks' pool rows), kept in
+    ``sctx.memo`` by its part of the plan: plans met in a game differ in a few sensors."""
+    assert plan.sectors is not None
+    memo = sctx.memo.setdefault("sensor_parts", {})
+    key = (n, plan.positions[n].tobytes(), plan.targets[n].tobytes(),
+           plan.sectors[n].tobytes())
+    got = memo.get(key)
+    if got is None:
+        got = memo[key] = {"headings": _sensor_headings(sctx, plan, n)}
+    return cast("dict[str, Any]", got)
 
 
 def _chain_column(sctx: SearchContext, i: int, kk: int, pos: FloatArray, tgt: IntArray,
@@ -487,15 +508,13 @@ def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: 
     if looks is None:
         # Every planned look, sensor by sensor (the order the misses multiply in).
         n_look, k_look = (np.ascontiguousarray(a) for a in np.nonzero(plan.assigned))
-        # A sensor's rows by its part of the plan (plans met in a game differ in a few).
-        by_sensor = sctx.memo.setdefault("sensor_looks", {})
         parts = []
         for n in np.unique(n_look).tolist():
-            ks = np.flatnonzero(plan.assigned[n])
-            key = (n, ks.tobytes(), plan.positions[n].tobytes(), headings[n].tobytes())
-            got = by_sensor.get(key)
+            part = _sensor_part(sctx, plan, n)
+            got = part.get("rows")
             if got is None:
-                got = by_sensor[key] = pool.rows(sctx, n, plan.positions[n, ks], headings[n, ks])
+                ks = np.flatnonzero(plan.assigned[n])
+                got = part["rows"] = pool.rows(sctx, n, plan.positions[n, ks], headings[n, ks])
             parts.append(got)
         row = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
         looks = memo["looks"] = (n_look, k_look, row)
@@ -514,9 +533,11 @@ class _LookPool:
         # Open-addressing table of poses -> rows (:func:`pose_rows_nb`): at most half full.
         self.keys = np.full((1 << 12, 4), -1, dtype=np.int64)
         self.vals = np.zeros(1 << 12, dtype=np.int64)
-        self.off = np.zeros(1024, dtype=np.int64)      # rows' starts; room to grow
-        self.idx = np.empty(1 << 16, dtype=np.int64)
-        self.val = np.empty(1 << 16)
+        # Rows' starts and the rows; room to grow. Large to start with: a decision's rows
+        # reach millions of entries at N = 20, and pages never written cost nothing.
+        self.off = np.zeros(1 << 14, dtype=np.int64)
+        self.idx = np.empty(1 << 20, dtype=np.int64)
+        self.val = np.empty(1 << 20)
         self.n_rows = 0
 
     def rows(self, sctx: SearchContext, n: int, positions: FloatArray, headings: FloatArray
