@@ -103,13 +103,15 @@ def test_look_information_is_chain_informations(name: str, problem: PlanningProb
             th = rng.uniform(-np.pi, np.pi, B)
             tgt = rng.integers(-1, ctx.M, B)
             W = np.full((B, ctx.e, 2, 2), 7.0)
+            weight = np.full((B, ctx.e), 7.0)
             look_information_nb(ctx.radar, np.full(B, i), ctx.buildings, ctx.xbar, ctx.Cbar,
-                                pos, th, tgt, np.full(B, kk), ctx.probabilistic, W)
-            want, _ = chain_information(ctx, i, kk, pos[:, None], th[:, None],
-                                        np.maximum(tgt, 0)[:, None])
+                                pos, th, tgt, np.full(B, kk), ctx.probabilistic, W, weight)
+            want, counted = chain_information(ctx, i, kk, pos[:, None], th[:, None],
+                                              np.maximum(tgt, 0)[:, None])
             track = tgt >= 0
             np.testing.assert_array_equal(W[track], want[track, 0])
-            assert np.all(W[~track] == 7.0)
+            np.testing.assert_array_equal(weight[track] > 0, counted[track, 0])
+            assert np.all(W[~track] == 7.0) and np.all(weight[~track] == 7.0)
 
 
 @pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
@@ -242,3 +244,32 @@ def test_player_actions_are_those_of_the_numpy_steps(name: str,
                 n_pos = len(np.unique(want[0], axis=0))
                 n_cut += n_pos < len(search.move_vectors(problem.sensors[i].moves))
     assert n_merged > 0 and n_cut > 0
+
+
+@pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
+def test_evaluate_from_the_kept_looks_is_the_numpy_definition(
+        name: str, problem: PlanningProblem, monkeypatch: pytest.MonkeyPatch) -> None:
+    """:func:`search.evaluate` from the compiled track information and the look pool gives
+    the plain-numpy definition's Phi, information, mu, headings and measurements bit for
+    bit, on random and partial plans (a decision's pool shared by the plans)."""
+    rng = np.random.default_rng(12)
+    sctx = search.prepare(problem)
+    plans = []
+    for _ in range(8):
+        plan = search.random_plan(sctx, rng)
+        N, K = plan.targets.shape
+        off = rng.random((N, K)) < 0.3
+        plans.append(type(plan)(np.where(off[..., None], np.nan, plan.positions),
+                                np.where(off, -1, plan.targets), np.where(off, -1, plan.sectors)))
+    plans.append(make_planner("pg").plan(problem, rng=0).plan)
+    for plan in plans:
+        got = search.evaluate(sctx, plan)
+        monkeypatch.setattr(search, "BACKEND", "numpy")
+        want = search.evaluate(dataclasses.replace(sctx, memo={}), plan)
+        monkeypatch.setattr(search, "BACKEND", "numba")
+        assert got.potential == want.potential and got.found == want.found
+        for g, w in ((got.information, want.information), (got.headings, want.headings),
+                     (got.measurements, want.measurements)):
+            assert g.dtype == w.dtype and g.shape == w.shape
+            np.testing.assert_array_equal(g, w)
+            assert g.tobytes() == w.tobytes() or np.isnan(w).any()

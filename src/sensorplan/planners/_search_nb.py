@@ -417,9 +417,9 @@ def pair_terms_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0:
 def look_information_nb(table: np.ndarray, sensor: np.ndarray, buildings: np.ndarray,
                         xbar: np.ndarray, Cbar: np.ndarray, pos: np.ndarray, th: np.ndarray,
                         tgt: np.ndarray, epoch: np.ndarray, probabilistic: bool,
-                        W: np.ndarray) -> None:
-    """Track information of B looks into ``W (B, e, 2, 2)`` (left as it is where ``tgt`` is
-    -1: a sector look or none).
+                        W: np.ndarray, weight: np.ndarray) -> None:
+    """Track information of B looks into ``W (B, e, 2, 2)`` and their weights ``p`` into
+    ``weight (B, e)`` (both left as they are where ``tgt`` is -1: a sector look or none).
 
     Parameters
     ----------
@@ -431,7 +431,8 @@ def look_information_nb(table: np.ndarray, sensor: np.ndarray, buildings: np.nda
 
     Each look at step t is the radar's :func:`~sensorplan.models.radar.model.look` of the
     target's predicted mean and covariance at t (the values of
-    :func:`~sensorplan.planners.information.chain_information`, bit for bit).
+    :func:`~sensorplan.planners.information.chain_information`, bit for bit; a look counts
+    where its weight is above 0).
     """
     e = W.shape[1]
     for b in range(tgt.shape[0]):
@@ -444,6 +445,7 @@ def look_information_nb(table: np.ndarray, sensor: np.ndarray, buildings: np.nda
             p, w00, w01, w11 = look(row, buildings, pos[b, 0], pos[b, 1],
                                     xbar[j, t, 0] - pos[b, 0], xbar[j, t, 1] - pos[b, 1], th[b],
                                     Cbar[j, t, 0], Cbar[j, t, 1], Cbar[j, t, 2], probabilistic)
+            weight[b, s] = p
             W[b, s, 0, 0] = w00
             W[b, s, 0, 1] = w01
             W[b, s, 1, 0] = w01

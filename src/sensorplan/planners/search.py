@@ -231,9 +231,10 @@ class SearchEvaluation:
 
 
 def evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
-    """Phi of ``plan`` with search: the reference definition (plain numpy, one plan), kept
-    in ``sctx.memo`` by the plan (a game's last sweep and the planner's result ask about the
-    same plan)."""
+    """Phi of ``plan`` with search: the definition, one plan (plain numpy with the ``numpy``
+    backend; else from the decision's compiled track information and look pool, the same
+    numbers bit for bit), kept in ``sctx.memo`` by the plan (a game's last sweep and the
+    planner's result ask about the same plan)."""
     memo = _plan_memo(sctx, plan)
     got = memo.get("evaluation")
     if got is None:
@@ -249,18 +250,36 @@ def _evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
         phi, info, mu, weight, counts = gospa_bound.evaluate(sctx, plan, headings)
         return SearchEvaluation(phi, info, mu, weight, headings, counts)
     ctx = sctx.ctx
-    headings = plan_headings(sctx, plan)
-    info, counts = track_information(sctx, plan, headings)
-    miss = np.ones((ctx.K, len(sctx.centres)))
     assert plan.sectors is not None
-    for i in range(ctx.N):
-        ks = np.flatnonzero(plan.assigned[i])
-        if ks.size:
-            p = detection(sctx, i, plan.positions[i, ks], headings[i, ks])
-            miss[ks] *= 1.0 - p
-            # A search look counts at each step when it covers a cell.
-            sector = plan.sectors[i, ks] >= 0
-            counts[i, ks[sector]] = (p[sector] > 0).any(axis=1) * ctx.e
+    miss = np.ones((ctx.K, len(sctx.centres)))
+    if BACKEND == "numpy":
+        headings = plan_headings(sctx, plan)
+        info, counts = track_information(sctx, plan, headings)
+        for i in range(ctx.N):
+            ks = np.flatnonzero(plan.assigned[i])
+            if ks.size:
+                p = detection(sctx, i, plan.positions[i, ks], headings[i, ks])
+                miss[ks] *= 1.0 - p
+                # A search look counts at each step when it covers a cell.
+                sector = plan.sectors[i, ks] >= 0
+                counts[i, ks[sector]] = (p[sector] > 0).any(axis=1) * ctx.e
+    else:
+        # The same numbers from what the game kept: the compiled track information and the
+        # look pool's rows (a cell a look misses would multiply its miss by 1 - 0 = 1).
+        headings = _plan_headings(sctx, plan).copy()
+        W, counts = _plan_track_looks(sctx, plan, headings)
+        info = target_information(ctx, sum_by_target(ctx, W, plan.targets))
+        counts = counts.copy()
+        pool = _pool(sctx)
+        for i in range(ctx.N):
+            ks = np.flatnonzero(plan.assigned[i]).tolist()
+            if ks:
+                rows = _sensor_rows(sctx, plan, i, headings)
+                for q, k in enumerate(ks):
+                    idx, val = pool.row(int(rows[q]))
+                    miss[k, idx] *= 1.0 - val
+                    if plan.sectors[i, k] >= 0:
+                        counts[i, k] = bool((val > 0).any()) * ctx.e
     mu = float(expected_found(sctx, miss))
     return SearchEvaluation(float(info.sum()) + sctx.weight * mu, info, mu, sctx.weight,
                             headings, counts)
@@ -491,9 +510,19 @@ def _chain_column(sctx: SearchContext, i: int, kk: int, pos: FloatArray, tgt: In
                 look_information_nb(ctx.radar, np.full(B, i), ctx.buildings, ctx.xbar, ctx.Cbar,
                                     np.ascontiguousarray(pos), np.ascontiguousarray(th),
                                     np.ascontiguousarray(tgt), np.full(B, kk),
-                                    ctx.probabilistic, w)
+                                    ctx.probabilistic, w, np.empty((B, ctx.e)))
         got = memo[key] = (rows, w)
     return got
+
+
+def _sensor_rows(sctx: SearchContext, plan: Plan, n: int, headings: FloatArray) -> IntArray:
+    """The look pool's rows of sensor n's planned looks, in epoch order."""
+    part = _sensor_part(sctx, plan, n)
+    got = part.get("rows")
+    if got is None:
+        ks = np.flatnonzero(plan.assigned[n])
+        got = part["rows"] = _pool(sctx).rows(sctx, n, plan.positions[n, ks], headings[n, ks])
+    return cast(IntArray, got)
 
 
 def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: FloatArray,
@@ -508,14 +537,7 @@ def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: 
     if looks is None:
         # Every planned look, sensor by sensor (the order the misses multiply in).
         n_look, k_look = (np.ascontiguousarray(a) for a in np.nonzero(plan.assigned))
-        parts = []
-        for n in np.unique(n_look).tolist():
-            part = _sensor_part(sctx, plan, n)
-            got = part.get("rows")
-            if got is None:
-                ks = np.flatnonzero(plan.assigned[n])
-                got = part["rows"] = pool.rows(sctx, n, plan.positions[n, ks], headings[n, ks])
-            parts.append(got)
+        parts = [_sensor_rows(sctx, plan, n, headings) for n in np.unique(n_look).tolist()]
         row = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
         looks = memo["looks"] = (n_look, k_look, row)
     n_look, k_look, row = looks
@@ -629,10 +651,7 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
         return np.zeros(A)
     others = plan.targets.copy()
     others[i, k - 1:] = -1
-    memo = _plan_memo(sctx, plan)
-    W = memo.get("track_W")
-    if W is None:
-        W = memo["track_W"] = _plan_track_W(sctx, plan, headings)
+    W = _plan_track_W(sctx, plan, headings)
     base = sum_by_target(ctx, W, others)                            # (M, T, 2, 2)
     if BACKEND == "numpy":
         base_terms = _target_terms(ctx, base, np.arange(ctx.M))
@@ -683,25 +702,45 @@ def _target_terms(ctx: Context, W: FloatArray, j: IntArray) -> FloatArray:
 
 def _plan_track_W(sctx: SearchContext, plan: Plan, headings: FloatArray) -> FloatArray:
     """Every player's track information ``(N, K, e, 2, 2)`` (0 where not a track look)."""
+    return _plan_track_looks(sctx, plan, headings)[0]
+
+
+def _plan_track_looks(sctx: SearchContext, plan: Plan, headings: FloatArray
+                      ) -> tuple[FloatArray, IntArray]:
+    """:func:`_plan_track_W` and each track look's number of steps that count ``(N, K)``
+    (0 elsewhere), kept with the plan."""
+    memo = _plan_memo(sctx, plan)
+    got = memo.get("track_looks")
+    if got is None:
+        got = memo["track_looks"] = _track_looks(sctx, plan, headings)
+    return cast("tuple[FloatArray, IntArray]", got)
+
+
+def _track_looks(sctx: SearchContext, plan: Plan, headings: FloatArray
+                 ) -> tuple[FloatArray, IntArray]:
     ctx = sctx.ctx
     N, K = ctx.N, ctx.K
     W = np.zeros((N * K, ctx.e, 2, 2))
+    counted = np.zeros((N * K, ctx.e), dtype=bool)
     if BACKEND == "numpy":
         track = plan.targets >= 0
         for n in range(N):
             if track[n].any():
-                w, _ = chain_information(ctx, n, 1, np.where(track[n][:, None],
+                w, c = chain_information(ctx, n, 1, np.where(track[n][:, None],
                                                              plan.positions[n], 0.0)[None],
                                          np.where(track[n], headings[n], 0.0)[None],
                                          np.maximum(plan.targets[n], 0)[None])
                 W[n * K:(n + 1) * K] = np.where(track[n][:, None, None, None], w[0], 0.0)
+                counted[n * K:(n + 1) * K] = c[0] & track[n][:, None]
     else:
+        weight = np.zeros((N * K, ctx.e))
         look_information_nb(ctx.radar, np.repeat(np.arange(N), K), ctx.buildings, ctx.xbar,
                             ctx.Cbar, np.ascontiguousarray(plan.positions.reshape(-1, 2)),
                             np.ascontiguousarray(headings.reshape(-1)),
                             np.ascontiguousarray(plan.targets.reshape(-1)),
-                            np.tile(np.arange(1, K + 1), N), ctx.probabilistic, W)
-    return W.reshape(N, K, ctx.e, 2, 2)
+                            np.tile(np.arange(1, K + 1), N), ctx.probabilistic, W, weight)
+        counted = weight > 0
+    return W.reshape(N, K, ctx.e, 2, 2), counted.sum(axis=-1).reshape(N, K)
 
 
 def with_action(plan: Plan, i: int, k: int, position: FloatArray, target: int,
