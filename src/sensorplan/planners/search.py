@@ -467,10 +467,34 @@ def _plan_headings(sctx: SearchContext, plan: Plan) -> FloatArray:
     memo = _plan_memo(sctx, plan)
     got = memo.get("headings")
     if got is None:
-        got = memo["headings"] = np.array([_sensor_part(sctx, plan, n)["headings"]
-                                           for n in range(sctx.ctx.N)], dtype=float)
+        got = memo["headings"] = np.array([part["headings"]
+                                           for part in _sensor_parts(sctx, plan)], dtype=float)
         got.flags.writeable = False
     return got
+
+
+def _sensor_parts(sctx: SearchContext, plan: Plan) -> list[dict[str, Any]]:
+    """Every sensor's :func:`_sensor_part`, kept with the plan (or set by :func:`_switched`
+    from the plan it came from)."""
+    memo = _plan_memo(sctx, plan)
+    got = memo.get("parts")
+    if got is None:
+        got = memo["parts"] = [_sensor_part(sctx, plan, n) for n in range(sctx.ctx.N)]
+    return cast("list[dict[str, Any]]", got)
+
+
+def _switched(sctx: SearchContext, plan: Plan, i: int, k: int, position: FloatArray,
+              target: int, sector: int) -> Plan:
+    """:func:`with_action`, the new plan's sensor parts those of ``plan`` but sensor i's
+    (a switch changes one sensor's part)."""
+    new = with_action(plan, i, k, position, target, sector)
+    parts = _plan_memo(sctx, plan).get("parts")
+    memo = _plan_memo(sctx, new)
+    if parts is not None and "parts" not in memo:
+        parts = list(parts)
+        parts[i] = _sensor_part(sctx, new, i)
+        memo["parts"] = parts
+    return new
 
 
 def _sensor_part(sctx: SearchContext, plan: Plan, n: int) -> dict[str, Any]:
@@ -517,7 +541,7 @@ def _chain_column(sctx: SearchContext, i: int, kk: int, pos: FloatArray, tgt: In
 
 def _sensor_rows(sctx: SearchContext, plan: Plan, n: int, headings: FloatArray) -> IntArray:
     """The look pool's rows of sensor n's planned looks, in epoch order."""
-    part = _sensor_part(sctx, plan, n)
+    part = _sensor_parts(sctx, plan)[n]
     got = part.get("rows")
     if got is None:
         ks = np.flatnonzero(plan.assigned[n])
@@ -827,7 +851,7 @@ def sequential_greedy(sctx: SearchContext) -> Plan:
             pos, tgt, sec = player_actions(sctx, plan, i, k)
             u = candidate_potentials(sctx, plan, i, k, pos, tgt, sec)
             b = best_index(u, -1)
-            plan = with_action(plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
+            plan = _switched(sctx, plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
     return plan
 
 
@@ -892,7 +916,7 @@ def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, 
                     if best[i] != cur[i] and (cur[i] < 0 or switch[i]):
                         pos, tgt, sec = actions[i]
                         b = cur[i] = best[i]
-                        plan = with_action(plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
+                        plan = _switched(sctx, plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
                         changed = True
                 if rng.random() >= beta:
                     break
