@@ -270,11 +270,11 @@ def _evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
         W, counts = _plan_track_looks(sctx, plan, headings)
         info = target_information(ctx, sum_by_target(ctx, W, plan.targets))
         counts = counts.copy()
-        pool = _pool(sctx)
+        pool, parts = _pool(sctx), _sensor_parts(sctx, plan)
         for i in range(ctx.N):
             ks = np.flatnonzero(plan.assigned[i]).tolist()
             if ks:
-                rows = _sensor_rows(sctx, plan, i, headings)
+                rows = _part_rows(sctx, parts[i], plan, i, headings)
                 for q, k in enumerate(ks):
                     idx, val = pool.row(int(rows[q]))
                     miss[k, idx] *= 1.0 - val
@@ -433,21 +433,50 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
 def _candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
                           positions: FloatArray, targets: IntArray, sectors: IntArray
                           ) -> FloatArray:
+    headings = _plan_headings(sctx, plan)
+    tgt, w, rows, ls = _candidate_looks(sctx, plan, i, k, positions, targets, sectors,
+                                        headings)
+    info = _candidate_track_information(sctx, plan, i, k, headings, tgt, w)
+    mu = _candidate_found(sctx, plan, i, k, headings, rows, ls)
+    return info + sctx.weight * mu
+
+
+def _candidate_looks(sctx: SearchContext, plan: Plan, i: int, k: int, positions: FloatArray,
+                     targets: IntArray, sectors: IntArray, headings: FloatArray
+                     ) -> tuple[IntArray, FloatArray, IntArray, IntArray]:
+    """Player (i, k)'s candidate chains (:func:`~sensorplan.planners.cells.candidate_chains`)
+    as looks: targets ``(A, L)``, track information ``(A, L, e, 2, 2)``, pool rows
+    ``(A, len(ls))`` of the chain's looks ``ls`` (epoch k and sensor i's later assigned
+    epochs, as offsets from k).
+
+    The chains depend on the candidates and on sensor i's other epochs only, not on the
+    other sensors, whose moves make the next iterations of an epoch game: kept in
+    ``sctx.memo`` by those (the candidates by identity: read-only arrays kept alive there).
+    """
+    assert plan.sectors is not None
+    cached = all(isinstance(a, np.ndarray) and not a.flags.writeable
+                 for a in (positions, targets, sectors))
+    if cached:
+        memo = sctx.memo.setdefault("candidate_looks", {})
+        rest = [np.delete(a[i], k - 1, axis=0).tobytes()
+                for a in (plan.positions, plan.targets, plan.sectors)]
+        key = (i, k, id(positions), id(targets), id(sectors), *rest)
+        got = memo.get(key)
+        if got is not None and got[0] is positions and got[1] is targets and got[2] is sectors:
+            return cast("tuple[IntArray, FloatArray, IntArray, IntArray]", got[3])
     ctx = sctx.ctx
     A, L = len(targets), ctx.K - k + 1
-    assert plan.sectors is not None
-    headings = _plan_headings(sctx, plan)
     pos, tgt, assigned, th = candidate_chains(sctx, plan, i, k, positions, targets,
                                                 sectors, headings)
-    # The chain's looks: epoch k and sensor i's later assigned epochs.
     ls = [l for l in range(L) if l == 0 or assigned[0, l]]
     rows = np.empty((A, len(ls)), dtype=np.int64)
     w = np.zeros((A, L, ctx.e, 2, 2))
     for q, l in enumerate(ls):
         rows[:, q], w[:, l] = _chain_column(sctx, i, k + l, pos[:, l], tgt[:, l], th[:, l])
-    info = _candidate_track_information(sctx, plan, i, k, headings, tgt, w)
-    mu = _candidate_found(sctx, plan, i, k, headings, rows, np.array(ls, dtype=np.int64))
-    return info + sctx.weight * mu
+    out = (tgt, w, rows, np.array(ls, dtype=np.int64))
+    if cached:
+        memo[key] = (positions, targets, sectors, out)
+    return out
 
 
 def _plan_memo(sctx: SearchContext, plan: Plan) -> dict[str, Any]:
@@ -539,9 +568,10 @@ def _chain_column(sctx: SearchContext, i: int, kk: int, pos: FloatArray, tgt: In
     return got
 
 
-def _sensor_rows(sctx: SearchContext, plan: Plan, n: int, headings: FloatArray) -> IntArray:
-    """The look pool's rows of sensor n's planned looks, in epoch order."""
-    part = _sensor_parts(sctx, plan)[n]
+def _part_rows(sctx: SearchContext, part: dict[str, Any], plan: Plan, n: int,
+               headings: FloatArray) -> IntArray:
+    """The look pool's rows of sensor n's planned looks in epoch order, kept in its part
+    ``part`` of ``plan`` (:func:`_sensor_parts`)."""
     got = part.get("rows")
     if got is None:
         ks = np.flatnonzero(plan.assigned[n])
@@ -561,7 +591,9 @@ def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: 
     if looks is None:
         # Every planned look, sensor by sensor (the order the misses multiply in).
         n_look, k_look = (np.ascontiguousarray(a) for a in np.nonzero(plan.assigned))
-        parts = [_sensor_rows(sctx, plan, n, headings) for n in np.unique(n_look).tolist()]
+        sensor_parts = _sensor_parts(sctx, plan)
+        parts = [_part_rows(sctx, sensor_parts[n], plan, n, headings)
+                 for n in np.unique(n_look).tolist()]
         row = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
         looks = memo["looks"] = (n_look, k_look, row)
     n_look, k_look, row = looks
