@@ -414,10 +414,12 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
         return cast(FloatArray, prev[4].copy())
     # The utilities depend on the others' actions and the candidates, not on the player's
     # own action: a JSFP iteration in which no other player moved asks again for the same.
-    own = np.zeros(plan.targets.shape, dtype=bool)
-    own[i, k - 1] = True
-    key = (i, k, np.where(own[..., None], 0.0, plan.positions).tobytes(),
-           np.where(own, -2, plan.targets).tobytes(), np.where(own, -2, plan.sectors).tobytes(),
+    # (The plan's bytes without the player's entries.)
+    q = i * plan.targets.shape[1] + k - 1
+    pos_b, tgt_b, sec_b = _plan_key(sctx, plan)
+    ps, ts, ss = plan.positions.itemsize * 2, plan.targets.itemsize, plan.sectors.itemsize
+    key = (i, k, pos_b[:q * ps] + pos_b[(q + 1) * ps:], tgt_b[:q * ts] + tgt_b[(q + 1) * ts:],
+           sec_b[:q * ss] + sec_b[(q + 1) * ss:],
            np.asarray(positions, dtype=float).tobytes(), np.asarray(targets).tobytes(),
            np.asarray(sectors).tobytes())
     memo = sctx.memo.setdefault("utilities", {})
@@ -458,9 +460,9 @@ def _candidate_looks(sctx: SearchContext, plan: Plan, i: int, k: int, positions:
                  for a in (positions, targets, sectors))
     if cached:
         memo = sctx.memo.setdefault("candidate_looks", {})
-        rest = [np.delete(a[i], k - 1, axis=0).tobytes()
-                for a in (plan.positions, plan.targets, plan.sectors)]
-        key = (i, k, id(positions), id(targets), id(sectors), *rest)
+        key = (i, k, id(positions), id(targets), id(sectors),
+               *(a[i, :k - 1].tobytes() + a[i, k:].tobytes()
+                 for a in (plan.positions, plan.targets, plan.sectors)))
         got = memo.get(key)
         if got is not None and got[0] is positions and got[1] is targets and got[2] is sectors:
             return cast("tuple[IntArray, FloatArray, IntArray, IntArray]", got[3])
@@ -482,13 +484,24 @@ def _candidate_looks(sctx: SearchContext, plan: Plan, i: int, k: int, positions:
 def _plan_memo(sctx: SearchContext, plan: Plan) -> dict[str, Any]:
     """What :func:`candidate_potentials` derives from a whole plan, kept in ``sctx.memo`` by
     the plan (the players of a JSFP iteration all ask about the same plan)."""
-    assert plan.sectors is not None
     memo = sctx.memo.setdefault("plans", {})
-    key = (plan.positions.tobytes(), plan.targets.tobytes(), plan.sectors.tobytes())
+    key = _plan_key(sctx, plan)
     got = memo.get(key)
     if got is None:
         got = memo[key] = {}
     return got
+
+
+def _plan_key(sctx: SearchContext, plan: Plan) -> tuple[bytes, bytes, bytes]:
+    """The bytes of a plan's positions, targets and sectors, kept by the plan's identity
+    (the plan kept alive with them: a game asks about the same plan object many times)."""
+    keys = sctx.memo.setdefault("plan_keys", {})
+    got = keys.get(id(plan))
+    if got is None or got[0] is not plan:
+        assert plan.sectors is not None
+        got = keys[id(plan)] = (plan, (plan.positions.tobytes(), plan.targets.tobytes(),
+                                       plan.sectors.tobytes()))
+    return cast("tuple[bytes, bytes, bytes]", got[1])
 
 
 def _plan_headings(sctx: SearchContext, plan: Plan) -> FloatArray:
@@ -860,7 +873,11 @@ def best_index(u: FloatArray, current: int) -> int:
     floor = top - TIE_TOL * max(1.0, abs(top))
     if current >= 0 and u[current] >= floor:
         return current
-    return int(np.flatnonzero(u >= floor)[0])
+    top_ones = u >= floor
+    first = int(top_ones.argmax())
+    if not top_ones[first]:             # NaN: none (as an empty flatnonzero would say)
+        raise IndexError("no action within the tie tolerance of the best")
+    return first
 
 
 def _index_of(pos: FloatArray, tgt: IntArray, sec: IntArray, plan: Plan, i: int,
