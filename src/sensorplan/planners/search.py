@@ -802,13 +802,20 @@ def _track_looks(sctx: SearchContext, plan: Plan, headings: FloatArray
                 W[n * K:(n + 1) * K] = np.where(track[n][:, None, None, None], w[0], 0.0)
                 counted[n * K:(n + 1) * K] = c[0] & track[n][:, None]
     else:
-        weight = np.zeros((N * K, ctx.e))
-        look_information_nb(ctx.radar, np.repeat(np.arange(N), K), ctx.buildings, ctx.xbar,
-                            ctx.Cbar, np.ascontiguousarray(plan.positions.reshape(-1, 2)),
-                            np.ascontiguousarray(headings.reshape(-1)),
-                            np.ascontiguousarray(plan.targets.reshape(-1)),
-                            np.tile(np.arange(1, K + 1), N), ctx.probabilistic, W, weight)
-        counted = weight > 0
+        # By sensor, kept in its part of the plan: a sensor's looks depend on its part only.
+        parts = _sensor_parts(sctx, plan)
+        for n in range(N):
+            got = parts[n].get("track")
+            if got is None:
+                Wn = np.zeros((K, ctx.e, 2, 2))
+                weight = np.zeros((K, ctx.e))
+                look_information_nb(ctx.radar, np.full(K, n), ctx.buildings, ctx.xbar,
+                                    ctx.Cbar, np.ascontiguousarray(plan.positions[n]),
+                                    np.ascontiguousarray(headings[n]),
+                                    np.ascontiguousarray(plan.targets[n]),
+                                    np.arange(1, K + 1), ctx.probabilistic, Wn, weight)
+                got = parts[n]["track"] = (Wn, weight > 0)
+            W[n * K:(n + 1) * K], counted[n * K:(n + 1) * K] = got
     return W.reshape(N, K, ctx.e, 2, 2), counted.sum(axis=-1).reshape(N, K)
 
 
