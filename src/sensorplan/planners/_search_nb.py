@@ -344,8 +344,8 @@ def pair_terms_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0:
     Every row (the others' of a target, or a (candidate, target looked at) pair's) runs
     :func:`~sensorplan.planners._chains_nb.covariance_recursion_nb`'s steps in its order,
     and the terms are :func:`~sensorplan.planners.information.phi_terms`'s, bit for bit. A
-    pair's row equals its target's before the chain's first step: the pairs continue from
-    the target's covariance there.
+    pair's row equals its target's before the chain's first look at the target: the pair
+    continues from the target's covariance there.
     """
     A, L = tgt.shape
     M, T = base.shape[0], base.shape[1]
@@ -353,17 +353,18 @@ def pair_terms_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0:
     t0 = k0 * e                                  # the chain's first step
     shared_q = Q.shape[0] == 1
     FP = np.empty((4, 4))
-    # Each target: its covariance and sum of log-dets before t0, then the others' term.
-    P_t0 = np.empty((M, 4, 4))
-    sum_t0 = np.zeros(M)
+    # Each target: its covariance and sum of log-dets before each of the chain's epochs
+    # (a pair's row equals its target's before the chain's first look at it), then the
+    # others' term.
+    P_at = np.empty((M, L, 4, 4))
+    sum_at = np.zeros((M, L))
     measured_t0 = np.zeros(M, dtype=np.bool_)
     out = np.empty((A, M))
     P = np.empty((4, 4))
     for j in range(M):
         qb = 0 if shared_q else j
         P[:, :] = P0[j]
-        sum_t0[j] = _run(P, base[j, :t0], 0, F, Q, qb, cv, dt, cumulative, 0.0, FP)
-        P_t0[j] = P
+        ld_sum = _run(P, base[j, :t0], 0, F, Q, qb, cv, dt, cumulative, 0.0, FP)
         measured = False
         for t in range(T):
             for r in range(2):
@@ -372,12 +373,18 @@ def pair_terms_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0:
                         measured = True
                         if t < t0:
                             measured_t0[j] = True
-        ld_sum = _run(P, base[j], t0, F, Q, qb, cv, dt, cumulative, sum_t0[j], FP)
+        for l in range(L):
+            P_at[j, l] = P
+            sum_at[j, l] = ld_sum
+            ld_sum = _run(P, base[j, :(k0 + l + 1) * e], (k0 + l) * e, F, Q, qb, cv, dt,
+                          cumulative, ld_sum, FP)
+        ld_sum = _run(P, base[j], (k0 + L) * e, F, Q, qb, cv, dt, cumulative, ld_sum, FP)
         info = 0.5 * (ld_ref[j] - (ld_sum if cumulative else logdet4(P)))
         term = _term(info, measured, existence[j])
         for a in range(A):
             out[a, j] = term
-    # Each (candidate, target looked at) pair, from the target's state at t0.
+    # Each (candidate, target looked at) pair, from the target's state before the chain's
+    # first look at it.
     row = np.empty((T, 2, 2))
     for a in range(A):
         for l in range(L):
@@ -405,9 +412,9 @@ def pair_terms_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0:
                     for c in range(2):
                         if row[t, r, c] != 0.0:
                             measured = True
-            P[:, :] = P_t0[j]
-            ld_sum = _run(P, row, t0, F, Q, 0 if shared_q else j, cv, dt, cumulative,
-                          sum_t0[j], FP)
+            P[:, :] = P_at[j, l]
+            ld_sum = _run(P, row, (k0 + l) * e, F, Q, 0 if shared_q else j, cv, dt,
+                          cumulative, sum_at[j, l], FP)
             info = 0.5 * (ld_ref[j] - (ld_sum if cumulative else logdet4(P)))
             out[a, j] = _term(info, measured, existence[j])
     return out
