@@ -273,3 +273,34 @@ def test_evaluate_from_the_kept_looks_is_the_numpy_definition(
             assert g.dtype == w.dtype and g.shape == w.shape
             np.testing.assert_array_equal(g, w)
             assert g.tobytes() == w.tobytes() or np.isnan(w).any()
+
+
+@pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
+def test_found_of_one_look_is_the_general_paths(name: str, problem: PlanningProblem) -> None:
+    """mu of candidates whose chain has one look (the kernel's direct path) equals, bit for
+    bit, mu of the same chains with a second look that covers no cell (the general path,
+    each cell's cover counted)."""
+    sctx = search.prepare(problem)
+    ctx = sctx.ctx
+    rng = np.random.default_rng(13)
+    plan = search.random_plan(sctx, rng)
+    headings = search.plan_headings(sctx, plan)
+    pool = search._pool(sctx)
+    n_look, k_look = np.nonzero(plan.assigned)
+    row = np.concatenate([pool.rows(sctx, int(n), plan.positions[n, k_look[n_look == n]],
+                                    headings[n, k_look[n_look == n]])
+                          for n in np.unique(n_look)])
+    for i in range(ctx.N):
+        empty = pool.rows(sctx, i, np.array([[1e7, 1e7]]), np.array([0.0]))[0]
+        assert pool.row(int(empty))[0].size == 0
+        pos, tgt, sec = search.player_actions(sctx, plan, i, 1)
+        chains = search.candidate_chains(sctx, plan, i, 1, pos, tgt, sec, headings)
+        first = pool.rows(sctx, i, chains[0][:, 0], chains[3][:, 0])
+        args = (sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, 0, i, n_look, k_look, row)
+        epochs = np.array([0, 1], dtype=np.int64)
+        one = np.stack([first, np.full_like(first, -1)], axis=1)
+        two = np.stack([first, np.full_like(first, empty)], axis=1)
+        got = found_nb(*args, one, epochs, *pool.arrays())
+        want = found_nb(*args, two, epochs, *pool.arrays())
+        np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+        assert got.size and np.isfinite(got).all()

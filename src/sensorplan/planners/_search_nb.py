@@ -128,6 +128,27 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
     for a in range(A):
         if rep[a] != a:
             continue
+        # One look: every cell it covers is covered once, in the row's order.
+        one = -1
+        for l in range(n):
+            if look_row[a, l] >= 0:
+                one = l if one == -1 else -2
+        if one >= 0:
+            r = look_row[a, one]
+            kl = look_epoch[one] - k0
+            delta = 0.0
+            for q in range(row_off[r], row_off[r + 1]):
+                c = row_idx[q]
+                m = 1.0 - row_val[q]
+                if kept_miss[c, kl] != m:
+                    chain[c, kl] = m
+                    kept_delta[c, kl] = _cell_tail(d_k0[c], births[c], survival, e, miss, k0,
+                                                   c, chain[c]) - tail[c]
+                    kept_miss[c, kl] = m
+                    chain[c, kl] = 1.0
+                delta += kept_delta[c, kl]
+            out[a] = base + delta
+            continue
         nc = 0
         for l in range(n):
             r = look_row[a, l]
