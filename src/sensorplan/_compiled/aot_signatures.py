@@ -59,6 +59,7 @@ SIGNATURES: tuple = (
      (('d', 1), ('d', 1), 'f', 'i', 'i', 'i', 'i', ('l', 1), ('l', 1), ('l', 1), ('l', 2),
       ('l', 1), ('l', 1), ('l', 1), ('d', 1))),
     ('sensorplan.planners._search_nb', 'heading_rule_nb', (('d', 1), ('d', 1), 'f')),
+    ('sensorplan.planners._search_nb', 'jsfp_step_nb', (('d', 1), ('d', 1), 'i', 'i', 'f')),
     ('sensorplan.planners._search_nb', 'look_information_nb',
      (('d', 2), ('l', 1), ('d', 2), ('d', 3), ('d', 3), ('d', 2), ('d', 1), ('l', 1), ('l', 1),
       'b', ('d', 4), ('d', 2))),

@@ -503,6 +503,38 @@ def heading_rule_nb(theta: np.ndarray, bearing: np.ndarray, max_turn: float) -> 
     return out
 
 
+@njit(cache=True, fastmath=False)
+def _best_nb(u: np.ndarray, current: int, tie_tol: float) -> int:
+    """:func:`~sensorplan.planners.search.best_index` (-1 where it finds none: a NaN)."""
+    top = u[0]
+    for a in range(1, u.shape[0]):
+        if not top >= u[a]:               # numpy's max: a NaN wins
+            if math.isnan(top):
+                break
+            top = u[a]
+    scale = abs(top)
+    floor = top - tie_tol * (scale if scale > 1.0 else 1.0)
+    if current >= 0 and u[current] >= floor:
+        return current
+    for a in range(u.shape[0]):
+        if u[a] >= floor:
+            return a
+    return -1
+
+
+@njit(cache=True, fastmath=False)
+def jsfp_step_nb(u: np.ndarray, ubar: np.ndarray, t: int, current: int,
+                 tie_tol: float) -> tuple[int, int]:
+    """One player's step of a JSFP iteration: its best response to the others' actions now
+    (``u``), and, after ``ubar`` (its running average, in place) takes ``u`` in as
+    ``(t - 1) / t * ubar + u / t``, its best response to the average (both as
+    :func:`~sensorplan.planners.search.best_index` from ``current``; -1: none)."""
+    keep = (t - 1) / t
+    for a in range(u.shape[0]):
+        ubar[a] = keep * ubar[a] + u[a] / t
+    return _best_nb(u, current, tie_tol), _best_nb(ubar, current, tie_tol)
+
+
 @njit(cache=True)
 def _first_of_each_nb(same: np.ndarray) -> np.ndarray:
     """:func:`~sensorplan.planners.search._first_of_each`: the items one pass in order keeps
@@ -605,4 +637,4 @@ def player_actions_nb(prev: np.ndarray, moves: np.ndarray, width: float, height:
 
 
 __all__ = ["detect_sparse_nb", "found_nb", "heading_rule_nb", "look_information_nb",
-           "pair_terms_nb", "player_actions_nb", "pose_rows_nb"]
+           "jsfp_step_nb", "pair_terms_nb", "player_actions_nb", "pose_rows_nb"]

@@ -44,8 +44,8 @@ from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, heading_rule_scalar, wrap_angle
-from ._search_nb import (detect_sparse_nb, found_nb, look_information_nb, pair_terms_nb,
-                         player_actions_nb, pose_rows_nb)
+from ._search_nb import (detect_sparse_nb, found_nb, jsfp_step_nb, look_information_nb,
+                         pair_terms_nb, player_actions_nb, pose_rows_nb)
 from .cells import candidate_chains, detection
 from .information import (BACKEND, Context, chain_information, covariance_recursion,
                           cv_form, measured, phi_terms, sum_by_target, target_information)
@@ -962,9 +962,12 @@ def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, 
                 eq = True
                 for i in range(N):
                     u = candidate_potentials(sctx, plan, i, k, *actions[i])
-                    eq &= best_index(u, cur[i]) == cur[i]
-                    ubar[i] = (t - 1) / t * ubar[i] + u / t
-                    best.append(best_index(ubar[i], cur[i]))
+                    # best_index of u, ubar (t - 1) / t * ubar + u / t, best_index of it.
+                    now, avg = jsfp_step_nb(u, ubar[i], t, cur[i], TIE_TOL)
+                    if now < 0 or avg < 0:
+                        raise IndexError("no action within the tie tolerance of the best")
+                    eq &= now == cur[i]
+                    best.append(avg)
                 if eq:
                     break
                 switch = rng.random(N) >= alpha
