@@ -418,46 +418,54 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
     q = i * plan.targets.shape[1] + k - 1
     pos_b, tgt_b, sec_b = _plan_key(sctx, plan)
     ps, ts, ss = plan.positions.itemsize * 2, plan.targets.itemsize, plan.sectors.itemsize
+    # Read-only candidates (player_actions') are kept alive in sctx.memo: known by identity.
+    kept = all(isinstance(a, np.ndarray) and not a.flags.writeable
+               for a in (positions, targets, sectors))
+    which = ((id(positions), id(targets), id(sectors)) if kept else
+             (np.asarray(positions, dtype=float).tobytes(), np.asarray(targets).tobytes(),
+              np.asarray(sectors).tobytes()))
     key = (i, k, pos_b[:q * ps] + pos_b[(q + 1) * ps:], tgt_b[:q * ts] + tgt_b[(q + 1) * ts:],
-           sec_b[:q * ss] + sec_b[(q + 1) * ss:],
-           np.asarray(positions, dtype=float).tobytes(), np.asarray(targets).tobytes(),
-           np.asarray(sectors).tobytes())
+           sec_b[:q * ss] + sec_b[(q + 1) * ss:], kept, *which)
     memo = sctx.memo.setdefault("utilities", {})
     got = memo.get(key)
-    if got is None:
-        got = memo[key] = _candidate_potentials(sctx, plan, i, k, positions, targets, sectors)
-    if all(isinstance(a, np.ndarray) and not a.flags.writeable
-           for a in (positions, targets, sectors)):
-        last[(i, k)] = (plan, positions, targets, sectors, got)
-    return got.copy()
+    if got is None or (kept and not (got[0] is positions and got[1] is targets
+                                     and got[2] is sectors)):
+        got = memo[key] = (positions, targets, sectors,
+                           _candidate_potentials(sctx, plan, i, k, positions, targets, sectors,
+                                                 kept))
+    if kept:
+        last[(i, k)] = (plan, positions, targets, sectors, got[3])
+    return cast(FloatArray, got[3].copy())
 
 
 def _candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
-                          positions: FloatArray, targets: IntArray, sectors: IntArray
-                          ) -> FloatArray:
-    headings = _plan_headings(sctx, plan)
-    tgt, w, rows, ls = _candidate_looks(sctx, plan, i, k, positions, targets, sectors,
-                                        headings)
-    info = _candidate_track_information(sctx, plan, i, k, headings, tgt, w)
-    mu = _candidate_found(sctx, plan, i, k, headings, rows, ls)
+                          positions: FloatArray, targets: IntArray, sectors: IntArray,
+                          kept: bool) -> FloatArray:
+    pm = _plan_memo(sctx, plan)
+    headings = pm.get("headings")
+    if headings is None:
+        headings = _plan_headings(sctx, plan)
+    tgt, w, rows, epochs = _candidate_looks(sctx, plan, i, k, positions, targets, sectors,
+                                            headings, kept)
+    info = _candidate_track_information(sctx, plan, i, k, headings, tgt, w, pm)
+    mu = _candidate_found(sctx, plan, i, k, headings, rows, epochs, pm)
     return info + sctx.weight * mu
 
 
 def _candidate_looks(sctx: SearchContext, plan: Plan, i: int, k: int, positions: FloatArray,
-                     targets: IntArray, sectors: IntArray, headings: FloatArray
+                     targets: IntArray, sectors: IntArray, headings: FloatArray, cached: bool
                      ) -> tuple[IntArray, FloatArray, IntArray, IntArray]:
     """Player (i, k)'s candidate chains (:func:`~sensorplan.planners.cells.candidate_chains`)
     as looks: targets ``(A, L)``, track information ``(A, L, e, 2, 2)``, pool rows
-    ``(A, len(ls))`` of the chain's looks ``ls`` (epoch k and sensor i's later assigned
-    epochs, as offsets from k).
+    ``(A, n)`` of the chain's n looks and their epochs ``(n,)`` (0-based: epoch k and
+    sensor i's later assigned epochs).
 
     The chains depend on the candidates and on sensor i's other epochs only, not on the
     other sensors, whose moves make the next iterations of an epoch game: kept in
-    ``sctx.memo`` by those (the candidates by identity: read-only arrays kept alive there).
+    ``sctx.memo`` by those when ``cached`` (the candidates by identity: read-only arrays
+    kept alive there).
     """
     assert plan.sectors is not None
-    cached = all(isinstance(a, np.ndarray) and not a.flags.writeable
-                 for a in (positions, targets, sectors))
     if cached:
         memo = sctx.memo.setdefault("candidate_looks", {})
         key = (i, k, id(positions), id(targets), id(sectors),
@@ -475,7 +483,7 @@ def _candidate_looks(sctx: SearchContext, plan: Plan, i: int, k: int, positions:
     w = np.zeros((A, L, ctx.e, 2, 2))
     for q, l in enumerate(ls):
         rows[:, q], w[:, l] = _chain_column(sctx, i, k + l, pos[:, l], tgt[:, l], th[:, l])
-    out = (tgt, w, rows, np.array(ls, dtype=np.int64))
+    out = (tgt, w, rows, np.array(ls, dtype=np.int64) + (k - 1))
     if cached:
         memo[key] = (positions, targets, sectors, out)
     return out
@@ -593,13 +601,12 @@ def _part_rows(sctx: SearchContext, part: dict[str, Any], plan: Plan, n: int,
 
 
 def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: FloatArray,
-                     rows: IntArray, ls: IntArray) -> FloatArray:
-    """mu ``(A,)`` for each candidate of player (i, k) whose chain's looks in epochs
-    ``k + ls`` are the look pool's ``rows (A, len(ls))``: every other look's misses, times
-    the chain's."""
+                     rows: IntArray, epochs: IntArray, memo: dict[str, Any]) -> FloatArray:
+    """mu ``(A,)`` for each candidate of player (i, k) whose chain's looks in ``epochs``
+    (0-based) are the look pool's ``rows (A, len(epochs))``: every other look's misses,
+    times the chain's (``memo``: the plan's :func:`_plan_memo`)."""
     ctx = sctx.ctx
     pool = _pool(sctx)
-    memo = _plan_memo(sctx, plan)
     looks = memo.get("looks")
     if looks is None:
         # Every planned look, sensor by sensor (the order the misses multiply in).
@@ -611,7 +618,7 @@ def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: 
         looks = memo["looks"] = (n_look, k_look, row)
     n_look, k_look, row = looks
     return found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, int(i), n_look,
-                    k_look, row, rows, ls + (k - 1), *pool.arrays())
+                    k_look, row, rows, epochs, *pool.arrays())
 
 
 class _LookPool:
@@ -702,16 +709,17 @@ def _pool(sctx: SearchContext) -> _LookPool:
 
 
 def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int,
-                                 headings: FloatArray, tgt: IntArray, w: FloatArray
-                                 ) -> FloatArray:
+                                 headings: FloatArray, tgt: IntArray, w: FloatArray,
+                                 memo: dict[str, Any]) -> FloatArray:
     """The tracks' part of Phi ``(A,)`` for each candidate of player (i, k): every other
     look's information plus the candidate's chain over epochs k..K, targets ``tgt (A, L)``
-    (-1: none) and information ``w (A, L, e, 2, 2)`` (0 without tracks).
+    (-1: none) and information ``w (A, L, e, 2, 2)`` (0 without tracks); ``memo``: the
+    plan's :func:`_plan_memo`.
 
     A candidate changes the terms of the targets its chain looks at only: the other
     players' summed information is shared, each target's term without the chain is computed
     once, and only (candidate, target looked at) pairs run the recursion, from their
-    target's covariance before the chain's first step (each pair's row is the dense
+    target's covariance before the chain's first look at it (each pair's row is the dense
     computation's row and runs its steps in order, so its term is the same to the bit).
     """
     ctx = sctx.ctx
@@ -720,7 +728,8 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
         return np.zeros(A)
     others = plan.targets.copy()
     others[i, k - 1:] = -1
-    W = _plan_track_W(sctx, plan, headings)
+    got = memo.get("track_looks")
+    W = (got if got is not None else _plan_track_looks(sctx, plan, headings))[0]
     base = sum_by_target(ctx, W, others)                            # (M, T, 2, 2)
     if BACKEND == "numpy":
         base_terms = _target_terms(ctx, base, np.arange(ctx.M))
