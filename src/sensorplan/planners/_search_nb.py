@@ -368,6 +368,31 @@ def pair_terms_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0:
     pair's row equals its target's before the chain's first look at the target: the pair
     continues from the target's covariance there.
     """
+    out = np.empty((tgt.shape[0], base.shape[0]))
+    _pair_terms(base, tgt, w, k0, P0, F, Q, cumulative, cv, dt, ld_ref, existence,
+                np.ones(base.shape[0], dtype=np.bool_), out)
+    return out
+
+
+@njit(cache=True)
+def pair_terms_kept_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int,
+                       P0: np.ndarray, F: np.ndarray, Q: np.ndarray, cumulative: bool,
+                       cv: bool, dt: float, ld_ref: np.ndarray, existence: np.ndarray,
+                       todo: np.ndarray, kept: np.ndarray) -> np.ndarray:
+    """:func:`pair_terms_nb` from an earlier call's terms ``kept (A, M)`` with the same
+    candidates: only the targets ``todo (M,)`` (those whose others' information changed)
+    are computed again; a target's terms depend on its own row of ``base`` only."""
+    out = kept.copy()
+    _pair_terms(base, tgt, w, k0, P0, F, Q, cumulative, cv, dt, ld_ref, existence, todo, out)
+    return out
+
+
+@njit(cache=True)
+def _pair_terms(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0: np.ndarray,
+                F: np.ndarray, Q: np.ndarray, cumulative: bool, cv: bool, dt: float,
+                ld_ref: np.ndarray, existence: np.ndarray, todo: np.ndarray,
+                out: np.ndarray) -> None:
+    """:func:`pair_terms_nb`'s terms of the targets ``todo`` into ``out (A, M)``."""
     A, L = tgt.shape
     M, T = base.shape[0], base.shape[1]
     e = w.shape[2]
@@ -380,9 +405,10 @@ def pair_terms_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0:
     P_at = np.empty((M, L, 4, 4))
     sum_at = np.zeros((M, L))
     measured_t0 = np.zeros(M, dtype=np.bool_)
-    out = np.empty((A, M))
     P = np.empty((4, 4))
     for j in range(M):
+        if not todo[j]:
+            continue
         qb = 0 if shared_q else j
         P[:, :] = P0[j]
         ld_sum = _run(P, base[j, :t0], 0, F, Q, qb, cv, dt, cumulative, 0.0, FP)
@@ -410,7 +436,7 @@ def pair_terms_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0:
     for a in range(A):
         for l in range(L):
             j = tgt[a, l]
-            if j < 0:
+            if j < 0 or not todo[j]:
                 continue
             seen = False
             for l2 in range(l):
@@ -438,7 +464,6 @@ def pair_terms_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0:
                           cumulative, sum_at[j, l], FP)
             info = 0.5 * (ld_ref[j] - (ld_sum if cumulative else logdet4(P)))
             out[a, j] = _term(info, measured, existence[j])
-    return out
 
 
 @njit(cache=True, error_model="numpy")
@@ -637,4 +662,5 @@ def player_actions_nb(prev: np.ndarray, moves: np.ndarray, width: float, height:
 
 
 __all__ = ["detect_sparse_nb", "found_nb", "heading_rule_nb", "look_information_nb",
-           "jsfp_step_nb", "pair_terms_nb", "player_actions_nb", "pose_rows_nb"]
+           "jsfp_step_nb", "pair_terms_kept_nb", "pair_terms_nb", "player_actions_nb",
+           "pose_rows_nb"]

@@ -45,7 +45,7 @@ from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, heading_rule_scalar, wrap_angle
 from ._search_nb import (detect_sparse_nb, found_nb, jsfp_step_nb, look_information_nb,
-                         pair_terms_nb, player_actions_nb, pose_rows_nb)
+                         pair_terms_kept_nb, pair_terms_nb, player_actions_nb, pose_rows_nb)
 from .cells import candidate_chains, detection
 from .information import (BACKEND, Context, chain_information, covariance_recursion,
                           cv_form, measured, phi_terms, sum_by_target, target_information)
@@ -743,8 +743,19 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
             np.ascontiguousarray(ctx.Q, dtype=float), cumulative, *cv_form(ctx.F),
             np.ascontiguousarray(ld_ref), np.ascontiguousarray(ctx.existence, dtype=float))
     P0, F, Q, cumulative, cv, dt, ld_ref, existence = arrays
-    terms = pair_terms_nb(base, np.ascontiguousarray(tgt), w, k - 1, P0, F, Q, cumulative, cv,
-                          dt, ld_ref, existence)
+    # The player's last terms with the same candidate chains: a target's terms depend on its
+    # others' information only, and a JSFP iteration's moves change a few targets' of it.
+    kept = sctx.memo.setdefault("pair_terms", {})
+    prev = kept.get((i, k))
+    if prev is not None and prev[0] is tgt and prev[1] is w:
+        todo = (base.view(np.int64) != prev[2].view(np.int64)).reshape(ctx.M, -1).any(axis=1)
+        terms = (pair_terms_kept_nb(base, np.ascontiguousarray(tgt), w, k - 1, P0, F, Q,
+                                    cumulative, cv, dt, ld_ref, existence, todo, prev[3])
+                 if todo.any() else prev[3])
+    else:
+        terms = pair_terms_nb(base, np.ascontiguousarray(tgt), w, k - 1, P0, F, Q, cumulative,
+                              cv, dt, ld_ref, existence)
+    kept[(i, k)] = (tgt, w, base, terms)
     return terms.sum(axis=1)
 
 
