@@ -362,3 +362,85 @@ def test_pair_terms_from_kept_terms_are_computed_ones(name: str,
         want = pair_terms_nb(moved, tgt, w, k - 1, *fixed)
         np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
         assert todo.any() and not np.array_equal(before, want)
+
+
+def found_in_order(args: tuple, rows: np.ndarray, epochs: np.ndarray, pool) -> np.ndarray:
+    """mu of each candidate as :func:`found_nb` defines its order, in plain Python: the
+    others' misses, mu before k0, each cell's tail; then per candidate the cells in the
+    order they first appear look by look, each cell's change from its tail with the chain's
+    misses there, summed in that order."""
+    from sensorplan.planners._search_nb import _cell_tail
+
+    d0, births, survival, e, K, k0, player, n_look, k_look, row = args
+    C = len(d0)
+    miss = np.ones((K, C))
+    for q in range(len(row)):
+        if n_look[q] == player and k_look[q] >= k0:
+            continue
+        idx, val = pool.row(int(row[q]))
+        for c, v in zip(idx.tolist(), val.tolist()):
+            miss[k_look[q], c] *= 1.0 - v
+    d_k0, mu_pre = d0.copy(), 0.0
+    for kk in range(k0):
+        for c in range(C):
+            d, m = d_k0[c], miss[kk, c]
+            for _ in range(e):
+                d = survival * d + births[c]
+                mu_pre += d * (1.0 - m)
+                d = d * m
+            d_k0[c] = d
+    L = K - k0
+    tail = np.array([_cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, np.ones(L))
+                     for c in range(C)])
+    tail_sum = 0.0
+    for c in range(C):
+        tail_sum += tail[c]
+    base = mu_pre + tail_sum
+    out = np.empty(len(rows))
+    for a in range(len(rows)):
+        chain: dict[int, np.ndarray] = {}
+        for l in range(rows.shape[1]):
+            if rows[a, l] < 0:
+                continue
+            idx, val = pool.row(int(rows[a, l]))
+            for c, v in zip(idx.tolist(), val.tolist()):
+                chain.setdefault(c, np.ones(L))[epochs[l] - k0] = 1.0 - v
+        delta = 0.0
+        for c, ch in chain.items():                  # first appearance, look by look
+            delta += _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, ch) - tail[c]
+        out[a] = base + delta
+    return out
+
+
+@pytest.mark.parametrize("name,problem", DECISIONS[1:], ids=[n for n, _ in DECISIONS[1:]])
+def test_found_is_its_order_in_plain_python(name: str, problem: PlanningProblem) -> None:
+    """found_nb's mu (one-look chains by the direct path, several looks by the first look's
+    cells first) equals the plain-Python sum in its defining order bit for bit, on plans
+    whose later epochs are assigned (chains of several looks that overlap) and not."""
+    sctx = search.prepare(problem)
+    ctx = sctx.ctx
+    rng = np.random.default_rng(17)
+    pool = search._pool(sctx)
+    for trial in range(2):
+        plan = search.random_plan(sctx, rng)
+        if trial:
+            plan = type(plan)(plan.positions, np.where(np.arange(ctx.K) >= 2, -1, plan.targets),
+                              np.where(np.arange(ctx.K) >= 2, -1, plan.sectors))
+        headings = search.plan_headings(sctx, plan)
+        n_look, k_look = np.nonzero(plan.assigned)
+        row = np.concatenate([pool.rows(sctx, int(n), plan.positions[n, k_look[n_look == n]],
+                                        headings[n, k_look[n_look == n]])
+                              for n in np.unique(n_look)])
+        for i in range(min(ctx.N, 2)):
+            for k in range(1, ctx.K + 1):
+                pos, tgt, sec = search.player_actions(sctx, plan, i, k)
+                chains = search.candidate_chains(sctx, plan, i, k, pos, tgt, sec, headings)
+                ls = [l for l in range(ctx.K - k + 1) if l == 0 or chains[2][0, l]]
+                rows = np.stack([pool.rows(sctx, i, chains[0][:, l], chains[3][:, l])
+                                 for l in ls], axis=1)
+                epochs = np.array(ls, dtype=np.int64) + (k - 1)
+                args = (sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, i,
+                        np.ascontiguousarray(n_look), np.ascontiguousarray(k_look), row)
+                got = found_nb(*args, rows, epochs, *pool.arrays())
+                want = found_in_order(args, rows, epochs, pool)
+                np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))

@@ -120,7 +120,7 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
     out = np.empty(A)
     chain = np.ones((C, L))
     stamp = np.full(C, -1, dtype=np.int64)
-    cells = np.empty(C, dtype=np.int64)
+    done = np.full(C, -1, dtype=np.int64)
     covered = np.zeros(C, dtype=np.int64)
     slot = np.zeros(C, dtype=np.int64)
     kept_miss = np.full((C, L), np.nan)
@@ -149,8 +149,17 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
                 delta += kept_delta[c, kl]
             out[a] = base + delta
             continue
-        nc = 0
-        for l in range(n):
+        if one == -1:                    # no look
+            out[a] = base + 0.0
+            continue
+        # Several looks. The cells in the order they first appear, look by look: the first
+        # look's in its row's order, then each later look's not seen before. The later
+        # looks' cells are counted first, so that a first look's cell no later look covers
+        # takes the direct path.
+        f = 0
+        while look_row[a, f] < 0:
+            f += 1
+        for l in range(f + 1, n):
             r = look_row[a, l]
             if r < 0:
                 continue
@@ -159,28 +168,52 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
                 c = row_idx[q]
                 if stamp[c] != a:
                     stamp[c] = a
-                    cells[nc] = c
-                    nc += 1
                     covered[c] = 0
                 covered[c] += 1
                 slot[c] = kl
                 chain[c, kl] = 1.0 - row_val[q]
         delta = 0.0
-        for q in range(nc):
-            c = cells[q]
-            if covered[c] == 1:
-                kl = slot[c]
-                m = chain[c, kl]
-                if kept_miss[c, kl] != m:
-                    kept_delta[c, kl] = _cell_tail(d_k0[c], births[c], survival, e, miss, k0,
+        r = look_row[a, f]
+        kf = look_epoch[f] - k0
+        for q in range(row_off[r], row_off[r + 1]):
+            c = row_idx[q]
+            m = 1.0 - row_val[q]
+            if stamp[c] != a:
+                if kept_miss[c, kf] != m:
+                    chain[c, kf] = m
+                    kept_delta[c, kf] = _cell_tail(d_k0[c], births[c], survival, e, miss, k0,
                                                    c, chain[c]) - tail[c]
-                    kept_miss[c, kl] = m
-                delta += kept_delta[c, kl]
-                chain[c, kl] = 1.0
+                    kept_miss[c, kf] = m
+                    chain[c, kf] = 1.0
+                delta += kept_delta[c, kf]
             else:
+                chain[c, kf] = m
                 delta += _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, chain[c]) \
                     - tail[c]
                 chain[c, :] = 1.0
+                done[c] = a
+        for l in range(f + 1, n):
+            r = look_row[a, l]
+            if r < 0:
+                continue
+            for q in range(row_off[r], row_off[r + 1]):
+                c = row_idx[q]
+                if done[c] == a:
+                    continue
+                done[c] = a
+                if covered[c] == 1:
+                    kl = slot[c]
+                    m = chain[c, kl]
+                    if kept_miss[c, kl] != m:
+                        kept_delta[c, kl] = _cell_tail(d_k0[c], births[c], survival, e, miss,
+                                                       k0, c, chain[c]) - tail[c]
+                        kept_miss[c, kl] = m
+                    delta += kept_delta[c, kl]
+                    chain[c, kl] = 1.0
+                else:
+                    delta += _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c,
+                                        chain[c]) - tail[c]
+                    chain[c, :] = 1.0
         out[a] = base + delta
     for a in range(A):
         out[a] = out[rep[a]]
