@@ -14,7 +14,7 @@ import search_game_reference
 import search_reference
 from sensorplan.models.angles import heading_rule, heading_rule_scalar, wrap_angle, wrap_scalar
 from sensorplan.planners import make_planner, search
-from sensorplan.planners._search_nb import (found_nb, heading_rule_nb, jsfp_step_nb,
+from sensorplan.planners._search_nb import (found_nb, heading_rule_nb, jsfp_steps_nb,
                                             look_information_nb, pair_terms_kept_nb,
                                             pair_terms_nb)
 from sensorplan.planners.contract_problems import paper_problem, searching
@@ -307,31 +307,38 @@ def test_found_of_one_look_is_the_general_paths(name: str, problem: PlanningProb
         assert got.size and np.isfinite(got).all()
 
 
-def test_jsfp_step_is_the_numpy_update_and_best_index() -> None:
-    """:func:`jsfp_step_nb` updates the running average as ``(t - 1) / t * ubar + u / t``
-    does and picks the actions :func:`search.best_index` picks, bit for bit: ties within the
-    tolerance, the current action kept, values near 1 and far from it, NaN."""
+def test_jsfp_steps_are_the_numpy_update_and_best_index() -> None:
+    """:func:`jsfp_steps_nb` updates each player's running average as
+    ``(t - 1) / t * ubar + u / t`` does and picks the actions :func:`search.best_index`
+    picks, bit for bit: ties within the tolerance, the current action kept, values near 1
+    and far from it, NaN."""
     rng = np.random.default_rng(14)
-    for trial in range(400):
-        n = int(rng.integers(1, 40))
-        scale = float(rng.choice([1e-3, 1.0, 1e4]))
-        u = rng.normal(0.0, scale, n)
-        u[rng.random(n) < 0.3] = u.max() - rng.choice([0.0, 1e-13, 1e-11]) * max(1, scale)
-        ubar = rng.normal(0.0, scale, n)
-        if trial % 50 == 0:
-            u[rng.integers(n)] = np.nan
+    for trial in range(100):
+        sizes = rng.integers(1, 40, int(rng.integers(1, 6)))
+        off = np.concatenate([[0], np.cumsum(sizes)])
+        us, ubars, currents = [], [], []
+        for n in sizes.tolist():
+            scale = float(rng.choice([1e-3, 1.0, 1e4]))
+            u = rng.normal(0.0, scale, n)
+            u[rng.random(n) < 0.3] = u.max() - rng.choice([0.0, 1e-13, 1e-11]) * max(1, scale)
+            if rng.random() < 0.05:
+                u[rng.integers(n)] = np.nan
+            us.append(u)
+            ubars.append(rng.normal(0.0, scale, n))
+            currents.append(int(rng.integers(-1, n)))
         t = int(rng.integers(1, 30))
-        current = int(rng.integers(-1, n))
-        want_avg = (t - 1) / t * ubar + u / t
-        got_avg = ubar.copy()
-        now, avg = jsfp_step_nb(u, got_avg, t, current, search.TIE_TOL)
-        assert got_avg.tobytes() == want_avg.tobytes()
-        for got, arr in ((now, u), (avg, want_avg)):
-            try:
-                want = search.best_index(arr, current)
-            except IndexError:
-                want = -1
-            assert got == want
+        ubar = np.concatenate(ubars)
+        now, avg = jsfp_steps_nb(np.concatenate(us), ubar, off, t, np.array(currents),
+                                 search.TIE_TOL)
+        for p, (u, old, current) in enumerate(zip(us, ubars, currents)):
+            want_avg = (t - 1) / t * old + u / t
+            assert ubar[off[p]:off[p + 1]].tobytes() == want_avg.tobytes()
+            for got, arr in ((now[p], u), (avg[p], want_avg)):
+                try:
+                    want = search.best_index(arr, current)
+                except IndexError:
+                    want = -1
+                assert got == want
 
 
 @pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])

@@ -581,16 +581,28 @@ def _best_nb(u: np.ndarray, current: int, tie_tol: float) -> int:
 
 
 @njit(cache=True, fastmath=False)
-def jsfp_step_nb(u: np.ndarray, ubar: np.ndarray, t: int, current: int,
-                 tie_tol: float) -> tuple[int, int]:
-    """One player's step of a JSFP iteration: its best response to the others' actions now
-    (``u``), and, after ``ubar`` (its running average, in place) takes ``u`` in as
-    ``(t - 1) / t * ubar + u / t``, its best response to the average (both as
-    :func:`~sensorplan.planners.search.best_index` from ``current``; -1: none)."""
+def jsfp_steps_nb(u: np.ndarray, ubar: np.ndarray, off: np.ndarray, t: int,
+                  current: np.ndarray, tie_tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Every player's step of a JSFP iteration: player p's utilities ``u[off[p]:off[p+1]]``
+    (the others' actions now) and running average ``ubar[off[p]:off[p+1]]`` (in place:
+    ``(t - 1) / t * ubar + u / t``); its best response to each (as
+    :func:`~sensorplan.planners.search.best_index` from ``current[p]``; -1: none).
+
+    Returns
+    -------
+    now, avg : (P,) int
+    """
+    P = off.shape[0] - 1
+    now = np.empty(P, dtype=np.int64)
+    avg = np.empty(P, dtype=np.int64)
     keep = (t - 1) / t
-    for a in range(u.shape[0]):
-        ubar[a] = keep * ubar[a] + u[a] / t
-    return _best_nb(u, current, tie_tol), _best_nb(ubar, current, tie_tol)
+    for p in range(P):
+        lo, hi = off[p], off[p + 1]
+        for a in range(lo, hi):
+            ubar[a] = keep * ubar[a] + u[a] / t
+        now[p] = _best_nb(u[lo:hi], current[p], tie_tol)
+        avg[p] = _best_nb(ubar[lo:hi], current[p], tie_tol)
+    return now, avg
 
 
 @njit(cache=True)
@@ -695,5 +707,5 @@ def player_actions_nb(prev: np.ndarray, moves: np.ndarray, width: float, height:
 
 
 __all__ = ["detect_sparse_nb", "found_nb", "heading_rule_nb", "look_information_nb",
-           "jsfp_step_nb", "pair_terms_kept_nb", "pair_terms_nb", "player_actions_nb",
+           "jsfp_steps_nb", "pair_terms_kept_nb", "pair_terms_nb", "player_actions_nb",
            "pose_rows_nb"]

@@ -44,7 +44,7 @@ from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, heading_rule_scalar, wrap_angle
-from ._search_nb import (detect_sparse_nb, found_nb, jsfp_step_nb, look_information_nb,
+from ._search_nb import (detect_sparse_nb, found_nb, jsfp_steps_nb, look_information_nb,
                          pair_terms_kept_nb, pair_terms_nb, player_actions_nb, pose_rows_nb)
 from .cells import candidate_chains, detection
 from .information import (BACKEND, Context, chain_information, covariance_recursion,
@@ -972,22 +972,23 @@ def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, 
         changed, all_eq = False, True
         for k in range(K, 0, -1):
             actions = [player_actions(sctx, plan, i, k) for i in range(N)]
-            ubar = [np.zeros(len(a[1])) for a in actions]
+            # The players' running averages end to end (one compiled step for them all).
+            off = np.cumsum([0] + [len(a[1]) for a in actions])
+            ubar = np.zeros(int(off[-1]))
             # Each player's current action: its index moves with its switches only (a
             # player's actions are distinct).
             cur = [_index_of(*actions[i], plan, i, k) for i in range(N)]
             eq = False
             for t in range(1, max_inner + 1):
-                best = []
-                eq = True
-                for i in range(N):
-                    u = candidate_potentials(sctx, plan, i, k, *actions[i])
-                    # best_index of u, ubar (t - 1) / t * ubar + u / t, best_index of it.
-                    now, avg = jsfp_step_nb(u, ubar[i], t, cur[i], TIE_TOL)
-                    if now < 0 or avg < 0:
-                        raise IndexError("no action within the tie tolerance of the best")
-                    eq &= now == cur[i]
-                    best.append(avg)
+                u = np.concatenate([candidate_potentials(sctx, plan, i, k, *actions[i])
+                                    for i in range(N)])
+                # best_index of u, ubar (t - 1) / t * ubar + u / t, best_index of it.
+                now, avg = jsfp_steps_nb(u, ubar, off, t, np.array(cur, dtype=np.int64),
+                                         TIE_TOL)
+                if (now < 0).any() or (avg < 0).any():
+                    raise IndexError("no action within the tie tolerance of the best")
+                eq = now.tolist() == cur
+                best = avg.tolist()
                 if eq:
                     break
                 switch = rng.random(N) >= alpha
