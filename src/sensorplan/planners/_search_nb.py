@@ -286,8 +286,9 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
     :func:`~sensorplan.models.radar.model.visible`'s tests in its order, split by what they
     depend on: the ground range, the band test, the bearing's ``atan2`` and the slant range
     depend on the look's position only and are computed once for a run of looks from the
-    same position (a player's candidates are position-major); the wedge and boresight
-    tests, per heading. Cells certainly outside the wedge are skipped before them.
+    same position (a player's candidates are position-major; the ``atan2`` when a look
+    first needs it); the wedge and boresight tests, per heading. Cells certainly outside
+    the wedge are skipped before them.
 
     Parameters
     ----------
@@ -329,7 +330,7 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
                     continue
                 band[nb] = c
                 bdx[nb], bdy[nb], bg[nb] = dx, dy, g
-                bearing[nb] = math.atan2(dy, dx)
+                bearing[nb] = math.nan           # its atan2 when a look first needs it
                 slant[nb] = math.sqrt(g * g + row[ALTITUDE2])
                 nb += 1
         h = heading[b]
@@ -338,6 +339,8 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
             dx, dy = bdx[q], bdy[q]
             if dx * ch + dy * sh < bg[q] * cut:
                 continue                                 # certainly outside the wedge
+            if math.isnan(bearing[q]):
+                bearing[q] = math.atan2(dy, dx)
             if not in_wedge(row, wrap(bearing[q] - h)):
                 continue
             if not cos_psi(row, dx, dy, ch, sh, slant[q]) > 0.0:
