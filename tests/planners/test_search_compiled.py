@@ -15,8 +15,8 @@ import search_reference
 from sensorplan.models.angles import heading_rule, heading_rule_scalar, wrap_angle, wrap_scalar
 from sensorplan.planners import make_planner, search
 from sensorplan.planners._search_nb import (found_nb, heading_rule_nb, jsfp_steps_nb,
-                                            look_information_nb, pair_terms_kept_nb,
-                                            pair_terms_nb)
+                                            look_information_nb, pair_terms_nb,
+                                            player_pair_terms_nb)
 from sensorplan.planners.contract_problems import paper_problem, searching
 from sensorplan.planners.information import chain_information, cv_form
 from sensorplan.planners.problem import PlanningProblem
@@ -342,33 +342,48 @@ def test_jsfp_steps_are_the_numpy_update_and_best_index() -> None:
 
 
 @pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
-def test_pair_terms_from_kept_terms_are_computed_ones(name: str,
-                                                      problem: PlanningProblem) -> None:
-    """Terms recomputed for the targets whose others' information changed, the rest kept
-    from the call before, equal the terms computed afresh bit for bit."""
+def test_a_players_terms_are_summed_information_and_pair_terms(
+        name: str, problem: PlanningProblem) -> None:
+    """:func:`player_pair_terms_nb` sums the others' information as
+    :func:`information.sum_by_target` does and gives :func:`pair_terms_nb`'s terms, bit for
+    bit, afresh and from its last call's terms when some of the others' looks changed."""
     rng = np.random.default_rng(15)
-    ctx = search.prepare(problem).ctx
+    sctx = search.prepare(problem)
+    ctx = sctx.ctx
     cumulative = ctx.problem.objective == "cumulative"
     ld_ref = ctx.ld_bar[:, 1:].sum(axis=-1) if cumulative else ctx.ld_bar[:, -1]
     fixed = (np.ascontiguousarray(ctx.problem.covs), ctx.F, np.ascontiguousarray(ctx.Q),
              cumulative, *cv_form(ctx.F), np.ascontiguousarray(ld_ref),
              np.ascontiguousarray(ctx.existence))
-    for k in range(1, ctx.K + 1):
-        A, L = 40, ctx.K - k + 1
-        G = rng.normal(0.0, 0.05, (ctx.M, ctx.T, 2, 2))
-        base = G @ np.swapaxes(G, -1, -2) * (rng.random((ctx.M, ctx.T, 1, 1)) < 0.5)
-        tgt = rng.integers(-1, ctx.M, (A, L))
-        G = rng.normal(0.0, 0.05, (A, L, ctx.e, 2, 2))
-        w = np.where((tgt >= 0)[..., None, None, None], G @ np.swapaxes(G, -1, -2), 0.0)
-        before = pair_terms_nb(base, tgt, w, k - 1, *fixed)
-        moved = base.copy()
-        todo = rng.random(ctx.M) < 0.5
-        G = rng.normal(0.0, 0.05, (ctx.M, ctx.T, 2, 2))
-        moved[todo] += (G @ np.swapaxes(G, -1, -2))[todo]
-        got = pair_terms_kept_nb(moved, tgt, w, k - 1, *fixed, todo, before)
-        want = pair_terms_nb(moved, tgt, w, k - 1, *fixed)
-        np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
-        assert todo.any() and not np.array_equal(before, want)
+    for i in range(ctx.N):
+        for k in range(1, ctx.K + 1):
+            A, L = 40, ctx.K - k + 1
+            tgt = rng.integers(-1, ctx.M, (A, L))
+            G = rng.normal(0.0, 0.05, (A, L, ctx.e, 2, 2))
+            w = np.where((tgt >= 0)[..., None, None, None], G @ np.swapaxes(G, -1, -2), 0.0)
+            prev = None
+            for step in range(4):
+                targets = rng.integers(-1, ctx.M, (ctx.N, ctx.K))
+                G = rng.normal(0.0, 0.05, (ctx.N, ctx.K, ctx.e, 2, 2))
+                W = np.where((targets >= 0)[..., None, None, None], G @ np.swapaxes(G, -1, -2),
+                             0.0)
+                if prev is not None and step % 2:
+                    # Only some of the others' looks move: their targets' terms change.
+                    keep = rng.random((ctx.N, ctx.K)) < 0.7
+                    targets = np.where(keep, prev_targets, targets)
+                    W = np.where(keep[..., None, None, None], prev_W, W)
+                others = targets.copy()
+                others[i, k - 1:] = -1
+                base = search.sum_by_target(ctx, W, others)
+                want = pair_terms_nb(base, tgt, w, k - 1, *fixed)
+                has = prev is not None
+                got, got_base = player_pair_terms_nb(
+                    W, targets, i, k - 1, tgt, w, *fixed, has,
+                    prev[1] if has else np.zeros((0, 0, 2, 2)),
+                    prev[0] if has else np.zeros((0, 0)))
+                assert got_base.tobytes() == base.tobytes()
+                np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+                prev, prev_targets, prev_W = (got, got_base), targets, W
 
 
 def found_in_order(args: tuple, rows: np.ndarray, epochs: np.ndarray, pool) -> np.ndarray:

@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from .._compiled.jit import njit
-from ._chains_nb import logdet4, predict_step, update_step
+from ._chains_nb import logdet4, predict_step, sum_by_target_nb, update_step
 from ..models.radar.model import (ANGLE_TOL, cos_psi, detection_probability, hidden, in_band,
                                   in_wedge, look, wrap)
 from ..models.sensors import ALTITUDE, ALTITUDE2, FOV
@@ -411,16 +411,45 @@ def pair_terms_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0:
 
 
 @njit(cache=True)
-def pair_terms_kept_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int,
-                       P0: np.ndarray, F: np.ndarray, Q: np.ndarray, cumulative: bool,
-                       cv: bool, dt: float, ld_ref: np.ndarray, existence: np.ndarray,
-                       todo: np.ndarray, kept: np.ndarray) -> np.ndarray:
-    """:func:`pair_terms_nb` from an earlier call's terms ``kept (A, M)`` with the same
-    candidates: only the targets ``todo (M,)`` (those whose others' information changed)
-    are computed again; a target's terms depend on its own row of ``base`` only."""
-    out = kept.copy()
+def player_pair_terms_nb(W: np.ndarray, targets: np.ndarray, player: int, k0: int,
+                         tgt: np.ndarray, w: np.ndarray, P0: np.ndarray, F: np.ndarray,
+                         Q: np.ndarray, cumulative: bool, cv: bool, dt: float,
+                         ld_ref: np.ndarray, existence: np.ndarray, has_prev: bool,
+                         prev_base: np.ndarray, prev_terms: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """A player's (sensor ``player``'s chain from epoch ``k0``) terms ``(A, M)`` in one
+    call: the others' information by target ``base (M, T, 2, 2)`` (every look's ``W (N, K,
+    e, 2, 2)`` but the chain's, summed as
+    :func:`~sensorplan.planners._chains_nb.sum_by_target_nb` does), then
+    :func:`pair_terms_nb`'s terms; with ``has_prev``, the player's last ``prev_terms`` with
+    the same candidates kept but for the targets whose row of ``base`` differs from
+    ``prev_base``'s in any bit (a target's terms depend on its own row only).
+
+    Returns
+    -------
+    terms (A, M), base (M, T, 2, 2)
+    """
+    others = targets.copy()
+    for k in range(k0, targets.shape[1]):
+        others[player, k] = -1
+    base = sum_by_target_nb(W, others, P0.shape[0])
+    M = base.shape[0]
+    todo = np.ones(M, dtype=np.bool_)
+    if has_prev:
+        flat, old = base.reshape(M, -1), prev_base.reshape(M, -1)
+        for j in range(M):
+            same = True
+            for q in range(flat.shape[1]):
+                x, y = flat[j, q], old[j, q]
+                if not (x == y and math.copysign(1.0, x) == math.copysign(1.0, y)):
+                    same = False
+                    break
+            todo[j] = not same
+        out = prev_terms.copy()
+    else:
+        out = np.empty((tgt.shape[0], M))
     _pair_terms(base, tgt, w, k0, P0, F, Q, cumulative, cv, dt, ld_ref, existence, todo, out)
-    return out
+    return out, base
 
 
 @njit(cache=True)
@@ -710,5 +739,5 @@ def player_actions_nb(prev: np.ndarray, moves: np.ndarray, width: float, height:
 
 
 __all__ = ["detect_sparse_nb", "found_nb", "heading_rule_nb", "look_information_nb",
-           "jsfp_steps_nb", "pair_terms_kept_nb", "pair_terms_nb", "player_actions_nb",
-           "pose_rows_nb"]
+           "jsfp_steps_nb", "pair_terms_nb", "player_actions_nb",
+           "player_pair_terms_nb", "pose_rows_nb"]

@@ -45,7 +45,7 @@ from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, heading_rule_scalar, wrap_angle
 from ._search_nb import (detect_sparse_nb, found_nb, jsfp_steps_nb, look_information_nb,
-                         pair_terms_kept_nb, pair_terms_nb, player_actions_nb, pose_rows_nb)
+                         player_actions_nb, player_pair_terms_nb, pose_rows_nb)
 from .cells import candidate_chains, detection
 from .information import (BACKEND, Context, chain_information, covariance_recursion,
                           cv_form, measured, phi_terms, sum_by_target, target_information)
@@ -57,6 +57,9 @@ if TYPE_CHECKING:  # pragma: no cover
 
 #: Headings closer than this (rad) are the same heading (sector deduplication).
 HEADING_TOL = 1e-12
+#: No earlier terms (player_pair_terms_nb's arguments without them).
+_NO_BASE = np.zeros((0, 0, 2, 2))
+_NO_TERMS = np.zeros((0, 0))
 
 
 def sector_bearings(n_sectors: int) -> FloatArray:
@@ -726,12 +729,12 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
     A, L = tgt.shape
     if ctx.M == 0:
         return np.zeros(A)
-    others = plan.targets.copy()
-    others[i, k - 1:] = -1
     got = memo.get("track_looks")
     W = (got if got is not None else _plan_track_looks(sctx, plan, headings))[0]
-    base = sum_by_target(ctx, W, others)                            # (M, T, 2, 2)
     if BACKEND == "numpy":
+        others = plan.targets.copy()
+        others[i, k - 1:] = -1
+        base = sum_by_target(ctx, W, others)                        # (M, T, 2, 2)
         base_terms = _target_terms(ctx, base, np.arange(ctx.M))
         return pair_terms_numpy(ctx, base, base_terms, tgt, w, k).sum(axis=1)
     arrays = sctx.memo.get("pair_arrays")
@@ -742,19 +745,15 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
             np.ascontiguousarray(ctx.problem.covs, dtype=float), ctx.F,
             np.ascontiguousarray(ctx.Q, dtype=float), cumulative, *cv_form(ctx.F),
             np.ascontiguousarray(ld_ref), np.ascontiguousarray(ctx.existence, dtype=float))
-    P0, F, Q, cumulative, cv, dt, ld_ref, existence = arrays
     # The player's last terms with the same candidate chains: a target's terms depend on its
     # others' information only, and a JSFP iteration's moves change a few targets' of it.
     kept = sctx.memo.setdefault("pair_terms", {})
     prev = kept.get((i, k))
-    if prev is not None and prev[0] is tgt and prev[1] is w:
-        todo = (base.view(np.int64) != prev[2].view(np.int64)).reshape(ctx.M, -1).any(axis=1)
-        terms = (pair_terms_kept_nb(base, np.ascontiguousarray(tgt), w, k - 1, P0, F, Q,
-                                    cumulative, cv, dt, ld_ref, existence, todo, prev[3])
-                 if todo.any() else prev[3])
-    else:
-        terms = pair_terms_nb(base, np.ascontiguousarray(tgt), w, k - 1, P0, F, Q, cumulative,
-                              cv, dt, ld_ref, existence)
+    has = prev is not None and prev[0] is tgt and prev[1] is w
+    terms, base = player_pair_terms_nb(
+        W, np.ascontiguousarray(plan.targets, dtype=np.int64), int(i), k - 1,
+        np.ascontiguousarray(tgt), w, *arrays, has, prev[2] if has else _NO_BASE,
+        prev[3] if has else _NO_TERMS)
     kept[(i, k)] = (tgt, w, base, terms)
     return terms.sum(axis=1)
 
