@@ -808,9 +808,9 @@ def _track_looks(sctx: SearchContext, plan: Plan, headings: FloatArray
                  ) -> tuple[FloatArray, IntArray]:
     ctx = sctx.ctx
     N, K = ctx.N, ctx.K
-    W = np.zeros((N * K, ctx.e, 2, 2))
-    counted = np.zeros((N * K, ctx.e), dtype=bool)
     if BACKEND == "numpy":
+        W = np.zeros((N * K, ctx.e, 2, 2))
+        counted = np.zeros((N * K, ctx.e), dtype=bool)
         track = plan.targets >= 0
         for n in range(N):
             if track[n].any():
@@ -820,22 +820,24 @@ def _track_looks(sctx: SearchContext, plan: Plan, headings: FloatArray
                                          np.maximum(plan.targets[n], 0)[None])
                 W[n * K:(n + 1) * K] = np.where(track[n][:, None, None, None], w[0], 0.0)
                 counted[n * K:(n + 1) * K] = c[0] & track[n][:, None]
-    else:
-        # By sensor, kept in its part of the plan: a sensor's looks depend on its part only.
-        parts = _sensor_parts(sctx, plan)
-        for n in range(N):
-            got = parts[n].get("track")
-            if got is None:
-                Wn = np.zeros((K, ctx.e, 2, 2))
-                weight = np.zeros((K, ctx.e))
-                look_information_nb(ctx.radar, np.full(K, n), ctx.buildings, ctx.xbar,
-                                    ctx.Cbar, np.ascontiguousarray(plan.positions[n]),
-                                    np.ascontiguousarray(headings[n]),
-                                    np.ascontiguousarray(plan.targets[n]),
-                                    np.arange(1, K + 1), ctx.probabilistic, Wn, weight)
-                got = parts[n]["track"] = (Wn, weight > 0)
-            W[n * K:(n + 1) * K], counted[n * K:(n + 1) * K] = got
-    return W.reshape(N, K, ctx.e, 2, 2), counted.sum(axis=-1).reshape(N, K)
+        return W.reshape(N, K, ctx.e, 2, 2), counted.sum(axis=-1).reshape(N, K)
+    # By sensor, kept in its part of the plan: a sensor's looks depend on its part only.
+    parts = _sensor_parts(sctx, plan)
+    pieces = []
+    for n in range(N):
+        got = parts[n].get("track")
+        if got is None:
+            Wn = np.zeros((K, ctx.e, 2, 2))
+            weight = np.zeros((K, ctx.e))
+            look_information_nb(ctx.radar, np.full(K, n), ctx.buildings, ctx.xbar,
+                                ctx.Cbar, np.ascontiguousarray(plan.positions[n]),
+                                np.ascontiguousarray(headings[n]),
+                                np.ascontiguousarray(plan.targets[n]),
+                                np.arange(1, K + 1), ctx.probabilistic, Wn, weight)
+            got = parts[n]["track"] = (Wn, (weight > 0).sum(axis=-1))
+        pieces.append(got)
+    return (np.concatenate([p[0] for p in pieces]).reshape(N, K, ctx.e, 2, 2),
+            np.concatenate([p[1] for p in pieces]).reshape(N, K))
 
 
 def with_action(plan: Plan, i: int, k: int, position: FloatArray, target: int,
