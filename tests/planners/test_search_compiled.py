@@ -14,8 +14,9 @@ import search_game_reference
 import search_reference
 from sensorplan.models.angles import heading_rule, heading_rule_scalar, wrap_angle, wrap_scalar
 from sensorplan.planners import make_planner, search
-from sensorplan.planners._search_nb import (found_nb, heading_rule_nb, look_information_nb,
-                                            pair_terms_nb)
+from sensorplan.planners._search_nb import (found_nb, heading_rule_nb, jsfp_steps_nb,
+                                            look_information_nb, pair_terms_nb,
+                                            player_pair_terms_nb)
 from sensorplan.planners.contract_problems import paper_problem, searching
 from sensorplan.planners.information import chain_information, cv_form
 from sensorplan.planners.problem import PlanningProblem
@@ -103,13 +104,15 @@ def test_look_information_is_chain_informations(name: str, problem: PlanningProb
             th = rng.uniform(-np.pi, np.pi, B)
             tgt = rng.integers(-1, ctx.M, B)
             W = np.full((B, ctx.e, 2, 2), 7.0)
+            weight = np.full((B, ctx.e), 7.0)
             look_information_nb(ctx.radar, np.full(B, i), ctx.buildings, ctx.xbar, ctx.Cbar,
-                                pos, th, tgt, np.full(B, kk), ctx.probabilistic, W)
-            want, _ = chain_information(ctx, i, kk, pos[:, None], th[:, None],
-                                        np.maximum(tgt, 0)[:, None])
+                                pos, th, tgt, np.full(B, kk), ctx.probabilistic, W, weight)
+            want, counted = chain_information(ctx, i, kk, pos[:, None], th[:, None],
+                                              np.maximum(tgt, 0)[:, None])
             track = tgt >= 0
             np.testing.assert_array_equal(W[track], want[track, 0])
-            assert np.all(W[~track] == 7.0)
+            np.testing.assert_array_equal(weight[track] > 0, counted[track, 0])
+            assert np.all(W[~track] == 7.0) and np.all(weight[~track] == 7.0)
 
 
 @pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
@@ -185,3 +188,281 @@ def test_found_of_a_batch_is_each_candidates_alone(name: str, problem: PlanningP
                     miss[a, k - 1 + l, idx] *= 1.0 - val
             np.testing.assert_allclose(batch, search.expected_found(sctx, miss), rtol=1e-12,
                                        atol=1e-12)
+
+
+def numpy_player_actions(sctx: search.SearchContext, plan, i: int, k: int) -> tuple:
+    """Player (i, k)'s actions from :func:`search.sector_actions` and
+    :func:`search.player_positions` (the numpy steps :func:`player_actions_nb` replaces)."""
+    if k == 1:
+        prev_h, prev_ok = float(sctx.ctx.problem.headings[i]), True
+    else:
+        prev_ok = bool(plan.assigned[i, k - 2])
+        prev_h = float(search.plan_headings(sctx, plan)[i, k - 2]) if prev_ok else 0.0
+    sectors = search.sector_actions(sctx, i, k, prev_h, prev_ok)
+    pos = search.player_positions(sctx, plan, i, k)
+    M = sctx.ctx.M
+    looks_t = np.concatenate([np.arange(M), np.full(sectors.size, -1)])
+    looks_s = np.concatenate([np.full(M, -1), sectors])
+    return (np.repeat(pos, looks_t.size, axis=0), np.tile(looks_t, len(pos)),
+            np.tile(looks_s, len(pos)))
+
+
+@pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
+def test_player_actions_are_those_of_the_numpy_steps(name: str,
+                                                     problem: PlanningProblem) -> None:
+    """:func:`player_actions_nb` (through :func:`search.player_actions`) gives every player's
+    actions of random and partial plans as :func:`search.sector_actions` and
+    :func:`search.player_positions` do, bit for bit: positions at the map's edge, sector
+    headings the turn limit merges, unassigned neighbouring epochs."""
+    rng = np.random.default_rng(11)
+    sctx = search.prepare(problem)
+    plans = []
+    for _ in range(6):
+        plan = search.random_plan(sctx, rng)
+        N, K = plan.targets.shape
+        off = np.arange(K)[None, :] >= rng.integers(0, K + 1, N)[:, None]
+        off |= rng.random((N, K)) < 0.2
+        plans.append(type(plan)(np.where(off[..., None], np.nan, plan.positions),
+                                np.where(off, -1, plan.targets), np.where(off, -1, plan.sectors)))
+    # Sensors on the map's corners and edges: moves that leave the map.
+    edge = search.random_plan(sctx, rng)
+    corners = np.array([[0.0, 0.0], [problem.world.width, 0.5 * problem.world.height],
+                        [-0.0, problem.world.height]])
+    pos = edge.positions.copy()
+    pos[:, 0] = corners[np.arange(len(pos)) % 3]
+    plans.append(type(edge)(pos, edge.targets, edge.sectors))
+    n_merged = n_cut = 0
+    for plan in plans:
+        for i in range(sctx.ctx.N):
+            for k in range(1, sctx.ctx.K + 1):
+                got = search.player_actions(dataclasses.replace(sctx, memo={}), plan, i, k)
+                want = numpy_player_actions(sctx, plan, i, k)
+                for g, w in zip(got, want):
+                    assert g.dtype == w.dtype and g.shape == w.shape
+                    assert g.tobytes() == w.tobytes()
+                n_sec = int(np.unique(want[2][want[2] >= 0]).size)
+                n_merged += n_sec < sctx.bearings[i].size
+                n_pos = len(np.unique(want[0], axis=0))
+                n_cut += n_pos < len(search.move_vectors(problem.sensors[i].moves))
+    assert n_merged > 0 and n_cut > 0
+
+
+@pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
+def test_evaluate_from_the_kept_looks_is_the_numpy_definition(
+        name: str, problem: PlanningProblem, monkeypatch: pytest.MonkeyPatch) -> None:
+    """:func:`search.evaluate` from the compiled track information and the look pool gives
+    the plain-numpy definition's Phi, information, mu, headings and measurements bit for
+    bit, on random and partial plans (a decision's pool shared by the plans)."""
+    rng = np.random.default_rng(12)
+    sctx = search.prepare(problem)
+    plans = []
+    for _ in range(8):
+        plan = search.random_plan(sctx, rng)
+        N, K = plan.targets.shape
+        off = rng.random((N, K)) < 0.3
+        plans.append(type(plan)(np.where(off[..., None], np.nan, plan.positions),
+                                np.where(off, -1, plan.targets), np.where(off, -1, plan.sectors)))
+    plans.append(make_planner("pg").plan(problem, rng=0).plan)
+    for plan in plans:
+        got = search.evaluate(sctx, plan)
+        monkeypatch.setattr(search, "BACKEND", "numpy")
+        want = search.evaluate(dataclasses.replace(sctx, memo={}), plan)
+        monkeypatch.setattr(search, "BACKEND", "numba")
+        assert got.potential == want.potential and got.found == want.found
+        for g, w in ((got.information, want.information), (got.headings, want.headings),
+                     (got.measurements, want.measurements)):
+            assert g.dtype == w.dtype and g.shape == w.shape
+            np.testing.assert_array_equal(g, w)
+            assert g.tobytes() == w.tobytes() or np.isnan(w).any()
+
+
+@pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
+def test_found_of_one_look_is_the_general_paths(name: str, problem: PlanningProblem) -> None:
+    """mu of candidates whose chain has one look (the kernel's direct path) equals, bit for
+    bit, mu of the same chains with a second look that covers no cell (the general path,
+    each cell's cover counted)."""
+    sctx = search.prepare(problem)
+    ctx = sctx.ctx
+    rng = np.random.default_rng(13)
+    plan = search.random_plan(sctx, rng)
+    headings = search.plan_headings(sctx, plan)
+    pool = search._pool(sctx)
+    n_look, k_look = np.nonzero(plan.assigned)
+    row = np.concatenate([pool.rows(sctx, int(n), plan.positions[n, k_look[n_look == n]],
+                                    headings[n, k_look[n_look == n]])
+                          for n in np.unique(n_look)])
+    for i in range(ctx.N):
+        empty = pool.rows(sctx, i, np.array([[1e7, 1e7]]), np.array([0.0]))[0]
+        assert pool.row(int(empty))[0].size == 0
+        pos, tgt, sec = search.player_actions(sctx, plan, i, 1)
+        chains = search.candidate_chains(sctx, plan, i, 1, pos, tgt, sec, headings)
+        first = pool.rows(sctx, i, chains[0][:, 0], chains[3][:, 0])
+        args = (sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, 0, i, n_look, k_look, row)
+        epochs = np.array([0, 1], dtype=np.int64)
+        one = np.stack([first, np.full_like(first, -1)], axis=1)
+        two = np.stack([first, np.full_like(first, empty)], axis=1)
+        got = found_nb(*args, one, epochs, *pool.arrays())
+        want = found_nb(*args, two, epochs, *pool.arrays())
+        np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+        assert got.size and np.isfinite(got).all()
+
+
+def test_jsfp_steps_are_the_numpy_update_and_best_index() -> None:
+    """:func:`jsfp_steps_nb` updates each player's running average as
+    ``(t - 1) / t * ubar + u / t`` does and picks the actions :func:`search.best_index`
+    picks, bit for bit: ties within the tolerance, the current action kept, values near 1
+    and far from it, NaN."""
+    rng = np.random.default_rng(14)
+    for trial in range(100):
+        sizes = rng.integers(1, 40, int(rng.integers(1, 6)))
+        off = np.concatenate([[0], np.cumsum(sizes)])
+        us, ubars, currents = [], [], []
+        for n in sizes.tolist():
+            scale = float(rng.choice([1e-3, 1.0, 1e4]))
+            u = rng.normal(0.0, scale, n)
+            u[rng.random(n) < 0.3] = u.max() - rng.choice([0.0, 1e-13, 1e-11]) * max(1, scale)
+            if rng.random() < 0.05:
+                u[rng.integers(n)] = np.nan
+            us.append(u)
+            ubars.append(rng.normal(0.0, scale, n))
+            currents.append(int(rng.integers(-1, n)))
+        t = int(rng.integers(1, 30))
+        ubar = np.concatenate(ubars)
+        now, avg = jsfp_steps_nb(np.concatenate(us), ubar, off, t, np.array(currents),
+                                 search.TIE_TOL)
+        for p, (u, old, current) in enumerate(zip(us, ubars, currents)):
+            want_avg = (t - 1) / t * old + u / t
+            assert ubar[off[p]:off[p + 1]].tobytes() == want_avg.tobytes()
+            for got, arr in ((now[p], u), (avg[p], want_avg)):
+                try:
+                    want = search.best_index(arr, current)
+                except IndexError:
+                    want = -1
+                assert got == want
+
+
+@pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
+def test_a_players_terms_are_summed_information_and_pair_terms(
+        name: str, problem: PlanningProblem) -> None:
+    """:func:`player_pair_terms_nb` sums the others' information as
+    :func:`information.sum_by_target` does and gives :func:`pair_terms_nb`'s terms, bit for
+    bit, afresh and from its last call's terms when some of the others' looks changed."""
+    rng = np.random.default_rng(15)
+    sctx = search.prepare(problem)
+    ctx = sctx.ctx
+    cumulative = ctx.problem.objective == "cumulative"
+    ld_ref = ctx.ld_bar[:, 1:].sum(axis=-1) if cumulative else ctx.ld_bar[:, -1]
+    fixed = (np.ascontiguousarray(ctx.problem.covs), ctx.F, np.ascontiguousarray(ctx.Q),
+             cumulative, *cv_form(ctx.F), np.ascontiguousarray(ld_ref),
+             np.ascontiguousarray(ctx.existence))
+    for i in range(ctx.N):
+        for k in range(1, ctx.K + 1):
+            A, L = 40, ctx.K - k + 1
+            tgt = rng.integers(-1, ctx.M, (A, L))
+            G = rng.normal(0.0, 0.05, (A, L, ctx.e, 2, 2))
+            w = np.where((tgt >= 0)[..., None, None, None], G @ np.swapaxes(G, -1, -2), 0.0)
+            prev = None
+            for step in range(4):
+                targets = rng.integers(-1, ctx.M, (ctx.N, ctx.K))
+                G = rng.normal(0.0, 0.05, (ctx.N, ctx.K, ctx.e, 2, 2))
+                W = np.where((targets >= 0)[..., None, None, None], G @ np.swapaxes(G, -1, -2),
+                             0.0)
+                if prev is not None and step % 2:
+                    # Only some of the others' looks move: their targets' terms change.
+                    keep = rng.random((ctx.N, ctx.K)) < 0.7
+                    targets = np.where(keep, prev_targets, targets)
+                    W = np.where(keep[..., None, None, None], prev_W, W)
+                others = targets.copy()
+                others[i, k - 1:] = -1
+                base = search.sum_by_target(ctx, W, others)
+                want = pair_terms_nb(base, tgt, w, k - 1, *fixed)
+                has = prev is not None
+                got, got_base = player_pair_terms_nb(
+                    W, targets, i, k - 1, tgt, w, *fixed, has,
+                    prev[1] if has else np.zeros((0, 0, 2, 2)),
+                    prev[0] if has else np.zeros((0, 0)))
+                assert got_base.tobytes() == base.tobytes()
+                np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+                prev, prev_targets, prev_W = (got, got_base), targets, W
+
+
+def found_in_order(args: tuple, rows: np.ndarray, epochs: np.ndarray, pool) -> np.ndarray:
+    """mu of each candidate as :func:`found_nb` defines its order, in plain Python: the
+    others' misses, mu before k0, each cell's tail; then per candidate the cells in the
+    order they first appear look by look, each cell's change from its tail with the chain's
+    misses there, summed in that order."""
+    from sensorplan.planners._search_nb import _cell_tail
+
+    d0, births, survival, e, K, k0, player, n_look, k_look, row = args
+    C = len(d0)
+    miss = np.ones((K, C))
+    for q in range(len(row)):
+        if n_look[q] == player and k_look[q] >= k0:
+            continue
+        idx, val = pool.row(int(row[q]))
+        for c, v in zip(idx.tolist(), val.tolist()):
+            miss[k_look[q], c] *= 1.0 - v
+    d_k0, mu_pre = d0.copy(), 0.0
+    for kk in range(k0):
+        for c in range(C):
+            d, m = d_k0[c], miss[kk, c]
+            for _ in range(e):
+                d = survival * d + births[c]
+                mu_pre += d * (1.0 - m)
+                d = d * m
+            d_k0[c] = d
+    L = K - k0
+    tail = np.array([_cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, np.ones(L))
+                     for c in range(C)])
+    tail_sum = 0.0
+    for c in range(C):
+        tail_sum += tail[c]
+    base = mu_pre + tail_sum
+    out = np.empty(len(rows))
+    for a in range(len(rows)):
+        chain: dict[int, np.ndarray] = {}
+        for l in range(rows.shape[1]):
+            if rows[a, l] < 0:
+                continue
+            idx, val = pool.row(int(rows[a, l]))
+            for c, v in zip(idx.tolist(), val.tolist()):
+                chain.setdefault(c, np.ones(L))[epochs[l] - k0] = 1.0 - v
+        delta = 0.0
+        for c, ch in chain.items():                  # first appearance, look by look
+            delta += _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, ch) - tail[c]
+        out[a] = base + delta
+    return out
+
+
+@pytest.mark.parametrize("name,problem", DECISIONS[1:], ids=[n for n, _ in DECISIONS[1:]])
+def test_found_is_its_order_in_plain_python(name: str, problem: PlanningProblem) -> None:
+    """found_nb's mu (one-look chains by the direct path, several looks by the first look's
+    cells first) equals the plain-Python sum in its defining order bit for bit, on plans
+    whose later epochs are assigned (chains of several looks that overlap) and not."""
+    sctx = search.prepare(problem)
+    ctx = sctx.ctx
+    rng = np.random.default_rng(17)
+    pool = search._pool(sctx)
+    for trial in range(2):
+        plan = search.random_plan(sctx, rng)
+        if trial:
+            plan = type(plan)(plan.positions, np.where(np.arange(ctx.K) >= 2, -1, plan.targets),
+                              np.where(np.arange(ctx.K) >= 2, -1, plan.sectors))
+        headings = search.plan_headings(sctx, plan)
+        n_look, k_look = np.nonzero(plan.assigned)
+        row = np.concatenate([pool.rows(sctx, int(n), plan.positions[n, k_look[n_look == n]],
+                                        headings[n, k_look[n_look == n]])
+                              for n in np.unique(n_look)])
+        for i in range(min(ctx.N, 2)):
+            for k in range(1, ctx.K + 1):
+                pos, tgt, sec = search.player_actions(sctx, plan, i, k)
+                chains = search.candidate_chains(sctx, plan, i, k, pos, tgt, sec, headings)
+                ls = [l for l in range(ctx.K - k + 1) if l == 0 or chains[2][0, l]]
+                rows = np.stack([pool.rows(sctx, i, chains[0][:, l], chains[3][:, l])
+                                 for l in ls], axis=1)
+                epochs = np.array(ls, dtype=np.int64) + (k - 1)
+                args = (sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, i,
+                        np.ascontiguousarray(n_look), np.ascontiguousarray(k_look), row)
+                got = found_nb(*args, rows, epochs, *pool.arrays())
+                want = found_in_order(args, rows, epochs, pool)
+                np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))

@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 import search_reference
+from sensorplan.models.sensors import FOV
 from sensorplan.planners import make_planner, search
+from sensorplan.planners._search_nb import detect_sparse_nb
 from sensorplan.planners.contract_problems import paper_problem, searching, tiny_problem
 from sensorplan.planners.problem import Plan, PlanningProblem
 
@@ -125,3 +127,56 @@ def test_the_look_pool_keeps_each_pose_once(kind: str) -> None:
         got = np.zeros(len(sctx.centres))
         got[idx] = val
         np.testing.assert_array_equal(got, dense[b])
+
+
+@pytest.mark.parametrize("kind", ["ideal", "swerling1 behind buildings"])
+def test_looks_from_one_position_are_the_dense_detection(kind: str) -> None:
+    """Runs of looks from one position (the position's part of the radar's tests computed
+    once) give :func:`search.detection`'s values bit for bit: many headings per position,
+    signed zeros, positions on cell centres and cells on the band's and wedge's edges."""
+    rng = np.random.default_rng(4)
+    problem = searching(paper_problem(rng, horizon=2), rng, 12, cells=16)
+    if kind != "ideal":
+        problem = dataclasses.replace(problem, buildings=TOWN, sensors=tuple(
+            dataclasses.replace(s, detection="swerling1") for s in problem.sensors))
+    sctx = search.prepare(problem)
+    centres = sctx.centres
+    spots = np.concatenate([rng.uniform(0.0, 600.0, (6, 2)), centres[[0, 37, 100]],
+                            [[0.0, 300.0], [-0.0, 300.0], [0.0, -0.0]]])
+    xy = np.repeat(spots, 40, axis=0)
+    h = np.concatenate([rng.uniform(-np.pi, np.pi, 30), [0.0, -0.0, np.pi, -np.pi],
+                        np.arange(6) * np.pi / 3] * len(spots))
+    # Headings that put cells on the wedge's edges.
+    g = centres[None, 5] - spots[:, None]
+    edge = np.arctan2(g[..., 1], g[..., 0])[:, 0] + float(sctx.ctx.radar[0][FOV])
+    h[::40] = edge
+    counts, idx, val = detect_sparse_nb(sctx.ctx.radar[0], centres, xy, h,
+                                        sctx.ctx.buildings)
+    dense = search.detection(sctx, 0, xy, h)
+    starts = np.concatenate([[0], np.cumsum(counts)])
+    for b in range(len(h)):
+        got = np.zeros(len(centres))
+        got[idx[starts[b]:starts[b + 1]]] = val[starts[b]:starts[b + 1]]
+        np.testing.assert_array_equal(got, dense[b])
+        assert np.all(np.diff(idx[starts[b]:starts[b + 1]]) > 0)
+    assert (dense > 0).any()
+
+
+def test_the_look_pool_keeps_its_rows_when_its_table_grows() -> None:
+    """Poses entered before the pose table grows keep their rows; every pose is found again,
+    a signed zero's pose is another pose (as the bytes of a pose are)."""
+    rng = np.random.default_rng(5)
+    problem = searching(paper_problem(rng, horizon=2), rng, 12, cells=8)
+    sctx = search.prepare(problem)
+    pool = search._pool(sctx)
+    batches = [(rng.integers(0, 3), rng.uniform(0.0, 600.0, (700, 2)),
+                rng.uniform(-np.pi, np.pi, 700)) for _ in range(8)]
+    first = [pool.rows(sctx, int(n), xy, h) for n, xy, h in batches]
+    assert pool.n_rows == 8 * 700 and len(pool.vals) >= 2 * pool.n_rows
+    np.testing.assert_array_equal(np.concatenate(first), np.arange(8 * 700))
+    for (n, xy, h), rows in zip(batches[::-1], first[::-1]):
+        np.testing.assert_array_equal(pool.rows(sctx, int(n), xy, h), rows)
+    assert pool.n_rows == 8 * 700
+    zero = pool.rows(sctx, 0, np.array([[0.0, 100.0], [-0.0, 100.0], [0.0, 100.0]]),
+                     np.array([0.0, 0.0, -0.0]))
+    assert len(set(zero.tolist())) == 3 and pool.n_rows == 8 * 700 + 3

@@ -16,15 +16,14 @@ import math
 import numpy as np
 
 from .._compiled.jit import njit
-from ._chains_nb import logdet4, predict_step, update_step
-from ..models.radar.model import (ANGLE_TOL, RANGE_TOL, detection_probability, hidden, look,
-                                  visible)
-from ..models.sensors import ALTITUDE, ALTITUDE2, FOV, G_MAX, G_MIN
+from ._chains_nb import logdet4, predict_step, sum_by_target_nb, update_step
+from ..models.radar.model import (ANGLE_TOL, cos_psi, detection_probability, hidden, in_band,
+                                  in_wedge, look, wrap)
+from ..models.sensors import ALTITUDE, ALTITUDE2, FOV
 
-#: Margins (m, and on the cosine of the wedge's half-angle) outside which a cell is certainly
-#: not visible: many orders of magnitude above the rounding of the radar's own tests, so a
-#: cell they skip is one :func:`~sensorplan.models.radar.model.visible` rejects too.
-_BAND_MARGIN = 1e-6
+#: Margin on the cosine of the wedge's half-angle outside which a cell is certainly not
+#: visible: many orders of magnitude above the rounding of the radar's own tests, so a cell
+#: it skips is one :func:`~sensorplan.models.radar.model.visible` rejects too.
 _WEDGE_MARGIN = 1e-9
 
 
@@ -121,7 +120,7 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
     out = np.empty(A)
     chain = np.ones((C, L))
     stamp = np.full(C, -1, dtype=np.int64)
-    cells = np.empty(C, dtype=np.int64)
+    done = np.full(C, -1, dtype=np.int64)
     covered = np.zeros(C, dtype=np.int64)
     slot = np.zeros(C, dtype=np.int64)
     kept_miss = np.full((C, L), np.nan)
@@ -129,8 +128,38 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
     for a in range(A):
         if rep[a] != a:
             continue
-        nc = 0
+        # One look: every cell it covers is covered once, in the row's order.
+        one = -1
         for l in range(n):
+            if look_row[a, l] >= 0:
+                one = l if one == -1 else -2
+        if one >= 0:
+            r = look_row[a, one]
+            kl = look_epoch[one] - k0
+            delta = 0.0
+            for q in range(row_off[r], row_off[r + 1]):
+                c = row_idx[q]
+                m = 1.0 - row_val[q]
+                if kept_miss[c, kl] != m:
+                    chain[c, kl] = m
+                    kept_delta[c, kl] = _cell_tail(d_k0[c], births[c], survival, e, miss, k0,
+                                                   c, chain[c]) - tail[c]
+                    kept_miss[c, kl] = m
+                    chain[c, kl] = 1.0
+                delta += kept_delta[c, kl]
+            out[a] = base + delta
+            continue
+        if one == -1:                    # no look
+            out[a] = base + 0.0
+            continue
+        # Several looks. The cells in the order they first appear, look by look: the first
+        # look's in its row's order, then each later look's not seen before. The later
+        # looks' cells are counted first, so that a first look's cell no later look covers
+        # takes the direct path.
+        f = 0
+        while look_row[a, f] < 0:
+            f += 1
+        for l in range(f + 1, n):
             r = look_row[a, l]
             if r < 0:
                 continue
@@ -139,32 +168,112 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
                 c = row_idx[q]
                 if stamp[c] != a:
                     stamp[c] = a
-                    cells[nc] = c
-                    nc += 1
                     covered[c] = 0
                 covered[c] += 1
                 slot[c] = kl
                 chain[c, kl] = 1.0 - row_val[q]
         delta = 0.0
-        for q in range(nc):
-            c = cells[q]
-            if covered[c] == 1:
-                kl = slot[c]
-                m = chain[c, kl]
-                if kept_miss[c, kl] != m:
-                    kept_delta[c, kl] = _cell_tail(d_k0[c], births[c], survival, e, miss, k0,
+        r = look_row[a, f]
+        kf = look_epoch[f] - k0
+        for q in range(row_off[r], row_off[r + 1]):
+            c = row_idx[q]
+            m = 1.0 - row_val[q]
+            if stamp[c] != a:
+                if kept_miss[c, kf] != m:
+                    chain[c, kf] = m
+                    kept_delta[c, kf] = _cell_tail(d_k0[c], births[c], survival, e, miss, k0,
                                                    c, chain[c]) - tail[c]
-                    kept_miss[c, kl] = m
-                delta += kept_delta[c, kl]
-                chain[c, kl] = 1.0
+                    kept_miss[c, kf] = m
+                    chain[c, kf] = 1.0
+                delta += kept_delta[c, kf]
             else:
+                chain[c, kf] = m
                 delta += _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, chain[c]) \
                     - tail[c]
                 chain[c, :] = 1.0
+                done[c] = a
+        for l in range(f + 1, n):
+            r = look_row[a, l]
+            if r < 0:
+                continue
+            for q in range(row_off[r], row_off[r + 1]):
+                c = row_idx[q]
+                if done[c] == a:
+                    continue
+                done[c] = a
+                if covered[c] == 1:
+                    kl = slot[c]
+                    m = chain[c, kl]
+                    if kept_miss[c, kl] != m:
+                        kept_delta[c, kl] = _cell_tail(d_k0[c], births[c], survival, e, miss,
+                                                       k0, c, chain[c]) - tail[c]
+                        kept_miss[c, kl] = m
+                    delta += kept_delta[c, kl]
+                    chain[c, kl] = 1.0
+                else:
+                    delta += _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c,
+                                        chain[c]) - tail[c]
+                    chain[c, :] = 1.0
         out[a] = base + delta
     for a in range(A):
         out[a] = out[rep[a]]
     return out
+
+
+@njit(cache=True)
+def _pose_slot(keys: np.ndarray, sensor: int, bits: np.ndarray) -> int:
+    """The slot of ``(sensor, bits)`` in the open-addressing table ``keys (cap, 4)`` (a free
+    slot, ``keys[s, 0] == -1``, if absent); ``cap`` a power of two."""
+    mask = keys.shape[0] - 1
+    # FNV-style mixing in wrapping int64 arithmetic (constants kept below 2**63: a uint64
+    # would make numba's mixed arithmetic float).
+    h = (sensor + 1) * -7046029254386353131
+    for q in range(3):
+        h = (h ^ bits[q]) * 1099511628211
+        h ^= h >> 29
+    s = h & mask
+    while True:
+        if keys[s, 0] == -1:
+            return s
+        if (keys[s, 0] == sensor and keys[s, 1] == bits[0] and keys[s, 2] == bits[1]
+                and keys[s, 3] == bits[2]):
+            return s
+        s = (s + 1) & mask
+
+
+@njit(cache=True)
+def pose_rows_nb(keys: np.ndarray, vals: np.ndarray, sensor: int, bits: np.ndarray,
+                 n_rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """Rows of a look pool by pose: each of B poses' row, new poses numbered from ``n_rows``
+    in the order of their first look, and entered in the table.
+
+    Parameters
+    ----------
+    keys : (cap, 4) int   the table (``-1`` in column 0: free), at most half full after the
+                          call (the caller grows it);  vals : (cap,) int   the rows
+    bits : (B, 3) int     each pose's x, y and heading as their float64 bits (poses are the
+                          same when their bits are: the equality of their bytes)
+
+    Returns
+    -------
+    rows : (B,);  first : (n_new,) the batch index of each new pose's first look
+    """
+    B = bits.shape[0]
+    rows = np.empty(B, dtype=np.int64)
+    first = np.empty(B, dtype=np.int64)
+    n_new = 0
+    for b in range(B):
+        s = _pose_slot(keys, sensor, bits[b])
+        if keys[s, 0] == -1:
+            keys[s, 0] = sensor
+            keys[s, 1] = bits[b, 0]
+            keys[s, 2] = bits[b, 1]
+            keys[s, 3] = bits[b, 2]
+            vals[s] = n_rows + n_new
+            first[n_new] = b
+            n_new += 1
+        rows[b] = vals[s]
+    return rows, first[:n_new].copy()
 
 
 @njit(cache=True, error_model="numpy")
@@ -172,8 +281,14 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
                      heading: np.ndarray, buildings: np.ndarray
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The non-zero ``P_d v`` of B looks of one sensor at the cell centres: the values of
-    :func:`~sensorplan.models.radar.batch.detectable_points` (the radar's tests, called
-    here), cells certainly outside the range band or the wedge skipped before its ``atan2``.
+    :func:`~sensorplan.models.radar.batch.detectable_points`, bit for bit.
+
+    :func:`~sensorplan.models.radar.model.visible`'s tests in its order, split by what they
+    depend on: the ground range, the band test, the bearing's ``atan2`` and the slant range
+    depend on the look's position only and are computed once for a run of looks from the
+    same position (a player's candidates are position-major; the ``atan2`` when a look
+    first needs it); the wedge and boresight tests, per heading. Cells certainly outside
+    the wedge are skipped before them.
 
     Parameters
     ----------
@@ -189,31 +304,56 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
     idx = np.empty(B * C, dtype=np.int64)
     val = np.empty(B * C)
     counts = np.zeros(B, dtype=np.int64)
-    g_hi = row[G_MAX] + RANGE_TOL + _BAND_MARGIN
-    g_lo = max(row[G_MIN] - RANGE_TOL - _BAND_MARGIN, 0.0)
     half = row[FOV] + ANGLE_TOL
     cut = math.cos(half) - _WEDGE_MARGIN if half < math.pi else -2.0
+    # The band's cells of the current position: cell, offsets, ground range, bearing and
+    # slant range (visible()'s g, atan2(dy, dx) and r).
+    band = np.empty(C, dtype=np.int64)
+    bdx, bdy, bg = np.empty(C), np.empty(C), np.empty(C)
+    bearing, slant = np.empty(C), np.empty(C)
+    nb = 0
+    sx, sy = math.nan, math.nan
     n = 0
     for b in range(B):
-        sx, sy = xy[b, 0], xy[b, 1]
-        ch, sh = math.cos(heading[b]), math.sin(heading[b])
-        for c in range(C):
-            dx = centres[c, 0] - sx
-            dy = centres[c, 1] - sy
-            g2 = dx * dx + dy * dy
-            if g2 > g_hi * g_hi or g2 < g_lo * g_lo:
-                continue                                 # certainly outside the band
-            if dx * ch + dy * sh < math.sqrt(g2) * cut:
+        # The same position to the bit (a signed zero is another position: its offsets
+        # could differ in their zeros' signs).
+        if b == 0 or not (xy[b, 0] == sx and xy[b, 1] == sy
+                          and math.copysign(1.0, xy[b, 0]) == math.copysign(1.0, sx)
+                          and math.copysign(1.0, xy[b, 1]) == math.copysign(1.0, sy)):
+            sx, sy = xy[b, 0], xy[b, 1]
+            nb = 0
+            for c in range(C):
+                dx = centres[c, 0] - sx
+                dy = centres[c, 1] - sy
+                g = math.sqrt(dx * dx + dy * dy)
+                if not in_band(row, g):
+                    continue
+                band[nb] = c
+                bdx[nb], bdy[nb], bg[nb] = dx, dy, g
+                bearing[nb] = math.nan           # its atan2 when a look first needs it
+                slant[nb] = math.sqrt(g * g + row[ALTITUDE2])
+                nb += 1
+        h = heading[b]
+        ch, sh = math.cos(h), math.sin(h)
+        for q in range(nb):
+            dx, dy = bdx[q], bdy[q]
+            if dx * ch + dy * sh < bg[q] * cut:
                 continue                                 # certainly outside the wedge
-            if visible(row, dx, dy, heading[b]) and (
-                    buildings.shape[0] == 0
-                    or not hidden(buildings, sx, sy, row[ALTITUDE], sx + dx, sy + dy)):
-                p = detection_probability(row, g2 + row[ALTITUDE2])
-                if p != 0.0:
-                    idx[n] = c
-                    val[n] = p
-                    n += 1
-                    counts[b] += 1
+            if math.isnan(bearing[q]):
+                bearing[q] = math.atan2(dy, dx)
+            if not in_wedge(row, wrap(bearing[q] - h)):
+                continue
+            if not cos_psi(row, dx, dy, ch, sh, slant[q]) > 0.0:
+                continue
+            if buildings.shape[0] and hidden(buildings, sx, sy, row[ALTITUDE], sx + dx,
+                                             sy + dy):
+                continue
+            p = detection_probability(row, dx * dx + dy * dy + row[ALTITUDE2])
+            if p != 0.0:
+                idx[n] = band[q]
+                val[n] = p
+                n += 1
+                counts[b] += 1
     return counts, idx[:n].copy(), val[:n].copy()
 
 
@@ -261,26 +401,82 @@ def pair_terms_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0:
     Every row (the others' of a target, or a (candidate, target looked at) pair's) runs
     :func:`~sensorplan.planners._chains_nb.covariance_recursion_nb`'s steps in its order,
     and the terms are :func:`~sensorplan.planners.information.phi_terms`'s, bit for bit. A
-    pair's row equals its target's before the chain's first step: the pairs continue from
-    the target's covariance there.
+    pair's row equals its target's before the chain's first look at the target: the pair
+    continues from the target's covariance there.
     """
+    out = np.empty((tgt.shape[0], base.shape[0]))
+    _pair_terms(base, tgt, w, k0, P0, F, Q, cumulative, cv, dt, ld_ref, existence,
+                np.ones(base.shape[0], dtype=np.bool_), out)
+    return out
+
+
+@njit(cache=True)
+def player_pair_terms_nb(W: np.ndarray, targets: np.ndarray, player: int, k0: int,
+                         tgt: np.ndarray, w: np.ndarray, P0: np.ndarray, F: np.ndarray,
+                         Q: np.ndarray, cumulative: bool, cv: bool, dt: float,
+                         ld_ref: np.ndarray, existence: np.ndarray, has_prev: bool,
+                         prev_base: np.ndarray, prev_terms: np.ndarray
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """A player's (sensor ``player``'s chain from epoch ``k0``) terms ``(A, M)`` in one
+    call: the others' information by target ``base (M, T, 2, 2)`` (every look's ``W (N, K,
+    e, 2, 2)`` but the chain's, summed as
+    :func:`~sensorplan.planners._chains_nb.sum_by_target_nb` does), then
+    :func:`pair_terms_nb`'s terms; with ``has_prev``, the player's last ``prev_terms`` with
+    the same candidates kept but for the targets whose row of ``base`` differs from
+    ``prev_base``'s in any bit (a target's terms depend on its own row only).
+
+    Returns
+    -------
+    terms (A, M), base (M, T, 2, 2)
+    """
+    others = targets.copy()
+    for k in range(k0, targets.shape[1]):
+        others[player, k] = -1
+    base = sum_by_target_nb(W, others, P0.shape[0])
+    M = base.shape[0]
+    todo = np.ones(M, dtype=np.bool_)
+    if has_prev:
+        flat, old = base.reshape(M, -1), prev_base.reshape(M, -1)
+        for j in range(M):
+            same = True
+            for q in range(flat.shape[1]):
+                x, y = flat[j, q], old[j, q]
+                if not (x == y and math.copysign(1.0, x) == math.copysign(1.0, y)):
+                    same = False
+                    break
+            todo[j] = not same
+        out = prev_terms.copy()
+    else:
+        out = np.empty((tgt.shape[0], M))
+    _pair_terms(base, tgt, w, k0, P0, F, Q, cumulative, cv, dt, ld_ref, existence, todo, out)
+    return out, base
+
+
+@njit(cache=True)
+def _pair_terms(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0: np.ndarray,
+                F: np.ndarray, Q: np.ndarray, cumulative: bool, cv: bool, dt: float,
+                ld_ref: np.ndarray, existence: np.ndarray, todo: np.ndarray,
+                out: np.ndarray) -> None:
+    """:func:`pair_terms_nb`'s terms of the targets ``todo`` into ``out (A, M)``."""
     A, L = tgt.shape
     M, T = base.shape[0], base.shape[1]
     e = w.shape[2]
     t0 = k0 * e                                  # the chain's first step
     shared_q = Q.shape[0] == 1
     FP = np.empty((4, 4))
-    # Each target: its covariance and sum of log-dets before t0, then the others' term.
-    P_t0 = np.empty((M, 4, 4))
-    sum_t0 = np.zeros(M)
+    # Each target: its covariance and sum of log-dets before each of the chain's epochs
+    # (a pair's row equals its target's before the chain's first look at it), then the
+    # others' term.
+    P_at = np.empty((M, L, 4, 4))
+    sum_at = np.zeros((M, L))
     measured_t0 = np.zeros(M, dtype=np.bool_)
-    out = np.empty((A, M))
     P = np.empty((4, 4))
     for j in range(M):
+        if not todo[j]:
+            continue
         qb = 0 if shared_q else j
         P[:, :] = P0[j]
-        sum_t0[j] = _run(P, base[j, :t0], 0, F, Q, qb, cv, dt, cumulative, 0.0, FP)
-        P_t0[j] = P
+        ld_sum = _run(P, base[j, :t0], 0, F, Q, qb, cv, dt, cumulative, 0.0, FP)
         measured = False
         for t in range(T):
             for r in range(2):
@@ -289,17 +485,23 @@ def pair_terms_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0:
                         measured = True
                         if t < t0:
                             measured_t0[j] = True
-        ld_sum = _run(P, base[j], t0, F, Q, qb, cv, dt, cumulative, sum_t0[j], FP)
+        for l in range(L):
+            P_at[j, l] = P
+            sum_at[j, l] = ld_sum
+            ld_sum = _run(P, base[j, :(k0 + l + 1) * e], (k0 + l) * e, F, Q, qb, cv, dt,
+                          cumulative, ld_sum, FP)
+        ld_sum = _run(P, base[j], (k0 + L) * e, F, Q, qb, cv, dt, cumulative, ld_sum, FP)
         info = 0.5 * (ld_ref[j] - (ld_sum if cumulative else logdet4(P)))
         term = _term(info, measured, existence[j])
         for a in range(A):
             out[a, j] = term
-    # Each (candidate, target looked at) pair, from the target's state at t0.
+    # Each (candidate, target looked at) pair, from the target's state before the chain's
+    # first look at it.
     row = np.empty((T, 2, 2))
     for a in range(A):
         for l in range(L):
             j = tgt[a, l]
-            if j < 0:
+            if j < 0 or not todo[j]:
                 continue
             seen = False
             for l2 in range(l):
@@ -322,21 +524,20 @@ def pair_terms_nb(base: np.ndarray, tgt: np.ndarray, w: np.ndarray, k0: int, P0:
                     for c in range(2):
                         if row[t, r, c] != 0.0:
                             measured = True
-            P[:, :] = P_t0[j]
-            ld_sum = _run(P, row, t0, F, Q, 0 if shared_q else j, cv, dt, cumulative,
-                          sum_t0[j], FP)
+            P[:, :] = P_at[j, l]
+            ld_sum = _run(P, row, (k0 + l) * e, F, Q, 0 if shared_q else j, cv, dt,
+                          cumulative, sum_at[j, l], FP)
             info = 0.5 * (ld_ref[j] - (ld_sum if cumulative else logdet4(P)))
             out[a, j] = _term(info, measured, existence[j])
-    return out
 
 
 @njit(cache=True, error_model="numpy")
 def look_information_nb(table: np.ndarray, sensor: np.ndarray, buildings: np.ndarray,
                         xbar: np.ndarray, Cbar: np.ndarray, pos: np.ndarray, th: np.ndarray,
                         tgt: np.ndarray, epoch: np.ndarray, probabilistic: bool,
-                        W: np.ndarray) -> None:
-    """Track information of B looks into ``W (B, e, 2, 2)`` (left as it is where ``tgt`` is
-    -1: a sector look or none).
+                        W: np.ndarray, weight: np.ndarray) -> None:
+    """Track information of B looks into ``W (B, e, 2, 2)`` and their weights ``p`` into
+    ``weight (B, e)`` (both left as they are where ``tgt`` is -1: a sector look or none).
 
     Parameters
     ----------
@@ -348,7 +549,8 @@ def look_information_nb(table: np.ndarray, sensor: np.ndarray, buildings: np.nda
 
     Each look at step t is the radar's :func:`~sensorplan.models.radar.model.look` of the
     target's predicted mean and covariance at t (the values of
-    :func:`~sensorplan.planners.information.chain_information`, bit for bit).
+    :func:`~sensorplan.planners.information.chain_information`, bit for bit; a look counts
+    where its weight is above 0).
     """
     e = W.shape[1]
     for b in range(tgt.shape[0]):
@@ -361,6 +563,7 @@ def look_information_nb(table: np.ndarray, sensor: np.ndarray, buildings: np.nda
             p, w00, w01, w11 = look(row, buildings, pos[b, 0], pos[b, 1],
                                     xbar[j, t, 0] - pos[b, 0], xbar[j, t, 1] - pos[b, 1], th[b],
                                     Cbar[j, t, 0], Cbar[j, t, 1], Cbar[j, t, 2], probabilistic)
+            weight[b, s] = p
             W[b, s, 0, 0] = w00
             W[b, s, 0, 1] = w01
             W[b, s, 1, 0] = w01
@@ -390,5 +593,151 @@ def heading_rule_nb(theta: np.ndarray, bearing: np.ndarray, max_turn: float) -> 
     return out
 
 
+@njit(cache=True, fastmath=False)
+def _best_nb(u: np.ndarray, current: int, tie_tol: float) -> int:
+    """:func:`~sensorplan.planners.search.best_index` (-1 where it finds none: a NaN)."""
+    top = u[0]
+    for a in range(1, u.shape[0]):
+        if not top >= u[a]:               # numpy's max: a NaN wins
+            if math.isnan(top):
+                break
+            top = u[a]
+    scale = abs(top)
+    floor = top - tie_tol * (scale if scale > 1.0 else 1.0)
+    if current >= 0 and u[current] >= floor:
+        return current
+    for a in range(u.shape[0]):
+        if u[a] >= floor:
+            return a
+    return -1
+
+
+@njit(cache=True, fastmath=False)
+def jsfp_steps_nb(u: np.ndarray, ubar: np.ndarray, off: np.ndarray, t: int,
+                  current: np.ndarray, tie_tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """Every player's step of a JSFP iteration: player p's utilities ``u[off[p]:off[p+1]]``
+    (the others' actions now) and running average ``ubar[off[p]:off[p+1]]`` (in place:
+    ``(t - 1) / t * ubar + u / t``); its best response to each (as
+    :func:`~sensorplan.planners.search.best_index` from ``current[p]``; -1: none).
+
+    Returns
+    -------
+    now, avg : (P,) int
+    """
+    P = off.shape[0] - 1
+    now = np.empty(P, dtype=np.int64)
+    avg = np.empty(P, dtype=np.int64)
+    keep = (t - 1) / t
+    for p in range(P):
+        lo, hi = off[p], off[p + 1]
+        for a in range(lo, hi):
+            ubar[a] = keep * ubar[a] + u[a] / t
+        now[p] = _best_nb(u[lo:hi], current[p], tie_tol)
+        avg[p] = _best_nb(ubar[lo:hi], current[p], tie_tol)
+    return now, avg
+
+
+@njit(cache=True)
+def _first_of_each_nb(same: np.ndarray) -> np.ndarray:
+    """:func:`~sensorplan.planners.search._first_of_each`: the items one pass in order keeps
+    unless the same as an item already kept (``same (n, n)``)."""
+    n = same.shape[0]
+    keep = np.empty(n, dtype=np.int64)
+    nk = 0
+    for s in range(n):
+        dup = False
+        for q in range(nk):
+            if same[s, keep[q]]:
+                dup = True
+                break
+        if not dup:
+            keep[nk] = s
+            nk += 1
+    return keep[:nk].copy()
+
+
+@njit(cache=True, fastmath=False)
+def player_actions_nb(prev: np.ndarray, moves: np.ndarray, width: float, height: float,
+                      tol: float, nxt: np.ndarray, has_next: bool, bearings: np.ndarray,
+                      theta: float, max_turn: float, heading_tol: float, M: int
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`~sensorplan.planners.search.player_actions` of a player, bit for bit.
+
+    Parameters
+    ----------
+    prev : (2,)          the position one move before (the start, or the previous epoch's)
+    moves : (m, 2)       the sensor's moves;  width, height, tol   the map and
+                         :data:`~sensorplan.planners.problem.POSITION_TOL`
+    nxt : (2,)           the next epoch's position, if ``has_next``
+    bearings : (S,)      the sector bearings;  theta, max_turn   the heading the sectors'
+                         headings turn from and by at most (the heading rule)
+    heading_tol : float  :data:`~sensorplan.planners.search.HEADING_TOL`;  M : int  tracks
+
+    Returns
+    -------
+    positions (A, 2), targets (A,), sectors (A,): position-major, tracks before sectors
+    """
+    m = moves.shape[0]
+    near = tol * 10
+    cand = np.empty((m, 2))
+    n = 0
+    for q in range(m):
+        x = prev[0] + moves[q, 0]
+        y = prev[1] + moves[q, 1]
+        if not (x >= -tol and x <= width + tol and y >= -tol and y <= height + tol):
+            continue
+        if has_next:
+            # numpy's max over the axes and min over the moves: a NaN anywhere fails.
+            lo = math.inf
+            nan = False
+            for r in range(m):
+                ex = abs(nxt[0] - x - moves[r, 0])
+                ey = abs(nxt[1] - y - moves[r, 1])
+                d = ex if (ex >= ey or math.isnan(ex)) else ey
+                if math.isnan(d):
+                    nan = True
+                elif d < lo:
+                    lo = d
+            if nan or not lo <= near:
+                continue
+        cand[n, 0] = x
+        cand[n, 1] = y
+        n += 1
+    same = np.empty((n, n), dtype=np.bool_)
+    for a in range(n):
+        for b in range(n):
+            # numpy's max with initial 0: NaN kept.
+            d = abs(cand[a, 0] - cand[b, 0])
+            d = d if (d >= 0.0 or math.isnan(d)) else 0.0
+            db = abs(cand[a, 1] - cand[b, 1])
+            d = d if (d >= db or math.isnan(d)) else db
+            same[a, b] = d <= near
+    keep = _first_of_each_nb(same)
+    S = bearings.shape[0]
+    if S:
+        h = heading_rule_nb(np.full(S, theta), bearings, max_turn)
+        hs = np.empty((S, S), dtype=np.bool_)
+        for a in range(S):
+            for b in range(S):
+                hs[a, b] = abs(_wrap(h[a] - h[b])) <= heading_tol
+        sectors = _first_of_each_nb(hs)
+    else:
+        sectors = np.zeros(0, dtype=np.int64)
+    n_look = M + sectors.shape[0]
+    A = keep.shape[0] * n_look
+    pos = np.empty((A, 2))
+    tgt = np.empty(A, dtype=np.int64)
+    sec = np.empty(A, dtype=np.int64)
+    for p in range(keep.shape[0]):
+        for l in range(n_look):
+            a = p * n_look + l
+            pos[a, 0] = cand[keep[p], 0]
+            pos[a, 1] = cand[keep[p], 1]
+            tgt[a] = l if l < M else -1
+            sec[a] = -1 if l < M else sectors[l - M]
+    return pos, tgt, sec
+
+
 __all__ = ["detect_sparse_nb", "found_nb", "heading_rule_nb", "look_information_nb",
-           "pair_terms_nb"]
+           "jsfp_steps_nb", "pair_terms_nb", "player_actions_nb",
+           "player_pair_terms_nb", "pose_rows_nb"]

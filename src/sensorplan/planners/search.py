@@ -44,7 +44,8 @@ from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, heading_rule_scalar, wrap_angle
-from ._search_nb import detect_sparse_nb, found_nb, look_information_nb, pair_terms_nb
+from ._search_nb import (detect_sparse_nb, found_nb, jsfp_steps_nb, look_information_nb,
+                         player_actions_nb, player_pair_terms_nb, pose_rows_nb)
 from .cells import candidate_chains, detection
 from .information import (BACKEND, Context, chain_information, covariance_recursion,
                           cv_form, measured, phi_terms, sum_by_target, target_information)
@@ -56,6 +57,9 @@ if TYPE_CHECKING:  # pragma: no cover
 
 #: Headings closer than this (rad) are the same heading (sector deduplication).
 HEADING_TOL = 1e-12
+#: No earlier terms (player_pair_terms_nb's arguments without them).
+_NO_BASE = np.zeros((0, 0, 2, 2))
+_NO_TERMS = np.zeros((0, 0))
 
 
 def sector_bearings(n_sectors: int) -> FloatArray:
@@ -146,24 +150,31 @@ def plan_headings(sctx: SearchContext, plan: Plan) -> FloatArray:
     limits (what is reachable in k epochs).
     """
     ctx = sctx.ctx
-    assert plan.sectors is not None
     out = np.full((ctx.N, ctx.K), np.nan)
-    # Python floats and lists: a plan is N K single looks.
-    assigned, positions = plan.assigned.tolist(), plan.positions.tolist()
-    targets, sectors = plan.targets.tolist(), plan.sectors.tolist()
     for i in range(ctx.N):
-        h, prev_ok = float(ctx.problem.headings[i]), True
-        theta0, turn = float(ctx.problem.headings[i]), float(ctx.max_turn[i])
-        for k in range(1, ctx.K + 1):
-            if not assigned[i][k - 1]:
-                prev_ok = False
-                continue
-            b = look_bearing(sctx, i, k, positions[i][k - 1], targets[i][k - 1],
-                             sectors[i][k - 1])
-            h = (heading_rule_scalar(h, b, turn) if prev_ok
-                 else heading_rule_scalar(theta0, b, k * turn))
-            out[i, k - 1] = h
-            prev_ok = True
+        out[i] = _sensor_headings(sctx, plan, i)
+    return out
+
+
+def _sensor_headings(sctx: SearchContext, plan: Plan, i: int) -> list[float]:
+    """Row i of :func:`plan_headings` (a sensor's headings depend on its own looks only)."""
+    ctx = sctx.ctx
+    assert plan.sectors is not None
+    out = [math.nan] * ctx.K
+    # Python floats and lists: a sensor's part of a plan is K single looks.
+    assigned, positions = plan.assigned[i].tolist(), plan.positions[i].tolist()
+    targets, sectors = plan.targets[i].tolist(), plan.sectors[i].tolist()
+    h, prev_ok = float(ctx.problem.headings[i]), True
+    theta0, turn = float(ctx.problem.headings[i]), float(ctx.max_turn[i])
+    for k in range(1, ctx.K + 1):
+        if not assigned[k - 1]:
+            prev_ok = False
+            continue
+        b = look_bearing(sctx, i, k, positions[k - 1], targets[k - 1], sectors[k - 1])
+        h = (heading_rule_scalar(h, b, turn) if prev_ok
+             else heading_rule_scalar(theta0, b, k * turn))
+        out[k - 1] = h
+        prev_ok = True
     return out
 
 
@@ -223,9 +234,10 @@ class SearchEvaluation:
 
 
 def evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
-    """Phi of ``plan`` with search: the reference definition (plain numpy, one plan), kept
-    in ``sctx.memo`` by the plan (a game's last sweep and the planner's result ask about the
-    same plan)."""
+    """Phi of ``plan`` with search: the definition, one plan (plain numpy with the ``numpy``
+    backend; else from the decision's compiled track information and look pool, the same
+    numbers bit for bit), kept in ``sctx.memo`` by the plan (a game's last sweep and the
+    planner's result ask about the same plan)."""
     memo = _plan_memo(sctx, plan)
     got = memo.get("evaluation")
     if got is None:
@@ -241,18 +253,36 @@ def _evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
         phi, info, mu, weight, counts = gospa_bound.evaluate(sctx, plan, headings)
         return SearchEvaluation(phi, info, mu, weight, headings, counts)
     ctx = sctx.ctx
-    headings = plan_headings(sctx, plan)
-    info, counts = track_information(sctx, plan, headings)
-    miss = np.ones((ctx.K, len(sctx.centres)))
     assert plan.sectors is not None
-    for i in range(ctx.N):
-        ks = np.flatnonzero(plan.assigned[i])
-        if ks.size:
-            p = detection(sctx, i, plan.positions[i, ks], headings[i, ks])
-            miss[ks] *= 1.0 - p
-            # A search look counts at each step when it covers a cell.
-            sector = plan.sectors[i, ks] >= 0
-            counts[i, ks[sector]] = (p[sector] > 0).any(axis=1) * ctx.e
+    miss = np.ones((ctx.K, len(sctx.centres)))
+    if BACKEND == "numpy":
+        headings = plan_headings(sctx, plan)
+        info, counts = track_information(sctx, plan, headings)
+        for i in range(ctx.N):
+            ks = np.flatnonzero(plan.assigned[i])
+            if ks.size:
+                p = detection(sctx, i, plan.positions[i, ks], headings[i, ks])
+                miss[ks] *= 1.0 - p
+                # A search look counts at each step when it covers a cell.
+                sector = plan.sectors[i, ks] >= 0
+                counts[i, ks[sector]] = (p[sector] > 0).any(axis=1) * ctx.e
+    else:
+        # The same numbers from what the game kept: the compiled track information and the
+        # look pool's rows (a cell a look misses would multiply its miss by 1 - 0 = 1).
+        headings = _plan_headings(sctx, plan).copy()
+        W, counts = _plan_track_looks(sctx, plan, headings)
+        info = target_information(ctx, sum_by_target(ctx, W, plan.targets))
+        counts = counts.copy()
+        pool, parts = _pool(sctx), _sensor_parts(sctx, plan)
+        for i in range(ctx.N):
+            ks = np.flatnonzero(plan.assigned[i]).tolist()
+            if ks:
+                rows = _part_rows(sctx, parts[i], plan, i, headings)
+                for q, k in enumerate(ks):
+                    idx, val = pool.row(int(rows[q]))
+                    miss[k, idx] *= 1.0 - val
+                    if plan.sectors[i, k] >= 0:
+                        counts[i, k] = bool((val > 0).any()) * ctx.e
     mu = float(expected_found(sctx, miss))
     return SearchEvaluation(float(info.sum()) + sctx.weight * mu, info, mu, sctx.weight,
                             headings, counts)
@@ -338,14 +368,16 @@ def player_actions(sctx: SearchContext, plan: Plan, i: int, k: int
     memo = sctx.memo.setdefault("actions", {})
     got = memo.get(key)
     if got is None:
-        sectors = sector_actions(sctx, i, k, prev_h, prev_ok)
-        pos = player_positions(sctx, plan, i, k)
-        M = sctx.ctx.M
-        looks_t = np.concatenate([np.arange(M), np.full(sectors.size, -1)])
-        looks_s = np.concatenate([np.full(M, -1), sectors])
-        n = looks_t.size
-        got = memo[key] = (np.repeat(pos, n, axis=0), np.tile(looks_t, len(pos)),
-                           np.tile(looks_s, len(pos)))
+        # sector_actions and player_positions in one compiled call.
+        problem, turn = sctx.ctx.problem, float(sctx.ctx.max_turn[i])
+        theta, limit = ((prev_h, turn) if prev_ok else (float(problem.headings[i]), k * turn))
+        prev = problem.positions[i] if k == 1 else plan.positions[i, k - 2]
+        got = memo[key] = player_actions_nb(
+            np.ascontiguousarray(prev, dtype=float),
+            np.ascontiguousarray(move_vectors(problem.sensors[i].moves)),
+            float(problem.world.width), float(problem.world.height), POSITION_TOL,
+            np.ascontiguousarray(plan.positions[i, k] if nxt else np.zeros(2)), nxt,
+            sctx.bearings[i], theta, limit, HEADING_TOL, sctx.ctx.M)
         for a in got:
             a.flags.writeable = False
     return got
@@ -385,52 +417,102 @@ def candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
         return cast(FloatArray, prev[4].copy())
     # The utilities depend on the others' actions and the candidates, not on the player's
     # own action: a JSFP iteration in which no other player moved asks again for the same.
-    own = np.zeros(plan.targets.shape, dtype=bool)
-    own[i, k - 1] = True
-    key = (i, k, np.where(own[..., None], 0.0, plan.positions).tobytes(),
-           np.where(own, -2, plan.targets).tobytes(), np.where(own, -2, plan.sectors).tobytes(),
-           np.asarray(positions, dtype=float).tobytes(), np.asarray(targets).tobytes(),
-           np.asarray(sectors).tobytes())
+    # (The plan's bytes without the player's entries.)
+    q = i * plan.targets.shape[1] + k - 1
+    pos_b, tgt_b, sec_b = _plan_key(sctx, plan)
+    ps, ts, ss = plan.positions.itemsize * 2, plan.targets.itemsize, plan.sectors.itemsize
+    # Read-only candidates (player_actions') are kept alive in sctx.memo: known by identity.
+    kept = all(isinstance(a, np.ndarray) and not a.flags.writeable
+               for a in (positions, targets, sectors))
+    which = ((id(positions), id(targets), id(sectors)) if kept else
+             (np.asarray(positions, dtype=float).tobytes(), np.asarray(targets).tobytes(),
+              np.asarray(sectors).tobytes()))
+    key = (i, k, pos_b[:q * ps] + pos_b[(q + 1) * ps:], tgt_b[:q * ts] + tgt_b[(q + 1) * ts:],
+           sec_b[:q * ss] + sec_b[(q + 1) * ss:], kept, *which)
     memo = sctx.memo.setdefault("utilities", {})
     got = memo.get(key)
-    if got is None:
-        got = memo[key] = _candidate_potentials(sctx, plan, i, k, positions, targets, sectors)
-    if all(isinstance(a, np.ndarray) and not a.flags.writeable
-           for a in (positions, targets, sectors)):
-        last[(i, k)] = (plan, positions, targets, sectors, got)
-    return got.copy()
+    if got is None or (kept and not (got[0] is positions and got[1] is targets
+                                     and got[2] is sectors)):
+        got = memo[key] = (positions, targets, sectors,
+                           _candidate_potentials(sctx, plan, i, k, positions, targets, sectors,
+                                                 kept))
+    if kept:
+        last[(i, k)] = (plan, positions, targets, sectors, got[3])
+    return cast(FloatArray, got[3].copy())
 
 
 def _candidate_potentials(sctx: SearchContext, plan: Plan, i: int, k: int,
-                          positions: FloatArray, targets: IntArray, sectors: IntArray
-                          ) -> FloatArray:
+                          positions: FloatArray, targets: IntArray, sectors: IntArray,
+                          kept: bool) -> FloatArray:
+    pm = _plan_memo(sctx, plan)
+    headings = pm.get("headings")
+    if headings is None:
+        headings = _plan_headings(sctx, plan)
+    tgt, w, rows, epochs = _candidate_looks(sctx, plan, i, k, positions, targets, sectors,
+                                            headings, kept)
+    info = _candidate_track_information(sctx, plan, i, k, headings, tgt, w, pm)
+    mu = _candidate_found(sctx, plan, i, k, headings, rows, epochs, pm)
+    return info + sctx.weight * mu
+
+
+def _candidate_looks(sctx: SearchContext, plan: Plan, i: int, k: int, positions: FloatArray,
+                     targets: IntArray, sectors: IntArray, headings: FloatArray, cached: bool
+                     ) -> tuple[IntArray, FloatArray, IntArray, IntArray]:
+    """Player (i, k)'s candidate chains (:func:`~sensorplan.planners.cells.candidate_chains`)
+    as looks: targets ``(A, L)``, track information ``(A, L, e, 2, 2)``, pool rows
+    ``(A, n)`` of the chain's n looks and their epochs ``(n,)`` (0-based: epoch k and
+    sensor i's later assigned epochs).
+
+    The chains depend on the candidates and on sensor i's other epochs only, not on the
+    other sensors, whose moves make the next iterations of an epoch game: kept in
+    ``sctx.memo`` by those when ``cached`` (the candidates by identity: read-only arrays
+    kept alive there).
+    """
+    assert plan.sectors is not None
+    if cached:
+        memo = sctx.memo.setdefault("candidate_looks", {})
+        key = (i, k, id(positions), id(targets), id(sectors),
+               *(a[i, :k - 1].tobytes() + a[i, k:].tobytes()
+                 for a in (plan.positions, plan.targets, plan.sectors)))
+        got = memo.get(key)
+        if got is not None and got[0] is positions and got[1] is targets and got[2] is sectors:
+            return cast("tuple[IntArray, FloatArray, IntArray, IntArray]", got[3])
     ctx = sctx.ctx
     A, L = len(targets), ctx.K - k + 1
-    assert plan.sectors is not None
-    headings = _plan_headings(sctx, plan)
     pos, tgt, assigned, th = candidate_chains(sctx, plan, i, k, positions, targets,
                                                 sectors, headings)
-    # The chain's looks: epoch k and sensor i's later assigned epochs.
     ls = [l for l in range(L) if l == 0 or assigned[0, l]]
     rows = np.empty((A, len(ls)), dtype=np.int64)
     w = np.zeros((A, L, ctx.e, 2, 2))
     for q, l in enumerate(ls):
         rows[:, q], w[:, l] = _chain_column(sctx, i, k + l, pos[:, l], tgt[:, l], th[:, l])
-    info = _candidate_track_information(sctx, plan, i, k, headings, tgt, w)
-    mu = _candidate_found(sctx, plan, i, k, headings, rows, np.array(ls, dtype=np.int64))
-    return info + sctx.weight * mu
+    out = (tgt, w, rows, np.array(ls, dtype=np.int64) + (k - 1))
+    if cached:
+        memo[key] = (positions, targets, sectors, out)
+    return out
 
 
 def _plan_memo(sctx: SearchContext, plan: Plan) -> dict[str, Any]:
     """What :func:`candidate_potentials` derives from a whole plan, kept in ``sctx.memo`` by
     the plan (the players of a JSFP iteration all ask about the same plan)."""
-    assert plan.sectors is not None
     memo = sctx.memo.setdefault("plans", {})
-    key = (plan.positions.tobytes(), plan.targets.tobytes(), plan.sectors.tobytes())
+    key = _plan_key(sctx, plan)
     got = memo.get(key)
     if got is None:
         got = memo[key] = {}
     return got
+
+
+def _plan_key(sctx: SearchContext, plan: Plan) -> tuple[bytes, bytes, bytes]:
+    """The bytes of a plan's positions, targets and sectors, kept by the plan's identity
+    (the plan kept alive with them: a game asks about the same plan object many times)."""
+    keys = sctx.memo.setdefault("plan_keys", {})
+    got = keys.get(id(plan))
+    if got is None or got[0] is not plan:
+        assert plan.sectors is not None
+        got = keys[id(plan)] = (plan, (plan.positions.tobytes(), plan.targets.tobytes(),
+                                       plan.sectors.tobytes()))
+    return cast("tuple[bytes, bytes, bytes]", got[1])
 
 
 def _plan_headings(sctx: SearchContext, plan: Plan) -> FloatArray:
@@ -438,9 +520,47 @@ def _plan_headings(sctx: SearchContext, plan: Plan) -> FloatArray:
     memo = _plan_memo(sctx, plan)
     got = memo.get("headings")
     if got is None:
-        got = memo["headings"] = plan_headings(sctx, plan)
+        got = memo["headings"] = np.array([part["headings"]
+                                           for part in _sensor_parts(sctx, plan)], dtype=float)
         got.flags.writeable = False
     return got
+
+
+def _sensor_parts(sctx: SearchContext, plan: Plan) -> list[dict[str, Any]]:
+    """Every sensor's :func:`_sensor_part`, kept with the plan (or set by :func:`_switched`
+    from the plan it came from)."""
+    memo = _plan_memo(sctx, plan)
+    got = memo.get("parts")
+    if got is None:
+        got = memo["parts"] = [_sensor_part(sctx, plan, n) for n in range(sctx.ctx.N)]
+    return cast("list[dict[str, Any]]", got)
+
+
+def _switched(sctx: SearchContext, plan: Plan, i: int, k: int, position: FloatArray,
+              target: int, sector: int) -> Plan:
+    """:func:`with_action`, the new plan's sensor parts those of ``plan`` but sensor i's
+    (a switch changes one sensor's part)."""
+    new = with_action(plan, i, k, position, target, sector)
+    parts = _plan_memo(sctx, plan).get("parts")
+    memo = _plan_memo(sctx, new)
+    if parts is not None and "parts" not in memo:
+        parts = list(parts)
+        parts[i] = _sensor_part(sctx, new, i)
+        memo["parts"] = parts
+    return new
+
+
+def _sensor_part(sctx: SearchContext, plan: Plan, n: int) -> dict[str, Any]:
+    """What a sensor's own looks determine (its headings, its looks' pool rows), kept in
+    ``sctx.memo`` by its part of the plan: plans met in a game differ in a few sensors."""
+    assert plan.sectors is not None
+    memo = sctx.memo.setdefault("sensor_parts", {})
+    key = (n, plan.positions[n].tobytes(), plan.targets[n].tobytes(),
+           plan.sectors[n].tobytes())
+    got = memo.get(key)
+    if got is None:
+        got = memo[key] = {"headings": _sensor_headings(sctx, plan, n)}
+    return cast("dict[str, Any]", got)
 
 
 def _chain_column(sctx: SearchContext, i: int, kk: int, pos: FloatArray, tgt: IntArray,
@@ -467,38 +587,41 @@ def _chain_column(sctx: SearchContext, i: int, kk: int, pos: FloatArray, tgt: In
                 look_information_nb(ctx.radar, np.full(B, i), ctx.buildings, ctx.xbar, ctx.Cbar,
                                     np.ascontiguousarray(pos), np.ascontiguousarray(th),
                                     np.ascontiguousarray(tgt), np.full(B, kk),
-                                    ctx.probabilistic, w)
+                                    ctx.probabilistic, w, np.empty((B, ctx.e)))
         got = memo[key] = (rows, w)
     return got
 
 
+def _part_rows(sctx: SearchContext, part: dict[str, Any], plan: Plan, n: int,
+               headings: FloatArray) -> IntArray:
+    """The look pool's rows of sensor n's planned looks in epoch order, kept in its part
+    ``part`` of ``plan`` (:func:`_sensor_parts`)."""
+    got = part.get("rows")
+    if got is None:
+        ks = np.flatnonzero(plan.assigned[n])
+        got = part["rows"] = _pool(sctx).rows(sctx, n, plan.positions[n, ks], headings[n, ks])
+    return cast(IntArray, got)
+
+
 def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: FloatArray,
-                     rows: IntArray, ls: IntArray) -> FloatArray:
-    """mu ``(A,)`` for each candidate of player (i, k) whose chain's looks in epochs
-    ``k + ls`` are the look pool's ``rows (A, len(ls))``: every other look's misses, times
-    the chain's."""
+                     rows: IntArray, epochs: IntArray, memo: dict[str, Any]) -> FloatArray:
+    """mu ``(A,)`` for each candidate of player (i, k) whose chain's looks in ``epochs``
+    (0-based) are the look pool's ``rows (A, len(epochs))``: every other look's misses,
+    times the chain's (``memo``: the plan's :func:`_plan_memo`)."""
     ctx = sctx.ctx
     pool = _pool(sctx)
-    memo = _plan_memo(sctx, plan)
     looks = memo.get("looks")
     if looks is None:
         # Every planned look, sensor by sensor (the order the misses multiply in).
         n_look, k_look = (np.ascontiguousarray(a) for a in np.nonzero(plan.assigned))
-        # A sensor's rows by its part of the plan (plans met in a game differ in a few).
-        by_sensor = sctx.memo.setdefault("sensor_looks", {})
-        parts = []
-        for n in np.unique(n_look).tolist():
-            ks = np.flatnonzero(plan.assigned[n])
-            key = (n, ks.tobytes(), plan.positions[n].tobytes(), headings[n].tobytes())
-            got = by_sensor.get(key)
-            if got is None:
-                got = by_sensor[key] = pool.rows(sctx, n, plan.positions[n, ks], headings[n, ks])
-            parts.append(got)
+        sensor_parts = _sensor_parts(sctx, plan)
+        parts = [_part_rows(sctx, sensor_parts[n], plan, n, headings)
+                 for n in np.unique(n_look).tolist()]
         row = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
         looks = memo["looks"] = (n_look, k_look, row)
     n_look, k_look, row = looks
     return found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, int(i), n_look,
-                    k_look, row, rows, ls + (k - 1), *pool.arrays())
+                    k_look, row, rows, epochs, *pool.arrays())
 
 
 class _LookPool:
@@ -508,34 +631,29 @@ class _LookPool:
     :func:`~sensorplan.planners._search_nb.found_nb` reads."""
 
     def __init__(self) -> None:
-        self.index: dict[int, dict[bytes, int]] = {}   # by sensor, by pose
-        self.off = np.zeros(1024, dtype=np.int64)      # rows' starts; room to grow
-        self.idx = np.empty(1 << 16, dtype=np.int64)
-        self.val = np.empty(1 << 16)
+        # Open-addressing table of poses -> rows (:func:`pose_rows_nb`): at most half full.
+        self.keys = np.full((1 << 12, 4), -1, dtype=np.int64)
+        self.vals = np.zeros(1 << 12, dtype=np.int64)
+        # Rows' starts and the rows; room to grow. Large to start with: a decision's rows
+        # reach millions of entries at N = 20, and pages never written cost nothing.
+        self.off = np.zeros(1 << 14, dtype=np.int64)
+        self.idx = np.empty(1 << 20, dtype=np.int64)
+        self.val = np.empty(1 << 20)
         self.n_rows = 0
 
     def rows(self, sctx: SearchContext, n: int, positions: FloatArray, headings: FloatArray
              ) -> IntArray:
         """The pool's rows of sensor n's looks from ``positions (B, 2)``, ``headings (B,)``
         (computed, in one batch, for the poses not seen before)."""
-        pose = np.empty((len(headings), 3))
+        B = len(headings)
+        pose = np.empty((B, 3))
         pose[:, :2] = positions
         pose[:, 2] = headings
-        keys = cast("list[bytes]", pose.view(np.dtype((np.void, 24))).ravel().tolist())
-        index = self.index.setdefault(n, {})
-        found = [index.get(key, -1) for key in keys]
-        new: dict[bytes, int] = {}          # unseen pose -> its row
-        first: list[int] = []               # ... and its first look in the batch
-        if -1 in found:
-            for b, key in enumerate(keys):
-                if found[b] < 0:
-                    r = new.get(key)
-                    if r is None:
-                        r = new[key] = self.n_rows + len(first)
-                        first.append(b)
-                    found[b] = r
-        out = np.array(found, dtype=np.int64)
-        if new:
+        if 2 * (self.n_rows + B) > len(self.vals):
+            self._grow(self.n_rows + B)
+        out, first = pose_rows_nb(self.keys, self.vals, int(n), pose.view(np.int64),
+                                  self.n_rows)
+        if len(first):
             ctx = sctx.ctx
             counts, idx, val = detect_sparse_nb(ctx.radar[n], sctx.centres,
                                                 np.ascontiguousarray(pose[first, :2]),
@@ -548,9 +666,24 @@ class _LookPool:
             self.idx[start:start + len(idx)] = idx
             self.val = _grown(self.val, start + len(val))
             self.val[start:start + len(val)] = val
-            index.update(new)
             self.n_rows += len(first)
         return out
+
+    def _grow(self, n: int) -> None:
+        """A table with room for ``n`` poses at most half full, every pose entered again."""
+        cap = len(self.vals)
+        while cap < 2 * n:
+            cap *= 2
+        used = np.flatnonzero(self.keys[:, 0] >= 0)
+        old = self.keys[used[np.argsort(self.vals[used])]]   # by row: rows 0..n_rows-1
+        self.keys = np.full((cap, 4), -1, dtype=np.int64)
+        self.vals = np.zeros(cap, dtype=np.int64)
+        # Runs of one sensor's consecutive rows, entered again under the same rows.
+        cuts = np.flatnonzero(np.diff(old[:, 0])) + 1
+        for lo, hi in ([] if len(old) == 0 else
+                       zip([0, *cuts.tolist()], [*cuts.tolist(), len(old)])):
+            pose_rows_nb(self.keys, self.vals, int(old[lo, 0]),
+                         np.ascontiguousarray(old[lo:hi, 1:]), lo)
 
     def row(self, r: int) -> tuple[IntArray, FloatArray]:
         """Cells and values of row r."""
@@ -579,30 +712,29 @@ def _pool(sctx: SearchContext) -> _LookPool:
 
 
 def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int,
-                                 headings: FloatArray, tgt: IntArray, w: FloatArray
-                                 ) -> FloatArray:
+                                 headings: FloatArray, tgt: IntArray, w: FloatArray,
+                                 memo: dict[str, Any]) -> FloatArray:
     """The tracks' part of Phi ``(A,)`` for each candidate of player (i, k): every other
     look's information plus the candidate's chain over epochs k..K, targets ``tgt (A, L)``
-    (-1: none) and information ``w (A, L, e, 2, 2)`` (0 without tracks).
+    (-1: none) and information ``w (A, L, e, 2, 2)`` (0 without tracks); ``memo``: the
+    plan's :func:`_plan_memo`.
 
     A candidate changes the terms of the targets its chain looks at only: the other
     players' summed information is shared, each target's term without the chain is computed
     once, and only (candidate, target looked at) pairs run the recursion, from their
-    target's covariance before the chain's first step (each pair's row is the dense
+    target's covariance before the chain's first look at it (each pair's row is the dense
     computation's row and runs its steps in order, so its term is the same to the bit).
     """
     ctx = sctx.ctx
     A, L = tgt.shape
     if ctx.M == 0:
         return np.zeros(A)
-    others = plan.targets.copy()
-    others[i, k - 1:] = -1
-    memo = _plan_memo(sctx, plan)
-    W = memo.get("track_W")
-    if W is None:
-        W = memo["track_W"] = _plan_track_W(sctx, plan, headings)
-    base = sum_by_target(ctx, W, others)                            # (M, T, 2, 2)
+    got = memo.get("track_looks")
+    W = (got if got is not None else _plan_track_looks(sctx, plan, headings))[0]
     if BACKEND == "numpy":
+        others = plan.targets.copy()
+        others[i, k - 1:] = -1
+        base = sum_by_target(ctx, W, others)                        # (M, T, 2, 2)
         base_terms = _target_terms(ctx, base, np.arange(ctx.M))
         return pair_terms_numpy(ctx, base, base_terms, tgt, w, k).sum(axis=1)
     arrays = sctx.memo.get("pair_arrays")
@@ -613,9 +745,16 @@ def _candidate_track_information(sctx: SearchContext, plan: Plan, i: int, k: int
             np.ascontiguousarray(ctx.problem.covs, dtype=float), ctx.F,
             np.ascontiguousarray(ctx.Q, dtype=float), cumulative, *cv_form(ctx.F),
             np.ascontiguousarray(ld_ref), np.ascontiguousarray(ctx.existence, dtype=float))
-    P0, F, Q, cumulative, cv, dt, ld_ref, existence = arrays
-    terms = pair_terms_nb(base, np.ascontiguousarray(tgt), w, k - 1, P0, F, Q, cumulative, cv,
-                          dt, ld_ref, existence)
+    # The player's last terms with the same candidate chains: a target's terms depend on its
+    # others' information only, and a JSFP iteration's moves change a few targets' of it.
+    kept = sctx.memo.setdefault("pair_terms", {})
+    prev = kept.get((i, k))
+    has = prev is not None and prev[0] is tgt and prev[1] is w
+    terms, base = player_pair_terms_nb(
+        W, np.ascontiguousarray(plan.targets, dtype=np.int64), int(i), k - 1,
+        np.ascontiguousarray(tgt), w, *arrays, has, prev[2] if has else _NO_BASE,
+        prev[3] if has else _NO_TERMS)
+    kept[(i, k)] = (tgt, w, base, terms)
     return terms.sum(axis=1)
 
 
@@ -651,25 +790,54 @@ def _target_terms(ctx: Context, W: FloatArray, j: IntArray) -> FloatArray:
 
 def _plan_track_W(sctx: SearchContext, plan: Plan, headings: FloatArray) -> FloatArray:
     """Every player's track information ``(N, K, e, 2, 2)`` (0 where not a track look)."""
+    return _plan_track_looks(sctx, plan, headings)[0]
+
+
+def _plan_track_looks(sctx: SearchContext, plan: Plan, headings: FloatArray
+                      ) -> tuple[FloatArray, IntArray]:
+    """:func:`_plan_track_W` and each track look's number of steps that count ``(N, K)``
+    (0 elsewhere), kept with the plan."""
+    memo = _plan_memo(sctx, plan)
+    got = memo.get("track_looks")
+    if got is None:
+        got = memo["track_looks"] = _track_looks(sctx, plan, headings)
+    return cast("tuple[FloatArray, IntArray]", got)
+
+
+def _track_looks(sctx: SearchContext, plan: Plan, headings: FloatArray
+                 ) -> tuple[FloatArray, IntArray]:
     ctx = sctx.ctx
     N, K = ctx.N, ctx.K
-    W = np.zeros((N * K, ctx.e, 2, 2))
     if BACKEND == "numpy":
+        W = np.zeros((N * K, ctx.e, 2, 2))
+        counted = np.zeros((N * K, ctx.e), dtype=bool)
         track = plan.targets >= 0
         for n in range(N):
             if track[n].any():
-                w, _ = chain_information(ctx, n, 1, np.where(track[n][:, None],
+                w, c = chain_information(ctx, n, 1, np.where(track[n][:, None],
                                                              plan.positions[n], 0.0)[None],
                                          np.where(track[n], headings[n], 0.0)[None],
                                          np.maximum(plan.targets[n], 0)[None])
                 W[n * K:(n + 1) * K] = np.where(track[n][:, None, None, None], w[0], 0.0)
-    else:
-        look_information_nb(ctx.radar, np.repeat(np.arange(N), K), ctx.buildings, ctx.xbar,
-                            ctx.Cbar, np.ascontiguousarray(plan.positions.reshape(-1, 2)),
-                            np.ascontiguousarray(headings.reshape(-1)),
-                            np.ascontiguousarray(plan.targets.reshape(-1)),
-                            np.tile(np.arange(1, K + 1), N), ctx.probabilistic, W)
-    return W.reshape(N, K, ctx.e, 2, 2)
+                counted[n * K:(n + 1) * K] = c[0] & track[n][:, None]
+        return W.reshape(N, K, ctx.e, 2, 2), counted.sum(axis=-1).reshape(N, K)
+    # By sensor, kept in its part of the plan: a sensor's looks depend on its part only.
+    parts = _sensor_parts(sctx, plan)
+    pieces = []
+    for n in range(N):
+        got = parts[n].get("track")
+        if got is None:
+            Wn = np.zeros((K, ctx.e, 2, 2))
+            weight = np.zeros((K, ctx.e))
+            look_information_nb(ctx.radar, np.full(K, n), ctx.buildings, ctx.xbar,
+                                ctx.Cbar, np.ascontiguousarray(plan.positions[n]),
+                                np.ascontiguousarray(headings[n]),
+                                np.ascontiguousarray(plan.targets[n]),
+                                np.arange(1, K + 1), ctx.probabilistic, Wn, weight)
+            got = parts[n]["track"] = (Wn, (weight > 0).sum(axis=-1))
+        pieces.append(got)
+    return (np.concatenate([p[0] for p in pieces]).reshape(N, K, ctx.e, 2, 2),
+            np.concatenate([p[1] for p in pieces]).reshape(N, K))
 
 
 def with_action(plan: Plan, i: int, k: int, position: FloatArray, target: int,
@@ -733,7 +901,11 @@ def best_index(u: FloatArray, current: int) -> int:
     floor = top - TIE_TOL * max(1.0, abs(top))
     if current >= 0 and u[current] >= floor:
         return current
-    return int(np.flatnonzero(u >= floor)[0])
+    top_ones = u >= floor
+    first = int(top_ones.argmax())
+    if not top_ones[first]:             # NaN: none (as an empty flatnonzero would say)
+        raise IndexError("no action within the tie tolerance of the best")
+    return first
 
 
 def _index_of(pos: FloatArray, tgt: IntArray, sec: IntArray, plan: Plan, i: int,
@@ -756,7 +928,7 @@ def sequential_greedy(sctx: SearchContext) -> Plan:
             pos, tgt, sec = player_actions(sctx, plan, i, k)
             u = candidate_potentials(sctx, plan, i, k, pos, tgt, sec)
             b = best_index(u, -1)
-            plan = with_action(plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
+            plan = _switched(sctx, plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
     return plan
 
 
@@ -801,19 +973,23 @@ def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, 
         changed, all_eq = False, True
         for k in range(K, 0, -1):
             actions = [player_actions(sctx, plan, i, k) for i in range(N)]
-            ubar = [np.zeros(len(a[1])) for a in actions]
+            # The players' running averages end to end (one compiled step for them all).
+            off = np.cumsum([0] + [len(a[1]) for a in actions])
+            ubar = np.zeros(int(off[-1]))
             # Each player's current action: its index moves with its switches only (a
             # player's actions are distinct).
             cur = [_index_of(*actions[i], plan, i, k) for i in range(N)]
             eq = False
             for t in range(1, max_inner + 1):
-                best = []
-                eq = True
-                for i in range(N):
-                    u = candidate_potentials(sctx, plan, i, k, *actions[i])
-                    eq &= best_index(u, cur[i]) == cur[i]
-                    ubar[i] = (t - 1) / t * ubar[i] + u / t
-                    best.append(best_index(ubar[i], cur[i]))
+                u = np.concatenate([candidate_potentials(sctx, plan, i, k, *actions[i])
+                                    for i in range(N)])
+                # best_index of u, ubar (t - 1) / t * ubar + u / t, best_index of it.
+                now, avg = jsfp_steps_nb(u, ubar, off, t, np.array(cur, dtype=np.int64),
+                                         TIE_TOL)
+                if (now < 0).any() or (avg < 0).any():
+                    raise IndexError("no action within the tie tolerance of the best")
+                eq = now.tolist() == cur
+                best = avg.tolist()
                 if eq:
                     break
                 switch = rng.random(N) >= alpha
@@ -821,7 +997,7 @@ def potential_game(sctx: SearchContext, rng: np.random.Generator, alpha: float, 
                     if best[i] != cur[i] and (cur[i] < 0 or switch[i]):
                         pos, tgt, sec = actions[i]
                         b = cur[i] = best[i]
-                        plan = with_action(plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
+                        plan = _switched(sctx, plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
                         changed = True
                 if rng.random() >= beta:
                     break
