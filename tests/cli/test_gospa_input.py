@@ -74,7 +74,7 @@ def test_a_gospa_decision_plans(tmp_path: Path, capsys: pytest.CaptureFixture[st
 
 @pytest.mark.parametrize(("args", "field"), [
     (("--preset", "search", "--search", "on", "--reward", "entropy"), "--reward"),
-    (("--preset", "search", "--reward", "gospa"), "--reward"),
+    (("--preset", "search", "--search", "off", "--reward", "gospa"), "--reward"),
     (("--preset", "search", "--search", "on", "--reward", "gospa", "--gospa-c", "0"),
      "--gospa-c"),
 ])
@@ -97,8 +97,8 @@ def test_bad_rewards_in_files_name_the_key(capsys: pytest.CaptureFixture[str],
 
 def test_agents_refuse_the_gospa_reward_without_search(capsys: pytest.CaptureFixture[str],
                                                       tmp_path: Path) -> None:
-    assert_bad_input(run(capsys, "agents", "--preset", "search", "--reward", "gospa",
-                         "--out", tmp_path), "--reward")
+    assert_bad_input(run(capsys, "agents", "--preset", "search", "--search", "off",
+                         "--reward", "gospa", "--out", tmp_path), "--reward")
 
 
 def test_a_gospa_run_names_its_reward(capsys: pytest.CaptureFixture[str],

@@ -29,6 +29,7 @@ search = "on"
 [[methods]]
 name = "no search"
 planner = "pg"
+search = "off"
 """
 
 
@@ -94,7 +95,8 @@ def test_a_study_without_search_gets_the_report_it_got_before(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from sensorplan.report import document, write_report
 
-    text = STUDY.replace('search = "on"\n', "").replace('name = "search"', 'name = "pg"')
+    text = STUDY.replace('search = "on"\n', 'search = "off"\n').replace('name = "search"',
+                                                                       'name = "pg"')
     text = text.replace(f"runs = {RUNS}", "runs = 2").replace(f"steps = {STEPS}", "steps = 6")
     out = tmp_path / "study"
     studies.run_study(parse_study(text), out, workers=1)

@@ -154,8 +154,9 @@ def test_a_searching_episode_file_keeps_its_search_records(loop, tmp_path: Path)
 
 
 def test_search_off_leaves_the_run_as_it_was(tmp_path: Path) -> None:
-    base = load_simulation(preset="search", overrides={"steps": 6, "seed": 2})
-    assert base.settings.search == "off" and base.settings.search_sectors == SEARCH_SECTORS
+    base = load_simulation(preset="search", overrides={"steps": 6, "seed": 2,
+                                                       "search": "off"})
+    assert base.settings.search_sectors == SEARCH_SECTORS
     off = run_episode(base.scenario, base.settings, base.seed)
     other = dataclasses.replace(base.settings, search_sectors=11)
     _same(off, run_episode(base.scenario, other, base.seed))
@@ -163,6 +164,15 @@ def test_search_off_leaves_the_run_as_it_was(tmp_path: Path) -> None:
     off.save(tmp_path / "off.npz")
     with np.load(tmp_path / "off.npz") as data:
         assert not {"searched", "search_found", "search_term"} & set(data.files)
+
+
+def test_the_search_preset_searches_for_the_gospa_bound_by_default() -> None:
+    cfg = load_simulation(preset="search")
+    assert (cfg.settings.search, cfg.settings.reward) == ("on", "gospa")
+    off = load_simulation(preset="search", overrides={"search": "off"})
+    assert (off.settings.search, off.settings.reward) == ("off", "information")
+    # The other multi-target presets keep looking at tracks only.
+    assert load_simulation(preset="radar").settings.search == "off"
 
 
 def test_the_summary_reports_the_search(capsys, tmp_path: Path) -> None:
@@ -255,6 +265,7 @@ search_sectors = 12
 [[methods]]
 name = "tracks"
 planner = "pg"
+search = "off"
 """)
     got = {m.name: (m.settings.search, m.settings.search_sectors) for m in study.methods}
     assert got == {"searching": ("on", SEARCH_SECTORS), "twelve": ("on", 12),
@@ -349,7 +360,7 @@ def test_a_gospa_run_plans_the_bound_with_the_runs_cut_off() -> None:
         assert ep.search_term[d] == pytest.approx(ev.potential - ev.information.sum(),
                                                   rel=1e-12)
     # The same run with the information reward plans in nats: another Phi.
-    info = searching(steps=4)
+    info = searching(steps=4, reward="information")
     _, other = recorded_run(info.scenario, info.settings, info.seed)
     assert other[0][0].reward == "information"
     assert other[0][1].potential != decisions[0][1].potential

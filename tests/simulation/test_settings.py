@@ -281,3 +281,16 @@ def test_the_gnn_logic_settings_are_checked(kw: dict[str, Any], path: str,
     assert (api.value.field, api.value.message) == (path, message)
     ok = TrackerSettings(kind="gnn", confirm_hits=3, confirm_looks=3, delete_misses=1)
     assert (ok.confirm_hits, ok.confirm_looks, ok.delete_misses) == (3, 3, 1)
+
+
+def test_the_reward_defaults_to_the_gospa_bound_with_search_on_only() -> None:
+    from sensorplan.simulation.settings import RunSettings, TrackerSettings
+
+    assert RunSettings().reward == "information"
+    on = RunSettings(search="on", search_sectors=6, tracker=TrackerSettings(kind="pmb"))
+    assert on.reward == "gospa" and on.to_dict()["reward"] == "gospa"
+    named = RunSettings(search="on", search_sectors=6, reward="information",
+                        tracker=TrackerSettings(kind="pmb"))
+    assert named.reward == "information"
+    # A resolved method reads back as it ran.
+    assert RunSettings.from_dict(on.to_dict()).reward == "gospa"

@@ -188,7 +188,8 @@ def test_clutter_rate_sets_every_sensors_false_alarms() -> None:
 
 def test_birth_rate_sets_the_scenarios_births_and_the_trackers_birth_model() -> None:
     text = (_one_axis("birth_rate", "[0.03, 0.06, 0.12]", "0.06", preset="search")
-            + '[[methods]]\nname = "gnn"\nplanner = "random"\n[methods.tracker]\nkind = "gnn"\n')
+            + '[[methods]]\nname = "gnn"\nplanner = "random"\nsearch = "off"\n'
+            + '[methods.tracker]\nkind = "gnn"\n')
     grid = parse(text)
     for cell in grid.cells:
         rate = cell.study.scenario.birth_rate

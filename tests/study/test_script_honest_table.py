@@ -38,6 +38,7 @@ preset = "search"
 [[methods]]
 name = "pg"
 planner = "pg"
+search = "off"
 """
 
 

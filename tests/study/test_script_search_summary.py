@@ -21,6 +21,8 @@ steps = 60
 seed = 17
 [scenario]
 preset = "search"
+[defaults]
+search = "off"
 [[methods]]
 name = "myopic"
 planner = "pg"

@@ -45,6 +45,8 @@ def planned_as_written(method: Mapping[str, Any]) -> dict[str, Any]:
     only, so a method without it gets its report threshold (0.5 unless written), not
     today's default."""
     m = dict(method)
+    # Before the reward existed, every method planned for information.
+    m.setdefault("reward", "information")
     tracker = dict(m.get("tracker", {}))
     tracker.setdefault("planning_threshold", tracker.get("report_threshold", 0.5))
     m["tracker"] = tracker

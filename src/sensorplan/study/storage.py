@@ -23,7 +23,6 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError
-from ..simulation.settings import RunSettings, default_of
 from .model import FORMAT, READABLE_FORMATS, Study, planned_as_written
 from .set_metrics import GOSPA_CUTOFF
 from .tables import TABLES, TaskResult, arrow_table
@@ -33,7 +32,8 @@ RESULT_KEYS = ("format", "runs", "steps", "gospa_c", "seed", "scenario", "method
 #: Their values in a study directory written before the key existed.
 RESULT_DEFAULTS = {"gospa_c": GOSPA_CUTOFF}
 #: Method settings added since, with the value every method written before them ran with.
-METHOD_DEFAULTS = {"reward": default_of(RunSettings.__dataclass_fields__["reward"])}
+#: What a method written before a per-method setting existed ran with.
+METHOD_DEFAULTS = {"reward": "information"}
 
 
 def differences(old: Any, new: Any, path: str = "") -> list[str]:
