@@ -334,7 +334,8 @@ def test_a_closed_loop_problems_mu_is_the_formulas() -> None:
     from sensorplan.simulation import run as run_module
     from sensorplan.simulation.run import run_episode
 
-    cfg = load_simulation(preset="search", overrides={"search": "on", "steps": 4, "seed": 5})
+    cfg = load_simulation(preset="search", overrides={"search": "on", "steps": 4, "seed": 5,
+                                                      "reward": "information"})
     problems: list[PlanningProblem] = []
     real = run_module.checked_plan
 

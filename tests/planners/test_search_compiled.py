@@ -313,7 +313,7 @@ def test_jsfp_steps_are_the_numpy_update_and_best_index() -> None:
     picks, bit for bit: ties within the tolerance, the current action kept, values near 1
     and far from it, NaN."""
     rng = np.random.default_rng(14)
-    for trial in range(100):
+    for _ in range(100):
         sizes = rng.integers(1, 40, int(rng.integers(1, 6)))
         off = np.concatenate([[0], np.cumsum(sizes)])
         us, ubars, currents = [], [], []
@@ -361,7 +361,7 @@ def test_a_players_terms_are_summed_information_and_pair_terms(
             tgt = rng.integers(-1, ctx.M, (A, L))
             G = rng.normal(0.0, 0.05, (A, L, ctx.e, 2, 2))
             w = np.where((tgt >= 0)[..., None, None, None], G @ np.swapaxes(G, -1, -2), 0.0)
-            prev = None
+            prev = prev_targets = prev_W = None
             for step in range(4):
                 targets = rng.integers(-1, ctx.M, (ctx.N, ctx.K))
                 G = rng.normal(0.0, 0.05, (ctx.N, ctx.K, ctx.e, 2, 2))

@@ -275,10 +275,10 @@ def _evaluate(sctx: SearchContext, plan: Plan) -> SearchEvaluation:
         counts = counts.copy()
         pool, parts = _pool(sctx), _sensor_parts(sctx, plan)
         for i in range(ctx.N):
-            ks = np.flatnonzero(plan.assigned[i]).tolist()
-            if ks:
+            assigned = np.flatnonzero(plan.assigned[i]).tolist()
+            if assigned:
                 rows = _part_rows(sctx, parts[i], plan, i, headings)
-                for q, k in enumerate(ks):
+                for q, k in enumerate(assigned):
                     idx, val = pool.row(int(rows[q]))
                     miss[k, idx] *= 1.0 - val
                     if plan.sectors[i, k] >= 0:
