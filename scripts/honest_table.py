@@ -37,6 +37,7 @@ import argparse
 import dataclasses
 import math
 import time
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -197,13 +198,15 @@ def table_lines(study_dirs: list[str]) -> list[str]:
     return out
 
 
-def time_lines(study_files: list[str], seed: int, runs: int) -> list[str]:
+def time_lines(study_files: list[str], seed: int, runs: int) -> Iterator[str]:
     """Wall and CPU seconds of ``runs`` runs of every method of each study file on
-    ``seed``; the outcomes are discarded unread."""
+    ``seed``, a line as each method finishes (a slow method shows before the end); the
+    outcomes are discarded unread."""
     from sensorplan.study import load_study
     from sensorplan.study.execution import run_task
 
-    out = ["| study | method | wall per run (s) | CPU per run (s) |", "|---|---|--:|--:|"]
+    yield "| study | method | wall per run (s) | CPU per run (s) |"
+    yield "|---|---|--:|--:|"
     total_wall = total_cpu = 0.0
     for path in study_files:
         study = dataclasses.replace(load_study(path), seed=seed, runs=runs)
@@ -216,14 +219,13 @@ def time_lines(study_files: list[str], seed: int, runs: int) -> list[str]:
                 result = run_task(study, r, i)
                 wall += time.perf_counter() - start
                 cpu += result.cpu
-            out.append(f"| {path} | {m.name} | {wall / runs:.2f} | {cpu / runs:.2f} |")
+            yield f"| {path} | {m.name} | {wall / runs:.2f} | {cpu / runs:.2f} |"
             file_wall += wall / runs * full
             file_cpu += cpu / runs * full
-        out.append(f"| {path} | all methods, {full} runs | {file_wall:.0f} | {file_cpu:.0f} |")
+        yield f"| {path} | all methods, {full} runs | {file_wall:.0f} | {file_cpu:.0f} |"
         total_wall += file_wall
         total_cpu += file_cpu
-    out.append(f"| all | one worker | {total_wall:.0f} | {total_cpu:.0f} |")
-    return out
+    yield f"| all | one worker | {total_wall:.0f} | {total_cpu:.0f} |"
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -239,7 +241,8 @@ def main(argv: list[str] | None = None) -> None:
     if args.command == "table":
         print("\n".join(table_lines(args.study_dirs)))
     else:
-        print("\n".join(time_lines(args.study_files, args.seed, args.runs)), flush=True)
+        for line in time_lines(args.study_files, args.seed, args.runs):
+            print(line, flush=True)
 
 
 if __name__ == "__main__":
