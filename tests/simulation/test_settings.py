@@ -41,7 +41,8 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
                      "tracker.birth_rate",
                      "tracker.survival_probability", "tracker.report_threshold",
                      "tracker.prune_threshold", "tracker.recycle_threshold",
-                     "tracker.planning_threshold", "tracker.grid_resolution",
+                     "tracker.planning_threshold", "tracker.termination_threshold",
+                     "tracker.grid_resolution",
                      "tracker.confirm_hits", "tracker.confirm_looks", "tracker.delete_misses"]
 
 

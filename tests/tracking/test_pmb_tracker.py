@@ -432,6 +432,48 @@ def test_planning_sees_the_bernoullis_at_or_above_its_threshold(planning, report
     assert np.array_equal(tr.bern.means, means)
 
 
+@pytest.mark.parametrize("termination", [1.0, 0.1])
+def test_a_confirmed_track_is_reported_down_to_the_termination_threshold(termination) -> None:
+    # Missed looks of a linear sensor (Pbar = Pd exactly) take r through the closed form
+    # r (1 - Pd) / (1 - r Pd): with termination 0.1 a confirmed track is reported until r
+    # falls below 0.1, without it until r falls below the report threshold 0.5. A
+    # Bernoulli never confirmed (r0 = 0.4) is not reported on the way down either way.
+    pd, report = 0.5, 0.5
+    sensor = linear.LinearSensor((0.0, 0.0, 300.0, 300.0), 1.0, pd, 0.0)
+    r0 = np.array([0.99, 0.4])
+    means = np.array([[100.0, 150.0, 0.0, 0.0], [200.0, 150.0, 0.0, 0.0]])
+    tr = PMBTracker(MapModel(sensor, 1.0, (300.0, 300.0)), means=means, covs=P0 / 16,
+                    existence=r0, survival_probability=1.0, prune_threshold=0.0,
+                    report_threshold=report, termination_threshold=termination)
+    r = r0.copy()
+    kept = min(termination, report)
+    for _ in range(14):
+        tr.predict()
+        tr.update(one_scan(np.zeros((0, 2))))
+        r = r * (1.0 - pd) / (1.0 - r * pd)
+        np.testing.assert_allclose(tr.bern.r, r, rtol=1e-12, atol=1e-15)
+        want = [0] if r[0] >= kept else []
+        assert tr.tracks().labels.tolist() == want
+        # Every reported track is among those planning sees.
+        assert set(want) <= set(tr.planning_tracks().labels.tolist())
+    assert r[0] < kept                                  # the walk crossed the threshold
+
+
+def test_a_terminated_track_is_confirmed_again_when_it_climbs_back() -> None:
+    # Reported at 0.9 (confirmed), kept at 0.3 (above termination 0.2), terminated at 0.15,
+    # not reported at 0.3 again, confirmed again at 0.6. Existence set by hand between steps
+    # (no motion: survival 1 and a look that sees nothing of it).
+    sensor = linear.LinearSensor((0.0, 0.0, 300.0, 300.0), 1.0, 0.9, 0.0)
+    tr = PMBTracker(MapModel(sensor, 1.0, (300.0, 300.0)), means=MEANS[:1], covs=P0,
+                    existence=0.9, survival_probability=1.0, termination_threshold=0.2)
+    seen = []
+    for r in (0.3, 0.15, 0.3, 0.6, 0.3):
+        tr.bern.r = np.array([r])
+        tr.predict()
+        seen.append(tr.tracks().labels.tolist())
+    assert seen == [[0], [], [], [0], [0]]
+
+
 def test_planning_tracks_fall_back_to_the_reported_ones() -> None:
     from sensorplan.tracking.gnn import GNNTracker
 
@@ -443,6 +485,8 @@ def test_planning_tracks_fall_back_to_the_reported_ones() -> None:
 @pytest.mark.parametrize(("key", "value"), [("report_threshold", 1.0), ("report_threshold", 0.0),
                                             ("planning_threshold", 0.0),
                                             ("planning_threshold", 1.0),
+                                            ("termination_threshold", 0.0),
+                                            ("termination_threshold", 1.5),
                                             ("prune_threshold", 1.0),
                                             ("survival_probability", 0.0),
                                             ("initial_undetected", -1.0), ("births", "sides"),

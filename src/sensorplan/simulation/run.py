@@ -270,7 +270,8 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
                births=tr.births, birth_rate=tr.birth_rate if tr.births != "none" else 0.0,
                prune_threshold=tr.prune_threshold, report_threshold=tr.report_threshold,
                recycle_threshold=tr.recycle_threshold,
-               planning_threshold=tr.planning_threshold)
+               planning_threshold=tr.planning_threshold,
+               termination_threshold=tr.termination_threshold)
 
 
 class _Schedule:

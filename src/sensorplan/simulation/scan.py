@@ -111,7 +111,8 @@ def make_scan_tracker(scenario: Scenario, settings: RunSettings) -> PMBTracker:
     tracker = PMBTracker(map_model, survival_probability=model.survival_probability,
                          births=births, prune_threshold=tr.prune_threshold,
                          report_threshold=tr.report_threshold,
-                         recycle_threshold=tr.recycle_threshold)
+                         recycle_threshold=tr.recycle_threshold,
+                         termination_threshold=tr.termination_threshold)
     # The source's initial intensity has the birth density, not the even spread the
     # tracker's ``initial_undetected`` gives.
     tracker.undetected = cell_masses(W, H, grid.nx, grid.ny, model.birth_means,

@@ -82,7 +82,8 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
 
 #: The settings only the PMB tracker reads, and only the GNN tracker.
 PMB_SETTINGS = ("births", "birth_rate", "survival_probability", "report_threshold",
-                "prune_threshold", "recycle_threshold", "planning_threshold")
+                "prune_threshold", "recycle_threshold", "planning_threshold",
+                "termination_threshold")
 GNN_SETTINGS = ("confirm_hits", "confirm_looks", "delete_misses")
 #: The settings only the lost-target mode of the tracker of known targets reads.
 LOST_SETTINGS = ("lost_probability", "lost_resolution")
@@ -436,6 +437,13 @@ class TrackerSettings(_Settings):
         help="The PMB tracker's planning sees every track whose probability of existence is "
              "at least the smaller of this and report_threshold, weighted by its existence, "
              "so a track below the report threshold can still be looked at.")
+    termination_threshold: float = setting(
+        1.0, section="tracker", label="termination threshold",
+        bounds=Range(0.0, 1.0, lo_open=True),
+        help="The PMB tracker keeps reporting a confirmed track (one whose probability of "
+             "existence reached report_threshold) while its existence is at least the "
+             "smaller of this and report_threshold, as radar trackers confirm and terminate "
+             "tracks on their existence (1: no hysteresis).")
     grid_resolution: float = setting(
         25.0, section="tracker", label="grid resolution", bounds=Range(1.0, 1e5),
         help="Side (m) of the map cells on which a multi-target tracker keeps the expected "

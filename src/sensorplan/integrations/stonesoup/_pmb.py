@@ -144,9 +144,10 @@ class PMBStoneSoupTracker(_TrackerMixInNext, Tracker):
     docstring).
 
     Iterating gives ``(time, tracks)`` for each scan of :attr:`detector`;
-    :meth:`update_tracker` takes one scan. The tracks are the Bernoullis whose existence is at
-    least the PMB tracker's ``report_threshold``; a Bernoulli keeps its :class:`Track` (id:
-    its label as text) for its life, also across steps where it is not reported.
+    :meth:`update_tracker` takes one scan. The tracks are the Bernoullis the PMB tracker
+    reports (existence at least its ``report_threshold``, or, once confirmed, its
+    ``termination_threshold``); a Bernoulli keeps its :class:`Track` (id: its label as text)
+    for its life, also across steps where it is not reported.
     """
 
     measurement_model: LinearGaussian = Property(

@@ -72,7 +72,14 @@ target detected outside its gate would start a new Bernoulli; at the default gat
 probability 0.999 the difference is 1e-3 of :math:`\bar P`).
 
 **Reporting**. :meth:`tracks` reports the Bernoullis with :math:`r \ge`
-``report_threshold``, with their existence and labels. **Planning** sees
+``report_threshold``, with their existence and labels. With a ``termination_threshold``
+below the report threshold, reporting has the confirmation and termination of radar
+trackers with track existence (JIPDA): a track is confirmed when its existence reaches the
+report threshold and stays reported until it falls below the termination threshold, so a
+held target's track is not dropped from the report by a few missed looks in clutter; a
+terminated track is confirmed again if it climbs back (both are decided after each
+predict and after each step's looks). The Bernoulli itself is kept or
+pruned as before either way. **Planning** sees
 :meth:`planning_tracks`: the Bernoullis with :math:`r \ge` ``planning_threshold`` (the
 report threshold unless set lower), each weighted by its existence, so a track that has
 faded below the report threshold can still be looked at and confirmed or dropped. Each
@@ -173,7 +180,12 @@ class PMBTracker(MapTracker):
     planning_threshold : float in (0, 1), optional
         :meth:`planning_tracks` returns the Bernoullis with at least the smaller of this and
         ``report_threshold`` (default None: the report threshold, so planning sees the
-        reported tracks only).
+        reported tracks only), and every reported track.
+    termination_threshold : float in (0, 1]
+        A confirmed track (one reported since its existence last reached
+        ``report_threshold``) stays reported while its existence is at least the smaller of
+        this and ``report_threshold``. Default 1: no hysteresis, a track is reported exactly
+        while its existence is at least ``report_threshold``.
     """
 
     def __init__(self, model: MapModel, *, means: FloatArray | None = None,
@@ -182,7 +194,8 @@ class PMBTracker(MapTracker):
                  birth_rate: float = 0.0, initial_undetected: float = 0.0,
                  prune_threshold: float = 1e-3, report_threshold: float = 0.5,
                  recycle_threshold: float = 0.0,
-                 planning_threshold: float | None = None) -> None:
+                 planning_threshold: float | None = None,
+                 termination_threshold: float = 1.0) -> None:
         if not 0.0 < survival_probability <= 1.0:
             raise ValueError(f"survival_probability must be in (0, 1], got "
                              f"{survival_probability!r}")
@@ -200,6 +213,9 @@ class PMBTracker(MapTracker):
         if planning_threshold is not None and not 0.0 < planning_threshold < 1.0:
             raise ValueError(f"planning_threshold must be in (0, 1), got "
                              f"{planning_threshold!r}")
+        if not 0.0 < termination_threshold <= 1.0:
+            raise ValueError(f"termination_threshold must be in (0, 1], got "
+                             f"{termination_threshold!r}")
         if not (math.isfinite(initial_undetected) and initial_undetected >= 0.0):
             raise ValueError(f"initial_undetected must be >= 0, got {initial_undetected!r}")
         super().__init__(model)
@@ -226,10 +242,26 @@ class PMBTracker(MapTracker):
             raise ValueError("existence must be in [0, 1]")
         self.bern = Bernoullis(r0, m0, P0, np.arange(len(m0), dtype=np.int64))
         self.next_label = len(m0)
+        self.termination_threshold = min(float(termination_threshold), self.report_threshold)
+        #: The labels of the confirmed tracks (reported at the end of the last predict or
+        #: update), sorted: reporting keeps them down to the termination threshold.
+        self.confirmed = np.zeros(0, dtype=np.int64)
+        self._confirm()
 
     # ---------------------------------------------------------------- the tracker protocol
     def _reported(self) -> BoolArray:
-        return self.bern.r >= self.report_threshold
+        r = self.bern.r
+        reported = r >= self.report_threshold
+        if self.termination_threshold < self.report_threshold and len(self.confirmed):
+            kept = np.isin(self.bern.labels, self.confirmed, assume_unique=True)
+            reported |= kept & (r >= self.termination_threshold)
+        return reported
+
+    def _confirm(self) -> None:
+        """The tracks reported now are the confirmed ones (a track below the termination
+        threshold is terminated, one at the report threshold confirmed)."""
+        if self.termination_threshold < self.report_threshold:
+            self.confirmed = np.sort(self.bern.labels[self._reported()])
 
     def tracks(self) -> TrackSet:
         """The Bernoullis with existence at least ``report_threshold`` (copies)."""
@@ -239,10 +271,12 @@ class PMBTracker(MapTracker):
 
     def planning_tracks(self) -> TrackSet:
         """The Bernoullis planning sees (copies): existence at least ``planning_threshold``
-        (never above the report threshold, so every reported track is among them); planning
-        weights each by its existence."""
+        (never above the report threshold), and every reported track; planning weights each
+        by its existence."""
         b = self.bern
         k = b.r >= self.planning_threshold
+        if self.termination_threshold < self.planning_threshold:
+            k |= self._reported()
         return TrackSet(b.means[k], b.covs[k], b.r[k], b.labels[k])
 
     def planning_process_noise(self) -> float | FloatArray:
@@ -282,6 +316,7 @@ class PMBTracker(MapTracker):
                                              self.births)
         out = corrected[reported]
         self._prune()
+        self._confirm()
         return out
 
     def update(self, looks: Looks) -> UpdateRecord:
@@ -302,6 +337,7 @@ class PMBTracker(MapTracker):
                 # Labels ascend in both arrays: the present Bernoulli of each reported one.
                 at = np.minimum(np.searchsorted(present, labels_before), len(present) - 1)
                 negative |= (present[at] == labels_before) & out.negative[at]
+        self._confirm()
         return UpdateRecord(negative, inflated, np.zeros(T, dtype=bool),
                             np.zeros(T, dtype=bool), used, discarded)
 
