@@ -23,6 +23,7 @@ ANEES without the run of largest ANEES, and the share of target-steps with NEES 
 (1 % for an honest filter).
 
     python scripts/honest_table.py table DIR [DIR ...]
+    python scripts/honest_table.py paired DIR "A - B" [...]
     python scripts/honest_table.py time STUDY.toml [...] --seed 120429 --runs 2
 
 ``time`` runs ``--runs`` runs of every method of each study file on ``--seed`` (a
@@ -198,6 +199,33 @@ def table_lines(study_dirs: list[str]) -> list[str]:
     return out
 
 
+def paired_lines(study_dir: str, pairs: list[tuple[str, str]]) -> list[str]:
+    """For each ``A - B`` of multi-target methods: the held targets lost per run, paired
+    (mean difference with its 95 % t-interval), and the runs that lose a held target with
+    A, with B, and with one of them only."""
+    tables = load_study_dir(study_dir)
+    out = ["| A - B | runs | held lost per run: A; B | A - B [paired 95 %] | runs losing "
+           "one: A; B | only A; only B |", "|---|--:|--:|--:|--:|--:|"]
+    for a, b in pairs:
+        ca = set_run_counts(tables, a).set_index("run")["held_lost"]
+        cb = set_run_counts(tables, b).set_index("run")["held_lost"]
+        ca, cb = ca.align(cb, join="inner")
+        d = (ca - cb).to_numpy(float)
+        mean, lo, hi = t_interval(d)
+        la, lb = ca.to_numpy() > 0, cb.to_numpy() > 0
+        out.append(f"| {a} - {b} | {d.size} | {ca.mean():.3f}; {cb.mean():.3f} | "
+                   f"{mean:+.3f} [{lo:+.3f}, {hi:+.3f}] | {int(la.sum())}; {int(lb.sum())} "
+                   f"| {int((la & ~lb).sum())}; {int((lb & ~la).sum())} |")
+    return out
+
+
+def _pair(text: str) -> tuple[str, str]:
+    a, sep, b = text.partition(" - ")
+    if not sep or not a.strip() or not b.strip():
+        raise argparse.ArgumentTypeError(f"{text!r}: write a pair as 'A - B'")
+    return a.strip(), b.strip()
+
+
 def time_lines(study_files: list[str], seed: int, runs: int) -> Iterator[str]:
     """Wall and CPU seconds of ``runs`` runs of every method of each study file on
     ``seed``, a line as each method finishes (a slow method shows before the end); the
@@ -233,6 +261,9 @@ def main(argv: list[str] | None = None) -> None:
     sub = parser.add_subparsers(dest="command", required=True)
     t = sub.add_parser("table", help="the table of finished (or running) study directories")
     t.add_argument("study_dirs", nargs="+")
+    p = sub.add_parser("paired", help="held targets lost, paired, for 'A - B' pairs")
+    p.add_argument("study_dir")
+    p.add_argument("pairs", nargs="+", type=_pair)
     c = sub.add_parser("time", help="time every method of study files on a development seed")
     c.add_argument("study_files", nargs="+")
     c.add_argument("--seed", type=int, required=True)
@@ -240,6 +271,8 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
     if args.command == "table":
         print("\n".join(table_lines(args.study_dirs)))
+    elif args.command == "paired":
+        print("\n".join(paired_lines(args.study_dir, args.pairs)))
     else:
         for line in time_lines(args.study_files, args.seed, args.runs):
             print(line, flush=True)

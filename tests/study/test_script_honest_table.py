@@ -144,6 +144,19 @@ def test_set_tracker_cells_match_a_direct_count(study_dirs) -> None:
     assert f"targets never reported {int(counts['never'].sum())} of" in text
 
 
+def test_paired_counts_are_the_direct_counts(study_dirs) -> None:
+    steps = pd.read_parquet(study_dirs["search"] / "steps.parquet")
+    direct = _held_lost_direct(steps)
+    held = np.array([direct[r][0] for r in sorted(direct)], dtype=float)
+    losing = int((held > 0).sum())
+    (row,) = _script().paired_lines(str(study_dirs["search"]), [("pg", "pg")])[2:]
+    cols = [c.strip() for c in row.strip("|").split("|")]
+    assert cols[:2] == ["pg - pg", str(held.size)]
+    assert cols[2] == f"{held.mean():.3f}; {held.mean():.3f}"
+    assert cols[3].startswith("+0.000")                        # a method against itself
+    assert cols[4:] == [f"{losing}; {losing}", "0; 0"]
+
+
 def test_verdict_follows_the_rule() -> None:
     script = _script()
     base = script.Cell(study="paper", method="pg", tracker="known", runs=100,
