@@ -46,7 +46,11 @@ def _cell_tail(d: float, b: float, survival: float, e: int, miss: np.ndarray, k0
 def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int, k0: int,
              player: int, plan_sensor: np.ndarray, plan_epoch: np.ndarray,
              plan_row: np.ndarray, look_row: np.ndarray, look_epoch: np.ndarray,
-             row_off: np.ndarray, row_idx: np.ndarray, row_val: np.ndarray) -> np.ndarray:
+             row_off: np.ndarray, row_idx: np.ndarray, row_val: np.ndarray, has_prev: bool,
+             prev_miss: np.ndarray, prev_delta: np.ndarray, prev_base: float,
+             prev_rep: np.ndarray, cell_off: np.ndarray, cell_cand: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray, np.ndarray,
+                        np.ndarray]:
     """mu for each candidate of a player (sensor ``player``) whose chain starts at epoch
     ``k0`` (0-based).
 
@@ -61,10 +65,18 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
     look_epoch : (n,) int      each chain look's epoch (0-based, ascending, from k0)
     row_off, row_idx, row_val  the pool of looks: row r's non-zero ``P_d v`` are
                                ``row_val[row_off[r]:row_off[r+1]]`` at cells ``row_idx[...]``
+    has_prev : bool            the other arguments are this call's last returned ``kept``
+                               with the same arguments but the planned looks (the same
+                               player, candidates and pool rows); else they are not read
+    prev_miss, prev_delta, prev_base, prev_rep, cell_off, cell_cand   that ``kept``
 
     Returns
     -------
-    (A,) expected number of undetected targets found
+    mu : (A,) expected number of undetected targets found
+    kept : the others' misses ``(K, C)``, each candidate's change ``(A,)`` and the others'
+        mu, each candidate's first candidate with the same looks ``(A,)``, and (from the
+        second call on) the candidates whose looks cover each cell (``cell_cand[cell_off[c]:
+        cell_off[c + 1]]``; empty before)
     """
     C = d0.shape[0]
     A, n = look_row.shape
@@ -77,22 +89,45 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
         r, kk = plan_row[q], plan_epoch[q]
         for p in range(row_off[r], row_off[r + 1]):
             miss[kk, row_idx[p]] *= 1.0 - row_val[p]
-    # Candidates whose chains are the same looks (track looks the turn limit clips to one
-    # heading, say) have the same mu: each computed once, by its first in key order.
-    rep = np.arange(A)
-    top = 1
-    for a in range(A):
-        for l in range(n):
-            top = max(top, look_row[a, l] + 2)
-    if n > 0 and n * math.log2(top) < 62.0:
-        key = np.zeros(A, dtype=np.int64)
+    # A candidate's change is a function of its looks and of its cells' misses (their
+    # intensities and tails follow from those): where no cell it covers changed a bit
+    # since the last call, it is the last call's. (The sign of a zero counts as a bit.)
+    dirty = np.zeros(A, dtype=np.bool_)
+    n_dirty = 0
+    if has_prev:
+        rep = prev_rep
+        if cell_off.shape[0] == 0:
+            cell_off, cell_cand = _cells_covered(look_row, rep, row_off, row_idx, C)
+        for c in range(C):
+            for kk in range(K):
+                m, was = miss[kk, c], prev_miss[kk, c]
+                if m != was or math.copysign(1.0, m) != math.copysign(1.0, was):
+                    n_dirty += 1
+                    for q in range(cell_off[c], cell_off[c + 1]):
+                        dirty[cell_cand[q]] = True
+                    break
+        if n_dirty == 0:
+            out = np.empty(A)
+            for a in range(A):
+                out[a] = prev_base + prev_delta[rep[a]]
+            return out, miss, prev_delta, prev_base, rep, cell_off, cell_cand
+    else:
+        # Candidates whose chains are the same looks (track looks the turn limit clips to
+        # one heading, say) have the same mu: each computed once, by its first in key order.
+        rep = np.arange(A)
+        top = 1
         for a in range(A):
             for l in range(n):
-                key[a] = key[a] * top + look_row[a, l] + 1
-        order = np.argsort(key, kind="mergesort")
-        for q in range(1, A):
-            if key[order[q]] == key[order[q - 1]]:
-                rep[order[q]] = rep[order[q - 1]]
+                top = max(top, look_row[a, l] + 2)
+        if n > 0 and n * math.log2(top) < 62.0:
+            key = np.zeros(A, dtype=np.int64)
+            for a in range(A):
+                for l in range(n):
+                    key[a] = key[a] * top + look_row[a, l] + 1
+            order = np.argsort(key, kind="mergesort")
+            for q in range(1, A):
+                if key[order[q]] == key[order[q - 1]]:
+                    rep[order[q]] = rep[order[q - 1]]
     L = K - k0
     # The others alone: mu before k0, each cell's intensity at k0 and its tail from k0.
     d_k0 = d0.copy()
@@ -113,11 +148,8 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
         tail[c] = _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, ones)
         tail_sum += tail[c]
     base = mu_pre + tail_sum
-    # Per candidate: the cells its looks cover, their chain misses in a scratch row. A cell
-    # only one of the chain's looks covers changes by a function of (cell, that look's
-    # epoch, its miss): kept, and reused when another candidate's look there misses with
-    # the same bits (every covered cell, with ideal detection).
     out = np.empty(A)
+    change = np.empty(A)
     chain = np.ones((C, L))
     stamp = np.full(C, -1, dtype=np.int64)
     done = np.full(C, -1, dtype=np.int64)
@@ -127,6 +159,10 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
     kept_delta = np.empty((C, L))
     for a in range(A):
         if rep[a] != a:
+            continue
+        if has_prev and not dirty[a]:
+            change[a] = prev_delta[a]
+            out[a] = base + change[a]
             continue
         # One look: every cell it covers is covered once, in the row's order.
         one = -1
@@ -149,9 +185,11 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
                     kept_miss[c, kl] = m
                     chain[c, kl] = 1.0
                 delta += kept_delta[c, kl]
+            change[a] = delta
             out[a] = base + delta
             continue
         if one == -1:                    # no look
+            change[a] = 0.0
             out[a] = base + 0.0
             continue
         # Several looks. The cells in the order they first appear, look by look: the first
@@ -216,10 +254,46 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
                     delta += _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c,
                                         chain[c]) - tail[c]
                     chain[c, :] = 1.0
+        change[a] = delta
         out[a] = base + delta
     for a in range(A):
         out[a] = out[rep[a]]
-    return out
+    return out, miss, change, base, rep, cell_off, cell_cand
+
+
+@njit(cache=True)
+def _cells_covered(look_row: np.ndarray, rep: np.ndarray, row_off: np.ndarray,
+                   row_idx: np.ndarray, C: int) -> tuple[np.ndarray, np.ndarray]:
+    """The candidates (their first of the same looks, ``rep``) whose looks cover each cell:
+    ``cand[off[c]:off[c + 1]]`` for cell c (a candidate repeated where several of its looks
+    do)."""
+    A, n = look_row.shape
+    off = np.zeros(C + 1, dtype=np.int64)
+    for a in range(A):
+        if rep[a] != a:
+            continue
+        for l in range(n):
+            r = look_row[a, l]
+            if r >= 0:
+                for q in range(row_off[r], row_off[r + 1]):
+                    off[row_idx[q] + 1] += 1
+    for c in range(C):
+        off[c + 1] += off[c]
+    fill = off[:C].copy()
+    cand = np.empty(off[C], dtype=np.int64)
+    for a in range(A):
+        if rep[a] != a:
+            continue
+        for l in range(n):
+            r = look_row[a, l]
+            if r >= 0:
+                for q in range(row_off[r], row_off[r + 1]):
+                    c = row_idx[q]
+                    cand[fill[c]] = a
+                    fill[c] += 1
+    return off, cand
+
+
 
 
 @njit(cache=True)

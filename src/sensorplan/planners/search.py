@@ -60,6 +60,9 @@ HEADING_TOL = 1e-12
 #: No earlier terms (player_pair_terms_nb's arguments without them).
 _NO_BASE = np.zeros((0, 0, 2, 2))
 _NO_TERMS = np.zeros((0, 0))
+#: No earlier call (found_nb's kept arguments without one).
+NO_FOUND = (np.ones((0, 0)), np.zeros(0), 0.0, np.zeros(0, dtype=np.int64),
+            np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
 
 
 def sector_bearings(n_sectors: int) -> FloatArray:
@@ -620,8 +623,22 @@ def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: 
         row = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
         looks = memo["looks"] = (n_look, k_look, row)
     n_look, k_look, row = looks
-    return found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, int(i), n_look,
-                    k_look, row, rows, epochs, *pool.arrays())
+    # What the player's last call kept, if its candidates' looks are the same (kept alive
+    # here: known by identity): the same others' looks (the misses multiply in their order)
+    # give the same mu; else its candidates whose cells' misses kept their bits keep theirs.
+    kept = sctx.memo.setdefault("found", {})
+    prev = kept.get((i, k))
+    has = prev is not None and prev[0] is rows and prev[1] is epochs
+    other = (n_look != i) | (k_look < k - 1)
+    others = (n_look[other].tobytes(), k_look[other].tobytes(), row[other].tobytes())
+    if has and prev[3] == others:
+        return cast(FloatArray, prev[4])
+    mu, *state = found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, int(i),
+                          n_look, k_look, row, rows, epochs, *pool.arrays(), has,
+                          *(prev[2] if has else NO_FOUND))
+    mu.flags.writeable = False
+    kept[(i, k)] = (rows, epochs, state, others, mu)
+    return cast(FloatArray, mu)
 
 
 class _LookPool:
