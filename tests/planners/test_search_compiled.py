@@ -19,7 +19,7 @@ from sensorplan.planners._search_nb import (found_nb, heading_rule_nb, jsfp_step
                                             player_pair_terms_nb)
 from sensorplan.planners.contract_problems import paper_problem, searching
 from sensorplan.planners.information import chain_information, cv_form
-from sensorplan.planners.problem import PlanningProblem
+from sensorplan.planners.problem import Plan, PlanningProblem
 
 TOWN = np.array([[200.0, 200.0, 300.0, 300.0, 40.0], [400.0, 100.0, 450.0, 350.0, 80.0]])
 
@@ -526,3 +526,41 @@ def test_found_from_a_kept_call_is_a_first_calls(name: str, problem: PlanningPro
                     assert got[4].tobytes() == want[4].tobytes()
                     want = got
                 kept = want[1:]
+
+
+@pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
+def test_a_switched_plans_kept_parts_are_a_fresh_plans(name: str, problem: PlanningProblem
+                                                        ) -> None:
+    """A plan switched from another (its headings, track looks and planned looks spliced
+    from that plan's) keeps the same arrays, bit for bit, as the plan computed afresh."""
+    sctx = search.prepare(problem)
+    ctx = sctx.ctx
+    rng = np.random.default_rng(31)
+    # From no looks, as sequential-greedy (players assigned one by one), then any player.
+    plan = Plan.empty(ctx.N, ctx.K)
+    order = [(i, k) for k in range(1, ctx.K + 1) for i in range(ctx.N)]
+    order += [(int(rng.integers(ctx.N)), int(rng.integers(1, ctx.K + 1))) for _ in range(6)]
+    for i, k in order:
+        # What candidate_potentials keeps with the plan, then a switch of one player.
+        headings = search._plan_headings(sctx, plan)
+        search._plan_track_looks(sctx, plan, headings)
+        search._planned_looks(sctx, plan, headings, search._plan_memo(sctx, plan))
+        pos, tgt, sec = search.player_actions(sctx, plan, i, k)
+        b = int(rng.integers(len(tgt)))
+        plan = search._switched(sctx, plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
+        assert "came_from" in search._plan_memo(sctx, plan)
+        fresh = dataclasses.replace(sctx, memo={})
+        got_h = search._plan_headings(sctx, plan)
+        want_h = search._plan_headings(fresh, plan)
+        assert got_h.tobytes() == want_h.tobytes()
+        got_w = search._plan_track_looks(sctx, plan, got_h)
+        want_w = search._plan_track_looks(fresh, plan, want_h)
+        for g, w in zip(got_w, want_w):
+            assert g.dtype == w.dtype and g.shape == w.shape and g.tobytes() == w.tobytes()
+        got_l = search._planned_looks(sctx, plan, got_h, search._plan_memo(sctx, plan))
+        want_l = search._planned_looks(fresh, plan, want_h, search._plan_memo(fresh, plan))
+        # The pools number rows in their own order: compare the rows' cells and values.
+        assert [g.tobytes() for g in got_l[:2]] == [w.tobytes() for w in want_l[:2]]
+        for rg, rw in zip(got_l[2].tolist(), want_l[2].tolist()):
+            for g, w in zip(search._pool(sctx).row(rg), search._pool(fresh).row(rw)):
+                assert g.tobytes() == w.tobytes()
