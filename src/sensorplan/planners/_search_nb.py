@@ -364,7 +364,9 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
     depend on the look's position only and are computed once for a run of looks from the
     same position (a player's candidates are position-major; the ``atan2`` when a look
     first needs it); the wedge and boresight tests, per heading. Cells certainly outside
-    the wedge are skipped before them.
+    the wedge are skipped before them, and cells certainly inside it pass its test without
+    the bearing (by the same margin on the cosine); ``P_d``, a function of the slant range,
+    is computed once per cell and position.
 
     Parameters
     ----------
@@ -382,13 +384,21 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
     counts = np.zeros(B, dtype=np.int64)
     half = row[FOV] + ANGLE_TOL
     cut = math.cos(half) - _WEDGE_MARGIN if half < math.pi else -2.0
+    # Cells certainly inside the wedge (by the same margin, the other side) pass in_wedge
+    # without their atan2: most of a look's cells, and the atan2 was most of their cost.
+    inner = math.cos(half) + _WEDGE_MARGIN if half < math.pi else -2.0
     # The band's cells of the current position: cell, offsets, ground range, bearing and
     # slant range (visible()'s g, atan2(dy, dx) and r).
     band = np.empty(C, dtype=np.int64)
     bdx, bdy, bg = np.empty(C), np.empty(C), np.empty(C)
     bearing, slant = np.empty(C), np.empty(C)
+    # P_d depends on the slant range only: kept per band cell of the position, computed
+    # when a look first needs it (a position's headings overlap: about 7 looks a position).
+    pd = np.empty(C)
+    pd_at = np.full(C, -1, dtype=np.int64)
     nb = 0
     sx, sy = math.nan, math.nan
+    b0 = 0
     n = 0
     for b in range(B):
         # The same position to the bit (a signed zero is another position: its offsets
@@ -397,6 +407,7 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
                           and math.copysign(1.0, xy[b, 0]) == math.copysign(1.0, sx)
                           and math.copysign(1.0, xy[b, 1]) == math.copysign(1.0, sy)):
             sx, sy = xy[b, 0], xy[b, 1]
+            b0 = b
             nb = 0
             for c in range(C):
                 dx = centres[c, 0] - sx
@@ -413,18 +424,23 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
         ch, sh = math.cos(h), math.sin(h)
         for q in range(nb):
             dx, dy = bdx[q], bdy[q]
-            if dx * ch + dy * sh < bg[q] * cut:
+            along = dx * ch + dy * sh
+            if along < bg[q] * cut:
                 continue                                 # certainly outside the wedge
-            if math.isnan(bearing[q]):
-                bearing[q] = math.atan2(dy, dx)
-            if not in_wedge(row, wrap(bearing[q] - h)):
-                continue
+            if not along > bg[q] * inner:                # not certainly inside (g = 0 too)
+                if math.isnan(bearing[q]):
+                    bearing[q] = math.atan2(dy, dx)
+                if not in_wedge(row, wrap(bearing[q] - h)):
+                    continue
             if not cos_psi(row, dx, dy, ch, sh, slant[q]) > 0.0:
                 continue
             if buildings.shape[0] and hidden(buildings, sx, sy, row[ALTITUDE], sx + dx,
                                              sy + dy):
                 continue
-            p = detection_probability(row, dx * dx + dy * dy + row[ALTITUDE2])
+            if pd_at[q] != b0:
+                pd[q] = detection_probability(row, dx * dx + dy * dy + row[ALTITUDE2])
+                pd_at[q] = b0
+            p = pd[q]
             if p != 0.0:
                 idx[n] = band[q]
                 val[n] = p
