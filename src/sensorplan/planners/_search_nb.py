@@ -353,11 +353,14 @@ def pose_rows_nb(keys: np.ndarray, vals: np.ndarray, sensor: int, bits: np.ndarr
 
 
 @njit(cache=True, error_model="numpy")
-def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
-                     heading: np.ndarray, buildings: np.ndarray
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The non-zero ``P_d v`` of B looks of one sensor at the cell centres: the values of
-    :func:`~sensorplan.models.radar.batch.detectable_points`, bit for bit.
+def detect_sparse_into_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
+                          heading: np.ndarray, buildings: np.ndarray, off: np.ndarray,
+                          idx: np.ndarray, val: np.ndarray, r0: int) -> int:
+    """The non-zero ``P_d v`` of B looks of one sensor at the cell centres, the values of
+    :func:`~sensorplan.models.radar.batch.detectable_points` bit for bit, written as rows
+    ``r0..r0+B-1`` of the look pool's flat arrays (:class:`~sensorplan.planners.search.
+    _LookPool`): written in place, as copying a decision's millions of entries cost more
+    than finding them.
 
     :func:`~sensorplan.models.radar.model.visible`'s tests in its order, split by what they
     depend on: the ground range, the band test, the bearing's ``atan2`` and the slant range
@@ -372,16 +375,15 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
     ----------
     row : (n_cols,) the sensor's radar row;  centres : (C, 2);  xy : (B, 2);  heading : (B,)
     buildings : (nb, 5)
+    off : rows' starts, room for ``r0 + B + 1``; ``off[r0]`` is where row r0 starts
+    idx, val : the rows' cells (ascending within a row) and values, room for ``B * C`` from
+               ``off[r0]``;  r0 : the first row written
 
     Returns
     -------
-    counts : (B,) non-zero cells per look;  idx : (nnz,) their cells, look-major, ascending;
-    val : (nnz,)
+    the number of entries written (``off[r0 + 1:r0 + B + 1]`` set)
     """
     B, C = xy.shape[0], centres.shape[0]
-    idx = np.empty(B * C, dtype=np.int64)
-    val = np.empty(B * C)
-    counts = np.zeros(B, dtype=np.int64)
     half = row[FOV] + ANGLE_TOL
     cut = math.cos(half) - _WEDGE_MARGIN if half < math.pi else -2.0
     # Cells certainly inside the wedge (by the same margin, the other side) pass in_wedge
@@ -399,7 +401,7 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
     nb = 0
     sx, sy = math.nan, math.nan
     b0 = 0
-    n = 0
+    n = off[r0]
     for b in range(B):
         # The same position to the bit (a signed zero is another position: its offsets
         # could differ in their zeros' signs).
@@ -445,8 +447,26 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
                 idx[n] = band[q]
                 val[n] = p
                 n += 1
-                counts[b] += 1
-    return counts, idx[:n].copy(), val[:n].copy()
+        off[r0 + 1 + b] = n
+    return n - off[r0]
+
+
+def detect_sparse(row: np.ndarray, centres: np.ndarray, xy: np.ndarray, heading: np.ndarray,
+                  buildings: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`detect_sparse_into_nb` into arrays of its own.
+
+    Returns
+    -------
+    counts : (B,) non-zero cells per look;  idx : (nnz,) their cells, look-major, ascending;
+    val : (nnz,)
+    """
+    B, C = xy.shape[0], centres.shape[0]
+    off = np.zeros(B + 1, dtype=np.int64)
+    idx = np.empty(B * C, dtype=np.int64)
+    val = np.empty(B * C)
+    n = detect_sparse_into_nb(row, centres, xy, heading, buildings, off, idx, val, 0)
+    return np.diff(off), idx[:n].copy(), val[:n].copy()
+
 
 
 @njit(cache=True, fastmath=False, inline="always")
@@ -830,6 +850,6 @@ def player_actions_nb(prev: np.ndarray, moves: np.ndarray, width: float, height:
     return pos, tgt, sec
 
 
-__all__ = ["detect_sparse_nb", "found_nb", "heading_rule_nb", "look_information_nb",
-           "jsfp_steps_nb", "pair_terms_nb", "player_actions_nb",
+__all__ = ["detect_sparse", "detect_sparse_into_nb", "found_nb", "heading_rule_nb",
+           "look_information_nb", "jsfp_steps_nb", "pair_terms_nb", "player_actions_nb",
            "player_pair_terms_nb", "pose_rows_nb"]

@@ -44,7 +44,7 @@ from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, heading_rule_scalar, wrap_angle
-from ._search_nb import (detect_sparse_nb, found_nb, jsfp_steps_nb, look_information_nb,
+from ._search_nb import (detect_sparse_into_nb, found_nb, jsfp_steps_nb, look_information_nb,
                          player_actions_nb, player_pair_terms_nb, pose_rows_nb)
 from .cells import candidate_chains, detection
 from .information import (BACKEND, Context, chain_information, covariance_recursion,
@@ -680,7 +680,7 @@ def _planned_looks(sctx: SearchContext, plan: Plan, headings: FloatArray,
 
 class _LookPool:
     """Every look's non-zero ``P_d v`` (:func:`detection`'s values, from
-    :func:`~sensorplan.planners._search_nb.detect_sparse_nb`), by the look's pose: sensor,
+    :func:`~sensorplan.planners._search_nb.detect_sparse_into_nb`), by the look's pose: sensor,
     ground position and heading, bit for bit. Rows live in growing flat arrays, the layout
     :func:`~sensorplan.planners._search_nb.found_nb` reads."""
 
@@ -709,17 +709,15 @@ class _LookPool:
                                   self.n_rows)
         if len(first):
             ctx = sctx.ctx
-            counts, idx, val = detect_sparse_nb(ctx.radar[n], sctx.centres,
-                                                np.ascontiguousarray(pose[first, :2]),
-                                                np.ascontiguousarray(pose[first, 2]),
-                                                ctx.buildings)
             R, start = self.n_rows, int(self.off[self.n_rows])
             self.off = _grown(self.off, R + 1 + len(first))
-            self.off[R + 1:R + 1 + len(first)] = start + np.cumsum(counts)
-            self.idx = _grown(self.idx, start + len(idx))
-            self.idx[start:start + len(idx)] = idx
-            self.val = _grown(self.val, start + len(val))
-            self.val[start:start + len(val)] = val
+            most = start + len(first) * len(sctx.centres)       # every look sees every cell
+            self.idx = _grown(self.idx, most)
+            self.val = _grown(self.val, most)
+            detect_sparse_into_nb(ctx.radar[n], sctx.centres,
+                                  np.ascontiguousarray(pose[first, :2]),
+                                  np.ascontiguousarray(pose[first, 2]), ctx.buildings,
+                                  self.off, self.idx, self.val, R)
             self.n_rows += len(first)
         return out
 
