@@ -19,7 +19,7 @@ from sensorplan.planners._search_nb import (found_nb, heading_rule_nb, jsfp_step
                                             player_pair_terms_nb)
 from sensorplan.planners.contract_problems import paper_problem, searching
 from sensorplan.planners.information import chain_information, cv_form
-from sensorplan.planners.problem import PlanningProblem
+from sensorplan.planners.problem import Plan, PlanningProblem
 
 TOWN = np.array([[200.0, 200.0, 300.0, 300.0, 40.0], [400.0, 100.0, 450.0, 350.0, 80.0]])
 
@@ -48,6 +48,11 @@ def decisions() -> list[tuple[str, PlanningProblem]]:
 
 
 DECISIONS = decisions()
+
+
+def found(*args: object) -> np.ndarray:
+    """:func:`found_nb`'s mu of a first call (nothing kept from an earlier one)."""
+    return found_nb(*args, False, *search.NO_FOUND)[0]
 
 
 @pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
@@ -174,8 +179,8 @@ def test_found_of_a_batch_is_each_candidates_alone(name: str, problem: PlanningP
             args = (sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, i, n_look,
                     k_look, row)
             epochs = np.array(ls, dtype=np.int64) + (k - 1)
-            batch = found_nb(*args, rows, epochs, *pool.arrays())
-            alone = np.array([found_nb(*args, rows[a:a + 1], epochs, *pool.arrays())[0]
+            batch = found(*args, rows, epochs, *pool.arrays())
+            alone = np.array([found(*args, rows[a:a + 1], epochs, *pool.arrays())[0]
                               for a in range(len(rows))])
             np.testing.assert_array_equal(batch.view(np.int64), alone.view(np.int64))
             miss = np.ones((len(rows), ctx.K, len(sctx.centres)))
@@ -301,8 +306,8 @@ def test_found_of_one_look_is_the_general_paths(name: str, problem: PlanningProb
         epochs = np.array([0, 1], dtype=np.int64)
         one = np.stack([first, np.full_like(first, -1)], axis=1)
         two = np.stack([first, np.full_like(first, empty)], axis=1)
-        got = found_nb(*args, one, epochs, *pool.arrays())
-        want = found_nb(*args, two, epochs, *pool.arrays())
+        got = found(*args, one, epochs, *pool.arrays())
+        want = found(*args, two, epochs, *pool.arrays())
         np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
         assert got.size and np.isfinite(got).all()
 
@@ -463,6 +468,99 @@ def test_found_is_its_order_in_plain_python(name: str, problem: PlanningProblem)
                 epochs = np.array(ls, dtype=np.int64) + (k - 1)
                 args = (sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, i,
                         np.ascontiguousarray(n_look), np.ascontiguousarray(k_look), row)
-                got = found_nb(*args, rows, epochs, *pool.arrays())
+                got = found(*args, rows, epochs, *pool.arrays())
                 want = found_in_order(args, rows, epochs, pool)
                 np.testing.assert_array_equal(got.view(np.int64), want.view(np.int64))
+
+
+@pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
+def test_found_from_a_kept_call_is_a_first_calls(name: str, problem: PlanningProblem) -> None:
+    """found_nb with what a player's last call kept (its candidates as before, the others'
+    looks changed in one sensor, in none, in several, in every one) gives a first call's
+    mu and kept misses and mu of the others, bit for bit."""
+    sctx = search.prepare(problem)
+    ctx = sctx.ctx
+    rng = np.random.default_rng(29)
+    pool = search._pool(sctx)
+
+    def planned(plan) -> tuple:
+        headings = search.plan_headings(sctx, plan)
+        n_look, k_look = np.nonzero(plan.assigned)
+        row = np.concatenate([pool.rows(sctx, int(n), plan.positions[n, k_look[n_look == n]],
+                                        headings[n, k_look[n_look == n]])
+                              for n in np.unique(n_look)])
+        return np.ascontiguousarray(n_look), np.ascontiguousarray(k_look), row
+
+    first = search.random_plan(sctx, rng)
+    headings = search.plan_headings(sctx, first)
+    for i in range(ctx.N):
+        for k in range(1, ctx.K + 1):
+            pos, tgt, sec = search.player_actions(sctx, first, i, k)
+            chains = search.candidate_chains(sctx, first, i, k, pos, tgt, sec, headings)
+            ls = [l for l in range(ctx.K - k + 1) if l == 0 or chains[2][0, l]]
+            rows = np.stack([pool.rows(sctx, i, chains[0][:, l], chains[3][:, l]) for l in ls],
+                            axis=1)
+            rows = np.concatenate([rows, rows[::3]])   # repeated candidates among them
+            epochs = np.array(ls, dtype=np.int64) + (k - 1)
+            fixed = (sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, i)
+            plan, kept = first, None
+            for change in ("one", "none", "several", "every", "one"):
+                if change != "none":
+                    other = search.random_plan(sctx, rng)
+                    moved = {"one": [(i + 1) % ctx.N], "several": [i, (i + 1) % ctx.N],
+                             "every": list(range(ctx.N))}[change]
+                    assert plan.sectors is not None and other.sectors is not None
+                    pos_, tgt_, sec_ = (plan.positions.copy(), plan.targets.copy(),
+                                        plan.sectors.copy())
+                    for n in moved:
+                        pos_[n], tgt_[n], sec_[n] = (other.positions[n], other.targets[n],
+                                                     other.sectors[n])
+                    plan = type(plan)(pos_, tgt_, sec_)
+                args = (*fixed, *planned(plan), rows, epochs, *pool.arrays())
+                want = found_nb(*args, False, *search.NO_FOUND)
+                if kept is not None:
+                    got = found_nb(*args, True, *kept)
+                    np.testing.assert_array_equal(got[0].view(np.int64),
+                                                  want[0].view(np.int64))
+                    assert got[1].tobytes() == want[1].tobytes() and got[3] == want[3]
+                    assert got[4].tobytes() == want[4].tobytes()
+                    want = got
+                kept = want[1:]
+
+
+@pytest.mark.parametrize("name,problem", DECISIONS, ids=[n for n, _ in DECISIONS])
+def test_a_switched_plans_kept_parts_are_a_fresh_plans(name: str, problem: PlanningProblem
+                                                        ) -> None:
+    """A plan switched from another (its headings, track looks and planned looks spliced
+    from that plan's) keeps the same arrays, bit for bit, as the plan computed afresh."""
+    sctx = search.prepare(problem)
+    ctx = sctx.ctx
+    rng = np.random.default_rng(31)
+    # From no looks, as sequential-greedy (players assigned one by one), then any player.
+    plan = Plan.empty(ctx.N, ctx.K)
+    order = [(i, k) for k in range(1, ctx.K + 1) for i in range(ctx.N)]
+    order += [(int(rng.integers(ctx.N)), int(rng.integers(1, ctx.K + 1))) for _ in range(6)]
+    for i, k in order:
+        # What candidate_potentials keeps with the plan, then a switch of one player.
+        headings = search._plan_headings(sctx, plan)
+        search._plan_track_looks(sctx, plan, headings)
+        search._planned_looks(sctx, plan, headings, search._plan_memo(sctx, plan))
+        pos, tgt, sec = search.player_actions(sctx, plan, i, k)
+        b = int(rng.integers(len(tgt)))
+        plan = search._switched(sctx, plan, i, k, pos[b], int(tgt[b]), int(sec[b]))
+        assert "came_from" in search._plan_memo(sctx, plan)
+        fresh = dataclasses.replace(sctx, memo={})
+        got_h = search._plan_headings(sctx, plan)
+        want_h = search._plan_headings(fresh, plan)
+        assert got_h.tobytes() == want_h.tobytes()
+        got_w = search._plan_track_looks(sctx, plan, got_h)
+        want_w = search._plan_track_looks(fresh, plan, want_h)
+        for g, w in zip(got_w, want_w):
+            assert g.dtype == w.dtype and g.shape == w.shape and g.tobytes() == w.tobytes()
+        got_l = search._planned_looks(sctx, plan, got_h, search._plan_memo(sctx, plan))
+        want_l = search._planned_looks(fresh, plan, want_h, search._plan_memo(fresh, plan))
+        # The pools number rows in their own order: compare the rows' cells and values.
+        assert [g.tobytes() for g in got_l[:2]] == [w.tobytes() for w in want_l[:2]]
+        for rg, rw in zip(got_l[2].tolist(), want_l[2].tolist()):
+            for g, w in zip(search._pool(sctx).row(rg), search._pool(fresh).row(rw)):
+                assert g.tobytes() == w.tobytes()

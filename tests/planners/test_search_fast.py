@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 
 import search_reference
+from sensorplan.models.radar.batch import detectable_points
 from sensorplan.models.sensors import FOV
 from sensorplan.planners import make_planner, search
-from sensorplan.planners._search_nb import detect_sparse_nb
+from sensorplan.planners._search_nb import detect_sparse
 from sensorplan.planners.contract_problems import paper_problem, searching, tiny_problem
 from sensorplan.planners.problem import Plan, PlanningProblem
 
@@ -150,7 +151,7 @@ def test_looks_from_one_position_are_the_dense_detection(kind: str) -> None:
     g = centres[None, 5] - spots[:, None]
     edge = np.arctan2(g[..., 1], g[..., 0])[:, 0] + float(sctx.ctx.radar[0][FOV])
     h[::40] = edge
-    counts, idx, val = detect_sparse_nb(sctx.ctx.radar[0], centres, xy, h,
+    counts, idx, val = detect_sparse(sctx.ctx.radar[0], centres, xy, h,
                                         sctx.ctx.buildings)
     dense = search.detection(sctx, 0, xy, h)
     starts = np.concatenate([[0], np.cumsum(counts)])
@@ -176,7 +177,50 @@ def test_the_look_pool_keeps_its_rows_when_its_table_grows() -> None:
     np.testing.assert_array_equal(np.concatenate(first), np.arange(8 * 700))
     for (n, xy, h), rows in zip(batches[::-1], first[::-1]):
         np.testing.assert_array_equal(pool.rows(sctx, int(n), xy, h), rows)
+        # Each batch's rows, written in place after the earlier ones, are its own looks'.
+        counts, idx, val = detect_sparse(sctx.ctx.radar[n], sctx.centres, xy, h,
+                                         sctx.ctx.buildings)
+        starts = np.concatenate([[0], np.cumsum(counts)])
+        for b, r in enumerate(rows.tolist()):
+            got_idx, got_val = pool.row(r)
+            np.testing.assert_array_equal(got_idx, idx[starts[b]:starts[b + 1]])
+            np.testing.assert_array_equal(got_val, val[starts[b]:starts[b + 1]])
     assert pool.n_rows == 8 * 700
     zero = pool.rows(sctx, 0, np.array([[0.0, 100.0], [-0.0, 100.0], [0.0, 100.0]]),
                      np.array([0.0, 0.0, -0.0]))
     assert len(set(zero.tolist())) == 3 and pool.n_rows == 8 * 700 + 3
+
+
+@pytest.mark.parametrize("fov", [np.pi / 6, 2.0, np.pi])
+def test_cells_near_the_wedge_edges_are_the_radars_decision(fov: float) -> None:
+    """Cells within the wedge test's margin of an edge, either side (where
+    :func:`detect_sparse_into_nb` takes the bearing's ``atan2`` instead of deciding by the
+    cosine), and cells well inside or outside: the radar's own detection bit for bit, for a
+    narrow, a wide (half-angle over 90 degrees) and an all-round field of view."""
+    rng = np.random.default_rng(6)
+    problem = searching(paper_problem(rng, horizon=2), rng, 12, cells=16)
+    sctx = search.prepare(problem)
+    centres = sctx.centres
+    row = sctx.ctx.radar[0].copy()
+    row[FOV] = fov
+    spots = rng.uniform(0.0, 600.0, (4, 2))
+    offsets = np.array([0.0, 1e-12, 1e-10, 5e-10, 2e-9, 1e-8, 1e-3])
+    offsets = np.concatenate([offsets, -offsets[1:]])
+    xy, h = [], []
+    for spot in spots:
+        for c in rng.choice(len(centres), 3, replace=False):
+            g = centres[c] - spot
+            for side in (1.0, -1.0):
+                xy.append(np.repeat(spot[None], len(offsets), axis=0))
+                h.append(np.arctan2(g[1], g[0]) + side * (fov + offsets))
+    xy, h = np.concatenate(xy), np.concatenate(h)
+    counts, idx, val = detect_sparse(row, centres, xy, h, sctx.ctx.buildings)
+    dense = detectable_points(row[None], np.zeros(len(h), dtype=np.int64),
+                              centres[None, :, 0] - xy[:, :1], centres[None, :, 1] - xy[:, 1:],
+                              h, xy, sctx.ctx.buildings)
+    starts = np.concatenate([[0], np.cumsum(counts)])
+    for b in range(len(h)):
+        got = np.zeros(len(centres))
+        got[idx[starts[b]:starts[b + 1]]] = val[starts[b]:starts[b + 1]]
+        np.testing.assert_array_equal(got, dense[b])
+    assert (dense > 0).any() and (dense == 0).any()

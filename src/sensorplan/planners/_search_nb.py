@@ -46,7 +46,11 @@ def _cell_tail(d: float, b: float, survival: float, e: int, miss: np.ndarray, k0
 def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int, k0: int,
              player: int, plan_sensor: np.ndarray, plan_epoch: np.ndarray,
              plan_row: np.ndarray, look_row: np.ndarray, look_epoch: np.ndarray,
-             row_off: np.ndarray, row_idx: np.ndarray, row_val: np.ndarray) -> np.ndarray:
+             row_off: np.ndarray, row_idx: np.ndarray, row_val: np.ndarray, has_prev: bool,
+             prev_miss: np.ndarray, prev_delta: np.ndarray, prev_base: float,
+             prev_rep: np.ndarray, cell_off: np.ndarray, cell_cand: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.ndarray, np.ndarray,
+                        np.ndarray]:
     """mu for each candidate of a player (sensor ``player``) whose chain starts at epoch
     ``k0`` (0-based).
 
@@ -61,10 +65,18 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
     look_epoch : (n,) int      each chain look's epoch (0-based, ascending, from k0)
     row_off, row_idx, row_val  the pool of looks: row r's non-zero ``P_d v`` are
                                ``row_val[row_off[r]:row_off[r+1]]`` at cells ``row_idx[...]``
+    has_prev : bool            the other arguments are this call's last returned ``kept``
+                               with the same arguments but the planned looks (the same
+                               player, candidates and pool rows); else they are not read
+    prev_miss, prev_delta, prev_base, prev_rep, cell_off, cell_cand   that ``kept``
 
     Returns
     -------
-    (A,) expected number of undetected targets found
+    mu : (A,) expected number of undetected targets found
+    kept : the others' misses ``(K, C)``, each candidate's change ``(A,)`` and the others'
+        mu, each candidate's first candidate with the same looks ``(A,)``, and (from the
+        second call on) the candidates whose looks cover each cell (``cell_cand[cell_off[c]:
+        cell_off[c + 1]]``; empty before)
     """
     C = d0.shape[0]
     A, n = look_row.shape
@@ -77,22 +89,45 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
         r, kk = plan_row[q], plan_epoch[q]
         for p in range(row_off[r], row_off[r + 1]):
             miss[kk, row_idx[p]] *= 1.0 - row_val[p]
-    # Candidates whose chains are the same looks (track looks the turn limit clips to one
-    # heading, say) have the same mu: each computed once, by its first in key order.
-    rep = np.arange(A)
-    top = 1
-    for a in range(A):
-        for l in range(n):
-            top = max(top, look_row[a, l] + 2)
-    if n > 0 and n * math.log2(top) < 62.0:
-        key = np.zeros(A, dtype=np.int64)
+    # A candidate's change is a function of its looks and of its cells' misses (their
+    # intensities and tails follow from those): where no cell it covers changed a bit
+    # since the last call, it is the last call's. (The sign of a zero counts as a bit.)
+    dirty = np.zeros(A, dtype=np.bool_)
+    n_dirty = 0
+    if has_prev:
+        rep = prev_rep
+        if cell_off.shape[0] == 0:
+            cell_off, cell_cand = _cells_covered(look_row, rep, row_off, row_idx, C)
+        for c in range(C):
+            for kk in range(K):
+                m, was = miss[kk, c], prev_miss[kk, c]
+                if m != was or math.copysign(1.0, m) != math.copysign(1.0, was):
+                    n_dirty += 1
+                    for q in range(cell_off[c], cell_off[c + 1]):
+                        dirty[cell_cand[q]] = True
+                    break
+        if n_dirty == 0:
+            out = np.empty(A)
+            for a in range(A):
+                out[a] = prev_base + prev_delta[rep[a]]
+            return out, miss, prev_delta, prev_base, rep, cell_off, cell_cand
+    else:
+        # Candidates whose chains are the same looks (track looks the turn limit clips to
+        # one heading, say) have the same mu: each computed once, by its first in key order.
+        rep = np.arange(A)
+        top = 1
         for a in range(A):
             for l in range(n):
-                key[a] = key[a] * top + look_row[a, l] + 1
-        order = np.argsort(key, kind="mergesort")
-        for q in range(1, A):
-            if key[order[q]] == key[order[q - 1]]:
-                rep[order[q]] = rep[order[q - 1]]
+                top = max(top, look_row[a, l] + 2)
+        if n > 0 and n * math.log2(top) < 62.0:
+            key = np.zeros(A, dtype=np.int64)
+            for a in range(A):
+                for l in range(n):
+                    key[a] = key[a] * top + look_row[a, l] + 1
+            order = np.argsort(key, kind="mergesort")
+            for q in range(1, A):
+                if key[order[q]] == key[order[q - 1]]:
+                    rep[order[q]] = rep[order[q - 1]]
     L = K - k0
     # The others alone: mu before k0, each cell's intensity at k0 and its tail from k0.
     d_k0 = d0.copy()
@@ -113,11 +148,8 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
         tail[c] = _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c, ones)
         tail_sum += tail[c]
     base = mu_pre + tail_sum
-    # Per candidate: the cells its looks cover, their chain misses in a scratch row. A cell
-    # only one of the chain's looks covers changes by a function of (cell, that look's
-    # epoch, its miss): kept, and reused when another candidate's look there misses with
-    # the same bits (every covered cell, with ideal detection).
     out = np.empty(A)
+    change = np.empty(A)
     chain = np.ones((C, L))
     stamp = np.full(C, -1, dtype=np.int64)
     done = np.full(C, -1, dtype=np.int64)
@@ -127,6 +159,10 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
     kept_delta = np.empty((C, L))
     for a in range(A):
         if rep[a] != a:
+            continue
+        if has_prev and not dirty[a]:
+            change[a] = prev_delta[a]
+            out[a] = base + change[a]
             continue
         # One look: every cell it covers is covered once, in the row's order.
         one = -1
@@ -149,9 +185,11 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
                     kept_miss[c, kl] = m
                     chain[c, kl] = 1.0
                 delta += kept_delta[c, kl]
+            change[a] = delta
             out[a] = base + delta
             continue
         if one == -1:                    # no look
+            change[a] = 0.0
             out[a] = base + 0.0
             continue
         # Several looks. The cells in the order they first appear, look by look: the first
@@ -216,10 +254,46 @@ def found_nb(d0: np.ndarray, births: np.ndarray, survival: float, e: int, K: int
                     delta += _cell_tail(d_k0[c], births[c], survival, e, miss, k0, c,
                                         chain[c]) - tail[c]
                     chain[c, :] = 1.0
+        change[a] = delta
         out[a] = base + delta
     for a in range(A):
         out[a] = out[rep[a]]
-    return out
+    return out, miss, change, base, rep, cell_off, cell_cand
+
+
+@njit(cache=True)
+def _cells_covered(look_row: np.ndarray, rep: np.ndarray, row_off: np.ndarray,
+                   row_idx: np.ndarray, C: int) -> tuple[np.ndarray, np.ndarray]:
+    """The candidates (their first of the same looks, ``rep``) whose looks cover each cell:
+    ``cand[off[c]:off[c + 1]]`` for cell c (a candidate repeated where several of its looks
+    do)."""
+    A, n = look_row.shape
+    off = np.zeros(C + 1, dtype=np.int64)
+    for a in range(A):
+        if rep[a] != a:
+            continue
+        for l in range(n):
+            r = look_row[a, l]
+            if r >= 0:
+                for q in range(row_off[r], row_off[r + 1]):
+                    off[row_idx[q] + 1] += 1
+    for c in range(C):
+        off[c + 1] += off[c]
+    fill = off[:C].copy()
+    cand = np.empty(off[C], dtype=np.int64)
+    for a in range(A):
+        if rep[a] != a:
+            continue
+        for l in range(n):
+            r = look_row[a, l]
+            if r >= 0:
+                for q in range(row_off[r], row_off[r + 1]):
+                    c = row_idx[q]
+                    cand[fill[c]] = a
+                    fill[c] += 1
+    return off, cand
+
+
 
 
 @njit(cache=True)
@@ -279,43 +353,55 @@ def pose_rows_nb(keys: np.ndarray, vals: np.ndarray, sensor: int, bits: np.ndarr
 
 
 @njit(cache=True, error_model="numpy")
-def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
-                     heading: np.ndarray, buildings: np.ndarray
-                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The non-zero ``P_d v`` of B looks of one sensor at the cell centres: the values of
-    :func:`~sensorplan.models.radar.batch.detectable_points`, bit for bit.
+def detect_sparse_into_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
+                          heading: np.ndarray, buildings: np.ndarray, off: np.ndarray,
+                          idx: np.ndarray, val: np.ndarray, r0: int) -> int:
+    """The non-zero ``P_d v`` of B looks of one sensor at the cell centres, the values of
+    :func:`~sensorplan.models.radar.batch.detectable_points` bit for bit, written as rows
+    ``r0..r0+B-1`` of the look pool's flat arrays (:class:`~sensorplan.planners.search.
+    _LookPool`): written in place, as copying a decision's millions of entries cost more
+    than finding them.
 
     :func:`~sensorplan.models.radar.model.visible`'s tests in its order, split by what they
     depend on: the ground range, the band test, the bearing's ``atan2`` and the slant range
     depend on the look's position only and are computed once for a run of looks from the
     same position (a player's candidates are position-major; the ``atan2`` when a look
     first needs it); the wedge and boresight tests, per heading. Cells certainly outside
-    the wedge are skipped before them.
+    the wedge are skipped before them, and cells certainly inside it pass its test without
+    the bearing (by the same margin on the cosine); ``P_d``, a function of the slant range,
+    is computed once per cell and position.
 
     Parameters
     ----------
     row : (n_cols,) the sensor's radar row;  centres : (C, 2);  xy : (B, 2);  heading : (B,)
     buildings : (nb, 5)
+    off : rows' starts, room for ``r0 + B + 1``; ``off[r0]`` is where row r0 starts
+    idx, val : the rows' cells (ascending within a row) and values, room for ``B * C`` from
+               ``off[r0]``;  r0 : the first row written
 
     Returns
     -------
-    counts : (B,) non-zero cells per look;  idx : (nnz,) their cells, look-major, ascending;
-    val : (nnz,)
+    the number of entries written (``off[r0 + 1:r0 + B + 1]`` set)
     """
     B, C = xy.shape[0], centres.shape[0]
-    idx = np.empty(B * C, dtype=np.int64)
-    val = np.empty(B * C)
-    counts = np.zeros(B, dtype=np.int64)
     half = row[FOV] + ANGLE_TOL
     cut = math.cos(half) - _WEDGE_MARGIN if half < math.pi else -2.0
+    # Cells certainly inside the wedge (by the same margin, the other side) pass in_wedge
+    # without their atan2: most of a look's cells, and the atan2 was most of their cost.
+    inner = math.cos(half) + _WEDGE_MARGIN if half < math.pi else -2.0
     # The band's cells of the current position: cell, offsets, ground range, bearing and
     # slant range (visible()'s g, atan2(dy, dx) and r).
     band = np.empty(C, dtype=np.int64)
     bdx, bdy, bg = np.empty(C), np.empty(C), np.empty(C)
     bearing, slant = np.empty(C), np.empty(C)
+    # P_d depends on the slant range only: kept per band cell of the position, computed
+    # when a look first needs it (a position's headings overlap: about 7 looks a position).
+    pd = np.empty(C)
+    pd_at = np.full(C, -1, dtype=np.int64)
     nb = 0
     sx, sy = math.nan, math.nan
-    n = 0
+    b0 = 0
+    n = off[r0]
     for b in range(B):
         # The same position to the bit (a signed zero is another position: its offsets
         # could differ in their zeros' signs).
@@ -323,6 +409,7 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
                           and math.copysign(1.0, xy[b, 0]) == math.copysign(1.0, sx)
                           and math.copysign(1.0, xy[b, 1]) == math.copysign(1.0, sy)):
             sx, sy = xy[b, 0], xy[b, 1]
+            b0 = b
             nb = 0
             for c in range(C):
                 dx = centres[c, 0] - sx
@@ -339,24 +426,47 @@ def detect_sparse_nb(row: np.ndarray, centres: np.ndarray, xy: np.ndarray,
         ch, sh = math.cos(h), math.sin(h)
         for q in range(nb):
             dx, dy = bdx[q], bdy[q]
-            if dx * ch + dy * sh < bg[q] * cut:
+            along = dx * ch + dy * sh
+            if along < bg[q] * cut:
                 continue                                 # certainly outside the wedge
-            if math.isnan(bearing[q]):
-                bearing[q] = math.atan2(dy, dx)
-            if not in_wedge(row, wrap(bearing[q] - h)):
-                continue
+            if not along > bg[q] * inner:                # not certainly inside (g = 0 too)
+                if math.isnan(bearing[q]):
+                    bearing[q] = math.atan2(dy, dx)
+                if not in_wedge(row, wrap(bearing[q] - h)):
+                    continue
             if not cos_psi(row, dx, dy, ch, sh, slant[q]) > 0.0:
                 continue
             if buildings.shape[0] and hidden(buildings, sx, sy, row[ALTITUDE], sx + dx,
                                              sy + dy):
                 continue
-            p = detection_probability(row, dx * dx + dy * dy + row[ALTITUDE2])
+            if pd_at[q] != b0:
+                pd[q] = detection_probability(row, dx * dx + dy * dy + row[ALTITUDE2])
+                pd_at[q] = b0
+            p = pd[q]
             if p != 0.0:
                 idx[n] = band[q]
                 val[n] = p
                 n += 1
-                counts[b] += 1
-    return counts, idx[:n].copy(), val[:n].copy()
+        off[r0 + 1 + b] = n
+    return n - off[r0]
+
+
+def detect_sparse(row: np.ndarray, centres: np.ndarray, xy: np.ndarray, heading: np.ndarray,
+                  buildings: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`detect_sparse_into_nb` into arrays of its own.
+
+    Returns
+    -------
+    counts : (B,) non-zero cells per look;  idx : (nnz,) their cells, look-major, ascending;
+    val : (nnz,)
+    """
+    B, C = xy.shape[0], centres.shape[0]
+    off = np.zeros(B + 1, dtype=np.int64)
+    idx = np.empty(B * C, dtype=np.int64)
+    val = np.empty(B * C)
+    n = detect_sparse_into_nb(row, centres, xy, heading, buildings, off, idx, val, 0)
+    return np.diff(off), idx[:n].copy(), val[:n].copy()
+
 
 
 @njit(cache=True, fastmath=False, inline="always")
@@ -740,6 +850,6 @@ def player_actions_nb(prev: np.ndarray, moves: np.ndarray, width: float, height:
     return pos, tgt, sec
 
 
-__all__ = ["detect_sparse_nb", "found_nb", "heading_rule_nb", "look_information_nb",
-           "jsfp_steps_nb", "pair_terms_nb", "player_actions_nb",
+__all__ = ["detect_sparse", "detect_sparse_into_nb", "found_nb", "heading_rule_nb",
+           "look_information_nb", "jsfp_steps_nb", "pair_terms_nb", "player_actions_nb",
            "player_pair_terms_nb", "pose_rows_nb"]

@@ -44,7 +44,7 @@ from .._types import FloatArray, IntArray
 from ..errors import ConfigError
 from ..models import radar
 from ..models.angles import heading_rule, heading_rule_scalar, wrap_angle
-from ._search_nb import (detect_sparse_nb, found_nb, jsfp_steps_nb, look_information_nb,
+from ._search_nb import (detect_sparse_into_nb, found_nb, jsfp_steps_nb, look_information_nb,
                          player_actions_nb, player_pair_terms_nb, pose_rows_nb)
 from .cells import candidate_chains, detection
 from .information import (BACKEND, Context, chain_information, covariance_recursion,
@@ -60,6 +60,9 @@ HEADING_TOL = 1e-12
 #: No earlier terms (player_pair_terms_nb's arguments without them).
 _NO_BASE = np.zeros((0, 0, 2, 2))
 _NO_TERMS = np.zeros((0, 0))
+#: No earlier call (found_nb's kept arguments without one).
+NO_FOUND = (np.ones((0, 0)), np.zeros(0), 0.0, np.zeros(0, dtype=np.int64),
+            np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64))
 
 
 def sector_bearings(n_sectors: int) -> FloatArray:
@@ -520,9 +523,15 @@ def _plan_headings(sctx: SearchContext, plan: Plan) -> FloatArray:
     memo = _plan_memo(sctx, plan)
     got = memo.get("headings")
     if got is None:
-        got = memo["headings"] = np.array([part["headings"]
-                                           for part in _sensor_parts(sctx, plan)], dtype=float)
+        parts = _sensor_parts(sctx, plan)
+        switch = _from_switch(memo, "headings")
+        if switch is None:
+            got = np.array([part["headings"] for part in parts], dtype=float)
+        else:
+            got = switch[0].copy()
+            got[switch[1]] = parts[switch[1]]["headings"]
         got.flags.writeable = False
+        memo["headings"] = got
     return got
 
 
@@ -541,13 +550,25 @@ def _switched(sctx: SearchContext, plan: Plan, i: int, k: int, position: FloatAr
     """:func:`with_action`, the new plan's sensor parts those of ``plan`` but sensor i's
     (a switch changes one sensor's part)."""
     new = with_action(plan, i, k, position, target, sector)
-    parts = _plan_memo(sctx, plan).get("parts")
+    old = _plan_memo(sctx, plan)
+    parts = old.get("parts")
     memo = _plan_memo(sctx, new)
     if parts is not None and "parts" not in memo:
         parts = list(parts)
         parts[i] = _sensor_part(sctx, new, i)
         memo["parts"] = parts
+        memo["came_from"] = (old, i)
     return new
+
+
+def _from_switch(memo: dict[str, Any], name: str) -> tuple[Any, int] | None:
+    """What the plan a plan was switched from (:func:`_switched`) kept as ``name``, and the
+    sensor the switch changed (None if it kept none): the new plan's is the same but that
+    sensor's part."""
+    came = memo.get("came_from")
+    if came is None or came[0].get(name) is None:
+        return None
+    return came[0][name], came[1]
 
 
 def _sensor_part(sctx: SearchContext, plan: Plan, n: int) -> dict[str, Any]:
@@ -610,23 +631,56 @@ def _candidate_found(sctx: SearchContext, plan: Plan, i: int, k: int, headings: 
     times the chain's (``memo``: the plan's :func:`_plan_memo`)."""
     ctx = sctx.ctx
     pool = _pool(sctx)
+    n_look, k_look, row = _planned_looks(sctx, plan, headings, memo)
+    # What the player's last call kept, if its candidates' looks are the same (kept alive
+    # here: known by identity): the same others' looks (the misses multiply in their order)
+    # give the same mu; else its candidates whose cells' misses kept their bits keep theirs.
+    kept = sctx.memo.setdefault("found", {})
+    prev = kept.get((i, k))
+    has = prev is not None and prev[0] is rows and prev[1] is epochs
+    others = None
+    if has:
+        other = (n_look != i) | (k_look < k - 1)
+        others = (n_look[other].tobytes(), k_look[other].tobytes(), row[other].tobytes())
+        if prev[3] == others:
+            return cast(FloatArray, prev[4])
+    mu, *state = found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, int(i),
+                          n_look, k_look, row, rows, epochs, *pool.arrays(), has,
+                          *(prev[2] if has else NO_FOUND))
+    mu.flags.writeable = False
+    kept[(i, k)] = (rows, epochs, state, others, mu)
+    return cast(FloatArray, mu)
+
+
+def _planned_looks(sctx: SearchContext, plan: Plan, headings: FloatArray,
+                   memo: dict[str, Any]) -> tuple[IntArray, IntArray, IntArray]:
+    """Every planned look's sensor, epoch (0-based) and pool row, sensor by sensor (the
+    order the misses multiply in), kept in the plan's ``memo``."""
     looks = memo.get("looks")
     if looks is None:
-        # Every planned look, sensor by sensor (the order the misses multiply in).
-        n_look, k_look = (np.ascontiguousarray(a) for a in np.nonzero(plan.assigned))
         sensor_parts = _sensor_parts(sctx, plan)
-        parts = [_part_rows(sctx, sensor_parts[n], plan, n, headings)
-                 for n in np.unique(n_look).tolist()]
-        row = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
+        switch = _from_switch(memo, "looks")
+        if switch is None:
+            n_look, k_look = (np.ascontiguousarray(a) for a in np.nonzero(plan.assigned))
+            parts = [_part_rows(sctx, sensor_parts[n], plan, n, headings)
+                     for n in np.unique(n_look).tolist()]
+            row = np.concatenate(parts) if parts else np.zeros(0, dtype=np.int64)
+        else:
+            # The switched sensor's looks in place of its old ones.
+            (n_old, k_old, row_old), n = switch
+            lo, hi = np.searchsorted(n_old, [n, n + 1]).tolist()
+            ks = np.flatnonzero(plan.assigned[n])
+            n_look = np.concatenate([n_old[:lo], np.full(len(ks), n), n_old[hi:]])
+            k_look = np.concatenate([k_old[:lo], ks, k_old[hi:]])
+            row = np.concatenate([row_old[:lo], _part_rows(sctx, sensor_parts[n], plan, n,
+                                                           headings), row_old[hi:]])
         looks = memo["looks"] = (n_look, k_look, row)
-    n_look, k_look, row = looks
-    return found_nb(sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, int(i), n_look,
-                    k_look, row, rows, epochs, *pool.arrays())
+    return cast("tuple[IntArray, IntArray, IntArray]", looks)
 
 
 class _LookPool:
     """Every look's non-zero ``P_d v`` (:func:`detection`'s values, from
-    :func:`~sensorplan.planners._search_nb.detect_sparse_nb`), by the look's pose: sensor,
+    :func:`~sensorplan.planners._search_nb.detect_sparse_into_nb`), by the look's pose: sensor,
     ground position and heading, bit for bit. Rows live in growing flat arrays, the layout
     :func:`~sensorplan.planners._search_nb.found_nb` reads."""
 
@@ -655,17 +709,15 @@ class _LookPool:
                                   self.n_rows)
         if len(first):
             ctx = sctx.ctx
-            counts, idx, val = detect_sparse_nb(ctx.radar[n], sctx.centres,
-                                                np.ascontiguousarray(pose[first, :2]),
-                                                np.ascontiguousarray(pose[first, 2]),
-                                                ctx.buildings)
             R, start = self.n_rows, int(self.off[self.n_rows])
             self.off = _grown(self.off, R + 1 + len(first))
-            self.off[R + 1:R + 1 + len(first)] = start + np.cumsum(counts)
-            self.idx = _grown(self.idx, start + len(idx))
-            self.idx[start:start + len(idx)] = idx
-            self.val = _grown(self.val, start + len(val))
-            self.val[start:start + len(val)] = val
+            most = start + len(first) * len(sctx.centres)       # every look sees every cell
+            self.idx = _grown(self.idx, most)
+            self.val = _grown(self.val, most)
+            detect_sparse_into_nb(ctx.radar[n], sctx.centres,
+                                  np.ascontiguousarray(pose[first, :2]),
+                                  np.ascontiguousarray(pose[first, 2]), ctx.buildings,
+                                  self.off, self.idx, self.val, R)
             self.n_rows += len(first)
         return out
 
@@ -800,7 +852,16 @@ def _plan_track_looks(sctx: SearchContext, plan: Plan, headings: FloatArray
     memo = _plan_memo(sctx, plan)
     got = memo.get("track_looks")
     if got is None:
-        got = memo["track_looks"] = _track_looks(sctx, plan, headings)
+        switch = _from_switch(memo, "track_looks") if BACKEND != "numpy" else None
+        if switch is None:
+            got = _track_looks(sctx, plan, headings)
+        else:
+            (W, counts), n = switch
+            Wn, cn = _sensor_track(sctx, plan, headings, n)
+            W, counts = W.copy(), counts.copy()
+            W[n], counts[n] = Wn, cn
+            got = (W, counts)
+        memo["track_looks"] = got
     return cast("tuple[FloatArray, IntArray]", got)
 
 
@@ -822,22 +883,28 @@ def _track_looks(sctx: SearchContext, plan: Plan, headings: FloatArray
                 counted[n * K:(n + 1) * K] = c[0] & track[n][:, None]
         return W.reshape(N, K, ctx.e, 2, 2), counted.sum(axis=-1).reshape(N, K)
     # By sensor, kept in its part of the plan: a sensor's looks depend on its part only.
-    parts = _sensor_parts(sctx, plan)
-    pieces = []
-    for n in range(N):
-        got = parts[n].get("track")
-        if got is None:
-            Wn = np.zeros((K, ctx.e, 2, 2))
-            weight = np.zeros((K, ctx.e))
-            look_information_nb(ctx.radar, np.full(K, n), ctx.buildings, ctx.xbar,
-                                ctx.Cbar, np.ascontiguousarray(plan.positions[n]),
-                                np.ascontiguousarray(headings[n]),
-                                np.ascontiguousarray(plan.targets[n]),
-                                np.arange(1, K + 1), ctx.probabilistic, Wn, weight)
-            got = parts[n]["track"] = (Wn, (weight > 0).sum(axis=-1))
-        pieces.append(got)
+    pieces = [_sensor_track(sctx, plan, headings, n) for n in range(N)]
     return (np.concatenate([p[0] for p in pieces]).reshape(N, K, ctx.e, 2, 2),
             np.concatenate([p[1] for p in pieces]).reshape(N, K))
+
+
+def _sensor_track(sctx: SearchContext, plan: Plan, headings: FloatArray, n: int
+                  ) -> tuple[FloatArray, IntArray]:
+    """Sensor n's rows of :func:`_track_looks` (compiled), kept in its part of the plan."""
+    part = _sensor_parts(sctx, plan)[n]
+    got = part.get("track")
+    if got is None:
+        ctx = sctx.ctx
+        K = ctx.K
+        Wn = np.zeros((K, ctx.e, 2, 2))
+        weight = np.zeros((K, ctx.e))
+        look_information_nb(ctx.radar, np.full(K, n), ctx.buildings, ctx.xbar,
+                            ctx.Cbar, np.ascontiguousarray(plan.positions[n]),
+                            np.ascontiguousarray(headings[n]),
+                            np.ascontiguousarray(plan.targets[n]),
+                            np.arange(1, K + 1), ctx.probabilistic, Wn, weight)
+        got = part["track"] = (Wn, (weight > 0).sum(axis=-1))
+    return cast("tuple[FloatArray, IntArray]", got)
 
 
 def with_action(plan: Plan, i: int, k: int, position: FloatArray, target: int,
