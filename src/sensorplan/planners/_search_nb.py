@@ -468,7 +468,6 @@ def detect_sparse(row: np.ndarray, centres: np.ndarray, xy: np.ndarray, heading:
     return np.diff(off), idx[:n].copy(), val[:n].copy()
 
 
-
 @njit(cache=True, fastmath=False, inline="always")
 def _term(info: float, measured: bool, existence: float) -> float:
     """:func:`~sensorplan.planners.information.phi_terms`'s rule for one target, bit for bit:
