@@ -381,6 +381,7 @@ def test_the_radar_preset_is_the_paper_scenario_with_radar_detection() -> None:
     cfg = load_simulation(preset="radar")
     assert sc.look_detects == "all" and cfg.settings.tracker.kind == "pmb"
     assert cfg.settings.search_sectors == 6 and cfg.settings.search == "off"
+    assert cfg.settings.tracker.termination_threshold == 0.1
 
 
 def test_configs_radar_is_the_radar_preset_with_looks_at_one_target() -> None:
