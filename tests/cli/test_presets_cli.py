@@ -59,6 +59,12 @@ def test_a_study_sets_its_own_gospa_cutoff(tmp_path, capsys):
     assert resolved["gospa_c"] == 3.5
 
 
+def test_a_tracker_that_cannot_search_says_how_to_turn_search_off(tmp_path, capsys):
+    line = assert_bad_input(run(capsys, "simulate", "--preset", "search", "--tracker", "gnn",
+                                "--out", tmp_path / "o"), "--tracker")
+    assert "search preset plans search looks" in line and "add --search off" in line
+
+
 @pytest.mark.parametrize("args, field", [
     (["--preset", "williams15", "--planner", "random"], "--planner"),
     (["--preset", "vo12", "--horizon", "2"], "--horizon"),
@@ -66,7 +72,7 @@ def test_a_study_sets_its_own_gospa_cutoff(tmp_path, capsys):
     (["--preset", "williams15", "--steps", "82"], "--steps"),
     (["--preset", "williams15", "--tracker", "known"], "--tracker"),
     (["--preset", "search", "--search", "off", "--tracker", "known"], "--tracker"),
-    (["--preset", "search", "--tracker", "gnn"], "planning.search"),
+    (["--preset", "search", "--tracker", "gnn"], "--tracker"),
     (["--preset", "search", "--tracker", "kalman"], "--tracker"),
     (["--preset", "search", "--gospa-c", "0"], "--gospa-c"),
     (["--preset", "paper", "--gospa-c", "-5"], "--gospa-c"),

@@ -163,6 +163,13 @@ def load_simulation(path: str | Path | None = None, preset: str | None = None,
             raise ConfigError("--no-gate", "re-acquisition needs the gate (it restarts a "
                               "track from a detection outside it): add --no-reacquire"
                               ) from None
+        if exc.field == "planning.search" and path is None and "kind" in given_ \
+                and "search" not in given_:
+            # The preset chose search; the tracker given is what the user asked for.
+            raise ConfigError("--tracker", f"the {preset} preset plans search looks, which "
+                              f"need the pmb tracker (it keeps the intensity of undetected "
+                              f"targets), not {given_['kind']!r}: add --search off to "
+                              f"track with it") from None
         raise _rename(exc, renames) from None
     return SimulationConfig(scenario, settings, tables.run.seed)
 
