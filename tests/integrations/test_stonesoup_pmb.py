@@ -166,13 +166,15 @@ def test_other_measurement_models_are_refused_with_a_clear_error():
 def test_the_settings_are_split_between_the_map_model_and_the_tracker():
     tracker = adapter(settings={"resolution": 30.0, "velocity_var": 2.0, "process_noise": 0.2,
                                 "gate_probability": 0.99, "map_edge": "closed",
-                                "report_threshold": 0.4, "survival_probability": 0.9})
+                                "report_threshold": 0.4, "survival_probability": 0.9,
+                                "termination_threshold": 0.1})
     model = tracker.pmb.model
     assert (model.resolution, model.velocity_var, model.process_noise, model.gate_probability,
             model.map_edge) == (30.0, 2.0, 0.2, 0.99, "closed")
     assert (model.dt, model.world) == (1.0, (300.0, 300.0))
     assert tracker.pmb.grid.nx == tracker.pmb.grid.ny == 10                # 300 m / 30 m
-    assert (tracker.pmb.report_threshold, tracker.pmb.survival_probability) == (0.4, 0.9)
+    assert (tracker.pmb.report_threshold, tracker.pmb.survival_probability,
+            tracker.pmb.termination_threshold) == (0.4, 0.9, 0.1)
 
 
 def test_a_stonesoup_cv_model_is_the_cwna_model():
