@@ -50,6 +50,17 @@ def decisions() -> list[tuple[str, PlanningProblem]]:
 DECISIONS = decisions()
 
 
+def candidate_rows(sctx: search.SearchContext, plan: Plan, i: int, k: int,
+                   headings: np.ndarray) -> tuple[list[int], np.ndarray]:
+    """Player (i, k)'s candidate chains' look epochs (offsets from k - 1) and pool rows."""
+    pos, tgt, sec = search.player_actions(sctx, plan, i, k)
+    chains = search.candidate_chains(sctx, plan, i, k, pos, tgt, sec, headings)
+    ls = [l for l in range(sctx.ctx.K - k + 1) if l == 0 or chains[2][0, l]]
+    pool = search._pool(sctx)
+    return ls, np.stack([pool.rows(sctx, i, chains[0][:, l], chains[3][:, l]) for l in ls],
+                        axis=1)
+
+
 def found(*args: object) -> np.ndarray:
     """:func:`found_nb`'s mu of a first call (nothing kept from an earlier one)."""
     return found_nb(*args, False, *search.NO_FOUND)[0]
@@ -169,11 +180,7 @@ def test_found_of_a_batch_is_each_candidates_alone(name: str, problem: PlanningP
                           for n in np.unique(n_look)])
     for i in range(ctx.N):
         for k in range(1, ctx.K + 1):
-            pos, tgt, sec = search.player_actions(sctx, plan, i, k)
-            chains = search.candidate_chains(sctx, plan, i, k, pos, tgt, sec, headings)
-            ls = [l for l in range(ctx.K - k + 1) if l == 0 or chains[2][0, l]]
-            rows = np.stack([pool.rows(sctx, i, chains[0][:, l], chains[3][:, l]) for l in ls],
-                            axis=1)
+            ls, rows = candidate_rows(sctx, plan, i, k, headings)
             rows = np.concatenate([rows, rows[::3]])   # repeated candidates among them
             other = (n_look != i) | (k_look < k - 1)
             args = (sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, i, n_look,
@@ -460,11 +467,7 @@ def test_found_is_its_order_in_plain_python(name: str, problem: PlanningProblem)
                               for n in np.unique(n_look)])
         for i in range(min(ctx.N, 2)):
             for k in range(1, ctx.K + 1):
-                pos, tgt, sec = search.player_actions(sctx, plan, i, k)
-                chains = search.candidate_chains(sctx, plan, i, k, pos, tgt, sec, headings)
-                ls = [l for l in range(ctx.K - k + 1) if l == 0 or chains[2][0, l]]
-                rows = np.stack([pool.rows(sctx, i, chains[0][:, l], chains[3][:, l])
-                                 for l in ls], axis=1)
+                ls, rows = candidate_rows(sctx, plan, i, k, headings)
                 epochs = np.array(ls, dtype=np.int64) + (k - 1)
                 args = (sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, i,
                         np.ascontiguousarray(n_look), np.ascontiguousarray(k_look), row)
@@ -495,11 +498,7 @@ def test_found_from_a_kept_call_is_a_first_calls(name: str, problem: PlanningPro
     headings = search.plan_headings(sctx, first)
     for i in range(ctx.N):
         for k in range(1, ctx.K + 1):
-            pos, tgt, sec = search.player_actions(sctx, first, i, k)
-            chains = search.candidate_chains(sctx, first, i, k, pos, tgt, sec, headings)
-            ls = [l for l in range(ctx.K - k + 1) if l == 0 or chains[2][0, l]]
-            rows = np.stack([pool.rows(sctx, i, chains[0][:, l], chains[3][:, l]) for l in ls],
-                            axis=1)
+            ls, rows = candidate_rows(sctx, first, i, k, headings)
             rows = np.concatenate([rows, rows[::3]])   # repeated candidates among them
             epochs = np.array(ls, dtype=np.int64) + (k - 1)
             fixed = (sctx.d0, sctx.births, sctx.survival, ctx.e, ctx.K, k - 1, i)
