@@ -383,6 +383,28 @@ def test_birth_intensities_and_the_grid() -> None:
         undetected.birth_intensity(g, "edges", -1.0)
 
 
+def test_background_births_spread_evenly_and_let_a_detection_start_a_track_anywhere() -> None:
+    model = MapModel(linear.williams15(), 1.0, (300.0, 300.0))
+    plain = PMBTracker(model, births="edges", birth_rate=0.2, survival_probability=1.0)
+    both = PMBTracker(model, births="edges", birth_rate=0.2, background_birth_rate=0.1,
+                      survival_probability=1.0)
+    C = plain.grid.size
+    np.testing.assert_allclose(both.births - plain.births, 0.1 / C, rtol=1e-13, atol=0)
+    np.testing.assert_allclose(both.births.sum(), 0.3, rtol=1e-14)
+    # The same intensity given per cell is the same tracker.
+    given = PMBTracker(model, births=undetected.birth_intensity(plain.grid, "edges", 0.2)
+                       + np.full(C, 0.1 / C), survival_probability=1.0)
+    # A detection in the middle of the map: the edge births put no target within reach of
+    # it, so it starts no track; with background births it starts one.
+    for tr in (plain, both, given):
+        tr.predict()
+        tr.update(one_scan([[150.0, 150.0]]))
+    assert len(plain.bern) == 0
+    assert len(both.bern) == 1 and 1e-3 < both.bern.r[0] < 0.5
+    np.testing.assert_allclose(given.bern.r, both.bern.r, rtol=1e-12)
+    np.testing.assert_allclose(given.bern.means, both.bern.means, rtol=1e-12)
+
+
 # ----------------------------------------------------------------------------- management
 
 
@@ -490,6 +512,8 @@ def test_planning_tracks_fall_back_to_the_reported_ones() -> None:
                                             ("prune_threshold", 1.0),
                                             ("survival_probability", 0.0),
                                             ("initial_undetected", -1.0), ("births", "sides"),
+                                            ("background_birth_rate", -0.1),
+                                            ("background_birth_rate", math.inf),
                                             ("births", np.ones(3)), ("existence", 1.5)])
 def test_bad_settings_are_refused(key: str, value: object) -> None:
     # The map model's own fields are checked in test_map_model.py.

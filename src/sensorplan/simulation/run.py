@@ -268,6 +268,7 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
                    confirm_looks=tr.confirm_looks, delete_misses=tr.delete_misses)
     return cls(model, means=estimate, covs=P0, survival_probability=tr.survival_probability,
                births=tr.births, birth_rate=tr.birth_rate if tr.births != "none" else 0.0,
+               background_birth_rate=tr.background_birth_rate,
                prune_threshold=tr.prune_threshold, report_threshold=tr.report_threshold,
                recycle_threshold=tr.recycle_threshold,
                planning_threshold=tr.planning_threshold,

@@ -11,7 +11,8 @@ survival probability, birth intensity and initial intensity of targets present b
 yet detected, each Gaussian of the source put on the tracker's grid of cells by its mass
 in each cell. The tracker's gate, pruning and reporting thresholds and grid resolution
 are the run's ``[tracker]`` settings; its ``births``, ``birth_rate``,
-``survival_probability`` and ``process_noise`` are the benchmark's and not used.
+``survival_probability`` and ``process_noise`` are the benchmark's and not used; a
+``background_birth_rate`` is added to the benchmark's births (none by default).
 
 Randomness: the run's ``truth`` stream would draw a truth that is redrawn per run (neither
 benchmark's is: :mod:`sensorplan.models.scripted`); the ``noise`` stream draws every scan
@@ -109,7 +110,8 @@ def make_scan_tracker(scenario: Scenario, settings: RunSettings) -> PMBTracker:
     births = cell_masses(W, H, grid.nx, grid.ny, model.birth_means, model.birth_std,
                          model.birth_weights)
     tracker = PMBTracker(map_model, survival_probability=model.survival_probability,
-                         births=births, prune_threshold=tr.prune_threshold,
+                         births=births, background_birth_rate=tr.background_birth_rate,
+                         prune_threshold=tr.prune_threshold,
                          report_threshold=tr.report_threshold,
                          recycle_threshold=tr.recycle_threshold,
                          termination_threshold=tr.termination_threshold)

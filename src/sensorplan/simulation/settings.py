@@ -81,9 +81,9 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
 
 
 #: The settings only the PMB tracker reads, and only the GNN tracker.
-PMB_SETTINGS = ("births", "birth_rate", "survival_probability", "report_threshold",
-                "prune_threshold", "recycle_threshold", "planning_threshold",
-                "termination_threshold")
+PMB_SETTINGS = ("births", "birth_rate", "background_birth_rate", "survival_probability",
+                "report_threshold", "prune_threshold", "recycle_threshold",
+                "planning_threshold", "termination_threshold")
 GNN_SETTINGS = ("confirm_hits", "confirm_looks", "delete_misses")
 #: The settings only the lost-target mode of the tracker of known targets reads.
 LOST_SETTINGS = ("lost_probability", "lost_resolution")
@@ -411,6 +411,12 @@ class TrackerSettings(_Settings):
     birth_rate: float = setting(
         0.02, section="tracker", label="tracker birth rate", bounds=Range(0.0, 100.0),
         help="A multi-target tracker's expected number of births per step over the map.")
+    background_birth_rate: float = setting(
+        0.0, section="tracker", label="background birth rate", bounds=Range(0.0, 100.0),
+        help="The PMB tracker's expected births per step spread evenly over the map on top "
+             "of its births: its allowance for targets where its birth model puts none, "
+             "chiefly a target whose track it lost, so that a detection anywhere can start a "
+             "track and search looks return to places not looked at lately (0: none).")
     survival_probability: float = setting(
         0.99, section="tracker", label="tracker survival",
         bounds=Range(0.0, 1.0, lo_open=True),

@@ -164,7 +164,8 @@ class PMBStoneSoupTracker(_TrackerMixInNext, Tracker):
                           "process_noise.")
     settings: Mapping[str, Any] = Property(
         default=None, doc="Further keywords of PMBTracker (births, birth_rate, "
-                          "survival_probability, thresholds, initial_undetected ...) and "
+                          "background_birth_rate, survival_probability, thresholds, "
+                          "initial_undetected ...) and "
                           "of its MapModel (process_noise, resolution, velocity_var, "
                           "gate_probability, map_edge).")
     initial_intensity: np.ndarray = Property(

@@ -166,6 +166,11 @@ class PMBTracker(MapTracker):
         every cell, or given per cell (row-major, :class:`~.undetected.Grid`).
     birth_rate : float >= 0
         Expected births per step over the map (with a named ``births``).
+    background_birth_rate : float >= 0
+        Expected births per step spread evenly over the map on top of ``births`` (default
+        0). The filter's allowance for targets where its birth model puts none, chiefly a
+        target whose track it lost: a detection anywhere can then start a track, and the
+        intensity grows again where no look has been lately.
     initial_undetected : float >= 0
         Expected number of targets present but not known at the start, spread evenly over
         the cells (default 0).
@@ -191,8 +196,8 @@ class PMBTracker(MapTracker):
     def __init__(self, model: MapModel, *, means: FloatArray | None = None,
                  covs: FloatArray | None = None, existence: float | FloatArray = 1.0,
                  survival_probability: float = 0.99, births: str | FloatArray = "none",
-                 birth_rate: float = 0.0, initial_undetected: float = 0.0,
-                 prune_threshold: float = 1e-3, report_threshold: float = 0.5,
+                 birth_rate: float = 0.0, background_birth_rate: float = 0.0,
+                 initial_undetected: float = 0.0, prune_threshold: float = 1e-3, report_threshold: float = 0.5,
                  recycle_threshold: float = 0.0,
                  planning_threshold: float | None = None,
                  termination_threshold: float = 1.0) -> None:
@@ -216,6 +221,9 @@ class PMBTracker(MapTracker):
         if not 0.0 < termination_threshold <= 1.0:
             raise ValueError(f"termination_threshold must be in (0, 1], got "
                              f"{termination_threshold!r}")
+        if not (math.isfinite(background_birth_rate) and background_birth_rate >= 0.0):
+            raise ValueError(f"background_birth_rate must be >= 0, got "
+                             f"{background_birth_rate!r}")
         if not (math.isfinite(initial_undetected) and initial_undetected >= 0.0):
             raise ValueError(f"initial_undetected must be >= 0, got {initial_undetected!r}")
         super().__init__(model)
@@ -235,6 +243,9 @@ class PMBTracker(MapTracker):
                     np.all(np.isfinite(self.births)) and np.all(self.births >= 0.0)):
                 raise ValueError(f"births must be {self.grid.size} expected births >= 0, "
                                  "one per cell")
+        if background_birth_rate > 0.0:
+            self.births = self.births + undetected.birth_intensity(
+                self.grid, "uniform", background_birth_rate)
         self.undetected = np.full(self.grid.size, float(initial_undetected) / self.grid.size)
         m0, P0 = given_tracks(means, covs)
         r0 = np.array(np.broadcast_to(np.asarray(existence, dtype=float), (len(m0),)))
