@@ -22,9 +22,19 @@ Bernoulli within c, the target's last label still held by a Bernoulli beyond c);
 *gone* (no Bernoulli within c, the target's last label pruned, or never had one). Per class:
 the steps since the target was last detected and since a look was last aimed at the label.
 
+``lost STUDY.toml --method pmb --seed S --runs R``: runs the closed loop likewise and lists
+every held target lost (the honesty table's count: a target, after its first report, 20 or
+more consecutive live steps without a reported track within c): its run, target, first step
+and length, how many steps of the stretch some look detected it, how many of the 10 steps
+before it, and its median distance to the nearest platform during it. A stretch in which
+the target was detected but no track formed is the tracker's failure; one in which it was
+not detected, planning's (no look went there) or the sensor's.
+
     python scripts/untracked_diagnosis.py study runs/search_conditions_search
     python scripts/untracked_diagnosis.py closed-loop studies/search_conditions_search.toml \
         --method pmb --seed 120419 --runs 60 [--planning-threshold 0.1]
+    python scripts/untracked_diagnosis.py lost studies/radar_lost_targets.toml --method pmb \
+        --seed 120419 --runs 100
 """
 
 from __future__ import annotations
@@ -35,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from sensorplan.study.set_metrics import GOSPA_CUTOFF, set_metrics
+from sensorplan.study.set_metrics import GOSPA_CUTOFF, LOST_STEPS, set_metrics
 
 CLASSES_STUDY = ("taken", "displaced", "unreported", "never")
 CLASSES_LOOP = ("taken", "faded", "displaced", "gone")
@@ -274,6 +284,73 @@ def loop_breakdown(study_file: str, method: str, seed: int, runs: int,
     return lines
 
 
+def held_stretches(step: np.ndarray, assigned: np.ndarray, min_length: int = LOST_STEPS
+                   ) -> list[tuple[int, int]]:
+    """The stretches of at least ``min_length`` consecutive live steps without a track after
+    a target's first report, as ``(first step, length)``.
+
+    Parameters
+    ----------
+    step : (n,) int    the target's live steps, increasing
+    assigned : (n,) bool    whether a track was assigned to it at each of them
+    """
+    hits = np.flatnonzero(assigned)
+    out: list[tuple[int, int]] = []
+    if hits.size == 0:
+        return out
+    st, a = step[hits[0]:], assigned[hits[0]:]
+    # A stretch breaks at a track or at a gap in the target's life.
+    breaks = a | np.r_[True, np.diff(st) != 1]
+    first = 0
+    for k in range(1, len(st) + 1):
+        if k == len(st) or breaks[k]:
+            run = np.flatnonzero(~a[first:k]) + first
+            if run.size >= min_length:
+                out.append((int(st[run[0]]), int(run.size)))
+            first = k
+    return out
+
+
+def lost_stretches(study_file: str, method: str, seed: int, runs: int) -> list[str]:
+    """Run ``runs`` closed loops of ``method`` on ``seed`` and list every held target lost
+    with what happened during it (module docstring)."""
+    from sensorplan.simulation.run import run_episode
+    from sensorplan.study.file import load_study
+
+    study = dataclasses.replace(load_study(study_file), seed=seed, runs=runs)
+    m = next(x for x in study.methods if x.name == method)
+    lines = ["| run | target | first step | length | steps detected in it | in the 10 before "
+             "| median distance to the nearest platform (m) |", "|--:|--:|--:|--:|--:|--:|--:|"]
+    detected_in, losing = [], set()
+    for run in range(runs):
+        ep = run_episode(study.scenario, m.settings, study.run_seed(run))
+        S = ep.truth.shape[0] - 1
+        t_idx, j_idx = np.nonzero(ep.alive[1:])
+        step = t_idx + 1
+        xy = ep.truth[step, j_idx, :2]
+        ys = ep.track_step >= 1
+        sm = set_metrics(step - 1, j_idx, xy, ep.track_step[ys] - 1, ep.track_label[ys],
+                         ep.track_mean[ys, :2], GOSPA_CUTOFF, n_steps=S)
+        detected = ep.measured.any(axis=2)                               # (S+1, M)
+        for j in np.unique(j_idx):
+            sel = j_idx == j
+            for s0, n in held_stretches(step[sel], sm.assigned[sel]):
+                s1 = s0 + n
+                seen = int(detected[s0:s1, j].sum())
+                before = int(detected[max(1, s0 - 10):s0, j].sum())
+                gap = ep.sensor_positions[s0:s1] - ep.truth[s0:s1, j, None, :2]
+                dist = float(np.median(np.hypot(gap[..., 0], gap[..., 1]).min(axis=1)))
+                detected_in.append(seen)
+                losing.add(run)
+                lines.append(f"| {run} | {j} | {s0} | {n} | {seen} | {before} | {dist:.0f} |")
+    d = np.array(detected_in)
+    lines.append(f"method {method}, seed {seed}, {runs} runs: {len(d)} held targets lost in "
+                 f"{len(losing)} runs; detected in 0 steps of "
+                 f"the stretch: {int(np.sum(d == 0))}, 1-2: {int(np.sum((d >= 1) & (d <= 2)))}"
+                 f", 3 or more: {int(np.sum(d >= 3))}")
+    return lines
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="what", required=True)
@@ -286,9 +363,16 @@ def main(argv: list[str] | None = None) -> None:
     b.add_argument("--seed", type=int, required=True)
     b.add_argument("--runs", type=int, default=40)
     b.add_argument("--planning-threshold", type=float, default=None)
+    c = sub.add_parser("lost")
+    c.add_argument("study_file")
+    c.add_argument("--method", default="pmb")
+    c.add_argument("--seed", type=int, required=True)
+    c.add_argument("--runs", type=int, default=40)
     args = ap.parse_args(argv)
     if args.what == "study":
         print("\n".join(study_breakdown(args.directory, args.method)))
+    elif args.what == "lost":
+        print("\n".join(lost_stretches(args.study_file, args.method, args.seed, args.runs)))
     else:
         print("\n".join(loop_breakdown(args.study_file, args.method, args.seed, args.runs,
                                         args.planning_threshold)))

@@ -1,0 +1,43 @@
+"""scripts/untracked_diagnosis.py's held-target stretches against the honesty table's
+longest gap (scripts/honest_table.py), a second computation written step by step."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from script_helpers import script_module
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_held_stretches_agree_with_the_longest_gap(seed: int) -> None:
+    diag = script_module("untracked_diagnosis")
+    honest = script_module("honest_table")
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 200))
+    # Live steps with occasional gaps in the target's life; tracks in long runs.
+    step = np.cumsum(rng.choice([1, 1, 1, 1, 1, 1, 1, 1, 1, 3], size=n))
+    assigned = np.repeat(rng.random(n // 10 + 1) < 0.6, 10)[:n]
+    assigned ^= rng.random(n) < 0.05
+    for min_length in (1, 5, 20):
+        got = diag.held_stretches(step, assigned, min_length)
+        longest = honest.longest_gap_held(step, assigned)
+        assert max((k for _, k in got), default=0) == (longest if longest >= min_length
+                                                        else 0)
+        for s0, k in got:
+            i = int(np.searchsorted(step, s0))
+            # Consecutive live steps, none with a track, after the first report.
+            assert not assigned[i:i + k].any() and np.all(np.diff(step[i:i + k]) == 1)
+            assert assigned[:i].any()
+
+
+def test_held_stretches_of_a_hand_made_target() -> None:
+    diag = script_module("untracked_diagnosis")
+    step = np.arange(1, 61)
+    assigned = np.zeros(60, dtype=bool)
+    assigned[[4, 30]] = True                      # first report at step 5, again at 31
+    # Steps 6..30 (25 steps) and 32..60 (29); the 4 steps before the first report are not
+    # held.
+    assert diag.held_stretches(step, assigned) == [(6, 25), (32, 29)]
+    assert diag.held_stretches(step, assigned, 26) == [(32, 29)]
+    assert diag.held_stretches(step, np.zeros(60, dtype=bool)) == []
