@@ -380,8 +380,10 @@ def test_the_radar_preset_is_the_paper_scenario_with_radar_detection() -> None:
     # A radar's look detects every target in view, and the multi-target tracker keeps them.
     cfg = load_simulation(preset="radar")
     assert sc.look_detects == "all" and cfg.settings.tracker.kind == "pmb"
-    assert cfg.settings.search_sectors == 6 and cfg.settings.search == "off"
+    assert cfg.settings.search_sectors == 6 and cfg.settings.search == "on"
+    assert cfg.settings.reward == "gospa"
     assert cfg.settings.tracker.termination_threshold == 0.1
+    assert (cfg.settings.tracker.births, cfg.settings.tracker.birth_rate) == ("uniform", 0.05)
 
 
 def test_configs_radar_is_the_radar_preset_with_looks_at_one_target() -> None:

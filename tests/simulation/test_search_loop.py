@@ -171,8 +171,8 @@ def test_the_search_preset_searches_for_the_gospa_bound_by_default() -> None:
     assert (cfg.settings.search, cfg.settings.reward) == ("on", "gospa")
     off = load_simulation(preset="search", overrides={"search": "off"})
     assert (off.settings.search, off.settings.reward) == ("off", "information")
-    # The other multi-target presets keep looking at tracks only.
-    assert load_simulation(preset="radar").settings.search == "off"
+    # The radar preset searches too (for targets whose tracks were lost).
+    assert load_simulation(preset="radar").settings.search == "on"
 
 
 def test_the_summary_reports_the_search(capsys, tmp_path: Path) -> None:
