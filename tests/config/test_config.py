@@ -386,6 +386,18 @@ def test_the_radar_preset_is_the_paper_scenario_with_radar_detection() -> None:
     assert (cfg.settings.tracker.births, cfg.settings.tracker.birth_rate) == ("uniform", 0.05)
 
 
+def test_the_swarm_preset_has_a_quieter_imm_manoeuvre_mode() -> None:
+    swarm = load_simulation(preset="swarm").settings.tracker
+    paper = load_simulation(preset="paper").settings.tracker
+    assert swarm.mode_process_noise == (0.05, 1.0) and paper.mode_process_noise == (0.05, 5.0)
+    assert dataclasses.replace(swarm, mode_process_noise=paper.mode_process_noise) == paper
+    # A given value wins: the earlier swarm study files name what they ran.
+    from sensorplan.study.file import load_study
+
+    table = load_study(ROOT / "studies" / "honest_table_swarm.toml")
+    assert {m.settings.tracker.mode_process_noise for m in table.methods} == {(0.05, 5.0)}
+
+
 def test_configs_radar_is_the_radar_preset_with_looks_at_one_target() -> None:
     # What docs/results.md section 7 ran: the preset's radar, the paper's looks, known targets.
     cfg = load_simulation(CONFIGS / "radar.toml")

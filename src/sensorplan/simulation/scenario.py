@@ -437,7 +437,8 @@ def swarm_scenario() -> Scenario:
     parameters (altitudes 490/500/510 m in turn, 3 ``cv`` to 2 ``dubins`` targets, speeds
     3-6 m/s, P0), targets uniform in [100, 2900]^2 (2.6e-5 per m^2; the paper's 3.1e-5) and
     sensors in [50, 2950]^2 (1.2e-5 per m^2, as in the paper). Initial target states and
-    sensor poses are left to each run's seed.
+    sensor poses are left to each run's seed. The preset's tracker is the paper's IMM with a
+    quieter manoeuvre mode, q = 1 instead of 5 (:data:`PRESET_SETTINGS`).
     """
     targets = tuple(TargetSpec(kind=("cv", "cv", "cv", "dubins", "dubins")[j % 5])
                     for j in range(200))
@@ -562,6 +563,13 @@ PRESET_SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
     # the check of docs/results.md, section 11.2 (studies/honest_urban_lost.toml), whose
     # rule it passed for both planners.
     "urban": {"tracker": {"known_buildings": True, "lost_mode": True}},
+    # On the swarm's 3 km map targets rarely bounce off a wall, and the default IMM's
+    # manoeuvre mode (q = 5, chosen where it absorbs the paper map's bounces) only widened
+    # the tracks: ANEES 1.91 with dec-independent. A manoeuvre q of 1 (chosen on a
+    # development seed as the one nearest the exact 4) made every planner's tracks honest
+    # (3.26-3.33, no run diverged) and no less accurate, by the rule fixed before those runs
+    # (docs/results.md, section 16.4).
+    "swarm": {"tracker": {"mode_process_noise": [0.05, 1.0]}},
     # Under clutter the multi-target tracker beat the known-target one on GOSPA at 1, 3 and
     # 10 false alarms per look (docs/results.md, section 12.1), the rule fixed before those
     # runs for choosing the radar's tracker, and left at most 5 % of the target-steps

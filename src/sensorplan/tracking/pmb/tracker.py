@@ -197,7 +197,8 @@ class PMBTracker(MapTracker):
                  covs: FloatArray | None = None, existence: float | FloatArray = 1.0,
                  survival_probability: float = 0.99, births: str | FloatArray = "none",
                  birth_rate: float = 0.0, background_birth_rate: float = 0.0,
-                 initial_undetected: float = 0.0, prune_threshold: float = 1e-3, report_threshold: float = 0.5,
+                 initial_undetected: float = 0.0, prune_threshold: float = 1e-3,
+                 report_threshold: float = 0.5,
                  recycle_threshold: float = 0.0,
                  planning_threshold: float | None = None,
                  termination_threshold: float = 1.0) -> None:
