@@ -39,16 +39,24 @@ class Method:
         return {"name": self.name, **d}
 
 
+#: Tracker settings added after studies had run, with the value those studies ran with (a
+#: track reported exactly while its existence is at least the report threshold; no
+#: background births).
+TRACKER_SETTINGS_ADDED = {"termination_threshold": 1.0, "background_birth_rate": 0.0}
+
+
 def planned_as_written(method: Mapping[str, Any]) -> dict[str, Any]:
-    """A method of a ``config.resolved.json`` with the tracker's planning threshold it ran
-    with: before ``tracker.planning_threshold`` existed planning saw the reported tracks
-    only, so a method without it gets its report threshold (0.5 unless written), not
-    today's default."""
+    """A method of a ``config.resolved.json`` with the settings it ran with where it
+    predates them: before ``tracker.planning_threshold`` existed planning saw the reported
+    tracks only, so a method without it gets its report threshold (0.5 unless written), not
+    today's default; likewise the reward and :data:`TRACKER_SETTINGS_ADDED`."""
     m = dict(method)
     # Before the reward existed, every method planned for information.
     m.setdefault("reward", "information")
     tracker = dict(m.get("tracker", {}))
     tracker.setdefault("planning_threshold", tracker.get("report_threshold", 0.5))
+    for key, value in TRACKER_SETTINGS_ADDED.items():
+        tracker.setdefault(key, value)
     m["tracker"] = tracker
     return m
 
