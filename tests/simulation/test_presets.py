@@ -62,6 +62,10 @@ def test_the_search_preset():
                for s in sc.sensors)
     assert sc.world.width == sc.world.height == 600.0 and len(sc.sensors) == 3
     assert "gospa_c" not in PRESET_SETTINGS["search"]["run"]           # the default 50 m
+    # The tracker's births are the truth's, with background births on top.
+    tracker = PRESET_SETTINGS["search"]["tracker"]
+    assert (tracker["births"], tracker["birth_rate"]) == ("edges", SEARCH_BIRTH_RATE)
+    assert tracker["background_birth_rate"] == 0.03
 
 
 @pytest.mark.parametrize("name", ["williams15", "vo12"])

@@ -106,7 +106,10 @@ def test_the_recorded_intensity_is_the_trackers() -> None:
     assert report is not None
     np.testing.assert_array_equal(report.weights, tracker.undetected)
     np.testing.assert_array_equal(report.births, tracker.births)
-    assert report.births.sum() == pytest.approx(cfg.settings.tracker.birth_rate, rel=1e-12)
+    tr = cfg.settings.tracker
+    assert tr.background_birth_rate > 0.0             # the search preset's
+    assert report.births.sum() == pytest.approx(tr.birth_rate + tr.background_birth_rate,
+                                                rel=1e-12)
     assert report.survival == cfg.settings.tracker.survival_probability
     # A cell's position covariance: uniform over a 25 m square.
     np.testing.assert_allclose(report.cell_cov, np.diag([625.0 / 12] * 2), rtol=1e-12)

@@ -589,7 +589,12 @@ PRESET_SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
     # Planning searches (6 sectors: the radar's 60-degree beam tiles the circle): searching
     # beat looking at tracks only on mean GOSPA, by the rule fixed before those runs
     # (docs/results.md, section 15.5), and the reward is then the GOSPA bound (15.3).
-    "search": {"tracker": {"kind": "pmb", "births": "edges", "birth_rate": SEARCH_BIRTH_RATE},
+    # Background births at 0.03 a step on top, so that a target whose track was lost in the
+    # middle of the map can start a track again and search looks return there: it lost
+    # held targets in fewer runs and was better on GOSPA, by the rule fixed before those
+    # runs (docs/results.md, section 16.6).
+    "search": {"tracker": {"kind": "pmb", "births": "edges", "birth_rate": SEARCH_BIRTH_RATE,
+                           "background_birth_rate": 0.03},
                "planning": {"search": "on", "search_sectors": SEARCH_SECTORS},
                "run": {"steps": 200}},
     "williams15": {"tracker": {"kind": "pmb"},
