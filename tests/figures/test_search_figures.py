@@ -23,7 +23,11 @@ def search_run():
 
     cfg = load_simulation(None, "search", {"search": "on", "steps": STEPS, "seed": 3})
     scenario = dataclasses.replace(cfg.scenario, initial_targets=0)
-    return scenario, run_episode(scenario, cfg.settings, cfg.seed)
+    # Edge births only (no background births), so that search looks go to the edges, where
+    # the targets enter: 15 steps of seed 3 then hold a find to draw.
+    tracker = dataclasses.replace(cfg.settings.tracker, background_birth_rate=0.0)
+    settings = dataclasses.replace(cfg.settings, tracker=tracker)
+    return scenario, run_episode(scenario, settings, cfg.seed)
 
 
 def test_finds_are_confirmations_inside_a_search_look(search_run) -> None:

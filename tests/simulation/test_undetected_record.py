@@ -65,7 +65,8 @@ def test_the_recorded_grid_is_the_trackers_after_every_step(spied_run) -> None:
     assert totals[-1] > 0.0                         # births fed it
     # Predict adds at most the births, a look only thins.
     tr = cfg.settings.tracker
-    assert np.all(totals[1:] <= tr.survival_probability * totals[:-1] + tr.birth_rate + 1e-12)
+    births = tr.birth_rate + tr.background_birth_rate
+    assert np.all(totals[1:] <= tr.survival_probability * totals[:-1] + births + 1e-12)
 
 
 def test_the_grid_survives_the_file_and_other_trackers_record_none(spied_run,
