@@ -168,6 +168,18 @@ class _Probe:
                         setattr(run_mod._Schedule, "epoch", epoch))
 
 
+def _assignment(ep: Any, c: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
+    """An episode's live target-steps (step, target, true position) and GOSPA's assignment
+    of its reported tracks to them at cut-off ``c``."""
+    t_idx, j_idx = np.nonzero(ep.alive[1:])
+    step = t_idx + 1
+    xy = ep.truth[step, j_idx, :2]
+    ys = ep.track_step >= 1
+    sm = set_metrics(step - 1, j_idx, xy, ep.track_step[ys] - 1, ep.track_label[ys],
+                     ep.track_mean[ys, :2], c, n_steps=ep.truth.shape[0] - 1)
+    return step, j_idx, xy, sm
+
+
 def loop_breakdown(study_file: str, method: str, seed: int, runs: int,
                    planning_threshold: float | None = None) -> list[str]:
     """Run ``runs`` closed loops of ``method`` on ``seed`` (with its tracker's
@@ -199,14 +211,7 @@ def loop_breakdown(study_file: str, method: str, seed: int, runs: int,
             ep = run_episode(study.scenario, m.settings, study.run_seed(run))
         finally:
             restore()
-        S = ep.truth.shape[0] - 1
-        alive = ep.alive[1:]
-        t_idx, j_idx = np.nonzero(alive)
-        step = t_idx + 1
-        xy = ep.truth[step, j_idx, :2]
-        ys = ep.track_step >= 1
-        sm = set_metrics(step - 1, j_idx, xy, ep.track_step[ys] - 1, ep.track_label[ys],
-                         ep.track_mean[ys, :2], c, n_steps=S)
+        step, j_idx, xy, sm = _assignment(ep, c)
         last = _last_label(j_idx, step, sm.label)
         detected = ep.measured[:, :, :].any(axis=2)                     # (S+1, M)
         gap = np.flatnonzero(~sm.assigned)
@@ -324,13 +329,7 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int) -> list[s
     detected_in, losing = [], set()
     for run in range(runs):
         ep = run_episode(study.scenario, m.settings, study.run_seed(run))
-        S = ep.truth.shape[0] - 1
-        t_idx, j_idx = np.nonzero(ep.alive[1:])
-        step = t_idx + 1
-        xy = ep.truth[step, j_idx, :2]
-        ys = ep.track_step >= 1
-        sm = set_metrics(step - 1, j_idx, xy, ep.track_step[ys] - 1, ep.track_label[ys],
-                         ep.track_mean[ys, :2], GOSPA_CUTOFF, n_steps=S)
+        step, j_idx, _, sm = _assignment(ep, GOSPA_CUTOFF)
         detected = ep.measured.any(axis=2)                               # (S+1, M)
         for j in np.unique(j_idx):
             sel = j_idx == j
