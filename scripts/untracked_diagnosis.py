@@ -26,7 +26,9 @@ the steps since the target was last detected and since a look was last aimed at 
 every held target lost (the honesty table's count: a target, after its first report, 20 or
 more consecutive live steps without a reported track within c): its run, target, first step
 and length, how many steps of the stretch some look detected it, how many of the 10 steps
-before it, and its median distance to the nearest platform during it. A stretch in which
+before it, its median distance to the nearest platform during it, its class at the
+stretch's first step (as for ``closed-loop``, with that Bernoulli's existence and distance),
+and in how many of the stretch's steps a look was aimed at that class's label. A stretch in which
 the target was detected but no track formed is the tracker's failure; one in which it was
 not detected, planning's (no look went there) or the sensor's.
 
@@ -180,6 +182,25 @@ def _assignment(ep: Any, c: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     return step, j_idx, xy, sm
 
 
+def _classify(bern: tuple[np.ndarray, np.ndarray, np.ndarray], xy: np.ndarray, last: int,
+              threshold: float, c: float) -> tuple[str, int, float, float]:
+    """Class of one untracked target-step from the tracker's Bernoullis after that step
+    (module docstring), with the label it concerns (-1: none) and that Bernoulli's existence
+    and distance to the target (nan when there is none)."""
+    r, pos, labels = bern
+    d = np.hypot(*(pos - xy).T) if len(r) else np.zeros(0)
+    near = d < c
+    if (near & (r >= threshold)).any():
+        return "taken", last, np.nan, np.nan
+    if near.any():
+        i = int(np.flatnonzero(near)[np.argmax(r[near])])
+        return "faded", int(labels[i]), float(r[i]), float(d[i])
+    if last >= 0 and np.any(labels == last):
+        i = int(np.flatnonzero(labels == last)[0])
+        return "displaced", last, float(r[i]), float(d[i])
+    return "gone", last, np.nan, np.nan
+
+
 def loop_breakdown(study_file: str, method: str, seed: int, runs: int,
                    planning_threshold: float | None = None) -> list[str]:
     """Run ``runs`` closed loops of ``method`` on ``seed`` (with its tracker's
@@ -220,29 +241,17 @@ def loop_breakdown(study_file: str, method: str, seed: int, runs: int,
         per_run_live.append(len(step))
         for k in gap:
             t, j = int(step[k]), int(j_idx[k])
-            r, pos, labels = probe.bern[t - 1]
-            d = np.hypot(*(pos - xy[k]).T) if len(r) else np.zeros(0)
-            near = d < c
-            rep_near = near & (r >= threshold)
             prev = np.flatnonzero(detected[1:t + 1, j])
             sd = t - (int(prev[-1]) + 1) if prev.size else t
-            lab = int(last[k])
-            if rep_near.any():
-                cls = "taken"
-            elif near.any():
-                cls = "faded"
-                i = np.flatnonzero(near)[np.argmax(r[near])]
-                faded_r.append(float(r[i]))
-                faded_same += int(labels[i] == lab)
-                faded_decided += int(int(labels[i]) in probe.decided[t - 1])
-                lab = int(labels[i])
-            elif lab >= 0 and np.any(labels == lab):
-                cls = "displaced"
-                i = int(np.flatnonzero(labels == lab)[0])
-                displaced_r.append(float(r[i]))
-                displaced_d.append(float(d[i]))
-            else:
-                cls = "gone"
+            cls, lab, r_i, d_i = _classify(probe.bern[t - 1], xy[k], int(last[k]),
+                                           threshold, c)
+            if cls == "faded":
+                faded_r.append(r_i)
+                faded_same += int(lab == int(last[k]))
+                faded_decided += int(lab in probe.decided[t - 1])
+            elif cls == "displaced":
+                displaced_r.append(r_i)
+                displaced_d.append(d_i)
             aimed = [s for s in range(t) if lab >= 0 and np.any(probe.aims[s] == lab)]
             counts[cls] += 1
             before = row.get((t - 1, j))
@@ -324,29 +333,47 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int) -> list[s
 
     study = dataclasses.replace(load_study(study_file), seed=seed, runs=runs)
     m = next(x for x in study.methods if x.name == method)
+    threshold = float(m.settings.tracker.report_threshold)
     lines = ["| run | target | first step | length | steps detected in it | in the 10 before "
-             "| median distance to the nearest platform (m) |", "|--:|--:|--:|--:|--:|--:|--:|"]
-    detected_in, losing = [], set()
+             "| median distance to the nearest platform (m) | class at its first step "
+             "| existence, distance (m) | steps a look aimed at that label in it |",
+             "|--:|--:|--:|--:|--:|--:|--:|---|--:|--:|"]
+    detected_in, losing, classes = [], set(), []
     for run in range(runs):
-        ep = run_episode(study.scenario, m.settings, study.run_seed(run))
-        step, j_idx, _, sm = _assignment(ep, GOSPA_CUTOFF)
+        probe = _Probe()
+        restore = probe.install()
+        try:
+            ep = run_episode(study.scenario, m.settings, study.run_seed(run))
+        finally:
+            restore()
+        step, j_idx, xy, sm = _assignment(ep, GOSPA_CUTOFF)
+        last = _last_label(j_idx, step, sm.label)
         detected = ep.measured.any(axis=2)                               # (S+1, M)
         for j in np.unique(j_idx):
             sel = j_idx == j
             for s0, n in held_stretches(step[sel], sm.assigned[sel]):
                 s1 = s0 + n
+                k0 = int(np.flatnonzero(sel & (step == s0))[0])
+                cls, lab, r_i, d_i = _classify(probe.bern[s0 - 1], xy[k0], int(last[k0]),
+                                               threshold, GOSPA_CUTOFF)
+                aimed = sum(lab >= 0 and bool(np.any(probe.aims[t - 1] == lab))
+                            for t in range(s0, s1))
                 seen = int(detected[s0:s1, j].sum())
                 before = int(detected[max(1, s0 - 10):s0, j].sum())
                 gap = ep.sensor_positions[s0:s1] - ep.truth[s0:s1, j, None, :2]
                 dist = float(np.median(np.hypot(gap[..., 0], gap[..., 1]).min(axis=1)))
                 detected_in.append(seen)
+                classes.append(cls)
                 losing.add(run)
-                lines.append(f"| {run} | {j} | {s0} | {n} | {seen} | {before} | {dist:.0f} |")
+                what = "" if np.isnan(r_i) else f"{r_i:.2f}, {d_i:.0f}"
+                lines.append(f"| {run} | {j} | {s0} | {n} | {seen} | {before} | {dist:.0f} "
+                             f"| {cls} | {what} | {aimed} |")
     d = np.array(detected_in)
     lines.append(f"method {method}, seed {seed}, {runs} runs: {len(d)} held targets lost in "
                  f"{len(losing)} runs; detected in 0 steps of "
                  f"the stretch: {int(np.sum(d == 0))}, 1-2: {int(np.sum((d >= 1) & (d <= 2)))}"
-                 f", 3 or more: {int(np.sum(d >= 3))}")
+                 f", 3 or more: {int(np.sum(d >= 3))}; class at the first step: "
+                 + ", ".join(f"{k} {classes.count(k)}" for k in CLASSES_LOOP))
     return lines
 
 

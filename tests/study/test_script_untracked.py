@@ -41,3 +41,29 @@ def test_held_stretches_of_a_hand_made_target() -> None:
     assert diag.held_stretches(step, assigned) == [(6, 25), (32, 29)]
     assert diag.held_stretches(step, assigned, 26) == [(32, 29)]
     assert diag.held_stretches(step, np.zeros(60, dtype=bool)) == []
+
+
+def test_each_class_of_an_untracked_target_step() -> None:
+    diag = script_module("untracked_diagnosis")
+    target = np.array([0.0, 0.0])
+    pos = np.array([[30.0, 40.0], [10.0, 0.0], [200.0, 0.0]])     # 50 m, 10 m, 200 m away
+    labels = np.array([7, 8, 9])
+    c, threshold = 50.0, 0.5
+
+    def classify(r: list[float], last: int) -> tuple:
+        return diag._classify((np.array(r), pos, labels), target, last, threshold, c)
+
+    # A reported Bernoulli within c (10 m): another target took it.
+    assert classify([0.9, 0.6, 0.9], 9)[0] == "taken"
+    # Within c only below the report threshold: the nearer-than-c one of highest existence.
+    assert classify([0.9, 0.3, 0.9], 9) == ("faded", 8, 0.3, 10.0)
+    # At exactly c a Bernoulli is not within it, so with none nearer the label is followed.
+    r = [0.9, 0.0, 0.8]
+    pos_far = pos.copy()
+    pos_far[1] = [0.0, 60.0]
+    got = diag._classify((np.array(r), pos_far, labels), target, 9, threshold, c)
+    assert got == ("displaced", 9, 0.8, 200.0)
+    got = diag._classify((np.array(r), pos_far, labels), target, 5, threshold, c)
+    assert got[:2] == ("gone", 5) and np.isnan(got[2])
+    empty = (np.zeros(0), np.zeros((0, 2)), np.zeros(0, dtype=np.int64))
+    assert diag._classify(empty, target, -1, threshold, c)[:2] == ("gone", -1)
