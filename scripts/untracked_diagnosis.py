@@ -28,7 +28,10 @@ more consecutive live steps without a reported track within c): its run, target,
 and length, how many steps of the stretch some look detected it, how many of the 10 steps
 before it, its median distance to the nearest platform during it, its class at the
 stretch's first step (as for ``closed-loop``, with that Bernoulli's existence and distance),
-and in how many of the stretch's steps a look was aimed at that class's label. A stretch in which
+in how many of the stretch's steps a look was aimed at that class's label, in how many
+the target stood inside some platform's ground-range band (a look with the right heading
+could have seen it, line of sight aside), and in how many the Bernoullis within c of it
+summed to the report threshold or more (existence split between duplicates). A stretch in which
 the target was detected but no track formed is the tracker's failure; one in which it was
 not detected, planning's (no look went there) or the sensor's.
 
@@ -201,6 +204,15 @@ def _classify(bern: tuple[np.ndarray, np.ndarray, np.ndarray], xy: np.ndarray, l
     return "gone", last, np.nan, np.nan
 
 
+def _existence_within(bern: tuple[np.ndarray, np.ndarray, np.ndarray], xy: np.ndarray,
+                      c: float) -> float:
+    """The summed existence of the Bernoullis nearer than ``c`` to ``xy``."""
+    r, pos, _ = bern
+    if not len(r):
+        return 0.0
+    return float(r[np.hypot(*(pos - xy).T) < c].sum())
+
+
 def loop_breakdown(study_file: str, method: str, seed: int, runs: int,
                    planning_threshold: float | None = None) -> list[str]:
     """Run ``runs`` closed loops of ``method`` on ``seed`` (with its tracker's
@@ -336,9 +348,14 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int) -> list[s
     threshold = float(m.settings.tracker.report_threshold)
     lines = ["| run | target | first step | length | steps detected in it | in the 10 before "
              "| median distance to the nearest platform (m) | class at its first step "
-             "| existence, distance (m) | steps a look aimed at that label in it |",
-             "|--:|--:|--:|--:|--:|--:|--:|---|--:|--:|"]
+             "| existence, distance (m) | steps a look aimed at that label in it "
+             "| steps in some platform's ground-range band | steps with existence 0.5 "
+             "within c |",
+             "|--:|--:|--:|--:|--:|--:|--:|---|--:|--:|--:|--:|"]
     detected_in, losing, classes = [], set(), []
+    band = np.array([[sp.params.min_ground_range, sp.params.max_ground_range]
+                     for sp in study.scenario.sensors])
+    in_band, summed, steps = 0, 0, 0
     for run in range(runs):
         probe = _Probe()
         restore = probe.install()
@@ -361,19 +378,33 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int) -> list[s
                 seen = int(detected[s0:s1, j].sum())
                 before = int(detected[max(1, s0 - 10):s0, j].sum())
                 gap = ep.sensor_positions[s0:s1] - ep.truth[s0:s1, j, None, :2]
-                dist = float(np.median(np.hypot(gap[..., 0], gap[..., 1]).min(axis=1)))
+                ground = np.hypot(gap[..., 0], gap[..., 1])                   # (n, N)
+                dist = float(np.median(ground.min(axis=1)))
+                # A look with the right heading could see it (line of sight aside).
+                n_band = int(((ground >= band[:, 0]) & (ground <= band[:, 1]))
+                             .any(axis=1).sum())
+                # Existence enough to report it, were it not split between Bernoullis.
+                n_sum = sum(_existence_within(probe.bern[t - 1], ep.truth[t, j, :2],
+                                              GOSPA_CUTOFF) >= threshold
+                            for t in range(s0, s1))
+                in_band += n_band
+                summed += n_sum
+                steps += n
                 detected_in.append(seen)
                 classes.append(cls)
                 losing.add(run)
                 what = "" if np.isnan(r_i) else f"{r_i:.2f}, {d_i:.0f}"
                 lines.append(f"| {run} | {j} | {s0} | {n} | {seen} | {before} | {dist:.0f} "
-                             f"| {cls} | {what} | {aimed} |")
+                             f"| {cls} | {what} | {aimed} | {n_band} | {n_sum} |")
     d = np.array(detected_in)
     lines.append(f"method {method}, seed {seed}, {runs} runs: {len(d)} held targets lost in "
                  f"{len(losing)} runs; detected in 0 steps of "
                  f"the stretch: {int(np.sum(d == 0))}, 1-2: {int(np.sum((d >= 1) & (d <= 2)))}"
                  f", 3 or more: {int(np.sum(d >= 3))}; class at the first step: "
-                 + ", ".join(f"{k} {classes.count(k)}" for k in CLASSES_LOOP))
+                 + ", ".join(f"{k} {classes.count(k)}" for k in CLASSES_LOOP)
+                 + f"; of their {steps} steps, {in_band} with the target in some platform's "
+                 f"ground-range band, {summed} with the Bernoullis within c summing to the "
+                 f"report threshold or more")
     return lines
 
 

@@ -67,3 +67,13 @@ def test_each_class_of_an_untracked_target_step() -> None:
     assert got[:2] == ("gone", 5) and np.isnan(got[2])
     empty = (np.zeros(0), np.zeros((0, 2)), np.zeros(0, dtype=np.int64))
     assert diag._classify(empty, target, -1, threshold, c)[:2] == ("gone", -1)
+
+
+def test_existence_within_c_sums_only_the_nearer_bernoullis() -> None:
+    diag = script_module("untracked_diagnosis")
+    pos = np.array([[3.0, 4.0], [0.0, 50.0], [-10.0, 0.0]])       # 5 m, 50 m, 10 m
+    bern = (np.array([0.3, 0.9, 0.25]), pos, np.array([1, 2, 3]))
+    assert diag._existence_within(bern, np.zeros(2), 50.0) == pytest.approx(0.55, abs=1e-15)
+    assert diag._existence_within(bern, np.zeros(2), 50.001) == pytest.approx(1.45, abs=1e-15)
+    empty = (np.zeros(0), np.zeros((0, 2)), np.zeros(0, dtype=np.int64))
+    assert diag._existence_within(empty, np.zeros(2), 50.0) == 0.0
