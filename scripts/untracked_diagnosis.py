@@ -185,6 +185,24 @@ def _assignment(ep: Any, c: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     return step, j_idx, xy, sm
 
 
+def _recorded_run(study: Any, settings: Any, run: int) -> tuple[Any, _Probe, np.ndarray,
+                                                                  np.ndarray, np.ndarray, Any,
+                                                                  np.ndarray]:
+    """Run ``run`` of ``study`` with ``settings`` under a :class:`_Probe`: the episode, the
+    probe, the live target-steps and GOSPA's assignment (:func:`_assignment`, at the study
+    cut-off) and each target-step's last assigned label (:func:`_last_label`)."""
+    from sensorplan.simulation.run import run_episode
+
+    probe = _Probe()
+    restore = probe.install()
+    try:
+        ep = run_episode(study.scenario, settings, study.run_seed(run))
+    finally:
+        restore()
+    step, j_idx, xy, sm = _assignment(ep, GOSPA_CUTOFF)
+    return ep, probe, step, j_idx, xy, sm, _last_label(j_idx, step, sm.label)
+
+
 def _classify(bern: tuple[np.ndarray, np.ndarray, np.ndarray], xy: np.ndarray, last: int,
               threshold: float, c: float) -> tuple[str, int, float, float]:
     """Class of one untracked target-step from the tracker's Bernoullis after that step
@@ -218,7 +236,6 @@ def loop_breakdown(study_file: str, method: str, seed: int, runs: int,
     """Run ``runs`` closed loops of ``method`` on ``seed`` (with its tracker's
     ``planning_threshold`` replaced, if given) and break their untracked target-steps down
     (module docstring)."""
-    from sensorplan.simulation.run import run_episode
     from sensorplan.study.file import load_study
 
     study = dataclasses.replace(load_study(study_file), seed=seed, runs=runs)
@@ -238,14 +255,7 @@ def loop_breakdown(study_file: str, method: str, seed: int, runs: int,
     since_aim: dict[str, list[int]] = {k: [] for k in CLASSES_LOOP}
     per_run_u, per_run_live = [], []
     for run in range(runs):
-        probe = _Probe()
-        restore = probe.install()
-        try:
-            ep = run_episode(study.scenario, m.settings, study.run_seed(run))
-        finally:
-            restore()
-        step, j_idx, xy, sm = _assignment(ep, c)
-        last = _last_label(j_idx, step, sm.label)
+        ep, probe, step, j_idx, xy, sm, last = _recorded_run(study, m.settings, run)
         detected = ep.measured[:, :, :].any(axis=2)                     # (S+1, M)
         gap = np.flatnonzero(~sm.assigned)
         row = {(int(a), int(b)): k for k, (a, b) in enumerate(zip(step, j_idx))}
@@ -340,7 +350,6 @@ def held_stretches(step: np.ndarray, assigned: np.ndarray, min_length: int = LOS
 def lost_stretches(study_file: str, method: str, seed: int, runs: int) -> list[str]:
     """Run ``runs`` closed loops of ``method`` on ``seed`` and list every held target lost
     with what happened during it (module docstring)."""
-    from sensorplan.simulation.run import run_episode
     from sensorplan.study.file import load_study
 
     study = dataclasses.replace(load_study(study_file), seed=seed, runs=runs)
@@ -357,14 +366,7 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int) -> list[s
                      for sp in study.scenario.sensors])
     in_band, summed, steps = 0, 0, 0
     for run in range(runs):
-        probe = _Probe()
-        restore = probe.install()
-        try:
-            ep = run_episode(study.scenario, m.settings, study.run_seed(run))
-        finally:
-            restore()
-        step, j_idx, xy, sm = _assignment(ep, GOSPA_CUTOFF)
-        last = _last_label(j_idx, step, sm.label)
+        ep, probe, step, j_idx, xy, sm, last = _recorded_run(study, m.settings, run)
         detected = ep.measured.any(axis=2)                               # (S+1, M)
         for j in np.unique(j_idx):
             sel = j_idx == j
