@@ -358,8 +358,8 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int) -> list[s
     lines = ["| run | target | first step | length | steps detected in it | in the 10 before "
              "| median distance to the nearest platform (m) | class at its first step "
              "| existence, distance (m) | steps a look aimed at that label in it "
-             "| steps in some platform's ground-range band | steps with existence 0.5 "
-             "within c |",
+             "| steps in some platform's ground-range band | steps with existence "
+             f"{threshold:g} within c |",
              "|--:|--:|--:|--:|--:|--:|--:|---|--:|--:|--:|--:|"]
     detected_in, losing, classes = [], set(), []
     band = np.array([[sp.params.min_ground_range, sp.params.max_ground_range]
