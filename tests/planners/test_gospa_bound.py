@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import itertools
 import math
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -33,8 +34,9 @@ def problem(positions: list[tuple[float, float]], headings: list[float], u: Unde
 
 
 def mixed_problem(horizon: int = 2, objective: str = "cumulative", steps_per_epoch: int = 1,
-                  c: float = 50.0) -> PlanningProblem:
-    """Two sensors, two moving tracks (r = 0.6 and 1) and a 6 x 6 grid with births."""
+                  c: float = 50.0, reported: list[bool] | None = None) -> PlanningProblem:
+    """Two sensors, two moving tracks (r = 0.6 and 1; ``reported`` by default) and a 6 x 6
+    grid with births."""
     xs = 37.3 + 91.0 * np.arange(6)
     centres = [(x, y) for y in xs for x in xs]
     rng = np.random.default_rng(7)
@@ -42,21 +44,24 @@ def mixed_problem(horizon: int = 2, objective: str = "cumulative", steps_per_epo
     return problem([(300.0, 300.0), (60.0, 520.0)], [0.3, -1.0], u, sectors=6,
                    horizon=horizon, sensor=SensorParams(moves=(20.0,)), existence=[0.6, 1.0],
                    means=[[120.0, 90.0, 2.0, 1.0], [480.0, 420.0, -1.0, 0.5]],
-                   steps_per_epoch=steps_per_epoch, objective=objective, c=c)
+                   steps_per_epoch=steps_per_epoch, objective=objective, c=c,
+                   reported=None if reported is None else np.array(reported))
 
 
 def expected_bound(prob: PlanningProblem, plan: Plan | None) -> float:
     """The expected GOSPA bound summed over the steps (``cumulative``) or at the last one,
     from scratch: each track's ``r min(tr P, c^2) + (1 - r) c^2 / 2`` by the information form
     of the Kalman update (an explicit inverse), and the undetected and found targets as two
-    pools that survive alike, the found ones costing their first detection's bound. ``plan
-    None``: no look at all."""
+    pools that survive alike, the found ones costing their first detection's bound; a track
+    not reported is two such pools of its own (mass r), seen by the looks at its predicted
+    mean alone. ``plan None``: no look at all."""
     c2 = prob.gospa_c ** 2
     sctx = search.prepare(prob)
     ctx = sctx.ctx
     T, e, M = ctx.T, ctx.e, ctx.M
     W = np.zeros((M, T, 2, 2))
     miss = np.ones((prob.horizon, len(sctx.centres)))
+    miss_track = np.ones((M, T))
     if plan is not None:
         headings = search.plan_headings(sctx, plan)
         for i, k in itertools.product(range(prob.n_sensors), range(1, prob.horizon + 1)):
@@ -67,19 +72,32 @@ def expected_bound(prob: PlanningProblem, plan: Plan | None) -> float:
                 w, _ = epoch_information(ctx, i, k, xy[None], np.array([th]), np.array([j]))
                 W[j, (k - 1) * e:k * e] += w[0]
             miss[k - 1] *= 1.0 - search.detection(sctx, i, xy[None], np.array([th]))[0]
+            for j, t in itertools.product(range(M), range((k - 1) * e, k * e)):
+                # The track's predicted mean as the one cell of a grid of its own.
+                at = SimpleNamespace(ctx=ctx, centres=ctx.xbar[j, t + 1, :2][None],
+                                     bearings=sctx.bearings)
+                miss_track[j, t] *= 1.0 - search.detection(at, i, xy[None], np.array([th]))[0, 0]
     Cf = np.linalg.inv(np.linalg.inv(np.asarray(prob.undetected.cell_cov)) + first_detection(
         ctx, prob))
     h = min(float(np.trace(Cf)), c2)
     per_step = np.zeros(T)
+    u = prob.undetected
     for j in range(M):
         P, r = np.asarray(prob.covs[j], dtype=float), float(prob.existence[j])
+        if prob.reported is not None and not prob.reported[j]:
+            missed, found_j = r, 0.0
+            for t in range(T):
+                missed = u.survival * missed
+                found_j = u.survival * found_j + missed * (1.0 - miss_track[j, t])
+                missed = missed * miss_track[j, t]
+                per_step[t] += c2 / 2 * missed + min(h, c2 / 2) * found_j
+            continue
         for t in range(T):
             P = ctx.F @ P @ ctx.F.T + ctx.Q_rows(j)[0]
             G = np.zeros((4, 4))
             G[:2, :2] = W[j, t]
             P = np.linalg.inv(np.linalg.inv(P) + G)
             per_step[t] += r * min(P[0, 0] + P[1, 1], c2) + (1.0 - r) * c2 / 2
-    u = prob.undetected
     undetected, found = np.array(u.weights, dtype=float), np.zeros(len(u.weights))
     for t in range(T):
         undetected = u.survival * undetected + u.births
@@ -160,11 +178,13 @@ def test_one_cell_one_look_finds_its_share_of_the_bound(objective: str) -> None:
 
 @pytest.mark.parametrize("objective", ["terminal", "cumulative"])
 @pytest.mark.parametrize("c", [50.0, 9.0, 12.0])
-def test_phi_is_the_expected_bound_the_plan_removes(objective: str, c: float) -> None:
+@pytest.mark.parametrize("reported", [None, [False, True]])
+def test_phi_is_the_expected_bound_the_plan_removes(objective: str, c: float,
+                                                     reported: list[bool] | None) -> None:
     """Against the bound computed from scratch (tracks by explicit inverses, the found and
     undetected targets as pools): with c = 9 every track is clipped at c^2 before a look."""
     for e in (1, 2):
-        prob = mixed_problem(objective=objective, steps_per_epoch=e, c=c)
+        prob = mixed_problem(objective=objective, steps_per_epoch=e, c=c, reported=reported)
         sctx = search.prepare(prob)
         for seed in range(3):
             plan = search.random_plan(sctx, np.random.default_rng(seed))
@@ -176,13 +196,55 @@ def test_phi_is_the_expected_bound_the_plan_removes(objective: str, c: float) ->
             assert got.potential >= 0.0 and np.all(got.information >= 0.0)
 
 
+@pytest.mark.parametrize("objective", ["terminal", "cumulative"])
+def test_a_track_not_reported_is_found_not_localised(objective: str) -> None:
+    """Ideal detection, one sensor, one still track (r = 0.3) on sector 0's boresight at
+    350 m and no undetected targets: looking there finds it with probability r p_S (then
+    r p_S^2, ...), each find worth g; looking away is worth nothing; reported, the same look
+    is worth r times its covariance's bound reduction instead."""
+    pS, r, K = 0.9, 0.3, 2
+    u = grid([(20.0, 20.0)], 0.0, 0.0, pS)
+    kw = dict(sectors=2, horizon=K, sensor=SensorParams(), existence=r,
+              means=[[450.0, 300.0, 0.0, 0.0]], objective=objective)
+    hidden = problem([(100.0, 300.0)], [0.0], u, reported=np.array([False]), **kw)
+    sctx = search.prepare(hidden)
+    g = sctx.gospa.found_value  # type: ignore[union-attr]
+    toward = search.evaluate(sctx, sector_plan(hidden, [[0] * K]))
+    # Found at step 1 with probability r p_S, alive at step 2 with p_S more.
+    want = g * r * pS * (pS + 1.0 if objective == "cumulative" else pS)
+    assert toward.potential == pytest.approx(want, rel=1e-12)
+    assert toward.found == pytest.approx(r * pS, rel=1e-12)
+    assert toward.information[0] == 0.0
+    assert search.evaluate(sctx, sector_plan(hidden, [[1] * K])).potential == 0.0
+    shown = dataclasses.replace(hidden, reported=np.array([True]))
+    seen = search.evaluate(search.prepare(shown), sector_plan(shown, [[0] * K]))
+    assert seen.found == 0.0 and seen.potential == pytest.approx(seen.information[0])
+
+
+def test_reported_flags_are_checked() -> None:
+    prob = mixed_problem()
+    with pytest.raises(ConfigError) as err:
+        dataclasses.replace(prob, reported=np.array([False]))
+    assert err.value.field == "reported"
+    with pytest.raises(ConfigError) as err:
+        dataclasses.replace(prob, reported=np.array([1, 0]))
+    assert err.value.field == "reported"
+    info = dataclasses.replace(prob, reward="information")
+    with pytest.raises(ConfigError) as err:
+        dataclasses.replace(info, reported=np.array([True, False]))
+    assert err.value.field == "reported"
+    assert dataclasses.replace(info, reported=np.array([True, True])).reported is None
+
+
 # ------------------------------------------------------------------ batched and potential
 
 
 @pytest.mark.parametrize("objective,e", [("terminal", 1), ("cumulative", 1),
                                          ("cumulative", 2), ("terminal", 2)])
-def test_the_batched_form_equals_the_reference(objective: str, e: int) -> None:
-    prob = mixed_problem(objective=objective, steps_per_epoch=e)
+@pytest.mark.parametrize("reported", [None, [False, True], [False, False]])
+def test_the_batched_form_equals_the_reference(objective: str, e: int,
+                                               reported: list[bool] | None) -> None:
+    prob = mixed_problem(objective=objective, steps_per_epoch=e, reported=reported)
     sctx = search.prepare(prob)
     plans = [search.random_plan(sctx, np.random.default_rng(s)) for s in range(2)]
     plans.append(make_planner("sequential-greedy").plan(prob).plan)
@@ -196,10 +258,12 @@ def test_the_batched_form_equals_the_reference(objective: str, e: int) -> None:
             np.testing.assert_allclose(u, ref, rtol=0, atol=1e-12 * max(1.0, ref.max()))
 
 
-def test_a_unilateral_change_moves_phi_by_the_players_utility_change() -> None:
+@pytest.mark.parametrize("reported", [None, [False, True]])
+def test_a_unilateral_change_moves_phi_by_the_players_utility_change(
+        reported: list[bool] | None) -> None:
     """Exact potential: u(a') - u(a) of player (i, k) equals the change of the expected
     bound computed from scratch when only that player changes."""
-    prob = mixed_problem()
+    prob = mixed_problem(reported=reported)
     sctx = search.prepare(prob)
     plan = make_planner("pg", max_outer=2).plan(prob, rng=3).plan
     rng = np.random.default_rng(0)

@@ -185,7 +185,8 @@ def search_contract_problems() -> tuple[ContractProblem, ...]:
     four sectors per sensor, the third with no track worth looking at (every existence 0:
     only search pays) and the fourth with its targets weighted by random probabilities of
     existence, and one paper-size decision (K = 2, 6 sectors, a 12 x 12 grid); then two tiny
-    ones with the GOSPA-bound reward, one per objective. Built once per process."""
+    ones with the GOSPA-bound reward, one per objective, and one with it and a track not
+    reported. Built once per process."""
     out = []
     rng = np.random.default_rng(13)
     j = 0
@@ -220,6 +221,21 @@ def search_contract_problems() -> tuple[ContractProblem, ...]:
                 break
         out.append(ContractProblem(f"tiny ({problem.visibility}, {objective}, search, "
                                    f"gospa)", problem, True))
+    # The GOSPA-bound reward with a track not reported: it is found, not localised.
+    rng = np.random.default_rng(19)
+    while True:
+        base = weighted(tiny_problem(rng, 200, objective="cumulative"), rng)
+        sectors = tuple(int(s) for s in rng.integers(1, 3, base.n_sensors))
+        reported = np.arange(base.n_targets) > 0
+        existence = np.array(base.existence)
+        existence[0] = rng.uniform(0.1, 0.5)        # below a report threshold of 0.5
+        problem = dataclasses.replace(searching(base, rng, sectors), reward="gospa",
+                                      reported=reported, existence=existence)
+        if (problem.horizon >= 2 and problem.n_targets >= 2
+                and joint_plan_count(problem) <= TINY_SEARCH_PLANS):
+            break
+    out.append(ContractProblem(f"tiny ({problem.visibility}, cumulative, search, gospa, "
+                               "a track not reported)", problem, True))
     return tuple(out)
 
 

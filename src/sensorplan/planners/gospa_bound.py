@@ -21,6 +21,11 @@ bound (alpha = 2, p = 2, cut-off c) of the tracks and of the undetected targets,
   only to lie in its cell after one detection (the detection of
   :func:`~sensorplan.planners.search.first_detection_weight`).
 
+A track the tracker does not report (``problem.reported`` False: a Bernoulli below the
+report threshold) costs ``r c^2/2`` whatever its covariance: if it exists it is missed. Its
+term in the first sum is 0; it is found instead, as a point of undetected intensity with
+mass ``r_j`` at its predicted mean (surviving as the cells do), so ``f_s`` counts it too.
+
 Why this form: a reported track j costs ``r_j min(tr P_j, c^2) + (1 - r_j) c^2/2`` (a false
 track when it does not exist) and an undetected target c^2/2 while alive; looks change
 neither ``r_j`` nor how many targets live, so the ``(1 - r_j)`` part and every target never
@@ -82,6 +87,9 @@ class GospaContext:
     step_weights : (T,)      omega_s: how much of a step-s find counts in the bound
     baseline : (M, T)        ``min(tr Pbar_j(t), c^2)`` for t = 1..T, without any look
     cumulative : bool        the objective
+    track_weights : (M,)     r_j for a reported track, 0 for one not reported
+    unreported : (U,) int    the tracks not reported, found as points
+    points : (U, T, 2)       their predicted ground positions at t = 1..T
     """
 
     c2: float
@@ -89,6 +97,9 @@ class GospaContext:
     step_weights: FloatArray
     baseline: FloatArray
     cumulative: bool
+    track_weights: FloatArray
+    unreported: IntArray
+    points: FloatArray
 
 
 def found_covariance(sctx: SearchParts) -> FloatArray:
@@ -128,17 +139,41 @@ def prepare(sctx: SearchParts) -> GospaContext:
     cumulative = ctx.problem.objective == "cumulative"
     Pbar = ctx.Pbar[:, 1:]
     baseline = np.minimum(Pbar[..., 0, 0] + Pbar[..., 1, 1], c2)
+    reported = (np.ones(ctx.M, dtype=bool) if ctx.problem.reported is None
+                else np.asarray(ctx.problem.reported, dtype=bool))
+    unreported = np.flatnonzero(~reported)
     return GospaContext(c2, g, step_weights(sctx.survival, ctx.T, cumulative), baseline,
-                        cumulative)
+                        cumulative, np.where(reported, ctx.existence, 0.0), unreported,
+                        np.ascontiguousarray(ctx.xbar[unreported, 1:, :2]))
 
 
-def _bound_terms(gctx: GospaContext, traces: FloatArray, measured: BoolArray,
-                 existence: FloatArray) -> FloatArray:
+def point_detection(sctx: SearchParts, i: int, k: int, positions: FloatArray,
+                    headings: FloatArray) -> FloatArray:
+    """``P_d v`` at the unreported tracks' predicted means at each step of epoch k, for
+    looks of sensor i: ``(B, e, U)`` from poses ``positions (B, 2)``, ``headings (B,)``
+    (the call :func:`~sensorplan.planners.cells.detection` makes at the cells' centres)."""
+    ctx, gctx = sctx.ctx, sctx.gospa
+    assert gctx is not None
+    e, U = ctx.e, len(gctx.unreported)
+    positions = np.asarray(positions, dtype=float).reshape(-1, 2)
+    B = len(positions)
+    pts = gctx.points[:, (k - 1) * e:k * e]                              # (U, e, 2)
+    d = pts.transpose(1, 0, 2)[None] - positions[:, None, None, :]       # (B, e, U, 2)
+    p = radar.detectable_points(ctx.radar, np.full(B, i, dtype=np.int64),
+                                np.ascontiguousarray(d[..., 0].reshape(B, e * U)),
+                                np.ascontiguousarray(d[..., 1].reshape(B, e * U)),
+                                np.asarray(headings, dtype=float).reshape(B), positions,
+                                ctx.buildings)
+    return np.asarray(p, dtype=float).reshape(B, e, U)
+
+
+def _bound_terms(gctx: GospaContext, traces: FloatArray, measured: BoolArray) -> FloatArray:
     """Per-track terms ``r_j (B_j - G_j)`` from the position traces ``(..., M, T)`` after
-    the looks: exactly 0 unmeasured, at least 0 measured (below 0 is round-off)."""
+    the looks: exactly 0 unmeasured or not reported, at least 0 measured (below 0 is
+    round-off)."""
     drop = gctx.baseline - np.minimum(traces, gctx.c2)
     term = drop.sum(axis=-1) if gctx.cumulative else drop[..., -1]
-    return existence * np.where(measured, np.maximum(term, 0.0), 0.0)
+    return gctx.track_weights * np.where(measured, np.maximum(term, 0.0), 0.0)
 
 
 def evaluate(sctx: SearchParts, plan: Plan, headings: FloatArray
@@ -149,8 +184,8 @@ def evaluate(sctx: SearchParts, plan: Plan, headings: FloatArray
     Returns
     -------
     potential : float           m^2
-    information : (M,)          the tracks' terms ``r_j (B_j - G_j)`` (m^2)
-    found : float               mu
+    information : (M,)          the tracks' terms ``r_j (B_j - G_j)`` (m^2; 0 not reported)
+    found : float               mu (undetected targets and unreported tracks found)
     weight : float              the bound removed per target found: ``potential =
                                 information.sum() + weight * found`` (g when mu = 0)
     measurements : (N, K) int   a track look's looks that count, a search look's steps when
@@ -163,6 +198,8 @@ def evaluate(sctx: SearchParts, plan: Plan, headings: FloatArray
     counts = np.zeros((N, K), dtype=np.int64)
     W = np.zeros((M, T, 2, 2))
     miss = np.ones((K, len(sctx.centres)))
+    U = len(gctx.unreported)
+    miss_points = np.ones((T, U))
     for i in range(N):
         for k in range(1, K + 1):
             if not plan.assigned[i, k - 1]:
@@ -177,6 +214,10 @@ def evaluate(sctx: SearchParts, plan: Plan, headings: FloatArray
                 counts[i, k - 1] = int(counted[0].sum())
             p = detection(sctx, i, pos[None], np.array([th]))[0]
             miss[k - 1] *= 1.0 - p
+            if U:
+                pp = point_detection(sctx, i, k, pos[None], np.array([th]))[0]
+                for s in range(e):
+                    miss_points[(k - 1) * e + s] *= 1.0 - pp[s]
             if j < 0 and (p > 0).any():
                 counts[i, k - 1] = e          # a search look counts at each step it covers
     traces = np.zeros((M, T))
@@ -193,15 +234,21 @@ def evaluate(sctx: SearchParts, plan: Plan, headings: FloatArray
                 P = 0.5 * (P + P.T)
             traces[j, t] = P[0, 0] + P[1, 1]
     measured = np.array([bool(np.any(W[j] != 0.0)) for j in range(M)], dtype=bool)
-    info = _bound_terms(gctx, traces, measured, ctx.existence)
-    # Undetected targets found at each step, and how long each find counts.
+    info = _bound_terms(gctx, traces, measured)
+    # Undetected targets and unreported tracks found at each step, and how long each find
+    # counts.
     D = np.array(sctx.d0, dtype=float)
+    R = np.array(ctx.existence[gctx.unreported], dtype=float)
     f = np.zeros(T)
     for t in range(T):
         m = miss[t // e]
         D = sctx.survival * D + sctx.births
         f[t] = float(np.sum(D * (1.0 - m)))
         D = D * m
+        if U:
+            R = sctx.survival * R
+            f[t] += float(np.sum(R * (1.0 - miss_points[t])))
+            R = R * miss_points[t]
     kept = 0.0
     for t in range(T):                    # bound removed at step t by the targets found so far
         alive = sum(f[s] * sctx.survival ** (t - s) for s in range(t + 1))
@@ -253,7 +300,41 @@ def candidate_potentials(sctx: SearchParts, plan: Plan, i: int, k: int,
         D = sctx.survival * D + sctx.births
         f[:, t] = (D * (1.0 - m)).sum(axis=-1)
         D = D * m
+    if len(gctx.unreported):
+        f += _candidate_point_finds(sctx, gctx, plan, i, k, headings, pos, assigned, th)
     return value + gctx.found_value * (f @ gctx.step_weights)
+
+
+def _candidate_point_finds(sctx: SearchParts, gctx: GospaContext, plan: Plan, i: int, k: int,
+                           headings: FloatArray, pos: FloatArray, assigned: BoolArray,
+                           th: FloatArray) -> FloatArray:
+    """``(A, T)``: the unreported tracks each candidate's plan finds at each step, every
+    other look's misses times the candidate's chain (as the cells' finds)."""
+    ctx = sctx.ctx
+    A, L = pos.shape[:2]
+    T, e = ctx.T, ctx.e
+    miss = np.ones((T, len(gctx.unreported)))
+    for n in range(ctx.N):
+        for a in np.flatnonzero(plan.assigned[n]):
+            if n == i and a >= k - 1:
+                continue
+            p = point_detection(sctx, n, int(a) + 1, plan.positions[n, a][None],
+                                headings[n, a:a + 1])[0]
+            miss[a * e:(a + 1) * e] *= 1.0 - p
+    miss_c = np.broadcast_to(miss, (A,) + miss.shape).copy()
+    for l in range(L):
+        if assigned[0, l] or l == 0:
+            kk = k + l
+            miss_c[:, (kk - 1) * e:kk * e] *= 1.0 - point_detection(sctx, i, kk, pos[:, l],
+                                                                     th[:, l])
+    R = np.broadcast_to(sctx.ctx.existence[gctx.unreported],
+                        (A, len(gctx.unreported))).copy()
+    f = np.zeros((A, T))
+    for t in range(T):
+        R = sctx.survival * R
+        f[:, t] = (R * (1.0 - miss_c[:, t])).sum(axis=-1)
+        R = R * miss_c[:, t]
+    return f
 
 
 def _candidate_tracks(sctx: SearchParts, gctx: GospaContext, plan: Plan, i: int, k: int,
@@ -293,8 +374,8 @@ def _candidate_tracks(sctx: SearchParts, gctx: GospaContext, plan: Plan, i: int,
         P, _ = information_update(P, flat[:, t])
         traces[:, t] = P[:, 0, 0] + P[:, 1, 1]
     measured = np.any(flat != 0.0, axis=(-3, -2, -1)).reshape(A, M)
-    return _bound_terms(gctx, traces.reshape(A, M, T), measured, ctx.existence).sum(axis=-1)
+    return _bound_terms(gctx, traces.reshape(A, M, T), measured).sum(axis=-1)
 
 
 __all__ = ["GospaContext", "SearchParts", "candidate_potentials", "detection", "evaluate",
-           "found_covariance", "prepare", "step_weights"]
+           "found_covariance", "point_detection", "prepare", "step_weights"]

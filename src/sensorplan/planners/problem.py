@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from .._types import FloatArray, IntArray
+from .._types import BoolArray, FloatArray, IntArray
 from ..errors import ConfigError
 from ..limits import MAX_BUILDINGS, RANGES, check_count
 from ..models.sensors import SensorParams
@@ -310,6 +310,13 @@ class PlanningProblem:
         information enters Phi, and so every player's utility, multiplied by r_j: a track
         that is probably not a real target is worth that much less to look at. Always an
         ``(M,)`` array once the problem is built.
+    reported : (M,) bool, optional
+        Whether each track is reported (default: all). The ``gospa`` reward values a
+        reported track by how much the plan shrinks its covariance, and one not reported
+        (a multi-target tracker's Bernoulli below its report threshold) as a target to
+        find: its existence times the chance that the plan's looks detect it times the
+        bound a find removes; the ``information`` reward values every track alike, so with
+        it every track must be reported. None once built when every track is.
     search : {"off", "on"}
         ``off`` (default): looks point at tracks and Phi is their information. ``on``: a
         look may also point at a search sector, and Phi adds ``w mu``, the value of the
@@ -348,6 +355,7 @@ class PlanningProblem:
     planning_detection: str = "aware"
     buildings: FloatArray = field(default_factory=lambda: np.zeros((0, 5)))
     existence: FloatArray | None = None
+    reported: BoolArray | None = None
     search: str = "off"
     search_sectors: int | tuple[int, ...] = 0
     undetected: UndetectedIntensity | None = None
@@ -361,6 +369,12 @@ class PlanningProblem:
             object.__setattr__(self, name, _readonly(getattr(self, name)))
         existence = np.ones(len(self.means)) if self.existence is None else self.existence
         object.__setattr__(self, "existence", _readonly(existence))
+        if self.reported is not None:
+            reported = np.array(self.reported)          # dtype kept: validate() checks it
+            reported.setflags(write=False)
+            # Every track reported is stored as None, so that replacing the tracks keeps it.
+            object.__setattr__(self, "reported", None if reported.dtype == np.bool_
+                               and reported.all() else reported)
         object.__setattr__(self, "buildings", _readonly(check_buildings(
             self.buildings, self.world, [float(s.altitude) for s in self.sensors])))
         object.__setattr__(self, "sensors", tuple(self.sensors))
@@ -435,6 +449,11 @@ class PlanningProblem:
             j = int(np.flatnonzero(~np.all(np.isfinite(self.means), axis=1))[0])
             raise ConfigError(f"targets[{j}].mean", "must be finite")
         check_existence(self.existence, M)
+        if self.reported is not None:
+            reported = np.asarray(self.reported)
+            if reported.shape != (M,) or reported.dtype != np.bool_:
+                raise ConfigError("reported", f"expected ({M},) booleans, got shape "
+                                  f"{reported.shape} of {reported.dtype}")
         e = self.elapsed_epochs
         if isinstance(e, bool) or not isinstance(e, (int, np.integer)) or e < 0:
             raise ConfigError("elapsed_epochs", f"must be an integer >= 0, got {e!r}")
@@ -491,6 +510,10 @@ class PlanningProblem:
                 or c <= 0):
             raise ConfigError("gospa_c", f"must be a finite number > 0, got {c!r}")
         if self.reward != "gospa":
+            if self.reported is not None:
+                raise ConfigError("reported", "tracks not reported are valued apart by the "
+                                  "'gospa' reward only; with reward 'information' every "
+                                  "track must be reported")
             return
         if self.search != "on":
             # The bound's missed-target part is what search lowers; without it a track
