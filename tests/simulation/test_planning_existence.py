@@ -115,3 +115,51 @@ def test_planning_sees_the_bernoullis_above_the_planning_threshold(monkeypatch) 
     t = np.arange(1, ep.looked.shape[0])
     start = t - 1 - (t - 1) % 2
     assert np.all(ep.looked[1:] < reported[start][:, None])
+
+
+class SearchRecording(Recording):
+    """:class:`Recording` for searching runs."""
+
+    name: ClassVar[str] = "search-recording"
+    plans_search: ClassVar[bool] = True
+
+
+def test_confirm_hands_planning_which_tracks_are_reported(monkeypatch) -> None:
+    from sensorplan.config import load_simulation
+    from sensorplan.tracking.pmb.tracker import PMBTracker
+
+    seen: list[tuple[Any, np.ndarray]] = []
+    plain = PMBTracker.planning_tracks
+
+    def planning_tracks(self: PMBTracker) -> Any:
+        ts = plain(self)
+        seen.append((ts, np.isin(ts.labels, self.tracks().labels)))
+        return ts
+
+    monkeypatch.setattr(PMBTracker, "planning_tracks", planning_tracks)
+    monkeypatch.setitem(PLANNERS, "search-recording", SearchRecording)
+    cfg = load_simulation(preset="radar")
+    scenario, settings = cfg.scenario, cfg.settings
+    runs = {}
+    for mode in ("localise", "confirm"):
+        Recording.problems.clear()
+        seen.clear()
+        run_episode(scenario, dataclasses.replace(settings, planner="search-recording",
+                                                  unreported=mode, steps=60), 5)
+        runs[mode] = (list(Recording.problems), list(seen))
+    assert all(p.reported is None for p in runs["localise"][0])
+    problems, tracks = runs["confirm"]
+    hidden = 0
+    for problem in problems:
+        match = [flags for ts, flags in tracks if ts.existence.tobytes()
+                 == problem.existence.tobytes() and np.array_equal(ts.means, problem.means)]
+        assert match
+        flags = match[0]
+        if flags.all():
+            assert problem.reported is None
+        else:
+            np.testing.assert_array_equal(problem.reported, flags)
+            # Not reported: below the report threshold (a reported one may be lower).
+            assert np.all(problem.existence[~flags] < 0.5)
+            hidden += 1
+    assert hidden > 0                 # some decision planned on a track not reported

@@ -31,7 +31,8 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
     paths = [path for _, path, _, _ in DECLARED]
     assert paths == ["planner", "planner_params", "horizon", "steps_per_epoch", "execution",
                      "visibility", "objective", "planning_detection", "planning_occlusion",
-                     "search", "search_sectors", "reward", "steps", "gospa_c", "tracker.kind",
+                     "search", "search_sectors", "reward", "unreported", "steps", "gospa_c",
+                     "tracker.kind",
                      "tracker.miss_update", "tracker.model", "tracker.process_noise",
                      "tracker.mode_process_noise", "tracker.switching", "tracker.gate",
                      "tracker.gate_probability", "tracker.reacquire", "tracker.association",
@@ -136,7 +137,8 @@ def test_values_are_normalised_and_round_trip_through_dicts() -> None:
                  "steps_per_epoch": 1, "execution": "olf", "visibility": "probabilistic",
                  "objective": "cumulative", "planning_detection": "aware",
                  "planning_occlusion": "aware", "search": "off", "search_sectors": 0,
-                 "reward": "information", "steps": 100, "gospa_c": 50.0}
+                 "reward": "information", "unreported": "localise", "steps": 100,
+                 "gospa_c": 50.0}
     assert tracker["miss_update"] == "none"
     assert tracker == json.loads(json.dumps(
         {f.name: getattr(TrackerSettings(), f.name)
@@ -158,7 +160,8 @@ def test_file_tables_are_strict() -> None:
              ({"horizn": 2}, "horizn", "unknown key (did you mean 'horizon'?); allowed: "
                                        "planner, planner_params, horizon, steps_per_epoch, "
                                        "execution, visibility, objective, planning_detection, "
-                                       "planning_occlusion, search, search_sectors, reward"),
+                                       "planning_occlusion, search, search_sectors, reward, "
+                                       "unreported"),
              ({"planner_params": ["alpha"]}, "planner_params", "must be a table")]
     for data, field, message in cases:
         with pytest.raises(ConfigError) as info:

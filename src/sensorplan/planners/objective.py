@@ -28,3 +28,7 @@ SEARCH_MODES = ("off", "on")
 #: ``information``: Phi is the tracks' information plus the value of the targets found;
 #: ``gospa``: Phi is the reduction of the expected GOSPA bound the plan buys (needs search on).
 REWARDS = ("information", "gospa")
+#: How the ``gospa`` reward values a planned track the tracker does not report: ``localise``
+#: as a reported one (by its covariance's bound reduction); ``confirm`` as a target to find
+#: (its existence times the chance a look detects it times the bound a find removes).
+UNREPORTED_MODES = ("localise", "confirm")

@@ -42,7 +42,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .._types import FloatArray, IntArray
+from .._types import BoolArray, FloatArray, IntArray
 from ..errors import ConfigError
 from ..models.angles import heading_rule
 from ..models.motion import cv_matrices
@@ -348,6 +348,13 @@ class _Schedule:
                                  self.headings)
         self.epoch_index += 1
 
+    def _reported(self, tracks: TrackSet, tracker: Tracker) -> BoolArray | None:
+        """Which planned tracks the tracker reports, for the gospa reward's ``confirm``
+        (None otherwise: planning values every track as reported)."""
+        if self.settings.unreported != "confirm":
+            return None
+        return np.isin(tracks.labels, tracker.tracks().labels)
+
     def _decide(self, t: int, tracks: TrackSet, q: float | FloatArray, record: Recorder,
                 tracker: Tracker) -> None:
         s = self.settings
@@ -366,7 +373,7 @@ class _Schedule:
             steps_per_epoch=s.steps_per_epoch, dt=self.scenario.dt, process_noise=q,
             world=self.scenario.world, visibility=s.visibility, objective=s.objective,
             planning_detection=s.planning_detection, buildings=self.buildings,
-            existence=tracks.existence,
+            existence=tracks.existence, reported=self._reported(tracks, tracker),
             elapsed_epochs=(t - 1) // s.steps_per_epoch,     # where a fixed schedule stands
             **search)
         start = time.perf_counter()

@@ -38,7 +38,8 @@ from ..errors import ConfigError
 from ..limits import (MAX_PLAN_STEPS, MAX_SEARCH_SECTORS, MAX_STEPS, RANGES, SIZE_SETTINGS,
                       Param, Range, coerce)
 from ..planners.objective import (OBJECTIVES, PLANNING_DETECTIONS,
-                                  PLANNING_OCCLUSIONS, REWARDS, SEARCH_MODES, VISIBILITY_MODES)
+                                  PLANNING_OCCLUSIONS, REWARDS, SEARCH_MODES, UNREPORTED_MODES,
+                                  VISIBILITY_MODES)
 from ..tracking.registry import tracker_kinds
 
 EXECUTIONS = ("ol", "olf")
@@ -546,6 +547,10 @@ class RunSettings(_Settings):
                                    the expected GOSPA bound (cut-off ``gospa_c``);
                                    ``auto`` (default) becomes ``gospa`` with search on,
                                    ``information`` with search off
+    unreported : {"localise", "confirm"}
+                                   how the ``gospa`` reward values a planned track the
+                                   tracker does not report: by its covariance, or as a
+                                   target to find (needs reward ``gospa``)
     steps : int                    simulation steps S (>= 1)
     gospa_c : float                GOSPA cut-off c (m, > 0) of the run's set metrics
     tracker : TrackerSettings      (a mapping is accepted and converted)
@@ -640,6 +645,18 @@ class RunSettings(_Settings):
              "tracked one; needs --search on) or information (the tracks' information, "
              "plus with search on the value of the targets found); auto, the default, is "
              "gospa with search on and information with search off.")
+    unreported: str = setting(
+        "localise", section="planning", cli=("--unreported",), metavar="MODE",
+        brief="How the gospa reward values a planned track below the report threshold: "
+              "localise or confirm",
+        choices=UNREPORTED_MODES, noun="unreported mode",
+        help="How the gospa reward values a track planning sees but the tracker does not "
+             "report (existence between planning_threshold and report_threshold): localise "
+             "(default) as a reported one, by how much the plan shrinks its covariance; "
+             "confirm as a target to find, its existence times the chance that the plan's "
+             "looks detect it at its predicted mean times the bound a find removes (a "
+             "missed target's c^2/2 less a first detection's), since unreported it costs a "
+             "missed target whatever its covariance (needs reward gospa).")
     steps: int = setting(
         100, section="run", cli=("--steps", "-n"), metavar="N", bounds=Range(1, MAX_STEPS),
         brief="Simulation steps of the run",
@@ -676,6 +693,9 @@ class RunSettings(_Settings):
     def _check_search(self) -> None:
         """Search on needs a tracker that keeps an undetected intensity, and sectors; the
         gospa reward needs search on."""
+        if self.unreported != "localise" and self.reward != "gospa":
+            raise ConfigError("unreported", f"{self.unreported!r} needs reward = 'gospa' "
+                              f"(with search on), got reward {self.reward!r}")
         if self.search != "on":
             if self.reward == "gospa":
                 raise ConfigError("reward", "'gospa' needs search = 'on' (with search off "
