@@ -40,6 +40,9 @@ BAD_REWARD = [
     ("cut-off as text", _set("gospa_c", "50"), "gospa_c"),
     ("infinite cut-off", _set("gospa_c", float("inf")), "gospa_c"),
     ("a find's nats with gospa", _set("undetected.weight", 1.0), "undetected.weight"),
+    ("reported as text", _set("targets.0.reported", "no"), "targets[0].reported"),
+    ("not reported with information", lambda d: (_set("targets.0.reported", False)(d),
+                                                 d.pop("reward")), "targets[0].reported"),
 ]
 
 
@@ -72,8 +75,30 @@ def test_a_gospa_decision_plans(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert json.loads(out)["potential"] != res["potential"]
 
 
+def test_a_track_not_reported_is_found(tmp_path: Path,
+                                       capsys: pytest.CaptureFixture[str]) -> None:
+    """The same decision with a target not reported: its term of Phi is 0 and the plan's
+    search term includes finding it."""
+    path = tmp_path / "problem.json"
+    out = {}
+    for reported in (True, False):
+        d = gospa_decision()
+        d["targets"][0]["reported"] = reported
+        path.write_text(json.dumps(d))
+        code, text, err = run(capsys, "plan", path)
+        assert (code, err) == (0, ""), err
+        out[reported] = json.loads(text)
+    hidden = out[False]
+    assert hidden["information"][0] == 0.0
+    assert hidden["potential"] == pytest.approx(sum(hidden["information"])
+                                                + hidden["search_term"], rel=1e-12)
+    assert hidden["potential"] != out[True]["potential"]
+
+
 @pytest.mark.parametrize(("args", "field"), [
     (("--preset", "search", "--search", "on", "--reward", "entropy"), "--reward"),
+    (("--preset", "search", "--unreported", "confirm", "--search", "off"), "--unreported"),
+    (("--preset", "search", "--unreported", "maybe"), "--unreported"),
     (("--preset", "search", "--search", "off", "--reward", "gospa"), "--reward"),
     (("--preset", "search", "--search", "on", "--reward", "gospa", "--gospa-c", "0"),
      "--gospa-c"),

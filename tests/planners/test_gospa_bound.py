@@ -225,14 +225,14 @@ def test_reported_flags_are_checked() -> None:
     prob = mixed_problem()
     with pytest.raises(ConfigError) as err:
         dataclasses.replace(prob, reported=np.array([False]))
-    assert err.value.field == "reported"
+    assert err.value.field == "targets.reported"
     with pytest.raises(ConfigError) as err:
         dataclasses.replace(prob, reported=np.array([1, 0]))
-    assert err.value.field == "reported"
+    assert err.value.field == "targets.reported"
     info = dataclasses.replace(prob, reward="information")
     with pytest.raises(ConfigError) as err:
         dataclasses.replace(info, reported=np.array([True, False]))
-    assert err.value.field == "reported"
+    assert err.value.field == "targets[1].reported"
     assert dataclasses.replace(info, reported=np.array([True, True])).reported is None
 
 

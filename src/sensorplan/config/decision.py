@@ -57,6 +57,9 @@ class DecisionTarget(Strict):
     #: Probability that the target exists, r in [0, 1]: its information counts r times in
     #: Phi (checked by the problem, which names ``targets[j].existence``).
     existence: float = 1.0
+    #: Whether the tracker reports the target; the gospa reward finds one it does not
+    #: instead of localising it (checked by the problem: needs reward gospa).
+    reported: bool = True
 
 
 class DecisionSensor(SensorParamsModel):
@@ -240,6 +243,7 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
         planning_detection=model.planning_detection,
         buildings=np.array([b.row() for b in model.buildings], dtype=float),
         existence=np.array([t.existence for t in model.targets], dtype=float),
+        reported=np.array([t.reported for t in model.targets], dtype=bool).reshape(-1),
         search=model.search, search_sectors=tuple(s.search_sectors for s in model.sensors),
         undetected=_undetected(model), elapsed_epochs=model.elapsed_epochs,
         reward=model.reward, gospa_c=model.gospa_c)

@@ -452,8 +452,8 @@ class PlanningProblem:
         if self.reported is not None:
             reported = np.asarray(self.reported)
             if reported.shape != (M,) or reported.dtype != np.bool_:
-                raise ConfigError("reported", f"expected ({M},) booleans, got shape "
-                                  f"{reported.shape} of {reported.dtype}")
+                raise ConfigError("targets.reported", f"expected ({M},) booleans, got "
+                                  f"shape {reported.shape} of {reported.dtype}")
         e = self.elapsed_epochs
         if isinstance(e, bool) or not isinstance(e, (int, np.integer)) or e < 0:
             raise ConfigError("elapsed_epochs", f"must be an integer >= 0, got {e!r}")
@@ -511,9 +511,10 @@ class PlanningProblem:
             raise ConfigError("gospa_c", f"must be a finite number > 0, got {c!r}")
         if self.reward != "gospa":
             if self.reported is not None:
-                raise ConfigError("reported", "tracks not reported are valued apart by the "
-                                  "'gospa' reward only; with reward 'information' every "
-                                  "track must be reported")
+                j = int(np.flatnonzero(~np.asarray(self.reported))[0])
+                raise ConfigError(f"targets[{j}].reported", "a track not reported is valued "
+                                  "apart by the 'gospa' reward only; with reward "
+                                  "'information' every track must be reported")
             return
         if self.search != "on":
             # The bound's missed-target part is what search lowers; without it a track
