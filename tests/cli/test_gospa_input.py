@@ -97,7 +97,6 @@ def test_a_track_not_reported_is_found(tmp_path: Path,
 
 @pytest.mark.parametrize(("args", "field"), [
     (("--preset", "search", "--search", "on", "--reward", "entropy"), "--reward"),
-    (("--preset", "search", "--unreported", "confirm", "--search", "off"), "--unreported"),
     (("--preset", "search", "--unreported", "maybe"), "--unreported"),
     (("--preset", "search", "--search", "off", "--reward", "gospa"), "--reward"),
     (("--preset", "search", "--search", "on", "--reward", "gospa", "--gospa-c", "0"),
@@ -133,5 +132,9 @@ def test_a_gospa_run_names_its_reward(capsys: pytest.CaptureFixture[str],
                          "--out", tmp_path)
     assert code == 0, err
     text = " ".join(out.split())
-    assert "reward gospa (c = 50 m)" in text
+    assert "reward gospa (c = 50 m, unreported tracks confirmed)" in text
+    code, out, err = run(capsys, "simulate", "--preset", "search", "--unreported", "localise",
+                         "--planner", "sequential-greedy", "--steps", "2", "--out", tmp_path)
+    assert code == 0, err
+    assert "reward gospa (c = 50 m)," in " ".join(out.split())
     assert "m^2 (mu, the undetected targets" in text

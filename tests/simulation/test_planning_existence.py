@@ -163,3 +163,19 @@ def test_confirm_hands_planning_which_tracks_are_reported(monkeypatch) -> None:
             assert np.all(problem.existence[~flags] < 0.5)
             hidden += 1
     assert hidden > 0                 # some decision planned on a track not reported
+
+
+def test_confirm_changes_nothing_under_the_information_reward() -> None:
+    from sensorplan.config import load_simulation
+
+    cfg = load_simulation(preset="radar")
+    eps = [run_episode(cfg.scenario, dataclasses.replace(cfg.settings, reward="information",
+                                                         unreported=mode, steps=25), 5)
+           for mode in ("localise", "confirm")]
+    for f in dataclasses.fields(eps[0]):
+        if f.name not in ("planning_seconds", "settings"):
+            x, y = getattr(eps[0], f.name), getattr(eps[1], f.name)
+            if isinstance(x, np.ndarray):
+                np.testing.assert_array_equal(x, y, err_msg=f.name)
+            else:
+                assert x == y, f.name

@@ -351,7 +351,7 @@ class _Schedule:
     def _reported(self, tracks: TrackSet, tracker: Tracker) -> BoolArray | None:
         """Which planned tracks the tracker reports, for the gospa reward's ``confirm``
         (None otherwise: planning values every track as reported)."""
-        if self.settings.unreported != "confirm":
+        if self.settings.unreported != "confirm" or self.settings.reward != "gospa":
             return None
         return np.isin(tracks.labels, tracker.tracks().labels)
 

@@ -550,7 +550,7 @@ class RunSettings(_Settings):
     unreported : {"localise", "confirm"}
                                    how the ``gospa`` reward values a planned track the
                                    tracker does not report: by its covariance, or as a
-                                   target to find (needs reward ``gospa``)
+                                   target to find (no effect on the ``information`` reward)
     steps : int                    simulation steps S (>= 1)
     gospa_c : float                GOSPA cut-off c (m, > 0) of the run's set metrics
     tracker : TrackerSettings      (a mapping is accepted and converted)
@@ -656,7 +656,8 @@ class RunSettings(_Settings):
              "confirm as a target to find, its existence times the chance that the plan's "
              "looks detect it at its predicted mean times the bound a find removes (a "
              "missed target's c^2/2 less a first detection's), since unreported it costs a "
-             "missed target whatever its covariance (needs reward gospa).")
+             "missed target whatever its covariance (the information reward weighs every "
+             "track by its existence, reported or not, whichever this is).")
     steps: int = setting(
         100, section="run", cli=("--steps", "-n"), metavar="N", bounds=Range(1, MAX_STEPS),
         brief="Simulation steps of the run",
@@ -693,9 +694,6 @@ class RunSettings(_Settings):
     def _check_search(self) -> None:
         """Search on needs a tracker that keeps an undetected intensity, and sectors; the
         gospa reward needs search on."""
-        if self.unreported != "localise" and self.reward != "gospa":
-            raise ConfigError("unreported", f"{self.unreported!r} needs reward = 'gospa' "
-                              f"(with search on), got reward {self.reward!r}")
         if self.search != "on":
             if self.reward == "gospa":
                 raise ConfigError("reward", "'gospa' needs search = 'on' (with search off "
