@@ -384,6 +384,25 @@ def test_the_radar_preset_is_the_paper_scenario_with_radar_detection() -> None:
     assert cfg.settings.reward == "gospa"
     assert cfg.settings.tracker.termination_threshold == 0.1
     assert (cfg.settings.tracker.births, cfg.settings.tracker.birth_rate) == ("uniform", 0.05)
+    assert cfg.settings.tracker.planning_threshold == 0.02
+    assert cfg.settings.unreported == "confirm"
+
+
+@pytest.mark.parametrize("preset,files", [
+    ("radar", ["honest_table_radar_anywhere", "radar_lost_targets", "report_termination"]),
+    ("search", ["honest_table_search_background", "search_recycle", "search_background"]),
+])
+def test_earlier_study_files_keep_what_they_ran(preset: str, files: list[str]) -> None:
+    """The radar and search presets confirm tracks they do not report (and radar plans down
+    to existence 0.02); the study files that ran before name what they ran."""
+    from sensorplan.study.file import load_study
+
+    assert load_simulation(preset=preset).settings.unreported == "confirm"
+    for name in files:
+        study = load_study(ROOT / "studies" / f"{name}.toml")
+        assert {m.settings.unreported for m in study.methods} == {"localise"}, name
+        if preset == "radar":
+            assert {m.settings.tracker.planning_threshold for m in study.methods} == {0.1}
 
 
 def test_the_swarm_preset_has_a_quieter_imm_manoeuvre_mode() -> None:
