@@ -275,7 +275,7 @@ def candidate_potentials(sctx: SearchParts, plan: Plan, i: int, k: int,
     ctx = sctx.ctx
     gctx = sctx.gospa
     assert gctx is not None and plan.sectors is not None
-    A, K, L, M, T, e = len(targets), ctx.K, ctx.K - k + 1, ctx.M, ctx.T, ctx.e
+    A, K, L, M, e = len(targets), ctx.K, ctx.K - k + 1, ctx.M, ctx.e
     pos, tgt, assigned, th = candidate_chains(sctx, plan, i, k, positions, targets,
                                                 sectors, headings)
     value = np.zeros(A)
@@ -293,13 +293,7 @@ def candidate_potentials(sctx: SearchParts, plan: Plan, i: int, k: int,
     for l in range(L):
         if assigned[0, l] or l == 0:
             miss_c[:, k - 1 + l] *= 1.0 - detection(sctx, i, pos[:, l], th[:, l])
-    D = np.broadcast_to(sctx.d0, (A,) + sctx.d0.shape).copy()
-    f = np.zeros((A, T))
-    for t in range(T):
-        m = miss_c[:, t // e]
-        D = sctx.survival * D + sctx.births
-        f[:, t] = (D * (1.0 - m)).sum(axis=-1)
-        D = D * m
+    f = _batched_finds(sctx.d0, sctx.births, sctx.survival, np.repeat(miss_c, e, axis=1))
     if len(gctx.unreported):
         f += _candidate_point_finds(sctx, gctx, plan, i, k, headings, pos, assigned, th)
     return value + gctx.found_value * (f @ gctx.step_weights)
@@ -327,13 +321,21 @@ def _candidate_point_finds(sctx: SearchParts, gctx: GospaContext, plan: Plan, i:
             kk = k + l
             miss_c[:, (kk - 1) * e:kk * e] *= 1.0 - point_detection(sctx, i, kk, pos[:, l],
                                                                      th[:, l])
-    R = np.broadcast_to(sctx.ctx.existence[gctx.unreported],
-                        (A, len(gctx.unreported))).copy()
+    return _batched_finds(sctx.ctx.existence[gctx.unreported], 0.0, sctx.survival, miss_c)
+
+
+def _batched_finds(d0: FloatArray, births: FloatArray | float, survival: float,
+                   miss: FloatArray) -> FloatArray:
+    """``(A, T)``: the expected finds at each step of a pool ``d0 (P,)`` of cells or points
+    (``births`` per step, each surviving with ``survival``) under each candidate's miss
+    probabilities ``miss (A, T, P)`` per step."""
+    A, T = miss.shape[:2]
+    D = np.broadcast_to(d0, (A,) + np.shape(d0)).copy()
     f = np.zeros((A, T))
     for t in range(T):
-        R = sctx.survival * R
-        f[:, t] = (R * (1.0 - miss_c[:, t])).sum(axis=-1)
-        R = R * miss_c[:, t]
+        D = survival * D + births
+        f[:, t] = (D * (1.0 - miss[:, t])).sum(axis=-1)
+        D = D * miss[:, t]
     return f
 
 
