@@ -293,7 +293,7 @@ def candidate_potentials(sctx: SearchParts, plan: Plan, i: int, k: int,
     for l in range(L):
         if assigned[0, l] or l == 0:
             miss_c[:, k - 1 + l] *= 1.0 - detection(sctx, i, pos[:, l], th[:, l])
-    f = _batched_finds(sctx.d0, sctx.births, sctx.survival, np.repeat(miss_c, e, axis=1))
+    f = _batched_finds(sctx.d0, sctx.births, sctx.survival, miss_c, ctx.T, e)
     if len(gctx.unreported):
         f += _candidate_point_finds(sctx, gctx, plan, i, k, headings, pos, assigned, th)
     return value + gctx.found_value * (f @ gctx.step_weights)
@@ -321,21 +321,23 @@ def _candidate_point_finds(sctx: SearchParts, gctx: GospaContext, plan: Plan, i:
             kk = k + l
             miss_c[:, (kk - 1) * e:kk * e] *= 1.0 - point_detection(sctx, i, kk, pos[:, l],
                                                                      th[:, l])
-    return _batched_finds(sctx.ctx.existence[gctx.unreported], 0.0, sctx.survival, miss_c)
+    return _batched_finds(sctx.ctx.existence[gctx.unreported], 0.0, sctx.survival, miss_c,
+                          miss_c.shape[1], 1)
 
 
 def _batched_finds(d0: FloatArray, births: FloatArray | float, survival: float,
-                   miss: FloatArray) -> FloatArray:
-    """``(A, T)``: the expected finds at each step of a pool ``d0 (P,)`` of cells or points
-    (``births`` per step, each surviving with ``survival``) under each candidate's miss
-    probabilities ``miss (A, T, P)`` per step."""
-    A, T = miss.shape[:2]
+                   miss: FloatArray, T: int, e: int) -> FloatArray:
+    """``(A, T)``: the expected finds at each of ``T`` steps of a pool ``d0 (P,)`` of cells
+    or points (``births`` per step, each surviving with ``survival``) under each candidate's
+    miss probabilities ``miss (A, T / e, P)``, one row per period of ``e`` steps."""
+    A = miss.shape[0]
     D = np.broadcast_to(d0, (A,) + np.shape(d0)).copy()
     f = np.zeros((A, T))
     for t in range(T):
+        m = miss[:, t // e]
         D = survival * D + births
-        f[:, t] = (D * (1.0 - miss[:, t])).sum(axis=-1)
-        D = D * miss[:, t]
+        f[:, t] = (D * (1.0 - m)).sum(axis=-1)
+        D = D * m
     return f
 
 
