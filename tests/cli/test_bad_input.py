@@ -1204,6 +1204,8 @@ GNN_TOML = ('look_detects = "all"\nbirths = "edges"\nbirth_rate = 0.05\n[run]\ns
     ('map_edge = "wall"\n', "tracker.map_edge",
      "unknown map edge 'wall'; choose from scenario, exit, closed"),
     ("map_edge = 1\n", "tracker.map_edge", ""),
+    ('edge_exit = "teleport"\n', "tracker.edge_exit",
+     "unknown edge exit 'teleport'; choose from outside, crossing"),
 ])
 def test_bad_gnn_logic_settings_are_one_line_naming_the_key(
         capsys: pytest.CaptureFixture[str], tmp_path: Path, extra: str, field: str,

@@ -84,7 +84,7 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
 #: The settings only the PMB tracker reads, and only the GNN tracker.
 PMB_SETTINGS = ("births", "birth_rate", "background_birth_rate", "survival_probability",
                 "report_threshold", "prune_threshold", "recycle_threshold",
-                "planning_threshold", "termination_threshold")
+                "planning_threshold", "termination_threshold", "edge_exit")
 GNN_SETTINGS = ("confirm_hits", "confirm_looks", "delete_misses")
 #: The settings only the lost-target mode of the tracker of known targets reads.
 LOST_SETTINGS = ("lost_probability", "lost_resolution")
@@ -93,6 +93,10 @@ MULTI_TARGET_SETTINGS = ("map_edge", *PMB_SETTINGS, "grid_resolution", *GNN_SETT
 #: A multi-target tracker's model of the map's edge: as the scenario's truth, or one of
 #: :data:`sensorplan.tracking.known_map.MAP_EDGES` (exit, closed).
 MAP_EDGE_CHOICES = ("scenario", "exit", "closed")
+#: What the PMB tracker charges a track's existence at an exit edge:
+#: :data:`sensorplan.tracking.known_map.EDGE_EXITS` (named here without importing the
+#: tracking modules, as the map edges are).
+EDGE_EXITS = ("outside", "crossing")
 
 
 def _births() -> tuple[str, ...]:
@@ -409,6 +413,14 @@ class TrackerSettings(_Settings):
              "existence), closed (it turns back, so a track is reflected back in and keeps "
              "its existence) or scenario (exit when the scenario's targets are born at the "
              "edges or scripted, closed when its walls turn them back).")
+    edge_exit: str = setting(
+        "outside", section="tracker", label="edge exit", choices=EDGE_EXITS,
+        noun="edge exit",
+        help="With an exit edge, what the PMB tracker's track near the edge loses of its "
+             "existence in a step: outside (its predicted density's mass off the map) or "
+             "crossing (the probability that a target on the map at the step's start "
+             "crosses the edge during it; the part of the density already off the map is "
+             "where no live target is, and is not charged again).")
     birth_rate: float = setting(
         0.02, section="tracker", label="tracker birth rate", bounds=Range(0.0, 100.0),
         help="A multi-target tracker's expected number of births per step over the map.")

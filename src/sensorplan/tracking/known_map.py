@@ -42,7 +42,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.special import log_ndtr
+from scipy.special import log_ndtr, ndtr, owens_t
 
 from .._compiled.jit import njit
 from .._types import BoolArray, FloatArray, IntArray
@@ -562,3 +562,105 @@ def map_edge_predict(means: FloatArray, covs: FloatArray, width: float, height: 
         raise ValueError(f"map edge must be one of {MAP_EDGES}, got {edge!r}")
     m, P, reflected = map_reflection(means, covs, width, height)
     return m, P, reflected, np.zeros(reflected.shape)
+
+
+# ------------------------------------------------------------------ leaving the map
+
+#: How a tracker whose targets leave the map (``exit``) charges a track's existence at the
+#: edge in a step (:func:`crossing_log_mass`): by its predicted density's mass off the map
+#: (``outside``), or by the probability that a target on the map at the step's start
+#: crosses the edge during the step (``crossing``).
+EDGE_EXITS = ("outside", "crossing")
+
+#: ``1 - rho^2`` below this is taken as this: a step whose end position is (almost) fixed
+#: by its start (no velocity uncertainty, no process noise) stays finite.
+_MIN_ONE_MINUS_RHO2 = 1e-30
+
+
+def bivariate_normal_cdf(h: FloatArray, k: FloatArray, rho: FloatArray) -> FloatArray:
+    r"""``P(X <= h, Y <= k)`` of standard normals ``X, Y`` with correlation ``rho``, by
+    Owen's T function (Owen, "Tables for computing bivariate normal probabilities", Ann.
+    Math. Statist. 27, 1956):
+
+    .. math::
+        \Phi_2(h, k; \rho) = \tfrac12 \Phi(h) + \tfrac12 \Phi(k)
+            - T\!\Big(h, \frac{k - \rho h}{h \sqrt{1 - \rho^2}}\Big)
+            - T\!\Big(k, \frac{h - \rho k}{k \sqrt{1 - \rho^2}}\Big) - \beta,
+
+    :math:`\beta = 1/2` when :math:`h k < 0`, else 0. Elementwise over broadcast arrays;
+    ``h`` or ``k`` exactly 0 is taken as the smallest positive float (the function is
+    continuous there).
+    """
+    h, k, rho = np.broadcast_arrays(np.asarray(h, dtype=float), np.asarray(k, dtype=float),
+                                    np.asarray(rho, dtype=float))
+    tiny = float(np.finfo(float).tiny)
+    h = np.where(h == 0.0, tiny, h)
+    k = np.where(k == 0.0, tiny, k)
+    s = np.sqrt(np.maximum(1.0 - rho * rho, _MIN_ONE_MINUS_RHO2))
+    with np.errstate(over="ignore", invalid="ignore"):
+        ah = (k - rho * h) / (h * s)
+        ak = (h - rho * k) / (k * s)
+    out = (0.5 * (ndtr(h) + ndtr(k)) - owens_t(h, ah) - owens_t(k, ak)
+           - 0.5 * (h * k < 0.0))
+    return np.asarray(np.clip(out, 0.0, np.minimum(ndtr(h), ndtr(k))), dtype=float)
+
+
+def crossing_log_mass(means: FloatArray, covs: FloatArray, F: FloatArray, Q: FloatArray,
+                      width: float, height: float) -> FloatArray:
+    r"""Log-probability that a target on the map at a step's start is still on it at the
+    step's end, for the densities ``N(means, covs)`` at the start and the motion
+    :math:`x' = F x + w`, :math:`w \sim N(0, Q)`.
+
+    A track's existence says the target is alive, and a live target is on the map (it dies
+    when it leaves): so its density at the start is on the map, and the existence it loses
+    at the edge is the chance of crossing during the step,
+
+    .. math::
+        h_k = P(p'_k \notin [0, L_k] \mid p_k \in [0, L_k]),
+
+    per axis ``k`` (x, then y, as the truncation takes them: the result is
+    :math:`\log (1 - h_x) + \log (1 - h_y)`), with the start and end positions
+    :math:`(p_k, p'_k)` jointly normal: means :math:`m_k` and :math:`(F m)_k`, variances
+    :math:`P_{kk}` and :math:`(F P F^T + Q)_{kk}`, covariance :math:`(P F^T)_{kk}`. The
+    numerator is two rectangles of that bivariate normal (:func:`bivariate_normal_cdf`).
+    The predicted density's mass off the map (:func:`map_constraint`'s ``log_mass``) is
+    instead :math:`P(p'_k \notin [0, L_k])`: it also counts, every step, the part of the
+    Gaussian that lies off the map already at the start, where no live target is.
+
+    Parameters
+    ----------
+    means : (..., 4), covs : (..., 4, 4)
+        The densities at the step's start (before the prediction).
+    F, Q : (4, 4) or (..., 4, 4)
+        The motion model's transition and process noise.
+    width, height : float
+        The map ``[0, W] x [0, H]`` (m).
+
+    Returns
+    -------
+    (...) log-probabilities (<= 0; ``-inf`` for a density with no mass on the map)
+    """
+    m = np.asarray(means, dtype=float)
+    P = np.asarray(covs, dtype=float)
+    F = np.asarray(F, dtype=float)
+    Ft = np.swapaxes(F, -1, -2)
+    m1 = np.einsum("...ij,...j->...i", F, m)
+    C = P @ Ft                                                 # Cov(x, x')
+    P1 = F @ P @ Ft + np.asarray(Q, dtype=float)
+    total = np.zeros(m.shape[:-1])
+    for k, L in ((0, float(width)), (1, float(height))):
+        s0 = np.sqrt(P[..., k, k])
+        s1 = np.sqrt(P1[..., k, k])
+        rho = np.clip(C[..., k, k] / (s0 * s1), -1.0, 1.0)
+        a0, b0 = -m[..., k] / s0, (L - m[..., k]) / s0
+        a1, b1 = -m1[..., k] / s1, (L - m1[..., k]) / s1
+        inside = ndtr(b0) - ndtr(a0)
+        below = (bivariate_normal_cdf(b0, a1, rho)
+                 - bivariate_normal_cdf(a0, a1, rho))         # on the map, then below 0
+        above = (bivariate_normal_cdf(b0, -b1, -rho)
+                 - bivariate_normal_cdf(a0, -b1, -rho))       # on the map, then beyond L
+        crossed = np.clip(below, 0.0, None) + np.clip(above, 0.0, None)
+        hazard = np.divide(crossed, inside, out=np.ones_like(inside), where=inside > 0.0)
+        with np.errstate(divide="ignore"):
+            total = total + np.log1p(-np.minimum(hazard, 1.0))
+    return total

@@ -17,7 +17,10 @@ the model's ``process_noise``, or a given ``motion = (F, Q)``) and :math:`r \lef
 The map's edge (``map_edge``, :func:`sensorplan.tracking.known_map.map_edge_predict`):
 with ``exit`` (a target that reaches the edge leaves and is gone) the survival also
 requires the target to stay on the map: a density whose mean or 3-sigma box leaves it is
-truncated to the map and :math:`r` is multiplied by its mass on the map; with ``closed``
+truncated to the map and :math:`r` is multiplied by its mass on the map (``edge_exit =
+"outside"``), or by the probability that a target on the map at the step's start is still
+on it at the end (``"crossing"``: a live target is on the map, so the part of the density
+already off it is not charged again each step); with ``closed``
 (targets turn back at the walls) the part beyond a wall is reflected back in and
 :math:`r` loses nothing at the edge. :math:`D_u`: survival and births.
 
@@ -104,7 +107,7 @@ import numpy as np
 from ..._types import BoolArray, FloatArray
 from ..base import Looks, TrackSet, UndetectedReport, UpdateRecord, given_tracks
 from ..ekf import predict as kalman_predict
-from ..known_map import map_edge_predict
+from ..known_map import EDGE_EXITS, crossing_log_mass, map_edge_predict
 from . import undetected
 from . import hypotheses as hyp
 from .association import AssociationMarginals, association_lbp
@@ -191,6 +194,12 @@ class PMBTracker(MapTracker):
         ``report_threshold``) stays reported while its existence is at least the smaller of
         this and ``report_threshold``. Default 1: no hysteresis, a track is reported exactly
         while its existence is at least ``report_threshold``.
+    edge_exit : {"outside", "crossing"}
+        With ``map_edge = "exit"``, what a track near the edge loses of its existence in a
+        predict: its predicted density's mass off the map (``outside``, the default), or the
+        probability that a target on the map at the step's start crosses the edge during
+        the step (``crossing``, :func:`~sensorplan.tracking.known_map.crossing_log_mass`).
+        No effect with a closed edge.
     """
 
     def __init__(self, model: MapModel, *, means: FloatArray | None = None,
@@ -201,7 +210,7 @@ class PMBTracker(MapTracker):
                  report_threshold: float = 0.5,
                  recycle_threshold: float = 0.0,
                  planning_threshold: float | None = None,
-                 termination_threshold: float = 1.0) -> None:
+                 termination_threshold: float = 1.0, edge_exit: str = "outside") -> None:
         if not 0.0 < survival_probability <= 1.0:
             raise ValueError(f"survival_probability must be in (0, 1], got "
                              f"{survival_probability!r}")
@@ -222,6 +231,8 @@ class PMBTracker(MapTracker):
         if not 0.0 < termination_threshold <= 1.0:
             raise ValueError(f"termination_threshold must be in (0, 1], got "
                              f"{termination_threshold!r}")
+        if edge_exit not in EDGE_EXITS:
+            raise ValueError(f"edge_exit must be one of {EDGE_EXITS}, got {edge_exit!r}")
         if not (math.isfinite(background_birth_rate) and background_birth_rate >= 0.0):
             raise ValueError(f"background_birth_rate must be >= 0, got "
                              f"{background_birth_rate!r}")
@@ -229,6 +240,7 @@ class PMBTracker(MapTracker):
             raise ValueError(f"initial_undetected must be >= 0, got {initial_undetected!r}")
         super().__init__(model)
         self.survival_probability = float(survival_probability)
+        self.edge_exit = edge_exit
         self.prune_threshold = float(prune_threshold)
         self.report_threshold = float(report_threshold)
         self.recycle_threshold = float(recycle_threshold)
@@ -316,11 +328,17 @@ class PMBTracker(MapTracker):
         reported = self._reported()
         corrected = np.zeros(len(b), dtype=bool)
         if len(b):
+            crossing = self.map_edge == "exit" and self.edge_exit == "crossing"
+            if crossing:
+                stay = crossing_log_mass(b.means, b.covs, self.F, self.Q, *self.world)
             b.means, b.covs = kalman_predict(b.means, b.covs, self.F, self.Q)
             b.r = self.survival_probability * b.r
             if self.map_edge is not None:
                 m, P, applied, log_mass = map_edge_predict(b.means, b.covs, *self.world,
                                                            self.map_edge)
+                if crossing:
+                    # The same tracks are truncated; what they lose is the crossing's.
+                    log_mass = np.where(applied, stay, 0.0)
                 b.means, b.covs = m, P
                 b.r = b.r * np.exp(log_mass)
                 corrected = applied
