@@ -56,6 +56,42 @@ def _recorded(study: Any, settings: Any, run: int) -> tuple[Any, list[tuple[np.n
     return episode, record
 
 
+def tally(record: list[tuple[np.ndarray, ...]], truth: np.ndarray, alive: np.ndarray,
+          width: float, height: float, survival: float
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per distance band (:data:`BANDS`): the pairs, the exits the tracker expects and the
+    targets that left, from one run's predicts ``record`` (as :func:`_recorded` keeps it:
+    existence, position and label before each predict, existence and label after) and its
+    truth ``(S + 1, M, 4)``, ``alive (S + 1, M)``."""
+    nb = len(BANDS) - 1
+    pairs = np.zeros(nb, dtype=np.int64)
+    expected = np.zeros(nb)
+    left = np.zeros(nb, dtype=np.int64)
+    for t, (r0, m0, l0, r1, l1) in enumerate(record, start=1):
+        if t >= truth.shape[0]:
+            break
+        live = np.flatnonzero(alive[t - 1])
+        if not len(live) or not len(r0):
+            continue
+        xy = truth[t - 1, live, :2]
+        after = dict(zip(l1.tolist(), r1.tolist()))
+        for i in np.flatnonzero(r0 >= MIN_EXISTENCE):
+            if int(l0[i]) not in after:              # pruned: not a charge at the edge
+                continue
+            d = np.hypot(*(xy - m0[i]).T)
+            j = int(np.argmin(d))
+            if d[j] > MAX_DISTANCE:
+                continue
+            x, y = xy[j]
+            band = int(np.searchsorted(BANDS, min(x, y, width - x, height - y), side="right")) - 1
+            if not 0 <= band < nb:
+                continue
+            expected[band] += max(0.0, 1.0 - after[int(l0[i])] / (r0[i] * survival))
+            left[band] += not alive[t, live[j]]
+            pairs[band] += 1
+    return pairs, expected, left
+
+
 def calibration(study_file: str, method: str, seed: int, runs: int) -> list[str]:
     """The table (module docstring) over ``runs`` runs of ``method`` on ``seed``."""
     from sensorplan.study.file import load_study
@@ -64,39 +100,22 @@ def calibration(study_file: str, method: str, seed: int, runs: int) -> list[str]
     m = next(x for x in study.methods if x.name == method)
     survival = float(m.settings.tracker.survival_probability)
     W, H = study.scenario.world.width, study.scenario.world.height
-    expected = np.zeros(len(BANDS) - 1)
-    left = np.zeros(len(BANDS) - 1, dtype=np.int64)
-    pairs = np.zeros(len(BANDS) - 1, dtype=np.int64)
+    nb = len(BANDS) - 1
+    pairs = np.zeros(nb, dtype=np.int64)
+    expected = np.zeros(nb)
+    left = np.zeros(nb, dtype=np.int64)
     for run in range(runs):
         ep, record = _recorded(study, m.settings, run)
-        for t, (r0, m0, l0, r1, l1) in enumerate(record, start=1):
-            if t >= ep.truth.shape[0] or not len(r0):
-                break
-            live = np.flatnonzero(ep.alive[t - 1])
-            if not len(live):
-                continue
-            xy = ep.truth[t - 1, live, :2]
-            after = dict(zip(l1.tolist(), r1.tolist()))
-            for i in np.flatnonzero(r0 >= MIN_EXISTENCE):
-                if int(l0[i]) not in after:          # pruned: not a charge at the edge
-                    continue
-                d = np.hypot(*(xy - m0[i]).T)
-                j = int(np.argmin(d))
-                if d[j] > MAX_DISTANCE:
-                    continue
-                x, y = xy[j]
-                band = np.searchsorted(BANDS, min(x, y, W - x, H - y), side="right") - 1
-                if not 0 <= band < len(pairs):
-                    continue
-                expected[band] += max(0.0, 1.0 - after[int(l0[i])] / (r0[i] * survival))
-                left[band] += not ep.alive[t, live[j]]
-                pairs[band] += 1
+        p, e, lf = tally(record, ep.truth, ep.alive, W, H, survival)
+        pairs += p
+        expected += e
+        left += lf
     lines = [f"method {method}, seed {seed}, {runs} runs "
              f"(edge exit {m.settings.tracker.edge_exit}, process noise "
              f"{m.settings.tracker.process_noise:g})",
              "| target's distance to the edge (m) | pairs | exits the tracker expects "
              "| targets that left |", "|---|--:|--:|--:|"]
-    for b in range(len(pairs)):
+    for b in range(nb):
         lines.append(f"| {BANDS[b]:g}-{BANDS[b + 1]:g} | {pairs[b]} | {expected[b]:.1f} "
                      f"| {left[b]} |")
     lines.append(f"| all | {pairs.sum()} | {expected.sum():.1f} | {left.sum()} |")
