@@ -39,6 +39,7 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
                      "tracker.known_map", "tracker.known_buildings",
                      "tracker.reflect_walls", "tracker.lost_mode", "tracker.lost_probability",
                      "tracker.lost_resolution", "tracker.births", "tracker.map_edge",
+                     "tracker.edge_exit",
                      "tracker.birth_rate", "tracker.background_birth_rate",
                      "tracker.survival_probability", "tracker.report_threshold",
                      "tracker.prune_threshold", "tracker.recycle_threshold",
