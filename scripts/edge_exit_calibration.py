@@ -122,13 +122,19 @@ def calibration(study_file: str, method: str, seed: int, runs: int) -> list[str]
     return lines
 
 
-def main(argv: list[str] | None = None) -> None:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def closed_loop_parser(doc: str) -> argparse.ArgumentParser:
+    """The arguments of a script that reruns a study method's closed loop on a seed: the
+    study file, ``--method``, ``--seed`` and ``--runs``."""
+    p = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     p.add_argument("study_file")
     p.add_argument("--method", default="pmb")
     p.add_argument("--seed", type=int, required=True)
     p.add_argument("--runs", type=int, default=8)
-    a = p.parse_args(argv)
+    return p
+
+
+def main(argv: list[str] | None = None) -> None:
+    a = closed_loop_parser(__doc__).parse_args(argv)
     print("\n".join(calibration(a.study_file, a.method, a.seed, a.runs)))
 
 

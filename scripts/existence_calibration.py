@@ -14,7 +14,6 @@ target. For a calibrated tracker the two agree: of the Bernoullis at existence 0
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import sys
 from pathlib import Path
@@ -23,6 +22,7 @@ import numpy as np
 from scipy.optimize import linear_sum_assignment
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from edge_exit_calibration import closed_loop_parser  # noqa: E402
 from untracked_diagnosis import _Probe  # noqa: E402  (the same recording of Bernoullis)
 
 #: Bins of existence.
@@ -64,10 +64,10 @@ def reliability(study_file: str, method: str, seed: int, runs: int,
             if t >= ep.truth.shape[0] or not len(r):
                 continue
             hit = with_target(pos, ep.truth[t, np.flatnonzero(ep.alive[t]), :2], distance)
-            b = np.searchsorted(EDGES, r, side="right") - 1
-            np.add.at(count, b, 1)
-            np.add.at(mass, b, r)
-            np.add.at(assigned, b, hit)
+            bins = np.searchsorted(EDGES, r, side="right") - 1
+            np.add.at(count, bins, 1)
+            np.add.at(mass, bins, r)
+            np.add.at(assigned, bins, hit)
     lines = [f"method {method}, seed {seed}, {runs} runs, targets within {distance:g} m",
              "| existence | Bernoulli-steps | mean existence | share with a target |",
              "|---|--:|--:|--:|"]
@@ -79,11 +79,7 @@ def reliability(study_file: str, method: str, seed: int, runs: int,
 
 
 def main(argv: list[str] | None = None) -> None:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("study_file")
-    p.add_argument("--method", default="pmb")
-    p.add_argument("--seed", type=int, required=True)
-    p.add_argument("--runs", type=int, default=8)
+    p = closed_loop_parser(__doc__)
     p.add_argument("--distance", type=float, default=20.0)
     a = p.parse_args(argv)
     print("\n".join(reliability(a.study_file, a.method, a.seed, a.runs, a.distance)))
