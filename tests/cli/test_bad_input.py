@@ -1223,6 +1223,16 @@ def test_a_gnn_run_reports_gospa(capsys: pytest.CaptureFixture[str], tmp_path: P
     assert "report threshold" not in text              # the PMB's own settings are not shown
 
 
+@pytest.mark.parametrize("edge,shown", [("", True), ('map_edge = "closed"\n', False)])
+def test_the_edge_exit_rule_is_shown_only_where_targets_leave(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, edge: str, shown: bool) -> None:
+    toml = GNN_TOML.replace('kind = "gnn"', 'kind = "pmb"') + edge
+    code, out, err = simulate(capsys, tmp_path, toml)
+    assert code == 0, err
+    text = " ".join(out.split())
+    assert "tracker pmb" in text and ("edge exit outside" in text) == shown
+
+
 def test_a_signal_inside_the_process_pools_code_waits_for_it() -> None:
     # A SIGTERM raised inside concurrent.futures' lock-taking code once left a lock held and
     # the stopped study hung at exit. A done-callback runs inside that code (its frame is
