@@ -165,7 +165,7 @@ class PMBStoneSoupTracker(_TrackerMixInNext, Tracker):
     settings: Mapping[str, Any] = Property(
         default=None, doc="Further keywords of PMBTracker (births, birth_rate, "
                           "background_birth_rate, survival_probability, thresholds, "
-                          "initial_undetected ...) and "
+                          "initial_undetected, edge_exit ...) and "
                           "of its MapModel (process_noise, resolution, velocity_var, "
                           "gate_probability, map_edge).")
     initial_intensity: np.ndarray = Property(
