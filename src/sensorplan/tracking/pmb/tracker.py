@@ -328,17 +328,17 @@ class PMBTracker(MapTracker):
         reported = self._reported()
         corrected = np.zeros(len(b), dtype=bool)
         if len(b):
-            crossing = self.map_edge == "exit" and self.edge_exit == "crossing"
-            if crossing:
-                stay = crossing_log_mass(b.means, b.covs, self.F, self.Q, *self.world)
+            start = (b.means, b.covs)
             b.means, b.covs = kalman_predict(b.means, b.covs, self.F, self.Q)
             b.r = self.survival_probability * b.r
             if self.map_edge is not None:
                 m, P, applied, log_mass = map_edge_predict(b.means, b.covs, *self.world,
                                                            self.map_edge)
-                if crossing:
+                if self.map_edge == "exit" and self.edge_exit == "crossing":
                     # The same tracks are truncated; what they lose is the crossing's.
-                    log_mass = np.where(applied, stay, 0.0)
+                    log_mass = np.zeros(len(b))
+                    log_mass[applied] = crossing_log_mass(
+                        start[0][applied], start[1][applied], self.F, self.Q, *self.world)
                 b.means, b.covs = m, P
                 b.r = b.r * np.exp(log_mass)
                 corrected = applied
