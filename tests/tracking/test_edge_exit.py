@@ -144,3 +144,12 @@ def test_a_closed_edge_charges_nothing_whatever_the_exit_rule(edge_exit: str) ->
 def test_an_unknown_exit_rule_is_refused() -> None:
     with pytest.raises(ValueError, match="edge_exit"):
         near_edge_tracker("exit", "teleport")
+
+
+def test_the_settings_name_the_same_exit_rules_and_map_edges() -> None:
+    # The run settings name them without importing the tracking modules.
+    from sensorplan.simulation import settings
+    from sensorplan.tracking import known_map
+
+    assert settings.EDGE_EXITS == known_map.EDGE_EXITS
+    assert settings.MAP_EDGE_CHOICES == ("scenario", *known_map.MAP_EDGES)
