@@ -178,12 +178,10 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
                       f"seed {cfg.seed}", highlight=False)
     # Only the tracker settings that act with the others as they are (no cv q with the IMM,
     # no exit rule where the tracker's map edge turns targets back).
-    unused = s.tracker.unused()
-    if s.tracker.kind != "known":
-        from ..simulation.run import map_edge
+    from ..simulation.run import map_edge
 
-        if map_edge(cfg.scenario, s.tracker) != "exit":
-            unused += ("edge_exit",)
+    unused = s.tracker.unused(map_edge(cfg.scenario, s.tracker)
+                              if s.tracker.kind != "known" else None)
     tracker = ", ".join(f"{meta.label or f.name} {getattr(s.tracker, f.name)}"
                         for _, path, f, meta in all_settings()
                         if path.startswith("tracker.") and f.name not in unused)

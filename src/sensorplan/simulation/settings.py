@@ -499,18 +499,22 @@ class TrackerSettings(_Settings):
             raise ConfigError("reacquire", "needs gate = true (a detection outside the gate "
                               "triggers it)")
 
-    def unused(self) -> tuple[str, ...]:
+    def unused(self, edge: str | None = None) -> tuple[str, ...]:
         """The settings that change nothing with the others as they are: the cv filter's q
         (``process_noise``) with the IMM, the IMM's q's and switching with cv, the gate
         probability without the gate, a multi-target tracker's settings with the tracker of
-        known targets, that tracker's with a multi-target one, and the PMB's and the GNN's
-        own settings with the other. (A run's header leaves
-        them out.)"""
+        known targets, that tracker's with a multi-target one, the PMB's and the GNN's
+        own settings with the other, and ``edge_exit`` where the map's edge is ``edge =
+        "closed"`` (the edge the tracker resolved ``map_edge`` to for its scenario; None:
+        not known). (A run's header leaves them out.)"""
         if self.kind != "known":               # a multi-target tracker: cv, its own births
-            return ("miss_update", "model", "mode_process_noise", "switching", "gate",
-                    "reacquire", "association", "known_map", "known_buildings",
-                    "reflect_walls", *LOST_SETTINGS, "lost_mode") + (
-                        PMB_SETTINGS if self.kind == "gnn" else GNN_SETTINGS)
+            out = ("miss_update", "model", "mode_process_noise", "switching", "gate",
+                   "reacquire", "association", "known_map", "known_buildings",
+                   "reflect_walls", *LOST_SETTINGS, "lost_mode") + (
+                       PMB_SETTINGS if self.kind == "gnn" else GNN_SETTINGS)
+            if self.kind == "pmb" and edge == "closed":
+                out += ("edge_exit",)
+            return out
         out = ("process_noise",) if self.model == "imm" else ("mode_process_noise",
                                                               "switching")
         return out + (() if self.gate else ("gate_probability",)) + (
