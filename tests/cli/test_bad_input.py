@@ -1233,6 +1233,29 @@ def test_the_edge_exit_rule_is_shown_only_where_targets_leave(
     assert "tracker pmb" in text and ("edge exit outside" in text) == shown
 
 
+@pytest.mark.parametrize("planning,message", [
+    ("find_tail = -2\n", "must be in [0, 100000], got -2"),
+    ("find_tail = 2.5\n", "must be an integer, got 2.5"),
+    ("find_tail = 3\n", "counts finds in the 'gospa' reward only (with search on), got "
+                        "reward 'information'; leave it 0"),
+])
+def test_a_bad_find_tail_is_one_line_naming_the_key(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, planning: str,
+        message: str) -> None:
+    toml = GNN_TOML.replace('kind = "gnn"', 'kind = "pmb"') + "[planning]\n" + planning
+    line = assert_bad_input(simulate(capsys, tmp_path, toml), "planning.find_tail")
+    assert line.endswith(message)
+
+
+def test_a_find_tail_is_shown_in_the_header(capsys: pytest.CaptureFixture[str],
+                                            tmp_path: Path) -> None:
+    toml = (GNN_TOML.replace('kind = "gnn"', 'kind = "pmb"')
+            + '[planning]\nsearch = "on"\nsearch_sectors = 6\nfind_tail = 5\n')
+    code, out, err = simulate(capsys, tmp_path, toml)
+    assert code == 0, err
+    assert "finds counted 5 steps on" in " ".join(out.split())
+
+
 def test_a_signal_inside_the_process_pools_code_waits_for_it() -> None:
     # A SIGTERM raised inside concurrent.futures' lock-taking code once left a lock held and
     # the stopped study hung at exit. A done-callback runs inside that code (its frame is

@@ -34,9 +34,10 @@ def problem(positions: list[tuple[float, float]], headings: list[float], u: Unde
 
 
 def mixed_problem(horizon: int = 2, objective: str = "cumulative", steps_per_epoch: int = 1,
-                  c: float = 50.0, reported: list[bool] | None = None) -> PlanningProblem:
+                  c: float = 50.0, reported: list[bool] | None = None,
+                  find_tail: int = 0) -> PlanningProblem:
     """Two sensors, two moving tracks (r = 0.6 and 1; ``reported`` by default) and a 6 x 6
-    grid with births."""
+    grid with births; finds counted ``find_tail`` steps after the horizon."""
     xs = 37.3 + 91.0 * np.arange(6)
     centres = [(x, y) for y in xs for x in xs]
     rng = np.random.default_rng(7)
@@ -45,7 +46,8 @@ def mixed_problem(horizon: int = 2, objective: str = "cumulative", steps_per_epo
                    horizon=horizon, sensor=SensorParams(moves=(20.0,)), existence=[0.6, 1.0],
                    means=[[120.0, 90.0, 2.0, 1.0], [480.0, 420.0, -1.0, 0.5]],
                    steps_per_epoch=steps_per_epoch, objective=objective, c=c,
-                   reported=None if reported is None else np.array(reported))
+                   reported=None if reported is None else np.array(reported),
+                   find_tail=find_tail)
 
 
 def expected_bound(prob: PlanningProblem, plan: Plan | None) -> float:
@@ -54,7 +56,8 @@ def expected_bound(prob: PlanningProblem, plan: Plan | None) -> float:
     of the Kalman update (an explicit inverse), and the undetected and found targets as two
     pools that survive alike, the found ones costing their first detection's bound; a track
     not reported is two such pools of its own (mass r), seen by the looks at its predicted
-    mean alone. ``plan None``: no look at all."""
+    mean alone. The pools go on ``find_tail`` steps after the horizon without a look, those
+    steps counted too. ``plan None``: no look at all."""
     c2 = prob.gospa_c ** 2
     sctx = search.prepare(prob)
     ctx = sctx.ctx
@@ -80,17 +83,21 @@ def expected_bound(prob: PlanningProblem, plan: Plan | None) -> float:
     Cf = np.linalg.inv(np.linalg.inv(np.asarray(prob.undetected.cell_cov)) + first_detection(
         ctx, prob))
     h = min(float(np.trace(Cf)), c2)
+    L = prob.find_tail
+    miss = np.vstack([miss, np.ones((-(-L // e), miss.shape[1]))])
+    miss_track = np.hstack([miss_track, np.ones((M, L))])
     per_step = np.zeros(T)
+    pools = np.zeros(T + L)
     u = prob.undetected
     for j in range(M):
         P, r = np.asarray(prob.covs[j], dtype=float), float(prob.existence[j])
         if prob.reported is not None and not prob.reported[j]:
             missed, found_j = r, 0.0
-            for t in range(T):
+            for t in range(T + L):
                 missed = u.survival * missed
                 found_j = u.survival * found_j + missed * (1.0 - miss_track[j, t])
                 missed = missed * miss_track[j, t]
-                per_step[t] += c2 / 2 * missed + min(h, c2 / 2) * found_j
+                pools[t] += c2 / 2 * missed + min(h, c2 / 2) * found_j
             continue
         for t in range(T):
             P = ctx.F @ P @ ctx.F.T + ctx.Q_rows(j)[0]
@@ -99,13 +106,15 @@ def expected_bound(prob: PlanningProblem, plan: Plan | None) -> float:
             P = np.linalg.inv(np.linalg.inv(P) + G)
             per_step[t] += r * min(P[0, 0] + P[1, 1], c2) + (1.0 - r) * c2 / 2
     undetected, found = np.array(u.weights, dtype=float), np.zeros(len(u.weights))
-    for t in range(T):
+    for t in range(T + L):
         undetected = u.survival * undetected + u.births
         found = u.survival * found + undetected * (1.0 - miss[t // e])
         undetected = undetected * miss[t // e]
         # A found target's bound beats a missed one's only if its track is good enough.
-        per_step[t] += c2 / 2 * undetected.sum() + min(h, c2 / 2) * found.sum()
-    return float(per_step.sum() if prob.objective == "cumulative" else per_step[-1])
+        pools[t] += c2 / 2 * undetected.sum() + min(h, c2 / 2) * found.sum()
+    if prob.objective == "cumulative":
+        return float(per_step.sum() + pools.sum())
+    return float(per_step[-1] + pools[T - 1:].sum())
 
 
 def first_detection(ctx: object, prob: PlanningProblem) -> np.ndarray:
@@ -127,14 +136,19 @@ def independent_phi(prob: PlanningProblem, plan: Plan) -> float:
 
 
 @pytest.mark.parametrize("survival", [1.0, 0.9])
-def test_step_weights_are_the_survival_sums(survival: float) -> None:
+@pytest.mark.parametrize("tail", [0, 1, 7])
+def test_step_weights_are_the_survival_sums(survival: float, tail: int) -> None:
+    """A find at step s counts at each later step it is alive: at T (terminal) or from s
+    to T (cumulative), and at T + 1..T + tail."""
     T = 5
-    terminal = gospa_bound.step_weights(survival, T, False)
-    cumulative = gospa_bound.step_weights(survival, T, True)
+    terminal = gospa_bound.step_weights(survival, T, False, tail)
+    cumulative = gospa_bound.step_weights(survival, T, True, tail)
+    after = range(T + 1, T + tail + 1)
     for s in range(1, T + 1):
-        assert terminal[s - 1] == pytest.approx(survival ** (T - s), rel=1e-14)
+        assert terminal[s - 1] == pytest.approx(
+            sum(survival ** (t - s) for t in [T, *after]), rel=1e-14)
         assert cumulative[s - 1] == pytest.approx(
-            sum(survival ** (t - s) for t in range(s, T + 1)), rel=1e-14)
+            sum(survival ** (t - s) for t in [*range(s, T + 1), *after]), rel=1e-14)
 
 
 def test_a_found_targets_value_is_the_missed_cost_less_its_first_detections_bound() -> None:
@@ -179,12 +193,15 @@ def test_one_cell_one_look_finds_its_share_of_the_bound(objective: str) -> None:
 @pytest.mark.parametrize("objective", ["terminal", "cumulative"])
 @pytest.mark.parametrize("c", [50.0, 9.0, 12.0])
 @pytest.mark.parametrize("reported", [None, [False, True]])
+@pytest.mark.parametrize("tail", [0, 3])
 def test_phi_is_the_expected_bound_the_plan_removes(objective: str, c: float,
-                                                     reported: list[bool] | None) -> None:
+                                                     reported: list[bool] | None,
+                                                     tail: int) -> None:
     """Against the bound computed from scratch (tracks by explicit inverses, the found and
     undetected targets as pools): with c = 9 every track is clipped at c^2 before a look."""
     for e in (1, 2):
-        prob = mixed_problem(objective=objective, steps_per_epoch=e, c=c, reported=reported)
+        prob = mixed_problem(objective=objective, steps_per_epoch=e, c=c, reported=reported,
+                             find_tail=tail)
         sctx = search.prepare(prob)
         for seed in range(3):
             plan = search.random_plan(sctx, np.random.default_rng(seed))
@@ -241,10 +258,12 @@ def test_reported_flags_are_checked() -> None:
 
 @pytest.mark.parametrize("objective,e", [("terminal", 1), ("cumulative", 1),
                                          ("cumulative", 2), ("terminal", 2)])
-@pytest.mark.parametrize("reported", [None, [False, True], [False, False]])
+@pytest.mark.parametrize("reported,tail", [(None, 0), ([False, True], 0), ([False, False], 0),
+                                           ([False, True], 4)])
 def test_the_batched_form_equals_the_reference(objective: str, e: int,
-                                               reported: list[bool] | None) -> None:
-    prob = mixed_problem(objective=objective, steps_per_epoch=e, reported=reported)
+                                               reported: list[bool] | None, tail: int) -> None:
+    prob = mixed_problem(objective=objective, steps_per_epoch=e, reported=reported,
+                         find_tail=tail)
     sctx = search.prepare(prob)
     plans = [search.random_plan(sctx, np.random.default_rng(s)) for s in range(2)]
     plans.append(make_planner("sequential-greedy").plan(prob).plan)
@@ -258,12 +277,12 @@ def test_the_batched_form_equals_the_reference(objective: str, e: int,
             np.testing.assert_allclose(u, ref, rtol=0, atol=1e-12 * max(1.0, ref.max()))
 
 
-@pytest.mark.parametrize("reported", [None, [False, True]])
+@pytest.mark.parametrize("reported,tail", [(None, 0), ([False, True], 0), ([False, True], 5)])
 def test_a_unilateral_change_moves_phi_by_the_players_utility_change(
-        reported: list[bool] | None) -> None:
+        reported: list[bool] | None, tail: int) -> None:
     """Exact potential: u(a') - u(a) of player (i, k) equals the change of the expected
     bound computed from scratch when only that player changes."""
-    prob = mixed_problem(reported=reported)
+    prob = mixed_problem(reported=reported, find_tail=tail)
     sctx = search.prepare(prob)
     plan = make_planner("pg", max_outer=2).plan(prob, rng=3).plan
     rng = np.random.default_rng(0)
@@ -352,6 +371,10 @@ def test_the_information_reward_is_left_bit_identical() -> None:
     ({"gospa_c": 0.0}, "gospa_c"),
     ({"gospa_c": float("inf")}, "gospa_c"),
     ({"gospa_c": True}, "gospa_c"),
+    ({"find_tail": -1}, "find_tail"),
+    ({"find_tail": 2.0}, "find_tail"),
+    ({"find_tail": True}, "find_tail"),
+    ({"find_tail": 3, "reward": "information"}, "find_tail"),
 ])
 def test_bad_reward_inputs_name_the_field(change: dict[str, object], field: str) -> None:
     prob = mixed_problem()

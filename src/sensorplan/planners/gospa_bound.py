@@ -15,7 +15,11 @@ bound (alpha = 2, p = 2, cut-off c) of the tracks and of the undetected targets,
   terms of the information reward's mu, :func:`sensorplan.planners.search.expected_found`,
   so ``sum_s f_s = mu``);
 - ``omega_s = p_S^(T-s)`` (``terminal``) or ``sum_{t=s..T} p_S^(t-s)`` (``cumulative``):
-  a target found at step s is still alive at step t with probability ``p_S^(t-s)``;
+  a target found at step s is still alive at step t with probability ``p_S^(t-s)``; with a
+  find tail of L steps (``problem.find_tail``, default 0) each adds
+  ``p_S^(T-s) sum_{m=1..L} p_S^m``: the steps after the horizon a target not found would
+  stay missed, while a track's covariance is restored by the next look at it, so the
+  first sum counts the horizon only;
 - ``g = max(0, c^2/2 - min(tr C_f, c^2))``: a found target's bound drops from the missed
   cost c^2/2 to its localisation cost, ``C_f`` the position covariance of a target known
   only to lie in its cell after one detection (the detection of
@@ -121,13 +125,15 @@ def found_covariance(sctx: SearchParts) -> FloatArray:
     return np.asarray(np.linalg.solve(np.eye(2) + cell @ (W[0] / p[0]), cell))
 
 
-def step_weights(survival: float, T: int, cumulative: bool) -> FloatArray:
-    """``omega (T,)``: the weight of a target found at step s = 1..T in the bound."""
+def step_weights(survival: float, T: int, cumulative: bool, tail: int = 0) -> FloatArray:
+    """``omega (T,)``: the weight of a target found at step s = 1..T in the bound, counted
+    over the horizon and ``tail`` steps after it."""
     powers = float(survival) ** np.arange(T, dtype=float)          # p_S^m, m = 0..T-1
     # Step s's weight reads m = T - s: the last power, or the sum of the first T - s + 1
     # (a running sum, not the geometric closed form, which cancels near p_S = 1).
     table = np.cumsum(powers) if cumulative else powers
-    return np.asarray(table[::-1], dtype=float)
+    after = float(np.sum(float(survival) ** np.arange(1, tail + 1, dtype=float)))
+    return np.asarray(table[::-1] + after * powers[::-1], dtype=float)
 
 
 def prepare(sctx: SearchParts) -> GospaContext:
@@ -142,7 +148,8 @@ def prepare(sctx: SearchParts) -> GospaContext:
     reported = (np.ones(ctx.M, dtype=bool) if ctx.problem.reported is None
                 else np.asarray(ctx.problem.reported, dtype=bool))
     unreported = np.flatnonzero(~reported)
-    return GospaContext(c2, g, step_weights(sctx.survival, ctx.T, cumulative), baseline,
+    return GospaContext(c2, g, step_weights(sctx.survival, ctx.T, cumulative,
+                                            int(ctx.problem.find_tail)), baseline,
                         cumulative, np.where(reported, ctx.existence, 0.0), unreported,
                         np.ascontiguousarray(ctx.xbar[unreported, 1:, :2]))
 
@@ -250,9 +257,10 @@ def evaluate(sctx: SearchParts, plan: Plan, headings: FloatArray
             f[t] += float(np.sum(R * (1.0 - miss_points[t])))
             R = R * miss_points[t]
     kept = 0.0
-    for t in range(T):                    # bound removed at step t by the targets found so far
-        alive = sum(f[s] * sctx.survival ** (t - s) for s in range(t + 1))
-        if gctx.cumulative or t == T - 1:
+    # Bound removed at step t by the targets found so far; the tail's steps see no looks.
+    for t in range(T + int(ctx.problem.find_tail)):
+        alive = sum(f[s] * sctx.survival ** (t - s) for s in range(min(t + 1, T)))
+        if gctx.cumulative or t >= T - 1:
             kept += alive
     mu = float(f.sum())
     term = gctx.found_value * kept

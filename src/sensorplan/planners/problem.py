@@ -338,6 +338,12 @@ class PlanningProblem:
         (:mod:`sensorplan.planners.gospa_bound`); needs ``search="on"``.
     gospa_c : float
         GOSPA's cut-off c (m, > 0; default 50) of the ``gospa`` reward.
+    find_tail : int
+        Steps after the horizon over which the ``gospa`` reward still counts a find (a
+        target found, or a track not reported confirmed), each weighted by the chance it
+        survives: a target not found now stays missed until search finds it, while a
+        track's covariance is restored by the next look at it, so its reduction counts
+        over the horizon only. 0 (default): the bound over the horizon alone.
     """
 
     means: FloatArray
@@ -362,6 +368,7 @@ class PlanningProblem:
     elapsed_epochs: int = 0
     reward: str = "information"
     gospa_c: float = 50.0
+    find_tail: int = 0
 
     def __post_init__(self) -> None:
         # Read-only copies: planners cannot mutate the caller's arrays (or each other's).
@@ -509,7 +516,14 @@ class PlanningProblem:
         if (isinstance(c, bool) or not isinstance(c, numbers.Real) or not math.isfinite(c)
                 or c <= 0):
             raise ConfigError("gospa_c", f"must be a finite number > 0, got {c!r}")
+        tail = self.find_tail
+        if isinstance(tail, bool) or not isinstance(tail, numbers.Integral) or tail < 0:
+            raise ConfigError("find_tail", f"must be a whole number of steps >= 0, got "
+                              f"{tail!r}")
         if self.reward != "gospa":
+            if tail:
+                raise ConfigError("find_tail", "counts finds in the 'gospa' reward only; "
+                                  "leave it 0 with reward 'information'")
             if self.reported is not None:
                 j = int(np.flatnonzero(~np.asarray(self.reported))[0])
                 raise ConfigError(f"targets[{j}].reported", "a track not reported is valued "

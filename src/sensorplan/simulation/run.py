@@ -401,7 +401,7 @@ class _Schedule:
                                          report.survival, report.cell_cov)
         return {"search": "on", "search_sectors": self.settings.search_sectors,
                 "undetected": undetected, "reward": self.settings.reward,
-                "gospa_c": self.settings.gospa_c}
+                "gospa_c": self.settings.gospa_c, "find_tail": self.settings.find_tail}
 
 
 def tracks_index(tracks: TrackSet, labels: IntArray) -> IntArray:

@@ -567,6 +567,8 @@ class RunSettings(_Settings):
                                    how the ``gospa`` reward values a planned track the
                                    tracker does not report: by its covariance, or as a
                                    target to find (no effect on the ``information`` reward)
+    find_tail : int                steps after the horizon over which the ``gospa``
+                                   reward still counts a find (>= 0; default 0: none)
     steps : int                    simulation steps S (>= 1)
     gospa_c : float                GOSPA cut-off c (m, > 0) of the run's set metrics
     tracker : TrackerSettings      (a mapping is accepted and converted)
@@ -674,6 +676,17 @@ class RunSettings(_Settings):
              "missed target's c^2/2 less a first detection's), since unreported it costs a "
              "missed target whatever its covariance (the information reward weighs every "
              "track by its existence, reported or not, whichever this is).")
+    find_tail: int = setting(
+        0, section="planning", cli=("--find-tail",), metavar="L", label="find tail",
+        bounds=Range(0, MAX_STEPS),
+        brief="Steps after the horizon over which the gospa reward still counts a find "
+              "(0: none)",
+        help="Steps after the planning horizon over which the gospa reward still counts a "
+             "find (a target found, or a track not reported confirmed), each weighted by the "
+             "chance it survives; a target not found now stays missed until search finds "
+             "it, while the next look at a track restores its covariance, so a track's "
+             "reduction counts over the horizon only (0, the default: the bound over the "
+             "horizon alone; needs reward gospa).")
     steps: int = setting(
         100, section="run", cli=("--steps", "-n"), metavar="N", bounds=Range(1, MAX_STEPS),
         brief="Simulation steps of the run",
@@ -710,6 +723,9 @@ class RunSettings(_Settings):
     def _check_search(self) -> None:
         """Search on needs a tracker that keeps an undetected intensity, and sectors; the
         gospa reward needs search on."""
+        if self.find_tail and self.reward != "gospa":
+            raise ConfigError("find_tail", f"counts finds in the 'gospa' reward only (with "
+                              f"search on), got reward {self.reward!r}; leave it 0")
         if self.search != "on":
             if self.reward == "gospa":
                 raise ConfigError("reward", "'gospa' needs search = 'on' (with search off "

@@ -33,7 +33,7 @@ RESULT_KEYS = ("format", "runs", "steps", "gospa_c", "seed", "scenario", "method
 RESULT_DEFAULTS = {"gospa_c": GOSPA_CUTOFF}
 #: Method settings added since, with the value every method written before them ran with.
 #: What a method written before a per-method setting existed ran with.
-METHOD_DEFAULTS = {"reward": "information", "unreported": "localise"}
+METHOD_DEFAULTS = {"reward": "information", "unreported": "localise", "find_tail": 0}
 
 
 def differences(old: Any, new: Any, path: str = "") -> list[str]:
