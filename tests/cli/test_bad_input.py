@@ -1231,6 +1231,8 @@ def test_the_edge_exit_rule_is_shown_only_where_targets_leave(
     assert code == 0, err
     text = " ".join(out.split())
     assert "tracker pmb" in text and ("edge exit outside" in text) == shown
+    # The edge the tracker resolved from the truth is said, not only that it was.
+    assert ("map edge scenario (exit)" in text) == shown
 
 
 @pytest.mark.parametrize("planning,message", [

@@ -180,9 +180,15 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
     # no exit rule where the tracker's map edge turns targets back).
     from ..simulation.run import map_edge
 
-    unused = s.tracker.unused(map_edge(cfg.scenario, s.tracker)
-                              if s.tracker.kind != "known" else None)
-    tracker = ", ".join(f"{meta.label or f.name} {getattr(s.tracker, f.name)}"
+    edge = map_edge(cfg.scenario, s.tracker) if s.tracker.kind != "known" else None
+    unused = s.tracker.unused(edge)
+
+    def shown(name: str) -> str:
+        value = getattr(s.tracker, name)
+        # "scenario" is resolved from the truth: say what it became.
+        return f"{value} ({edge})" if name == "map_edge" and value == "scenario" else str(value)
+
+    tracker = ", ".join(f"{meta.label or f.name} {shown(f.name)}"
                         for _, path, f, meta in all_settings()
                         if path.startswith("tracker.") and f.name not in unused)
     counts = s.search_sectors
