@@ -405,6 +405,23 @@ def test_earlier_study_files_keep_what_they_ran(preset: str, files: list[str]) -
             assert {m.settings.tracker.planning_threshold for m in study.methods} == {0.1}
 
 
+def test_the_search_preset_recycles_and_earlier_files_keep_what_they_ran() -> None:
+    """The search preset hands a faded track back to the undetected intensity at 0.1; the
+    study files that ran before name 0, each method but those that set it themselves."""
+    from sensorplan.study.file import load_study
+
+    assert load_simulation(preset="search").settings.tracker.recycle_threshold == 0.1
+    assert load_simulation(preset="radar").settings.tracker.recycle_threshold == 0.0
+    recycling = {"pmb/recycle", "pmb/recycle0.1", "recycle0.1"}
+    for path in sorted((ROOT / "studies").rglob("*.toml")):
+        if 'preset = "search"' not in path.read_text() or path.name.startswith("lookahead"):
+            continue
+        study = load_study(path)
+        for m in study.methods:
+            want = 0.1 if m.name in recycling else 0.0
+            assert m.settings.tracker.recycle_threshold == want, (path.name, m.name)
+
+
 def test_the_swarm_preset_has_a_quieter_imm_manoeuvre_mode() -> None:
     swarm = load_simulation(preset="swarm").settings.tracker
     paper = load_simulation(preset="paper").settings.tracker

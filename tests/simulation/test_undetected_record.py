@@ -5,6 +5,7 @@ trackers without an intensity record nothing and their files have no such entry.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -16,11 +17,14 @@ STEPS = 12
 @pytest.fixture(scope="module")
 def spied_run():
     """A short search run (the ``search`` preset with search on), and the tracker's own
-    intensity after its construction and after each step's update."""
+    intensity after its construction and after each step's update. Without recycling, so
+    that only births add to the intensity."""
     from sensorplan.config import load_simulation
     from sensorplan.simulation import run as run_module
 
     cfg = load_simulation(None, "search", {"search": "on", "steps": STEPS, "seed": 3})
+    tracker = dataclasses.replace(cfg.settings.tracker, recycle_threshold=0.0)
+    cfg = dataclasses.replace(cfg, settings=dataclasses.replace(cfg.settings, tracker=tracker))
     seen: list[tuple[np.ndarray, np.ndarray]] = []
     original = run_module.make_tracker
 

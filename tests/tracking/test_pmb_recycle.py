@@ -191,14 +191,17 @@ def test_inconsistent_recycle_thresholds_are_refused(kw, needle) -> None:
         TrackerSettings(kind="pmb", **kw)
 
 
-def test_recycling_off_leaves_a_run_as_it_was_and_on_changes_it() -> None:
+def test_naming_the_presets_recycling_leaves_a_run_as_it_was_and_off_changes_it() -> None:
+    """The search preset recycles at 0.1: naming that value leaves a run bit for bit as it
+    was; recycling off changes it (a faded track's existence no longer feeds the grid)."""
     cfg = load_simulation(preset="search", overrides={"steps": 30, "seed": 4})
     base = run_episode(cfg.scenario, cfg.settings, cfg.seed)
     tr = cfg.settings.tracker
-    off = dataclasses.replace(cfg.settings, tracker=dataclasses.replace(tr, recycle_threshold=0.0))
+    assert tr.recycle_threshold == 0.1
     on = dataclasses.replace(cfg.settings, tracker=dataclasses.replace(tr, recycle_threshold=0.1))
-    same = run_episode(cfg.scenario, off, cfg.seed)
-    other = run_episode(cfg.scenario, on, cfg.seed)
+    off = dataclasses.replace(cfg.settings, tracker=dataclasses.replace(tr, recycle_threshold=0.0))
+    same = run_episode(cfg.scenario, on, cfg.seed)
+    other = run_episode(cfg.scenario, off, cfg.seed)
     for f in dataclasses.fields(base):
         if f.name not in ("planning_seconds", "settings"):
             a, b = getattr(base, f.name), getattr(same, f.name)
