@@ -50,7 +50,7 @@ from typing import Any
 
 import numpy as np
 
-from sensorplan.study.set_metrics import GOSPA_CUTOFF, LOST_STEPS, set_metrics
+from sensorplan.study.set_metrics import LOST_STEPS, set_metrics
 
 CLASSES_STUDY = ("taken", "displaced", "unreported", "never")
 CLASSES_LOOP = ("taken", "faded", "displaced", "gone")
@@ -199,7 +199,7 @@ def _recorded_run(study: Any, settings: Any, run: int) -> tuple[Any, _Probe, np.
         ep = run_episode(study.scenario, settings, study.run_seed(run))
     finally:
         restore()
-    step, j_idx, xy, sm = _assignment(ep, GOSPA_CUTOFF)
+    step, j_idx, xy, sm = _assignment(ep, float(settings.gospa_c))
     return ep, probe, step, j_idx, xy, sm, _last_label(j_idx, step, sm.label)
 
 
@@ -244,7 +244,7 @@ def loop_breakdown(study_file: str, method: str, seed: int, runs: int,
         tracker = dataclasses.replace(m.settings.tracker, planning_threshold=planning_threshold)
         m = dataclasses.replace(m, settings=dataclasses.replace(m.settings, tracker=tracker))
     threshold = float(m.settings.tracker.report_threshold)
-    c = GOSPA_CUTOFF
+    c = float(m.settings.gospa_c)
     counts = dict.fromkeys(CLASSES_LOOP, 0)
     faded_r: list[float] = []
     displaced_r: list[float] = []
@@ -347,14 +347,16 @@ def held_stretches(step: np.ndarray, assigned: np.ndarray, min_length: int = LOS
     return out
 
 
-def lost_stretches(study_file: str, method: str, seed: int, runs: int) -> list[str]:
-    """Run ``runs`` closed loops of ``method`` on ``seed`` and list every held target lost
-    with what happened during it (module docstring)."""
+def lost_stretches(study_file: str, method: str, seed: int, runs: int,
+                   first_run: int = 0) -> list[str]:
+    """Run closed loops ``first_run`` to ``runs - 1`` of ``method`` on ``seed`` and list
+    every held target lost with what happened during it (module docstring)."""
     from sensorplan.study.file import load_study
 
     study = dataclasses.replace(load_study(study_file), seed=seed, runs=runs)
     m = next(x for x in study.methods if x.name == method)
     threshold = float(m.settings.tracker.report_threshold)
+    c = float(m.settings.gospa_c)
     lines = ["| run | target | first step | length | steps detected in it | in the 10 before "
              "| median distance to the nearest platform (m) | class at its first step "
              "| existence, distance (m) | steps a look aimed at that label in it "
@@ -365,7 +367,7 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int) -> list[s
     band = np.array([[sp.params.min_ground_range, sp.params.max_ground_range]
                      for sp in study.scenario.sensors])
     in_band, summed, steps = 0, 0, 0
-    for run in range(runs):
+    for run in range(first_run, runs):
         ep, probe, step, j_idx, xy, sm, last = _recorded_run(study, m.settings, run)
         detected = ep.measured.any(axis=2)                               # (S+1, M)
         for j in np.unique(j_idx):
@@ -374,7 +376,7 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int) -> list[s
                 s1 = s0 + n
                 k0 = int(np.flatnonzero(sel & (step == s0))[0])
                 cls, lab, r_i, d_i = _classify(probe.bern[s0 - 1], xy[k0], int(last[k0]),
-                                               threshold, GOSPA_CUTOFF)
+                                               threshold, c)
                 aimed = sum(lab >= 0 and bool(np.any(probe.aims[t - 1] == lab))
                             for t in range(s0, s1))
                 seen = int(detected[s0:s1, j].sum())
@@ -387,7 +389,7 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int) -> list[s
                              .any(axis=1).sum())
                 # Existence enough to report it, were it not split between Bernoullis.
                 n_sum = sum(_existence_within(probe.bern[t - 1], ep.truth[t, j, :2],
-                                              GOSPA_CUTOFF) >= threshold
+                                              c) >= threshold
                             for t in range(s0, s1))
                 in_band += n_band
                 summed += n_sum
@@ -399,7 +401,8 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int) -> list[s
                 lines.append(f"| {run} | {j} | {s0} | {n} | {seen} | {before} | {dist:.0f} "
                              f"| {cls} | {what} | {aimed} | {n_band} | {n_sum} |")
     d = np.array(detected_in)
-    lines.append(f"method {method}, seed {seed}, {runs} runs: {len(d)} held targets lost in "
+    lines.append(f"method {method}, seed {seed}, runs {first_run}-{runs - 1}: {len(d)} held "
+                 f"targets lost in "
                  f"{len(losing)} runs; detected in 0 steps of "
                  f"the stretch: {int(np.sum(d == 0))}, 1-2: {int(np.sum((d >= 1) & (d <= 2)))}"
                  f", 3 or more: {int(np.sum(d >= 3))}; class at the first step: "
@@ -427,11 +430,14 @@ def main(argv: list[str] | None = None) -> None:
     c.add_argument("--method", default="pmb")
     c.add_argument("--seed", type=int, required=True)
     c.add_argument("--runs", type=int, default=40)
+    c.add_argument("--first-run", type=int, default=0,
+                   help="start at this run (to share the runs between processes)")
     args = ap.parse_args(argv)
     if args.what == "study":
         print("\n".join(study_breakdown(args.directory, args.method)))
     elif args.what == "lost":
-        print("\n".join(lost_stretches(args.study_file, args.method, args.seed, args.runs)))
+        print("\n".join(lost_stretches(args.study_file, args.method, args.seed, args.runs,
+                                        args.first_run)))
     else:
         print("\n".join(loop_breakdown(args.study_file, args.method, args.seed, args.runs,
                                         args.planning_threshold)))
