@@ -107,6 +107,55 @@ def test_the_truth_replays_the_flights_with_their_heights():
     assert seen[6] == (1, False, 130.0)
 
 
+def raw(rows: list[tuple[str, float, float, float, float, bool]]) -> pd.DataFrame:
+    """Raw records (the file's columns) from ``(icao24, t s, lat, lon, altitude ft,
+    onground)`` rows, sorted as :func:`~sensorplan.models.traffic.read_records` sorts them."""
+    df = pd.DataFrame(rows, columns=["icao24", "t", "latitude", "longitude", "altitude",
+                                     "onground"])
+    df["timestamp"] = (df.pop("t") * 1000).astype(np.int64)
+    return df.sort_values(["icao24", "timestamp"], kind="stable").reset_index(drop=True)
+
+
+def test_held_positions_are_left_out_with_the_record_they_repeat():
+    # A landing: moving records, then the last position heard held for three records (the
+    # first of them included) with onground false, and an altitude from nowhere.
+    rows = [("a", t, 48.9 + 1e-3 * t, 2.4, 500.0 - 10 * t, False) for t in range(5)]
+    rows += [("a", 5.0 + k, 48.91, 2.4, [100.0, 35000.0, 35000.0][k], False)
+             for k in range(3)]
+    # Another aircraft at the same position right after: a different aircraft, kept.
+    rows += [("b", 0.0, 48.91, 2.4, 3000.0, False), ("b", 1.0, 48.912, 2.4, 3000.0, False)]
+    # On the ground, or without a position: left out as before.
+    rows += [("c", 0.0, 48.0, 2.0, 0.0, True), ("c", 1.0, np.nan, np.nan, 100.0, False)]
+    df = raw(rows)
+    keep = tf.airborne(df)
+    got = {(c, t) for c, t in zip(df["icao24"], df["timestamp"] // 1000)}
+    kept = {(c, t) for c, t, k in zip(df["icao24"], df["timestamp"] // 1000, keep) if k}
+    assert kept == {("a", t) for t in range(5)} | {("b", 0), ("b", 1)}
+    assert got - kept == {("a", 5), ("a", 6), ("a", 7), ("c", 0), ("c", 1)}
+
+
+def test_an_altitude_spike_is_left_out_and_a_steep_climb_is_not():
+    # 4,625 ft with one record of 36,000 ft: out. A climb of 4,000 ft/min (67 ft/s, below
+    # the 100 ft/s taken as real) over 1 s records: every record kept.
+    spike = [("s", float(t), 48.8 + 1e-3 * t, 2.2, 36000.0 if t == 3 else 4625.0, False)
+             for t in range(7)]
+    climb = [("k", float(t), 48.7 + 1e-3 * t, 2.3, 1000.0 + 67.0 * t, False)
+             for t in range(7)]
+    df = raw(spike + climb)
+    keep = tf.airborne(df)
+    out = set(zip(df["icao24"][~keep], df["timestamp"][~keep] // 1000))
+    assert out == {("s", 3)}
+    # The rate scales with the time between records: 3,000 ft in 60 s is a climb, in 1 s a
+    # spike (its neighbours agree with each other).
+    slow = [("w", 0.0, 48.0, 2.0, 1000.0, False), ("w", 60.0, 48.1, 2.0, 4000.0, False),
+            ("w", 120.0, 48.2, 2.0, 1000.0, False)]
+    fast = [("f", 0.0, 48.0, 2.0, 1000.0, False), ("f", 1.0, 48.001, 2.0, 4000.0, False),
+            ("f", 2.0, 48.002, 2.0, 1000.0, False)]
+    df = raw(slow + fast)
+    keep = tf.airborne(df)
+    assert set(zip(df["icao24"][~keep], df["timestamp"][~keep] // 1000)) == {("f", 1)}
+
+
 def test_a_missing_records_file_is_one_error_naming_the_command(tmp_path: Path):
     with pytest.raises(ConfigError) as info:
         tf.load_flights(path=tmp_path / "absent.json.gz")
@@ -129,7 +178,9 @@ def test_the_real_records_give_the_documented_window():
     assert tf.sha256(tf.data_path()) == tf.MEMBER_SHA256
     f = tf.load_flights()
     alive = np.isfinite(f.states[..., 0])
-    assert len(f.names) == 67 and int(alive.sum()) == 5264
-    assert alive[1:].sum(axis=1).min() == 11 and alive.sum(axis=1).max() == 18
+    assert len(f.names) == 64 and int(alive.sum()) == 4925
+    assert alive[1:].sum(axis=1).min() == 9 and alive.sum(axis=1).max() == 18
     speed = np.hypot(f.states[..., 2], f.states[..., 3])[alive]
     assert np.median(speed) > 70.0
+    # No aircraft hangs in the air: no held position became a target standing still.
+    assert np.sum(speed < 1.0) == 0

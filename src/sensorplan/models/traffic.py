@@ -21,10 +21,11 @@ Conversion (:func:`trajectories`), every choice in :class:`TrafficArea`:
 - **Area and window.** The map is the square of side ``side`` about the reference point;
   the run's window starts at ``start`` and lasts ``steps`` steps of ``dt``.
 - **Who is a target.** One target per aircraft (``icao24``) and stretch of records without
-  a gap longer than ``max_gap`` s; records on the ground or without a position or altitude
-  are left out. A target is alive from its first record inside the map to its last one
-  (clipped to the window), so targets enter and leave as they did, including a landing
-  (its records stop) and a take-off.
+  a gap longer than ``max_gap`` s; records on the ground, without a position or altitude,
+  with a position held from a neighbouring record, or with a one-record altitude spike
+  are left out (:func:`airborne`). A target is alive from its first record inside the map
+  to its last one (clipped to the window), so targets enter and leave as they did,
+  including a landing (its records stop) and a take-off.
 - **Resampling.** Positions and altitudes are interpolated linearly in time between
   records at every step of its life; the velocity at a step is the central difference of
   the interpolated positions ``dt / 2`` either side (one-sided at the ends of the records),
@@ -121,14 +122,13 @@ class Flights:
     names: tuple[str, ...]
 
 
-#: The preset's area and window: the 30 minutes from 2021-10-07 13:57:00 UTC, the busiest
+#: The preset's area and window: the 30 minutes from 2021-10-07 13:55:00 UTC, the busiest
 #: of the records on this map (the most target-steps of any 30-minute window starting on a
-#: whole minute): 67 targets, 11 to 18 alive at once (14.6 on average), 55 of them born
-#: after the first step (17 over the edge, 33 inside below 1000 m: take-offs, 5 inside
-#: higher up, where the receivers' coverage had a gap) and 53 gone before the end. Steps
-#: of 5 s: an air traffic surveillance radar's revisit (an approach radar turns in 4 to
-#: 5 s).
-TRAFFIC = TrafficArea(start=1633615020.0)
+#: whole minute): 64 targets, 9 to 18 alive at once (13.7 on average), 51 of them born
+#: after the first step (18 over the edge, 33 inside below 1000 m: take-offs) and 51 gone
+#: before the end. Steps of 5 s: an air traffic surveillance radar's revisit (an approach
+#: radar turns in 4 to 5 s).
+TRAFFIC = TrafficArea(start=1633614900.0)
 
 
 def project(lat: FloatArray, lon: FloatArray, reference: tuple[float, float]
@@ -324,20 +324,74 @@ def read_records(path: Path) -> Any:
     """The airborne records of the file at ``path`` as a ``pandas.DataFrame`` with columns
     ``t`` (s since 1970, UTC), ``icao24``, ``latitude``, ``longitude`` (degrees) and
     ``altitude`` (m above mean sea level: the recorded barometric altitude in feet times
-    0.3048). Records on the ground or without a position or altitude are left out."""
+    0.3048): the records :func:`airborne` keeps."""
     import pandas as pd
 
     opener = gzip.open if path.suffix == ".gz" else open
     with opener(path, "rt", encoding="utf-8") as fh:
         df = pd.DataFrame(json.load(fh))
-    ok = (~df["onground"].astype(bool)) & df[["latitude", "longitude", "altitude"]].notna().all(
-        axis=1)
-    df = df[ok]
+    df = df.sort_values(["icao24", "timestamp"], kind="stable")
+    df = df[airborne(df)]
     return pd.DataFrame({"t": df["timestamp"].to_numpy(float) / 1000.0,
                          "icao24": df["icao24"].astype(str).to_numpy(),
                          "latitude": df["latitude"].to_numpy(float),
                          "longitude": df["longitude"].to_numpy(float),
                          "altitude": df["altitude"].to_numpy(float) * FEET})
+
+
+#: ft/s: the fastest climb or descent taken as real (6,000 ft/min, beyond an airliner's),
+#: and the altitude's own step (the records' altitudes come in 25 ft steps) with margin.
+MAX_VERTICAL_RATE = 100.0
+ALTITUDE_TOLERANCE = 100.0
+
+
+def airborne(df: Any, max_vertical_rate: float = MAX_VERTICAL_RATE,
+             tolerance: float = ALTITUDE_TOLERANCE) -> np.ndarray:
+    """Which raw records (sorted by ``icao24``, then ``timestamp``) are an aircraft in
+    flight, with a measured position and altitude.
+
+    Left out:
+
+    - records on the ground (``onground``) or without a position or altitude;
+    - records whose position is exactly the aircraft's previous or next record's: a
+      position held, not measured anew. After a landing the records go on for minutes with
+      the last position heard (at the runway's threshold, or at a gate with altitudes of
+      26,000-61,000 ft) and ``onground`` false; kept, they would be aircraft hovering there.
+      In flight a position repeats only when no new one was heard, and interpolating
+      across it loses nothing;
+    - single-record altitude spikes: an altitude that differs from both neighbours' in the
+      same direction by more than ``max_vertical_rate`` (ft/s) times the time between
+      them plus ``tolerance`` (ft), such as one record of 36,000 ft among 4,625 ft ones.
+
+    Parameters
+    ----------
+    df : pandas.DataFrame
+        The records' columns ``timestamp`` (ms), ``icao24``, ``latitude``, ``longitude``,
+        ``altitude`` (ft) and ``onground``.
+
+    Returns
+    -------
+    (n,) bool, in ``df``'s row order.
+    """
+    code = df["icao24"].astype(str).to_numpy()
+    lat, lon = df["latitude"].to_numpy(float), df["longitude"].to_numpy(float)
+    repeat = (code[1:] == code[:-1]) & (lat[1:] == lat[:-1]) & (lon[1:] == lon[:-1])
+    # Both ends of a repeat: the first of a held position may be a parked aircraft's too.
+    stale = np.r_[False, repeat] | np.r_[repeat, False]
+    keep = (~df["onground"].astype(bool).to_numpy() & ~stale
+            & df[["latitude", "longitude", "altitude"]].notna().all(axis=1).to_numpy())
+    rows = np.flatnonzero(keep)
+    t = df["timestamp"].to_numpy(float)[rows] / 1000.0
+    h = df["altitude"].to_numpy(float)[rows]
+    c = code[rows]
+    # Interior records of one aircraft: both neighbours are its own.
+    i = np.flatnonzero((c[1:-1] == c[:-2]) & (c[1:-1] == c[2:])) + 1
+    up, down = h[i] - h[i - 1], h[i] - h[i + 1]
+    spike = ((np.sign(up) == np.sign(down))
+             & (np.abs(up) > max_vertical_rate * (t[i] - t[i - 1]) + tolerance)
+             & (np.abs(down) > max_vertical_rate * (t[i + 1] - t[i]) + tolerance))
+    keep[rows[i[spike]]] = False
+    return keep
 
 
 def main(argv: list[str] | None = None) -> int:

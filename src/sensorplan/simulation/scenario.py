@@ -613,12 +613,12 @@ PRESET_SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
                            "gospa_c": BENCHMARKS["williams15"].gospa_c}},
     "vo12": {"tracker": {"kind": "pmb"},
              "run": {"steps": BENCHMARKS["vo12"].steps, "gospa_c": BENCHMARKS["vo12"].gospa_c}},
-    # Take-offs are born at the airports, inside the map, and 12 aircraft are there at the
-    # start: births anywhere, at the recorded rate (55 births in 359 steps). Cells of 2 km
+    # Take-offs are born at the airports, inside the map, and 13 aircraft are there at the
+    # start: births anywhere, at the recorded rate (51 births in 359 steps). Cells of 2 km
     # (a 40 x 40 grid); a GOSPA cut-off of 500 m, above a track's error (tens of metres of
     # noise, 75 m of a 6 m/s^2 turn over one 5 s step).
     # Planning searches, as in the search preset, by the same rule (docs/results.md 15.5).
-    "traffic": {"tracker": {"kind": "pmb", "births": "uniform", "birth_rate": 0.15,
+    "traffic": {"tracker": {"kind": "pmb", "births": "uniform", "birth_rate": 0.14,
                             "process_noise": TRAFFIC_Q, "grid_resolution": 2000.0},
                 "planning": {"search": "on", "search_sectors": SEARCH_SECTORS},
                 "run": {"steps": TRAFFIC.steps, "gospa_c": 500.0}},
