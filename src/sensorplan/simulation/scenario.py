@@ -518,9 +518,11 @@ TRAFFIC_RADAR: dict[str, Any] = {
     "beamwidth": math.radians(1.4), "monopulse_slope": 1.6, "range_resolution": 150.0,
     "detection": "swerling1", "false_alarm_probability": 1e-6, "clutter_rate": 1.0}
 #: q (m^2/s^3) of the ``traffic`` preset's motion model (filter and planner): the 90th
-#: percentile of the recorded aircraft's acceleration over a step is 4.3 m/s^2 (a rate-one
-#: turn at 115 m/s is 6 m/s^2), a velocity change of a T = 21 m/s per 5 s step; the CWNA
-#: model's is sqrt(q T), so q = a^2 T = 92, rounded up.
+#: percentile of the recorded aircraft's acceleration over a step was 4.3 m/s^2 (4.1 without
+#: held positions; a rate-one turn at 120 m/s is 6 m/s^2), a velocity change of a T = 21 m/s
+#: per 5 s step; the CWNA model's is sqrt(q T), so q = a^2 T = 92, rounded up. The
+#: recorded motion's own q (its one-step residuals scoring 4 on average) is 32
+#: (scripts/traffic_motion_q.py): this q is conservative.
 TRAFFIC_Q = 100.0
 
 
