@@ -12,6 +12,11 @@ reported: faded below the report threshold or pruned; the tables cannot tell whi
 *never* (the target never had a track). Also the share of all untracked target-steps in the
 worst 10 % of runs.
 
+``held DIR [--method pmb]``: a finished study's tables: every held target lost (the honesty
+table's count) with its run, target, first step, length and class at the stretch's first
+step (as for ``study``), and the count per target (a recorded truth is the same in every
+run, so a target lost in many runs points at a place or a manoeuvre).
+
 ``closed-loop STUDY.toml --method pmb --seed S --runs R``: runs the method's closed loop on
 seed S (a development seed, not a study's) and records every Bernoulli after every step,
 reported or not, and each look's aim. Each untracked target-step is then
@@ -36,6 +41,7 @@ the target was detected but no track formed is the tracker's failure; one in whi
 not detected, planning's (no look went there) or the sensor's.
 
     python scripts/untracked_diagnosis.py study runs/search_conditions_search
+    python scripts/untracked_diagnosis.py held runs/honest_table_traffic_cleaned --method pg
     python scripts/untracked_diagnosis.py closed-loop studies/search_conditions_search.toml \
         --method pmb --seed 120419 --runs 60 [--planning-threshold 0.1]
     python scripts/untracked_diagnosis.py lost studies/radar_lost_targets.toml --method pmb \
@@ -122,6 +128,54 @@ def study_breakdown(directory: str, method: str) -> list[str]:
              f"{_worst_share(u):.1f} %",
              f"runs with no untracked target-step: {int(np.sum(u == 0))}"]
     lines += [f"  {k}: {v} ({100 * v / max(total, 1):.1f} %)" for k, v in counts.items()]
+    return lines
+
+
+def study_held(directory: str, method: str) -> list[str]:
+    """Every held target lost in a finished study's tables (reported tracks only): its run,
+    target, first step and length, and its class at the stretch's first step (as for
+    ``study``); then the count per target, since a recorded truth is the same in every run.
+    """
+    from sensorplan.study.storage import load_study_dir
+
+    tables = load_study_dir(directory)
+    c = float(tables.study.methods[0].settings.gospa_c)
+    steps = tables.steps[(tables.steps["step"] >= 1) & (tables.steps["method"] == method)]
+    tracks = tables.tracks[(tables.tracks["step"] >= 1) & (tables.tracks["method"] == method)]
+    by_run = dict(tuple(tracks.groupby("run", observed=True)))
+    lines = ["| run | target | first step | length | class at its first step |",
+             "|--:|--:|--:|--:|---|"]
+    per_target: dict[int, int] = {}
+    runs = 0
+    for run, s in steps.groupby("run", observed=True):
+        runs += 1
+        y = by_run.get(run, tracks.iloc[:0])
+        step, target = s["step"].to_numpy(np.int64), s["target"].to_numpy(np.int64)
+        xy = s[["x", "y"]].to_numpy(float)
+        ystep, ylabel = y["step"].to_numpy(np.int64), y["label"].to_numpy(np.int64)
+        yxy = y[["x", "y"]].to_numpy(float)
+        sm = set_metrics(step - 1, target, xy, ystep - 1, ylabel, yxy, c,
+                         n_steps=tables.study.steps)
+        last = _last_label(target, step, sm.label)
+        reported = set(zip(ystep.tolist(), ylabel.tolist()))
+        for j in np.unique(target):
+            sel = np.flatnonzero(target == j)
+            sel = sel[np.argsort(step[sel], kind="stable")]
+            for s0, n in held_stretches(step[sel], sm.assigned[sel]):
+                k = sel[np.searchsorted(step[sel], s0)]
+                d = np.hypot(*(yxy[ystep == s0] - xy[k]).T)
+                if np.any(d < c):
+                    cls = "taken"
+                elif (s0, int(last[k])) in reported:
+                    cls = "displaced"
+                else:
+                    cls = "unreported"
+                per_target[int(j)] = per_target.get(int(j), 0) + 1
+                lines.append(f"| {run} | {j} | {s0} | {n} | {cls} |")
+    lines.append(f"method {method}, {runs} runs: {sum(per_target.values())} held targets "
+                 f"lost; per target (target: stretches): "
+                 + ", ".join(f"{j}: {v}" for j, v in sorted(per_target.items(),
+                                                           key=lambda kv: -kv[1])))
     return lines
 
 
@@ -419,6 +473,9 @@ def main(argv: list[str] | None = None) -> None:
     a = sub.add_parser("study")
     a.add_argument("directory")
     a.add_argument("--method", default="pmb")
+    h = sub.add_parser("held")
+    h.add_argument("directory")
+    h.add_argument("--method", default="pmb")
     b = sub.add_parser("closed-loop")
     b.add_argument("study_file")
     b.add_argument("--method", default="pmb")
@@ -435,6 +492,8 @@ def main(argv: list[str] | None = None) -> None:
     args = ap.parse_args(argv)
     if args.what == "study":
         print("\n".join(study_breakdown(args.directory, args.method)))
+    elif args.what == "held":
+        print("\n".join(study_held(args.directory, args.method)))
     elif args.what == "lost":
         print("\n".join(lost_stretches(args.study_file, args.method, args.seed, args.runs,
                                         args.first_run)))
