@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -83,8 +84,11 @@ def _worst_share(untracked: np.ndarray) -> float:
     return 100.0 * float(np.sort(untracked)[::-1][:n].sum()) / max(float(untracked.sum()), 1.0)
 
 
-def study_breakdown(directory: str, method: str) -> list[str]:
-    """The breakdown of a finished study's untracked target-steps (module docstring)."""
+def _study_runs(directory: str, method: str) -> Iterator[tuple[Any, ...]]:
+    """Per run of ``method`` in a finished study's tables (reported tracks only): the run,
+    the live target-steps' step, target and position, the reported tracks' step, label and
+    position, GOSPA's assignment at the study's cut-off and each target-step's last label.
+    """
     from sensorplan.study.storage import load_study_dir
 
     tables = load_study_dir(directory)
@@ -92,17 +96,24 @@ def study_breakdown(directory: str, method: str) -> list[str]:
     steps = tables.steps[(tables.steps["step"] >= 1) & (tables.steps["method"] == method)]
     tracks = tables.tracks[(tables.tracks["step"] >= 1) & (tables.tracks["method"] == method)]
     by_run = dict(tuple(tracks.groupby("run", observed=True)))
-    counts = dict.fromkeys(CLASSES_STUDY, 0)
-    per_run_untracked, per_run_live = [], []
     for run, s in steps.groupby("run", observed=True):
-        y = by_run[run]
+        y = by_run.get(run, tracks.iloc[:0])
         step, target = s["step"].to_numpy(np.int64), s["target"].to_numpy(np.int64)
         xy = s[["x", "y"]].to_numpy(float)
         ystep, ylabel = y["step"].to_numpy(np.int64), y["label"].to_numpy(np.int64)
         yxy = y[["x", "y"]].to_numpy(float)
         sm = set_metrics(step - 1, target, xy, ystep - 1, ylabel, yxy, c,
                          n_steps=tables.study.steps)
-        last = _last_label(target, step, sm.label)
+        yield (run, step, target, xy, ystep, ylabel, yxy, c, sm,
+               _last_label(target, step, sm.label))
+
+
+def study_breakdown(directory: str, method: str) -> list[str]:
+    """The breakdown of a finished study's untracked target-steps (module docstring)."""
+    counts = dict.fromkeys(CLASSES_STUDY, 0)
+    per_run_untracked, per_run_live = [], []
+    for _, step, _target, xy, ystep, ylabel, yxy, c, sm, last in _study_runs(directory,
+                                                                              method):
         gap = np.flatnonzero(~sm.assigned)
         per_run_untracked.append(len(gap))
         per_run_live.append(len(step))
@@ -136,27 +147,13 @@ def study_held(directory: str, method: str) -> list[str]:
     target, first step and length, and its class at the stretch's first step (as for
     ``study``); then the count per target, since a recorded truth is the same in every run.
     """
-    from sensorplan.study.storage import load_study_dir
-
-    tables = load_study_dir(directory)
-    c = float(tables.study.methods[0].settings.gospa_c)
-    steps = tables.steps[(tables.steps["step"] >= 1) & (tables.steps["method"] == method)]
-    tracks = tables.tracks[(tables.tracks["step"] >= 1) & (tables.tracks["method"] == method)]
-    by_run = dict(tuple(tracks.groupby("run", observed=True)))
     lines = ["| run | target | first step | length | class at its first step |",
              "|--:|--:|--:|--:|---|"]
     per_target: dict[int, int] = {}
     runs = 0
-    for run, s in steps.groupby("run", observed=True):
+    for run, step, target, xy, ystep, ylabel, yxy, c, sm, last in _study_runs(directory,
+                                                                               method):
         runs += 1
-        y = by_run.get(run, tracks.iloc[:0])
-        step, target = s["step"].to_numpy(np.int64), s["target"].to_numpy(np.int64)
-        xy = s[["x", "y"]].to_numpy(float)
-        ystep, ylabel = y["step"].to_numpy(np.int64), y["label"].to_numpy(np.int64)
-        yxy = y[["x", "y"]].to_numpy(float)
-        sm = set_metrics(step - 1, target, xy, ystep - 1, ylabel, yxy, c,
-                         n_steps=tables.study.steps)
-        last = _last_label(target, step, sm.label)
         reported = set(zip(ystep.tolist(), ylabel.tolist()))
         for j in np.unique(target):
             sel = np.flatnonzero(target == j)
