@@ -18,26 +18,17 @@ from scipy.stats import multivariate_normal
 
 from sensorplan.models import linear, radar
 from sensorplan.models.sensors import SensorParams, radar_table
-from sensorplan.tracking.base import Looks, Tracker
+from sensorplan.tracking.base import Tracker
 from sensorplan.tracking.checks import CHECKS, Scene, check_tracker
 from sensorplan.tracking.gnn import GNNTracker, gnn_assignment
 from sensorplan.tracking.pmb.sensing import Look
 from sensorplan.tracking.pmb.map_tracker import MapModel
 from sensorplan.tracking.pmb.tracker import PMBTracker
 from sensorplan.tracking.registry import TRACKERS, tracker_class
+from looks_helpers import MEANS, SENSORS, looks_of
 
 P0 = np.diag([400.0, 400.0, 4.0, 4.0])
-MEANS = np.array([[300.0, 300.0, 1.0, 0.0], [250.0, 420.0, 0.0, 1.0]])
-SENSORS = np.array([[50.0, 50.0], [500.0, 100.0]])
 WORLD = (600.0, 600.0)
-
-
-def looks_of(sensors: np.ndarray | list[int], xy: np.ndarray, heads: np.ndarray | list[float],
-             detections: tuple[np.ndarray, ...]) -> Looks:
-    return Looks(sensors=np.asarray(sensors, dtype=np.int64),
-                 aims=np.full(len(sensors), -1, dtype=np.int64),
-                 positions=np.asarray(xy, dtype=float).reshape(-1, 2),
-                 headings=np.asarray(heads, dtype=float), detections=detections)
 
 
 # ----------------------------------------------------------------------------- contract

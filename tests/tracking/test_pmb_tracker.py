@@ -28,19 +28,10 @@ from sensorplan.tracking.pmb.bernoulli import missed_existence
 from sensorplan.tracking.pmb.sensing import Look
 from sensorplan.tracking.pmb.map_tracker import MapModel
 from sensorplan.tracking.pmb.tracker import PMBTracker
+from looks_helpers import MEANS, SENSORS, looks_of
 
 P0 = np.diag([400.0, 400.0, 4.0, 4.0])
-MEANS = np.array([[300.0, 300.0, 1.0, 0.0], [250.0, 420.0, 0.0, 1.0]])
-SENSORS = np.array([[50.0, 50.0], [500.0, 100.0]])
 EXACT = 1e-12
-
-
-def looks_of(sensors: np.ndarray, xy: np.ndarray, heads: np.ndarray,
-             detections: tuple[np.ndarray, ...]) -> Looks:
-    return Looks(sensors=np.asarray(sensors, dtype=np.int64),
-                 aims=np.full(len(sensors), -1, dtype=np.int64),
-                 positions=np.asarray(xy, dtype=float).reshape(-1, 2),
-                 headings=np.asarray(heads, dtype=float), detections=detections)
 
 
 def one_scan(z: np.ndarray) -> Looks:
