@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .base import Looks, Tracker, TrackSet, UpdateRecord
+from .base import Looks, Tracker, TrackSet, UpdateRecord, planning_tracks
 
 
 class TrackerCheckError(AssertionError):
@@ -123,13 +123,13 @@ def check_labels_come_only_from_detections(tracker: Tracker, scene: Scene) -> No
 
 
 def check_planning_process_noise_is_valid(tracker: Tracker, scene: Scene) -> None:
-    """The planner's process noise: a finite q >= 0, or one per reported track."""
+    """The planner's process noise: a finite q >= 0, or one per track planning sees."""
     name = "planning_process_noise_is_valid"
     for _ in range(2):
         q = np.asarray(tracker.planning_process_noise(), dtype=float)
-        T = len(tracker.tracks())
+        T = len(planning_tracks(tracker))
         if q.shape not in ((), (T,)):
-            _fail(name, f"got shape {q.shape}; a float or one per track ({T},)")
+            _fail(name, f"got shape {q.shape}; a float or one per planning track ({T},)")
         if not (np.all(np.isfinite(q)) and np.all(q >= 0.0)):
             _fail(name, "must be finite and >= 0")
         tracker.predict()

@@ -51,25 +51,49 @@ class Bernoullis(Rows):
     place): ``r (n,)``, the existence probabilities in [0, 1], and one row per Bernoulli of
     the arrays a :class:`~sensorplan.tracking.base.TrackSet` reports (``means``, ``covs``,
     ``labels``; labels ascending, never reused).
+
+    With an IMM motion model each density is the moment-matched mixture of R modes:
+    ``mode_probs (n, R)``, ``mode_means (n, R, 4)``, ``mode_covs (n, R, 4, 4)``; None for a
+    single motion model (``means`` and ``covs`` are then the density itself).
     """
 
     r: FloatArray
     means: FloatArray
     covs: FloatArray
     labels: IntArray
+    mode_probs: FloatArray | None = None
+    mode_means: FloatArray | None = None
+    mode_covs: FloatArray | None = None
 
     def keep(self, rows: BoolArray | IntArray) -> None:
         """Keep only ``rows`` (a mask or ascending indices)."""
         self.r, self.means = self.r[rows], self.means[rows]
         self.covs, self.labels = self.covs[rows], self.labels[rows]
+        if self.mode_probs is not None:
+            assert self.mode_means is not None and self.mode_covs is not None
+            self.mode_probs, self.mode_means = self.mode_probs[rows], self.mode_means[rows]
+            self.mode_covs = self.mode_covs[rows]
 
     def append(self, r: FloatArray, means: FloatArray, covs: FloatArray,
-               labels: IntArray) -> None:
-        """Add Bernoullis at the end (their labels above every present one)."""
+               labels: IntArray, mode_probs: FloatArray | None = None) -> None:
+        """Add Bernoullis at the end (their labels above every present one); with modes,
+        each new one's modes all start at its density, with probabilities ``mode_probs
+        (R,)``."""
         self.r = np.concatenate([self.r, r])
         self.means = np.concatenate([self.means, means])
         self.covs = np.concatenate([self.covs, covs])
         self.labels = np.concatenate([self.labels, labels])
+        if self.mode_probs is not None:
+            assert self.mode_means is not None and self.mode_covs is not None
+            if mode_probs is None:
+                raise ValueError("mode_probs are needed for Bernoullis with modes")
+            R = self.mode_probs.shape[1]
+            self.mode_probs = np.concatenate([self.mode_probs,
+                                              np.tile(mode_probs, (len(r), 1))])
+            self.mode_means = np.concatenate([self.mode_means,
+                                              np.repeat(means[:, None], R, axis=1)])
+            self.mode_covs = np.concatenate([self.mode_covs,
+                                             np.repeat(covs[:, None], R, axis=1)])
 
 
 @dataclass(frozen=True)

@@ -86,8 +86,9 @@ pruned as before either way. **Planning** sees
 :meth:`planning_tracks`: the Bernoullis with :math:`r \ge` ``planning_threshold`` (the
 report threshold unless set lower), each weighted by its existence, so a track that has
 faded below the report threshold can still be looked at and confirmed or dropped. Each
-Bernoulli holds a single constant-velocity EKF; the known-target tracker's IMM modes are
-not offered here.
+Bernoulli holds a single constant-velocity EKF, or with ``mode_process_noise`` an
+interacting multiple model mixture of CWNA modes (:mod:`sensorplan.tracking.pmb.modes`
+has its predict and update); the planner then predicts each track with its effective q.
 
 **Arrays**. A look's work is batched: the quadrature of every Bernoulli at once, one
 compiled pass over every (Bernoulli or cell, detection) pair for the innovations and
@@ -110,6 +111,7 @@ from ..ekf import predict as kalman_predict
 from ..known_map import EDGE_EXITS, crossing_log_mass, map_edge_predict
 from . import undetected
 from . import hypotheses as hyp
+from . import modes as imm
 from .association import AssociationMarginals, association_lbp
 from .bernoulli import (Bernoullis, missed_existence, missed_look, mixture_moments, pair_terms,
                         updates)
@@ -200,6 +202,12 @@ class PMBTracker(MapTracker):
         probability that a target on the map at the step's start crosses the edge during
         the step (``crossing``, :func:`~sensorplan.tracking.known_map.crossing_log_mass`).
         No effect with a closed edge.
+    mode_process_noise : sequence of float, optional
+        The q's (m^2/s^3) of an IMM's CWNA modes in every Bernoulli (None, the default: the
+        model's single motion model). Not with a model's own ``motion``.
+    switching : (R, R), optional
+        The IMM's Markov switching matrix (rows sum to 1); needed with
+        ``mode_process_noise``.
     """
 
     def __init__(self, model: MapModel, *, means: FloatArray | None = None,
@@ -210,7 +218,9 @@ class PMBTracker(MapTracker):
                  report_threshold: float = 0.5,
                  recycle_threshold: float = 0.0,
                  planning_threshold: float | None = None,
-                 termination_threshold: float = 1.0, edge_exit: str = "outside") -> None:
+                 termination_threshold: float = 1.0, edge_exit: str = "outside",
+                 mode_process_noise: FloatArray | tuple[float, ...] | None = None,
+                 switching: FloatArray | None = None) -> None:
         if not 0.0 < survival_probability <= 1.0:
             raise ValueError(f"survival_probability must be in (0, 1], got "
                              f"{survival_probability!r}")
@@ -238,7 +248,19 @@ class PMBTracker(MapTracker):
                              f"{background_birth_rate!r}")
         if not (math.isfinite(initial_undetected) and initial_undetected >= 0.0):
             raise ValueError(f"initial_undetected must be >= 0, got {initial_undetected!r}")
+        if (mode_process_noise is None) != (switching is None):
+            given = "switching" if mode_process_noise is None else "mode_process_noise"
+            raise ValueError(f"mode_process_noise and switching go together (an IMM), got "
+                             f"only {given}")
+        if mode_process_noise is not None and model.motion is not None:
+            raise ValueError("mode_process_noise must be None with a model's own motion "
+                             "(the IMM's modes are CWNA models)")
         super().__init__(model)
+        #: The IMM's modes (None: one motion model).
+        self.modes = (None if mode_process_noise is None
+                      else imm.make_modes(self.dt, mode_process_noise, switching))
+        # What the edge's crossing probability predicts with: each mode's Q, or the one.
+        self._edge_Q = [self.Q] if self.modes is None else list(self.modes.Q)
         self.survival_probability = float(survival_probability)
         self.edge_exit = edge_exit
         self.prune_threshold = float(prune_threshold)
@@ -265,6 +287,8 @@ class PMBTracker(MapTracker):
         if np.any((r0 < 0.0) | (r0 > 1.0)):
             raise ValueError("existence must be in [0, 1]")
         self.bern = Bernoullis(r0, m0, P0, np.arange(len(m0), dtype=np.int64))
+        if self.modes is not None:
+            imm.start_modes(self.bern, self.modes)
         self.next_label = len(m0)
         self.termination_threshold = min(float(termination_threshold), self.report_threshold)
         #: The labels of the confirmed tracks (reported at the end of the last predict or
@@ -293,19 +317,27 @@ class PMBTracker(MapTracker):
         b = self.bern
         return TrackSet(b.means[k], b.covs[k], b.r[k], b.labels[k])
 
+    def _planned(self) -> BoolArray:
+        k = self.bern.r >= self.planning_threshold
+        if self.termination_threshold < self.planning_threshold:
+            k |= self._reported()
+        return k
+
     def planning_tracks(self) -> TrackSet:
         """The Bernoullis planning sees (copies): existence at least ``planning_threshold``
         (never above the report threshold), and every reported track; planning weights each
         by its existence."""
-        b = self.bern
-        k = b.r >= self.planning_threshold
-        if self.termination_threshold < self.planning_threshold:
-            k |= self._reported()
+        b, k = self.bern, self._planned()
         return TrackSet(b.means[k], b.covs[k], b.r[k], b.labels[k])
 
     def planning_process_noise(self) -> float | FloatArray:
-        """q of the CWNA motion model the planner predicts every track with."""
-        return self.process_noise
+        """q of the CWNA motion model the planner predicts every track with: the model's,
+        or with IMM modes each planning track's effective q one step ahead,
+        ``(mu Pi) . q`` (one per :meth:`planning_tracks` row)."""
+        if self.modes is None:
+            return self.process_noise
+        assert self.bern.mode_probs is not None
+        return imm.planning_noise(self.bern.mode_probs[self._planned()], self.modes)
 
     def undetected_intensity(self) -> UndetectedReport:
         """The undetected intensity as it stands (copies): the grid's centres, the expected
@@ -327,18 +359,14 @@ class PMBTracker(MapTracker):
         b = self.bern
         reported = self._reported()
         corrected = np.zeros(len(b), dtype=bool)
-        if len(b):
+        if len(b) and self.modes is not None:
+            corrected = self._predict_modes()
+        elif len(b):
             start = (b.means, b.covs)
             b.means, b.covs = kalman_predict(b.means, b.covs, self.F, self.Q)
             b.r = self.survival_probability * b.r
             if self.map_edge is not None:
-                m, P, applied, log_mass = map_edge_predict(b.means, b.covs, *self.world,
-                                                           self.map_edge)
-                if self.map_edge == "exit" and self.edge_exit == "crossing":
-                    # The same tracks are truncated; what they lose is the crossing's.
-                    log_mass = np.zeros(len(b))
-                    log_mass[applied] = crossing_log_mass(
-                        start[0][applied], start[1][applied], self.F, self.Q, *self.world)
+                m, P, applied, log_mass = self._at_edge(b.means, b.covs, *start)
                 b.means, b.covs = m, P
                 b.r = b.r * np.exp(log_mass)
                 corrected = applied
@@ -348,6 +376,43 @@ class PMBTracker(MapTracker):
         self._prune()
         self._confirm()
         return out
+
+    def _at_edge(self, means: FloatArray, covs: FloatArray, start_means: FloatArray,
+                 start_covs: FloatArray, mode: FloatArray | None = None
+                 ) -> tuple[FloatArray, FloatArray, BoolArray, FloatArray]:
+        """The map's edge on predicted densities ``(B, 4)``, ``(B, 4, 4)`` that started the
+        step at ``start_*``: their new moments, which were changed, and the log of what
+        each keeps of its existence (``mode (B,)``: each one's IMM mode, None: one
+        model)."""
+        assert self.map_edge is not None
+        m, P, applied, log_mass = map_edge_predict(means, covs, *self.world, self.map_edge)
+        if self.map_edge == "exit" and self.edge_exit == "crossing":
+            # The same tracks are truncated; what they lose is the crossing's.
+            log_mass = np.zeros(len(means))
+            for j, Q in enumerate(self._edge_Q):
+                rows = applied if mode is None else applied & (mode == j)
+                log_mass[rows] = crossing_log_mass(start_means[rows], start_covs[rows],
+                                                   self.F, Q, *self.world)
+        return m, P, applied, log_mass
+
+    def _predict_modes(self) -> BoolArray:
+        """The IMM predict of every Bernoulli (:func:`.modes.predict`), its map edge per
+        mode; returns which Bernoullis the edge changed."""
+        b, modes = self.bern, self.modes
+        assert modes is not None
+        n, R = len(b), len(modes.q)
+        x0, P0, xp, Pp = imm.predict(b, self.F, modes)
+        b.r = self.survival_probability * b.r
+        corrected = np.zeros(n, dtype=bool)
+        if self.map_edge is not None:
+            m, P, applied, log_mass = self._at_edge(
+                xp.reshape(-1, 4), Pp.reshape(-1, 4, 4), x0.reshape(-1, 4),
+                P0.reshape(-1, 4, 4), np.tile(np.arange(R), n))
+            b.mode_means, b.mode_covs = m.reshape(n, R, 4), P.reshape(n, R, 4, 4)
+            imm.keep_on_map(b, log_mass.reshape(n, R))
+            corrected = np.asarray(applied.reshape(n, R).any(axis=1))
+        imm.combine(b)
+        return corrected
 
     def update(self, looks: Looks) -> UpdateRecord:
         """Update with one step's looks, in the given (sensor) order (see the module
@@ -375,6 +440,8 @@ class PMBTracker(MapTracker):
     def update_look(self, look: Look, Z: FloatArray) -> LookOutcome:
         """Update the Bernoullis and the undetected intensity with one look's detections
         ``Z (m, 2)`` (steps 1-6 of the module docstring)."""
+        if self.modes is not None:
+            return self._update_look_modes(look, Z)
         b, s = self.bern, self.sensing
         n, m = len(b), len(Z)
         # 1. Missed-look hypotheses.
@@ -425,19 +492,98 @@ class PMBTracker(MapTracker):
         b.r[rows] = np.minimum(r_post, 1.0)
         b.means, b.covs = b.means.copy(), b.covs.copy()
         b.means[rows[live]], b.covs[rows[live]] = gm[live], gP[live]
-        if started.size:
-            labels = np.arange(self.next_label, self.next_label + started.size, dtype=np.int64)
-            self.next_label += started.size
-            b.append(np.minimum(h.r_new, 1.0), gm[rows.size:], gP[rows.size:], labels)
-        # 6. Thin the undetected intensity; prune.
+        self._start(h, gm[rows.size:], gP[rows.size:])
+        return self._finish_look(detect, terms.gated[:n], n, h, pbar, w, marg)
+
+    def _start(self, h: hyp.Hypotheses, means: FloatArray, covs: FloatArray) -> None:
+        """Append the Bernoullis the look's detections start (step 5), each with the next
+        unused label."""
+        k = h.started.size
+        if k:
+            labels = np.arange(self.next_label, self.next_label + k, dtype=np.int64)
+            self.next_label += k
+            self.bern.append(np.minimum(h.r_new, 1.0), means, covs, labels,
+                             None if self.modes is None else self.modes.initial)
+
+    def _finish_look(self, detect: FloatArray, gated: BoolArray, n: int, h: hyp.Hypotheses,
+                     pbar: FloatArray, w: hyp.Weights, marg: AssociationMarginals
+                     ) -> LookOutcome:
+        """Step 6 (thin the undetected intensity, prune) and the look's outcome; ``gated``
+        the (Bernoulli or mode, detection) pairs in a gate."""
         self.undetected = undetected.thin(self.undetected, detect)
-        in_gate = int(np.count_nonzero(terms.gated[:n].any(axis=0)))
+        m = gated.shape[1]
+        in_gate = int(np.count_nonzero(gated.any(axis=0)))
         touched = np.zeros(n, dtype=bool)
-        touched[rows] = True
+        touched[h.rows] = True
         outcome = LookOutcome(in_gate, m - in_gate - h.started_alone, touched, pbar > 0.0,
                               (w.w_miss, w.w_det, w.w_new), marg)
         self._prune()
         return outcome
+
+    def _update_look_modes(self, look: Look, Z: FloatArray) -> LookOutcome:
+        """:meth:`update_look` with IMM modes in every Bernoulli (:mod:`.modes`)."""
+        b, s, modes = self.bern, self.sensing, self.modes
+        assert modes is not None and b.mode_probs is not None
+        assert b.mode_means is not None and b.mode_covs is not None
+        n, m, R = len(b), len(Z), len(modes.q)
+        cm, cP = b.mode_means.reshape(-1, 4), b.mode_covs.reshape(-1, 4, 4)
+        # 1. Each mode's missed-look hypothesis; the Bernoulli's Pbar mixes them.
+        pbar_c, mm, mP = np.zeros(n * R), cm, cP
+        if n:
+            seen, p, chol = s.quadrature(cm, cP, look)
+            if seen.size:
+                m_, P_, pbar_c[seen] = missed_look(cm[seen], cP[seen], chol, p)
+                mm, mP = cm.copy(), cP.copy()
+                mm[seen], mP[seen] = m_, P_
+        pbar_modes = pbar_c.reshape(n, R)
+        pbar = imm.bernoulli_pbar(b.mode_probs, pbar_modes)
+        detect = s.detectable(self.grid.centres, look)
+        if m == 0:
+            rows = np.flatnonzero(pbar > 0.0)
+            if rows.size:
+                b.r = b.r.copy()
+                b.r[rows] = missed_existence(b.r[rows], pbar[rows])
+                probs = b.mode_probs.copy()
+                probs[rows] = imm.missed_probs(b.mode_probs[rows], pbar_modes[rows])
+                b.mode_probs = probs
+                b.mode_means, b.mode_covs = mm.reshape(n, R, 4), mP.reshape(n, R, 4, 4)
+                imm.combine(b, rows)
+            self.undetected = undetected.thin(self.undetected, detect)
+            self._prune()
+            return LookOutcome(0, 0, pbar > 0.0, pbar > 0.0)
+        # 2. Gating: every mode of every Bernoulli, and the cells, in one batch.
+        cells = np.flatnonzero((detect > 0.0) & (self.undetected > 0.0))
+        means = np.concatenate([cm, self._cell_means[cells]])
+        covs = np.concatenate([cP, self._cell_covs[:cells.size]])
+        terms = pair_terms(s, look, means, covs, Z, self.gate)
+        # 3. The Bernoullis' likelihoods mix their modes'; association as with one model.
+        lik_modes = terms.lik[:n * R].reshape(n, R, m)
+        lik_b = np.einsum("nr,nrm->nm", b.mode_probs, lik_modes)
+        w = hyp.weights(np.concatenate([lik_b, terms.lik[n * R:]]), b.r,
+                        s.detection_probability(b.means[:, :2], look), pbar,
+                        self.undetected[cells] * detect[cells], s.clutter(Z, look),
+                        MIN_WEIGHT)
+        marg = association_lbp(w.w_miss, w.w_det, w.w_new)
+        # 4-5. The hypotheses split over the modes; each mode's mixture moment matched.
+        h = hyp.hypotheses(marg.p_det, marg.p_new, w, pbar, self.prune_threshold)
+        mh = imm.mode_hypotheses(h, lik_modes, b.mode_probs, lik_b, n)
+        rows, q = h.rows, h.rows.size
+        xu, Pu = updates(means, covs, terms, mh.unique, mh.which, mh.det)
+        w_miss = imm.missed_weights(marg.p_miss[rows], b.r[rows], pbar[rows],
+                                    b.mode_probs[rows], pbar_modes[rows])
+        comps = (rows[:, None] * R + np.arange(R)).reshape(-1)
+        total, gm, gP = mixture_moments(q * R + h.started.size,
+                                        (w_miss.reshape(-1), np.arange(q * R), mm[comps],
+                                         mP[comps]),
+                                        (mh.weight, mh.group, xu, Pu))
+        r_post, live = imm.merged_modes(b, rows, total[:q * R].reshape(q, R),
+                                        gm[:q * R].reshape(q, R, 4),
+                                        gP[:q * R].reshape(q, R, 4, 4))
+        b.r = b.r.copy()
+        b.r[rows] = np.minimum(r_post, 1.0)
+        imm.combine(b, rows[live])
+        self._start(h, gm[q * R:], gP[q * R:])
+        return self._finish_look(detect, terms.gated[:n * R], n, h, pbar, w, marg)
 
     def _prune(self) -> None:
         """Drop the Bernoullis below ``prune_threshold``, or with recycling on, recycle
