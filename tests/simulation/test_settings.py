@@ -40,7 +40,7 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
                      "tracker.known_map", "tracker.known_buildings",
                      "tracker.reflect_walls", "tracker.lost_mode", "tracker.lost_probability",
                      "tracker.lost_resolution", "tracker.births", "tracker.map_edge",
-                     "tracker.edge_exit",
+                     "tracker.bernoulli_model", "tracker.edge_exit",
                      "tracker.birth_rate", "tracker.background_birth_rate",
                      "tracker.survival_probability", "tracker.report_threshold",
                      "tracker.prune_threshold", "tracker.recycle_threshold",
@@ -262,6 +262,16 @@ def test_unused_names_what_the_tracker_ignores() -> None:
     assert set(LS) | {"lost_mode"} <= set(TrackerSettings(kind="pmb").unused())
     assert "births" not in TrackerSettings(kind="pmb").unused()
     assert "model" in TrackerSettings(kind="pmb").unused()
+    # a PMB with IMM Bernoullis reads the modes' q's and switching, not the single q
+    cv, imm = TrackerSettings(kind="pmb").unused(), TrackerSettings(
+        kind="pmb", bernoulli_model="imm").unused()
+    assert {"mode_process_noise", "switching"} <= set(cv) and "process_noise" not in cv
+    assert {"mode_process_noise", "switching"}.isdisjoint(imm) and "process_noise" in imm
+    assert "bernoulli_model" in TrackerSettings().unused()
+    assert TrackerSettings(kind="pmb").bernoulli_options() == {}
+    opts = TrackerSettings(kind="pmb", bernoulli_model="imm").bernoulli_options()
+    assert opts["mode_process_noise"] == (0.05, 5.0)
+    assert opts["switching"].tolist() == [[0.95, 0.05], [0.1, 0.9]]
     # the PMB and the GNN each ignore the other's own settings
     from sensorplan.simulation.settings import GNN_SETTINGS, PMB_SETTINGS
 

@@ -731,22 +731,26 @@ def test_a_study_directory_written_before_the_reward_is_the_same_study(
 
 
 @pytest.mark.parametrize(("key", "value", "other"), [("termination_threshold", 1.0, 0.1),
-                                                     ("background_birth_rate", 0.0, 0.03)])
+                                                     ("background_birth_rate", 0.0, 0.03),
+                                                     ("bernoulli_model", '"cv"', '"imm"')])
 def test_a_study_directory_written_before_a_tracker_setting_is_the_same_study(
-        tmp_path: Path, key: str, value: float, other: float) -> None:
-    """The tracker gained termination_threshold and background_birth_rate after studies had
-    run without them: a directory whose methods lack one reads back with the value those
-    runs had and resumes as the same study; another value is a different study."""
+        tmp_path: Path, key: str, value: float | str, other: float | str) -> None:
+    """The tracker gained termination_threshold, background_birth_rate and bernoulli_model
+    after studies had run without them: a directory whose methods lack one reads back with
+    the value those runs had and resumes as the same study; another value is a different
+    study."""
     text = ("runs = 1\nsteps = 2\n[scenario]\npreset = \"search\"\n[[methods]]\nname = \"r\"\n"
             "planner = \"random\"\n[methods.tracker]\nkind = \"pmb\"\n")
     study = parse_study(text + f"{key} = {value}\n")
     assert studies.run_study(study, tmp_path, workers=1).ran == 1
     config = tmp_path / "config.resolved.json"
     old = json.loads(config.read_text())
-    assert old["methods"][0]["tracker"][key] == value
+    written = value.strip('"') if isinstance(value, str) else value
+    assert old["methods"][0]["tracker"][key] == written
     del old["methods"][0]["tracker"][key]
     config.write_text(json.dumps(old))
-    assert getattr(studies.Study.from_resolved(old).methods[0].settings.tracker, key) == value
+    assert getattr(studies.Study.from_resolved(old).methods[0].settings.tracker,
+                   key) == written
     assert studies.run_study(study, tmp_path, workers=1).ran == 0
     with pytest.raises(ConfigError, match=key):
         studies.run_study(parse_study(text + f"{key} = {other}\n"), tmp_path, workers=1)

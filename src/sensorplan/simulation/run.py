@@ -272,7 +272,8 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
                prune_threshold=tr.prune_threshold, report_threshold=tr.report_threshold,
                recycle_threshold=tr.recycle_threshold,
                planning_threshold=tr.planning_threshold,
-               termination_threshold=tr.termination_threshold, edge_exit=tr.edge_exit)
+               termination_threshold=tr.termination_threshold, edge_exit=tr.edge_exit,
+               **tr.bernoulli_options())
 
 
 class _Schedule:

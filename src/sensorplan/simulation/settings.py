@@ -84,7 +84,8 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
 #: The settings only the PMB tracker reads, and only the GNN tracker.
 PMB_SETTINGS = ("births", "birth_rate", "background_birth_rate", "survival_probability",
                 "report_threshold", "prune_threshold", "recycle_threshold",
-                "planning_threshold", "termination_threshold", "edge_exit")
+                "planning_threshold", "termination_threshold", "edge_exit",
+                "bernoulli_model")
 GNN_SETTINGS = ("confirm_hits", "confirm_looks", "delete_misses")
 #: The settings only the lost-target mode of the tracker of known targets reads.
 LOST_SETTINGS = ("lost_probability", "lost_resolution")
@@ -346,7 +347,8 @@ class TrackerSettings(_Settings):
         help="q (m^2/s^3) of the cv filter; the truth's q is the scenario's process_noise.")
     mode_process_noise: tuple[float, ...] = setting(
         (0.05, 5.0), section="tracker", label="IMM q's", check=_mode_noises,
-        help="q (m^2/s^3) of each IMM mode, quiet first.")
+        help="q (m^2/s^3) of each IMM mode, quiet first (model = imm, or a PMB tracker's "
+             "bernoulli_model = imm).")
     switching: tuple[tuple[float, ...], ...] = setting(
         ((0.95, 0.05), (0.1, 0.9)), section="tracker", label="IMM switching",
         check=_switching_matrix,
@@ -413,6 +415,12 @@ class TrackerSettings(_Settings):
              "existence), closed (it turns back, so a track is reflected back in and keeps "
              "its existence) or scenario (exit when the scenario's targets are born at the "
              "edges or scripted, closed when its walls turn them back).")
+    bernoulli_model: str = setting(
+        "cv", section="tracker", label="Bernoulli model", choices=TRACKER_MODELS,
+        noun="Bernoulli model",
+        help="The motion model of each PMB track: cv (one constant-velocity model with q = "
+             "process_noise) or imm (interacting multiple models: CWNA modes with the q's of "
+             "mode_process_noise and Markov switching, mixed in every track).")
     edge_exit: str = setting(
         "outside", section="tracker", label="edge exit", choices=EDGE_EXITS,
         noun="edge exit",
@@ -514,11 +522,25 @@ class TrackerSettings(_Settings):
                        PMB_SETTINGS if self.kind == "gnn" else GNN_SETTINGS)
             if self.kind == "pmb" and edge == "closed":
                 out += ("edge_exit",)
+            if self.kind == "pmb" and self.bernoulli_model == "imm":
+                # The IMM's q's and switching are read; the single model's q is not.
+                out = tuple(k for k in out if k not in ("mode_process_noise", "switching"))
+                out += ("process_noise",)
             return out
         out = ("process_noise",) if self.model == "imm" else ("mode_process_noise",
                                                               "switching")
         return out + (() if self.gate else ("gate_probability",)) + (
             () if self.lost_mode else LOST_SETTINGS) + MULTI_TARGET_SETTINGS
+
+    def bernoulli_options(self) -> dict[str, Any]:
+        """The IMM keyword arguments of :class:`sensorplan.tracking.pmb.tracker.PMBTracker`
+        for these settings (none for ``bernoulli_model = "cv"``)."""
+        import numpy as np
+
+        if self.bernoulli_model != "imm":
+            return {}
+        return dict(mode_process_noise=self.mode_process_noise,
+                    switching=np.array(self.switching))
 
     def tracker_options(self) -> dict[str, Any]:
         """Keyword arguments of :class:`sensorplan.tracking.tracker.KnownTargetTracker` for

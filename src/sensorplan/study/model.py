@@ -41,8 +41,9 @@ class Method:
 
 #: Tracker settings added after studies had run, with the value those studies ran with (a
 #: track reported exactly while its existence is at least the report threshold; no
-#: background births).
-TRACKER_SETTINGS_ADDED = {"termination_threshold": 1.0, "background_birth_rate": 0.0}
+#: background births; one motion model in every PMB Bernoulli).
+TRACKER_SETTINGS_ADDED = {"termination_threshold": 1.0, "background_birth_rate": 0.0,
+                          "bernoulli_model": "cv"}
 
 
 def planned_as_written(method: Mapping[str, Any]) -> dict[str, Any]:
