@@ -16,14 +16,17 @@ overall, the median CPU time (``time.thread_time``: other jobs share the machine
 The GNN tracker (:class:`GNNTracker`, defaults) gets the same step: the 10 Bernoullis'
 densities as 10 confirmed tracks and the same three looks; its unassigned detections start
 tentative tracks. Its updates are timed the same way, interleaved problem by problem with
-the PMB's, and the summary gives both medians and their ratio.
+the PMB's, and the summary gives both medians and their ratio. With ``--imm`` the PMB
+with two IMM modes in every Bernoulli (the known tracker's default modes, q 0.05 and 5)
+gets the same step too, timed the same way, and the summary gives its ratio to the
+single-model PMB.
 
 Target: the median update <= 2 ms.
 
 Run::
 
     PYTHONPATH=src .venv/bin/python benchmarks/bench_pmb.py [--problems 10] [--repeats 50]
-        [--seed 0] [--undetected 2.0] [--profile]
+        [--seed 0] [--undetected 2.0] [--imm] [--profile]
 """
 
 from __future__ import annotations
@@ -85,6 +88,17 @@ def problem(rng: np.random.Generator, undetected: float = 2.0) -> tuple[PMBTrack
     return tracker, looks
 
 
+def imm_of(tracker: PMBTracker) -> PMBTracker:
+    """The same tracker (model, Bernoullis, undetected intensity) with two IMM modes in
+    every Bernoulli, each at the Bernoulli's density."""
+    out = PMBTracker(tracker.model, means=tracker.bern.means, covs=tracker.bern.covs,
+                     existence=tracker.bern.r, births=tracker.births,
+                     mode_process_noise=(0.05, 5.0),
+                     switching=np.array([[0.95, 0.05], [0.1, 0.9]]))
+    out.undetected = tracker.undetected.copy()
+    return out
+
+
 def gnn_of(tracker: PMBTracker) -> GNNTracker:
     """The GNN tracker of the same sensors, map and motion holding the PMB's Bernoullis as
     confirmed tracks."""
@@ -109,6 +123,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--undetected", type=float, default=2.0,
                     help="expected undetected targets on the map (0: no Bernoulli is started)")
+    ap.add_argument("--imm", action="store_true",
+                    help="also time the PMB with two IMM modes in every Bernoulli")
     ap.add_argument("--profile", action="store_true")
     args = ap.parse_args(argv)
     rng = np.random.default_rng(args.seed)
@@ -120,6 +136,8 @@ def main(argv: list[str] | None = None) -> int:
     all_cpu: list[float] = []
     gnn_times: list[float] = []
     gnn_cpu: list[float] = []
+    imm_times: list[float] = []
+    imm_cpu: list[float] = []
     print("| problem | Bernoullis after | median | lower quartile | upper quartile | "
           "median CPU | GNN tracks after | GNN median | GNN median CPU |")
     print("|---|---|---|---|---|---|---|---|---|")
@@ -134,6 +152,12 @@ def main(argv: list[str] | None = None) -> int:
         g_times, g_cpu = timed(g_fresh[1:], looks)
         gnn_times += g_times
         gnn_cpu += g_cpu
+        if args.imm:
+            i_fresh = [imm_of(tracker) for _ in range(args.repeats + 1)]
+            i_fresh[0].update(looks)
+            i_times, i_cpu = timed(i_fresh[1:], looks)
+            imm_times += i_times
+            imm_cpu += i_cpu
         q = statistics.quantiles(times, n=4)
         print(f"| {k} | {len(fresh[0].bern)} | {1e3 * statistics.median(times):.3f} ms | "
               f"{1e3 * q[0]:.3f} ms | {1e3 * q[2]:.3f} ms | "
@@ -148,6 +172,11 @@ def main(argv: list[str] | None = None) -> int:
     print(f"GNN: median {1e3 * g_med:.3f} ms wall, {1e3 * g_med_cpu:.3f} ms CPU over "
           f"{len(gnn_times)} updates; PMB / GNN: {med / g_med:.2f} wall, "
           f"{statistics.median(all_cpu) / g_med_cpu:.2f} CPU")
+    if args.imm:
+        i_med, i_med_cpu = statistics.median(imm_times), statistics.median(imm_cpu)
+        print(f"PMB with 2 IMM modes: median {1e3 * i_med:.3f} ms wall, "
+              f"{1e3 * i_med_cpu:.3f} ms CPU over {len(imm_times)} updates; IMM / single: "
+              f"{i_med / med:.2f} wall, {i_med_cpu / statistics.median(all_cpu):.2f} CPU")
     if args.profile:
         fresh = [(copy.deepcopy(t), lk) for t, lk in problems for _ in range(args.repeats)]
         prof = cProfile.Profile()
