@@ -70,6 +70,10 @@ class MapModel:
         Prior variance of each velocity component of a target not yet detected
         (m^2/s^2); default 10.5, the paper's targets' (speeds uniform in [3, 6] m/s in a
         uniform direction: E[s^2] / 2 = 10.5).
+    speed_range : (lo, hi), optional
+        The speeds (m/s) of targets not yet detected, uniform in this range: what a PMB
+        tracker's inward birth velocity prior is made of (``birth_velocity = "inward"``);
+        None (default): not known.
     gate_probability : float in (0, 1)
         Chi-square gate of every innovation; default 0.999 (the known-target tracker's).
     map_edge : {"exit", "closed"} or None
@@ -101,6 +105,7 @@ class MapModel:
     motion: tuple[FloatArray, FloatArray] | None = None
     resolution: float = 25.0
     velocity_var: float = 10.5
+    speed_range: tuple[float, float] | None = None
     gate_probability: float = 0.999
     map_edge: str | None = None
     buildings: FloatArray | None = None
@@ -135,6 +140,15 @@ class MapModel:
             put("motion", (_frozen(F), _frozen(Q)))
         put("resolution", _number("resolution", self.resolution, POSITIVE))
         put("velocity_var", _number("velocity_var", self.velocity_var, POSITIVE))
+        if self.speed_range is not None:
+            sr = np.asarray(self.speed_range, dtype=object).reshape(-1)
+            if sr.shape != (2,):
+                raise ValueError(f"speed_range must be (lo, hi), got {self.speed_range!r}")
+            lo = _number("speed_range[0]", sr[0], Range(0.0, None))
+            hi = _number("speed_range[1]", sr[1], Range(0.0, None))
+            if hi < lo:
+                raise ValueError(f"speed_range must have lo <= hi, got {self.speed_range!r}")
+            put("speed_range", (lo, hi))
         put("gate_probability", _number("gate_probability", self.gate_probability,
                                         Range(0.0, 1.0, lo_open=True, hi_open=True)))
         if self.map_edge is not None and self.map_edge not in MAP_EDGES:

@@ -202,6 +202,12 @@ class PMBTracker(MapTracker):
         probability that a target on the map at the step's start crosses the edge during
         the step (``crossing``, :func:`~sensorplan.tracking.known_map.crossing_log_mass`).
         No effect with a closed edge.
+    birth_velocity : {"isotropic", "inward"}
+        The velocity prior of a target first detected in a cell: mean zero and the model's
+        ``velocity_var`` per axis everywhere (``isotropic``, the default), or, with
+        ``edges`` births, on the map's boundary cells the velocity of a target born there
+        heading inward (:func:`~.undetected.cell_velocities`, from the model's
+        ``speed_range``).
     mode_process_noise : sequence of float, optional
         The q's (m^2/s^3) of an IMM's CWNA modes in every Bernoulli (None, the default: the
         model's single motion model). Not with a model's own ``motion``.
@@ -219,6 +225,7 @@ class PMBTracker(MapTracker):
                  recycle_threshold: float = 0.0,
                  planning_threshold: float | None = None,
                  termination_threshold: float = 1.0, edge_exit: str = "outside",
+                 birth_velocity: str = "isotropic",
                  mode_process_noise: FloatArray | tuple[float, ...] | None = None,
                  switching: FloatArray | None = None) -> None:
         if not 0.0 < survival_probability <= 1.0:
@@ -252,6 +259,14 @@ class PMBTracker(MapTracker):
             given = "switching" if mode_process_noise is None else "mode_process_noise"
             raise ValueError(f"mode_process_noise and switching go together (an IMM), got "
                              f"only {given}")
+        if birth_velocity not in undetected.BIRTH_VELOCITIES:
+            raise ValueError(f"birth_velocity must be one of {undetected.BIRTH_VELOCITIES}, "
+                             f"got {birth_velocity!r}")
+        edges = isinstance(births, str) and births == "edges"
+        if birth_velocity == "inward" and not (edges and model.speed_range is not None):
+            raise ValueError("birth_velocity 'inward' needs births = 'edges' and the model's "
+                             f"speed_range, got births {births!r} and speed_range "
+                             f"{model.speed_range!r}")
         if mode_process_noise is not None and model.motion is not None:
             raise ValueError("mode_process_noise must be None with a model's own motion "
                              "(the IMM's modes are CWNA models)")
@@ -259,6 +274,13 @@ class PMBTracker(MapTracker):
         #: The IMM's modes (None: one motion model).
         self.modes = (None if mode_process_noise is None
                       else imm.make_modes(self.dt, mode_process_noise, switching))
+        self.birth_velocity = birth_velocity
+        if birth_velocity == "inward":
+            assert model.speed_range is not None
+            v_mean, v_cov = undetected.cell_velocities(self.grid, model.speed_range)
+            self._cell_means = np.array(self._cell_means)
+            self._cell_covs = np.array(self._cell_covs)
+            self._cell_means[:, 2:], self._cell_covs[:, 2:, 2:] = v_mean, v_cov
         # What the edge's crossing probability predicts with: each mode's Q, or the one.
         self._edge_Q = [self.Q] if self.modes is None else list(self.modes.Q)
         self.survival_probability = float(survival_probability)
@@ -466,7 +488,7 @@ class PMBTracker(MapTracker):
         # 2. Gating: the Bernoullis and the cells the look could detect, in one batch.
         cells = np.flatnonzero((detect > 0.0) & (self.undetected > 0.0))
         means = np.concatenate([b.means, self._cell_means[cells]])
-        covs = np.concatenate([b.covs, self._cell_covs[:cells.size]])
+        covs = np.concatenate([b.covs, self._cell_covs[cells]])
         terms = pair_terms(s, look, means, covs, Z, self.gate)
         # 3. Association weights and their marginals.
         w = hyp.weights(terms.lik, b.r, s.detection_probability(b.means[:, :2], look), pbar,
@@ -554,7 +576,7 @@ class PMBTracker(MapTracker):
         # 2. Gating: every mode of every Bernoulli, and the cells, in one batch.
         cells = np.flatnonzero((detect > 0.0) & (self.undetected > 0.0))
         means = np.concatenate([cm, self._cell_means[cells]])
-        covs = np.concatenate([cP, self._cell_covs[:cells.size]])
+        covs = np.concatenate([cP, self._cell_covs[cells]])
         terms = pair_terms(s, look, means, covs, Z, self.gate)
         # 3. The Bernoullis' likelihoods mix their modes'; association as with one model.
         lik_modes = terms.lik[:n * R].reshape(n, R, m)

@@ -12,7 +12,8 @@ The map :math:`[0, W] \times [0, H]` is cut into ``nx = ceil(W / d)`` columns an
 with :math:`p_c` the cell's centre, :math:`a \times b` its size (a position variance equal
 to a uniform distribution's over the cell) and a velocity prior of mean zero and variance
 :math:`\sigma_v^2` per axis. :math:`w_c` is the expected number of undetected targets in
-the cell.
+the cell. (A PMB tracker with edge births may give the boundary cells the velocity of a
+target born there heading inward instead: :func:`cell_velocities`.)
 
 - **Predict**: :math:`w_c \leftarrow p_S\, w_c + b_c` with :math:`b_c` the expected number
   of births in the cell per step (:func:`birth_intensity`). The components keep their
@@ -164,6 +165,67 @@ def birth_intensity(grid: Grid, kind: str, rate: float) -> FloatArray:
     return out
 
 
+#: The velocity priors of the cells: :func:`cell_velocities`.
+BIRTH_VELOCITIES = ("isotropic", "inward")
+
+
+def cell_velocities(grid: Grid, speed_range: tuple[float, float]
+                    ) -> tuple[FloatArray, FloatArray]:
+    r"""Each cell's velocity prior ``(C, 2)`` means and ``(C, 2, 2)`` covariances when
+    targets are born on the map's boundary heading inward (the ``edges`` births of a
+    truth: the side's inward normal :math:`n` plus an angle uniform in
+    :math:`(-\pi/2, \pi/2)`, a speed :math:`s` uniform in ``speed_range``).
+
+    A boundary cell's prior is those births' velocity moments: along :math:`n` the mean
+    :math:`rac{2}{\pi} E[s]` and the variance :math:`E[s^2]/2 - (rac{2}{\pi}E[s])^2`,
+    along the side the mean 0 and the variance :math:`E[s^2]/2`. A corner cell mixes its
+    two sides' priors (moment matched) with weights in proportion to its extent along
+    each (births are uniform over the perimeter by length). Every other cell keeps the
+    isotropic prior: mean 0, variance :math:`E[s^2]/2` per axis (:attr:`Grid.cov`'s).
+
+    Examples
+    --------
+    >>> g = make_grid(100.0, 100.0, 25.0, 10.5)
+    >>> m, P = cell_velocities(g, (3.0, 6.0))
+    >>> [round(float(v), 3) for v in m[1]], round(float(P[1, 1, 1]), 3)   # bottom side
+    ([0.0, 2.865], 2.293)
+    >>> m[5].tolist(), P[5].tolist()                                       # inside
+    ([0.0, 0.0], [[10.5, 0.0], [0.0, 10.5]])
+    """
+    lo, hi = (float(v) for v in speed_range)
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 <= lo <= hi):
+        raise ValueError(f"speed_range must be (lo, hi) with 0 <= lo <= hi, got "
+                         f"{speed_range!r}")
+    mean_s, mean_s2 = 0.5 * (lo + hi), (lo * lo + lo * hi + hi * hi) / 3.0
+    mu = 2.0 / math.pi * mean_s
+    across, along = 0.5 * mean_s2 - mu * mu, 0.5 * mean_s2
+    C = grid.size
+    means = np.zeros((C, 2))
+    covs = np.broadcast_to(along * np.eye(2), (C, 2, 2)).copy()
+    col = np.tile(np.arange(grid.nx), grid.ny)
+    row = np.repeat(np.arange(grid.ny), grid.nx)
+    a, b = grid.width / grid.nx, grid.height / grid.ny
+    # Each side: its cells, its inward normal, and a cell's extent along it.
+    sides = ((row == 0, (0.0, 1.0), a), (col == grid.nx - 1, (-1.0, 0.0), b),
+             (row == grid.ny - 1, (0.0, -1.0), a), (col == 0, (1.0, 0.0), b))
+    weight = np.zeros(C)
+    first = np.zeros((C, 2))
+    second = np.zeros((C, 2, 2))
+    for cells, normal, extent in sides:
+        n = np.array(normal)
+        t = np.array([-n[1], n[0]])
+        m = mu * n
+        P = across * np.outer(n, n) + along * np.outer(t, t)
+        weight[cells] += extent
+        first[cells] += extent * m
+        second[cells] += extent * (P + np.outer(m, m))
+    edge = weight > 0.0
+    means[edge] = first[edge] / weight[edge, None]
+    covs[edge] = (second[edge] / weight[edge, None, None]
+                  - np.einsum("ci,cj->cij", means[edge], means[edge]))
+    return means, covs
+
+
 def predict(weights: FloatArray, survival_probability: float, births: FloatArray
             ) -> FloatArray:
     """:math:`p_S w + b`, ``(C,)``: survival, then the step's births."""
@@ -245,5 +307,5 @@ def recycle(grid: Grid, r: FloatArray, means: FloatArray, covs: FloatArray) -> F
     return out
 
 
-__all__ = ["BIRTHS", "Grid", "birth_intensity", "cell_masses", "make_grid", "predict",
-           "recycle", "thin"]
+__all__ = ["BIRTHS", "BIRTH_VELOCITIES", "Grid", "birth_intensity", "cell_masses",
+           "cell_velocities", "make_grid", "predict", "recycle", "thin"]
