@@ -281,6 +281,7 @@ def test_the_paper_configuration_reproduces_its_recorded_tracks(seed):
     ("mode_process_noise = [0.05, -1.0]", "tracker.mode_process_noise"),
     ("model = \"kalman\"", "tracker.model"),
     ("bernoulli_model = \"kalman\"", "tracker.bernoulli_model"),
+    ("births = \"uniform\"\nbirth_velocity = \"inward\"", "tracker.birth_velocity"),
     ("gate = false", "tracker.reacquire"),
 ])
 def test_bad_tracker_settings_exit_2_naming_the_field(table, field, tmp_path, capsys):

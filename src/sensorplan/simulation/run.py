@@ -215,6 +215,7 @@ def map_model(scenario: Scenario, tracker: TrackerSettings, table: FloatArray) -
     return MapModel(table, scenario.dt, (scenario.world.width, scenario.world.height),
                     process_noise=tracker.process_noise, resolution=tracker.grid_resolution,
                     velocity_var=max((lo * lo + lo * hi + hi * hi) / 6.0, 1e-6),
+                    speed_range=(lo, hi),
                     gate_probability=tracker.gate_probability,
                     map_edge=map_edge(scenario, tracker), buildings=scenario.building_array)
 
@@ -273,7 +274,7 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
                recycle_threshold=tr.recycle_threshold,
                planning_threshold=tr.planning_threshold,
                termination_threshold=tr.termination_threshold, edge_exit=tr.edge_exit,
-               **tr.bernoulli_options())
+               birth_velocity=tr.birth_velocity, **tr.bernoulli_options())
 
 
 class _Schedule:

@@ -85,7 +85,7 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
 PMB_SETTINGS = ("births", "birth_rate", "background_birth_rate", "survival_probability",
                 "report_threshold", "prune_threshold", "recycle_threshold",
                 "planning_threshold", "termination_threshold", "edge_exit",
-                "bernoulli_model")
+                "bernoulli_model", "birth_velocity")
 GNN_SETTINGS = ("confirm_hits", "confirm_looks", "delete_misses")
 #: The settings only the lost-target mode of the tracker of known targets reads.
 LOST_SETTINGS = ("lost_probability", "lost_resolution")
@@ -98,6 +98,9 @@ MAP_EDGE_CHOICES = ("scenario", "exit", "closed")
 #: :data:`sensorplan.tracking.known_map.EDGE_EXITS` (named here without importing the
 #: tracking modules, as the map edges are).
 EDGE_EXITS = ("outside", "crossing")
+#: The PMB tracker's velocity prior of a target first detected:
+#: :data:`sensorplan.tracking.pmb.undetected.BIRTH_VELOCITIES`.
+BIRTH_VELOCITIES = ("isotropic", "inward")
 
 
 def _births() -> tuple[str, ...]:
@@ -407,6 +410,13 @@ class TrackerSettings(_Settings):
         noun="births",
         help="A multi-target tracker's model of where targets are born: edges (on the map's "
              "boundary), uniform (anywhere) or none.")
+    birth_velocity: str = setting(
+        "isotropic", section="tracker", label="birth velocity", choices=BIRTH_VELOCITIES,
+        noun="birth velocity",
+        help="The PMB tracker's velocity prior of a target it detects for the first time: "
+             "isotropic (mean zero, the scenario's speeds in any direction) or inward (with "
+             "edges births, a target first seen on the map's boundary heading inward at the "
+             "scenario's speeds, as edge births do).")
     map_edge: str = setting(
         "scenario", section="tracker", label="map edge", choices=MAP_EDGE_CHOICES,
         noun="map edge",
@@ -503,6 +513,10 @@ class TrackerSettings(_Settings):
                               f"prune_threshold ({self.prune_threshold}) and below "
                               f"report_threshold ({self.report_threshold}), got "
                               f"{self.recycle_threshold}")
+        if self.birth_velocity == "inward" and self.births != "edges":
+            raise ConfigError("birth_velocity", f"inward needs births = \"edges\" (targets "
+                              f"born on the map's boundary), got births = "
+                              f"\"{self.births}\"")
         if self.reacquire and not self.gate:
             raise ConfigError("reacquire", "needs gate = true (a detection outside the gate "
                               "triggers it)")
