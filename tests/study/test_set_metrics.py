@@ -394,9 +394,12 @@ def test_set_metrics_names_the_bad_argument() -> None:
         target_metrics(one, [1, 1], one > 0, one)
 
 
-def test_a_set_trackers_lost_share_is_its_live_target_steps_without_a_track() -> None:
+@pytest.mark.parametrize("c", [50.0, 400.0])
+def test_a_set_trackers_lost_share_is_its_live_target_steps_without_a_track(c: float) -> None:
     # Its errors are those of the assigned tracks, never above the cut-off: by the error
-    # rule alone it could never lose a target (the run summary once said 0 % lost).
+    # rule alone it could never lose a target (the run summary once said 0 % lost). With a
+    # cut-off above the known-target tracker's 50 m lost threshold, a track assigned
+    # between the two is held, not lost (the summary once counted it lost).
     import dataclasses
 
     from sensorplan.simulation.run import run_episode
@@ -405,12 +408,12 @@ def test_a_set_trackers_lost_share_is_its_live_target_steps_without_a_track() ->
     from sensorplan.study.metrics import episode_errors
 
     scenario = dataclasses.replace(search_scenario(), birth_rate=0.25)
-    settings = RunSettings(planner="random", steps=30, tracker=TrackerSettings(kind="pmb"))
+    settings = RunSettings(planner="random", steps=30, tracker=TrackerSettings(kind="pmb"),
+                           gospa_c=c)
     ep = run_episode(scenario, settings, 20261203)
     every = [r for r in episode_errors(ep) if r.target == "all" and r.kind == "all"][0]
     # Independently: GOSPA's missed part counts c^2/2 for each live target left unassigned.
     series = sm.episode_set_metrics(ep).gospa
-    c = ep.settings.gospa_c
     unassigned = np.asarray(series.missed).sum() / (c * c / 2)
     alive = np.asarray(ep.alive)[1:].sum()
     assert unassigned > 0                                 # the premise: some were missed

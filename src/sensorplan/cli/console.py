@@ -203,8 +203,11 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
                   highlight=False)
 
     measured = np.asarray(episode.measured)[1:]                # (S, M, N)
+    lost_rule = (f"share of steps with error > {LOST_THRESHOLD:g} m"
+                 if s.tracker.kind == "known" else
+                 f"share of live steps without a track within c = {s.gospa_c:g} m")
     tracks = Table(title="Position error over steps 1..S (m)",
-                   caption=f"lost: share of steps with error > {LOST_THRESHOLD:g} m; measured: "
+                   caption=f"lost: {lost_rule}; measured: "
                            "steps with at least one measurement; ANEES: average NEES (4 for "
                            "an honest filter); restarts: tracks restarted from a detection")
     for name in ("target", "kind", "RMSE", "mean", "final", "lost", "measured", "ANEES",

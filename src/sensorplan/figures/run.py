@@ -226,8 +226,14 @@ def draw_timeline(ax: Axes, episode: Episode, dt: float) -> None:
 
 def draw_errors(ax: Axes, episode: Episode, dt: float) -> None:
     """Position error of each target over time (log scale) with the filter's own RMS
-    position error ``sqrt(tr P_xy)`` (dotted) and the lost-track threshold."""
+    position error ``sqrt(tr P_xy)`` (dotted) and the lost-track threshold (a multi-target
+    tracker's: the GOSPA cut-off, beyond which no track is assigned)."""
     from ..study.metrics import LOST_THRESHOLD
+
+    settings = getattr(episode, "settings", None)
+    known = settings is None or settings.tracker.kind == "known"
+    limit = LOST_THRESHOLD if known else float(settings.gospa_c)
+    label = f"lost above {limit:g} m" if known else f"no track beyond c = {limit:g} m"
 
     err = np.asarray(episode.error, dtype=float)
     cov = np.asarray(episode.cov, dtype=float)
@@ -244,13 +250,13 @@ def draw_errors(ax: Axes, episode: Episode, dt: float) -> None:
         c = target_color(j)
         ax.plot(time_s, np.clip(err[:, j], floor, None), color=c, linewidth=1.4)
         ax.plot(time_s, np.clip(own[:, j], floor, 1e9), color=c, linewidth=0.9, linestyle=":")
-    ax.axhline(LOST_THRESHOLD, color="0.3", linestyle="--", linewidth=0.8)
-    ax.text(0.995, LOST_THRESHOLD, f"lost above {LOST_THRESHOLD:g} m", va="bottom",
+    ax.axhline(limit, color="0.3", linestyle="--", linewidth=0.8)
+    ax.text(0.995, limit, label, va="bottom",
             ha="right", fontsize=7.5, color="0.3", transform=ax.get_yaxis_transform())
     ax.set_yscale("log")
     top = np.nanmax(np.where(np.isfinite(err), err, np.nan)) if np.isfinite(err).any() else 1
     ax.set_ylim(max(floor, 0.5 * np.nanmin(np.clip(err[1:], floor, None))),
-                max(2.0 * top, 2.0 * LOST_THRESHOLD))
+                max(2.0 * top, 2.0 * limit))
     ax.set_xlim(0, (err.shape[0] - 1) * dt)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("position error (m)")

@@ -65,7 +65,7 @@ class ErrorRow:
 
     ``target`` is the index, or ``"all"`` for every target of ``kind`` (``"all"`` kinds:
     every target); ``lost_share`` is the share of target-steps lost (for a multi-target
-tracker, of live target-steps without an assigned track); ``measured`` counts
+    tracker, of live target-steps without an assigned track); ``measured`` counts
     the target-steps with at least one measurement; ``anees`` is the average NEES (4 for an
     honest filter) and ``restarts`` counts the track restarts.
     """
@@ -99,10 +99,11 @@ def episode_errors(episode: Episode) -> list[ErrorRow]:
     if episode.settings.tracker.kind == "known":
         gone = lost(err).astype(float)
     else:
-        # A live target without an assigned track is lost (its error is NaN, never above
-        # the threshold); a target not alive is no target-step at all.
+        # A live target without an assigned track is lost (its error is NaN); an assigned
+        # track lies within the run's GOSPA cut-off, whatever LOST_THRESHOLD says (the
+        # studies' run_metrics count the same). A target not alive is no target-step.
         alive = np.asarray(episode.alive, dtype=bool)[1:]
-        gone = np.where(alive, ~(err <= LOST_THRESHOLD), np.nan)
+        gone = np.where(alive, np.isnan(err), np.nan)
 
     def row(target: str, kind: str, idx: list[int]) -> ErrorRow:
         e = err[:, idx]
