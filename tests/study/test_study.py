@@ -756,6 +756,21 @@ def test_a_study_directory_written_before_a_tracker_setting_is_the_same_study(
         studies.run_study(parse_study(text + f"{key} = {other}\n"), tmp_path, workers=1)
 
 
+def test_a_tracker_setting_the_tracker_does_not_read_leaves_the_study_the_same(
+        tmp_path: Path) -> None:
+    """A preset that gains IMM modes changes the modes' q's of its single-model methods
+    too, which they do not read: their directory resumes as the same study; a setting they
+    read is a different study."""
+    text = ("runs = 1\nsteps = 2\n[scenario]\npreset = \"search\"\n[[methods]]\nname = \"r\"\n"
+            "planner = \"random\"\n[methods.tracker]\nkind = \"pmb\"\n")
+    assert studies.run_study(parse_study(text), tmp_path, workers=1).ran == 1
+    unread = text + "mode_process_noise = [1.0, 2.0]\nswitching = [[0.5, 0.5], [0.5, 0.5]]\n"
+    assert studies.run_study(parse_study(unread), tmp_path, workers=1).ran == 0
+    with pytest.raises(ConfigError, match="mode_process_noise"):
+        studies.run_study(parse_study(unread + "bernoulli_model = \"imm\"\n"), tmp_path,
+                          workers=1)
+
+
 def test_a_scenario_files_unused_planner_settings_are_still_checked(tmp_path) -> None:
     # Its [planning] table is not used (the methods name their planners), but a key its own
     # planner does not take was accepted without a word; a run of the file refuses it.

@@ -55,6 +55,23 @@ def differences(old: Any, new: Any, path: str = "") -> list[str]:
     return [] if old == new else [f"{path} ({json.dumps(old)} -> {json.dumps(new)})"]
 
 
+def _settings_read(method: Any) -> Any:
+    """A resolved method without the tracker settings its tracker does not read
+    (:meth:`~sensorplan.simulation.settings.TrackerSettings.unused`): a change of such a
+    setting (a preset's IMM modes, for a method that runs one motion model) changes nothing
+    that ran, so the directory still holds the same study."""
+    if not (isinstance(method, dict) and isinstance(method.get("tracker"), dict)):
+        return method
+    from ..simulation.settings import TrackerSettings
+
+    try:
+        unused = set(TrackerSettings(**method["tracker"]).unused())
+    except (TypeError, ValueError, ConfigError):
+        return method                       # not a tracker this version can read: as is
+    return {**method, "tracker": {k: v for k, v in method["tracker"].items()
+                                  if k not in unused}}
+
+
 def part_path(out: Path, run: int, method: int, table: str) -> Path:
     """File of one (run, method)'s table: ``parts/run-00007/m03.steps.parquet``."""
     return Path(out) / "parts" / f"run-{run:05d}" / f"m{method:02d}.{table}.parquet"
@@ -279,6 +296,9 @@ def prepare(out: Path, study: Study) -> int | None:
                                  else m
                                  for m in before["methods"]]
         after: dict[str, Any] = {k: resolved.get(k) for k in RESULT_KEYS}
+        for side in (before, after):
+            if isinstance(side["methods"], list):
+                side["methods"] = [_settings_read(m) for m in side["methods"]]
         grown = (isinstance(before["runs"], int) and not isinstance(before["runs"], bool)
                  and after["runs"] > before["runs"])
         if grown:
