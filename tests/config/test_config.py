@@ -425,6 +425,26 @@ def test_the_search_preset_recycles_and_earlier_files_keep_what_they_ran() -> No
             assert m.settings.tracker.recycle_threshold == want, (path.name, m.name)
 
 
+def test_the_traffic_preset_runs_imm_bernoullis_and_earlier_files_keep_what_they_ran() -> None:
+    """The traffic preset's tracks are IMMs of the recorded motion's two fitted modes; the
+    study files that ran before name one motion model, each method but those that set the
+    IMM themselves."""
+    from sensorplan.simulation.scenario import TRAFFIC_MODE_Q, TRAFFIC_SWITCHING
+    from sensorplan.study.file import load_study
+
+    tracker = load_simulation(preset="traffic").settings.tracker
+    assert (tracker.bernoulli_model, tracker.mode_process_noise, tracker.switching) == (
+        "imm", TRAFFIC_MODE_Q, TRAFFIC_SWITCHING)
+    assert load_simulation(preset="search").settings.tracker.bernoulli_model == "cv"
+    files = [p for p in sorted((ROOT / "studies").rglob("*.toml"))
+             if 'preset = "traffic"' in p.read_text()]
+    assert len(files) >= 9
+    for path in files:
+        for m in load_study(path).methods:
+            want = "imm" if m.name.endswith("/imm") else "cv"
+            assert m.settings.tracker.bernoulli_model == want, (path.name, m.name)
+
+
 def test_the_swarm_preset_has_a_quieter_imm_manoeuvre_mode() -> None:
     swarm = load_simulation(preset="swarm").settings.tracker
     paper = load_simulation(preset="paper").settings.tracker

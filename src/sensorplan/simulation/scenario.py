@@ -524,6 +524,11 @@ TRAFFIC_RADAR: dict[str, Any] = {
 #: recorded motion's own q (its one-step residuals scoring 4 on average) is 32
 #: (scripts/traffic_motion_q.py): this q is conservative.
 TRAFFIC_Q = 100.0
+#: The ``traffic`` preset tracker's IMM modes (m^2/s^3) and switching matrix: the recorded
+#: motion's maximum-likelihood two-mode fit (``scripts/traffic_motion_q.py --modes 2``:
+#: q = 7.42 and 59.89, switching rows (0.7914, 0.2086) and (0.2311, 0.7689)), rounded.
+TRAFFIC_MODE_Q = (7.4, 60.0)
+TRAFFIC_SWITCHING = ((0.79, 0.21), (0.23, 0.77))
 
 
 def traffic_scenario() -> Scenario:
@@ -620,8 +625,16 @@ PRESET_SETTINGS: dict[str, dict[str, dict[str, Any]]] = {
     # (a 40 x 40 grid); a GOSPA cut-off of 500 m, above a track's error (tens of metres of
     # noise, 75 m of a 6 m/s^2 turn over one 5 s step).
     # Planning searches, as in the search preset, by the same rule (docs/results.md 15.5).
+    # Each track is an IMM of two CWNA modes fitted to the recorded motion (TRAFFIC_MODE_Q):
+    # one q was conservative for straight flight (q = 100: ANEES 1.82) or too tight for
+    # turns (q = 32: four times the label switches). On a fresh seed the IMM made the tracks
+    # honest (ANEES 2.96), lost held aircraft in 4 runs of 100 instead of 10, and was better
+    # on GOSPA (-44.6 [-47.6, -41.5] m) with label switches within the rule's +1 a run, by
+    # the rule fixed before those runs (docs/results.md 16.16).
     "traffic": {"tracker": {"kind": "pmb", "births": "uniform", "birth_rate": 0.14,
-                            "process_noise": TRAFFIC_Q, "grid_resolution": 2000.0},
+                            "process_noise": TRAFFIC_Q, "grid_resolution": 2000.0,
+                            "bernoulli_model": "imm", "mode_process_noise": list(TRAFFIC_MODE_Q),
+                            "switching": [list(row) for row in TRAFFIC_SWITCHING]},
                 "planning": {"search": "on", "search_sectors": SEARCH_SECTORS},
                 "run": {"steps": TRAFFIC.steps, "gospa_c": 500.0}},
 }
