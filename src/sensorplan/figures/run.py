@@ -231,9 +231,11 @@ def draw_errors(ax: Axes, episode: Episode, dt: float) -> None:
     from ..study.metrics import LOST_THRESHOLD
 
     settings = getattr(episode, "settings", None)
-    known = settings is None or settings.tracker.kind == "known"
-    limit = LOST_THRESHOLD if known else float(settings.gospa_c)
-    label = f"lost above {limit:g} m" if known else f"no track beyond c = {limit:g} m"
+    if settings is None or settings.tracker.kind == "known":
+        limit, label = LOST_THRESHOLD, f"lost above {LOST_THRESHOLD:g} m"
+    else:
+        limit = float(settings.gospa_c)
+        label = f"no track beyond c = {limit:g} m"
 
     err = np.asarray(episode.error, dtype=float)
     cov = np.asarray(episode.cov, dtype=float)
