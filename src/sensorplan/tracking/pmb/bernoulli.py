@@ -87,13 +87,19 @@ class Bernoullis(Rows):
             assert self.mode_means is not None and self.mode_covs is not None
             if mode_probs is None:
                 raise ValueError("mode_probs are needed for Bernoullis with modes")
-            R = self.mode_probs.shape[1]
-            self.mode_probs = np.concatenate([self.mode_probs,
-                                              np.tile(mode_probs, (len(r), 1))])
-            self.mode_means = np.concatenate([self.mode_means,
-                                              np.repeat(means[:, None], R, axis=1)])
-            self.mode_covs = np.concatenate([self.mode_covs,
-                                             np.repeat(covs[:, None], R, axis=1)])
+            probs, mm, mP = mode_copies(means, covs, mode_probs)
+            self.mode_probs = np.concatenate([self.mode_probs, probs])
+            self.mode_means = np.concatenate([self.mode_means, mm])
+            self.mode_covs = np.concatenate([self.mode_covs, mP])
+
+
+def mode_copies(means: FloatArray, covs: FloatArray, mode_probs: FloatArray
+                ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Modes of densities ``(n, 4)``, ``(n, 4, 4)`` that all start at their density, with
+    probabilities ``mode_probs (R,)``: ``(n, R)``, ``(n, R, 4)``, ``(n, R, 4, 4)``."""
+    R = len(mode_probs)
+    return (np.tile(mode_probs, (len(means), 1)), np.repeat(means[:, None], R, axis=1),
+            np.repeat(covs[:, None], R, axis=1))
 
 
 @dataclass(frozen=True)
@@ -494,4 +500,4 @@ def first_detection(sensing: Sensing, look: Look, cell_means: FloatArray,
 
 
 __all__ = ["Bernoullis", "PairTerms", "first_detection", "missed_existence", "missed_look",
-           "mixture_moments", "pair_terms", "updates"]
+           "mixture_moments", "mode_copies", "pair_terms", "updates"]

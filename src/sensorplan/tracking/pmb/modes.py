@@ -36,7 +36,7 @@ from ..._types import BoolArray, FloatArray, IntArray
 from ...models.motion import cv_matrices
 from .._imm_nb import combine_rows, mix
 from ..imm import stationary
-from .bernoulli import Bernoullis
+from .bernoulli import Bernoullis, mode_copies
 from .hypotheses import Hypotheses
 
 _TINY = float(np.finfo(float).tiny)
@@ -83,10 +83,8 @@ def make_modes(dt: float, mode_process_noise: object, switching: object) -> Mode
 
 def start_modes(bern: Bernoullis, modes: Modes) -> None:
     """Give every Bernoulli ``R`` modes at its density, with the initial probabilities."""
-    R = len(modes.q)
-    bern.mode_probs = np.tile(modes.initial, (len(bern), 1))
-    bern.mode_means = np.repeat(bern.means[:, None], R, axis=1)
-    bern.mode_covs = np.repeat(bern.covs[:, None], R, axis=1)
+    bern.mode_probs, bern.mode_means, bern.mode_covs = mode_copies(bern.means, bern.covs,
+                                                                   modes.initial)
 
 
 def combine(bern: Bernoullis, rows: IntArray | None = None) -> None:
