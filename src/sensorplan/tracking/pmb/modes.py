@@ -35,6 +35,7 @@ import numpy as np
 from ..._types import BoolArray, FloatArray, IntArray
 from ...models.motion import cv_matrices
 from .._imm_nb import combine_rows, mix
+from ..ekf import predict as kalman_predict
 from ..imm import stationary
 from .bernoulli import Bernoullis, mode_copies
 from .hypotheses import Hypotheses
@@ -111,9 +112,7 @@ def predict(bern: Bernoullis, F: FloatArray, modes: Modes
     assert mu is not None
     c = np.maximum(mu @ Pi, 1e-300)
     x0, P0 = mix(mu, Pi, c, bern.mode_means, bern.mode_covs)
-    xp = x0 @ F.T
-    Pp = F @ P0 @ F.T + modes.Q[None]
-    Pp = 0.5 * (Pp + np.swapaxes(Pp, -1, -2))
+    xp, Pp = kalman_predict(x0, P0, F, modes.Q)      # Q (R, 4, 4): each mode its own
     bern.mode_probs = c / c.sum(axis=1, keepdims=True)
     bern.mode_means, bern.mode_covs = xp, Pp
     return x0, P0, xp, Pp

@@ -105,7 +105,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..._types import BoolArray, FloatArray
+from ..._types import BoolArray, FloatArray, IntArray
 from ..base import Looks, TrackSet, UndetectedReport, UpdateRecord, given_tracks
 from ..ekf import predict as kalman_predict
 from ..known_map import EDGE_EXITS, crossing_log_mass, map_edge_predict
@@ -400,7 +400,7 @@ class PMBTracker(MapTracker):
         return out
 
     def _at_edge(self, means: FloatArray, covs: FloatArray, start_means: FloatArray,
-                 start_covs: FloatArray, mode: FloatArray | None = None
+                 start_covs: FloatArray, mode: IntArray | None = None
                  ) -> tuple[FloatArray, FloatArray, BoolArray, FloatArray]:
         """The map's edge on predicted densities ``(B, 4)``, ``(B, 4, 4)`` that started the
         step at ``start_*``: their new moments, which were changed, and the log of what
@@ -467,13 +467,7 @@ class PMBTracker(MapTracker):
         b, s = self.bern, self.sensing
         n, m = len(b), len(Z)
         # 1. Missed-look hypotheses.
-        pbar, mm, mP = np.zeros(n), b.means, b.covs
-        if n:
-            seen, p, chol = s.quadrature(b.means, b.covs, look)
-            if seen.size:
-                m_, P_, pbar[seen] = missed_look(b.means[seen], b.covs[seen], chol, p)
-                mm, mP = b.means.copy(), b.covs.copy()
-                mm[seen], mP[seen] = m_, P_
+        pbar, mm, mP = self._missed(b.means, b.covs, look)
         detect = s.detectable(self.grid.centres, look)                       # (C,)
         if m == 0:
             # A missed look: r' and the missed-look density.
@@ -517,6 +511,20 @@ class PMBTracker(MapTracker):
         self._start(h, gm[rows.size:], gP[rows.size:])
         return self._finish_look(detect, terms.gated[:n], n, h, pbar, w, marg)
 
+    def _missed(self, means: FloatArray, covs: FloatArray, look: Look
+                ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The missed-look hypotheses of densities ``(B, 4)``, ``(B, 4, 4)`` (step 1):
+        ``Pbar (B,)`` and the densities a miss leaves (the given arrays where the look
+        cannot see any)."""
+        pbar, mm, mP = np.zeros(len(means)), means, covs
+        if len(means):
+            seen, p, chol = self.sensing.quadrature(means, covs, look)
+            if seen.size:
+                m_, P_, pbar[seen] = missed_look(means[seen], covs[seen], chol, p)
+                mm, mP = means.copy(), covs.copy()
+                mm[seen], mP[seen] = m_, P_
+        return pbar, mm, mP
+
     def _start(self, h: hyp.Hypotheses, means: FloatArray, covs: FloatArray) -> None:
         """Append the Bernoullis the look's detections start (step 5), each with the next
         unused label."""
@@ -550,13 +558,7 @@ class PMBTracker(MapTracker):
         n, m, R = len(b), len(Z), len(modes.q)
         cm, cP = b.mode_means.reshape(-1, 4), b.mode_covs.reshape(-1, 4, 4)
         # 1. Each mode's missed-look hypothesis; the Bernoulli's Pbar mixes them.
-        pbar_c, mm, mP = np.zeros(n * R), cm, cP
-        if n:
-            seen, p, chol = s.quadrature(cm, cP, look)
-            if seen.size:
-                m_, P_, pbar_c[seen] = missed_look(cm[seen], cP[seen], chol, p)
-                mm, mP = cm.copy(), cP.copy()
-                mm[seen], mP[seen] = m_, P_
+        pbar_c, mm, mP = self._missed(cm, cP, look)
         pbar_modes = pbar_c.reshape(n, R)
         pbar = imm.bernoulli_pbar(b.mode_probs, pbar_modes)
         detect = s.detectable(self.grid.centres, look)
