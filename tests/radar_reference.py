@@ -114,19 +114,22 @@ def cos_boresight(dx: FloatArray, dy: FloatArray, heading: Any, params: SensorPa
 
 def noise_std(r: FloatArray, cos_psi: FloatArray,
               params: SensorParams) -> tuple[FloatArray, FloatArray]:
-    r"""Range (m) and azimuth (rad) noise standard deviations (SNR model).
+    r"""Range (m) and azimuth (rad) noise standard deviations (SNR model and error floors).
 
     .. math::
         \mathrm{SNR} = 10^{\mathrm{snr_{ref}}/10} (r_{ref}/r)^4,\quad
-        \sigma_r = \frac{\Delta r}{\sqrt{2\,\mathrm{SNR}}},\quad
-        \sigma_\phi = \frac{\beta / \cos\psi}{k_m \sqrt{2\,\mathrm{SNR}}}
+        \sigma_r = \Big|\Big(\frac{\Delta r}{\sqrt{2\,\mathrm{SNR}}}, f_r\Big)\Big|,\quad
+        \sigma_\phi = \Big|\Big(\frac{\beta / \cos\psi}{k_m \sqrt{2\,\mathrm{SNR}}},
+        f_\phi\Big)\Big|
     """
     snr = 10.0 ** (np.asarray(params.snr_ref_db) / 10.0) * (np.asarray(params.range_ref) / r) ** 4
     root = np.sqrt(2.0 * snr)
-    sigma_r = np.asarray(params.range_resolution) / root
+    sigma_r = np.hypot(np.asarray(params.range_resolution) / root,
+                       np.asarray(params.range_error_floor, dtype=float))
     with np.errstate(divide="ignore"):
-        sigma_phi = ((np.asarray(params.beamwidth) / cos_psi)
-                     / (np.asarray(params.monopulse_slope) * root))
+        sigma_phi = np.hypot((np.asarray(params.beamwidth) / cos_psi)
+                             / (np.asarray(params.monopulse_slope) * root),
+                             np.asarray(params.azimuth_error_floor, dtype=float))
     return sigma_r, sigma_phi
 
 

@@ -363,6 +363,8 @@ RANGES: dict[str, Range] = {
     "snr_ref_db": Range(-100.0, 100.0, "dB"),
     "range_ref": Range(1.0, 1e6, "m"),
     "range_resolution": Range(1e-2, 1e4, "m"),
+    "range_error_floor": Range(0.0, 1e4, "m"),
+    "azimuth_error_floor": Range(0.0, 0.1, "rad"),
     "monopulse_slope": Range(0.1, 10.0),
     "clutter_rate": Range(0.0, 1e3, "per look"),
     "probability": Range(0.0, 1.0, lo_open=True, hi_open=True),
@@ -395,14 +397,17 @@ MIN_EIGENVALUE = 1e-9
 
 def check_radar_precision(snr_ref_db: float, range_ref: float, altitude: float,
                           range_resolution: float, beamwidth: float, monopulse_slope: float,
-                          min_ground_range: float, prefix: str) -> None:
+                          min_ground_range: float, prefix: str,
+                          range_error_floor: float = 0.0,
+                          azimuth_error_floor: float = 0.0) -> None:
     """Refuse a radar too precise to compute with: its SNR at the altitude (the closest
     possible range), ``snr_ref_db + 40 log10(range_ref / altitude)``, above
     :data:`MAX_PEAK_SNR_DB`, or its noise there below :data:`MIN_RANGE_SIGMA` in range
-    (``range_resolution / sqrt(2 SNR)``) or :data:`MIN_AZIMUTH_SIGMA` in azimuth
-    (``beamwidth / monopulse_slope / sqrt(2 SNR)``), or the ground position noise that the
-    azimuth gives at the nearest ground range it sees (``min_ground_range`` times that
-    azimuth noise) below :data:`MIN_RANGE_SIGMA`. Fields are ``prefix.<key>``."""
+    (``range_resolution / sqrt(2 SNR)`` and the range error floor in quadrature) or
+    :data:`MIN_AZIMUTH_SIGMA` in azimuth (``beamwidth / monopulse_slope / sqrt(2 SNR)`` and
+    the azimuth error floor in quadrature), or the ground position noise that the azimuth
+    gives at the nearest ground range it sees (``min_ground_range`` times that azimuth
+    noise) below :data:`MIN_RANGE_SIGMA`. Fields are ``prefix.<key>``."""
     peak = snr_ref_db + 40.0 * math.log10(range_ref / altitude)
     if peak > MAX_PEAK_SNR_DB:
         raise ConfigError(f"{prefix}.snr_ref_db", f"with range_ref {range_ref:g} m and "
@@ -410,12 +415,12 @@ def check_radar_precision(snr_ref_db: float, range_ref: float, altitude: float,
                           f"{peak:.4g} dB, above the limit of {MAX_PEAK_SNR_DB:g} dB (lower "
                           "snr_ref_db or range_ref, or raise the altitude)")
     root = math.sqrt(2.0 * 10.0 ** (peak / 10.0))
-    sigma_r = range_resolution / root
+    sigma_r = math.hypot(range_resolution / root, range_error_floor)
     if sigma_r < MIN_RANGE_SIGMA:
         raise ConfigError(f"{prefix}.range_resolution", f"gives a range noise of "
                           f"{sigma_r:.3g} m at the closest range (SNR {peak:.4g} dB), below "
                           f"the limit of {MIN_RANGE_SIGMA:g} m")
-    sigma_phi = beamwidth / monopulse_slope / root
+    sigma_phi = math.hypot(beamwidth / monopulse_slope / root, azimuth_error_floor)
     if sigma_phi < MIN_AZIMUTH_SIGMA:
         raise ConfigError(f"{prefix}.beamwidth", f"gives an azimuth noise of "
                           f"{sigma_phi:.3g} rad at the closest range (with monopulse_slope "
@@ -437,7 +442,8 @@ def check_sensor_precision(params: Any, prefix: str) -> None:
     p = params
     check_radar_precision(float(p.snr_ref_db), float(p.range_ref), float(p.altitude),
                           float(p.range_resolution), float(p.beamwidth),
-                          float(p.monopulse_slope), float(p.min_ground_range), prefix)
+                          float(p.monopulse_slope), float(p.min_ground_range), prefix,
+                          float(p.range_error_floor), float(p.azimuth_error_floor))
 
 
 def check_covariance_scale(P: Any, field: str) -> None:

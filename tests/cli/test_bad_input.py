@@ -233,6 +233,8 @@ EXTREME_PLANS = [
     (sensor(range_resolution=0.01, snr_ref_db=100.0), "sensors[0].range_resolution"),
     (sensor(range_ref=1e6, snr_ref_db=10.0), "sensors[0].snr_ref_db"),
     (sensor(min_ground_range=1e-6), "sensors[0].min_ground_range"),
+    (sensor(range_error_floor=-1.0), "sensors[0].range_error_floor"),
+    (sensor(azimuth_error_floor=1e300), "sensors[0].azimuth_error_floor"),
     (target(cov=[[1e-12, 0, 0, 0], [0, 400, 0, 0], [0, 0, 4, 0], [0, 0, 0, 4]]),
      "targets[0].cov"),
     (target(cov=[[400, 0, 0, 0], [0, 400, 0, 0], [0, 0, 1e9, 0], [0, 0, 0, 4]]),
@@ -289,6 +291,10 @@ def test_values_at_the_edges_of_the_ranges_run_cleanly(capsys, tmp_path) -> None
     # The most extreme accepted values give finite results and no warning.
     cases = [sensor(range_resolution=0.02, snr_ref_db=100.0, range_ref=1.0, altitude=100.0,
                     min_ground_range=100.0),
+             # Error floors make a radar refused for its precision usable.
+             sensor(range_resolution=0.01, snr_ref_db=100.0, range_error_floor=1.0,
+                    azimuth_error_floor=1e-3, min_ground_range=1.0),
+             sensor(range_error_floor=1e4, azimuth_error_floor=0.1),
              sensor(snr_ref_db=-100.0, range_ref=1e6, beamwidth=math.pi / 2,
                     monopulse_slope=0.1, range_resolution=1e4),
              sensor(altitude=100.0, min_ground_range=20.0, max_ground_range=1e8,

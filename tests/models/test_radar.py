@@ -438,7 +438,9 @@ def _varied(rng, n):
                          range_ref=float(rng.uniform(300, 900)),
                          beamwidth=float(rng.uniform(0.01, 0.1)),
                          monopulse_slope=float(rng.uniform(1.0, 2.0)),
-                         range_resolution=float(rng.uniform(5, 50)))
+                         range_resolution=float(rng.uniform(5, 50)),
+                         range_error_floor=float(rng.uniform(0, 5)),
+                         azimuth_error_floor=float(rng.uniform(0, 4e-3)))
             for _ in range(n)]
 
 
@@ -594,3 +596,22 @@ def test_false_alarms_are_measured_noisy_points_of_the_sensing_region() -> None:
     noiseless = radar.false_alarms(table, 0, sxy, heading, u, None)
     np.testing.assert_array_equal(noiseless[:, 0], h[inside, 0])
     assert radar.false_alarms(table, 0, sxy, heading, np.zeros((0, 2)), None).shape == (0, 2)
+
+
+def test_error_floors_bound_the_noise_and_zero_floors_change_nothing(rng):
+    """sigma^2 = the SNR model's + floor^2 (the same rounding as adding it), never below
+    the floor; without floors the SNR model's c r^4."""
+    floored = dataclasses.replace(DEF, range_error_floor=3.0,
+                                  azimuth_error_floor=math.radians(0.1))
+    table = radar_table([DEF, floored])
+    n = 2000
+    s = rng.uniform(0, 600, size=(n, 2))
+    x = s + rng.uniform(-3000, 3000, size=(n, 2))
+    th = rng.uniform(-4, 4, size=n)
+    _, _, bare, _ = radar.measure_looks(table, np.zeros(n, dtype=np.int64), x, s, th)
+    _, _, var, _ = radar.measure_looks(table, np.ones(n, dtype=np.int64), x, s, th)
+    np.testing.assert_array_equal(var, bare + [9.0, math.radians(0.1) ** 2])
+    r = np.sqrt(((x - s) ** 2).sum(-1) + DEF.altitude ** 2)
+    c_r = DEF.range_resolution ** 2 / (2 * 10 ** (DEF.snr_ref_db / 10) * DEF.range_ref ** 4)
+    np.testing.assert_allclose(bare[:, 0], c_r * r ** 4, rtol=1e-12, atol=0)   # no floor
+    assert (var[:, 0] >= 9.0).all() and (var[:, 1] >= math.radians(0.1) ** 2).all()

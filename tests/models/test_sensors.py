@@ -25,6 +25,9 @@ BAD = [
                              "degrees are written fov_half_angle_deg)"),
     ("false_alarm_probability", 1.0, "must be in (0, 1), got 1.0"),
     ("clutter_rate", -1.0, "must be in [0, 1000] per look, got -1.0"),
+    ("range_error_floor", -1.0, "must be in [0, 10000] m, got -1.0"),
+    ("azimuth_error_floor", 1.0, "must be in [0, 0.1] rad, got 1.0 (angles are in radians; "
+                                 "degrees are written azimuth_error_floor_deg)"),
     ("min_ground_range", 500.0, "must be <= max_ground_range"),
 ]
 
@@ -38,7 +41,8 @@ def test_a_broken_rule_names_the_field(name: str, value: Any, message: str) -> N
 
 def test_the_defaults_are_valid_and_the_angles_are_the_radian_fields() -> None:
     SensorParams().validate()
-    assert ANGLE_FIELDS == ("max_turn", "fov_half_angle", "depression", "beamwidth")
+    assert ANGLE_FIELDS == ("max_turn", "fov_half_angle", "depression", "beamwidth",
+                            "azimuth_error_floor")
 
 
 def test_the_file_model_is_the_dataclass() -> None:
@@ -52,13 +56,14 @@ def test_the_file_model_is_the_dataclass() -> None:
              "min_ground_range": 100.0, "max_ground_range": 300.0, "depression_deg": 35.0,
              "snr_ref_db": 12.0, "range_ref": 500.0, "beamwidth": 0.05,
              "monopulse_slope": 1.4, "range_resolution": 25.0, "detection": "swerling1",
-             "false_alarm_probability": 1e-5, "clutter_rate": 2.0}
+             "false_alarm_probability": 1e-5, "clutter_rate": 2.0,
+             "range_error_floor": 40.0, "azimuth_error_floor_deg": 0.1}
     assert validate(SensorParamsModel, given).params() == SensorParams(
         altitude=320.0, moves=(15.0,), max_turn=math.radians(30.0), fov_half_angle=0.7,
         min_ground_range=100.0, max_ground_range=300.0, depression=math.radians(35.0),
         snr_ref_db=12.0, range_ref=500.0, beamwidth=0.05, monopulse_slope=1.4,
         range_resolution=25.0, detection="swerling1", false_alarm_probability=1e-5,
-        clutter_rate=2.0)
+        clutter_rate=2.0, range_error_floor=40.0, azimuth_error_floor=math.radians(0.1))
     for data, field, message in (
             ({"detection": "radar"}, "detection",
              "unknown detection model 'radar'; choose from ideal, swerling1"),

@@ -63,6 +63,11 @@ class SensorParams:
         Monopulse slope (dimensionless).
     range_resolution : float
         Range resolution (m).
+    range_error_floor, azimuth_error_floor : float
+        Standard deviations (m, rad) of the measurement errors that do not fall with the
+        SNR (quantisation, the antenna's and the processing's own errors), added in
+        quadrature to the SNR model's: a radar is never more precise than these, however
+        close the target. 0 (the default, the paper's radar) leaves the SNR model alone.
     detection : {"ideal", "swerling1"}
         ``ideal``: every look at a target in the field of view detects it; ``swerling1``:
         it is detected with probability ``Pd = Pfa ** (1 / (1 + SNR))`` (a Swerling 1
@@ -86,6 +91,8 @@ class SensorParams:
     beamwidth: float = _param(math.radians(3.0), "beamwidth", positive=True, angle=True)
     monopulse_slope: float = _param(1.6, "monopulse_slope", positive=True)
     range_resolution: float = _param(30.0, "range_resolution", positive=True)
+    range_error_floor: float = _param(0.0, "range_error_floor")
+    azimuth_error_floor: float = _param(0.0, "azimuth_error_floor", angle=True)
     detection: str = _param("ideal", choices=DETECTION_MODELS, noun="detection model")
     false_alarm_probability: float = _param(1e-6, "probability")
     clutter_rate: float = _param(0.0, "clutter_rate")
@@ -140,16 +147,18 @@ ANGLE_FIELDS = tuple(f.name for f in fields(SensorParams) if f.metadata["angle"]
 
 #: Columns of a radar table row (:func:`radar_table`), in order. ``snr0`` is the linear SNR
 #: at ``range_ref``; ``var_r`` and ``var_phi`` are the noise constants with
-#: :math:`\sigma_r^2 = c_r r^4` and :math:`\sigma_\phi^2 = c_\phi r^4 / \cos^2\psi`;
+#: :math:`\sigma_r^2 = c_r r^4 + f_r^2` and
+#: :math:`\sigma_\phi^2 = c_\phi r^4 / \cos^2\psi + f_\phi^2`, ``floor_r2`` and
+#: ``floor_phi2`` the squared error floors :math:`f_r^2, f_\phi^2`;
 #: ``swerling`` is 1 for Swerling 1 detection, 0 for ideal; ``log_pfa`` is ln Pfa;
 #: ``clutter_rate`` the false detections per look and ``area`` the sensing region's ground
 #: area (m^2). The last column belongs to planning: ``aware`` is 1 when planned looks count
 #: their detection probability and the clutter.
 COLUMNS = ("altitude", "altitude2", "cos_depression", "sin_depression", "fov_half_angle",
            "min_ground_range", "max_ground_range", "snr0", "range_ref", "var_r", "var_phi",
-           "swerling", "log_pfa", "clutter_rate", "area", "aware")
+           "floor_r2", "floor_phi2", "swerling", "log_pfa", "clutter_rate", "area", "aware")
 (ALTITUDE, ALTITUDE2, COS_DEP, SIN_DEP, FOV, G_MIN, G_MAX, SNR0, RANGE_REF, VAR_R, VAR_PHI,
- SWERLING, LOG_PFA, CLUTTER_RATE, AREA, AWARE) = range(len(COLUMNS))
+ FLOOR_R2, FLOOR_PHI2, SWERLING, LOG_PFA, CLUTTER_RATE, AREA, AWARE) = range(len(COLUMNS))
 
 
 def radar_table(sensors: Sequence[SensorParams] | SensorParams, *,
@@ -163,7 +172,9 @@ def radar_table(sensors: Sequence[SensorParams] | SensorParams, *,
     = c_\phi r^4/\cos^2\psi` with
 
     .. math:: c_r = \frac{\Delta r^2}{2 s_0 r_{ref}^4},\qquad
-              c_\phi = \frac{\beta^2}{k_m^2\, 2 s_0 r_{ref}^4}.
+              c_\phi = \frac{\beta^2}{k_m^2\, 2 s_0 r_{ref}^4};
+
+    the error floors add :math:`f_r^2` and :math:`f_\phi^2` to these variances.
 
     Parameters
     ----------
@@ -188,6 +199,7 @@ def radar_table(sensors: Sequence[SensorParams] | SensorParams, *,
         out[n] = (alt, alt * alt, math.cos(dep), math.sin(dep), fov, gmin, gmax, snr0,
                   float(p.range_ref), float(p.range_resolution) ** 2 / two_s0_r4,
                   (float(p.beamwidth) / float(p.monopulse_slope)) ** 2 / two_s0_r4,
+                  float(p.range_error_floor) ** 2, float(p.azimuth_error_floor) ** 2,
                   float(p.detection == "swerling1"), math.log(float(p.false_alarm_probability)),
                   float(p.clutter_rate), fov * (gmax * gmax - gmin * gmin), float(aware))
     return out

@@ -24,8 +24,9 @@ at ground offset :math:`(dx, dy)` from a platform at altitude :math:`z` with hea
     \cos\psi = \frac{\cos\delta\,(dx\cos\theta + dy\sin\theta) + \sin\delta\, z}{r}
     \quad (\text{angle between line of sight and boresight, depression } \delta),
 
-    \sigma_r^2 = c_r r^4,\qquad \sigma_\phi^2 = c_\phi\, r^4 / \cos^2\psi
-    \quad (\text{the SNR model, constants in the table row}).
+    \sigma_r^2 = c_r r^4 + f_r^2,\qquad
+    \sigma_\phi^2 = c_\phi\, r^4 / \cos^2\psi + f_\phi^2
+    \quad (\text{the SNR model and the error floors, constants in the table row}).
 
 The field of view (the sensing region) is :math:`g \in [g_{min}, g_{max}]`,
 :math:`|\mathrm{wrap}(\phi - \theta)| \le f` and :math:`\cos\psi > 0`, bounds inclusive with
@@ -57,7 +58,8 @@ import numpy as np
 
 from ..._compiled.jit import njit  # numba.njit, once numba's kernel cache is known to be writable
 from ..sensors import (ALTITUDE, ALTITUDE2, AREA, AWARE, CLUTTER_RATE, COS_DEP, FOV,
-                       G_MAX, G_MIN, LOG_PFA, RANGE_REF, SIN_DEP, SNR0, SWERLING, VAR_PHI, VAR_R)
+                       FLOOR_PHI2, FLOOR_R2, G_MAX, G_MIN, LOG_PFA, RANGE_REF, SIN_DEP, SNR0,
+                       SWERLING, VAR_PHI, VAR_R)
 
 #: A sensor's radar row: an array (a row of the radar table) or a tuple of its values
 #: (:func:`row_values`); every function here takes either.
@@ -94,7 +96,7 @@ def row_values(row: np.ndarray) -> tuple:
     time. Its length must follow :data:`sensorplan.models.sensors.COLUMNS` (a test checks).
     """
     return (row[0], row[1], row[2], row[3], row[4], row[5], row[6], row[7], row[8], row[9],
-            row[10], row[11], row[12], row[13], row[14], row[15])
+            row[10], row[11], row[12], row[13], row[14], row[15], row[16], row[17])
 
 
 @njit(cache=True, error_model="numpy")
@@ -116,9 +118,10 @@ def cos_psi(row: Row, dx: float, dy: float, cos_h: float, sin_h: float,
 
 @njit(cache=True, error_model="numpy")
 def noise_variances(row: Row, r2: float, cpsi: float) -> tuple[float, float]:
-    """Range (m^2) and azimuth (rad^2) noise variances at slant range^2 ``r2``."""
+    """Range (m^2) and azimuth (rad^2) noise variances at slant range^2 ``r2``: the SNR
+    model's plus the squared error floors (a zero floor adds exactly nothing)."""
     r4 = r2 * r2
-    return row[VAR_R] * r4, row[VAR_PHI] * r4 / (cpsi * cpsi)
+    return row[VAR_R] * r4 + row[FLOOR_R2], row[VAR_PHI] * r4 / (cpsi * cpsi) + row[FLOOR_PHI2]
 
 
 @njit(cache=True, error_model="numpy")
