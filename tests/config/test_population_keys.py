@@ -50,7 +50,17 @@ def test_known_target_scenarios_are_written_as_before():
     d = scenario_to_dict(paper_scenario())
     assert set(d) == {"dt", "process_noise", "map", "initial", "targets", "sensors",
                       "buildings"}
+    assert not {"range_error_floor", "azimuth_error_floor"} & set(d["sensors"][0])
     assert paper_scenario().known_targets
+
+
+def test_error_floors_are_written_when_set_and_read_back():
+    sc = scenario_from_dict({"targets": [{}], "sensors": [
+        {"range_error_floor": 60.0, "azimuth_error_floor_deg": 0.14}, {}]})
+    d = scenario_to_dict(sc)
+    assert d["sensors"][0]["range_error_floor"] == 60.0
+    assert "range_error_floor" not in d["sensors"][1]
+    assert scenario_from_dict(json.loads(json.dumps(d))) == sc
 
 
 @pytest.mark.parametrize("lines, field, words", [

@@ -187,6 +187,11 @@ class ScenarioFile(Strict):
         return scenario
 
 
+#: Sensor keys that :func:`scenario_to_dict` leaves out at their default 0 (added after
+#: study directories stored scenarios without them).
+UNWRITTEN_ZERO = ("range_error_floor", "azimuth_error_floor")
+
+
 def scenario_from_dict(data: Any) -> Scenario:
     """Validate scenario-file content (a parsed TOML table) and build the scenario.
 
@@ -206,8 +211,8 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
 
     Fields left to each run's seed (``None`` positions, speeds, headings) are omitted, as
     they would be in the file. The births, deaths and scripted-truth keys are written only
-    when they differ from the known-target defaults, so that a known-target scenario is
-    written as it always was (a study directory written before they existed still holds
+    when they differ from the known-target defaults, and the radar's error floors only when
+    they are not 0, so that a scenario without them is written as it always was (a study directory written before they existed still holds
     the same study). :func:`scenario_from_dict` inverts it exactly (floats round-trip
     through JSON unchanged).
     """
@@ -217,6 +222,8 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
             v = getattr(spec.params, f.name)
             if f.name == "moves":
                 d[f.name] = [float(m) for m in v]
+            elif f.name in UNWRITTEN_ZERO and v == 0.0:
+                continue
             else:
                 d[f.name] = v if isinstance(v, str) else float(v)
         if spec.position is not None:
