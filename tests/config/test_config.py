@@ -6,6 +6,7 @@ import copy
 import dataclasses
 import json
 import math
+import tomllib
 from pathlib import Path
 from typing import Any
 
@@ -437,12 +438,35 @@ def test_the_traffic_preset_runs_imm_bernoullis_and_earlier_files_keep_what_they
         "imm", TRAFFIC_MODE_Q, TRAFFIC_SWITCHING)
     assert load_simulation(preset="search").settings.tracker.bernoulli_model == "cv"
     files = [p for p in sorted((ROOT / "studies").rglob("*.toml"))
-             if 'preset = "traffic"' in p.read_text()]
-    assert len(files) >= 9
+             if 'preset = "traffic"' in p.read_text() or "traffic_thermal_radars" in p.read_text()]
+    assert len(files) >= 10
     for path in files:
         for m in load_study(path).methods:
             want = "imm" if m.name.endswith("/imm") else "cv"
             assert m.settings.tracker.bernoulli_model == want, (path.name, m.name)
+
+
+def test_earlier_traffic_studies_name_the_radars_they_ran() -> None:
+    """The study files that ran before the traffic radars had error floors name the
+    scenario file of those radars: the preset's scenario but for the radars' blind discs
+    and floors."""
+    from sensorplan.config.scenario import scenario_from_dict
+    from sensorplan.simulation.scenario import traffic_scenario
+    from sensorplan.study.file import load_study
+
+    thermal = scenario_from_dict(tomllib.loads(
+        (ROOT / "configs" / "traffic_thermal_radars.toml").read_text()))
+    preset = traffic_scenario()
+    assert dataclasses.replace(thermal, sensors=preset.sensors) == preset
+    for old, new in zip(thermal.sensors, preset.sensors):
+        p = dataclasses.replace(new.params, min_ground_range=10000.0, range_error_floor=0.0,
+                                azimuth_error_floor=0.0)
+        assert dataclasses.replace(new, params=p) == old
+    files = [p for p in sorted((ROOT / "studies").rglob("*.toml"))
+             if "traffic_thermal_radars" in p.read_text()]
+    assert len(files) >= 10
+    for path in files:
+        assert load_study(path).scenario == thermal, path.name
 
 
 def test_the_swarm_preset_has_a_quieter_imm_manoeuvre_mode() -> None:
