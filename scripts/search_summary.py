@@ -31,7 +31,9 @@ ANEES of assigned tracks (target-steps whose estimate is within c). Markdown on 
 ``--with`` joins the methods of other study directories run with the same scenario, seed,
 run count and steps (a study split into parts): run r of every method starts from the same
 random streams whichever file it is in, so the methods stay paired run by run. Only the runs
-finished in every directory are kept.
+finished in every directory are kept. With ``--other-scenario`` the directories may differ
+in their scenario (a sensor's settings, say, on the same seed): each run's draws are the
+same, so the runs are still paired; a method name that repeats is renamed ``NAME@DIR``.
 """
 
 from __future__ import annotations
@@ -39,6 +41,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import sys
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -261,15 +264,34 @@ def summary_lines(tables: Any, reference: str) -> list[str]:
     return out
 
 
-def join(parts: list[Any]) -> Any:
+def renamed(tables: Any, suffix: str, taken: set[str]) -> Any:
+    """``tables`` with each method whose name is in ``taken`` renamed ``NAME@suffix``."""
+    names = {m.name: f"{m.name}@{suffix}" for m in tables.study.methods if m.name in taken}
+    if not names:
+        return tables
+    study = dataclasses.replace(tables.study, methods=tuple(
+        dataclasses.replace(m, name=names.get(m.name, m.name)) for m in tables.study.methods))
+
+    def frame(name: str) -> Any:
+        df = getattr(tables, name)
+        return df.assign(method=df["method"].astype(str).replace(names))
+
+    return dataclasses.replace(tables, study=study, **{
+        n: frame(n) for n in ("steps", "decisions", "sensors", "tracks", "gospa")})
+
+
+def join(parts: list[Any], other_scenario: bool = False) -> Any:
     """The tables of several parts of one study as the tables of one study: same scenario,
     seed, run count, steps and study-wide settings, distinct method names; the runs
-    finished in every part."""
+    finished in every part. ``other_scenario``: the scenarios may differ (the runs are
+    still paired by their random streams)."""
     import pandas as pd
 
     first = parts[0].study
     for p in parts[1:]:
         for key in ("scenario", "seed", "runs", "steps"):
+            if key == "scenario" and other_scenario:
+                continue
             if getattr(p.study, key) != getattr(first, key):
                 raise SystemExit(f"error: --with: the studies differ in {key}; their runs "
                                  "are not paired")
@@ -297,6 +319,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("study_dir")
     parser.add_argument("--with", dest="others", action="append", default=[],
                         metavar="OTHER_DIR", help="another part of the same study to join")
+    parser.add_argument("--other-scenario", action="store_true",
+                        help="the --with directories may have another scenario (the same "
+                             "seed, runs and steps: run r has the same random streams, so "
+                             "the runs stay paired); a method name that repeats gets the "
+                             "directory's name appended, NAME@DIR")
     which = parser.add_mutually_exclusive_group()
     which.add_argument("--reference", default="myopic",
                        help="the method the paired differences are taken against")
@@ -304,8 +331,14 @@ def main(argv: list[str] | None = None) -> None:
                        help="take them against the method named PREFIX... with the lowest "
                             "mean GOSPA")
     args = parser.parse_args(argv)
-    parts = [load_study_dir(d) for d in [args.study_dir, *args.others]]
-    tables = join(parts) if len(parts) > 1 else parts[0]
+    dirs = [args.study_dir, *args.others]
+    parts = [load_study_dir(d) for d in dirs]
+    if args.other_scenario:
+        taken = {m.name for m in parts[0].study.methods}
+        for i in range(1, len(parts)):
+            parts[i] = renamed(parts[i], Path(dirs[i]).name, taken)
+            taken |= {m.name for m in parts[i].study.methods}
+    tables = join(parts, args.other_scenario) if len(parts) > 1 else parts[0]
     if not tables.complete:
         sys.stderr.write(f"note: {len(tables.runs_done)} of {tables.study.runs} runs finished "
                          "in every directory; the tables use those\n")

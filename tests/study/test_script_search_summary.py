@@ -165,6 +165,30 @@ def test_parts_of_different_studies_are_refused(study_dir: Path, tmp_path: Path)
         _script().join([load_study_dir(study_dir), load_study_dir(study_dir)])
 
 
+def test_another_scenario_joins_only_when_asked_and_repeated_names_are_renamed(
+        study_dir: Path, capsys) -> None:
+    import dataclasses
+
+    script = _script()
+    whole = load_study_dir(study_dir)
+    other = dataclasses.replace(whole, study=dataclasses.replace(
+        whole.study, scenario=dataclasses.replace(whole.study.scenario, process_noise=0.5)))
+    renamed = script.renamed(other, "b", {"myopic", "gnn"})
+    with pytest.raises(SystemExit, match="differ in scenario"):
+        script.join([whole, renamed])
+    joined = script.join([whole, renamed], other_scenario=True)
+    assert joined.study.method_names == ["myopic", "gnn", "myopic@b", "gnn@b"]
+    # The same runs under two names: paired against myopic, myopic@out differs by 0 and
+    # gnn@out as gnn does.
+    script.main([str(study_dir), "--with", str(study_dir), "--other-scenario",
+                 "--reference", "myopic"])
+    out = capsys.readouterr().out
+    row = next(line for line in out.splitlines() if line.startswith("| mean GOSPA (m) |")
+               and "+" in line)
+    gnn, myopic_again, gnn_again = row.strip("| ").split(" | ")[1:]
+    assert myopic_again.startswith("+0.0 [+0.0, +0.0]") and gnn_again == gnn
+
+
 def _mean_gospa_direct(study_dir: Path) -> dict[str, float]:
     """Per method: the mean over runs of each run's mean GOSPA, in plain Python."""
     g = pd.read_parquet(study_dir / "gospa.parquet")
