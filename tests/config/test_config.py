@@ -446,27 +446,31 @@ def test_the_traffic_preset_runs_imm_bernoullis_and_earlier_files_keep_what_they
             assert m.settings.tracker.bernoulli_model == want, (path.name, m.name)
 
 
-def test_earlier_traffic_studies_name_the_radars_they_ran() -> None:
-    """The study files that ran before the traffic radars had error floors name the
-    scenario file of those radars: the preset's scenario but for the radars' blind discs
-    and floors."""
+def test_traffic_study_files_name_the_radars_they_ran() -> None:
+    """The traffic study files that name configs/traffic_thermal_radars.toml run the
+    preset's scenario (the file is the preset's, written out, so that they keep what they
+    ran if the preset's radars change); the study of error floors runs it with radars that
+    have floors and 2 km blind discs, and nothing else changed."""
     from sensorplan.config.scenario import scenario_from_dict
     from sensorplan.simulation.scenario import traffic_scenario
     from sensorplan.study.file import load_study
 
     thermal = scenario_from_dict(tomllib.loads(
         (ROOT / "configs" / "traffic_thermal_radars.toml").read_text()))
-    preset = traffic_scenario()
-    assert dataclasses.replace(thermal, sensors=preset.sensors) == preset
-    for old, new in zip(thermal.sensors, preset.sensors):
-        p = dataclasses.replace(new.params, min_ground_range=10000.0, range_error_floor=0.0,
-                                azimuth_error_floor=0.0)
-        assert dataclasses.replace(new, params=p) == old
+    assert thermal == traffic_scenario()
     files = [p for p in sorted((ROOT / "studies").rglob("*.toml"))
              if "traffic_thermal_radars" in p.read_text()]
     assert len(files) >= 10
     for path in files:
         assert load_study(path).scenario == thermal, path.name
+    floors = load_study(ROOT / "studies" / "traffic_floors.toml").scenario
+    assert dataclasses.replace(floors, sensors=thermal.sensors) == thermal
+    for new, old in zip(floors.sensors, thermal.sensors):
+        assert (new.params.range_error_floor, math.degrees(new.params.azimuth_error_floor),
+                new.params.min_ground_range) == (60.0, pytest.approx(0.14), 2000.0)
+        p = dataclasses.replace(new.params, min_ground_range=10000.0, range_error_floor=0.0,
+                                azimuth_error_floor=0.0)
+        assert dataclasses.replace(new, params=p) == old
 
 
 def test_the_swarm_preset_has_a_quieter_imm_manoeuvre_mode() -> None:
