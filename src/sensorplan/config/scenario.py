@@ -212,9 +212,10 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
     Fields left to each run's seed (``None`` positions, speeds, headings) are omitted, as
     they would be in the file. The births, deaths and scripted-truth keys are written only
     when they differ from the known-target defaults, and the radar's error floors only when
-    they are not 0, so that a scenario without them is written as it always was (a study directory written before they existed still holds
-    the same study). :func:`scenario_from_dict` inverts it exactly (floats round-trip
-    through JSON unchanged).
+    they are not 0, so that a scenario without them is written as it always was (a study
+    directory written before they existed still holds the same study).
+    :func:`scenario_from_dict` inverts it exactly (floats round-trip through JSON
+    unchanged).
     """
     def sensor(spec: SensorSpec) -> dict[str, Any]:
         d: dict[str, Any] = {}
