@@ -185,6 +185,7 @@ def test_the_study_files_cover_every_planner_but_the_baselines() -> None:
     seed of its own, 100 runs; every registered planner except the baselines runs in each,
     apart from the exclusions their headers give reasons for."""
     from sensorplan.config.simulate import PRESETS
+    from sensorplan.simulation.scenario import PRESETS as SCENARIOS
     from sensorplan.errors import ConfigError
     from sensorplan.planners.registry import planner_names
 
@@ -204,7 +205,8 @@ def test_the_study_files_cover_every_planner_but_the_baselines() -> None:
         except ConfigError as exc:          # the traffic records are not fetched here
             assert preset == "traffic", exc
             continue
-        assert study.runs == 100 and study.scenario_source == f"preset {preset}"
+        # The traffic file names the preset's scenario written out (as its radars were).
+        assert study.runs == 100 and study.scenario == SCENARIOS[preset](), preset
         seeds.add(study.seed)
         names = {m.settings.planner for m in study.methods if m.settings.horizon == 1}
         assert names == planners - left_out.get(preset, set()), preset
