@@ -76,3 +76,20 @@ def test_the_edge_tally_of_a_hand_made_run() -> None:
     assert pairs.tolist() == [1, 0, 2, 0]          # 0-5 m: label 5; 10-20 m: label 6 twice
     np.testing.assert_allclose(expected, [0.5, 0.0, 0.1, 0.0], rtol=1e-12, atol=1e-15)
     assert left.tolist() == [1, 0, 0, 0]
+
+
+def test_reached_before_is_each_label_s_highest_existence_at_earlier_steps() -> None:
+    calib = script_module("existence_calibration")
+    steps = [(np.array([0.4, 0.995]), np.array([3, 4])),
+             (np.array([0.999, 0.2, 0.6]), np.array([3, 4, 5])),
+             (np.array([0.05, 0.1]), np.array([3, 5]))]
+    got = calib.reached_before(steps)
+    assert [g.tolist() for g in got] == [[0.0, 0.0], [0.4, 0.995, 0.0], [0.999, 0.6]]
+
+
+def test_bin_edges_must_run_from_0_to_1_increasing() -> None:
+    calib = script_module("existence_calibration")
+    assert calib.parse_edges("0,0.5,1") == (0.0, 0.5, 1.0 + 1e-12)
+    for bad in ("0.1,1", "0,0.5,0.9", "0,0.5,0.5,1", "1"):
+        with pytest.raises(Exception, match="edges must increase from 0 to 1"):
+            calib.parse_edges(bad)
