@@ -446,6 +446,34 @@ def test_the_traffic_preset_runs_imm_bernoullis_and_earlier_files_keep_what_they
             assert m.settings.tracker.bernoulli_model == want, (path.name, m.name)
 
 
+def test_the_traffic_preset_has_the_recordings_survival_and_earlier_files_keep_theirs(
+) -> None:
+    """The traffic preset's tracker survives a step with the recording's probability and its
+    planning values faded tracks as ones to confirm; the study files keep the generic 0.99
+    and localise, but the methods that set either."""
+    from sensorplan.simulation.scenario import TRAFFIC_SURVIVAL
+    from sensorplan.study.file import load_study
+
+    preset = load_simulation(preset="traffic").settings
+    assert (preset.tracker.survival_probability, preset.unreported) == (0.997, "confirm")
+    assert TRAFFIC_SURVIVAL == 0.997
+    both = {"traffic_survival_confirm.toml": {"pg/imm", "sequential-greedy/imm",
+                                              "dec-independent/imm"},
+            "traffic_survival_confirm_dev.toml": {"pg/survival/confirm/imm"}}
+    survival = {"traffic_survival_dev.toml": {"pg/survival/imm"}}
+    confirm = {"traffic_confirm.toml": {"pmb/confirm"}}
+    files = [p for p in sorted((ROOT / "studies").rglob("*.toml"))
+             if 'preset = "traffic"' in p.read_text() or "traffic_thermal_radars" in p.read_text()]
+    assert len(files) >= 13
+    for path in files:
+        for m in load_study(path).methods:
+            named = both.get(path.name, set())
+            want = (0.997 if m.name in named | survival.get(path.name, set()) else 0.99,
+                    "confirm" if m.name in named | confirm.get(path.name, set()) else "localise")
+            got = (m.settings.tracker.survival_probability, m.settings.unreported)
+            assert got == want, (path.name, m.name)
+
+
 def test_traffic_study_files_name_the_radars_they_ran() -> None:
     """The traffic study files that name configs/traffic_thermal_radars.toml run the
     preset's scenario (the file is the preset's, written out, so that they keep what they
