@@ -367,3 +367,14 @@ def test_a_gospa_run_plans_the_bound_with_the_runs_cut_off() -> None:
     _, other = recorded_run(info.scenario, info.settings, info.seed)
     assert other[0][0].reward == "information"
     assert other[0][1].potential != decisions[0][1].potential
+
+
+@pytest.mark.parametrize(("given", "want"), [(0.0, None), (1.0, 1.0)])
+def test_the_established_survival_reaches_the_tracker(given: float, want: Any) -> None:
+    cfg = searching()
+    tr = dataclasses.replace(cfg.settings.tracker, established_survival=given,
+                             established_existence=0.95)
+    settings = dataclasses.replace(cfg.settings, tracker=tr)
+    tracker = make_tracker(cfg.scenario, settings, np.zeros((0, 4)), _table(cfg))
+    assert tracker.established_survival == want          # 0: the tracker survival
+    assert tracker.established_existence == 0.95

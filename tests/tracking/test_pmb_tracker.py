@@ -487,6 +487,51 @@ def test_a_terminated_track_is_confirmed_again_when_it_climbs_back() -> None:
     assert seen == [[0], [], [], [0], [0]]
 
 
+def test_an_established_bernoulli_survives_with_its_own_probability() -> None:
+    # Three Bernoullis of a linear sensor whose field of view (a metre square in a corner,
+    # ten standard deviations away) sees nothing of them, so only the predicts move r: one
+    # known (1: established from the start), one that reaches
+    # 0.99 by hand after the first step (established from then on, even after it falls
+    # again), one never above 0.9 (the tracker survival throughout).
+    sensor = linear.LinearSensor((0.0, 0.0, 1.0, 1.0), 1.0, 1.0, 0.0)
+    means = np.array([[60.0, 60.0, 0.0, 0.0], [150.0, 150.0, 0.0, 0.0],
+                      [250.0, 250.0, 0.0, 0.0]])
+    ps, pe = 0.9, 0.995
+    tr = PMBTracker(MapModel(sensor, 1.0, (300.0, 300.0)), means=means, covs=P0 / 16,
+                    existence=[1.0, 0.5, 0.9], survival_probability=ps,
+                    established_survival=pe, established_existence=0.99)
+    tr.predict()
+    np.testing.assert_allclose(tr.bern.r, [pe, ps * 0.5, ps * 0.9], rtol=EXACT)
+    tr.bern.r = np.array([tr.bern.r[0], 0.99, 0.5])
+    tr.update(one_scan(np.zeros((0, 2))))
+    assert tr.established.tolist() == [0, 1]
+    r = tr.bern.r.copy()
+    for _ in range(3):
+        tr.predict()
+        r = r * [pe, pe, ps]
+        np.testing.assert_allclose(tr.bern.r, r, rtol=EXACT)
+    # Without the setting every Bernoulli has the tracker survival, as before.
+    plain = PMBTracker(MapModel(sensor, 1.0, (300.0, 300.0)), means=means, covs=P0 / 16,
+                       existence=[1.0, 0.5, 0.9], survival_probability=ps)
+    plain.predict()
+    np.testing.assert_allclose(plain.bern.r, [ps, ps * 0.5, ps * 0.9], rtol=EXACT)
+    assert plain.established.tolist() == []
+
+
+def test_an_established_label_is_forgotten_when_its_bernoulli_is_pruned() -> None:
+    # Missed looks with Pd = 1 send r to 0 exactly: the Bernoulli is pruned and its
+    # label leaves the established ones; the other stays.
+    sensor = linear.LinearSensor((0.0, 0.0, 150.0, 300.0), 1.0, 1.0, 0.0)
+    means = np.array([[50.0, 150.0, 0.0, 0.0], [250.0, 150.0, 0.0, 0.0]])
+    tr = PMBTracker(MapModel(sensor, 1.0, (300.0, 300.0)), means=means, covs=P0 / 400,
+                    survival_probability=0.99, established_survival=1.0)
+    assert tr.established.tolist() == [0, 1]
+    tr.predict()
+    tr.update(one_scan(np.zeros((0, 2))))
+    assert tr.bern.labels.tolist() == [1]
+    assert tr.established.tolist() == [1]
+
+
 def test_planning_tracks_fall_back_to_the_reported_ones() -> None:
     from sensorplan.tracking.gnn import GNNTracker
 
@@ -502,6 +547,9 @@ def test_planning_tracks_fall_back_to_the_reported_ones() -> None:
                                             ("termination_threshold", 1.5),
                                             ("prune_threshold", 1.0),
                                             ("survival_probability", 0.0),
+                                            ("established_survival", 0.0),
+                                            ("established_survival", 1.5),
+                                            ("established_existence", 1.0),
                                             ("initial_undetected", -1.0), ("births", "sides"),
                                             ("background_birth_rate", -0.1),
                                             ("background_birth_rate", math.inf),

@@ -268,6 +268,8 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
         return cls(model, means=estimate, covs=P0, confirm_hits=tr.confirm_hits,
                    confirm_looks=tr.confirm_looks, delete_misses=tr.delete_misses)
     return cls(model, means=estimate, covs=P0, survival_probability=tr.survival_probability,
+               established_survival=tr.established_survival or None,
+               established_existence=tr.established_existence,
                births=tr.births, birth_rate=tr.birth_rate if tr.births != "none" else 0.0,
                background_birth_rate=tr.background_birth_rate,
                prune_threshold=tr.prune_threshold, report_threshold=tr.report_threshold,

@@ -83,6 +83,7 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
 
 #: The settings only the PMB tracker reads, and only the GNN tracker.
 PMB_SETTINGS = ("births", "birth_rate", "background_birth_rate", "survival_probability",
+                "established_survival", "established_existence",
                 "report_threshold", "prune_threshold", "recycle_threshold",
                 "planning_threshold", "termination_threshold", "edge_exit",
                 "bernoulli_model", "birth_velocity")
@@ -452,6 +453,19 @@ class TrackerSettings(_Settings):
         0.99, section="tracker", label="tracker survival",
         bounds=Range(0.0, 1.0, lo_open=True),
         help="A multi-target tracker's probability that a target survives a step.")
+    established_survival: float = setting(
+        0.0, section="tracker", label="established survival",
+        bounds=Range(0.0, 1.0),
+        help="The PMB tracker's probability that the target of an established track (one "
+             "whose probability of existence has once reached established_existence, so "
+             "seldom one that clutter started) survives a step, which can then be the "
+             "targets' own while survival_probability also clears clutter's tracks (0: "
+             "every track survives with survival_probability).")
+    established_existence: float = setting(
+        0.99, section="tracker", label="established existence",
+        bounds=Range(0.0, 1.0, lo_open=True, hi_open=True),
+        help="The probability of existence at which a PMB track becomes established (see "
+             "established_survival).")
     report_threshold: float = setting(
         0.5, section="tracker", label="report threshold",
         bounds=Range(0.0, 1.0, lo_open=True, hi_open=True),

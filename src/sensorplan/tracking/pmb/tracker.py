@@ -13,7 +13,9 @@ the gate and the map's edge are one :class:`~sensorplan.tracking.pmb.map_tracker
 which the GNN tracker takes too.
 
 **Predict** (every step). Each Bernoulli: the motion model's Kalman prediction (CWNA with
-the model's ``process_noise``, or a given ``motion = (F, Q)``) and :math:`r \leftarrow p_S r`.
+the model's ``process_noise``, or a given ``motion = (F, Q)``) and :math:`r \leftarrow p_S r`
+(with ``established_survival``, an established Bernoulli, one whose existence has once
+reached ``established_existence``, survives with that instead).
 The map's edge (``map_edge``, :func:`sensorplan.tracking.known_map.map_edge_predict`):
 with ``exit`` (a target that reaches the edge leaves and is gone) the survival also
 requires the target to stay on the map: a density whose mean or 3-sigma box leaves it is
@@ -166,6 +168,15 @@ class PMBTracker(MapTracker):
         Their existence probabilities (default 1: known to exist).
     survival_probability : float in (0, 1]
         :math:`p_S` per step, of Bernoullis and undetected targets; default 0.99.
+    established_survival : float in (0, 1], optional
+        :math:`p_S` of an established Bernoulli (one whose existence has reached
+        ``established_existence`` since it was started; its label keeps the mark). None
+        (the default): ``survival_probability``, whatever a Bernoulli's history. The
+        generic survival does two jobs: a real target's death, and clearing Bernoullis
+        that clutter started; an established one is seldom clutter, so its survival can be
+        the targets' own.
+    established_existence : float in (0, 1)
+        The existence at which a Bernoulli becomes established; default 0.99.
     births : {"none", "edges", "uniform"} or (C,) array
         The birth intensity: expected births per step spread over the boundary cells, over
         every cell, or given per cell (row-major, :class:`~.undetected.Grid`).
@@ -218,7 +229,9 @@ class PMBTracker(MapTracker):
 
     def __init__(self, model: MapModel, *, means: FloatArray | None = None,
                  covs: FloatArray | None = None, existence: float | FloatArray = 1.0,
-                 survival_probability: float = 0.99, births: str | FloatArray = "none",
+                 survival_probability: float = 0.99,
+                 established_survival: float | None = None,
+                 established_existence: float = 0.99, births: str | FloatArray = "none",
                  birth_rate: float = 0.0, background_birth_rate: float = 0.0,
                  initial_undetected: float = 0.0, prune_threshold: float = 1e-3,
                  report_threshold: float = 0.5,
@@ -231,6 +244,12 @@ class PMBTracker(MapTracker):
         if not 0.0 < survival_probability <= 1.0:
             raise ValueError(f"survival_probability must be in (0, 1], got "
                              f"{survival_probability!r}")
+        if established_survival is not None and not 0.0 < established_survival <= 1.0:
+            raise ValueError(f"established_survival must be in (0, 1], got "
+                             f"{established_survival!r}")
+        if not 0.0 < established_existence < 1.0:
+            raise ValueError(f"established_existence must be in (0, 1), got "
+                             f"{established_existence!r}")
         if not 0.0 <= prune_threshold < 1.0:
             raise ValueError(f"prune_threshold must be in [0, 1), got {prune_threshold!r}")
         if not 0.0 < report_threshold < 1.0:
@@ -284,6 +303,9 @@ class PMBTracker(MapTracker):
         # What the edge's crossing probability predicts with: each mode's Q, or the one.
         self._edge_Q = [self.Q] if self.modes is None else list(self.modes.Q)
         self.survival_probability = float(survival_probability)
+        self.established_survival = (None if established_survival is None
+                                     else float(established_survival))
+        self.established_existence = float(established_existence)
         self.edge_exit = edge_exit
         self.prune_threshold = float(prune_threshold)
         self.report_threshold = float(report_threshold)
@@ -316,6 +338,8 @@ class PMBTracker(MapTracker):
         #: The labels of the confirmed tracks (reported at the end of the last predict or
         #: update), sorted: reporting keeps them down to the termination threshold.
         self.confirmed = np.zeros(0, dtype=np.int64)
+        #: The labels of the established Bernoullis present, sorted.
+        self.established = np.zeros(0, dtype=np.int64)
         self._confirm()
 
     # ---------------------------------------------------------------- the tracker protocol
@@ -329,9 +353,21 @@ class PMBTracker(MapTracker):
 
     def _confirm(self) -> None:
         """The tracks reported now are the confirmed ones (a track below the termination
-        threshold is terminated, one at the report threshold confirmed)."""
+        threshold is terminated, one at the report threshold confirmed); a Bernoulli at
+        the established existence is established from now on."""
         if self.termination_threshold < self.report_threshold:
             self.confirmed = np.sort(self.bern.labels[self._reported()])
+        if self.established_survival is not None:
+            b = self.bern
+            known = np.isin(b.labels, self.established, assume_unique=True)
+            self.established = b.labels[known | (b.r >= self.established_existence)]
+
+    def _survival(self) -> float | FloatArray:
+        """:math:`p_S` of every Bernoulli, ``(B,)``, or one for all."""
+        if self.established_survival is None:
+            return self.survival_probability
+        held = np.isin(self.bern.labels, self.established, assume_unique=True)
+        return np.where(held, self.established_survival, self.survival_probability)
 
     def tracks(self) -> TrackSet:
         """The Bernoullis with existence at least ``report_threshold`` (copies)."""
@@ -386,7 +422,7 @@ class PMBTracker(MapTracker):
         elif len(b):
             start = (b.means, b.covs)
             b.means, b.covs = kalman_predict(b.means, b.covs, self.F, self.Q)
-            b.r = self.survival_probability * b.r
+            b.r = self._survival() * b.r
             if self.map_edge is not None:
                 m, P, applied, log_mass = self._at_edge(b.means, b.covs, *start)
                 b.means, b.covs = m, P
@@ -424,7 +460,7 @@ class PMBTracker(MapTracker):
         assert modes is not None
         n, R = len(b), len(modes.q)
         x0, P0, xp, Pp = imm.predict(b, self.F, modes)
-        b.r = self.survival_probability * b.r
+        b.r = self._survival() * b.r
         corrected = np.zeros(n, dtype=bool)
         if self.map_edge is not None:
             m, P, applied, log_mass = self._at_edge(
