@@ -62,8 +62,8 @@ METRICS = {
     "lost": ("targets lost per run", 2), "born": ("targets born per run", 2),
     "found_born": ("born targets ever reported (%)", 1)}
 #: The per-run metrics whose paired differences against the reference are shown.
-PAIRED = ("gospa", "missed_share", "missed_never", "false_tracks", "switches", "lost",
-          "found_born")
+PAIRED = ("gospa", "missed_share", "missed_never", "missed_after", "false_tracks", "switches",
+          "lost", "found_born")
 
 
 def per_target(tables: Any) -> Any:
