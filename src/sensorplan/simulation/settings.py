@@ -458,8 +458,9 @@ class TrackerSettings(_Settings):
         bounds=Range(0.0, 1.0),
         help="The PMB tracker's probability that the target of an established track (one "
              "whose probability of existence has once reached established_existence, so "
-             "seldom one that clutter started) survives a step, which can then be the "
-             "targets' own while survival_probability also clears clutter's tracks (0: "
+             "seldom one that clutter started) survives a step, which can then be nearer "
+             "the targets' own while survival_probability also clears clutter's tracks; "
+             "below 1, as at 1 a track at existence 1 never loses it to missed looks (0: "
              "every track survives with survival_probability).")
     established_existence: float = setting(
         0.99, section="tracker", label="established existence",

@@ -174,7 +174,8 @@ class PMBTracker(MapTracker):
         (the default): ``survival_probability``, whatever a Bernoulli's history. The
         generic survival does two jobs: a real target's death, and clearing Bernoullis
         that clutter started; an established one is seldom clutter, so its survival can be
-        the targets' own.
+        nearer the targets' own. Keep it below 1: at 1 a Bernoulli at existence 1 (a known
+        target, or an update rounded to 1) cannot lose existence to missed looks.
     established_existence : float in (0, 1)
         The existence at which a Bernoulli becomes established; default 0.99.
     births : {"none", "edges", "uniform"} or (C,) array
