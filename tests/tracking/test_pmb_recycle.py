@@ -211,3 +211,126 @@ def test_naming_the_presets_recycling_leaves_a_run_as_it_was_and_off_changes_it(
                 assert a == b, f.name
     assert base.undetected is not None and other.undetected is not None
     assert not np.array_equal(base.undetected, other.undetected)
+
+
+# ------------------------------------------------------------------ moving recycled components
+def faded(motion: str, q: float = 0.05, world: float = 300.0, **kw) -> PMBTracker:
+    """A tracker whose one Bernoulli (existence 0.05, walking at 5 m/s) is recycled at its
+    first predict."""
+    sensor = linear.LinearSensor((0.0, 0.0, world, world), 1.0, 0.9, 10.0)
+    model = MapModel(sensor, 1.0, (world, world), velocity_var=2.0, process_noise=q)
+    return PMBTracker(model, means=np.array([[100.0, 150.0, 5.0, 0.0]]),
+                      covs=np.diag([25.0, 25.0, 1.0, 1.0]), existence=0.05,
+                      recycle_threshold=0.1, recycle_motion=motion, **kw)
+
+
+def test_a_moving_component_predicts_as_a_kalman_filter_and_survives() -> None:
+    from sensorplan.models.motion import cv_matrices
+
+    tr = faded("moving")
+    F, Q = cv_matrices(1.0, 0.05)
+    m, P, w = np.array([100.0, 150.0, 5.0, 0.0]), np.diag([25.0, 25.0, 1.0, 1.0]), 0.05
+    for _ in range(4):
+        tr.predict()
+        m, P, w = F @ m, F @ P @ F.T + Q, 0.99 * w
+        assert len(tr.bern) == 0 and tr.undetected.sum() == 0.0
+        np.testing.assert_allclose(tr.moving_weights, [w], rtol=1e-14)
+        np.testing.assert_allclose(tr.moving_means[0], m, rtol=1e-14)
+        np.testing.assert_allclose(tr.moving_covs[0], P, rtol=1e-12, atol=1e-12)
+    assert tr.recycled == 1
+
+
+def test_a_missed_look_thins_a_moving_component_by_its_detection_probability() -> None:
+    # The linear sensor sees the whole map with Pd 0.9: Pbar = 0.9 and the missed density is
+    # the prior.
+    tr = faded("moving")
+    tr.predict()
+    w, m, P = tr.moving_weights.copy(), tr.moving_means.copy(), tr.moving_covs.copy()
+    tr.update(one_scan(np.zeros((0, 2))))
+    np.testing.assert_allclose(tr.moving_weights, 0.1 * w, rtol=1e-12)
+    np.testing.assert_allclose(tr.moving_means, m, rtol=1e-12)
+    np.testing.assert_allclose(tr.moving_covs, P, rtol=1e-9, atol=1e-9)
+
+
+def test_static_and_moving_recycling_keep_the_same_expected_number_of_targets() -> None:
+    static, moving = faded("static"), faded("moving")
+    for _ in range(5):
+        static.predict()
+        moving.predict()
+        a = static.undetected_cells().sum() + static.bern.r.sum()
+        b = moving.undetected_cells().sum() + moving.bern.r.sum()
+        assert abs(a - b) <= 1e-15
+        # The report planning reads is the cells with the components added.
+        np.testing.assert_array_equal(moving.undetected_intensity().weights,
+                                      moving.undetected_cells())
+
+
+def test_a_component_spread_over_more_than_a_cell_goes_to_the_cells() -> None:
+    # With q = 20 the position spread passes the 25 m cell within a few steps; its weight
+    # then sits on the grid, the total kept.
+    tr = faded("moving", q=20.0)
+    for _ in range(12):
+        tr.predict()
+    assert tr.moving_weights.size == 0
+    assert abs(tr.undetected.sum() - 0.05 * 0.99 ** 12) <= 1e-15
+
+
+def test_a_moving_component_finds_the_target_where_it_went_and_a_static_one_does_not() -> None:
+    # Recycled at the first predict at x = 105, the target walks on at 5 m/s; at step 8 it
+    # is 35 m past where static recycling left its mass (more than a cell), and a detection
+    # there starts a Bernoulli from the moving component with its velocity.
+    # Its existence is the new-target closed form lambda / (lambda + kappa), lambda = w Pd
+    # N(z; m, P + R) of the component alone (kappa: 10 false alarms over the map).
+    static, moving = faded("static"), faded("moving")
+    for tr in (static, moving):
+        for _ in range(8):
+            tr.predict()
+    w, m, P = moving.moving_weights[0], moving.moving_means[0], moving.moving_covs[0]
+    z = np.array([100.0, 150.0]) + 8 * np.array([5.0, 0.0]) + [0.3, -0.2]
+    for tr in (static, moving):
+        tr.update(one_scan(z[None]))
+    lam = w * 0.9 * multivariate_normal.pdf(z, m[:2], P[:2, :2] + np.eye(2))
+    kappa = 10.0 / 300.0 ** 2
+    assert moving.bern.labels.tolist() == [1]
+    assert abs(moving.bern.r[0] - lam / (lam + kappa)) <= 1e-12
+    assert abs(moving.bern.means[0, 2] - 5.0) < 1.0             # the component's velocity
+    np.testing.assert_allclose(moving.moving_weights, [0.1 * w], rtol=1e-12)
+    # Static: the mass left 35 m behind gives the detection a new-target existence below
+    # the pruning threshold, so no Bernoulli starts.
+    assert len(static.bern) == 0
+
+
+@pytest.mark.parametrize(("kw", "needle"), [
+    (dict(recycle_motion="drifting", recycle_threshold=0.1), "recycle_motion"),
+    (dict(recycle_motion="moving"), "recycle_motion"),
+    (dict(recycle_motion="moving", recycle_threshold=0.1, mode_process_noise=(1.0, 5.0),
+          switching=np.array([[0.9, 0.1], [0.1, 0.9]])), "recycle_motion")])
+def test_moving_recycling_needs_recycling_and_one_motion_model(kw, needle) -> None:
+    with pytest.raises(ValueError, match=needle):
+        PMBTracker(MapModel(linear.williams15(), 1.0, (300.0, 300.0)), **kw)
+
+
+def test_the_settings_name_the_trackers_recycle_motions_and_refuse_moving_alone() -> None:
+    from sensorplan.simulation import settings as settings_module
+    from sensorplan.tracking.pmb import tracker as tracker_module
+
+    assert settings_module.RECYCLE_MOTIONS == tracker_module.RECYCLE_MOTIONS
+    with pytest.raises(ConfigError, match="recycle_motion"):
+        TrackerSettings(kind="pmb", recycle_motion="moving")
+    with pytest.raises(ConfigError, match="recycle_motion"):
+        TrackerSettings(kind="pmb", recycle_motion="moving", recycle_threshold=0.1,
+                        bernoulli_model="imm")
+
+
+def test_a_closed_loop_with_moving_recycling_repeats_and_records_where_they_went() -> None:
+    # The run of the test above that recycles; with moving components the recorded
+    # intensity (cells plus components) differs from the static one's, and repeats.
+    cfg = load_simulation(preset="search", overrides={"steps": 30, "seed": 4})
+    tr = dataclasses.replace(cfg.settings.tracker, recycle_motion="moving")
+    settings = dataclasses.replace(cfg.settings, tracker=tr)
+    a = run_episode(cfg.scenario, settings, cfg.seed)
+    b = run_episode(cfg.scenario, settings, cfg.seed)
+    static = run_episode(cfg.scenario, cfg.settings, cfg.seed)
+    assert a.undetected is not None and static.undetected is not None
+    np.testing.assert_array_equal(a.undetected, b.undetected)
+    assert not np.array_equal(a.undetected, static.undetected)

@@ -283,6 +283,7 @@ def test_the_paper_configuration_reproduces_its_recorded_tracks(seed):
     ("bernoulli_model = \"kalman\"", "tracker.bernoulli_model"),
     ("births = \"uniform\"\nbirth_velocity = \"inward\"", "tracker.birth_velocity"),
     ("gate = false", "tracker.reacquire"),
+    ("recycle_motion = \"moving\"", "tracker.recycle_motion"),
 ])
 def test_bad_tracker_settings_exit_2_naming_the_field(table, field, tmp_path, capsys):
     from cli_helpers import assert_bad_input, run

@@ -273,7 +273,7 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
                births=tr.births, birth_rate=tr.birth_rate if tr.births != "none" else 0.0,
                background_birth_rate=tr.background_birth_rate,
                prune_threshold=tr.prune_threshold, report_threshold=tr.report_threshold,
-               recycle_threshold=tr.recycle_threshold,
+               recycle_threshold=tr.recycle_threshold, recycle_motion=tr.recycle_motion,
                planning_threshold=tr.planning_threshold,
                termination_threshold=tr.termination_threshold, edge_exit=tr.edge_exit,
                birth_velocity=tr.birth_velocity, **tr.bernoulli_options())

@@ -85,7 +85,7 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
 PMB_SETTINGS = ("births", "birth_rate", "background_birth_rate", "survival_probability",
                 "established_survival", "established_existence",
                 "report_threshold", "prune_threshold", "recycle_threshold",
-                "planning_threshold", "termination_threshold", "edge_exit",
+                "recycle_motion", "planning_threshold", "termination_threshold", "edge_exit",
                 "bernoulli_model", "birth_velocity")
 GNN_SETTINGS = ("confirm_hits", "confirm_looks", "delete_misses")
 #: The settings only the lost-target mode of the tracker of known targets reads.
@@ -99,6 +99,9 @@ MAP_EDGE_CHOICES = ("scenario", "exit", "closed")
 #: :data:`sensorplan.tracking.known_map.EDGE_EXITS` (named here without importing the
 #: tracking modules, as the map edges are).
 EDGE_EXITS = ("outside", "crossing")
+#: What the PMB tracker makes of a recycled track:
+#: :data:`sensorplan.tracking.pmb.tracker.RECYCLE_MOTIONS` (named here likewise).
+RECYCLE_MOTIONS = ("static", "moving")
 #: The PMB tracker's velocity prior of a target first detected:
 #: :data:`sensorplan.tracking.pmb.undetected.BIRTH_VELOCITIES`.
 BIRTH_VELOCITIES = ("isotropic", "inward")
@@ -483,6 +486,13 @@ class TrackerSettings(_Settings):
         help="The PMB tracker turns a track whose probability of existence falls below this "
              "into undetected intensity where it was instead of forgetting it (0: off; else "
              "at least prune_threshold and below report_threshold).")
+    recycle_motion: str = setting(
+        "static", section="tracker", label="recycle motion", choices=RECYCLE_MOTIONS,
+        noun="recycle motion",
+        help="What a recycled PMB track becomes: static (its existence on the grid's cells "
+             "where it was) or moving (a Gaussian part of the undetected intensity that "
+             "moves as targets do until it spreads over more than a cell; needs recycling "
+             "on and the cv Bernoulli model).")
     planning_threshold: float = setting(
         0.1, section="tracker", label="planning threshold",
         bounds=Range(0.0, 1.0, lo_open=True, hi_open=True),
@@ -528,6 +538,11 @@ class TrackerSettings(_Settings):
                               f"prune_threshold ({self.prune_threshold}) and below "
                               f"report_threshold ({self.report_threshold}), got "
                               f"{self.recycle_threshold}")
+        if self.recycle_motion == "moving" and (self.recycle_threshold == 0.0
+                                                or self.bernoulli_model != "cv"):
+            raise ConfigError("recycle_motion", f"moving needs recycling on (recycle_threshold "
+                              f"> 0, got {self.recycle_threshold}) and bernoulli_model = "
+                              f"\"cv\" (got \"{self.bernoulli_model}\")")
         if self.birth_velocity == "inward" and self.births != "edges":
             raise ConfigError("birth_velocity", f"inward needs births = \"edges\" (targets "
                               f"born on the map's boundary), got births = "

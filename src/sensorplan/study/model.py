@@ -42,10 +42,12 @@ class Method:
 #: Tracker settings added after studies had run, with the value those studies ran with (a
 #: track reported exactly while its existence is at least the report threshold; no
 #: background births; one motion model in every PMB Bernoulli; an isotropic velocity prior
-#: for a target first detected; every track with the tracker survival).
+#: for a target first detected; every track with the tracker survival; recycled tracks left
+#: on the grid where they were).
 TRACKER_SETTINGS_ADDED = {"termination_threshold": 1.0, "background_birth_rate": 0.0,
                           "bernoulli_model": "cv", "birth_velocity": "isotropic",
-                          "established_survival": 0.0, "established_existence": 0.99}
+                          "established_survival": 0.0, "established_existence": 0.99,
+                          "recycle_motion": "static"}
 
 
 def planned_as_written(method: Mapping[str, Any]) -> dict[str, Any]:

@@ -245,7 +245,7 @@ class PMBStoneSoupTracker(_TrackerMixInNext, Tracker):
         position covariance; ``weight`` is the nats a newly found target is worth (None:
         the information of its first detection)."""
         grid = self.pmb.grid
-        return UndetectedIntensity(np.array(grid.centres), np.array(self.pmb.undetected),
+        return UndetectedIntensity(np.array(grid.centres), self.pmb.undetected_cells(),
                                    np.array(self.pmb.births),
                                    float(self.pmb.survival_probability),
                                    np.array(grid.cov[:2, :2]), weight)

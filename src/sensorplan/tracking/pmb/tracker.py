@@ -66,7 +66,14 @@ by default). With ``recycle_threshold > 0``, a Bernoulli whose existence falls b
 (:func:`~sensorplan.tracking.pmb.undetected.recycle`; the grid's total rises by exactly
 :math:`r`). The intensity then carries the target where it went: looks thin it,
 predictions keep it, and a later detection there starts a Bernoulli from it (with a new
-label). Recycling replaces pruning: no Bernoulli is dropped, and ``prune_threshold`` only
+label). With ``recycle_motion = "moving"`` the recycled Bernoulli instead stays a Gaussian
+component of :math:`D_u` that moves as the targets do, as the source keeps it: each predict
+is its Kalman prediction, the survival and the map's edge; each look multiplies its weight
+by :math:`1 - \bar P` and leaves it the missed-look density; a detection it gates gets its
+weight :math:`w P_d l` in :math:`\lambda_u(z)` and its update in the new Bernoulli's
+mixture, beside the cells'. Once its position spread exceeds a cell's side (or its weight
+falls below ``prune_threshold``) it is added to the cells as above, so the components stay
+few. Recycling replaces pruning: no Bernoulli is dropped, and ``prune_threshold`` only
 keeps a detection from starting a Bernoulli below it; so ``recycle_threshold`` may not be
 below ``prune_threshold``, nor at or above ``report_threshold`` (a reported track would
 be recycled at once).
@@ -124,6 +131,8 @@ from .sensing import Look
 #: propagation needs both positive (a Bernoulli surely there and surely detectable, or a
 #: detection that neither clutter nor an undetected target can explain, gets this).
 MIN_WEIGHT = 1e-300
+#: What a recycled Bernoulli becomes: mass on the grid where it was, or a moving component.
+RECYCLE_MOTIONS = ("static", "moving")
 
 
 @dataclass(frozen=True)
@@ -214,6 +223,11 @@ class PMBTracker(MapTracker):
         probability that a target on the map at the step's start crosses the edge during
         the step (``crossing``, :func:`~sensorplan.tracking.known_map.crossing_log_mass`).
         No effect with a closed edge.
+    recycle_motion : {"static", "moving"}
+        What a recycled Bernoulli becomes: mass on the cells where it was (``static``, the
+        default), or a Gaussian component of the undetected intensity that moves with the
+        motion model until its position spread exceeds a cell (``moving``; needs recycling
+        on and one motion model per Bernoulli). See the module docstring.
     birth_velocity : {"isotropic", "inward"}
         The velocity prior of a target first detected in a cell: mean zero and the model's
         ``velocity_var`` per axis everywhere (``isotropic``, the default), or, with
@@ -236,7 +250,7 @@ class PMBTracker(MapTracker):
                  birth_rate: float = 0.0, background_birth_rate: float = 0.0,
                  initial_undetected: float = 0.0, prune_threshold: float = 1e-3,
                  report_threshold: float = 0.5,
-                 recycle_threshold: float = 0.0,
+                 recycle_threshold: float = 0.0, recycle_motion: str = "static",
                  planning_threshold: float | None = None,
                  termination_threshold: float = 1.0, edge_exit: str = "outside",
                  birth_velocity: str = "isotropic",
@@ -262,6 +276,14 @@ class PMBTracker(MapTracker):
             raise ValueError(f"recycle_threshold must be 0 (off) or in [prune_threshold, "
                              f"report_threshold) = [{prune_threshold!r}, "
                              f"{report_threshold!r}), got {recycle_threshold!r}")
+        if recycle_motion not in RECYCLE_MOTIONS:
+            raise ValueError(f"recycle_motion must be one of {RECYCLE_MOTIONS}, got "
+                             f"{recycle_motion!r}")
+        if recycle_motion == "moving" and (recycle_threshold == 0.0
+                                           or mode_process_noise is not None):
+            raise ValueError("recycle_motion 'moving' needs recycling on (recycle_threshold "
+                             "> 0) and one motion model per Bernoulli (no "
+                             "mode_process_noise)")
         if planning_threshold is not None and not 0.0 < planning_threshold < 1.0:
             raise ValueError(f"planning_threshold must be in (0, 1), got "
                              f"{planning_threshold!r}")
@@ -315,6 +337,12 @@ class PMBTracker(MapTracker):
                                    else min(float(planning_threshold), self.report_threshold))
         #: Bernoullis recycled into the undetected intensity so far, and their existence.
         self.recycled, self.recycled_mass = 0, 0.0
+        self.recycle_motion = recycle_motion
+        #: The moving components of the undetected intensity: weights (K,), means (K, 4)
+        #: and covariances (K, 4, 4) (``recycle_motion = "moving"``).
+        self.moving_weights = np.zeros(0)
+        self.moving_means = np.zeros((0, 4))
+        self.moving_covs = np.zeros((0, 4, 4))
         if isinstance(births, str):
             self.births = undetected.birth_intensity(self.grid, births, birth_rate)
         else:
@@ -403,9 +431,18 @@ class PMBTracker(MapTracker):
         undetected targets per cell, the births per cell per step, the survival
         probability and a cell's position covariance (the grid components' position
         block)."""
-        return UndetectedReport(np.array(self.grid.centres), np.array(self.undetected),
+        return UndetectedReport(np.array(self.grid.centres), self.undetected_cells(),
                                 np.array(self.births), self.survival_probability,
                                 np.array(self.grid.cov[:2, :2]))
+
+    def undetected_cells(self) -> FloatArray:
+        """The expected undetected targets per cell ``(C,)`` (a copy), the moving components
+        added by their position marginals' mass in each cell."""
+        if not self.moving_weights.size:
+            return np.array(self.undetected)
+        return self.undetected + undetected.recycle(
+            self.grid, self.moving_weights, self.moving_means[:, :2],
+            self.moving_covs[:, :2, :2])
 
     def predict(self) -> BoolArray:
         """Predict the Bernoullis and the undetected intensity one step.
@@ -431,10 +468,39 @@ class PMBTracker(MapTracker):
                 corrected = applied
         self.undetected = undetected.predict(self.undetected, self.survival_probability,
                                              self.births)
+        self._predict_moving()
         out = corrected[reported]
         self._prune()
         self._confirm()
         return out
+
+    def _predict_moving(self) -> None:
+        """The moving components' predict (as a Bernoulli's), then those spread over more
+        than a cell, or below the pruning threshold, added to the cells."""
+        if not self.moving_weights.size:
+            return
+        start = (self.moving_means, self.moving_covs)
+        m, P = kalman_predict(*start, self.F, self.Q)
+        w = self.survival_probability * self.moving_weights
+        if self.map_edge is not None:
+            m, P, _, log_mass = self._at_edge(m, P, *start)
+            w = w * np.exp(log_mass)
+        side = min(self.grid.width / self.grid.nx, self.grid.height / self.grid.ny)
+        spread = np.sqrt(np.maximum(P[:, 0, 0], P[:, 1, 1]))
+        settle = (spread > side) | (w < self.prune_threshold)
+        if settle.any():
+            self.undetected = self.undetected + undetected.recycle(
+                self.grid, w[settle], m[settle, :2], P[settle, :2, :2])
+        keep = ~settle
+        self.moving_weights, self.moving_means, self.moving_covs = w[keep], m[keep], P[keep]
+
+    def _thin_moving(self, look: Look) -> None:
+        """A look's thinning of the moving components: weight times ``1 - Pbar``, and the
+        missed-look density."""
+        if self.moving_weights.size:
+            pbar, mm, mP = self._missed(self.moving_means, self.moving_covs, look)
+            self.moving_weights = self.moving_weights * (1.0 - pbar)
+            self.moving_means, self.moving_covs = mm, mP
 
     def _at_edge(self, means: FloatArray, covs: FloatArray, start_means: FloatArray,
                  start_covs: FloatArray, mode: IntArray | None = None
@@ -514,17 +580,24 @@ class PMBTracker(MapTracker):
                 b.r[rows] = missed_existence(b.r[rows], pbar[rows])
                 b.means, b.covs = mm, mP
             self.undetected = undetected.thin(self.undetected, detect)
+            self._thin_moving(look)
             self._prune()
             return LookOutcome(0, 0, pbar > 0.0, pbar > 0.0)
-        # 2. Gating: the Bernoullis and the cells the look could detect, in one batch.
+        # 2. Gating: the Bernoullis, the cells the look could detect and the moving
+        # components it could (after the cells: the undetected intensity's rows), in one
+        # batch.
         cells = np.flatnonzero((detect > 0.0) & (self.undetected > 0.0))
-        means = np.concatenate([b.means, self._cell_means[cells]])
-        covs = np.concatenate([b.covs, self._cell_covs[cells]])
+        moving = (s.detectable(self.moving_means[:, :2], look) * self.moving_weights
+                  if self.moving_weights.size else np.zeros(0))
+        comps = np.flatnonzero(moving > 0.0)
+        means = np.concatenate([b.means, self._cell_means[cells], self.moving_means[comps]])
+        covs = np.concatenate([b.covs, self._cell_covs[cells], self.moving_covs[comps]])
         terms = pair_terms(s, look, means, covs, Z, self.gate)
         # 3. Association weights and their marginals.
         w = hyp.weights(terms.lik, b.r, s.detection_probability(b.means[:, :2], look), pbar,
-                        self.undetected[cells] * detect[cells], s.clutter(Z, look),
-                        MIN_WEIGHT)
+                        np.concatenate([self.undetected[cells] * detect[cells],
+                                        moving[comps]]),
+                        s.clutter(Z, look), MIN_WEIGHT)
         marg = association_lbp(w.w_miss, w.w_det, w.w_new)
         # 4-5. Every hypothesis: missed (the rows the look updates), detected (gated
         # Bernoulli pairs), new (gated cells of the detections that start a Bernoulli);
@@ -546,6 +619,7 @@ class PMBTracker(MapTracker):
         b.means, b.covs = b.means.copy(), b.covs.copy()
         b.means[rows[live]], b.covs[rows[live]] = gm[live], gP[live]
         self._start(h, gm[rows.size:], gP[rows.size:])
+        self._thin_moving(look)
         return self._finish_look(detect, terms.gated[:n], n, h, pbar, w, marg)
 
     def _missed(self, means: FloatArray, covs: FloatArray, look: Look
@@ -653,8 +727,13 @@ class PMBTracker(MapTracker):
         if self.recycle_threshold > 0.0:
             low = b.r < self.recycle_threshold
             if low.any():
-                self.undetected = self.undetected + undetected.recycle(
-                    self.grid, b.r[low], b.means[low, :2], b.covs[low, :2, :2])
+                if self.recycle_motion == "moving":
+                    self.moving_weights = np.concatenate([self.moving_weights, b.r[low]])
+                    self.moving_means = np.concatenate([self.moving_means, b.means[low]])
+                    self.moving_covs = np.concatenate([self.moving_covs, b.covs[low]])
+                else:
+                    self.undetected = self.undetected + undetected.recycle(
+                        self.grid, b.r[low], b.means[low, :2], b.covs[low, :2, :2])
                 self.recycled += int(np.count_nonzero(low))
                 self.recycled_mass += float(b.r[low].sum())
                 b.keep(~low)
@@ -664,4 +743,4 @@ class PMBTracker(MapTracker):
             b.keep(keep)
 
 
-__all__ = ["MIN_WEIGHT", "LookOutcome", "PMBTracker"]
+__all__ = ["MIN_WEIGHT", "RECYCLE_MOTIONS", "LookOutcome", "PMBTracker"]
