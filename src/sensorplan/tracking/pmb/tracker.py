@@ -458,14 +458,8 @@ class PMBTracker(MapTracker):
         if len(b) and self.modes is not None:
             corrected = self._predict_modes()
         elif len(b):
-            start = (b.means, b.covs)
-            b.means, b.covs = kalman_predict(b.means, b.covs, self.F, self.Q)
-            b.r = self._survival() * b.r
-            if self.map_edge is not None:
-                m, P, applied, log_mass = self._at_edge(b.means, b.covs, *start)
-                b.means, b.covs = m, P
-                b.r = b.r * np.exp(log_mass)
-                corrected = applied
+            b.means, b.covs, b.r, corrected = self._predict_gaussians(
+                b.means, b.covs, self._survival() * b.r)
         self.undetected = undetected.predict(self.undetected, self.survival_probability,
                                              self.births)
         self._predict_moving()
@@ -474,17 +468,24 @@ class PMBTracker(MapTracker):
         self._confirm()
         return out
 
+    def _predict_gaussians(self, means: FloatArray, covs: FloatArray, weights: FloatArray
+                           ) -> tuple[FloatArray, FloatArray, FloatArray, BoolArray]:
+        """One motion model's predict of densities ``(B, 4)``, ``(B, 4, 4)`` whose weights
+        (existence or expected number, survival applied) the map's edge then charges: the
+        new moments, weights, and which the edge changed."""
+        m, P = kalman_predict(means, covs, self.F, self.Q)
+        if self.map_edge is None:
+            return m, P, weights, np.zeros(len(means), dtype=bool)
+        m, P, applied, log_mass = self._at_edge(m, P, means, covs)
+        return m, P, weights * np.exp(log_mass), applied
+
     def _predict_moving(self) -> None:
         """The moving components' predict (as a Bernoulli's), then those spread over more
         than a cell, or below the pruning threshold, added to the cells."""
         if not self.moving_weights.size:
             return
-        start = (self.moving_means, self.moving_covs)
-        m, P = kalman_predict(*start, self.F, self.Q)
-        w = self.survival_probability * self.moving_weights
-        if self.map_edge is not None:
-            m, P, _, log_mass = self._at_edge(m, P, *start)
-            w = w * np.exp(log_mass)
+        m, P, w, _ = self._predict_gaussians(self.moving_means, self.moving_covs,
+                                             self.survival_probability * self.moving_weights)
         side = min(self.grid.width / self.grid.nx, self.grid.height / self.grid.ny)
         spread = np.sqrt(np.maximum(P[:, 0, 0], P[:, 1, 1]))
         settle = (spread > side) | (w < self.prune_threshold)
