@@ -417,7 +417,8 @@ def test_the_search_preset_recycles_and_earlier_files_keep_what_they_ran() -> No
     # Written for the preset as it is now (they name its settings themselves).
     current = {"honest_table_search_recycle.toml", "search_inward_dev.toml",
                "search_established_dev.toml", "search_established_odds_dev.toml",
-               "search_moving_recycle_dev.toml"}
+               "search_moving_recycle_dev.toml",
+               "search_faded_bernoulli_dev.toml"}
     for path in sorted((ROOT / "studies").rglob("*.toml")):
         if ('preset = "search"' not in path.read_text() or path.name.startswith("lookahead")
                 or path.name in current):
