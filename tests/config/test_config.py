@@ -462,7 +462,10 @@ def test_the_traffic_preset_has_the_recordings_survival_and_earlier_files_keep_t
     assert TRAFFIC_SURVIVAL == 0.997
     both = {"traffic_survival_confirm.toml": {"pg/imm", "sequential-greedy/imm",
                                               "dec-independent/imm"},
-            "traffic_survival_confirm_dev.toml": {"pg/survival/confirm/imm"}}
+            "traffic_survival_confirm_dev.toml": {"pg/survival/confirm/imm"},
+            "traffic_plan_threshold.toml": {"pg/imm", "pg/plan0.02/imm",
+                                            "sequential-greedy/plan0.02/imm",
+                                            "dec-independent/plan0.02/imm"}}
     survival = {"traffic_survival_dev.toml": {"pg/survival/imm"}}
     confirm = {"traffic_confirm.toml": {"pmb/confirm"}}
     files = [p for p in sorted((ROOT / "studies").rglob("*.toml"))
