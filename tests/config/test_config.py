@@ -480,6 +480,21 @@ def test_the_traffic_preset_has_the_recordings_survival_and_earlier_files_keep_t
             assert got == want, (path.name, m.name)
 
 
+def test_the_traffic_preset_plans_down_to_0_02_and_earlier_files_keep_0_1() -> None:
+    """The traffic preset's planning sees tracks down to existence 0.02, as the radar
+    preset's does; every traffic study file keeps 0.1 but the methods that set 0.02."""
+    from sensorplan.study.file import load_study
+
+    assert load_simulation(preset="traffic").settings.tracker.planning_threshold == 0.02
+    files = [p for p in sorted((ROOT / "studies").rglob("*.toml"))
+             if 'preset = "traffic"' in p.read_text() or "traffic_thermal_radars" in p.read_text()]
+    assert len(files) >= 14
+    for path in files:
+        for m in load_study(path).methods:
+            want = 0.02 if "/plan0.02/" in m.name else 0.1
+            assert m.settings.tracker.planning_threshold == want, (path.name, m.name)
+
+
 def test_traffic_study_files_name_the_radars_they_ran() -> None:
     """The traffic study files that name configs/traffic_thermal_radars.toml run the
     preset's scenario (the file is the preset's, written out, so that they keep what they
