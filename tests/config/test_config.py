@@ -429,6 +429,12 @@ def test_the_search_preset_recycles_and_earlier_files_keep_what_they_ran() -> No
             assert m.settings.tracker.recycle_threshold == want, (path.name, m.name)
 
 
+def _traffic_study_files() -> list[Path]:
+    """The study files that run the traffic preset or its scenario written out."""
+    return [p for p in sorted((ROOT / "studies").rglob("*.toml"))
+            if 'preset = "traffic"' in p.read_text() or "traffic_thermal_radars" in p.read_text()]
+
+
 def test_the_traffic_preset_runs_imm_bernoullis_and_earlier_files_keep_what_they_ran() -> None:
     """The traffic preset's tracks are IMMs of the recorded motion's two fitted modes; the
     study files that ran before name one motion model, each method but those that set the
@@ -440,8 +446,7 @@ def test_the_traffic_preset_runs_imm_bernoullis_and_earlier_files_keep_what_they
     assert (tracker.bernoulli_model, tracker.mode_process_noise, tracker.switching) == (
         "imm", TRAFFIC_MODE_Q, TRAFFIC_SWITCHING)
     assert load_simulation(preset="search").settings.tracker.bernoulli_model == "cv"
-    files = [p for p in sorted((ROOT / "studies").rglob("*.toml"))
-             if 'preset = "traffic"' in p.read_text() or "traffic_thermal_radars" in p.read_text()]
+    files = _traffic_study_files()
     assert len(files) >= 10
     for path in files:
         for m in load_study(path).methods:
@@ -468,8 +473,7 @@ def test_the_traffic_preset_has_the_recordings_survival_and_earlier_files_keep_t
                                             "dec-independent/plan0.02/imm"}}
     survival = {"traffic_survival_dev.toml": {"pg/survival/imm"}}
     confirm = {"traffic_confirm.toml": {"pmb/confirm"}}
-    files = [p for p in sorted((ROOT / "studies").rglob("*.toml"))
-             if 'preset = "traffic"' in p.read_text() or "traffic_thermal_radars" in p.read_text()]
+    files = _traffic_study_files()
     assert len(files) >= 13
     for path in files:
         for m in load_study(path).methods:
@@ -486,8 +490,7 @@ def test_the_traffic_preset_plans_down_to_0_02_and_earlier_files_keep_0_1() -> N
     from sensorplan.study.file import load_study
 
     assert load_simulation(preset="traffic").settings.tracker.planning_threshold == 0.02
-    files = [p for p in sorted((ROOT / "studies").rglob("*.toml"))
-             if 'preset = "traffic"' in p.read_text() or "traffic_thermal_radars" in p.read_text()]
+    files = _traffic_study_files()
     assert len(files) >= 14
     for path in files:
         for m in load_study(path).methods:
