@@ -40,12 +40,23 @@ summed to the report threshold or more (existence split between duplicates). A s
 the target was detected but no track formed is the tracker's failure; one in which it was
 not detected, planning's (no look went there) or the sensor's.
 
+``trace STUDY.toml --method pmb --seed S --run R --target J --steps A:B``: one run's closed
+loop, printed step by step for target J from step A to B: the label GOSPA assigns it and
+its last one, whether a look detected it, its speed, its ground range to each platform, the
+label each platform's look was aimed at, the three Bernoullis nearest to it after the step
+(label, existence, distance, position spread, position NEES) and the Bernoullis recycled
+within 60 m of it during the step (their existence and distance). What a ``lost`` row
+summarises, for reading one stretch.
+
     python scripts/untracked_diagnosis.py study runs/search_conditions_search
     python scripts/untracked_diagnosis.py held runs/honest_table_traffic_cleaned --method pg
     python scripts/untracked_diagnosis.py closed-loop studies/search_conditions_search.toml \
         --method pmb --seed 120419 --runs 60 [--planning-threshold 0.1]
     python scripts/untracked_diagnosis.py lost studies/radar_lost_targets.toml --method pmb \
         --seed 120419 --runs 100
+    python scripts/untracked_diagnosis.py trace \
+        studies/development/search_four_platforms_dev.toml --method pg/4platforms \
+        --seed 120453 --run 93 --target 5 --steps 110:140
 """
 
 from __future__ import annotations
@@ -185,13 +196,25 @@ class _Probe:
         self.decided: list[set[int]] = []          # per step: labels reported at the
         self.current_aims = np.zeros(0, dtype=np.int64)   # last decision
         self.current_decided: set[int] = set()
+        self.covs: list[np.ndarray] = []           # per step: position covariances
+        self.recycled: list[tuple[int, float, np.ndarray]] = []   # (step, r, mean)
 
     def install(self) -> Any:
         import sensorplan.simulation.run as run_mod
         from sensorplan.tracking.base import planning_tracks
+        from sensorplan.tracking.pmb.tracker import PMBTracker
 
         probe = self
         make_tracker, epoch = run_mod.make_tracker, run_mod._Schedule.epoch
+        prune = PMBTracker._prune
+
+        def prune_(self: Any) -> None:
+            if self.recycle_threshold > 0.0:
+                low = self.bern.r < self.recycle_threshold
+                # Recycled in a predict or look of the step the next update records.
+                probe.recycled.extend((len(probe.bern) + 1, float(r), m.copy()) for r, m in
+                                      zip(self.bern.r[low], self.bern.means[low, :2]))
+            prune(self)
 
         def make(*args: Any, **kwargs: Any) -> Any:
             tracker = make_tracker(*args, **kwargs)
@@ -201,6 +224,7 @@ class _Probe:
                 out = update(looks)
                 b = tracker.bern
                 probe.bern.append((b.r.copy(), b.means[:, :2].copy(), b.labels.copy()))
+                probe.covs.append(b.covs[:, :2, :2].copy())
                 probe.aims.append(probe.current_aims.copy())
                 probe.decided.append(probe.current_decided)
                 return out
@@ -220,8 +244,10 @@ class _Probe:
 
         run_mod.make_tracker = make
         run_mod._Schedule.epoch = epoch_
+        PMBTracker._prune = prune_                     # type: ignore[method-assign]
         return lambda: (setattr(run_mod, "make_tracker", make_tracker),
-                        setattr(run_mod._Schedule, "epoch", epoch))
+                        setattr(run_mod._Schedule, "epoch", epoch),
+                        setattr(PMBTracker, "_prune", prune))
 
 
 def _assignment(ep: Any, c: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, Any]:
@@ -464,6 +490,51 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int,
     return lines
 
 
+def _nearest(bern: tuple[np.ndarray, np.ndarray, np.ndarray], covs: np.ndarray,
+             xy: np.ndarray, n: int = 3) -> list[str]:
+    """The ``n`` Bernoullis nearest to ``xy``: label, existence, distance, position spread
+    (root of the covariance's trace) and NEES of the position error."""
+    r, pos, labels = bern
+    err = pos - xy
+    d = np.hypot(err[:, 0], err[:, 1])
+    out = []
+    for i in np.argsort(d, kind="stable")[:n]:
+        nees = float(err[i] @ np.linalg.solve(covs[i], err[i]))
+        out.append(f"L{labels[i]} r={r[i]:.2f} d={d[i]:.0f} sd={np.sqrt(np.trace(covs[i])):.0f}"
+                   f" nees={nees:.1f}")
+    return out
+
+
+def trace_target(study_file: str, method: str, seed: int, run: int, target: int,
+                 first: int, last_step: int) -> list[str]:
+    """One target's steps ``first..last_step`` in run ``run`` of ``method`` on ``seed``
+    (module docstring)."""
+    from sensorplan.study.file import load_study
+
+    study = dataclasses.replace(load_study(study_file), seed=seed, runs=run + 1)
+    m = next(x for x in study.methods if x.name == method)
+    ep, probe, step, j_idx, xy, sm, last = _recorded_run(study, m.settings, run)
+    detected = ep.measured.any(axis=2)
+    lines = []
+    for t in range(first, last_step + 1):
+        k = np.flatnonzero((j_idx == target) & (step == t))
+        if not len(k):
+            continue
+        k0 = int(k[0])
+        truth = ep.truth[t, target]
+        ground = np.hypot(*(ep.sensor_positions[t] - truth[:2]).T)
+        near_recycled = [f"{r:.3f}@{np.hypot(*(mean - truth[:2])):.0f}m"
+                         for s, r, mean in probe.recycled
+                         if s == t and np.hypot(*(mean - truth[:2])) < 60.0]
+        lines.append(f"{t:4d} label {int(sm.label[k0]):4d} (last {int(last[k0]):4d}) "
+                     f"detected {int(detected[t, target])} speed {np.hypot(*truth[2:4]):.1f} "
+                     f"ground {np.round(ground).astype(int).tolist()} "
+                     f"aims {probe.aims[t - 1].tolist()} | "
+                     + "; ".join(_nearest(probe.bern[t - 1], probe.covs[t - 1], truth[:2]))
+                     + (f" | recycled {', '.join(near_recycled)}" if near_recycled else ""))
+    return lines
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="what", required=True)
@@ -486,8 +557,19 @@ def main(argv: list[str] | None = None) -> None:
     c.add_argument("--runs", type=int, default=40)
     c.add_argument("--first-run", type=int, default=0,
                    help="start at this run (to share the runs between processes)")
+    t = sub.add_parser("trace")
+    t.add_argument("study_file")
+    t.add_argument("--method", default="pmb")
+    t.add_argument("--seed", type=int, required=True)
+    t.add_argument("--run", type=int, required=True)
+    t.add_argument("--target", type=int, required=True)
+    t.add_argument("--steps", required=True, help="first:last step, both printed")
     args = ap.parse_args(argv)
-    if args.what == "study":
+    if args.what == "trace":
+        first, _, last_step = args.steps.partition(":")
+        print("\n".join(trace_target(args.study_file, args.method, args.seed, args.run,
+                                       args.target, int(first), int(last_step))))
+    elif args.what == "study":
         print("\n".join(study_breakdown(args.directory, args.method)))
     elif args.what == "held":
         print("\n".join(study_held(args.directory, args.method)))

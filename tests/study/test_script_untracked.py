@@ -77,3 +77,13 @@ def test_existence_within_c_sums_only_the_nearer_bernoullis() -> None:
     assert diag._existence_within(bern, np.zeros(2), 50.001) == pytest.approx(1.45, abs=1e-15)
     empty = (np.zeros(0), np.zeros((0, 2)), np.zeros(0, dtype=np.int64))
     assert diag._existence_within(empty, np.zeros(2), 50.0) == 0.0
+
+
+def test_nearest_bernoullis_with_their_spread_and_nees() -> None:
+    diag = script_module("untracked_diagnosis")
+    pos = np.array([[100.0, 0.0], [2.0, 3.0], [0.0, -20.0]])
+    covs = np.array([np.eye(2), np.diag([4.0, 9.0]), np.diag([16.0, 9.0])])
+    bern = (np.array([0.9, 0.4, 0.7]), pos, np.array([7, 8, 9]))
+    got = diag._nearest(bern, covs, np.zeros(2), n=2)
+    # Errors (2, 3) with variances (4, 9): NEES 1 + 1; (0, -20) with (16, 9): 400 / 9.
+    assert got == ["L8 r=0.40 d=4 sd=4 nees=2.0", "L9 r=0.70 d=20 sd=5 nees=44.4"]
