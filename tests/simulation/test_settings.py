@@ -45,7 +45,7 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
                      "tracker.survival_probability", "tracker.established_survival",
                      "tracker.established_existence", "tracker.report_threshold",
                      "tracker.prune_threshold", "tracker.recycle_threshold",
-                     "tracker.recycle_motion",
+                     "tracker.recycle_motion", "tracker.split_existence",
                      "tracker.planning_threshold", "tracker.termination_threshold",
                      "tracker.grid_resolution",
                      "tracker.confirm_hits", "tracker.confirm_looks", "tracker.delete_misses"]

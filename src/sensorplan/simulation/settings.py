@@ -85,8 +85,8 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
 PMB_SETTINGS = ("births", "birth_rate", "background_birth_rate", "survival_probability",
                 "established_survival", "established_existence",
                 "report_threshold", "prune_threshold", "recycle_threshold",
-                "recycle_motion", "planning_threshold", "termination_threshold", "edge_exit",
-                "bernoulli_model", "birth_velocity")
+                "recycle_motion", "split_existence", "planning_threshold",
+                "termination_threshold", "edge_exit", "bernoulli_model", "birth_velocity")
 GNN_SETTINGS = ("confirm_hits", "confirm_looks", "delete_misses")
 #: The settings only the lost-target mode of the tracker of known targets reads.
 LOST_SETTINGS = ("lost_probability", "lost_resolution")
@@ -493,6 +493,13 @@ class TrackerSettings(_Settings):
              "where it was) or moving (a Gaussian part of the undetected intensity that "
              "moves as targets do until it spreads over more than a cell; needs recycling "
              "on and the cv Bernoulli model).")
+    split_existence: float = setting(
+        0.0, section="tracker", label="split existence", bounds=Range(0.0, 0.5),
+        help="The PMB tracker keeps a track's missed and detected hypotheses after a look as "
+             "two tracks, instead of merging them into one, when each holds at least this "
+             "probability of existence, so a stray detection cannot pull a track off its "
+             "target (0: off, merge always; else at least prune_threshold, and the cv "
+             "Bernoulli model).")
     planning_threshold: float = setting(
         0.1, section="tracker", label="planning threshold",
         bounds=Range(0.0, 1.0, lo_open=True, hi_open=True),
@@ -543,6 +550,12 @@ class TrackerSettings(_Settings):
             raise ConfigError("recycle_motion", f"moving needs recycling on (recycle_threshold "
                               f"> 0, got {self.recycle_threshold}) and bernoulli_model = "
                               f"\"cv\" (got \"{self.bernoulli_model}\")")
+        if self.split_existence > 0.0 and (self.split_existence < self.prune_threshold
+                                           or self.bernoulli_model != "cv"):
+            raise ConfigError("split_existence", f"must be 0 (off) or at least "
+                              f"prune_threshold ({self.prune_threshold}) with "
+                              f"bernoulli_model = \"cv\" (got {self.split_existence} and "
+                              f"\"{self.bernoulli_model}\")")
         if self.birth_velocity == "inward" and self.births != "edges":
             raise ConfigError("birth_velocity", f"inward needs births = \"edges\" (targets "
                               f"born on the map's boundary), got births = "

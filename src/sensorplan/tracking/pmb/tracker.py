@@ -78,6 +78,21 @@ keeps a detection from starting a Bernoulli below it; so ``recycle_threshold`` m
 below ``prune_threshold``, nor at or above ``report_threshold`` (a reported track would
 be recycled at once).
 
+**Split hypotheses** (off by default). Step 4's merge is what makes the filter a PMB: one
+Gaussian per Bernoulli, however far apart its hypotheses lie. A detection in a coasting
+track's gate that is not its target's then pulls the whole track to it. With
+``split_existence > 0``, a Bernoulli whose missed hypothesis and whose detected hypotheses
+each hold at least that existence (:math:`p^{miss}_i r^{miss}_i` and
+:math:`\sum_j p^{det}_{ij}`) becomes two Bernoullis instead: the part of larger existence
+keeps the label, the other gets the next unused one, each with its own moments, and the
+two existences sum to the merged :math:`r'_i`. So a track that took a stray detection
+leaves a Bernoulli where the target would be had it been missed, and a later detection
+there confirms it; a Poisson multi-Bernoulli mixture filter keeps the two as hypotheses of
+one global mixture, this keeps them as independent Bernoullis (the expected number of
+targets is the same; that at most one of them exists is lost). A split never takes a
+track out of the report: when the merged existence reaches the report threshold, the
+larger part must too. One motion model per Bernoulli only.
+
 Missed looks are the same update with no detection: step 4 leaves :math:`r'_i` and the
 missed-look density. The missed-look probability :math:`\bar P` ignores the gate (a
 target detected outside its gate would start a new Bernoulli; at the default gate
@@ -223,6 +238,11 @@ class PMBTracker(MapTracker):
         probability that a target on the map at the step's start crosses the edge during
         the step (``crossing``, :func:`~sensorplan.tracking.known_map.crossing_log_mass`).
         No effect with a closed edge.
+    split_existence : float in [0, 0.5]
+        0 (default): a Bernoulli's hypotheses are merged into one Gaussian after each look.
+        Else a Bernoulli whose missed and detected hypotheses each hold at least this
+        existence is split into two (module docstring); at least ``prune_threshold``, and
+        one motion model per Bernoulli.
     recycle_motion : {"static", "moving"}
         What a recycled Bernoulli becomes: mass on the cells where it was (``static``, the
         default), or a Gaussian component of the undetected intensity that moves with the
@@ -251,7 +271,7 @@ class PMBTracker(MapTracker):
                  initial_undetected: float = 0.0, prune_threshold: float = 1e-3,
                  report_threshold: float = 0.5,
                  recycle_threshold: float = 0.0, recycle_motion: str = "static",
-                 planning_threshold: float | None = None,
+                 split_existence: float = 0.0, planning_threshold: float | None = None,
                  termination_threshold: float = 1.0, edge_exit: str = "outside",
                  birth_velocity: str = "isotropic",
                  mode_process_noise: FloatArray | tuple[float, ...] | None = None,
@@ -283,6 +303,13 @@ class PMBTracker(MapTracker):
                                            or mode_process_noise is not None):
             raise ValueError("recycle_motion 'moving' needs recycling on (recycle_threshold "
                              "> 0) and one motion model per Bernoulli (no "
+                             "mode_process_noise)")
+        if not (0.0 <= split_existence <= 0.5 and (
+                split_existence == 0.0 or split_existence >= prune_threshold)):
+            raise ValueError(f"split_existence must be 0 (off) or in [prune_threshold "
+                             f"({prune_threshold!r}), 0.5], got {split_existence!r}")
+        if split_existence > 0.0 and mode_process_noise is not None:
+            raise ValueError("split_existence needs one motion model per Bernoulli (no "
                              "mode_process_noise)")
         if planning_threshold is not None and not 0.0 < planning_threshold < 1.0:
             raise ValueError(f"planning_threshold must be in (0, 1), got "
@@ -333,6 +360,9 @@ class PMBTracker(MapTracker):
         self.prune_threshold = float(prune_threshold)
         self.report_threshold = float(report_threshold)
         self.recycle_threshold = float(recycle_threshold)
+        self.split_existence = float(split_existence)
+        #: Bernoullis split in two so far.
+        self.splits = 0
         self.planning_threshold = (self.report_threshold if planning_threshold is None
                                    else min(float(planning_threshold), self.report_threshold))
         #: Bernoullis recycled into the undetected intensity so far, and their existence.
@@ -614,14 +644,50 @@ class PMBTracker(MapTracker):
         # r' of the Bernoulli rows: their missed and detected hypotheses' weights. One
         # with none of positive weight has r' = 0 (pruned below) and keeps its moments.
         r_post = total[:rows.size]
+        split = (self._split(w_miss, h, xu, Pu, (r_post, gm[:rows.size], gP[:rows.size]),
+                             mm[rows], mP[rows])
+                 if self.split_existence > 0.0 else None)
+        if split is not None:
+            r_post, gm[:rows.size], gP[:rows.size] = split[0], split[1], split[2]
         live = np.flatnonzero(r_post > 0.0)
         b.r = b.r.copy()
         b.r[rows] = np.minimum(r_post, 1.0)
         b.means, b.covs = b.means.copy(), b.covs.copy()
         b.means[rows[live]], b.covs[rows[live]] = gm[live], gP[live]
         self._start(h, gm[rows.size:], gP[rows.size:])
+        if split is not None and len(split[3]):
+            labels = np.arange(self.next_label, self.next_label + len(split[3]),
+                               dtype=np.int64)
+            self.next_label += len(labels)
+            b.append(np.minimum(split[3], 1.0), split[4], split[5], labels)
+            self.splits += len(labels)
         self._thin_moving(look)
         return self._finish_look(detect, terms.gated[:n], n, h, pbar, w, marg)
+
+    def _split(self, w_miss: FloatArray, h: hyp.Hypotheses, xu: FloatArray, Pu: FloatArray,
+               merged: tuple[FloatArray, FloatArray, FloatArray], miss_means: FloatArray,
+               miss_covs: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray,
+                                               FloatArray, FloatArray, FloatArray]:
+        """Split the look's updated rows (module docstring): given each row's missed
+        hypothesis (weight ``w_miss (q,)``, moments) and its merged existence and moments
+        ``merged``, the rows with a split one as its larger part, and the smaller parts to
+        append: ``(r (q,), means (q, 4), covs (q, 4, 4), r_new (k,), means_new (k, 4),
+        covs_new (k, 4, 4))``."""
+        q = len(w_miss)
+        det = h.group < q
+        d_tot, dm, dP = mixture_moments(q, (h.weight[det], h.group[det], xu[det], Pu[det]))
+        low, high = np.minimum(w_miss, d_tot), np.maximum(w_miss, d_tot)
+        split = (low >= self.split_existence) & (
+            (merged[0] < self.report_threshold) | (high >= self.report_threshold))
+        rows = np.flatnonzero(split)
+        det_first = d_tot[rows] >= w_miss[rows]
+        keep = (np.where(det_first[:, None], dm[rows], miss_means[rows]),
+                np.where(det_first[:, None, None], dP[rows], miss_covs[rows]))
+        other = (np.where(det_first[:, None], miss_means[rows], dm[rows]),
+                 np.where(det_first[:, None, None], miss_covs[rows], dP[rows]))
+        r, gm, gP = merged[0].copy(), merged[1].copy(), merged[2].copy()
+        r[rows], gm[rows], gP[rows] = high[rows], keep[0], keep[1]
+        return r, gm, gP, low[rows], other[0], other[1]
 
     def _missed(self, means: FloatArray, covs: FloatArray, look: Look
                 ) -> tuple[FloatArray, FloatArray, FloatArray]:
