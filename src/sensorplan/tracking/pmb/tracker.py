@@ -91,7 +91,8 @@ there confirms it; a Poisson multi-Bernoulli mixture filter keeps the two as hyp
 one global mixture, this keeps them as independent Bernoullis (the expected number of
 targets is the same; that at most one of them exists is lost). A split never takes a
 track out of the report: when the merged existence reaches the report threshold, the
-larger part must too. One motion model per Bernoulli only.
+larger part must too. One motion model per Bernoulli only. No preset sets it: on the
+``search`` preset it held found targets worse than the merge (docs/tracking_pmb.md).
 
 Missed looks are the same update with no detection: step 4 leaves :math:`r'_i` and the
 missed-look density. The missed-look probability :math:`\bar P` ignores the gate (a
