@@ -35,8 +35,11 @@ before it, its median distance to the nearest platform during it, its class at t
 stretch's first step (as for ``closed-loop``, with that Bernoulli's existence and distance),
 in how many of the stretch's steps a look was aimed at that class's label, in how many
 the target stood inside some platform's ground-range band (a look with the right heading
-could have seen it, line of sight aside), and in how many the Bernoullis within c of it
-summed to the report threshold or more (existence split between duplicates). A stretch in which
+could have seen it, line of sight aside), in how many the Bernoullis within c of it
+summed to the report threshold or more (existence split between duplicates), and the
+step, if any, in the stretch or the 10 before it at which the target's last track was
+*pulled*: its existence rose while no look detected the target, and it moved more than
+10 m farther from the target (it took a detection that was not its target's). A stretch in which
 the target was detected but no track formed is the tracker's failure; one in which it was
 not detected, planning's (no look went there) or the sensor's.
 
@@ -299,6 +302,28 @@ def _classify(bern: tuple[np.ndarray, np.ndarray, np.ndarray], xy: np.ndarray, l
     return "gone", last, np.nan, np.nan
 
 
+def pulled_step(steps: list[int], bern: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+                xy: np.ndarray, detected: np.ndarray, label: int,
+                min_gain: float = 10.0) -> int | None:
+    """The first of ``steps`` at which the Bernoulli labelled ``label`` was pulled off its
+    target: its existence after the step above the one after the step before, the target
+    not detected in the step (``detected`` per step), and its distance to the target
+    (``xy`` per step) more than ``min_gain`` metres above the step before's. ``bern[i]``
+    is the tracker after ``steps[i]``; None when no step qualifies or the label is absent."""
+    def at(i: int) -> tuple[float, float] | None:
+        r, pos, labels = bern[i]
+        k = np.flatnonzero(labels == label)
+        if not len(k):
+            return None
+        return float(r[k[0]]), float(np.hypot(*(pos[k[0]] - xy[i])))
+    for i in range(1, len(steps)):
+        before, now = at(i - 1), at(i)
+        if (before is not None and now is not None and not detected[i]
+                and now[0] > before[0] and now[1] > before[1] + min_gain):
+            return steps[i]
+    return None
+
+
 def _existence_within(bern: tuple[np.ndarray, np.ndarray, np.ndarray], xy: np.ndarray,
                       c: float) -> float:
     """The summed existence of the Bernoullis nearer than ``c`` to ``xy``."""
@@ -438,12 +463,12 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int,
              "| median distance to the nearest platform (m) | class at its first step "
              "| existence, distance (m) | steps a look aimed at that label in it "
              "| steps in some platform's ground-range band | steps with existence "
-             f"{threshold:g} within c |",
-             "|--:|--:|--:|--:|--:|--:|--:|---|--:|--:|--:|--:|"]
+             f"{threshold:g} within c | last track pulled at step |",
+             "|--:|--:|--:|--:|--:|--:|--:|---|--:|--:|--:|--:|--:|"]
     detected_in, losing, classes = [], set(), []
     band = np.array([[sp.params.min_ground_range, sp.params.max_ground_range]
                      for sp in study.scenario.sensors])
-    in_band, summed, steps = 0, 0, 0
+    in_band, summed, steps, n_pulled = 0, 0, 0, 0
     for run in range(first_run, runs):
         ep, probe, step, j_idx, xy, sm, last = _recorded_run(study, m.settings, run)
         detected = ep.measured.any(axis=2)                               # (S+1, M)
@@ -468,6 +493,12 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int,
                 n_sum = sum(_existence_within(probe.bern[t - 1], ep.truth[t, j, :2],
                                               c) >= threshold
                             for t in range(s0, s1))
+                # The target's last track before the stretch, from 10 steps before it on.
+                span = list(range(max(1, s0 - 10), s1))
+                pulled = pulled_step(span, [probe.bern[t - 1] for t in span],
+                                     ep.truth[span, j, :2], detected[span, j],
+                                     int(last[k0]))
+                n_pulled += pulled is not None
                 in_band += n_band
                 summed += n_sum
                 steps += n
@@ -476,7 +507,8 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int,
                 losing.add(run)
                 what = "" if np.isnan(r_i) else f"{r_i:.2f}, {d_i:.0f}"
                 lines.append(f"| {run} | {j} | {s0} | {n} | {seen} | {before} | {dist:.0f} "
-                             f"| {cls} | {what} | {aimed} | {n_band} | {n_sum} |")
+                             f"| {cls} | {what} | {aimed} | {n_band} | {n_sum} "
+                             f"| {'' if pulled is None else pulled} |")
     d = np.array(detected_in)
     lines.append(f"method {method}, seed {seed}, runs {first_run}-{runs - 1}: {len(d)} held "
                  f"targets lost in "
@@ -486,7 +518,7 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int,
                  + ", ".join(f"{k} {classes.count(k)}" for k in CLASSES_LOOP)
                  + f"; of their {steps} steps, {in_band} with the target in some platform's "
                  f"ground-range band, {summed} with the Bernoullis within c summing to the "
-                 f"report threshold or more")
+                 f"report threshold or more; {n_pulled} began with the last track pulled")
     return lines
 
 

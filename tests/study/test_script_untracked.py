@@ -87,3 +87,26 @@ def test_nearest_bernoullis_with_their_spread_and_nees() -> None:
     got = diag._nearest(bern, covs, np.zeros(2), n=2)
     # Errors (2, 3) with variances (4, 9): NEES 1 + 1; (0, -20) with (16, 9): 400 / 9.
     assert got == ["L8 r=0.40 d=4 sd=4 nees=2.0", "L9 r=0.70 d=20 sd=5 nees=44.4"]
+
+
+def test_a_pulled_track_is_found_at_its_step() -> None:
+    diag = script_module("untracked_diagnosis")
+    labels = np.array([4, 9])
+    xy = np.zeros((5, 2))
+
+    def bern(r4: float, x4: float) -> tuple:
+        return (np.array([r4, 0.9]), np.array([[x4, 0.0], [500.0, 0.0]]), labels)
+
+    # Label 4: 5 m off, then 8 m (a miss), then 30 m with its existence up while the
+    # target went undetected (a pull at step 13), then further.
+    seq = [bern(0.95, 5.0), bern(0.90, 8.0), bern(0.97, 30.0), bern(0.80, 45.0),
+           bern(0.99, 46.0)]
+    steps = [10, 11, 13, 14, 15]
+    none = np.zeros(5, dtype=bool)
+    assert diag.pulled_step(steps, seq, xy, none, 4) == 13
+    # Detected at that step: the rise is the target's own detection, not a pull; step 15
+    # rises by 1 m only.
+    assert diag.pulled_step(steps, seq, xy, np.array([0, 0, 1, 0, 0], bool), 4) is None
+    # A jump of exactly min_gain is not enough; an absent label is never pulled.
+    assert diag.pulled_step(steps, seq, xy, none, 4, min_gain=22.0) is None
+    assert diag.pulled_step(steps, seq, xy, none, 7) is None
