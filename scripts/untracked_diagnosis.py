@@ -333,15 +333,43 @@ def _existence_within(bern: tuple[np.ndarray, np.ndarray, np.ndarray], xy: np.nd
     return float(r[np.hypot(*(pos - xy).T) < c].sum())
 
 
+class MethodNotFound(ValueError):
+    """A study file has no method of the name asked for."""
+
+
+def _study_method(study_file: str, method: str, seed: int, runs: int) -> tuple[Any, Any]:
+    """The study of ``study_file`` on ``seed`` with ``runs`` runs, and its method named
+    ``method`` (:class:`MethodNotFound`, naming the methods there are, if it has none of
+    that name)."""
+    from sensorplan.study.file import load_study
+
+    study = dataclasses.replace(load_study(study_file), seed=seed, runs=runs)
+    for m in study.methods:
+        if m.name == method:
+            return study, m
+    raise MethodNotFound(f"--method: {study_file} has no method {method!r} (its methods: "
+                     f"{', '.join(x.name for x in study.methods)})")
+
+
+def _step_range(text: str) -> tuple[int, int]:
+    """``A:B`` as two step numbers, 1 <= A <= B (argparse's type for ``--steps``)."""
+    first, sep, last = text.partition(":")
+    try:
+        a, b = int(first), int(last)
+    except ValueError:
+        a, b = 0, -1
+    if not sep or not 1 <= a <= b:
+        raise argparse.ArgumentTypeError(f"must be FIRST:LAST with 1 <= FIRST <= LAST, got "
+                                         f"{text!r}")
+    return a, b
+
+
 def loop_breakdown(study_file: str, method: str, seed: int, runs: int,
                    planning_threshold: float | None = None) -> list[str]:
     """Run ``runs`` closed loops of ``method`` on ``seed`` (with its tracker's
     ``planning_threshold`` replaced, if given) and break their untracked target-steps down
     (module docstring)."""
-    from sensorplan.study.file import load_study
-
-    study = dataclasses.replace(load_study(study_file), seed=seed, runs=runs)
-    m = next(x for x in study.methods if x.name == method)
+    study, m = _study_method(study_file, method, seed, runs)
     if planning_threshold is not None:
         tracker = dataclasses.replace(m.settings.tracker, planning_threshold=planning_threshold)
         m = dataclasses.replace(m, settings=dataclasses.replace(m.settings, tracker=tracker))
@@ -453,10 +481,7 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int,
                    first_run: int = 0) -> list[str]:
     """Run closed loops ``first_run`` to ``runs - 1`` of ``method`` on ``seed`` and list
     every held target lost with what happened during it (module docstring)."""
-    from sensorplan.study.file import load_study
-
-    study = dataclasses.replace(load_study(study_file), seed=seed, runs=runs)
-    m = next(x for x in study.methods if x.name == method)
+    study, m = _study_method(study_file, method, seed, runs)
     threshold = float(m.settings.tracker.report_threshold)
     c = float(m.settings.gospa_c)
     lines = ["| run | target | first step | length | steps detected in it | in the 10 before "
@@ -541,10 +566,7 @@ def trace_target(study_file: str, method: str, seed: int, run: int, target: int,
                  first: int, last_step: int) -> list[str]:
     """One target's steps ``first..last_step`` in run ``run`` of ``method`` on ``seed``
     (module docstring)."""
-    from sensorplan.study.file import load_study
-
-    study = dataclasses.replace(load_study(study_file), seed=seed, runs=run + 1)
-    m = next(x for x in study.methods if x.name == method)
+    study, m = _study_method(study_file, method, seed, run + 1)
     ep, probe, step, j_idx, xy, sm, last = _recorded_run(study, m.settings, run)
     detected = ep.measured.any(axis=2)
     lines = []
@@ -595,12 +617,19 @@ def main(argv: list[str] | None = None) -> None:
     t.add_argument("--seed", type=int, required=True)
     t.add_argument("--run", type=int, required=True)
     t.add_argument("--target", type=int, required=True)
-    t.add_argument("--steps", required=True, help="first:last step, both printed")
+    t.add_argument("--steps", required=True, type=_step_range,
+                   help="first:last step, both printed")
     args = ap.parse_args(argv)
+    try:
+        _run(args)
+    except MethodNotFound as e:
+        ap.error(str(e))
+
+
+def _run(args: argparse.Namespace) -> None:
     if args.what == "trace":
-        first, _, last_step = args.steps.partition(":")
         print("\n".join(trace_target(args.study_file, args.method, args.seed, args.run,
-                                       args.target, int(first), int(last_step))))
+                                       args.target, *args.steps)))
     elif args.what == "study":
         print("\n".join(study_breakdown(args.directory, args.method)))
     elif args.what == "held":

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from script_helpers import script_module
+from script_helpers import ROOT, script_module
 
 
 @pytest.mark.parametrize("seed", range(40))
@@ -110,3 +110,21 @@ def test_a_pulled_track_is_found_at_its_step() -> None:
     # A jump of exactly min_gain is not enough; an absent label is never pulled.
     assert diag.pulled_step(steps, seq, xy, none, 4, min_gain=22.0) is None
     assert diag.pulled_step(steps, seq, xy, none, 7) is None
+
+
+def test_trace_and_lost_refuse_bad_steps_and_unknown_methods(capsys) -> None:
+    diag = script_module("untracked_diagnosis")
+    study = str(ROOT / "studies" / "development" / "search_split_dev.toml")
+    assert diag._step_range("110:140") == (110, 140)
+    for bad in ("110-140", "140:110", "0:5", "a:b", "7"):
+        with pytest.raises(SystemExit) as e:
+            diag.main(["trace", study, "--seed", "1",
+                       "--run", "0", "--target", "0", "--steps", bad])
+        assert e.value.code == 2
+        assert "--steps" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:
+        diag.main(["lost", study, "--method", "nope",
+                   "--seed", "1", "--runs", "1"])
+    assert e.value.code == 2
+    err = capsys.readouterr().err
+    assert "--method" in err and "'nope'" in err and "pmb/split0.1" in err
