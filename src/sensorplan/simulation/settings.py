@@ -497,9 +497,9 @@ class TrackerSettings(_Settings):
         0.0, section="tracker", label="split existence", bounds=Range(0.0, 0.5),
         help="The PMB tracker keeps a track's missed and detected hypotheses after a look as "
              "two tracks, instead of merging them into one, when each holds at least this "
-             "probability of existence, so a stray detection cannot pull a track off its "
-             "target (0: off, merge always; else at least prune_threshold, and the cv "
-             "Bernoulli model).")
+             "probability of existence, so a stray detection does not pull the whole track "
+             "off its target (0: off, merge always, as every preset does; else at least "
+             "prune_threshold, and the cv Bernoulli model).")
     planning_threshold: float = setting(
         0.1, section="tracker", label="planning threshold",
         bounds=Range(0.0, 1.0, lo_open=True, hi_open=True),
