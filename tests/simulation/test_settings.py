@@ -46,6 +46,7 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
                      "tracker.established_existence", "tracker.report_threshold",
                      "tracker.prune_threshold", "tracker.recycle_threshold",
                      "tracker.recycle_motion", "tracker.split_existence",
+                     "tracker.density_components",
                      "tracker.planning_threshold", "tracker.termination_threshold",
                      "tracker.grid_resolution",
                      "tracker.confirm_hits", "tracker.confirm_looks", "tracker.delete_misses"]

@@ -275,6 +275,7 @@ def make_tracker(scenario: Scenario, settings: RunSettings, estimate: FloatArray
                prune_threshold=tr.prune_threshold, report_threshold=tr.report_threshold,
                recycle_threshold=tr.recycle_threshold, recycle_motion=tr.recycle_motion,
                split_existence=tr.split_existence,
+               density_components=tr.density_components,
                planning_threshold=tr.planning_threshold,
                termination_threshold=tr.termination_threshold, edge_exit=tr.edge_exit,
                birth_velocity=tr.birth_velocity, **tr.bernoulli_options())

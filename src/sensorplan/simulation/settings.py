@@ -85,7 +85,8 @@ def setting(default: Any = dataclasses.MISSING, *, help: str, section: str,
 PMB_SETTINGS = ("births", "birth_rate", "background_birth_rate", "survival_probability",
                 "established_survival", "established_existence",
                 "report_threshold", "prune_threshold", "recycle_threshold",
-                "recycle_motion", "split_existence", "planning_threshold",
+                "recycle_motion", "split_existence", "density_components",
+                "planning_threshold",
                 "termination_threshold", "edge_exit", "bernoulli_model", "birth_velocity")
 GNN_SETTINGS = ("confirm_hits", "confirm_looks", "delete_misses")
 #: The settings only the lost-target mode of the tracker of known targets reads.
@@ -500,6 +501,14 @@ class TrackerSettings(_Settings):
              "probability of existence, so a stray detection does not pull the whole track "
              "off its target (0: off, merge always, as every preset does; else at least "
              "prune_threshold, and the cv Bernoulli model).")
+    density_components: int = setting(
+        1, section="tracker", label="density components", bounds=Range(1, 8),
+        help="The Gaussian components each PMB track's density keeps after a look: 1 merges "
+             "its missed and detected hypotheses into one Gaussian (every preset); more keeps "
+             "that many within the one track, merging the pairs that lose least (Runnalls' "
+             "cost), so a detection that is not its target's moves weight between them "
+             "instead of the whole track (the cv Bernoulli model, split_existence 0, "
+             "recycle_motion static).")
     planning_threshold: float = setting(
         0.1, section="tracker", label="planning threshold",
         bounds=Range(0.0, 1.0, lo_open=True, hi_open=True),
@@ -556,6 +565,13 @@ class TrackerSettings(_Settings):
                               f"prune_threshold ({self.prune_threshold}) with "
                               f"bernoulli_model = \"cv\" (got {self.split_existence} and "
                               f"\"{self.bernoulli_model}\")")
+        if self.density_components > 1 and (self.bernoulli_model != "cv"
+                                            or self.split_existence > 0.0
+                                            or self.recycle_motion != "static"):
+            raise ConfigError("density_components", f"more than 1 needs bernoulli_model = "
+                              f"\"cv\", split_existence = 0 and recycle_motion = "
+                              f"\"static\" (got \"{self.bernoulli_model}\", "
+                              f"{self.split_existence} and \"{self.recycle_motion}\")")
         if self.birth_velocity == "inward" and self.births != "edges":
             raise ConfigError("birth_velocity", f"inward needs births = \"edges\" (targets "
                               f"born on the map's boundary), got births = "

@@ -43,11 +43,13 @@ class Method:
 #: track reported exactly while its existence is at least the report threshold; no
 #: background births; one motion model in every PMB Bernoulli; an isotropic velocity prior
 #: for a target first detected; every track with the tracker survival; recycled tracks left
-#: on the grid where they were; every Bernoulli's hypotheses merged after a look).
+#: on the grid where they were; every Bernoulli's hypotheses merged after a look, into one
+#: Gaussian).
 TRACKER_SETTINGS_ADDED = {"termination_threshold": 1.0, "background_birth_rate": 0.0,
                           "bernoulli_model": "cv", "birth_velocity": "isotropic",
                           "established_survival": 0.0, "established_existence": 0.99,
-                          "recycle_motion": "static", "split_existence": 0.0}
+                          "recycle_motion": "static", "split_existence": 0.0,
+                          "density_components": 1}
 
 
 def planned_as_written(method: Mapping[str, Any]) -> dict[str, Any]:

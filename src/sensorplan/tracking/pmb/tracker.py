@@ -94,6 +94,15 @@ track out of the report: when the merged existence reaches the report threshold,
 larger part must too. One motion model per Bernoulli only. No preset sets it: on the
 ``search`` preset it held found targets worse than the merge (docs/tracking_pmb.md).
 
+**Mixture densities**. With ``density_components = R > 1`` a Bernoulli's density is a
+mixture of up to R Gaussians instead (:mod:`sensorplan.tracking.pmb.mixture`): each
+component's missed hypothesis and its detected ones are kept as candidates and reduced
+back to R by the merges that lose least (Runnalls' cost), so the missed and detected
+hypotheses of one target stay apart within one Bernoulli, its existence and label shared
+(that at most one of them is the target is kept). The association, the report and the
+planner see the components' moment-matched Gaussian; the components do not switch, each
+is predicted with the one motion model.
+
 Missed looks are the same update with no detection: step 4 leaves :math:`r'_i` and the
 missed-look density. The missed-look probability :math:`\bar P` ignores the gate (a
 target detected outside its gate would start a new Bernoulli; at the default gate
@@ -136,6 +145,7 @@ from ..ekf import predict as kalman_predict
 from ..known_map import EDGE_EXITS, crossing_log_mass, map_edge_predict
 from . import undetected
 from . import hypotheses as hyp
+from . import mixture
 from . import modes as imm
 from .association import AssociationMarginals, association_lbp
 from .bernoulli import (Bernoullis, missed_existence, missed_look, mixture_moments, pair_terms,
@@ -244,6 +254,11 @@ class PMBTracker(MapTracker):
         Else a Bernoulli whose missed and detected hypotheses each hold at least this
         existence is split into two (module docstring); at least ``prune_threshold``, and
         one motion model per Bernoulli.
+    density_components : int in [1, 8]
+        The Gaussian components each Bernoulli's density keeps after a look: 1 (default)
+        moment-matches its hypotheses into one Gaussian; R > 1 keeps R, each component's
+        missed and detected hypotheses reduced back to R by Runnalls' merge
+        (:mod:`.mixture`). One motion model per Bernoulli, and no ``split_existence``.
     recycle_motion : {"static", "moving"}
         What a recycled Bernoulli becomes: mass on the cells where it was (``static``, the
         default), or a Gaussian component of the undetected intensity that moves with the
@@ -272,7 +287,8 @@ class PMBTracker(MapTracker):
                  initial_undetected: float = 0.0, prune_threshold: float = 1e-3,
                  report_threshold: float = 0.5,
                  recycle_threshold: float = 0.0, recycle_motion: str = "static",
-                 split_existence: float = 0.0, planning_threshold: float | None = None,
+                 split_existence: float = 0.0, density_components: int = 1,
+                 planning_threshold: float | None = None,
                  termination_threshold: float = 1.0, edge_exit: str = "outside",
                  birth_velocity: str = "isotropic",
                  mode_process_noise: FloatArray | tuple[float, ...] | None = None,
@@ -312,6 +328,16 @@ class PMBTracker(MapTracker):
         if split_existence > 0.0 and mode_process_noise is not None:
             raise ValueError("split_existence needs one motion model per Bernoulli (no "
                              "mode_process_noise)")
+        if not (isinstance(density_components, (int, np.integer))
+                and 1 <= density_components <= mixture.MAX_COMPONENTS):
+            raise ValueError(f"density_components must be an integer in [1, "
+                             f"{mixture.MAX_COMPONENTS}], got {density_components!r}")
+        if density_components > 1 and (mode_process_noise is not None
+                                       or split_existence > 0.0
+                                       or recycle_motion == "moving"):
+            raise ValueError("density_components > 1 needs one motion model per Bernoulli "
+                             "(no mode_process_noise), split_existence 0 and "
+                             "recycle_motion 'static'")
         if planning_threshold is not None and not 0.0 < planning_threshold < 1.0:
             raise ValueError(f"planning_threshold must be in (0, 1), got "
                              f"{planning_threshold!r}")
@@ -344,6 +370,12 @@ class PMBTracker(MapTracker):
         #: The IMM's modes (None: one motion model).
         self.modes = (None if mode_process_noise is None
                       else imm.make_modes(self.dt, mode_process_noise, switching))
+        #: Components of every Bernoulli's density (> 1: a mixture carried as modes that
+        #: do not switch, :mod:`.mixture`).
+        self.density_components = int(density_components)
+        if self.density_components > 1:
+            self.modes = mixture.components_as_modes(self.process_noise, self.Q,
+                                                     self.density_components)
         self.birth_velocity = birth_velocity
         if birth_velocity == "inward":
             assert model.speed_range is not None
@@ -452,7 +484,7 @@ class PMBTracker(MapTracker):
         """q of the CWNA motion model the planner predicts every track with: the model's,
         or with IMM modes each planning track's effective q one step ahead,
         ``(mu Pi) . q`` (one per :meth:`planning_tracks` row)."""
-        if self.modes is None:
+        if self.modes is None or self.density_components > 1:
             return self.process_noise
         assert self.bern.mode_probs is not None
         return imm.planning_noise(self.bern.mode_probs[self._planned()], self.modes)
@@ -558,7 +590,8 @@ class PMBTracker(MapTracker):
         b, modes = self.bern, self.modes
         assert modes is not None
         n, R = len(b), len(modes.q)
-        x0, P0, xp, Pp = imm.predict(b, self.F, modes)
+        x0, P0, xp, Pp = (imm.predict(b, self.F, modes) if self.density_components == 1
+                          else mixture.predict(b, self.F, self.Q))
         b.r = self._survival() * b.r
         corrected = np.zeros(n, dtype=bool)
         if self.map_edge is not None:
@@ -775,17 +808,26 @@ class PMBTracker(MapTracker):
         w_miss = imm.missed_weights(marg.p_miss[rows], b.r[rows], pbar[rows],
                                     b.mode_probs[rows], pbar_modes[rows])
         comps = (rows[:, None] * R + np.arange(R)).reshape(-1)
-        total, gm, gP = mixture_moments(q * R + h.started.size,
-                                        (w_miss.reshape(-1), np.arange(q * R), mm[comps],
+        # Each mode's missed and detected hypotheses merge into that mode; a mixture's
+        # are 2R candidates per Bernoulli, reduced back to R.
+        G, miss_groups, det_groups = R, np.arange(q * R), mh.group
+        if self.density_components > 1:
+            G = 2 * R
+            miss_groups = mixture.missed_groups(q, R)
+            det_groups = mixture.detected_groups(mh.group, q, R)
+        total, gm, gP = mixture_moments(q * G + h.started.size,
+                                        (w_miss.reshape(-1), miss_groups, mm[comps],
                                          mP[comps]),
-                                        (mh.weight, mh.group, xu, Pu))
-        r_post, live = imm.merged_modes(b, rows, total[:q * R].reshape(q, R),
-                                        gm[:q * R].reshape(q, R, 4),
-                                        gP[:q * R].reshape(q, R, 4, 4))
+                                        (mh.weight, det_groups, xu, Pu))
+        merged = (total[:q * G].reshape(q, G), gm[:q * G].reshape(q, G, 4),
+                  gP[:q * G].reshape(q, G, 4, 4))
+        if G > R:
+            merged = mixture.reduce(*merged, R)
+        r_post, live = imm.merged_modes(b, rows, *merged)
         b.r = b.r.copy()
         b.r[rows] = np.minimum(r_post, 1.0)
         imm.combine(b, rows[live])
-        self._start(h, gm[q * R:], gP[q * R:])
+        self._start(h, gm[q * G:], gP[q * G:])
         return self._finish_look(detect, terms.gated[:n * R], n, h, pbar, w, marg)
 
     def _prune(self) -> None:
