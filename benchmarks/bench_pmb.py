@@ -19,14 +19,15 @@ tentative tracks. Its updates are timed the same way, interleaved problem by pro
 the PMB's, and the summary gives both medians and their ratio. With ``--imm`` the PMB
 with two IMM modes in every Bernoulli (the known tracker's default modes, q 0.05 and 5)
 gets the same step too, timed the same way, and the summary gives its ratio to the
-single-model PMB.
+single-model PMB; with ``--components R`` so does the PMB whose Bernoulli densities keep R
+Gaussian components (``density_components``).
 
 Target: the median update <= 2 ms.
 
 Run::
 
     PYTHONPATH=src .venv/bin/python benchmarks/bench_pmb.py [--problems 10] [--repeats 50]
-        [--seed 0] [--undetected 2.0] [--imm] [--profile]
+        [--seed 0] [--undetected 2.0] [--imm] [--components 2] [--profile]
 """
 
 from __future__ import annotations
@@ -88,13 +89,19 @@ def problem(rng: np.random.Generator, undetected: float = 2.0) -> tuple[PMBTrack
     return tracker, looks
 
 
-def imm_of(tracker: PMBTracker) -> PMBTracker:
-    """The same tracker (model, Bernoullis, undetected intensity) with two IMM modes in
-    every Bernoulli, each at the Bernoulli's density."""
+#: The variants of the single-model PMB timed beside it: their option and its keywords.
+VARIANTS = {"imm": ("PMB with 2 IMM modes",
+                    dict(mode_process_noise=(0.05, 5.0),
+                         switching=np.array([[0.95, 0.05], [0.1, 0.9]]))),
+            "components": ("PMB with {} mixture components", {})}
+
+
+def variant_of(tracker: PMBTracker, **options: object) -> PMBTracker:
+    """The same tracker (model, Bernoullis, undetected intensity) with ``options`` (IMM
+    modes or mixture components, each at the Bernoulli's density)."""
     out = PMBTracker(tracker.model, means=tracker.bern.means, covs=tracker.bern.covs,
                      existence=tracker.bern.r, births=tracker.births,
-                     mode_process_noise=(0.05, 5.0),
-                     switching=np.array([[0.95, 0.05], [0.1, 0.9]]))
+                     **options)  # type: ignore[arg-type]
     out.undetected = tracker.undetected.copy()
     return out
 
@@ -125,8 +132,20 @@ def main(argv: list[str] | None = None) -> int:
                     help="expected undetected targets on the map (0: no Bernoulli is started)")
     ap.add_argument("--imm", action="store_true",
                     help="also time the PMB with two IMM modes in every Bernoulli")
+    ap.add_argument("--components", type=int, default=0, metavar="R",
+                    help="also time the PMB whose Bernoulli densities keep R Gaussian "
+                         "components (2 to 8)")
     ap.add_argument("--profile", action="store_true")
     args = ap.parse_args(argv)
+    if args.components and not 2 <= args.components <= 8:
+        ap.error(f"--components must be 0 (off) or 2 to 8, got {args.components}")
+    variants = []
+    if args.imm:
+        variants.append(VARIANTS["imm"])
+    if args.components:
+        name, _ = VARIANTS["components"]
+        variants.append((name.format(args.components),
+                         dict(density_components=args.components)))
     rng = np.random.default_rng(args.seed)
     problems = [problem(rng, args.undetected) for _ in range(args.problems)]
     copy.deepcopy(problems[0][0]).update(problems[0][1])          # compile / load kernels
@@ -136,8 +155,8 @@ def main(argv: list[str] | None = None) -> int:
     all_cpu: list[float] = []
     gnn_times: list[float] = []
     gnn_cpu: list[float] = []
-    imm_times: list[float] = []
-    imm_cpu: list[float] = []
+    var_times: list[list[float]] = [[] for _ in variants]
+    var_cpu: list[list[float]] = [[] for _ in variants]
     print("| problem | Bernoullis after | median | lower quartile | upper quartile | "
           "median CPU | GNN tracks after | GNN median | GNN median CPU |")
     print("|---|---|---|---|---|---|---|---|---|")
@@ -152,12 +171,12 @@ def main(argv: list[str] | None = None) -> int:
         g_times, g_cpu = timed(g_fresh[1:], looks)
         gnn_times += g_times
         gnn_cpu += g_cpu
-        if args.imm:
-            i_fresh = [imm_of(tracker) for _ in range(args.repeats + 1)]
-            i_fresh[0].update(looks)
-            i_times, i_cpu = timed(i_fresh[1:], looks)
-            imm_times += i_times
-            imm_cpu += i_cpu
+        for v, (_, options) in enumerate(variants):
+            v_fresh = [variant_of(tracker, **options) for _ in range(args.repeats + 1)]
+            v_fresh[0].update(looks)
+            v_times, v_cpu = timed(v_fresh[1:], looks)
+            var_times[v] += v_times
+            var_cpu[v] += v_cpu
         q = statistics.quantiles(times, n=4)
         print(f"| {k} | {len(fresh[0].bern)} | {1e3 * statistics.median(times):.3f} ms | "
               f"{1e3 * q[0]:.3f} ms | {1e3 * q[2]:.3f} ms | "
@@ -172,11 +191,11 @@ def main(argv: list[str] | None = None) -> int:
     print(f"GNN: median {1e3 * g_med:.3f} ms wall, {1e3 * g_med_cpu:.3f} ms CPU over "
           f"{len(gnn_times)} updates; PMB / GNN: {med / g_med:.2f} wall, "
           f"{statistics.median(all_cpu) / g_med_cpu:.2f} CPU")
-    if args.imm:
-        i_med, i_med_cpu = statistics.median(imm_times), statistics.median(imm_cpu)
-        print(f"PMB with 2 IMM modes: median {1e3 * i_med:.3f} ms wall, "
-              f"{1e3 * i_med_cpu:.3f} ms CPU over {len(imm_times)} updates; IMM / single: "
-              f"{i_med / med:.2f} wall, {i_med_cpu / statistics.median(all_cpu):.2f} CPU")
+    for v, (name, _) in enumerate(variants):
+        v_med, v_med_cpu = statistics.median(var_times[v]), statistics.median(var_cpu[v])
+        print(f"{name}: median {1e3 * v_med:.3f} ms wall, {1e3 * v_med_cpu:.3f} ms CPU "
+              f"over {len(var_times[v])} updates; / single: {v_med / med:.2f} wall, "
+              f"{v_med_cpu / statistics.median(all_cpu):.2f} CPU")
     if args.profile:
         fresh = [(copy.deepcopy(t), lk) for t, lk in problems for _ in range(args.repeats)]
         prof = cProfile.Profile()

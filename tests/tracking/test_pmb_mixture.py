@@ -4,7 +4,8 @@ weight, mean and covariance; a one-component Bernoulli's first look keeps its mi
 detected hypotheses as the two components, in closed form (the prior and the Kalman
 update), with the existence and moment-matched density of the merging tracker; the predict
 commutes with moment matching; a later detection at one component takes the weight back;
-the refusals."""
+the contract, and what every step keeps on a radar run with births, clutter and the map's
+exit edge; the refusals."""
 
 from __future__ import annotations
 
@@ -17,9 +18,12 @@ from sensorplan.errors import ConfigError
 from sensorplan.models import linear
 from sensorplan.simulation.settings import TrackerSettings
 from sensorplan.tracking.base import Looks
+from sensorplan.tracking.checks import CHECKS, Scene, check_tracker
 from sensorplan.tracking.pmb import mixture
 from sensorplan.tracking.pmb.map_tracker import MapModel
 from sensorplan.tracking.pmb.tracker import PMBTracker
+from looks_helpers import MEANS as RADAR_MEANS
+from test_pmb_modes import radar_model, radar_steps
 
 P0 = np.diag([400.0, 400.0, 4.0, 4.0])
 MEAN = np.array([[150.0, 150.0, 1.0, -1.0]])
@@ -157,6 +161,39 @@ def test_a_detection_at_one_component_takes_the_weight_back() -> None:
     near = int(np.argmin(np.linalg.norm(mix.bern.mode_means[0, :, :2] - z, axis=1)))
     assert mix.bern.mode_probs[0, near] > 0.5 > mu[missed]
     assert np.linalg.norm(mix.bern.mode_means[0, near, :2] - z) < 1.0     # R = I
+
+
+def radar_tracker(components: int) -> PMBTracker:
+    return PMBTracker(radar_model(), means=RADAR_MEANS, covs=P0, births="edges",
+                      birth_rate=0.2, initial_undetected=1.0, density_components=components)
+
+
+def test_the_mixture_pmb_meets_the_tracker_contract() -> None:
+    model = radar_model()
+    looks = radar_steps(model.measurement, 1, 0)[0]
+    report = check_tracker(lambda: radar_tracker(2), Scene(looks))
+    assert report.checks == tuple(CHECKS)
+
+
+def test_every_step_keeps_the_mixture_whole() -> None:
+    """Through births, clutter, starts, the exit edge and pruning: each Bernoulli's weights
+    sum to 1, its components are covariances, and its density is their moment-matched
+    Gaussian; some Bernoullis hold two components of weight."""
+    t = radar_tracker(2)
+    apart = 0
+    for looks in radar_steps(t.model.measurement, 25, 3):
+        t.predict()
+        t.update(looks)
+        b = t.bern
+        assert np.all((b.r >= 0.0) & (b.r <= 1.0))
+        np.testing.assert_allclose(b.mode_probs.sum(axis=1), 1.0, rtol=0.0, atol=1e-12)
+        assert np.all(np.linalg.eigvalsh(b.mode_covs) > 0.0)
+        for i in range(len(b)):
+            mean, cov = moments(b.mode_probs[i], b.mode_means[i], b.mode_covs[i])
+            np.testing.assert_allclose(b.means[i], mean, rtol=0.0, atol=1e-9)
+            np.testing.assert_allclose(b.covs[i], cov, rtol=0.0, atol=1e-9)
+        apart += int(np.count_nonzero(b.mode_probs.min(axis=1) > 0.05))
+    assert apart > 0
 
 
 def test_the_planner_predicts_with_the_one_motion_model() -> None:
