@@ -15,39 +15,19 @@ import numpy as np
 import pytest
 
 from sensorplan.errors import ConfigError
-from sensorplan.models import linear
 from sensorplan.simulation.settings import TrackerSettings
-from sensorplan.tracking.base import Looks
 from sensorplan.tracking.checks import CHECKS, Scene, check_tracker
 from sensorplan.tracking.pmb import mixture
-from sensorplan.tracking.pmb.map_tracker import MapModel
 from sensorplan.tracking.pmb.tracker import PMBTracker
+from looks_helpers import LINEAR_MEAN as MEAN
+from looks_helpers import LINEAR_P0 as P0
 from looks_helpers import MEANS as RADAR_MEANS
+from looks_helpers import linear_pmb, moments, one_scan
 from test_pmb_modes import radar_model, radar_steps
-
-P0 = np.diag([400.0, 400.0, 4.0, 4.0])
-MEAN = np.array([[150.0, 150.0, 1.0, -1.0]])
-
-
-def one_scan(z: np.ndarray) -> Looks:
-    return Looks(sensors=np.zeros(1, dtype=np.int64), aims=np.full(1, -1, dtype=np.int64),
-                 positions=np.zeros((1, 2)), headings=np.zeros(1),
-                 detections=(np.asarray(z, dtype=float).reshape(-1, 2),))
 
 
 def tracker(components: int, **kw: object) -> PMBTracker:
-    sensor = linear.LinearSensor((0.0, 0.0, 300.0, 300.0), 1.0, 0.9, 10.0)
-    model = MapModel(sensor, 1.0, (300.0, 300.0), velocity_var=2.0)
-    return PMBTracker(model, means=MEAN, covs=P0, existence=0.99,
-                      density_components=components, **kw)  # type: ignore[arg-type]
-
-
-def moments(w: np.ndarray, m: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The moment-matched Gaussian of components with weights ``w``, written out."""
-    a = w / w.sum()
-    mean = np.einsum("k,ki->i", a, m)
-    d = m - mean
-    return mean, np.einsum("k,kij->ij", a, P + np.einsum("ki,kj->kij", d, d))
+    return linear_pmb(density_components=components, **kw)
 
 
 def random_mixture(rng: np.random.Generator, K: int) -> tuple[np.ndarray, ...]:

@@ -14,34 +14,16 @@ import pytest
 from sensorplan.errors import ConfigError
 from sensorplan.models import linear
 from sensorplan.simulation.settings import TrackerSettings
-from sensorplan.tracking.base import Looks
 from sensorplan.tracking.pmb import hypotheses as hyp
 from sensorplan.tracking.pmb.map_tracker import MapModel
 from sensorplan.tracking.pmb.tracker import PMBTracker
-
-P0 = np.diag([400.0, 400.0, 4.0, 4.0])
-MEAN = np.array([[150.0, 150.0, 1.0, -1.0]])
-
-
-def one_scan(z: np.ndarray) -> Looks:
-    return Looks(sensors=np.zeros(1, dtype=np.int64), aims=np.full(1, -1, dtype=np.int64),
-                 positions=np.zeros((1, 2)), headings=np.zeros(1),
-                 detections=(np.asarray(z, dtype=float).reshape(-1, 2),))
+from looks_helpers import LINEAR_MEAN as MEAN
+from looks_helpers import LINEAR_P0 as P0
+from looks_helpers import linear_pmb, moments, one_scan
 
 
 def tracker(split: float, existence: float = 0.99) -> PMBTracker:
-    sensor = linear.LinearSensor((0.0, 0.0, 300.0, 300.0), 1.0, 0.9, 10.0)
-    model = MapModel(sensor, 1.0, (300.0, 300.0), velocity_var=2.0)
-    return PMBTracker(model, means=MEAN, covs=P0, existence=existence,
-                      split_existence=split)
-
-
-def moments(r: np.ndarray, m: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The moment-matched Gaussian of components with weights ``r``, written out."""
-    w = r / r.sum()
-    mean = np.einsum("k,ki->i", w, m)
-    d = m - mean
-    return mean, np.einsum("k,kij->ij", w, P + np.einsum("ki,kj->kij", d, d))
+    return linear_pmb(existence, split_existence=split)
 
 
 def test_a_split_keeps_the_merged_existence_and_moments() -> None:
