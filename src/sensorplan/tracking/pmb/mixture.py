@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..._compiled.jit import njit
 from ..._types import FloatArray, IntArray
 from ..ekf import predict as kalman_predict
 from .bernoulli import Bernoullis
@@ -82,10 +83,86 @@ def detected_groups(group: IntArray, q: int, R: int) -> IntArray:
     return np.where(bern, (group // R) * (2 * R) + R + group % R, group + q * R)
 
 
-def _logdet(covs: FloatArray, on: np.ndarray) -> FloatArray:
-    """``ln|P|`` where ``on``, 0 elsewhere (where ``P`` may be a placeholder)."""
-    eye = np.broadcast_to(np.eye(covs.shape[-1]), covs.shape)
-    return np.where(on, np.linalg.slogdet(np.where(on[..., None, None], covs, eye))[1], 0.0)
+@njit(cache=True, error_model="numpy")
+def _logdet(A: np.ndarray) -> float:
+    """``ln|A|`` of a symmetric positive definite ``A (n, n)`` by its Cholesky factor."""
+    n = A.shape[0]
+    L = np.zeros((n, n))
+    out = 0.0
+    for i in range(n):
+        for j in range(i + 1):
+            acc = A[i, j]
+            for k in range(j):
+                acc -= L[i, k] * L[j, k]
+            if i == j:
+                L[i, i] = np.sqrt(acc)
+                out += np.log(acc)
+            else:
+                L[i, j] = acc / L[j, j]
+    return out
+
+
+@njit(cache=True, error_model="numpy")
+def _merge(wi: float, wj: float, mi: np.ndarray, mj: np.ndarray, Pi: np.ndarray,
+           Pj: np.ndarray, m: np.ndarray, P: np.ndarray) -> None:
+    """The moment-matched Gaussian of two components into ``m``, ``P``: ``j``'s moments
+    when both weights are 0."""
+    tot = wi + wj
+    a = wi / tot if tot > 0.0 else 0.0
+    c = wj / tot if tot > 0.0 else 1.0
+    n = m.shape[0]
+    for k in range(n):
+        m[k] = a * mi[k] + c * mj[k]
+    for k in range(n):
+        for el in range(n):
+            P[k, el] = (a * Pi[k, el] + c * Pj[k, el]
+                        + a * c * (mi[k] - mj[k]) * (mi[el] - mj[el]))
+    for k in range(n):
+        for el in range(k):
+            P[k, el] = P[el, k] = 0.5 * (P[k, el] + P[el, k])
+
+
+@njit(cache=True, error_model="numpy")
+def _reduce_rows(w: np.ndarray, m: np.ndarray, P: np.ndarray, keep: int,
+                 out_w: np.ndarray, out_m: np.ndarray, out_P: np.ndarray) -> None:
+    """:func:`reduce` of every row into ``out_*``."""
+    q, K = w.shape
+    n = m.shape[2]
+    ld = np.zeros(K)
+    alive = np.ones(K, dtype=np.bool_)
+    mt = np.empty(n)
+    Pt = np.empty((n, n))
+    for r in range(q):
+        ww, mm, PP = w[r].copy(), m[r].copy(), P[r].copy()
+        for k in range(K):
+            alive[k] = True
+            ld[k] = _logdet(PP[k]) if ww[k] > 0.0 else 0.0
+        for _ in range(K - keep):
+            best, bi, bj = np.inf, -1, -1
+            for i in range(K):
+                if not alive[i]:
+                    continue
+                for j in range(i + 1, K):
+                    if not alive[j]:
+                        continue
+                    cost = 0.0
+                    if ww[i] > 0.0 and ww[j] > 0.0:
+                        _merge(ww[i], ww[j], mm[i], mm[j], PP[i], PP[j], mt, Pt)
+                        cost = 0.5 * ((ww[i] + ww[j]) * _logdet(Pt) - ww[i] * ld[i]
+                                      - ww[j] * ld[j])
+                    if cost < best:
+                        best, bi, bj = cost, i, j
+            _merge(ww[bi], ww[bj], mm[bi], mm[bj], PP[bi], PP[bj], mt, Pt)
+            ww[bi] += ww[bj]
+            mm[bi], PP[bi] = mt, Pt
+            ld[bi] = _logdet(Pt) if ww[bi] > 0.0 else 0.0
+            ww[bj] = 0.0
+            alive[bj] = False
+        s = 0
+        for k in range(K):
+            if alive[k]:
+                out_w[r, s], out_m[r, s], out_P[r, s] = ww[k], mm[k], PP[k]
+                s += 1
 
 
 def reduce(weights: FloatArray, means: FloatArray, covs: FloatArray, keep: int
@@ -94,46 +171,27 @@ def reduce(weights: FloatArray, means: FloatArray, covs: FloatArray, keep: int
 
     Parameters
     ----------
-    weights : (q, K) >= 0;  means : (q, K, 4);  covs : (q, K, 4, 4)
+    weights : (q, K) >= 0;  means : (q, K, n);  covs : (q, K, n, n)
         The candidates; one of weight 0 may have any moments (it merges first, at no cost).
     keep : int in [1, K]
 
     Returns
     -------
-    weights (q, keep), means (q, keep, 4), covs (q, keep, 4, 4)
-        Each row's weights sum to its candidates'; a component of weight 0 is one no
-        candidate of positive weight reached (its moments are a placeholder).
+    weights (q, keep), means (q, keep, n), covs (q, keep, n, n)
+        Each row's survivors in their candidates' order; its weights sum to its
+        candidates'. A component of weight 0 is one no candidate of positive weight reached
+        (its moments are a placeholder).
     """
-    q, K = weights.shape
-    w, m, P = np.array(weights, dtype=float), np.array(means), np.array(covs)
-    alive = np.ones((q, K), dtype=bool)
-    ld = _logdet(P, w > 0.0)
-    I, J = np.triu_indices(K, 1)
-    rows = np.arange(q)
-    for _ in range(K - keep):
-        wi, wj = w[:, I], w[:, J]
-        tot = wi + wj
-        a = np.divide(wi, tot, out=np.zeros_like(tot), where=tot > 0.0)
-        c = np.divide(wj, tot, out=np.ones_like(tot), where=tot > 0.0)
-        d = m[:, I] - m[:, J]
-        mij = a[..., None] * m[:, I] + c[..., None] * m[:, J]
-        Pij = (a[..., None, None] * P[:, I] + c[..., None, None] * P[:, J]
-               + (a * c)[..., None, None] * np.einsum("...i,...j->...ij", d, d))
-        both = (wi > 0.0) & (wj > 0.0)
-        ldij = _logdet(Pij, both)
-        cost = np.where(both, 0.5 * (tot * ldij - wi * ld[:, I] - wj * ld[:, J]), 0.0)
-        cost[~(alive[:, I] & alive[:, J])] = np.inf
-        k = np.argmin(cost, axis=1)
-        i, j = I[k], J[k]
-        w[rows, i], m[rows, i] = tot[rows, k], mij[rows, k]
-        P[rows, i] = 0.5 * (Pij[rows, k] + np.swapaxes(Pij[rows, k], -1, -2))
-        ld[rows, i] = np.where(tot[rows, k] > 0.0, _logdet(P[rows, i], tot[rows, k] > 0.0),
-                               0.0)
-        w[rows, j] = 0.0
-        alive[rows, j] = False
-    r, s = np.nonzero(alive)                    # row-major: each row's survivors in order
-    return (w[r, s].reshape(q, keep), m[r, s].reshape(q, keep, m.shape[-1]),
-            P[r, s].reshape(q, keep, *P.shape[-2:]))
+    w = np.ascontiguousarray(weights, dtype=float)
+    m = np.ascontiguousarray(means, dtype=float)
+    P = np.ascontiguousarray(covs, dtype=float)
+    q, K = w.shape
+    if not 1 <= keep <= K:
+        raise ValueError(f"keep must be in [1, {K}], got {keep}")
+    n = m.shape[-1]
+    out = np.empty((q, keep)), np.empty((q, keep, n)), np.empty((q, keep, n, n))
+    _reduce_rows(w, m, P, int(keep), *out)
+    return out
 
 
 __all__ = ["MAX_COMPONENTS", "components_as_modes", "detected_groups", "missed_groups",
