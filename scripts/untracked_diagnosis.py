@@ -566,9 +566,14 @@ def trace_target(study_file: str, method: str, seed: int, run: int, target: int,
                  first: int, last_step: int) -> list[str]:
     """One target's steps ``first..last_step`` in run ``run`` of ``method`` on ``seed``
     (module docstring)."""
+    from sensorplan.models.radar.batch import detectable_points
+    from sensorplan.models.sensors import radar_table
+
     study, m = _study_method(study_file, method, seed, run + 1)
     ep, probe, step, j_idx, xy, sm, last = _recorded_run(study, m.settings, run)
     detected = ep.measured.any(axis=2)
+    table = radar_table(tuple(s.params for s in study.scenario.sensors))
+    platforms = np.arange(len(study.scenario.sensors))
     lines = []
     for t in range(first, last_step + 1):
         k = np.flatnonzero((j_idx == target) & (step == t))
@@ -576,13 +581,21 @@ def trace_target(study_file: str, method: str, seed: int, run: int, target: int,
             continue
         k0 = int(k[0])
         truth = ep.truth[t, target]
-        ground = np.hypot(*(ep.sensor_positions[t] - truth[:2]).T)
+        gap = truth[:2] - ep.sensor_positions[t]                            # (N, 2)
+        ground = np.hypot(gap[:, 0], gap[:, 1])
+        # Each look's probability of detecting the target where it truly is.
+        pd = detectable_points(table, platforms, gap[:, :1], gap[:, 1:],
+                               ep.sensor_headings[t], ep.sensor_positions[t],
+                               study.scenario.building_array)[:, 0]
         near_recycled = [f"{r:.3f}@{np.hypot(*(mean - truth[:2])):.0f}m"
                          for s, r, mean in probe.recycled
                          if s == t and np.hypot(*(mean - truth[:2])) < 60.0]
         lines.append(f"{t:4d} label {int(sm.label[k0]):4d} (last {int(last[k0]):4d}) "
-                     f"detected {int(detected[t, target])} speed {np.hypot(*truth[2:4]):.1f} "
+                     f"detected {int(detected[t, target])} "
+                     f"at {np.round(truth[:2]).astype(int).tolist()} "
+                     f"speed {np.hypot(*truth[2:4]):.1f} "
                      f"ground {np.round(ground).astype(int).tolist()} "
+                     f"pd {np.round(pd, 2).tolist()} "
                      f"aims {probe.aims[t - 1].tolist()} | "
                      + "; ".join(_nearest(probe.bern[t - 1], probe.covs[t - 1], truth[:2]))
                      + (f" | recycled {', '.join(near_recycled)}" if near_recycled else ""))

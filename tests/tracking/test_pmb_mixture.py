@@ -143,9 +143,10 @@ def test_a_detection_at_one_component_takes_the_weight_back() -> None:
     assert np.linalg.norm(mix.bern.mode_means[0, near, :2] - z) < 1.0     # R = I
 
 
-def radar_tracker(components: int) -> PMBTracker:
+def radar_tracker(components: int, edge_exit: str = "outside") -> PMBTracker:
     return PMBTracker(radar_model(), means=RADAR_MEANS, covs=P0, births="edges",
-                      birth_rate=0.2, initial_undetected=1.0, density_components=components)
+                      birth_rate=0.2, initial_undetected=1.0, density_components=components,
+                      edge_exit=edge_exit)
 
 
 def test_the_mixture_pmb_meets_the_tracker_contract() -> None:
@@ -155,11 +156,12 @@ def test_the_mixture_pmb_meets_the_tracker_contract() -> None:
     assert report.checks == tuple(CHECKS)
 
 
-def test_every_step_keeps_the_mixture_whole() -> None:
-    """Through births, clutter, starts, the exit edge and pruning: each Bernoulli's weights
-    sum to 1, its components are covariances, and its density is their moment-matched
-    Gaussian; some Bernoullis hold two components of weight."""
-    t = radar_tracker(2)
+@pytest.mark.parametrize("edge_exit", ["outside", "crossing"])
+def test_every_step_keeps_the_mixture_whole(edge_exit: str) -> None:
+    """Through births, clutter, starts, the exit edge (either charge) and pruning: each
+    Bernoulli's weights sum to 1, its components are covariances, and its density is their
+    moment-matched Gaussian; some Bernoullis hold two components of weight."""
+    t = radar_tracker(2, edge_exit)
     apart = 0
     for looks in radar_steps(t.model.measurement, 25, 3):
         t.predict()
