@@ -89,13 +89,6 @@ def problem(rng: np.random.Generator, undetected: float = 2.0) -> tuple[PMBTrack
     return tracker, looks
 
 
-#: The variants of the single-model PMB timed beside it: their option and its keywords.
-VARIANTS = {"imm": ("PMB with 2 IMM modes",
-                    dict(mode_process_noise=(0.05, 5.0),
-                         switching=np.array([[0.95, 0.05], [0.1, 0.9]]))),
-            "components": ("PMB with {} mixture components", {})}
-
-
 def variant_of(tracker: PMBTracker, **options: object) -> PMBTracker:
     """The same tracker (model, Bernoullis, undetected intensity) with ``options`` (IMM
     modes or mixture components, each at the Bernoulli's density)."""
@@ -139,12 +132,14 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.components and not 2 <= args.components <= 8:
         ap.error(f"--components must be 0 (off) or 2 to 8, got {args.components}")
-    variants = []
+    # The variants of the single-model PMB timed beside it: a name and their options.
+    variants: list[tuple[str, dict[str, object]]] = []
     if args.imm:
-        variants.append(VARIANTS["imm"])
+        variants.append(("PMB with 2 IMM modes",
+                         dict(mode_process_noise=(0.05, 5.0),
+                              switching=np.array([[0.95, 0.05], [0.1, 0.9]]))))
     if args.components:
-        name, _ = VARIANTS["components"]
-        variants.append((name.format(args.components),
+        variants.append((f"PMB with {args.components} mixture components",
                          dict(density_components=args.components)))
     rng = np.random.default_rng(args.seed)
     problems = [problem(rng, args.undetected) for _ in range(args.problems)]

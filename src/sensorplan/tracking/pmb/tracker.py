@@ -483,9 +483,10 @@ class PMBTracker(MapTracker):
         return TrackSet(b.means[k], b.covs[k], b.r[k], b.labels[k])
 
     def planning_process_noise(self) -> float | FloatArray:
-        """q of the CWNA motion model the planner predicts every track with: the model's,
-        or with IMM modes each planning track's effective q one step ahead,
-        ``(mu Pi) . q`` (one per :meth:`planning_tracks` row)."""
+        """q of the CWNA motion model the planner predicts every track with: the model's
+        (mixture densities included: their components share it), or with IMM modes each
+        planning track's effective q one step ahead, ``(mu Pi) . q`` (one per
+        :meth:`planning_tracks` row)."""
         if self.modes is None or self.density_components > 1:
             return self.process_noise
         assert self.bern.mode_probs is not None
@@ -587,8 +588,9 @@ class PMBTracker(MapTracker):
         return m, P, applied, log_mass
 
     def _predict_modes(self) -> BoolArray:
-        """The IMM predict of every Bernoulli (:func:`.modes.predict`), its map edge per
-        mode; returns which Bernoullis the edge changed."""
+        """The IMM predict of every Bernoulli (:func:`.modes.predict`; a mixture density's
+        components each on their own, :func:`.mixture.predict`), its map edge per mode or
+        component; returns which Bernoullis the edge changed."""
         b, modes = self.bern, self.modes
         assert modes is not None
         n, R = len(b), len(modes.q)
@@ -765,7 +767,9 @@ class PMBTracker(MapTracker):
         return outcome
 
     def _update_look_modes(self, look: Look, Z: FloatArray) -> LookOutcome:
-        """:meth:`update_look` with IMM modes in every Bernoulli (:mod:`.modes`)."""
+        """:meth:`update_look` with IMM modes in every Bernoulli (:mod:`.modes`), or with
+        mixture densities (:mod:`.mixture`: each component's missed and detected hypotheses
+        kept apart, then reduced)."""
         b, s, modes = self.bern, self.sensing, self.modes
         assert modes is not None and b.mode_probs is not None
         assert b.mode_means is not None and b.mode_covs is not None
