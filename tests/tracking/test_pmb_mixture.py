@@ -204,3 +204,11 @@ def test_the_settings_name_density_components(kw: dict[str, object]) -> None:
     with pytest.raises(ConfigError) as err:
         TrackerSettings(kind="pmb", density_components=2, **kw)  # type: ignore[arg-type]
     assert err.value.field == "density_components"
+
+
+def test_the_settings_take_the_trackers_range_of_components() -> None:
+    assert TrackerSettings(kind="pmb", density_components=mixture.MAX_COMPONENTS)
+    with pytest.raises(ConfigError, match="density_components"):
+        TrackerSettings(kind="pmb", density_components=mixture.MAX_COMPONENTS + 1)
+    with pytest.raises(ConfigError, match="density_components"):
+        TrackerSettings(kind="pmb", density_components=0)
