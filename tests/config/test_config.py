@@ -420,7 +420,7 @@ def test_the_search_preset_recycles_and_earlier_files_keep_what_they_ran() -> No
                "search_moving_recycle_dev.toml",
                "search_faded_bernoulli_dev.toml", "search_split_dev.toml",
                "search_mixture_dev.toml", "search_mixture.toml",
-               "search_mixture_crossing.toml"}
+               "search_mixture_crossing.toml", "search_mixture_crossing_400.toml"}
     for path in sorted((ROOT / "studies").rglob("*.toml")):
         if ('preset = "search"' not in path.read_text() or path.name.startswith("lookahead")
                 or path.name in current):
