@@ -431,6 +431,40 @@ def test_the_search_preset_recycles_and_earlier_files_keep_what_they_ran() -> No
             assert m.settings.tracker.recycle_threshold == want, (path.name, m.name)
 
 
+def test_the_search_preset_keeps_two_components_and_earlier_files_keep_what_they_ran(
+) -> None:
+    """The search preset's Bernoulli densities keep two Gaussian components and the edge
+    charges the probability of crossing it; every other preset keeps one and the mass off
+    the map. The search study files that ran before name those, each method but those that
+    set them itself."""
+    from sensorplan.study.file import load_study
+
+    tracker = load_simulation(preset="search").settings.tracker
+    assert (tracker.density_components, tracker.edge_exit) == (2, "crossing")
+    for preset in ("radar", "traffic", "williams15", "vo12"):
+        other = load_simulation(preset=preset).settings.tracker
+        assert (other.density_components, other.edge_exit) == (1, "outside"), preset
+    # Written for the preset as it is now.
+    current = {"search_mixture_crossing.toml", "search_mixture_crossing_400.toml"}
+    searched = 0
+    for path in sorted((ROOT / "studies").rglob("*.toml")):
+        if 'preset = "search"' not in path.read_text() or path.name in current:
+            continue
+        searched += 1
+        written = tomllib.loads(path.read_text())
+        if "axes" in written:                 # a grid file: its defaults name them
+            named = written["defaults"]["tracker"]
+            assert (named["density_components"], named["edge_exit"]) == (1, "outside")
+            continue
+        for m in load_study(path).methods:
+            spec = next((x for x in written["methods"] if x["name"] == m.name), {})
+            own = spec.get("tracker", {})
+            want = (own.get("density_components", 1), own.get("edge_exit", "outside"))
+            got = (m.settings.tracker.density_components, m.settings.tracker.edge_exit)
+            assert got == want, (path.name, m.name)
+    assert searched >= 30
+
+
 def _traffic_study_files() -> list[Path]:
     """The study files that run the traffic preset or its scenario written out."""
     return [p for p in sorted((ROOT / "studies").rglob("*.toml"))

@@ -740,7 +740,8 @@ def test_a_study_directory_written_before_a_tracker_setting_is_the_same_study(
     the value those runs had and resumes as the same study; another value is a different
     study."""
     text = ("runs = 1\nsteps = 2\n[scenario]\npreset = \"search\"\n[[methods]]\nname = \"r\"\n"
-            "planner = \"random\"\n[methods.tracker]\nkind = \"pmb\"\n")
+            "planner = \"random\"\n[methods.tracker]\nkind = \"pmb\"\n"
+            "density_components = 1\n")
     study = parse_study(text + f"{key} = {value}\n")
     assert studies.run_study(study, tmp_path, workers=1).ran == 1
     config = tmp_path / "config.resolved.json"
@@ -762,7 +763,8 @@ def test_a_tracker_setting_the_tracker_does_not_read_leaves_the_study_the_same(
     too, which they do not read: their directory resumes as the same study; a setting they
     read is a different study."""
     text = ("runs = 1\nsteps = 2\n[scenario]\npreset = \"search\"\n[[methods]]\nname = \"r\"\n"
-            "planner = \"random\"\n[methods.tracker]\nkind = \"pmb\"\n")
+            "planner = \"random\"\n[methods.tracker]\nkind = \"pmb\"\n"
+            "density_components = 1\n")
     assert studies.run_study(parse_study(text), tmp_path, workers=1).ran == 1
     unread = text + "mode_process_noise = [1.0, 2.0]\nswitching = [[0.5, 0.5], [0.5, 0.5]]\n"
     assert studies.run_study(parse_study(unread), tmp_path, workers=1).ran == 0

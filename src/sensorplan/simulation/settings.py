@@ -443,7 +443,7 @@ class TrackerSettings(_Settings):
              "existence in a step: outside (its predicted density's mass off the map) or "
              "crossing (the probability that a target on the map at the step's start "
              "crosses the edge during it; the part of the density already off the map is "
-             "where no live target is, and is not charged again).")
+             "where no live target is, and is not charged again; the search preset's).")
     birth_rate: float = setting(
         0.02, section="tracker", label="tracker birth rate", bounds=Range(0.0, 100.0),
         help="A multi-target tracker's expected number of births per step over the map.")
@@ -504,7 +504,8 @@ class TrackerSettings(_Settings):
     density_components: int = setting(
         1, section="tracker", label="density components", bounds=Range(1, 8),
         help="The Gaussian components each PMB track's density keeps after a look: 1 merges "
-             "its missed and detected hypotheses into one Gaussian (every preset); more keeps "
+             "its missed and detected hypotheses into one Gaussian (every preset but search, "
+             "which keeps 2); more keeps "
              "that many within the one track, merging the pairs that lose least (Runnalls' "
              "cost), so a detection that is not its target's moves weight between them "
              "instead of the whole track (the cv Bernoulli model, split_existence 0, "
@@ -571,7 +572,8 @@ class TrackerSettings(_Settings):
             raise ConfigError("density_components", f"more than 1 needs bernoulli_model = "
                               f"\"cv\", split_existence = 0 and recycle_motion = "
                               f"\"static\" (got \"{self.bernoulli_model}\", "
-                              f"{self.split_existence} and \"{self.recycle_motion}\")")
+                              f"{self.split_existence} and \"{self.recycle_motion}\"); set "
+                              f"density_components = 1 for the others")
         if self.birth_velocity == "inward" and self.births != "edges":
             raise ConfigError("birth_velocity", f"inward needs births = \"edges\" (targets "
                               f"born on the map's boundary), got births = "

@@ -101,9 +101,8 @@ back to R by the merges that lose least (Runnalls' cost), so the missed and dete
 hypotheses of one target stay apart within one Bernoulli, its existence and label shared
 (that at most one of them is the target is kept). The association, the report and the
 planner see the components' moment-matched Gaussian; the components do not switch, each
-is predicted with the one motion model. No preset sets it: on ``search`` it cut label
-switches but did not lose fewer held targets by the margin its rule asked
-(docs/tracking_pmb.md).
+is predicted with the one motion model. The ``search`` preset keeps two, with the
+``crossing`` edge charge: there they lost held targets in fewer runs (docs/tracking_pmb.md).
 
 Missed looks are the same update with no detection: step 4 leaves :math:`r'_i` and the
 missed-look density. The missed-look probability :math:`\bar P` ignores the gate (a
