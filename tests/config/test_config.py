@@ -420,7 +420,8 @@ def test_the_search_preset_recycles_and_earlier_files_keep_what_they_ran() -> No
                "search_moving_recycle_dev.toml",
                "search_faded_bernoulli_dev.toml", "search_split_dev.toml",
                "search_mixture_dev.toml", "search_mixture.toml",
-               "search_mixture_crossing.toml", "search_mixture_crossing_400.toml"}
+               "search_mixture_crossing.toml", "search_mixture_crossing_400.toml",
+               "honest_table_search_mixture.toml"}
     for path in sorted((ROOT / "studies").rglob("*.toml")):
         if ('preset = "search"' not in path.read_text() or path.name.startswith("lookahead")
                 or path.name in current):
@@ -445,7 +446,8 @@ def test_the_search_preset_keeps_two_components_and_earlier_files_keep_what_they
         other = load_simulation(preset=preset).settings.tracker
         assert (other.density_components, other.edge_exit) == (1, "outside"), preset
     # Written for the preset as it is now.
-    current = {"search_mixture_crossing.toml", "search_mixture_crossing_400.toml"}
+    current = {"search_mixture_crossing.toml", "search_mixture_crossing_400.toml",
+               "honest_table_search_mixture.toml"}
     searched = 0
     for path in sorted((ROOT / "studies").rglob("*.toml")):
         if 'preset = "search"' not in path.read_text() or path.name in current:
