@@ -178,6 +178,38 @@ def test_every_step_keeps_the_mixture_whole(edge_exit: str) -> None:
     assert apart > 0
 
 
+def test_placeholder_components_skipped_by_the_missed_look_change_nothing(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The missed-look update skips components of weight 0 (placeholders no hypothesis
+    reaches): 25 steps give the same existences, labels, weights and densities as
+    updating every component, to the last bit."""
+    skipping = radar_tracker(3, "crossing")
+    every = radar_tracker(3, "crossing")
+    full = PMBTracker._missed
+
+    def missed_every(self, means, covs, look, among=None):  # type: ignore[no-untyped-def]
+        return full(self, means, covs, look)
+
+    placeholders = 0
+    for looks in radar_steps(skipping.model.measurement, 25, 3):
+        skipping.predict()
+        skipping.update(looks)
+        with monkeypatch.context() as patched:
+            patched.setattr(PMBTracker, "_missed", missed_every)
+            every.predict()
+            every.update(looks)
+        a, b = skipping.bern, every.bern
+        np.testing.assert_array_equal(a.labels, b.labels)
+        np.testing.assert_array_equal(a.r, b.r)
+        np.testing.assert_array_equal(a.mode_probs, b.mode_probs)
+        np.testing.assert_array_equal(a.means, b.means)
+        np.testing.assert_array_equal(a.covs, b.covs)
+        live = a.mode_probs > 0.0
+        np.testing.assert_array_equal(a.mode_means[live], b.mode_means[live])
+        placeholders += int(np.count_nonzero(~live))
+    assert placeholders > 0
+
+
 def test_the_planner_predicts_with_the_one_motion_model() -> None:
     t = tracker(3)
     assert t.planning_process_noise() == t.process_noise

@@ -726,14 +726,17 @@ class PMBTracker(MapTracker):
         r[rows], gm[rows], gP[rows] = high[rows], keep[0], keep[1]
         return r, gm, gP, low[rows], other[0], other[1]
 
-    def _missed(self, means: FloatArray, covs: FloatArray, look: Look
-                ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    def _missed(self, means: FloatArray, covs: FloatArray, look: Look,
+                among: BoolArray | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
         """The missed-look hypotheses of densities ``(B, 4)``, ``(B, 4, 4)`` (step 1):
         ``Pbar (B,)`` and the densities a miss leaves (the given arrays where the look
-        cannot see any)."""
+        cannot see any). With ``among (B,)`` only those densities are updated (the others
+        get Pbar 0 and keep their moments)."""
         pbar, mm, mP = np.zeros(len(means)), means, covs
-        if len(means):
-            seen, p, chol = self.sensing.quadrature(means, covs, look)
+        rows = np.arange(len(means)) if among is None else np.flatnonzero(among)
+        if rows.size:
+            seen, p, chol = self.sensing.quadrature(means[rows], covs[rows], look)
+            seen = rows[seen]
             if seen.size:
                 m_, P_, pbar[seen] = missed_look(means[seen], covs[seen], chol, p)
                 mm, mP = means.copy(), covs.copy()
@@ -774,8 +777,11 @@ class PMBTracker(MapTracker):
         assert b.mode_means is not None and b.mode_covs is not None
         n, m, R = len(b), len(Z), len(modes.q)
         cm, cP = b.mode_means.reshape(-1, 4), b.mode_covs.reshape(-1, 4, 4)
-        # 1. Each mode's missed-look hypothesis; the Bernoulli's Pbar mixes them.
-        pbar_c, mm, mP = self._missed(cm, cP, look)
+        # 1. Each mode's missed-look hypothesis; the Bernoulli's Pbar mixes them. A
+        # mixture's component of weight 0 is a placeholder that no hypothesis reaches.
+        pbar_c, mm, mP = self._missed(cm, cP, look,
+                                      None if self.density_components == 1
+                                      else b.mode_probs.reshape(-1) > 0.0)
         pbar_modes = pbar_c.reshape(n, R)
         pbar = imm.bernoulli_pbar(b.mode_probs, pbar_modes)
         detect = s.detectable(self.grid.centres, look)
