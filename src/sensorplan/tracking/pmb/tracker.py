@@ -733,10 +733,12 @@ class PMBTracker(MapTracker):
         cannot see any). With ``among (B,)`` only those densities are updated (the others
         get Pbar 0 and keep their moments)."""
         pbar, mm, mP = np.zeros(len(means)), means, covs
-        rows = np.arange(len(means)) if among is None else np.flatnonzero(among)
-        if rows.size:
-            seen, p, chol = self.sensing.quadrature(means[rows], covs[rows], look)
-            seen = rows[seen]
+        rows = None if among is None else np.flatnonzero(among)
+        sub = (means, covs) if rows is None else (means[rows], covs[rows])
+        if len(sub[0]):
+            seen, p, chol = self.sensing.quadrature(*sub, look)
+            if rows is not None:
+                seen = rows[seen]
             if seen.size:
                 m_, P_, pbar[seen] = missed_look(means[seen], covs[seen], chol, p)
                 mm, mP = means.copy(), covs.copy()
