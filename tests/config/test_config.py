@@ -406,6 +406,12 @@ def test_earlier_study_files_keep_what_they_ran(preset: str, files: list[str]) -
             assert {m.settings.tracker.planning_threshold for m in study.methods} == {0.1}
 
 
+def _search_study_files() -> list[Path]:
+    """The study and grid files that run the search preset."""
+    return [p for p in sorted((ROOT / "studies").rglob("*.toml"))
+            if 'preset = "search"' in p.read_text()]
+
+
 def test_the_search_preset_recycles_and_earlier_files_keep_what_they_ran() -> None:
     """The search preset hands a faded track back to the undetected intensity at 0.1; the
     study files that ran before name 0, each method but those that set it themselves."""
@@ -422,9 +428,8 @@ def test_the_search_preset_recycles_and_earlier_files_keep_what_they_ran() -> No
                "search_mixture_dev.toml", "search_mixture.toml",
                "search_mixture_crossing.toml", "search_mixture_crossing_400.toml",
                "honest_table_search_mixture.toml"}
-    for path in sorted((ROOT / "studies").rglob("*.toml")):
-        if ('preset = "search"' not in path.read_text() or path.name.startswith("lookahead")
-                or path.name in current):
+    for path in _search_study_files():
+        if path.name.startswith("lookahead") or path.name in current:
             continue
         study = load_study(path)
         for m in study.methods:
@@ -449,8 +454,8 @@ def test_the_search_preset_keeps_two_components_and_earlier_files_keep_what_they
     current = {"search_mixture_crossing.toml", "search_mixture_crossing_400.toml",
                "honest_table_search_mixture.toml"}
     searched = 0
-    for path in sorted((ROOT / "studies").rglob("*.toml")):
-        if 'preset = "search"' not in path.read_text() or path.name in current:
+    for path in _search_study_files():
+        if path.name in current:
             continue
         searched += 1
         written = tomllib.loads(path.read_text())
