@@ -35,7 +35,7 @@ def problem(positions: list[tuple[float, float]], headings: list[float], u: Unde
 
 def mixed_problem(horizon: int = 2, objective: str = "cumulative", steps_per_epoch: int = 1,
                   c: float = 50.0, reported: list[bool] | None = None,
-                  find_tail: int = 0) -> PlanningProblem:
+                  find_tail: int = 0, track_existence: str = "fixed") -> PlanningProblem:
     """Two sensors, two moving tracks (r = 0.6 and 1; ``reported`` by default) and a 6 x 6
     grid with births; finds counted ``find_tail`` steps after the horizon."""
     xs = 37.3 + 91.0 * np.arange(6)
@@ -47,7 +47,7 @@ def mixed_problem(horizon: int = 2, objective: str = "cumulative", steps_per_epo
                    means=[[120.0, 90.0, 2.0, 1.0], [480.0, 420.0, -1.0, 0.5]],
                    steps_per_epoch=steps_per_epoch, objective=objective, c=c,
                    reported=None if reported is None else np.array(reported),
-                   find_tail=find_tail)
+                   find_tail=find_tail, track_existence=track_existence)
 
 
 def expected_bound(prob: PlanningProblem, plan: Plan | None) -> float:
@@ -57,7 +57,10 @@ def expected_bound(prob: PlanningProblem, plan: Plan | None) -> float:
     pools that survive alike, the found ones costing their first detection's bound; a track
     not reported is two such pools of its own (mass r), seen by the looks at its predicted
     mean alone. The pools go on ``find_tail`` steps after the horizon without a look, those
-    steps counted too. ``plan None``: no look at all."""
+    steps counted too. With ``track_existence = "resolved"`` a reported track whose looks
+    all miss it through step t has its existence by Bayes' rule and costs the smaller of
+    reported and not (its localisation taken without a look, capped at c^2/2), a detected
+    one as before. ``plan None``: no look at all."""
     c2 = prob.gospa_c ** 2
     sctx = search.prepare(prob)
     ctx = sctx.ctx
@@ -99,12 +102,24 @@ def expected_bound(prob: PlanningProblem, plan: Plan | None) -> float:
                 missed = missed * miss_track[j, t]
                 pools[t] += c2 / 2 * missed + min(h, c2 / 2) * found_j
             continue
+        Pbar = P
         for t in range(T):
             P = ctx.F @ P @ ctx.F.T + ctx.Q_rows(j)[0]
             G = np.zeros((4, 4))
             G[:2, :2] = W[j, t]
             P = np.linalg.inv(np.linalg.inv(P) + G)
             per_step[t] += r * min(P[0, 0] + P[1, 1], c2) + (1.0 - r) * c2 / 2
+            Pbar = ctx.F @ Pbar @ ctx.F.T + ctx.Q_rows(j)[0]
+            if prob.track_existence == "resolved":
+                # The no-detection branch: reported as a linear bound would have it, or the
+                # better of reported and not under its posterior existence.
+                rt, q = r * u.survival ** (t + 1), float(np.prod(miss_track[j, :t + 1]))
+                loc = min(Pbar[0, 0] + Pbar[1, 1], c2 / 2)
+                kept = rt * q + (1.0 - rt)
+                post = rt * q / kept
+                linear = kept * (post * loc + (1.0 - post) * c2 / 2)
+                best = kept * min(post * loc + (1.0 - post) * c2 / 2, post * c2 / 2)
+                per_step[t] -= linear - best
     undetected, found = np.array(u.weights, dtype=float), np.zeros(len(u.weights))
     for t in range(T + L):
         undetected = u.survival * undetected + u.births
@@ -194,14 +209,16 @@ def test_one_cell_one_look_finds_its_share_of_the_bound(objective: str) -> None:
 @pytest.mark.parametrize("c", [50.0, 9.0, 12.0])
 @pytest.mark.parametrize("reported", [None, [False, True]])
 @pytest.mark.parametrize("tail", [0, 3])
+@pytest.mark.parametrize("existence", ["fixed", "resolved"])
 def test_phi_is_the_expected_bound_the_plan_removes(objective: str, c: float,
                                                      reported: list[bool] | None,
-                                                     tail: int) -> None:
+                                                     tail: int, existence: str) -> None:
     """Against the bound computed from scratch (tracks by explicit inverses, the found and
-    undetected targets as pools): with c = 9 every track is clipped at c^2 before a look."""
+    undetected targets as pools, a resolved track's existence by Bayes' rule): with c = 9
+    every track is clipped at c^2 before a look."""
     for e in (1, 2):
         prob = mixed_problem(objective=objective, steps_per_epoch=e, c=c, reported=reported,
-                             find_tail=tail)
+                             find_tail=tail, track_existence=existence)
         sctx = search.prepare(prob)
         for seed in range(3):
             plan = search.random_plan(sctx, np.random.default_rng(seed))
@@ -238,6 +255,51 @@ def test_a_track_not_reported_is_found_not_localised(objective: str) -> None:
     assert seen.found == 0.0 and seen.potential == pytest.approx(seen.information[0])
 
 
+@pytest.mark.parametrize("objective", ["terminal", "cumulative"])
+def test_a_look_that_surely_detects_a_track_resolves_its_false_track_cost(
+        objective: str) -> None:
+    """Ideal detection, one sensor, one still reported track (r = 0.9) on sector 0's
+    boresight: with its existence resolved, a look there tells for sure whether it exists,
+    so beyond its localisation it removes the false-track cost (1 - r_t) c^2/2 of each step
+    counted (r_t = r p_S^t); looking away is still worth nothing."""
+    pS, r, K, c = 0.9, 0.9, 2, 50.0
+    u = grid([(20.0, 20.0)], 0.0, 0.0, pS)
+    kw = dict(sectors=2, horizon=K, sensor=SensorParams(), existence=r,
+              means=[[450.0, 300.0, 0.0, 0.0]], objective=objective, c=c)
+    fixed = problem([(100.0, 300.0)], [0.0], u, **kw)
+    resolved = dataclasses.replace(fixed, track_existence="resolved")
+    look, away = sector_plan(fixed, [[0] * K]), sector_plan(fixed, [[1] * K])
+    base = search.evaluate(search.prepare(fixed), look).potential
+    sctx = search.prepare(resolved)
+    # Reported is the better decision without a look: E(1) = 0 at both steps.
+    assert np.all(sctx.gospa.resolved_cost < c * c / 2 * (1 - 0.19 / 0.81))  # type: ignore[union-attr]
+    stakes = [(1.0 - r * pS ** t) * c * c / 2 for t in (1, 2)]
+    want = sum(stakes) if objective == "cumulative" else stakes[-1]
+    got = search.evaluate(sctx, look)
+    assert got.potential - base == pytest.approx(want, rel=1e-12)
+    assert got.information[0] - base == pytest.approx(want, rel=1e-12)
+    assert search.evaluate(sctx, away).potential == 0.0
+
+
+def test_resolved_existence_values_most_the_tracks_near_the_report_point() -> None:
+    """One look of detection probability p at a reported track: the existence term is
+    E(1 - p) - E(1), E(Q) = max(0, (1 - r) c^2/2 - r Q (c^2/2 - L)): 0 for a sure track and
+    for one a miss leaves reported, largest near the point where reporting stops paying."""
+    c2, L, p = 2500.0, 100.0, 0.65
+    gctx = SimpleNamespace(c2=c2, cumulative=False)
+    terms = []
+    for r in (1.0, 0.95, 0.8, 0.6, 0.52):
+        gctx.resolved_existence = np.array([[r]])
+        gctx.resolved_cost = np.array([[L]])
+        got = float(gospa_bound._existence_terms(gctx, np.array([[1.0 - p]]))[0])  # type: ignore[arg-type]
+        stake, gain = (1 - r) * c2 / 2, r * (c2 / 2 - L)
+        assert got == pytest.approx(max(0.0, stake - (1 - p) * gain) - max(0.0, stake - gain),
+                                    rel=1e-12, abs=1e-12)
+        terms.append(got)
+    assert terms[0] == 0.0 and terms[1] == 0.0 and terms[2] == 0.0
+    assert 0.0 < terms[3] < terms[4]
+
+
 def test_reported_flags_are_checked() -> None:
     prob = mixed_problem()
     with pytest.raises(ConfigError) as err:
@@ -258,12 +320,15 @@ def test_reported_flags_are_checked() -> None:
 
 @pytest.mark.parametrize("objective,e", [("terminal", 1), ("cumulative", 1),
                                          ("cumulative", 2), ("terminal", 2)])
-@pytest.mark.parametrize("reported,tail", [(None, 0), ([False, True], 0), ([False, False], 0),
-                                           ([False, True], 4)])
+@pytest.mark.parametrize("reported,tail,existence", [
+    (None, 0, "fixed"), ([False, True], 0, "fixed"), ([False, False], 0, "fixed"),
+    ([False, True], 4, "fixed"), (None, 0, "resolved"), ([False, True], 0, "resolved"),
+    ([True, False], 3, "resolved")])
 def test_the_batched_form_equals_the_reference(objective: str, e: int,
-                                               reported: list[bool] | None, tail: int) -> None:
+                                               reported: list[bool] | None, tail: int,
+                                               existence: str) -> None:
     prob = mixed_problem(objective=objective, steps_per_epoch=e, reported=reported,
-                         find_tail=tail)
+                         find_tail=tail, track_existence=existence)
     sctx = search.prepare(prob)
     plans = [search.random_plan(sctx, np.random.default_rng(s)) for s in range(2)]
     plans.append(make_planner("sequential-greedy").plan(prob).plan)
@@ -277,12 +342,14 @@ def test_the_batched_form_equals_the_reference(objective: str, e: int,
             np.testing.assert_allclose(u, ref, rtol=0, atol=1e-12 * max(1.0, ref.max()))
 
 
-@pytest.mark.parametrize("reported,tail", [(None, 0), ([False, True], 0), ([False, True], 5)])
+@pytest.mark.parametrize("reported,tail,existence", [
+    (None, 0, "fixed"), ([False, True], 0, "fixed"), ([False, True], 5, "fixed"),
+    (None, 0, "resolved"), ([True, False], 2, "resolved")])
 def test_a_unilateral_change_moves_phi_by_the_players_utility_change(
-        reported: list[bool] | None, tail: int) -> None:
+        reported: list[bool] | None, tail: int, existence: str) -> None:
     """Exact potential: u(a') - u(a) of player (i, k) equals the change of the expected
     bound computed from scratch when only that player changes."""
-    prob = mixed_problem(reported=reported, find_tail=tail)
+    prob = mixed_problem(reported=reported, find_tail=tail, track_existence=existence)
     sctx = search.prepare(prob)
     plan = make_planner("pg", max_outer=2).plan(prob, rng=3).plan
     rng = np.random.default_rng(0)
@@ -375,6 +442,8 @@ def test_the_information_reward_is_left_bit_identical() -> None:
     ({"find_tail": 2.0}, "find_tail"),
     ({"find_tail": True}, "find_tail"),
     ({"find_tail": 3, "reward": "information"}, "find_tail"),
+    ({"track_existence": "sure"}, "track_existence"),
+    ({"track_existence": "resolved", "reward": "information"}, "track_existence"),
 ])
 def test_bad_reward_inputs_name_the_field(change: dict[str, object], field: str) -> None:
     prob = mixed_problem()
@@ -390,6 +459,15 @@ def test_a_found_weight_in_nats_is_refused_with_the_gospa_reward() -> None:
         dataclasses.replace(prob, undetected=u)
     assert info.value.field == "undetected.weight"
     dataclasses.replace(prob, undetected=u, reward="information")   # its own reward takes it
+
+
+def test_run_settings_refuse_resolved_existence_without_the_gospa_reward() -> None:
+    with pytest.raises(ConfigError) as info:
+        RunSettings(track_existence="resolved")
+    assert info.value.field == "track_existence"
+    with pytest.raises(ConfigError) as info:
+        RunSettings(track_existence="certain")
+    assert info.value.field == "track_existence"
 
 
 def test_run_settings_refuse_gospa_without_search() -> None:

@@ -31,7 +31,8 @@ def test_every_field_is_a_declared_setting_or_a_group() -> None:
     paths = [path for _, path, _, _ in DECLARED]
     assert paths == ["planner", "planner_params", "horizon", "steps_per_epoch", "execution",
                      "visibility", "objective", "planning_detection", "planning_occlusion",
-                     "search", "search_sectors", "reward", "unreported", "find_tail", "steps",
+                     "search", "search_sectors", "reward", "unreported", "find_tail",
+                         "track_existence", "steps",
                      "gospa_c",
                      "tracker.kind",
                      "tracker.miss_update", "tracker.model", "tracker.process_noise",
@@ -142,7 +143,8 @@ def test_values_are_normalised_and_round_trip_through_dicts() -> None:
                  "steps_per_epoch": 1, "execution": "olf", "visibility": "probabilistic",
                  "objective": "cumulative", "planning_detection": "aware",
                  "planning_occlusion": "aware", "search": "off", "search_sectors": 0,
-                 "reward": "information", "unreported": "localise", "find_tail": 0, "steps": 100,
+                 "reward": "information", "unreported": "localise", "find_tail": 0,
+                 "track_existence": "fixed", "steps": 100,
                  "gospa_c": 50.0}
     assert tracker["miss_update"] == "none"
     assert tracker == json.loads(json.dumps(
@@ -166,7 +168,7 @@ def test_file_tables_are_strict() -> None:
                                        "planner, planner_params, horizon, steps_per_epoch, "
                                        "execution, visibility, objective, planning_detection, "
                                        "planning_occlusion, search, search_sectors, reward, "
-                                       "unreported, find_tail"),
+                                       "unreported, find_tail, track_existence"),
              ({"planner_params": ["alpha"]}, "planner_params", "must be a table")]
     for data, field, message in cases:
         with pytest.raises(ConfigError) as info:

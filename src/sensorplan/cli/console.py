@@ -195,7 +195,9 @@ def print_summary(episode: Any, cfg: Any, written: Sequence[Path]) -> None:
     sectors = str(counts) if isinstance(counts, int) else "/".join(str(c) for c in counts)
     confirm = ", unreported tracks confirmed" if s.unreported == "confirm" else ""
     tail = f", finds counted {s.find_tail} steps on" if s.find_tail else ""
-    reward = (f"reward {s.reward} (c = {s.gospa_c:g} m{confirm}{tail}), "
+    resolved = (", looks resolve track existence" if s.track_existence == "resolved"
+                else "")
+    reward = (f"reward {s.reward} (c = {s.gospa_c:g} m{confirm}{tail}{resolved}), "
               if s.reward == "gospa" else "")
     searching = f"search on ({sectors} sectors), {reward}" if s.search == "on" else ""
     console.print(tracker if scan is not None else

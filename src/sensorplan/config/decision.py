@@ -121,6 +121,9 @@ class DecisionFile(Strict):
     #: Steps after the horizon over which the ``gospa`` reward still counts a find.
     find_tail: setting_type(RunSettings, "find_tail") = (  # type: ignore[valid-type]
         _problem_default("find_tail"))
+    #: Whether the ``gospa`` reward values what a look tells about a track's existence.
+    track_existence: setting_type(RunSettings, "track_existence") = (  # type: ignore[valid-type]
+        _problem_default("track_existence"))
     #: Epochs of the run before this decision: where a fixed schedule (raster) stands.
     elapsed_epochs: int = _problem_default("elapsed_epochs")
     planner: DecisionPlanner = DecisionPlanner()
@@ -249,7 +252,8 @@ def decision_from_dict(data: Any, planner: str | None = None) -> Decision:
         reported=np.array([t.reported for t in model.targets], dtype=bool).reshape(-1),
         search=model.search, search_sectors=tuple(s.search_sectors for s in model.sensors),
         undetected=_undetected(model), elapsed_epochs=model.elapsed_epochs,
-        reward=model.reward, gospa_c=model.gospa_c, find_tail=model.find_tail)
+        reward=model.reward, gospa_c=model.gospa_c, find_tail=model.find_tail,
+        track_existence=model.track_existence)
     for i, s in enumerate(problem.sensors):
         check_sensor_precision(s, f"sensors[{i}]")
     check_decision_size(problem.horizon, problem.steps_per_epoch, problem.n_targets,

@@ -30,11 +30,35 @@ report threshold) costs ``r c^2/2`` whatever its covariance: if it exists it is 
 term in the first sum is 0; it is found instead, as a point of undetected intensity with
 mass ``r_j`` at its predicted mean (surviving as the cells do), so ``f_s`` counts it too.
 
+With ``track_existence = "resolved"`` a reported track's term adds what the plan's looks
+tell about whether it exists. A track of existence r and capped localisation cost
+``L = min(tr P, c^2/2)`` costs ``r L + (1 - r) c^2/2`` reported and ``r c^2/2`` not; the
+tracker can report it or not, so its bound is the smaller. If every look covering its
+predicted mean through step t misses it (probability ``Q_t = prod (1 - P_d v)`` given that
+it exists), its existence falls and the smaller cost may become not reporting it; the
+expected bound then drops by
+
+.. math::
+    E_t(Q_t) - E_t(1),\qquad
+    E_t(Q) = \max\big(0,\ (1 - r_t)\, c^2/2 - r_t\, Q\, (c^2/2 - L_t)\big),
+
+``r_t = p_S^t r`` (exact for one step: over a longer horizon the track is taken to exist
+throughout if it exists at t), ``L_t`` from the track's covariance without any look (a
+detection's covariance reduction is the first sum's term), summed over t = 1..T
+(``cumulative``) or at T. E is convex, non-increasing in Q and 0 at Q = 1 for a track
+whose existence is above the bound's report point, so the term is at least 0 and largest
+for tracks near it. Every look whose beam covers the track counts (a look detects every
+target in its beam), not only the looks aimed at it. The cost is capped at c^2/2: a track
+whose localisation costs more than a missed target would not be reported anyway.
+
 Why this form: a reported track j costs ``r_j min(tr P_j, c^2) + (1 - r_j) c^2/2`` (a false
-track when it does not exist) and an undetected target c^2/2 while alive; looks change
-neither ``r_j`` nor how many targets live, so the ``(1 - r_j)`` part and every target never
-found cancel in the difference. Unmeasured tracks contribute exactly 0 and measured ones at
-least 0 (a look never widens the covariance), so ``Phi_G >= 0``. Phi_G is a closed form of
+track when it does not exist) and an undetected target c^2/2 while alive; with ``fixed``
+existence looks change neither ``r_j`` nor how many targets live, so the ``(1 - r_j)`` part
+and every target never found cancel in the difference (the expected existence after a look
+is r_j again, and the cost is linear in it; only the choice of not reporting, which makes
+the bound concave in r_j, lets a look's existence information lower it: ``resolved``).
+Unmeasured tracks contribute exactly 0 and measured ones at least 0 (a look never widens
+the covariance), so ``Phi_G >= 0``. Phi_G is a closed form of
 the joint plan, so each player's utility is its marginal contribution and the game stays an
 exact potential game. docs/planning.md derives it.
 
@@ -94,6 +118,11 @@ class GospaContext:
     track_weights : (M,)     r_j for a reported track, 0 for one not reported
     unreported : (U,) int    the tracks not reported, found as points
     points : (U, T, 2)       their predicted ground positions at t = 1..T
+    resolved : (R,) int      with ``track_existence = "resolved"``, the reported tracks
+                             (else empty)
+    resolved_points : (R, T, 2)   their predicted ground positions at t = 1..T
+    resolved_existence : (R, T)   their existence predicted to t, ``p_S^t r``
+    resolved_cost : (R, T)   their localisation cost without a look, ``min(tr Pbar, c^2/2)``
     """
 
     c2: float
@@ -104,6 +133,10 @@ class GospaContext:
     track_weights: FloatArray
     unreported: IntArray
     points: FloatArray
+    resolved: IntArray
+    resolved_points: FloatArray
+    resolved_existence: FloatArray
+    resolved_cost: FloatArray
 
 
 def found_covariance(sctx: SearchParts) -> FloatArray:
@@ -148,23 +181,32 @@ def prepare(sctx: SearchParts) -> GospaContext:
     reported = (np.ones(ctx.M, dtype=bool) if ctx.problem.reported is None
                 else np.asarray(ctx.problem.reported, dtype=bool))
     unreported = np.flatnonzero(~reported)
+    resolved = (np.flatnonzero(reported) if ctx.problem.track_existence == "resolved"
+                else np.zeros(0, dtype=np.int64))
+    survived = float(sctx.survival) ** np.arange(1, ctx.T + 1, dtype=float)
     return GospaContext(c2, g, step_weights(sctx.survival, ctx.T, cumulative,
                                             int(ctx.problem.find_tail)), baseline,
                         cumulative, np.where(reported, ctx.existence, 0.0), unreported,
-                        np.ascontiguousarray(ctx.xbar[unreported, 1:, :2]))
+                        np.ascontiguousarray(ctx.xbar[unreported, 1:, :2]), resolved,
+                        np.ascontiguousarray(ctx.xbar[resolved, 1:, :2]),
+                        np.asarray(ctx.existence, dtype=float)[resolved, None] * survived,
+                        np.minimum(baseline[resolved], 0.5 * c2))
 
 
 def point_detection(sctx: SearchParts, i: int, k: int, positions: FloatArray,
-                    headings: FloatArray) -> FloatArray:
+                    headings: FloatArray, points: FloatArray | None = None) -> FloatArray:
     """``P_d v`` at the unreported tracks' predicted means at each step of epoch k, for
     looks of sensor i: ``(B, e, U)`` from poses ``positions (B, 2)``, ``headings (B,)``
-    (the call :func:`~sensorplan.planners.cells.detection` makes at the cells' centres)."""
+    (the call :func:`~sensorplan.planners.cells.detection` makes at the cells' centres);
+    at ``points (U, T, 2)`` instead when given."""
     ctx, gctx = sctx.ctx, sctx.gospa
     assert gctx is not None
-    e, U = ctx.e, len(gctx.unreported)
+    if points is None:
+        points = gctx.points
+    e, U = ctx.e, len(points)
     positions = np.asarray(positions, dtype=float).reshape(-1, 2)
     B = len(positions)
-    pts = gctx.points[:, (k - 1) * e:k * e]                              # (U, e, 2)
+    pts = points[:, (k - 1) * e:k * e]                                   # (U, e, 2)
     d = pts.transpose(1, 0, 2)[None] - positions[:, None, None, :]       # (B, e, U, 2)
     p = radar.detectable_points(ctx.radar, np.full(B, i, dtype=np.int64),
                                 np.ascontiguousarray(d[..., 0].reshape(B, e * U)),
@@ -183,6 +225,18 @@ def _bound_terms(gctx: GospaContext, traces: FloatArray, measured: BoolArray) ->
     return gctx.track_weights * np.where(measured, np.maximum(term, 0.0), 0.0)
 
 
+def _existence_terms(gctx: GospaContext, miss: FloatArray) -> FloatArray:
+    """The ``resolved`` tracks' existence terms ``(..., R)`` from each step's probability
+    that the plan's looks miss each track, ``miss (..., T, R)`` (module docstring)."""
+    half = 0.5 * gctx.c2
+    r = gctx.resolved_existence.T                                        # (T, R)
+    stake = (1.0 - r) * half
+    gain = r * (half - gctx.resolved_cost.T)
+    Q = np.cumprod(miss, axis=-2)
+    drop = np.maximum(0.0, stake - gain * Q) - np.maximum(0.0, stake - gain)
+    return np.asarray(drop.sum(axis=-2) if gctx.cumulative else drop[..., -1, :])
+
+
 def evaluate(sctx: SearchParts, plan: Plan, headings: FloatArray
              ) -> tuple[float, FloatArray, float, float, IntArray]:
     """Phi_G of ``plan`` whose look headings are ``headings (N, K)``: the reference
@@ -191,7 +245,8 @@ def evaluate(sctx: SearchParts, plan: Plan, headings: FloatArray
     Returns
     -------
     potential : float           m^2
-    information : (M,)          the tracks' terms ``r_j (B_j - G_j)`` (m^2; 0 not reported)
+    information : (M,)          the tracks' terms ``r_j (B_j - G_j)`` (m^2; 0 not reported),
+                                with ``resolved`` existence their existence terms added
     found : float               mu (undetected targets and unreported tracks found)
     weight : float              the bound removed per target found: ``potential =
                                 information.sum() + weight * found`` (g when mu = 0)
@@ -207,6 +262,8 @@ def evaluate(sctx: SearchParts, plan: Plan, headings: FloatArray
     miss = np.ones((K, len(sctx.centres)))
     U = len(gctx.unreported)
     miss_points = np.ones((T, U))
+    R_res = len(gctx.resolved)
+    miss_resolved = np.ones((T, R_res))
     for i in range(N):
         for k in range(1, K + 1):
             if not plan.assigned[i, k - 1]:
@@ -225,6 +282,11 @@ def evaluate(sctx: SearchParts, plan: Plan, headings: FloatArray
                 pp = point_detection(sctx, i, k, pos[None], np.array([th]))[0]
                 for s in range(e):
                     miss_points[(k - 1) * e + s] *= 1.0 - pp[s]
+            if R_res:
+                pr = point_detection(sctx, i, k, pos[None], np.array([th]),
+                                     gctx.resolved_points)[0]
+                for s in range(e):
+                    miss_resolved[(k - 1) * e + s] *= 1.0 - pr[s]
             if j < 0 and (p > 0).any():
                 counts[i, k - 1] = e          # a search look counts at each step it covers
     traces = np.zeros((M, T))
@@ -242,6 +304,8 @@ def evaluate(sctx: SearchParts, plan: Plan, headings: FloatArray
             traces[j, t] = P[0, 0] + P[1, 1]
     measured = np.array([bool(np.any(W[j] != 0.0)) for j in range(M)], dtype=bool)
     info = _bound_terms(gctx, traces, measured)
+    if R_res:
+        info[gctx.resolved] += _existence_terms(gctx, miss_resolved)
     # Undetected targets and unreported tracks found at each step, and how long each find
     # counts.
     D = np.array(sctx.d0, dtype=float)
@@ -304,6 +368,10 @@ def candidate_potentials(sctx: SearchParts, plan: Plan, i: int, k: int,
     f = _batched_finds(sctx.d0, sctx.births, sctx.survival, miss_c, ctx.T, e)
     if len(gctx.unreported):
         f += _candidate_point_finds(sctx, gctx, plan, i, k, headings, pos, assigned, th)
+    if len(gctx.resolved):
+        miss_r = _candidate_point_misses(sctx, plan, i, k, headings, pos, assigned, th,
+                                         gctx.resolved_points)
+        value += _existence_terms(gctx, miss_r).sum(axis=-1)
     return value + gctx.found_value * (f @ gctx.step_weights)
 
 
@@ -312,25 +380,35 @@ def _candidate_point_finds(sctx: SearchParts, gctx: GospaContext, plan: Plan, i:
                            th: FloatArray) -> FloatArray:
     """``(A, T)``: the unreported tracks each candidate's plan finds at each step, every
     other look's misses times the candidate's chain (as the cells' finds)."""
+    miss_c = _candidate_point_misses(sctx, plan, i, k, headings, pos, assigned, th,
+                                     gctx.points)
+    return _batched_finds(sctx.ctx.existence[gctx.unreported], 0.0, sctx.survival, miss_c,
+                          miss_c.shape[1], 1)
+
+
+def _candidate_point_misses(sctx: SearchParts, plan: Plan, i: int, k: int,
+                            headings: FloatArray, pos: FloatArray, assigned: BoolArray,
+                            th: FloatArray, points: FloatArray) -> FloatArray:
+    """``(A, T, U)``: the probability that each candidate's plan misses each of ``points
+    (U, T, 2)`` at each step, every other look's misses times the candidate's chain."""
     ctx = sctx.ctx
     A, L = pos.shape[:2]
     T, e = ctx.T, ctx.e
-    miss = np.ones((T, len(gctx.unreported)))
+    miss = np.ones((T, len(points)))
     for n in range(ctx.N):
         for a in np.flatnonzero(plan.assigned[n]):
             if n == i and a >= k - 1:
                 continue
             p = point_detection(sctx, n, int(a) + 1, plan.positions[n, a][None],
-                                headings[n, a:a + 1])[0]
+                                headings[n, a:a + 1], points)[0]
             miss[a * e:(a + 1) * e] *= 1.0 - p
     miss_c = np.broadcast_to(miss, (A,) + miss.shape).copy()
     for l in range(L):
         if assigned[0, l] or l == 0:
             kk = k + l
             miss_c[:, (kk - 1) * e:kk * e] *= 1.0 - point_detection(sctx, i, kk, pos[:, l],
-                                                                     th[:, l])
-    return _batched_finds(sctx.ctx.existence[gctx.unreported], 0.0, sctx.survival, miss_c,
-                          miss_c.shape[1], 1)
+                                                                     th[:, l], points)
+    return miss_c
 
 
 def _batched_finds(d0: FloatArray, births: FloatArray | float, survival: float,

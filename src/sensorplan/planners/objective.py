@@ -32,3 +32,8 @@ REWARDS = ("information", "gospa")
 #: as a reported one (by its covariance's bound reduction); ``confirm`` as a target to find
 #: (its existence times the chance a look detects it times the bound a find removes).
 UNREPORTED_MODES = ("localise", "confirm")
+#: What a look does to a reported track in the ``gospa`` reward: ``fixed``: it shrinks the
+#: track's covariance only (the track's existence is taken as it is); ``resolved``: it also
+#: tells whether the track exists (a detection confirms it, a miss lowers its existence,
+#: and a track whose existence falls far enough is better not reported).
+TRACK_EXISTENCE_MODES = ("fixed", "resolved")

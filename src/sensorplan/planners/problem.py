@@ -22,7 +22,7 @@ from ..errors import ConfigError
 from ..limits import MAX_BUILDINGS, RANGES, check_count
 from ..models.sensors import SensorParams
 from .objective import (OBJECTIVES, PLANNING_DETECTIONS, REWARDS, SEARCH_MODES,  # noqa: F401
-                        VISIBILITY_MODES, Objective, Visibility)
+                        TRACK_EXISTENCE_MODES, VISIBILITY_MODES, Objective, Visibility)
 
 #: The 8 lattice directions in move order.
 DIRECTIONS = np.array([(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)],
@@ -344,6 +344,12 @@ class PlanningProblem:
         survives: a target not found now stays missed until search finds it, while a
         track's covariance is restored by the next look at it, so its reduction counts
         over the horizon only. 0 (default): the bound over the horizon alone.
+    track_existence : {"fixed", "resolved"}
+        What a look does to a reported track in the ``gospa`` reward. ``fixed`` (default):
+        it shrinks the track's covariance; its existence is taken as it is. ``resolved``:
+        every look whose beam covers the track's predicted mean also tells whether it
+        exists, valued as the bound under the report decision that minimises it
+        (:mod:`sensorplan.planners.gospa_bound`).
     """
 
     means: FloatArray
@@ -369,6 +375,7 @@ class PlanningProblem:
     reward: str = "information"
     gospa_c: float = 50.0
     find_tail: int = 0
+    track_existence: str = "fixed"
 
     def __post_init__(self) -> None:
         # Read-only copies: planners cannot mutate the caller's arrays (or each other's).
@@ -520,7 +527,13 @@ class PlanningProblem:
         if isinstance(tail, bool) or not isinstance(tail, numbers.Integral) or tail < 0:
             raise ConfigError("find_tail", f"must be a whole number of steps >= 0, got "
                               f"{tail!r}")
+        if self.track_existence not in TRACK_EXISTENCE_MODES:
+            raise ConfigError("track_existence", f"must be one of {TRACK_EXISTENCE_MODES}, "
+                              f"got {self.track_existence!r}")
         if self.reward != "gospa":
+            if self.track_existence != "fixed":
+                raise ConfigError("track_existence", "'resolved' is a term of the 'gospa' "
+                                  "reward only; leave it 'fixed' with reward 'information'")
             if tail:
                 raise ConfigError("find_tail", "counts finds in the 'gospa' reward only; "
                                   "leave it 0 with reward 'information'")

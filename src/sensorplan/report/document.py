@@ -385,13 +385,14 @@ def _document(t: StudyTables, rmse: Any, lost: Any, diffs: Any, plan: Any, sensi
     refs = references(study)
     # One column per method setting that differs between methods (planner settings aside),
     # from their declarations; the settings every method shares are listed once below. The
-    # search settings (and the reward, its unreported mode and find tail, which only search
-    # uses) only when a method searches (they change nothing otherwise).
+    # search settings (and the reward, its unreported mode, find tail and track existence,
+    # which only search uses) only when a method searches (they change nothing otherwise).
     searching = any(m.settings.search == "on" for m in study.methods)
     columns = [(path, s.label or f.name) for _, path, f, s in all_settings()
                if s.section != "run" and f.name != "planner_params"
                and (searching or f.name not in ("search", "search_sectors", "reward",
-                                                "unreported", "find_tail"))]
+                                                "unreported", "find_tail",
+                                                "track_existence"))]
     text = {path: [_setting_text(m, path) for m in study.methods] for path, _ in columns}
     varying = [(p, label) for p, label in columns if len(set(text[p])) > 1 or p == "planner"]
     shared = [(p, label) for p, label in columns if (p, label) not in varying]

@@ -407,7 +407,8 @@ class _Schedule:
                                          report.survival, report.cell_cov)
         return {"search": "on", "search_sectors": self.settings.search_sectors,
                 "undetected": undetected, "reward": self.settings.reward,
-                "gospa_c": self.settings.gospa_c, "find_tail": self.settings.find_tail}
+                "gospa_c": self.settings.gospa_c, "find_tail": self.settings.find_tail,
+                "track_existence": self.settings.track_existence}
 
 
 def tracks_index(tracks: TrackSet, labels: IntArray) -> IntArray:

@@ -38,7 +38,8 @@ from ..errors import ConfigError
 from ..limits import (MAX_PLAN_STEPS, MAX_SEARCH_SECTORS, MAX_STEPS, RANGES, SIZE_SETTINGS,
                       Param, Range, coerce)
 from ..planners.objective import (OBJECTIVES, PLANNING_DETECTIONS,
-                                  PLANNING_OCCLUSIONS, REWARDS, SEARCH_MODES, UNREPORTED_MODES,
+                                  PLANNING_OCCLUSIONS, REWARDS, SEARCH_MODES,
+                                  TRACK_EXISTENCE_MODES, UNREPORTED_MODES,
                                   VISIBILITY_MODES)
 from ..tracking.registry import tracker_kinds
 
@@ -666,6 +667,10 @@ class RunSettings(_Settings):
                                    target to find (no effect on the ``information`` reward)
     find_tail : int                steps after the horizon over which the ``gospa``
                                    reward still counts a find (>= 0; default 0: none)
+    track_existence : {"fixed", "resolved"}
+                                   whether the ``gospa`` reward values what a look tells
+                                   about a reported track's existence (``resolved``) or
+                                   only how it shrinks its covariance (``fixed``, default)
     steps : int                    simulation steps S (>= 1)
     gospa_c : float                GOSPA cut-off c (m, > 0) of the run's set metrics
     tracker : TrackerSettings      (a mapping is accepted and converted)
@@ -784,6 +789,18 @@ class RunSettings(_Settings):
              "it, while the next look at a track restores its covariance, so a track's "
              "reduction counts over the horizon only (0, the default: the bound over the "
              "horizon alone; needs reward gospa).")
+    track_existence: str = setting(
+        "fixed", section="planning", cli=("--track-existence",), metavar="MODE",
+        brief="What a look does to a reported track's existence in the gospa reward: "
+              "fixed or resolved",
+        choices=TRACK_EXISTENCE_MODES, noun="track existence mode",
+        help="What a look does to a reported track in the gospa reward: fixed (default) "
+             "shrinks its covariance, its existence taken as it is; resolved also tells "
+             "whether it exists: every look whose beam covers the track's predicted mean "
+             "detects it or lowers its existence, and a track whose existence falls far "
+             "enough costs less not reported, so the reward counts how much the expected "
+             "bound under the better report decision drops (most for tracks near that "
+             "point; needs reward gospa).")
     steps: int = setting(
         100, section="run", cli=("--steps", "-n"), metavar="N", bounds=Range(1, MAX_STEPS),
         brief="Simulation steps of the run",
@@ -820,6 +837,10 @@ class RunSettings(_Settings):
     def _check_search(self) -> None:
         """Search on needs a tracker that keeps an undetected intensity, and sectors; the
         gospa reward needs search on."""
+        if self.track_existence != "fixed" and self.reward != "gospa":
+            raise ConfigError("track_existence", f"'resolved' is a term of the 'gospa' "
+                              f"reward (with search on), got reward {self.reward!r}; leave "
+                              f"it 'fixed'")
         if self.find_tail and self.reward != "gospa":
             raise ConfigError("find_tail", f"counts finds in the 'gospa' reward only (with "
                               f"search on), got reward {self.reward!r}; leave it 0")

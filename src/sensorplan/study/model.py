@@ -56,13 +56,14 @@ def planned_as_written(method: Mapping[str, Any]) -> dict[str, Any]:
     """A method of a ``config.resolved.json`` with the settings it ran with where it
     predates them: before ``tracker.planning_threshold`` existed planning saw the reported
     tracks only, so a method without it gets its report threshold (0.5 unless written), not
-    today's default; likewise the reward, ``unreported``, ``find_tail`` and
-    :data:`TRACKER_SETTINGS_ADDED`."""
+    today's default; likewise the reward, ``unreported``, ``find_tail``,
+    ``track_existence`` and :data:`TRACKER_SETTINGS_ADDED`."""
     m = dict(method)
     # Before the reward existed, every method planned for information.
     m.setdefault("reward", "information")
     m.setdefault("unreported", "localise")
     m.setdefault("find_tail", 0)
+    m.setdefault("track_existence", "fixed")
     tracker = dict(m.get("tracker", {}))
     tracker.setdefault("planning_threshold", tracker.get("report_threshold", 0.5))
     for key, value in TRACKER_SETTINGS_ADDED.items():

@@ -33,7 +33,8 @@ RESULT_KEYS = ("format", "runs", "steps", "gospa_c", "seed", "scenario", "method
 RESULT_DEFAULTS = {"gospa_c": GOSPA_CUTOFF}
 #: Method settings added since, with the value every method written before them ran with.
 #: What a method written before a per-method setting existed ran with.
-METHOD_DEFAULTS = {"reward": "information", "unreported": "localise", "find_tail": 0}
+METHOD_DEFAULTS = {"reward": "information", "unreported": "localise", "find_tail": 0,
+                   "track_existence": "fixed"}
 
 
 def differences(old: Any, new: Any, path: str = "") -> list[str]:
