@@ -23,7 +23,7 @@ ANEES without the run of largest ANEES, and the share of target-steps with NEES 
 (1 % for an honest filter).
 
     python scripts/honest_table.py table DIR [DIR ...]
-    python scripts/honest_table.py paired DIR "A - B" [...]
+    python scripts/honest_table.py paired DIR "A - B" [...] [--pooled]
     python scripts/honest_table.py time STUDY.toml [...] --seed 120429 --runs 2
 
 ``time`` runs ``--runs`` runs of every method of each study file on ``--seed`` (a
@@ -199,24 +199,45 @@ def table_lines(study_dirs: list[str]) -> list[str]:
     return out
 
 
-def paired_lines(study_dir: str, pairs: list[tuple[str, str]]) -> list[str]:
+def paired_lines(study_dir: str, pairs: list[tuple[str, str]],
+                 pooled: bool = False) -> list[str]:
     """For each ``A - B`` of multi-target methods: the held targets lost per run, paired
     (mean difference with its 95 % t-interval), and the runs that lose a held target with
-    A, with B, and with one of them only."""
+    A, with B, and with one of them only. ``pooled``: one more row, the pairs' differences
+    summed per run (:func:`pooled_difference`), for a rule about several planners at once
+    that keeps each run one sample."""
     tables = load_study_dir(study_dir)
     out = ["| A - B | runs | held lost per run: A; B | A - B [paired 95 %] | runs losing "
            "one: A; B | only A; only B |", "|---|--:|--:|--:|--:|--:|"]
+    diffs = []
     for a, b in pairs:
         ca = set_run_counts(tables, a).set_index("run")["held_lost"]
         cb = set_run_counts(tables, b).set_index("run")["held_lost"]
         ca, cb = ca.align(cb, join="inner")
+        diffs.append(ca - cb)
         d = (ca - cb).to_numpy(float)
         mean, lo, hi = t_interval(d)
         la, lb = ca.to_numpy() > 0, cb.to_numpy() > 0
         out.append(f"| {a} - {b} | {d.size} | {ca.mean():.3f}; {cb.mean():.3f} | "
                    f"{mean:+.3f} [{lo:+.3f}, {hi:+.3f}] | {int(la.sum())}; {int(lb.sum())} "
                    f"| {int((la & ~lb).sum())}; {int((lb & ~la).sum())} |")
+    if pooled:
+        d = pooled_difference(diffs)
+        mean, lo, hi = t_interval(d)
+        out.append(f"| the {len(pairs)} pairs summed per run | {d.size} | | "
+                   f"{mean:+.3f} [{lo:+.3f}, {hi:+.3f}] | | |")
     return out
+
+
+def pooled_difference(diffs: list[Any]) -> np.ndarray:
+    """Per run, the sum of several pairs' differences (pandas Series indexed by run), over
+    the runs every pair has: one sample per run, so that a t-interval over them is not
+    narrowed by counting a run's correlated pairs as independent."""
+    total = diffs[0]
+    for d in diffs[1:]:
+        total, d = total.align(d, join="inner")
+        total = total + d
+    return np.asarray(total.sort_index().to_numpy(float))
 
 
 def _pair(text: str) -> tuple[str, str]:
@@ -264,6 +285,8 @@ def main(argv: list[str] | None = None) -> None:
     p = sub.add_parser("paired", help="held targets lost, paired, for 'A - B' pairs")
     p.add_argument("study_dir")
     p.add_argument("pairs", nargs="+", type=_pair)
+    p.add_argument("--pooled", action="store_true",
+                   help="add the pairs' differences summed per run")
     c = sub.add_parser("time", help="time every method of study files on a development seed")
     c.add_argument("study_files", nargs="+")
     c.add_argument("--seed", type=int, required=True)
@@ -272,7 +295,7 @@ def main(argv: list[str] | None = None) -> None:
     if args.command == "table":
         print("\n".join(table_lines(args.study_dirs)))
     elif args.command == "paired":
-        print("\n".join(paired_lines(args.study_dir, args.pairs)))
+        print("\n".join(paired_lines(args.study_dir, args.pairs, args.pooled)))
     else:
         for line in time_lines(args.study_files, args.seed, args.runs):
             print(line, flush=True)

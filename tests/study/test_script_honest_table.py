@@ -157,6 +157,14 @@ def test_paired_counts_are_the_direct_counts(study_dirs) -> None:
     assert cols[4:] == [f"{losing}; {losing}", "0; 0"]
 
 
+def test_pooled_differences_sum_each_runs_pairs() -> None:
+    """Summed per run over the runs both pairs have, in run order."""
+    a = pd.Series([1, 0, -1, 2], index=[3, 0, 1, 2])
+    b = pd.Series([0, -1, 1, 5], index=[0, 1, 2, 9])
+    got = _script().pooled_difference([a, b])
+    assert got.tolist() == [0.0 + 0.0, -1.0 - 1.0, 2.0 + 1.0]
+
+
 def test_verdict_follows_the_rule() -> None:
     script = _script()
     base = script.Cell(study="paper", method="pg", tracker="known", runs=100,
