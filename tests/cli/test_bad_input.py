@@ -1255,6 +1255,30 @@ def test_a_bad_find_tail_is_one_line_naming_the_key(
     assert line.endswith(message)
 
 
+@pytest.mark.parametrize("planning,message", [
+    ('track_existence = "maybe"\n', "unknown track existence mode 'maybe'; choose from fixed, "
+                                     "resolved"),
+    ('track_existence = "resolved"\n', "'resolved' is a term of the 'gospa' reward (with "
+                                        "search on), got reward 'information'; leave it "
+                                        "'fixed'"),
+])
+def test_a_bad_track_existence_is_one_line_naming_the_key(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path, planning: str,
+        message: str) -> None:
+    toml = GNN_TOML.replace('kind = "gnn"', 'kind = "pmb"') + "[planning]\n" + planning
+    line = assert_bad_input(simulate(capsys, tmp_path, toml), "planning.track_existence")
+    assert line.endswith(message)
+
+
+def test_resolved_track_existence_is_shown_in_the_header(
+        capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    toml = (GNN_TOML.replace('kind = "gnn"', 'kind = "pmb"')
+            + '[planning]\nsearch = "on"\nsearch_sectors = 6\ntrack_existence = "resolved"\n')
+    code, out, err = simulate(capsys, tmp_path, toml)
+    assert code == 0, err
+    assert "looks resolve track existence" in " ".join(out.split())
+
+
 def test_a_find_tail_is_shown_in_the_header(capsys: pytest.CaptureFixture[str],
                                             tmp_path: Path) -> None:
     toml = (GNN_TOML.replace('kind = "gnn"', 'kind = "pmb"')
