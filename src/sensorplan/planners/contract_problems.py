@@ -185,8 +185,9 @@ def search_contract_problems() -> tuple[ContractProblem, ...]:
     four sectors per sensor, the third with no track worth looking at (every existence 0:
     only search pays) and the fourth with its targets weighted by random probabilities of
     existence, and one paper-size decision (K = 2, 6 sectors, a 12 x 12 grid); then two tiny
-    ones with the GOSPA-bound reward, one per objective, and one with it and a track not
-    reported. Built once per process."""
+    ones with the GOSPA-bound reward, one per objective, one with it and a track not
+    reported, and that one again with the looks resolving the tracks' existence. Built once
+    per process."""
     out = []
     rng = np.random.default_rng(13)
     j = 0
@@ -236,6 +237,10 @@ def search_contract_problems() -> tuple[ContractProblem, ...]:
             break
     out.append(ContractProblem(f"tiny ({problem.visibility}, cumulative, search, gospa, "
                                "a track not reported)", problem, True))
+    # The same with looks that resolve the reported tracks' existence (their beams count).
+    out.append(ContractProblem(f"tiny ({problem.visibility}, cumulative, search, gospa, "
+                               "a track not reported, existence resolved)",
+                               dataclasses.replace(problem, track_existence="resolved"), True))
     return tuple(out)
 
 
