@@ -264,6 +264,8 @@ def evaluate(sctx: SearchParts, plan: Plan, headings: FloatArray
     miss_points = np.ones((T, U))
     R_res = len(gctx.resolved)
     miss_resolved = np.ones((T, R_res))
+    # The points looks find (tracks not reported) and those whose misses tell existence.
+    points = np.concatenate([gctx.points, gctx.resolved_points])
     for i in range(N):
         for k in range(1, K + 1):
             if not plan.assigned[i, k - 1]:
@@ -278,15 +280,11 @@ def evaluate(sctx: SearchParts, plan: Plan, headings: FloatArray
                 counts[i, k - 1] = int(counted[0].sum())
             p = detection(sctx, i, pos[None], np.array([th]))[0]
             miss[k - 1] *= 1.0 - p
-            if U:
-                pp = point_detection(sctx, i, k, pos[None], np.array([th]))[0]
+            if U or R_res:
+                pp = point_detection(sctx, i, k, pos[None], np.array([th]), points)[0]
                 for s in range(e):
-                    miss_points[(k - 1) * e + s] *= 1.0 - pp[s]
-            if R_res:
-                pr = point_detection(sctx, i, k, pos[None], np.array([th]),
-                                     gctx.resolved_points)[0]
-                for s in range(e):
-                    miss_resolved[(k - 1) * e + s] *= 1.0 - pr[s]
+                    miss_points[(k - 1) * e + s] *= 1.0 - pp[s, :U]
+                    miss_resolved[(k - 1) * e + s] *= 1.0 - pp[s, U:]
             if j < 0 and (p > 0).any():
                 counts[i, k - 1] = e          # a search look counts at each step it covers
     traces = np.zeros((M, T))
@@ -366,24 +364,18 @@ def candidate_potentials(sctx: SearchParts, plan: Plan, i: int, k: int,
         if assigned[0, l] or l == 0:
             miss_c[:, k - 1 + l] *= 1.0 - detection(sctx, i, pos[:, l], th[:, l])
     f = _batched_finds(sctx.d0, sctx.births, sctx.survival, miss_c, ctx.T, e)
-    if len(gctx.unreported):
-        f += _candidate_point_finds(sctx, gctx, plan, i, k, headings, pos, assigned, th)
-    if len(gctx.resolved):
-        miss_r = _candidate_point_misses(sctx, plan, i, k, headings, pos, assigned, th,
-                                         gctx.resolved_points)
-        value += _existence_terms(gctx, miss_r).sum(axis=-1)
+    U, R = len(gctx.unreported), len(gctx.resolved)
+    if U or R:
+        # The tracks not reported (found as points) and the resolved ones (their misses
+        # tell their existence): one pass over the looks for both.
+        miss_p = _candidate_point_misses(sctx, plan, i, k, headings, pos, assigned, th,
+                                         np.concatenate([gctx.points, gctx.resolved_points]))
+        if U:
+            f += _batched_finds(ctx.existence[gctx.unreported], 0.0, sctx.survival,
+                                miss_p[..., :U], ctx.T, 1)
+        if R:
+            value += _existence_terms(gctx, miss_p[..., U:]).sum(axis=-1)
     return value + gctx.found_value * (f @ gctx.step_weights)
-
-
-def _candidate_point_finds(sctx: SearchParts, gctx: GospaContext, plan: Plan, i: int, k: int,
-                           headings: FloatArray, pos: FloatArray, assigned: BoolArray,
-                           th: FloatArray) -> FloatArray:
-    """``(A, T)``: the unreported tracks each candidate's plan finds at each step, every
-    other look's misses times the candidate's chain (as the cells' finds)."""
-    miss_c = _candidate_point_misses(sctx, plan, i, k, headings, pos, assigned, th,
-                                     gctx.points)
-    return _batched_finds(sctx.ctx.existence[gctx.unreported], 0.0, sctx.survival, miss_c,
-                          miss_c.shape[1], 1)
 
 
 def _candidate_point_misses(sctx: SearchParts, plan: Plan, i: int, k: int,
