@@ -17,6 +17,12 @@ table's count) with its run, target, first step, length and class at the stretch
 step (as for ``study``), and the count per target (a recorded truth is the same in every
 run, so a target lost in many runs points at a place or a manoeuvre).
 
+``tail DIR [DIR ...] [--method pmb]``: how the held stretches' lengths fall off, pooled
+over finished studies' tables of one method: for each length L (1, 5, 10, 15, 20, 25,
+30, 40 steps) the stretches of L or more consecutive live steps without a reported track
+after a target's first report, and the runs with one (the honesty table counts L = 20).
+Whether the rule's 20 steps sit on a smooth tail or on a separate failure.
+
 ``closed-loop STUDY.toml --method pmb --seed S --runs R``: runs the method's closed loop on
 seed S (a development seed, not a study's) and records every Bernoulli after every step,
 reported or not, and each look's aim. Each untracked target-step is then
@@ -53,6 +59,8 @@ summarises, for reading one stretch.
 
     python scripts/untracked_diagnosis.py study runs/search_conditions_search
     python scripts/untracked_diagnosis.py held runs/honest_table_traffic_cleaned --method pg
+    python scripts/untracked_diagnosis.py tail runs/search_resolved runs/search_established \
+        --method pg
     python scripts/untracked_diagnosis.py closed-loop studies/search_conditions_search.toml \
         --method pmb --seed 120419 --runs 60 [--planning-threshold 0.1]
     python scripts/untracked_diagnosis.py lost studies/radar_lost_targets.toml --method pmb \
@@ -477,6 +485,39 @@ def held_stretches(step: np.ndarray, assigned: np.ndarray, min_length: int = LOS
     return out
 
 
+#: The stretch lengths ``tail`` counts from (steps).
+TAIL_LENGTHS = (1, 5, 10, 15, 20, 25, 30, 40)
+
+
+def tail_counts(per_run: list[list[int]], lengths: tuple[int, ...] = TAIL_LENGTHS
+                ) -> list[tuple[int, int, int]]:
+    """``(L, stretches of L or more steps, runs with one)`` for each L of ``lengths``, from
+    each run's held stretch lengths ``per_run``."""
+    n = np.array([k for run in per_run for k in run], dtype=np.int64)
+    longest = np.array([max(run, default=0) for run in per_run], dtype=np.int64)
+    return [(L, int(np.sum(n >= L)), int(np.sum(longest >= L))) for L in lengths]
+
+
+def study_tail(directories: list[str], method: str) -> list[str]:
+    """The ``tail`` table of ``method``'s held stretches, pooled over ``directories``."""
+    per_run: list[list[int]] = []
+    for directory in directories:
+        for _, step, target, *_rest, sm, _last in _study_runs(directory, method):
+            lengths: list[int] = []
+            for j in np.unique(target):
+                sel = np.flatnonzero(target == j)
+                sel = sel[np.argsort(step[sel], kind="stable")]
+                lengths += [n for _, n in held_stretches(step[sel], sm.assigned[sel], 1)]
+            per_run.append(lengths)
+    runs = len(per_run)
+    lines = [f"method {method}, {runs} runs ({', '.join(directories)})", "",
+             "| L (steps) | held stretches of L or more | runs with one (%) |",
+             "|--:|--:|--:|"]
+    lines += [f"| {L} | {k} | {r} ({100 * r / max(runs, 1):.2f} %) |"
+              for L, k, r in tail_counts(per_run)]
+    return lines
+
+
 def lost_stretches(study_file: str, method: str, seed: int, runs: int,
                    first_run: int = 0) -> list[str]:
     """Run closed loops ``first_run`` to ``runs - 1`` of ``method`` on ``seed`` and list
@@ -611,6 +652,9 @@ def main(argv: list[str] | None = None) -> None:
     h = sub.add_parser("held")
     h.add_argument("directory")
     h.add_argument("--method", default="pmb")
+    tl = sub.add_parser("tail")
+    tl.add_argument("directories", nargs="+", metavar="DIR")
+    tl.add_argument("--method", default="pmb")
     b = sub.add_parser("closed-loop")
     b.add_argument("study_file")
     b.add_argument("--method", default="pmb")
@@ -647,6 +691,8 @@ def _run(args: argparse.Namespace) -> None:
         print("\n".join(study_breakdown(args.directory, args.method)))
     elif args.what == "held":
         print("\n".join(study_held(args.directory, args.method)))
+    elif args.what == "tail":
+        print("\n".join(study_tail(args.directories, args.method)))
     elif args.what == "lost":
         print("\n".join(lost_stretches(args.study_file, args.method, args.seed, args.runs,
                                         args.first_run)))

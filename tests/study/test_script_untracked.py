@@ -128,3 +128,31 @@ def test_trace_and_lost_refuse_bad_steps_and_unknown_methods(capsys) -> None:
     assert e.value.code == 2
     err = capsys.readouterr().err
     assert "--method" in err and "'nope'" in err and "pmb/split0.1" in err
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_tail_counts_agree_with_a_count_stretch_by_stretch(seed: int) -> None:
+    diag = script_module("untracked_diagnosis")
+    rng = np.random.default_rng(seed)
+    per_run = [[int(k) for k in rng.integers(1, 45, size=rng.integers(0, 6))]
+               for _ in range(int(rng.integers(1, 30)))]
+    got = diag.tail_counts(per_run)
+    assert [L for L, _, _ in got] == list(diag.TAIL_LENGTHS)
+    for L, stretches, runs in got:
+        want_stretches = want_runs = 0
+        for run in per_run:
+            hit = False
+            for k in run:
+                if k >= L:
+                    want_stretches += 1
+                    hit = True
+            want_runs += hit
+        assert (stretches, runs) == (want_stretches, want_runs)
+
+
+def test_tail_counts_of_hand_made_runs() -> None:
+    diag = script_module("untracked_diagnosis")
+    # Run 0: stretches of 3, 22 and 25 steps; run 1: none; run 2: one of 20.
+    got = {L: (k, r) for L, k, r in diag.tail_counts([[3, 22, 25], [], [20]])}
+    assert got[1] == (4, 2) and got[5] == (3, 2) and got[20] == (3, 2)
+    assert got[25] == (1, 1) and got[30] == (0, 0)
