@@ -96,6 +96,26 @@ def test_a_gaussian_with_no_mass_on_the_map_goes_to_the_nearest_cell() -> None:
     assert w.sum() == 0.05 and w[5 * 24 + 0] == 0.05
 
 
+# Tight Gaussians just off the map whose computed mass on it is subnormal: dividing r by
+# it overflowed. The first is a track the search preset recycled at 21 dB (below the map's
+# bottom edge, 14 sd out: its mass there cancels to nothing); the second lies past a corner
+# (about 37 sd right and 8.5 sd above: a product of two tails).
+SUBNORMAL = [([536.160699634646, -12.996275743153298],
+              [[9.014579544805946, -0.4686027770657998], [-0.4686027770657998, 0.836482557300719]],
+              0 * 24 + 21),
+             ([618.5, 604.25], [[0.25, 0.0], [0.0, 0.25]], 23 * 24 + 23)]
+
+
+@pytest.mark.parametrize(("mean", "cov", "cell"), SUBNORMAL)
+def test_a_gaussian_whose_mass_on_the_map_is_subnormal_goes_to_the_nearest_cell(
+        mean, cov, cell) -> None:
+    m, P = np.array([mean]), np.array([cov])
+    on_map = undetected.cell_masses(GRID, m, P).sum()
+    assert 0.0 < on_map < np.finfo(float).tiny
+    w = undetected.recycle(GRID, np.array([0.05]), m, P)
+    assert np.all(np.isfinite(w)) and w.sum() == 0.05 and w[cell] == 0.05
+
+
 @pytest.mark.parametrize("map_edge", [None, "exit", "closed"])
 def test_recycling_conserves_the_expected_number_of_targets(map_edge) -> None:
     # Existences after the predict's survival 0.8: 0.04, 0.0008 (below the pruning

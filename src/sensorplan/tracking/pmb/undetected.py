@@ -290,14 +290,18 @@ def recycle(grid: Grid, r: FloatArray, means: FloatArray, covs: FloatArray) -> F
     ``N(means (K, 2), covs (K, 2, 2))`` become on the cells: each one's cell masses
     (:func:`cell_masses`) scaled to sum to its ``r`` (see the module docstring). A
     Gaussian with no mass on the map that floating point can hold puts its ``r`` in the
-    cell nearest its mean. The result sums to ``r.sum()`` up to rounding."""
+    cell nearest its mean (a mass on the map below the smallest normal double counts as
+    none). The result sums to ``r.sum()`` up to rounding."""
     r = np.asarray(r, dtype=float).reshape(-1)
     out = np.zeros(grid.size)
     if r.size == 0:
         return out
     masses = cell_masses(grid, means, covs)                                 # (K, C)
     on_map = masses.sum(axis=1)
-    some = on_map > 0.0
+    # A subnormal mass on the map (a tight Gaussian just off it, where the tails cancel)
+    # is no mass: dividing r by it overflows, and its few bits are rounding. From the
+    # smallest normal double on, r / on_map is finite and each product at most r.
+    some = on_map >= np.finfo(float).tiny
     out += (r[some] / on_map[some]) @ masses[some]
     if not some.all():
         m = np.asarray(means, dtype=float).reshape(-1, 2)[~some]
