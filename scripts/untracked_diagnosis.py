@@ -177,20 +177,16 @@ def study_held(directory: str, method: str) -> list[str]:
                                                                                method):
         runs += 1
         reported = set(zip(ystep.tolist(), ylabel.tolist()))
-        for j in np.unique(target):
-            sel = np.flatnonzero(target == j)
-            sel = sel[np.argsort(step[sel], kind="stable")]
-            for s0, n in held_stretches(step[sel], sm.assigned[sel]):
-                k = sel[np.searchsorted(step[sel], s0)]
-                d = np.hypot(*(yxy[ystep == s0] - xy[k]).T)
-                if np.any(d < c):
-                    cls = "taken"
-                elif (s0, int(last[k])) in reported:
-                    cls = "displaced"
-                else:
-                    cls = "unreported"
-                per_target[int(j)] = per_target.get(int(j), 0) + 1
-                lines.append(f"| {run} | {j} | {s0} | {n} | {cls} |")
+        for j, k, s0, n in target_stretches(step, target, sm.assigned):
+            d = np.hypot(*(yxy[ystep == s0] - xy[k]).T)
+            if np.any(d < c):
+                cls = "taken"
+            elif (s0, int(last[k])) in reported:
+                cls = "displaced"
+            else:
+                cls = "unreported"
+            per_target[j] = per_target.get(j, 0) + 1
+            lines.append(f"| {run} | {j} | {s0} | {n} | {cls} |")
     lines.append(f"method {method}, {runs} runs: {sum(per_target.values())} held targets "
                  f"lost; per target (target: stretches): "
                  + ", ".join(f"{j}: {v}" for j, v in sorted(per_target.items(),
@@ -485,6 +481,23 @@ def held_stretches(step: np.ndarray, assigned: np.ndarray, min_length: int = LOS
     return out
 
 
+def target_stretches(step: np.ndarray, target: np.ndarray, assigned: np.ndarray,
+                     min_length: int = LOST_STEPS) -> Iterator[tuple[int, int, int, int]]:
+    """Every target's held stretches (``held_stretches``) from rows of many targets, as
+    ``(target, row of the stretch's first step, first step, length)``.
+
+    Parameters
+    ----------
+    step, target : (n,) int    each row's step and target, in any order
+    assigned : (n,) bool    whether a track was assigned to the row's target at its step
+    """
+    for j in np.unique(target):
+        rows = np.flatnonzero(target == j)
+        rows = rows[np.argsort(step[rows], kind="stable")]
+        for s0, n in held_stretches(step[rows], assigned[rows], min_length):
+            yield int(j), int(rows[np.searchsorted(step[rows], s0)]), s0, n
+
+
 #: The stretch lengths ``tail`` counts from (steps).
 TAIL_LENGTHS = (1, 5, 10, 15, 20, 25, 30, 40)
 
@@ -503,12 +516,7 @@ def study_tail(directories: list[str], method: str) -> list[str]:
     per_run: list[list[int]] = []
     for directory in directories:
         for _, step, target, *_rest, sm, _last in _study_runs(directory, method):
-            lengths: list[int] = []
-            for j in np.unique(target):
-                sel = np.flatnonzero(target == j)
-                sel = sel[np.argsort(step[sel], kind="stable")]
-                lengths += [n for _, n in held_stretches(step[sel], sm.assigned[sel], 1)]
-            per_run.append(lengths)
+            per_run.append([n for *_, n in target_stretches(step, target, sm.assigned, 1)])
     runs = len(per_run)
     lines = [f"method {method}, {runs} runs ({', '.join(directories)})", "",
              "| L (steps) | held stretches of L or more | runs with one (%) |",
@@ -538,43 +546,40 @@ def lost_stretches(study_file: str, method: str, seed: int, runs: int,
     for run in range(first_run, runs):
         ep, probe, step, j_idx, xy, sm, last = _recorded_run(study, m.settings, run)
         detected = ep.measured.any(axis=2)                               # (S+1, M)
-        for j in np.unique(j_idx):
-            sel = j_idx == j
-            for s0, n in held_stretches(step[sel], sm.assigned[sel]):
-                s1 = s0 + n
-                k0 = int(np.flatnonzero(sel & (step == s0))[0])
-                cls, lab, r_i, d_i = _classify(probe.bern[s0 - 1], xy[k0], int(last[k0]),
-                                               threshold, c)
-                aimed = sum(lab >= 0 and bool(np.any(probe.aims[t - 1] == lab))
-                            for t in range(s0, s1))
-                seen = int(detected[s0:s1, j].sum())
-                before = int(detected[max(1, s0 - 10):s0, j].sum())
-                gap = ep.sensor_positions[s0:s1] - ep.truth[s0:s1, j, None, :2]
-                ground = np.hypot(gap[..., 0], gap[..., 1])                   # (n, N)
-                dist = float(np.median(ground.min(axis=1)))
-                # A look with the right heading could see it (line of sight aside).
-                n_band = int(((ground >= band[:, 0]) & (ground <= band[:, 1]))
-                             .any(axis=1).sum())
-                # Existence enough to report it, were it not split between Bernoullis.
-                n_sum = sum(_existence_within(probe.bern[t - 1], ep.truth[t, j, :2],
-                                              c) >= threshold
-                            for t in range(s0, s1))
-                # The target's last track before the stretch, from 10 steps before it on.
-                span = list(range(max(1, s0 - 10), s1))
-                pulled = pulled_step(span, [probe.bern[t - 1] for t in span],
-                                     ep.truth[span, j, :2], detected[span, j],
-                                     int(last[k0]))
-                n_pulled += pulled is not None
-                in_band += n_band
-                summed += n_sum
-                steps += n
-                detected_in.append(seen)
-                classes.append(cls)
-                losing.add(run)
-                what = "" if np.isnan(r_i) else f"{r_i:.2f}, {d_i:.0f}"
-                lines.append(f"| {run} | {j} | {s0} | {n} | {seen} | {before} | {dist:.0f} "
-                             f"| {cls} | {what} | {aimed} | {n_band} | {n_sum} "
-                             f"| {'' if pulled is None else pulled} |")
+        for j, k0, s0, n in target_stretches(step, j_idx, sm.assigned):
+            s1 = s0 + n
+            cls, lab, r_i, d_i = _classify(probe.bern[s0 - 1], xy[k0], int(last[k0]),
+                                           threshold, c)
+            aimed = sum(lab >= 0 and bool(np.any(probe.aims[t - 1] == lab))
+                        for t in range(s0, s1))
+            seen = int(detected[s0:s1, j].sum())
+            before = int(detected[max(1, s0 - 10):s0, j].sum())
+            gap = ep.sensor_positions[s0:s1] - ep.truth[s0:s1, j, None, :2]
+            ground = np.hypot(gap[..., 0], gap[..., 1])                   # (n, N)
+            dist = float(np.median(ground.min(axis=1)))
+            # A look with the right heading could see it (line of sight aside).
+            n_band = int(((ground >= band[:, 0]) & (ground <= band[:, 1]))
+                         .any(axis=1).sum())
+            # Existence enough to report it, were it not split between Bernoullis.
+            n_sum = sum(_existence_within(probe.bern[t - 1], ep.truth[t, j, :2],
+                                          c) >= threshold
+                        for t in range(s0, s1))
+            # The target's last track before the stretch, from 10 steps before it on.
+            span = list(range(max(1, s0 - 10), s1))
+            pulled = pulled_step(span, [probe.bern[t - 1] for t in span],
+                                 ep.truth[span, j, :2], detected[span, j],
+                                 int(last[k0]))
+            n_pulled += pulled is not None
+            in_band += n_band
+            summed += n_sum
+            steps += n
+            detected_in.append(seen)
+            classes.append(cls)
+            losing.add(run)
+            what = "" if np.isnan(r_i) else f"{r_i:.2f}, {d_i:.0f}"
+            lines.append(f"| {run} | {j} | {s0} | {n} | {seen} | {before} | {dist:.0f} "
+                         f"| {cls} | {what} | {aimed} | {n_band} | {n_sum} "
+                         f"| {'' if pulled is None else pulled} |")
     d = np.array(detected_in)
     lines.append(f"method {method}, seed {seed}, runs {first_run}-{runs - 1}: {len(d)} held "
                  f"targets lost in "

@@ -43,6 +43,27 @@ def test_held_stretches_of_a_hand_made_target() -> None:
     assert diag.held_stretches(step, np.zeros(60, dtype=bool)) == []
 
 
+@pytest.mark.parametrize("seed", range(10))
+def test_target_stretches_of_shuffled_rows_match_each_target_alone(seed: int) -> None:
+    diag = script_module("untracked_diagnosis")
+    rng = np.random.default_rng(seed)
+    steps, targets, assigned, expected = [], [], [], []
+    for j in (4, 0, 9):
+        n = int(rng.integers(1, 120))
+        st = int(rng.integers(1, 50)) + np.arange(n)
+        a = np.repeat(rng.random(n // 8 + 1) < 0.5, 8)[:n]
+        expected += [(j, s0, k) for s0, k in diag.held_stretches(st, a, 3)]
+        steps.append(st), targets.append(np.full(n, j)), assigned.append(a)
+    step, target, a = (np.concatenate(v) for v in (steps, targets, assigned))
+    order = rng.permutation(len(step))
+    step, target, a = step[order], target[order], a[order]
+    got = list(diag.target_stretches(step, target, a, 3))
+    assert sorted((j, s0, k) for j, _, s0, k in got) == sorted(expected)
+    for j, row, s0, _ in got:
+        # The row named is the target's row at the stretch's first step.
+        assert target[row] == j and step[row] == s0 and not a[row]
+
+
 def test_each_class_of_an_untracked_target_step() -> None:
     diag = script_module("untracked_diagnosis")
     target = np.array([0.0, 0.0])
