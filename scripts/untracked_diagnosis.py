@@ -17,11 +17,14 @@ table's count) with its run, target, first step, length and class at the stretch
 step (as for ``study``), and the count per target (a recorded truth is the same in every
 run, so a target lost in many runs points at a place or a manoeuvre).
 
-``tail DIR [DIR ...] [--method pmb]``: how the held stretches' lengths fall off, pooled
-over finished studies' tables of one method: for each length L (1, 5, 10, 15, 20, 25,
-30, 40 steps) the stretches of L or more consecutive live steps without a reported track
-after a target's first report, and the runs with one (the honesty table counts L = 20).
-Whether the rule's 20 steps sit on a smooth tail or on a separate failure.
+``tail DIR [DIR ...] [--method pmb] [--plot FILE.png [--label TEXT ...]]``: how the held
+stretches' lengths fall off, pooled over finished studies' tables of one method: for each
+length L (1, 5, 10, 15, 20, 25, 30, 40 steps) the stretches of L or more consecutive live
+steps without a reported track after a target's first report, and the runs with one (the
+honesty table counts L = 20). Whether the rule's 20 steps sit on a smooth tail or on a
+separate failure. ``--method`` again for another method's table; ``--plot`` draws each
+directory's share of runs against L (not pooled; ``--label`` names them), a panel per
+method.
 
 ``closed-loop STUDY.toml --method pmb --seed S --runs R``: runs the method's closed loop on
 seed S (a development seed, not a study's) and records every Bernoulli after every step,
@@ -75,6 +78,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -511,12 +515,16 @@ def tail_counts(per_run: list[list[int]], lengths: tuple[int, ...] = TAIL_LENGTH
     return [(L, int(np.sum(n >= L)), int(np.sum(longest >= L))) for L in lengths]
 
 
+def _tail_lengths(directory: str, method: str) -> list[list[int]]:
+    """Each run's held stretch lengths (1 step or more) of ``method`` in a finished study."""
+    return [[n for *_, n in target_stretches(step, target, sm.assigned, 1)]
+            for _, step, target, *_rest, sm, _last in _study_runs(directory, method)]
+
+
 def study_tail(directories: list[str], method: str) -> list[str]:
     """The ``tail`` table of ``method``'s held stretches, pooled over ``directories``."""
-    per_run: list[list[int]] = []
-    for directory in directories:
-        for _, step, target, *_rest, sm, _last in _study_runs(directory, method):
-            per_run.append([n for *_, n in target_stretches(step, target, sm.assigned, 1)])
+    per_run = [run for directory in directories
+               for run in _tail_lengths(directory, method)]
     runs = len(per_run)
     lines = [f"method {method}, {runs} runs ({', '.join(directories)})", "",
              "| L (steps) | held stretches of L or more | runs with one (%) |",
@@ -524,6 +532,41 @@ def study_tail(directories: list[str], method: str) -> list[str]:
     lines += [f"| {L} | {k} | {r} ({100 * r / max(runs, 1):.2f} %) |"
               for L, k, r in tail_counts(per_run)]
     return lines
+
+
+def tail_curve(per_run: list[list[int]]) -> tuple[np.ndarray, np.ndarray]:
+    """``(L, share of runs (%) with a held stretch of L or more steps)`` for every L from 1
+    to one past the longest stretch (where the share is 0)."""
+    longest = max((max(run, default=0) for run in per_run), default=0)
+    lengths = np.arange(1, longest + 2)
+    runs = max(len(per_run), 1)
+    share = np.array([100.0 * r / runs for _, _, r in tail_counts(per_run, tuple(lengths))])
+    return lengths, share
+
+
+def plot_tail(directories: list[str], methods: list[str], labels: list[str],
+              path: str) -> str:
+    """Draw each directory's :func:`tail_curve` (not pooled), a panel per method, on a log
+    scale with the honesty rule's 20 steps and 1 run in 100 marked; written to ``path``."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(4.6 * len(methods), 3.8), dpi=110, layout="constrained")
+    axes = fig.subplots(1, len(methods), sharey=True, squeeze=False)[0]
+    for ax, method in zip(axes, methods):
+        for directory, label in zip(directories, labels):
+            lengths, share = tail_curve(_tail_lengths(directory, method))
+            ax.step(lengths, share, where="post", label=label)
+        ax.axvline(LOST_STEPS, color="0.4", lw=0.8, ls="--")
+        ax.axhline(1.0, color="0.4", lw=0.8, ls=":")
+        ax.set_yscale("log", nonpositive="mask")
+        ax.set_xlabel("L: untracked steps in a row after a first report")
+        ax.set_title(method)
+        ax.grid(True, which="major", lw=0.3)
+    axes[0].set_ylabel("runs with a stretch of L or more (%)")
+    axes[0].legend(fontsize="small", title="study", title_fontsize="small")
+    fig.savefig(path, format="png", metadata={"Software": None}, bbox_inches="tight",
+                pad_inches=0.15)
+    return path
 
 
 def lost_stretches(study_file: str, method: str, seed: int, runs: int,
@@ -659,7 +702,15 @@ def main(argv: list[str] | None = None) -> None:
     h.add_argument("--method", default="pmb")
     tl = sub.add_parser("tail")
     tl.add_argument("directories", nargs="+", metavar="DIR")
-    tl.add_argument("--method", default="pmb")
+    tl.add_argument("--method", action="append", dest="methods", metavar="METHOD",
+                    help="a method's table (and panel); give it again for more "
+                         "(default: pmb)")
+    tl.add_argument("--plot", metavar="PNG",
+                    help="also draw each directory's curve (not pooled), a panel per "
+                         "method, to this file")
+    tl.add_argument("--label", action="append", dest="labels", metavar="TEXT",
+                    help="the plot's name for each directory, in order (default: the "
+                         "directory's name)")
     b = sub.add_parser("closed-loop")
     b.add_argument("study_file")
     b.add_argument("--method", default="pmb")
@@ -682,6 +733,9 @@ def main(argv: list[str] | None = None) -> None:
     t.add_argument("--steps", required=True, type=_step_range,
                    help="first:last step, both printed")
     args = ap.parse_args(argv)
+    if args.what == "tail" and args.labels and len(args.labels) != len(args.directories):
+        ap.error(f"--label: give one per directory ({len(args.directories)} directories, "
+                 f"{len(args.labels)} labels)")
     try:
         _run(args)
     except MethodNotFound as e:
@@ -697,7 +751,12 @@ def _run(args: argparse.Namespace) -> None:
     elif args.what == "held":
         print("\n".join(study_held(args.directory, args.method)))
     elif args.what == "tail":
-        print("\n".join(study_tail(args.directories, args.method)))
+        methods = args.methods or ["pmb"]
+        for i, method in enumerate(methods):
+            print(("\n" if i else "") + "\n".join(study_tail(args.directories, method)))
+        if args.plot:
+            labels = args.labels or [Path(d).name for d in args.directories]
+            print(f"wrote {plot_tail(args.directories, methods, labels, args.plot)}")
     elif args.what == "lost":
         print("\n".join(lost_stretches(args.study_file, args.method, args.seed, args.runs,
                                         args.first_run)))

@@ -177,3 +177,31 @@ def test_tail_counts_of_hand_made_runs() -> None:
     got = {L: (k, r) for L, k, r in diag.tail_counts([[3, 22, 25], [], [20]])}
     assert got[1] == (4, 2) and got[5] == (3, 2) and got[20] == (3, 2)
     assert got[25] == (1, 1) and got[30] == (0, 0)
+
+
+def test_tail_curve_of_hand_made_runs() -> None:
+    diag = script_module("untracked_diagnosis")
+    # Three runs: longest stretches 3, 5 and none.
+    lengths, share = diag.tail_curve([[3, 1], [5], []])
+    assert lengths.tolist() == [1, 2, 3, 4, 5, 6]
+    np.testing.assert_allclose(share, [200 / 3, 200 / 3, 200 / 3, 100 / 3, 100 / 3, 0.0],
+                               rtol=0, atol=1e-12)
+    lengths, share = diag.tail_curve([[], []])
+    assert lengths.tolist() == [1] and share.tolist() == [0.0]
+
+
+def test_tail_plot_draws_a_panel_per_method(tmp_path, monkeypatch) -> None:
+    diag = script_module("untracked_diagnosis")
+    runs = {("a", "pg"): [[3], [25]], ("b", "pg"): [[1]], ("a", "sg"): [[2]],
+            ("b", "sg"): [[]]}
+    monkeypatch.setattr(diag, "_tail_lengths", lambda d, m: runs[(d, m)])
+    path = diag.plot_tail(["a", "b"], ["pg", "sg"], ["A", "B"], str(tmp_path / "t.png"))
+    assert open(path, "rb").read(8) == b"\x89PNG\r\n\x1a\n"
+
+
+def test_tail_refuses_labels_that_do_not_match_the_directories(capsys) -> None:
+    diag = script_module("untracked_diagnosis")
+    with pytest.raises(SystemExit) as e:
+        diag.main(["tail", "x", "y", "--plot", "p.png", "--label", "only one"])
+    assert e.value.code == 2
+    assert "--label" in capsys.readouterr().err
