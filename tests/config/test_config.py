@@ -436,7 +436,7 @@ def test_the_search_preset_recycles_and_earlier_files_keep_what_they_ran() -> No
                "search_mixture_crossing.toml", "search_mixture_crossing_400.toml",
                "honest_table_search_mixture.toml", "search_resolved_dev.toml",
                "search_resolved.toml", "search_established.toml",
-               "search_lookahead_dev.toml", "search_snr.toml"}
+               "search_lookahead_dev.toml", "search_snr.toml", "search_radar18.toml"}
     for path in _search_study_files():
         if path.name.startswith("lookahead") or path.name in current:
             continue
@@ -465,7 +465,7 @@ def test_the_search_preset_keeps_two_components_and_earlier_files_keep_what_they
     current = {"search_mixture_crossing.toml", "search_mixture_crossing_400.toml",
                "honest_table_search_mixture.toml", "search_resolved_dev.toml",
                "search_resolved.toml", "search_established.toml",
-               "search_lookahead_dev.toml", "search_snr.toml"}
+               "search_lookahead_dev.toml", "search_snr.toml", "search_radar18.toml"}
     searched = 0
     for path in _search_study_files():
         if path.name in current:
