@@ -67,8 +67,12 @@ def main(argv: list[str]) -> int:
     if len(argv) < 2 or len(argv) % 2:
         print(__doc__.strip().splitlines()[-1].strip(), file=sys.stderr)
         return 2
-    for before, after in zip(argv[::2], argv[1::2]):
-        table(before, after)
+    try:
+        for before, after in zip(argv[::2], argv[1::2]):
+            table(before, after)
+    except (ConfigError, FileNotFoundError) as err:
+        print(f"before_after.py: error: {err}", file=sys.stderr)
+        return 2
     return 0
 
 

@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sensorplan.errors import ConfigError
 from sensorplan.figures.colors import method_colors, mix_hex
 from sensorplan.decentral import DecentralJSFPPlanner
 from sensorplan.study import (
@@ -339,8 +340,12 @@ def main(argv: list[str] | None = None) -> list[Path]:
     ap.add_argument("--out", type=Path, default=Path("docs/figures/decentral"),
                     help="where the figures and tables go (default docs/figures/decentral)")
     args = ap.parse_args(argv)
+    try:
+        tables = [closed_loop_table(d, s) for d, s in zip((args.paper, args.holes),
+                                                           SCENARIOS)]
+    except ConfigError as err:
+        ap.error(str(err))
     args.out.mkdir(parents=True, exist_ok=True)
-    tables = [closed_loop_table(d, s) for d, s in zip((args.paper, args.holes), SCENARIOS)]
     table = pd.concat(tables, ignore_index=True)
     table.to_csv(args.out / "summary.csv", index=False)
     (args.out / "summary.md").write_text(markdown(table), encoding="utf-8")

@@ -15,6 +15,7 @@ import argparse
 
 import numpy as np
 
+from sensorplan.errors import ConfigError
 from sensorplan.study.metrics import NEES_HIGH, run_metrics, t_interval
 from sensorplan.study.storage import load_study_dir
 
@@ -50,7 +51,10 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("study_dir")
     args = parser.parse_args(argv)
-    print("\n".join(rows(args.study_dir)))
+    try:
+        print("\n".join(rows(args.study_dir)))
+    except ConfigError as err:
+        parser.error(str(err))
 
 
 if __name__ == "__main__":

@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from sensorplan.errors import ConfigError
 from sensorplan.study.metrics import DIVERGED_THRESHOLD, NEES_HIGH, set_methods, t_interval
 from sensorplan.study.set_metrics import LOST_STEPS, set_metrics
 from sensorplan.study.storage import load_study_dir
@@ -207,6 +208,10 @@ def paired_lines(study_dir: str, pairs: list[tuple[str, str]],
     summed per run (:func:`pooled_difference`), for a rule about several planners at once
     that keeps each run one sample."""
     tables = load_study_dir(study_dir)
+    names = [m.name for m in tables.study.methods]
+    for name in sorted({x for pair in pairs for x in pair} - set(names)):
+        raise ConfigError("pairs", f"no method {name!r} in {study_dir} (its methods: "
+                                   f"{', '.join(names)})")
     out = ["| A - B | runs | held lost per run: A; B | A - B [paired 95 %] | runs losing "
            "one: A; B | only A; only B |", "|---|--:|--:|--:|--:|--:|"]
     diffs = []
@@ -292,13 +297,16 @@ def main(argv: list[str] | None = None) -> None:
     c.add_argument("--seed", type=int, required=True)
     c.add_argument("--runs", type=int, default=2)
     args = parser.parse_args(argv)
-    if args.command == "table":
-        print("\n".join(table_lines(args.study_dirs)))
-    elif args.command == "paired":
-        print("\n".join(paired_lines(args.study_dir, args.pairs, args.pooled)))
-    else:
-        for line in time_lines(args.study_files, args.seed, args.runs):
-            print(line, flush=True)
+    try:
+        if args.command == "table":
+            print("\n".join(table_lines(args.study_dirs)))
+        elif args.command == "paired":
+            print("\n".join(paired_lines(args.study_dir, args.pairs, args.pooled)))
+        else:
+            for line in time_lines(args.study_files, args.seed, args.runs):
+                print(line, flush=True)
+    except ConfigError as err:
+        parser.error(str(err))
 
 
 if __name__ == "__main__":

@@ -28,6 +28,8 @@ from typing import Any
 
 import numpy as np
 
+from sensorplan.errors import ConfigError
+
 #: NEES above this is in the top 1 % of chi-square(4).
 NEES_HIGH = 13.28
 #: A velocity jump (m/s, either axis, in one step) the CWNA truth (q = 0.05) never makes:
@@ -159,7 +161,8 @@ def collect(study_path: str, method: str, runs: int, seed: int, assignments: lis
     study = load_study(study_path)
     names = [m.name for m in study.methods]
     if method not in names:
-        raise SystemExit(f"error: {method!r} is not a method of {study_path} ({names})")
+        raise ConfigError("method", f"{method!r} is not a method of {study_path} "
+                                    f"(methods: {', '.join(names)})")
     settings = _settings_with(study.methods[names.index(method)].settings, assignments)
     if steps is not None:
         settings = dataclasses.replace(settings, steps=steps)
@@ -241,8 +244,11 @@ def main(argv: list[str] | None = None) -> None:
     if a.summary:
         print(summary(pd.read_parquet(a.summary), coarse=not a.fine))
         return
-    df = collect(a.study, a.method, a.runs, a.seed, a.set, a.preset, a.steps,
-                 a.episodes)
+    try:
+        df = collect(a.study, a.method, a.runs, a.seed, a.set, a.preset, a.steps,
+                     a.episodes)
+    except ConfigError as err:
+        p.error(str(err))
     if a.out:
         Path(a.out).parent.mkdir(parents=True, exist_ok=True)
         df.to_parquet(a.out)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 
+from sensorplan.errors import ConfigError
 from sensorplan.study.metrics import paired_differences, run_metrics
 from sensorplan.study.storage import load_study_dir
 
@@ -35,8 +36,8 @@ def rows(study_dir: str, pairs: list[tuple[str, str]]) -> list[str]:
     for a, b in pairs:
         for name in (a, b):
             if name not in names:
-                raise SystemExit(f"error: {name!r} is not a method of {study_dir} "
-                                 f"(methods: {', '.join(names)})")
+                raise ConfigError("pairs", f"{name!r} is not a method of {study_dir} "
+                                           f"(methods: {', '.join(names)})")
     metrics = run_metrics(tables)
     d = paired_differences(metrics, tables.study, pairs=pairs)
     worst = tables.steps[tables.steps["step"] >= 1].groupby(
@@ -58,7 +59,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("study_dir")
     parser.add_argument("pairs", nargs="+", type=_pair, metavar="'A - B'")
     args = parser.parse_args(argv)
-    print("\n".join(rows(args.study_dir, args.pairs)))
+    try:
+        print("\n".join(rows(args.study_dir, args.pairs)))
+    except ConfigError as err:
+        parser.error(str(err))
 
 
 if __name__ == "__main__":

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from search_conditions import METRICS, per_run  # scripts/ is on the path when run as a script
+from sensorplan.errors import ConfigError
 from sensorplan.study.metrics import NEES_HIGH, median_interval, run_metrics, t_interval
 from sensorplan.study.set_metrics import GOSPA_CUTOFF, LOST_STEPS
 from sensorplan.study.storage import load_study_dir
@@ -62,8 +63,8 @@ def load(dirs: list[str]) -> tuple[Any, Any, dict[str, dict[str, float]]]:
         if truth is None:
             truth = t
         elif not t.equals(truth):
-            raise SystemExit(f"error: {d}: its truth is not the first study's; the runs "
-                             "cannot be paired")
+            raise ConfigError("STUDY_DIR", f"{d}: its truth is not the first study's; the "
+                                           "runs cannot be paired")
         r = per_run(tables)
         rm = run_metrics(tables)
         rm = rm[rm["kind"] == "all"][["method", "run", "rmse"]]
@@ -72,7 +73,7 @@ def load(dirs: list[str]) -> tuple[Any, Any, dict[str, dict[str, float]]]:
         steps.append(s)
         for m in tables.study.method_names:
             if m in overall:
-                raise SystemExit(f"error: method {m!r} is in two of the studies")
+                raise ConfigError("STUDY_DIR", f"method {m!r} is in two of the studies")
             overall[m] = _overall(s[s["method"] == m])
     return pd.concat(runs, ignore_index=True), pd.concat(steps, ignore_index=True), overall
 
@@ -104,8 +105,8 @@ def rows(dirs: list[str], pairs: list[tuple[str, str]]) -> list[str]:
     for a, b in pairs:
         for name in (a, b):
             if name not in overall:
-                raise SystemExit(f"error: {name!r} is not a method of the studies "
-                                 f"(methods: {', '.join(overall)})")
+                raise ConfigError("pairs", f"{name!r} is not a method of the studies "
+                                           f"(methods: {', '.join(overall)})")
     out = ["| method | metric | mean [95 %] | median | max |", "|---|---|--:|--:|--:|"]
     for m, o in overall.items():
         r = runs[runs["method"] == m]
@@ -148,7 +149,10 @@ def main(argv: list[str] | None = None) -> None:
     pairs = [tuple(p.strip() for p in a.split(" - ", 1)) for a in args.args if " - " in a]
     if not dirs:
         parser.error("give at least one study directory")
-    print("\n".join(rows(dirs, [(a, b) for a, b in pairs])))
+    try:
+        print("\n".join(rows(dirs, [(a, b) for a, b in pairs])))
+    except ConfigError as err:
+        parser.error(str(err))
 
 
 if __name__ == "__main__":

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from sensorplan.errors import ConfigError
 from sensorplan.study.metrics import median_interval, t_interval
 from sensorplan._types import FloatArray
 from sensorplan.study.set_metrics import GOSPA_CUTOFF, LOST_STEPS, set_metrics
@@ -102,6 +103,11 @@ def lost_at_walls(tables: Any, method: str) -> tuple[FloatArray, FloatArray]:
 
 def cell_tables(cell_dir: Path, method: str, reference: str) -> list[str]:
     tables = load_study_dir(cell_dir)
+    names = [m.name for m in tables.study.methods]
+    for flag, name in (("--method", method), ("--reference", reference)):
+        if name not in names:
+            raise ConfigError(flag, f"no method {name!r} in {cell_dir} (its methods: "
+                                    f"{', '.join(names)})")
     runs = per_run(tables)
     anees = anees_assigned(tables)
     out = ["| method | metric | mean [95 %] | median | max |", "|---|---|--:|--:|--:|"]
@@ -144,11 +150,16 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--reference", default="known")
     args = parser.parse_args(argv)
     root = Path(args.grid_dir)
+    if not (root / "grid.json").is_file():
+        parser.error(f"grid_dir: {root} is not a grid directory (no grid.json)")
     info = json.loads((root / "grid.json").read_text())
-    for cell in info["cells"]:
-        print(f"### {cell['slug']}\n")
-        print("\n".join(cell_tables(root / cell["slug"], args.method, args.reference)))
-        print()
+    try:
+        for cell in info["cells"]:
+            print(f"### {cell['slug']}\n")
+            print("\n".join(cell_tables(root / cell["slug"], args.method, args.reference)))
+            print()
+    except ConfigError as err:
+        parser.error(str(err))
 
 
 if __name__ == "__main__":

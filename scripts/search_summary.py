@@ -46,6 +46,7 @@ from typing import Any
 
 import numpy as np
 
+from sensorplan.errors import ConfigError
 from sensorplan.study.metrics import median_interval, t_interval
 from sensorplan.study.set_metrics import LOST_STEPS, set_metrics
 from sensorplan.study.storage import load_study_dir
@@ -293,13 +294,13 @@ def join(parts: list[Any], other_scenario: bool = False) -> Any:
             if key == "scenario" and other_scenario:
                 continue
             if getattr(p.study, key) != getattr(first, key):
-                raise SystemExit(f"error: --with: the studies differ in {key}; their runs "
-                                 "are not paired")
+                raise ConfigError("--with", f"the studies differ in {key}; their runs are "
+                                            "not paired")
     methods = tuple(m for p in parts for m in p.study.methods)
     try:
         study = dataclasses.replace(first, methods=methods)
     except ValueError as exc:        # a repeated method name or a different study-wide key
-        raise SystemExit(f"error: --with: {exc}") from None
+        raise ConfigError("--with", str(exc)) from None
     runs = sorted(set.intersection(*(set(p.runs_done) for p in parts)))
     order = pd.CategoricalDtype(study.method_names, ordered=True)
 
@@ -325,24 +326,32 @@ def main(argv: list[str] | None = None) -> None:
                              "the runs stay paired); a method name that repeats gets the "
                              "directory's name appended, NAME@DIR")
     which = parser.add_mutually_exclusive_group()
-    which.add_argument("--reference", default="myopic",
-                       help="the method the paired differences are taken against")
+    which.add_argument("--reference",
+                       help="the method the paired differences are taken against "
+                            "(default: myopic, where the study has it)")
     which.add_argument("--best-of", metavar="PREFIX",
                        help="take them against the method named PREFIX... with the lowest "
                             "mean GOSPA")
     args = parser.parse_args(argv)
     dirs = [args.study_dir, *args.others]
-    parts = [load_study_dir(d) for d in dirs]
-    if args.other_scenario:
-        taken = {m.name for m in parts[0].study.methods}
-        for i in range(1, len(parts)):
-            parts[i] = renamed(parts[i], Path(dirs[i]).name, taken)
-            taken |= {m.name for m in parts[i].study.methods}
-    tables = join(parts, args.other_scenario) if len(parts) > 1 else parts[0]
+    try:
+        parts = [load_study_dir(d) for d in dirs]
+        if args.other_scenario:
+            taken = {m.name for m in parts[0].study.methods}
+            for i in range(1, len(parts)):
+                parts[i] = renamed(parts[i], Path(dirs[i]).name, taken)
+                taken |= {m.name for m in parts[i].study.methods}
+        tables = join(parts, args.other_scenario) if len(parts) > 1 else parts[0]
+    except ConfigError as err:
+        parser.error(str(err))
     if not tables.complete:
         sys.stderr.write(f"note: {len(tables.runs_done)} of {tables.study.runs} runs finished "
                          "in every directory; the tables use those\n")
-    reference, head = args.reference, []
+    reference, head = args.reference or "myopic", []
+    names = [m.name for m in tables.study.methods]
+    if args.reference is not None and args.reference not in names:
+        parser.error(f"--reference: no method {args.reference!r} in the study (its methods: "
+                     f"{', '.join(names)})")
     if args.best_of is not None:
         try:
             reference, head = best_of_lines(tables, args.best_of)

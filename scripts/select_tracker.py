@@ -6,10 +6,12 @@ results and print the table behind the choice.
 
 from __future__ import annotations
 
-import sys
+import argparse
+from typing import Any
 
 import pandas as pd
 
+from sensorplan.errors import ConfigError
 from sensorplan.study import consistency, load_study_dir, run_metrics, summary
 
 MAX_ANEES = 6.0
@@ -17,8 +19,18 @@ MAX_HIGH_SHARE = 0.05
 TIE = 0.02
 
 
-def main(study_dir: str) -> None:
-    t = load_study_dir(study_dir)
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("study_dir", help="the tracker sweep's study directory")
+    args = parser.parse_args(argv)
+    try:
+        choose(load_study_dir(args.study_dir))
+    except ConfigError as err:
+        parser.error(str(err))
+
+
+def choose(t: Any) -> None:
+    """Print the sweep's table and the configuration its rule chooses."""
     rmse = summary(run_metrics(t), "rmse")
     rmse = rmse[rmse["kind"] == "all"].set_index("method")
     honest = consistency(t)
@@ -60,4 +72,4 @@ def main(study_dir: str) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    main()

@@ -118,6 +118,10 @@ def _study_runs(directory: str, method: str) -> Iterator[tuple[Any, ...]]:
     from sensorplan.study.storage import load_study_dir
 
     tables = load_study_dir(directory)
+    names = [m.name for m in tables.study.methods]
+    if method not in names:
+        raise MethodNotFound(f"--method: {directory} has no method {method!r} (its methods: "
+                             f"{', '.join(names)})")
     c = float(tables.study.methods[0].settings.gospa_c)
     steps = tables.steps[(tables.steps["step"] >= 1) & (tables.steps["method"] == method)]
     tracks = tables.tracks[(tables.tracks["step"] >= 1) & (tables.tracks["method"] == method)]
@@ -736,9 +740,11 @@ def main(argv: list[str] | None = None) -> None:
     if args.what == "tail" and args.labels and len(args.labels) != len(args.directories):
         ap.error(f"--label: give one per directory ({len(args.directories)} directories, "
                  f"{len(args.labels)} labels)")
+    from sensorplan.errors import ConfigError
+
     try:
         _run(args)
-    except MethodNotFound as e:
+    except (MethodNotFound, ConfigError) as e:
         ap.error(str(e))
 
 

@@ -18,5 +18,9 @@ def script_module(name: str) -> Any:
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module          # dataclasses look their module up while defining
-    spec.loader.exec_module(module)
+    try:
+        spec.loader.exec_module(module)
+    except BaseException:
+        del sys.modules[name]           # not half a module for the next caller
+        raise
     return module

@@ -9,6 +9,7 @@ import pandas as pd
 import pytest
 from scipy import stats
 
+from sensorplan.errors import ConfigError
 from sensorplan.study import run_study, study_from_dict
 from script_helpers import script_module
 
@@ -41,5 +42,5 @@ def test_paired_names_an_unknown_method(tmp_path: Path) -> None:
     study = study_from_dict({"runs": 1, "steps": 3, "seed": 7, "scenario": {"preset": "paper"},
                              "methods": [{"name": "random", "planner": "random"}]})
     run_study(study, tmp_path / "s", workers=1)
-    with pytest.raises(SystemExit, match="'myopic' is not a method"):
+    with pytest.raises(ConfigError, match="'myopic' is not a method"):
         _paired_module().rows(str(tmp_path / "s"), [("myopic", "random")])

@@ -10,6 +10,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from sensorplan.errors import ConfigError
 from sensorplan.study import load_study, run_study
 from sensorplan.study.storage import load_study_dir
 from script_helpers import script_module
@@ -159,9 +160,9 @@ def test_parts_of_different_studies_are_refused(study_dir: Path, tmp_path: Path)
     (tmp_path / "c.toml").write_text(STUDY.replace("seed = 17", "seed = 18").split(
         "[[methods]]\nname = \"gnn\"")[0].replace('name = "myopic"', 'name = "other"'))
     run_study(load_study(tmp_path / "c.toml"), tmp_path / "c", workers=1)
-    with pytest.raises(SystemExit, match="differ in seed"):
+    with pytest.raises(ConfigError, match="differ in seed"):
         _script().join([load_study_dir(study_dir), load_study_dir(tmp_path / "c")])
-    with pytest.raises(SystemExit, match="duplicate method name"):
+    with pytest.raises(ConfigError, match="duplicate method name"):
         _script().join([load_study_dir(study_dir), load_study_dir(study_dir)])
 
 
@@ -174,7 +175,7 @@ def test_another_scenario_joins_only_when_asked_and_repeated_names_are_renamed(
     other = dataclasses.replace(whole, study=dataclasses.replace(
         whole.study, scenario=dataclasses.replace(whole.study.scenario, process_noise=0.5)))
     renamed = script.renamed(other, "b", {"myopic", "gnn"})
-    with pytest.raises(SystemExit, match="differ in scenario"):
+    with pytest.raises(ConfigError, match="differ in scenario"):
         script.join([whole, renamed])
     joined = script.join([whole, renamed], other_scenario=True)
     assert joined.study.method_names == ["myopic", "gnn", "myopic@b", "gnn@b"]
