@@ -7,28 +7,24 @@ from pathlib import Path
 
 import pytest
 
-from sensorplan.study import load_study, run_study
+from sensorplan.study import parse_study, run_study
 from script_helpers import script_module
 
+# One short run of one method: the scripts only need a finished study to refuse.
 STUDY = """
 runs = 1
 steps = 12
 seed = 5
-[scenario]
-preset = "search"
-[[methods]]
-name = "pg"
-planner = "pg"
-search = "off"
+scenario = {preset = "search"}
+methods = [{name = "pg", planner = "pg", search = "off"}]
 """
 
 
 @pytest.fixture(scope="module")
 def study_dir(tmp_path_factory) -> Path:
-    base = tmp_path_factory.mktemp("bad_input")
-    (base / "s.toml").write_text(STUDY)
-    run_study(load_study(base / "s.toml"), base / "out", workers=1)
-    return base / "out"
+    out = tmp_path_factory.mktemp("bad_input") / "out"
+    run_study(parse_study(STUDY), out, workers=1)
+    return out
 
 
 def _refused(capsys: pytest.CaptureFixture[str], script: str, argv: list[str]) -> str:
