@@ -209,8 +209,9 @@ def paired_lines(study_dir: str, pairs: list[tuple[str, str]],
     that keeps each run one sample."""
     tables = load_study_dir(study_dir)
     names = [m.name for m in tables.study.methods]
-    for name in sorted({x for pair in pairs for x in pair} - set(names)):
-        raise ConfigError("pairs", f"no method {name!r} in {study_dir} (its methods: "
+    missing = sorted({x for pair in pairs for x in pair} - set(names))
+    if missing:
+        raise ConfigError("pairs", f"no method {missing[0]!r} in {study_dir} (its methods: "
                                    f"{', '.join(names)})")
     out = ["| A - B | runs | held lost per run: A; B | A - B [paired 95 %] | runs losing "
            "one: A; B | only A; only B |", "|---|--:|--:|--:|--:|--:|"]
