@@ -15,7 +15,15 @@ impossible), and the number of steps since the target was last measured.
 The summary prints the ANEES and the share of NEES above 13.28 by event class (the class
 of a target-step is its most recent event within the last 5 steps, else "quiet" or
 "unobserved k" by the time since the last detection), each class's share of all
-target-steps and of the summed NEES: where the excess comes from.
+target-steps and of the summed NEES: where the excess comes from. A second table splits
+the ANEES by target kind into its position and velocity parts (each the NEES of that
+2-vector under its own block of the covariance: 2 for an honest filter), which tells a
+motion model too cautious for one kind of target from an error in the position.
+
+For a multi-target tracker (``pmb``, ``gnn``) a target-step's estimate is the track GOSPA
+assigns to it (target-steps without one are left out), as for the study tables' ANEES;
+its looks aim at tracks, not targets, so only "detected" (by the simulator's record of
+which target a detection came from) and the time since it label those target-steps.
 """
 
 from __future__ import annotations
@@ -63,12 +71,55 @@ def _settings_with(settings: Any, assignments: list[str]) -> Any:
 
 
 def episode_rows(ep: Any, scenario: Any, run: int) -> dict[str, np.ndarray]:
-    """One row per step 1..S and target of episode ``ep``, with the event labels."""
-    from sensorplan.models import radar
-    from sensorplan.models.sensors import ALTITUDE, radar_table
+    """One row per step 1..S and target of episode ``ep``, with the event labels (for a
+    multi-target tracker, one row per target-step with an assigned track)."""
+    from sensorplan.models.sensors import radar_table
+    from sensorplan.study.set_metrics import with_assigned_tracks
 
+    known = ep.settings.tracker.kind == "known"
+    ep = with_assigned_tracks(ep)
     table = radar_table(tuple(s.params for s in scenario.sensors))
     blds = scenario.building_array
+    S1, M, _ = ep.truth.shape
+    none = np.zeros((S1, M), dtype=bool)
+    open_miss, hidden_miss = _missed_looks(ep, table, blds) if known else (none, none)
+    detected = ep.measured.any(axis=2)
+    jump = np.zeros((S1, M), dtype=bool)
+    jump[1:] = (np.abs(np.diff(ep.truth[..., 2:], axis=0)) > BOUNCE_JUMP).any(axis=2)
+    events = {"detected": detected, "open_miss": open_miss, "hidden_miss": hidden_miss,
+              "map": ep.map_corrected, "inflated": ep.inflated, "restart": ep.restarted,
+              "bounce": jump}
+    position, velocity = nees_parts(ep.truth, ep.estimate, ep.cov)
+    rows: dict[str, np.ndarray] = {
+        "run": np.full((S1 - 1) * M, run), "step": np.repeat(np.arange(1, S1), M),
+        "target": np.tile(np.arange(M), S1 - 1),
+        "kind": np.tile(np.array(ep.target_kinds), S1 - 1),
+        "nees": ep.nees[1:].ravel(), "error": ep.error[1:].ravel(),
+        "nees_pos": position[1:].ravel(), "nees_vel": velocity[1:].ravel(),
+        "in_building": _building_mass(ep, blds)[1:].ravel(),
+        "truth_in_view": (_truth_in_view(ep, table) if known else none)[1:].ravel(),
+        "pos_sd": np.sqrt(np.trace(ep.cov[1:, :, :2, :2], axis1=2, axis2=3)).ravel(),
+    }
+    for name, ev in events.items():
+        since = np.full((S1, M), 10**6)
+        last = np.full(M, -10**6)
+        for t in range(S1):
+            last = np.where(ev[t], t, last)
+            since[t] = t - last
+        rows[name] = ev[1:].ravel()
+        rows["since_" + name] = since[1:].ravel()
+    keep = np.isfinite(rows["nees"])          # a multi-target tracker's unassigned steps
+    return {name: column[keep] for name, column in rows.items()}
+
+
+def _missed_looks(ep: Any, table: np.ndarray, blds: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Which target-steps ``(S+1, M)`` had a look at them miss in the open (the target
+    truly outside the field of view), and which a look that a building hid it from (a
+    tracker of known targets: look i at step t aims at target ``looked[t, i]``)."""
+    from sensorplan.models import radar
+    from sensorplan.models.sensors import ALTITUDE
+
     S1, M, _ = ep.truth.shape
     N = ep.looked.shape[1]
     hidden_miss = np.zeros((S1, M), dtype=bool)
@@ -85,31 +136,7 @@ def episode_rows(ep: Any, scenario: Any, run: int) -> dict[str, np.ndarray]:
                 hidden_miss[t, j] = True
             else:
                 open_miss[t, j] = True
-    detected = ep.measured.any(axis=2)
-    jump = np.zeros((S1, M), dtype=bool)
-    jump[1:] = (np.abs(np.diff(ep.truth[..., 2:], axis=0)) > BOUNCE_JUMP).any(axis=2)
-    events = {"detected": detected, "open_miss": open_miss, "hidden_miss": hidden_miss,
-              "map": ep.map_corrected, "inflated": ep.inflated, "restart": ep.restarted,
-              "bounce": jump}
-    rows: dict[str, np.ndarray] = {
-        "run": np.full((S1 - 1) * M, run), "step": np.repeat(np.arange(1, S1), M),
-        "target": np.tile(np.arange(M), S1 - 1),
-        "kind": np.tile(np.array(ep.target_kinds), S1 - 1),
-        "nees": ep.nees[1:].ravel(), "error": ep.error[1:].ravel(),
-        "nees_pos": _position_nees(ep)[1:].ravel(),
-        "in_building": _building_mass(ep, blds)[1:].ravel(),
-        "truth_in_view": _truth_in_view(ep, table)[1:].ravel(),
-        "pos_sd": np.sqrt(np.trace(ep.cov[1:, :, :2, :2], axis1=2, axis2=3)).ravel(),
-    }
-    for name, ev in events.items():
-        since = np.full((S1, M), 10**6)
-        last = np.full(M, -10**6)
-        for t in range(S1):
-            last = np.where(ev[t], t, last)
-            since[t] = t - last
-        rows[name] = ev[1:].ravel()
-        rows["since_" + name] = since[1:].ravel()
-    return rows
+    return open_miss, hidden_miss
 
 
 def _building_mass(ep: Any, blds: np.ndarray) -> np.ndarray:
@@ -121,9 +148,12 @@ def _building_mass(ep: Any, blds: np.ndarray) -> np.ndarray:
     if len(blds) == 0:
         return np.zeros(ep.nees.shape)
     x = standard_points()[:, :2]
-    L = np.linalg.cholesky(ep.cov[..., :2, :2])                           # (S+1, M, 2, 2)
-    pts = ep.estimate[..., None, :2] + np.einsum("...ij,sj->...si", L, x)
-    return inside_buildings(pts, blds).mean(axis=-1)
+    ok = np.isfinite(ep.estimate[..., 0])          # a multi-target tracker's assigned steps
+    L = np.linalg.cholesky(ep.cov[ok][:, :2, :2])
+    pts = ep.estimate[ok][:, None, :2] + np.einsum("nij,sj->nsi", L, x)
+    out = np.full(ok.shape, np.nan)
+    out[ok] = inside_buildings(pts, blds).mean(axis=-1)
+    return out
 
 
 def _truth_in_view(ep: Any, table: np.ndarray) -> np.ndarray:
@@ -143,11 +173,20 @@ def _truth_in_view(ep: Any, table: np.ndarray) -> np.ndarray:
     return out
 
 
-def _position_nees(ep: Any) -> np.ndarray:
-    """NEES of the ground position alone (chi-square(2) for an honest filter), ``(S+1, M)``."""
-    d = ep.truth[..., :2] - ep.estimate[..., :2]
-    w = np.linalg.solve(ep.cov[..., :2, :2], d[..., None])[..., 0]
-    return np.einsum("...i,...i->...", d, w)
+def nees_parts(truth: np.ndarray, estimate: np.ndarray, cov: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """NEES of the position ``[x, y]`` and of the velocity ``[vx, vy]`` alone, each under
+    its own 2 x 2 block of ``cov (..., 4, 4)`` (chi-square(2) for an honest filter: mean 2).
+    NaN where the estimate is."""
+    from sensorplan.tracking.ekf import nees
+
+    def part(s: slice) -> np.ndarray:
+        ok = np.isfinite(estimate[..., 0])
+        out = np.full(ok.shape, np.nan)
+        out[ok] = nees(truth[ok][:, s], estimate[ok][:, s], cov[ok][:, s, s])
+        return out
+
+    return part(slice(0, 2)), part(slice(2, 4))
 
 
 def collect(study_path: str, method: str, runs: int, seed: int, assignments: list[str],
@@ -174,12 +213,13 @@ def collect(study_path: str, method: str, runs: int, seed: int, assignments: lis
     parts = []
     for r in range(runs):
         ep = run_episode(scenario, settings, np.random.SeedSequence(seed, spawn_key=(r,)))
-        parts.append(pd.DataFrame(episode_rows(ep, scenario, r)))
+        rows = pd.DataFrame(episode_rows(ep, scenario, r))
+        parts.append(rows)
         if episodes:
             Path(episodes).mkdir(parents=True, exist_ok=True)
             ep.save(Path(episodes) / f"run_{r}.npz")
-        print(f"run {r}: ANEES {ep.nees[1:].mean():.2f}, RMSE {ep.rmse().mean():.1f} m",
-              file=sys.stderr, flush=True)
+        print(f"run {r}: ANEES {rows['nees'].mean():.2f} over {len(rows)} target-steps, "
+              f"median error {rows['error'].median():.1f} m", file=sys.stderr, flush=True)
     return pd.concat(parts, ignore_index=True)
 
 
@@ -222,6 +262,20 @@ def summary(df: Any, coarse: bool = True) -> str:
                f"NEES > 13.28 {100 * (df['nees'] > NEES_HIGH).mean():.1f} %, "
                f"median run ANEES {runs.median():.2f}, ANEES without the worst run "
                f"{df[df['run'] != runs.idxmax()]['nees'].mean():.2f}")
+    if "nees_vel" in df:
+        out += ["", parts_table(df)]
+    return "\n".join(out)
+
+
+def parts_table(df: Any) -> str:
+    """The ANEES by target kind and in all, with its position and velocity parts (each 2
+    for an honest filter, the whole 4)."""
+    out = ["| target kind | target-steps | ANEES (4) | position part (2) | velocity part (2) |",
+           "|---|--:|--:|--:|--:|"]
+    groups = [(str(k), d) for k, d in df.groupby("kind")] + [("all", df)]
+    for name, d in groups:
+        out.append(f"| {name} | {len(d)} | {d['nees'].mean():.2f} | "
+                   f"{d['nees_pos'].mean():.2f} | {d['nees_vel'].mean():.2f} |")
     return "\n".join(out)
 
 
