@@ -177,11 +177,12 @@ def nees_parts(truth: np.ndarray, estimate: np.ndarray, cov: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray]:
     """NEES of the position ``[x, y]`` and of the velocity ``[vx, vy]`` alone, each under
     its own 2 x 2 block of ``cov (..., 4, 4)`` (chi-square(2) for an honest filter: mean 2).
-    NaN where the estimate is."""
+    NaN where the estimate is NaN (no track assigned)."""
     from sensorplan.tracking.ekf import nees
 
+    ok = np.isfinite(estimate[..., 0])
+
     def part(s: slice) -> np.ndarray:
-        ok = np.isfinite(estimate[..., 0])
         out = np.full(ok.shape, np.nan)
         out[ok] = nees(truth[ok][:, s], estimate[ok][:, s], cov[ok][:, s, s])
         return out
